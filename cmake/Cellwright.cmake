@@ -1,0 +1,49 @@
+# Helpers shared by every area of the tree.
+
+# Warnings as errors on our own targets only (never on third-party headers, which are included as SYSTEM).
+function(cw_warnings target)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wno-sign-conversion
+                                           -Wnon-virtual-dtor -Wold-style-cast -Woverloaded-virtual)
+  if(CW_WERROR)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
+endfunction()
+
+# cw_library(<name> DIR <area> DEPS <targets...> [PRIVATE_DEPS ...] [SYSTEM_INCLUDES ...] [DEFINES ...])
+# An area's library: headers in <area>/include, sources globbed from <area>/src (CONFIGURE_DEPENDS, so adding a file
+# is picked up by the next build without editing CMake).
+function(cw_library name)
+  cmake_parse_arguments(ARG "" "DIR" "DEPS;PRIVATE_DEPS;SYSTEM_INCLUDES;DEFINES" ${ARGN})
+  file(GLOB_RECURSE srcs CONFIGURE_DEPENDS ${ARG_DIR}/src/*.cpp)
+  if(srcs)
+    add_library(${name} STATIC ${srcs})
+    target_include_directories(${name} PUBLIC ${ARG_DIR}/include PRIVATE ${ARG_DIR}/src)
+    target_link_libraries(${name} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+    target_include_directories(${name} SYSTEM PUBLIC ${ARG_SYSTEM_INCLUDES})
+    target_compile_definitions(${name} PUBLIC ${ARG_DEFINES})
+    cw_warnings(${name})
+  else()
+    add_library(${name} INTERFACE)
+    target_include_directories(${name} INTERFACE ${ARG_DIR}/include)
+    target_link_libraries(${name} INTERFACE ${ARG_DEPS})
+    target_include_directories(${name} SYSTEM INTERFACE ${ARG_SYSTEM_INCLUDES})
+    target_compile_definitions(${name} INTERFACE ${ARG_DEFINES})
+  endif()
+endfunction()
+
+# cw_test_suite(<name> DIR <tests/area> DEPS <targets...>)
+# One GoogleTest executable per area, one *_test.cpp file per unit under test.
+function(cw_test_suite name)
+  cmake_parse_arguments(ARG "" "DIR" "DEPS" ${ARGN})
+  file(GLOB_RECURSE srcs CONFIGURE_DEPENDS ${ARG_DIR}/*_test.cpp)
+  if(NOT srcs)
+    return()
+  endif()
+  add_executable(${name} ${srcs})
+  target_include_directories(${name} PRIVATE ${CMAKE_SOURCE_DIR}/tests)
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gmock GTest::gtest_main)
+  target_compile_definitions(${name} PRIVATE CW_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
+                                             CW_TWIN_EXE="$<TARGET_FILE:twin>")
+  cw_warnings(${name})
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ENVIRONMENT "MUJOCO_GL=osmesa")
+endfunction()

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# One entry point for a fresh Debian 12 machine (run as root): install what is missing, build, then run the demo or
+# the test suite. The README's two set-up commands call this script; so does .ci/run.
+#
+#   bash tools/bootstrap.sh demo   # install, build, run the headless demo
+#   bash tools/bootstrap.sh test   # install, build, run every test (ctest)
+#
+# Environment: BUILD_DIR (default build), CW_SANITIZE ('' | 'address,undefined' | 'thread'), JOBS (default nproc).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+mode=${1:-}
+case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exit 2 ;; esac
+
+packages=(
+  build-essential cmake pkg-config git
+  libmujoco-dev libeigen3-dev libopencv-dev libosmesa6-dev liburdfdom-dev libyaml-cpp-dev libtinyxml2-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libfmt-dev libcli11-dev nlohmann-json3-dev graphviz
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "installing: ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+build=${BUILD_DIR:-build}
+jobs=${JOBS:-$(nproc)}
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCW_SANITIZE="${CW_SANITIZE:-}"
+cmake --build "$build" -j "$jobs"
+
+# Rendering is headless everywhere: MuJoCo and our renderer use OSMesa, never a display.
+export MUJOCO_GL=osmesa
+
+case "$mode" in
+  build) ;;
+  demo)
+    mkdir -p out
+    "$build"/tools/twin check scenes/exchange.task
+    "$build"/tools/twin compile scenes/exchange.task
+    ;;
+  test)
+    ctest --test-dir "$build" --output-on-failure -j "$jobs"
+    ;;
+esac

@@ -1,0 +1,113 @@
+// Kinematic chains read from URDF files: forward kinematics, Jacobian and inverse kinematics of a serial arm.
+//
+// A KinematicChain is the serial chain of joints from one link of a URDF (the base) to another (the tip). It is a
+// fixed model: immutable after construction, copyable, and every const method may be called from any thread at the
+// same time. Joint vectors q are ordered from base to tip (joint_names()); revolute joints in radians, prismatic in
+// metres. Poses are in the base link's frame, in metres.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace cellwright::models {
+
+// Directory holding the robot models (models/ in the source tree); the URDF files are in models_dir()/urdf.
+constexpr const char* models_dir() {
+  return CW_MODELS_DIR;
+}
+
+// A joint's travel: radians (revolute) or metres (prismatic). A continuous joint has lower = -inf, upper = +inf.
+struct JointLimit {
+  double lower, upper;
+};
+
+// How hard inverse() tries. Tolerances are the largest errors of an answer it accepts: position in metres, orientation
+// as the angle of the rotation between the reached and the wanted orientation, in radians.
+struct IkOptions {
+  double position_tolerance = 1e-5;
+  double orientation_tolerance = 1e-4;
+  int max_iterations = 200;  // per start
+  int restarts = 8;          // further starts, from fixed pseudo-random joint vectors, after the one from q_seed
+};
+
+enum class IkStatus { kOk, kUnreachable };
+
+struct IkResult {
+  IkStatus status;
+  Eigen::VectorXd q;         // kOk: the joint vector found (within limits). kUnreachable: the best one tried
+  double position_error;     // |p(q) - p_target| in metres, for q above
+  double orientation_error;  // angle of R(q)^T R_target in radians, for q above
+  std::string reason;        // kUnreachable only: why, e.g. "out of reach: 1.32 m from joint1 > max reach 1.16 m"
+};
+
+class KinematicChain {
+ public:
+  // Reads a URDF file and builds the chain from link `base` to link `tip`.
+  // Throws InputError naming the file (and the line where one applies) if the file cannot be read, is not well-formed
+  // XML, is not a valid URDF, lacks either link, `base` is not an ancestor of `tip`, the chain holds a joint type other
+  // than fixed/revolute/continuous/prismatic or a mimic joint, has no movable joint, or has invalid numbers (a zero
+  // axis, a non-finite origin, lower limit > upper limit). Parses are serialized internally (urdfdom's logger is
+  // global); any thread may call it.
+  static KinematicChain from_urdf_file(const std::filesystem::path& urdf, const std::string& base = "base_link",
+                                       const std::string& tip = "tcp");
+  // As from_urdf_file, for URDF text already in memory; errors name `file_label` as the file.
+  static KinematicChain from_urdf_string(const std::string& xml, const std::string& file_label,
+                                         const std::string& base = "base_link", const std::string& tip = "tcp");
+
+  // Number of revolute, continuous and prismatic joints between base and tip.
+  std::size_t dof() const { return joints_.size(); }
+  // Their names, base to tip.
+  const std::vector<std::string>& joint_names() const { return names_; }
+  // Their limits, in the same order.
+  const std::vector<JointLimit>& limits() const { return limits_; }
+  const std::string& base_link() const { return base_; }
+  const std::string& tip_link() const { return tip_; }
+  // True if q has dof() entries, all finite and within limits() (inclusive).
+  bool within_limits(const Eigen::VectorXd& q) const;
+
+  // The tip's pose in the base frame at joint vector q. q.size() must equal dof() (else InternalError); limits are
+  // not enforced here.
+  Eigen::Isometry3d forward(const Eigen::VectorXd& q) const;
+  // The geometric Jacobian of the tip at q, in the base frame: rows 0-2 map joint velocities to the tip origin's
+  // linear velocity, rows 3-5 to its angular velocity. q.size() must equal dof() (else InternalError).
+  Eigen::Matrix<double, 6, Eigen::Dynamic> jacobian(const Eigen::VectorXd& q) const;
+
+  // A joint vector within limits whose tip pose is `target` within the tolerances, preferring the one closest to
+  // q_seed: damped least squares (Levenberg-Marquardt) from q_seed, then, if that fails, from options.restarts fixed
+  // pseudo-random starts, keeping the converged answer nearest q_seed; revolute joints are shifted by whole turns
+  // towards q_seed where the limits allow. The answer's forward kinematics is checked before kOk is returned.
+  // Never throws for an unreachable or non-finite target: returns kUnreachable with a reason. Deterministic: the same
+  // arguments give the same result. q_seed.size() must equal dof() (else InternalError); a seed outside the limits is
+  // clamped into them. Any thread may call it.
+  IkResult inverse(const Eigen::Isometry3d& target, const Eigen::VectorXd& q_seed, const IkOptions& options = {}) const;
+
+  // An upper bound on the distance from joint 1's origin (a point on its axis; it does not move with q) to the tip:
+  // the sum of the distances between successive joint origins and to the tip, plus prismatic travel.
+  double max_reach() const { return max_reach_; }
+  // Joint 1's origin in the base frame.
+  const Eigen::Vector3d& first_joint_origin() const { return first_joint_origin_; }
+
+ private:
+  struct Joint {
+    Eigen::Isometry3d origin;  // from the previous joint's moving frame (or the base) to this joint's frame at q = 0
+    Eigen::Vector3d axis;      // unit axis in this joint's frame
+    bool prismatic;
+  };
+
+  KinematicChain() = default;
+
+  std::string base_, tip_;
+  std::vector<Joint> joints_;
+  std::vector<std::string> names_;
+  std::vector<JointLimit> limits_;
+  Eigen::Isometry3d tip_offset_ = Eigen::Isometry3d::Identity();  // from the last joint's moving frame to the tip
+  double max_reach_ = 0;
+  Eigen::Vector3d first_joint_origin_ = Eigen::Vector3d::Zero();
+};
+
+}  // namespace cellwright::models

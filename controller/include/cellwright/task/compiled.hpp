@@ -50,7 +50,8 @@ struct Semaphore {
   std::string name;
   std::uint32_t initial = 0;
   bool region = false;
-  SourceLocation declared;
+  SourceLocation declared;  // user semaphores/regions: the declaration; inserted events: the command that needs them
+  bool inserted = false;    // inserted by the compiler (lock-step barrier or Put/Get hand-over event)
 };
 
 // A critical region: for each robot, the half-open primitive index ranges [enter, leave) spent inside it.

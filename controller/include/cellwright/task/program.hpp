@@ -1,0 +1,105 @@
+// The task-level language (paper section 2, Table 1): its abstract syntax tree and its parser.
+//
+// A program declares the labels of the environment (robots, workpieces, locations), the semaphores and critical
+// regions, and then says what each robot does, either in one lock-step table (`steps ... end`: robots as columns,
+// steps as lines; a line starts when every command of the line before has finished) or in free per-robot sequences
+// (`sequence ROBOT ... end`). The full language is described in docs/task-language.md.
+//
+// parse_program() checks the syntax and resolves every name against the declarations, so a Program it returns only
+// names things that are declared and of the right kind. What a program *does* (who holds which workpiece, Put/Get
+// pairing, regions entered and left) is checked by compile() in compile.hpp.
+//
+// Thread safety: plain values and pure functions; any thread may call them.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cellwright/common/error.hpp"
+
+namespace cellwright::task {
+
+// The kinds of declared names. All names share one namespace.
+enum class NameKind : std::uint8_t { kRobot, kWorkpiece, kLocation, kSemaphore, kRegion };
+
+// "robot", "workpiece", "location", "semaphore", "region".
+const char* to_string(NameKind k);
+
+// One declared name, e.g. `semaphore s = 2` or one of the names of `robot r1 r2`.
+struct Declaration {
+  NameKind kind = NameKind::kRobot;
+  std::string name;
+  std::uint32_t initial = 0;  // semaphores: initial count; always 0 for the other kinds
+  SourceLocation where;       // the name token in the declaration
+};
+
+enum class CommandKind : std::uint8_t { kPick, kPut, kGet, kPlace, kSignal, kWait, kEnter, kLeave };
+
+// The canonical spelling of the command keyword: "Pick", "Put", "Get", "Place", "signal", "wait", "enter", "leave".
+const char* to_string(CommandKind k);
+
+// One task-level command with its single argument.
+struct Command {
+  CommandKind kind = CommandKind::kPick;
+  std::string argument;                           // the name the command takes
+  NameKind argument_kind = NameKind::kWorkpiece;  // what the argument resolved to (Place: workpiece or location)
+  SourceLocation where;                           // the command keyword
+  SourceLocation argument_where;                  // the argument token
+};
+
+// "Pick A", "Put r2", "signal s1": canonical keyword spelling, one space, the argument.
+std::string to_string(const Command& c);
+
+// One line of the lock-step table.
+struct StepLine {
+  int step = 0;          // 1-based step number: the line's position in the table (the header is not a step)
+  SourceLocation where;  // the line's first token
+  std::vector<std::optional<Command>> cells;  // exactly one per column of the table; nullopt = the robot idles
+};
+
+// The `steps ... end` block.
+struct StepTable {
+  SourceLocation where;                     // the `steps` keyword
+  std::vector<std::string> robots;          // the columns, left to right, as named in the header line
+  std::vector<SourceLocation> robot_where;  // each column's name in the header line
+  std::vector<StepLine> lines;              // in source order
+};
+
+// A `sequence ROBOT ... end` block: one robot's commands, executed one after the other, unsynchronised with the
+// other robots except through semaphores and regions.
+struct Sequence {
+  std::string robot;
+  SourceLocation where;  // the robot name after `sequence`
+  std::vector<Command> commands;
+};
+
+// A parsed, name-resolved program.
+// Invariants (established by parse_program): every name is declared once; the table's robots are distinct robots;
+// no robot is both a table column and a sequence, and no robot has two sequences; every command argument is
+// declared with the kind the command needs (`argument_kind` says which).
+struct Program {
+  std::string file;                       // as given to the parser; used in every SourceLocation
+  std::vector<Declaration> declarations;  // in source order
+  std::optional<StepTable> steps;
+  std::vector<Sequence> sequences;  // in source order
+};
+
+// The declaration of `name`, or nullptr if it is not declared.
+const Declaration* find_declaration(const Program& program, std::string_view name);
+
+// The names declared with kind `kind`, in declaration order.
+std::vector<std::string> declared_names(const Program& program, NameKind kind);
+
+// Parses program text. `file` is used only to name the source in locations and messages.
+// Throws InputError (file, line, column of the offending token) on any syntax error, unknown or misused name,
+// duplicate declaration, robot both in the table and in a sequence, and missing `end`.
+Program parse_program(std::string_view text, const std::string& file);
+
+// Reads and parses a program file. Throws InputError as parse_program does, and when the file cannot be read.
+Program load_program(const std::filesystem::path& path);
+
+}  // namespace cellwright::task

@@ -1,0 +1,179 @@
+// Text forms of compiled programs: primitive names, the `twin compile` listing and the JSON form.
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+
+#include "cellwright/task/compile.hpp"
+#include "cellwright/task/compiled.hpp"
+
+namespace cellwright::task {
+
+const char* to_string(PrimitiveKind k) {
+  switch (k) {
+    case PrimitiveKind::kMove:
+      return "move";
+    case PrimitiveKind::kOpen:
+      return "open";
+    case PrimitiveKind::kClose:
+      return "close";
+    case PrimitiveKind::kSignal:
+      return "signal";
+    case PrimitiveKind::kWait:
+      return "wait";
+  }
+  return "?";
+}
+
+namespace {
+
+const char* target_kind_name(TargetKind k) {
+  switch (k) {
+    case TargetKind::kAbove:
+      return "above";
+    case TargetKind::kAt:
+      return "at";
+    case TargetKind::kHandover:
+      return "handover";
+    case TargetKind::kHandApproach:
+      return "hand_approach";
+    case TargetKind::kHandGrasp:
+      return "hand_grasp";
+    case TargetKind::kHome:
+      return "home";
+  }
+  return "?";
+}
+
+std::string location(const SourceLocation& where) {
+  if (where.line <= 0) return "-";
+  if (where.column <= 0) return fmt::format("{}", where.line);
+  return fmt::format("{}:{}", where.line, where.column);
+}
+
+nlohmann::json location_json(const SourceLocation& where) {
+  return {{"file", where.file}, {"line", where.line}, {"column", where.column}};
+}
+
+std::string names(const std::vector<std::string>& list) {
+  return list.empty() ? std::string("none") : fmt::format("{}", fmt::join(list, " "));
+}
+
+}  // namespace
+
+std::string to_string(const Target& t) {
+  if (t.kind == TargetKind::kHome) return "home";
+  return fmt::format("{}({})", target_kind_name(t.kind), t.object);
+}
+
+std::string to_string(const Primitive& p) {
+  switch (p.kind) {
+    case PrimitiveKind::kMove:
+      return fmt::format("move {}", to_string(p.target));
+    case PrimitiveKind::kOpen:
+      return p.workpiece.empty() ? std::string("open") : fmt::format("open {}", p.workpiece);
+    case PrimitiveKind::kClose:
+      return p.workpiece.empty() ? std::string("close") : fmt::format("close {}", p.workpiece);
+    case PrimitiveKind::kSignal:
+    case PrimitiveKind::kWait:
+      return fmt::format("{} {}", to_string(p.kind), p.event);
+  }
+  return "?";
+}
+
+std::string format_listing(const CompiledProgram& compiled) {
+  // Column widths over the whole listing, so every robot's program lines up the same way.
+  std::size_t index_w = 1;
+  std::size_t text_w = 0;
+  std::size_t where_w = 0;
+  std::size_t task_w = 0;
+  for (const RobotProgram& prog : compiled.programs) {
+    index_w = std::max(index_w, fmt::format("{}", prog.primitives.size()).size());
+    for (const Primitive& p : prog.primitives) {
+      text_w = std::max(text_w, to_string(p).size());
+      where_w = std::max(where_w, location(p.where).size());
+      task_w = std::max(task_w, p.task.size());
+    }
+  }
+  std::string out = fmt::format("program {}\nrobots: {}\nworkpieces: {}\nlocations: {}\n", compiled.file,
+                                names(compiled.robots), names(compiled.workpieces), names(compiled.locations));
+  for (const RobotProgram& prog : compiled.programs) {
+    const std::size_t n = prog.primitives.size();
+    out += n == 0 ? fmt::format("\nrobot {}: no primitives\n", prog.robot)
+                  : fmt::format("\nrobot {}: {} primitive{}\n", prog.robot, n, n == 1 ? "" : "s");
+    for (std::size_t i = 0; i < n; ++i) {
+      const Primitive& p = prog.primitives[i];
+      out += fmt::format("  {:>{}}  {:<{}}  # {:<{}}  {:<{}}  {}\n", i, index_w, to_string(p), text_w,
+                         location(p.where), where_w, p.task, task_w, p.motion);
+    }
+  }
+  if (compiled.semaphores.empty()) {
+    out += "\nsemaphores and events: none\n";
+  } else {
+    std::size_t name_w = 4;
+    for (const Semaphore& s : compiled.semaphores) name_w = std::max(name_w, s.name.size());
+    out += fmt::format("\nsemaphores and events\n  {:<{}}  initial  kind       source\n", "name", name_w);
+    for (const Semaphore& s : compiled.semaphores) {
+      const char* kind = s.region ? "region" : s.inserted ? "event" : "semaphore";
+      out += fmt::format("  {:<{}}  {:>7}  {:<9}  {}\n", s.name, name_w, s.initial, kind, location(s.declared));
+    }
+  }
+  if (compiled.regions.empty()) {
+    out += "\nregions: none\n";
+  } else {
+    out += "\nregions (primitive index ranges [after enter, leave) per robot)\n";
+    for (const RegionUse& r : compiled.regions) {
+      std::vector<std::string> spans;
+      for (const RegionSpan& s : r.spans) spans.push_back(fmt::format("{} [{}, {})", s.robot, s.begin, s.end));
+      out += fmt::format("  {}: {}\n", r.name, spans.empty() ? "not used" : fmt::format("{}", fmt::join(spans, ", ")));
+    }
+  }
+  return out;
+}
+
+nlohmann::json to_json(const CompiledProgram& compiled) {
+  nlohmann::json programs = nlohmann::json::array();
+  for (const RobotProgram& prog : compiled.programs) {
+    nlohmann::json prims = nlohmann::json::array();
+    for (std::size_t i = 0; i < prog.primitives.size(); ++i) {
+      const Primitive& p = prog.primitives[i];
+      nlohmann::json j = {{"index", i},           {"kind", to_string(p.kind)},
+                          {"text", to_string(p)}, {"where", location_json(p.where)},
+                          {"task", p.task},       {"motion", p.motion}};
+      switch (p.kind) {
+        case PrimitiveKind::kMove:
+          j["target"] = {{"kind", target_kind_name(p.target.kind)}, {"object", p.target.object}};
+          break;
+        case PrimitiveKind::kOpen:
+        case PrimitiveKind::kClose:
+          j["workpiece"] = p.workpiece;
+          break;
+        case PrimitiveKind::kSignal:
+        case PrimitiveKind::kWait:
+          j["event"] = p.event;
+          break;
+      }
+      prims.push_back(std::move(j));
+    }
+    programs.push_back({{"robot", prog.robot}, {"primitives", std::move(prims)}});
+  }
+  nlohmann::json semaphores = nlohmann::json::array();
+  for (const Semaphore& s : compiled.semaphores) {
+    semaphores.push_back({{"name", s.name},
+                          {"initial", s.initial},
+                          {"region", s.region},
+                          {"inserted", s.inserted},
+                          {"declared", location_json(s.declared)}});
+  }
+  nlohmann::json regions = nlohmann::json::array();
+  for (const RegionUse& r : compiled.regions) {
+    nlohmann::json spans = nlohmann::json::array();
+    for (const RegionSpan& s : r.spans) spans.push_back({{"robot", s.robot}, {"begin", s.begin}, {"end", s.end}});
+    regions.push_back({{"name", r.name}, {"spans", std::move(spans)}});
+  }
+  return {{"file", compiled.file},           {"robots", compiled.robots},       {"workpieces", compiled.workpieces},
+          {"locations", compiled.locations}, {"programs", std::move(programs)}, {"semaphores", std::move(semaphores)},
+          {"regions", std::move(regions)}};
+}
+
+}  // namespace cellwright::task

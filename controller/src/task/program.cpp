@@ -1,0 +1,642 @@
+// Parser of the task-level language: a line-oriented lexer, a block parser (declarations, one steps table, free
+// sequences) and a name-resolution pass run after the whole file is read, so names may be used before they are
+// declared.
+#include "cellwright/task/program.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <system_error>
+#include <utility>
+
+namespace cellwright::task {
+
+const char* to_string(NameKind k) {
+  switch (k) {
+    case NameKind::kRobot:
+      return "robot";
+    case NameKind::kWorkpiece:
+      return "workpiece";
+    case NameKind::kLocation:
+      return "location";
+    case NameKind::kSemaphore:
+      return "semaphore";
+    case NameKind::kRegion:
+      return "region";
+  }
+  return "?";
+}
+
+const char* to_string(CommandKind k) {
+  switch (k) {
+    case CommandKind::kPick:
+      return "Pick";
+    case CommandKind::kPut:
+      return "Put";
+    case CommandKind::kGet:
+      return "Get";
+    case CommandKind::kPlace:
+      return "Place";
+    case CommandKind::kSignal:
+      return "signal";
+    case CommandKind::kWait:
+      return "wait";
+    case CommandKind::kEnter:
+      return "enter";
+    case CommandKind::kLeave:
+      return "leave";
+  }
+  return "?";
+}
+
+std::string to_string(const Command& c) {
+  return fmt::format("{} {}", to_string(c.kind), c.argument);
+}
+
+const Declaration* find_declaration(const Program& program, std::string_view name) {
+  for (const Declaration& d : program.declarations) {
+    if (d.name == name) return &d;
+  }
+  return nullptr;
+}
+
+std::vector<std::string> declared_names(const Program& program, NameKind kind) {
+  std::vector<std::string> names;
+  for (const Declaration& d : program.declarations) {
+    if (d.kind == kind) names.push_back(d.name);
+  }
+  return names;
+}
+
+namespace {
+
+// ---- lexer -------------------------------------------------------------------------------------------------------
+
+enum class TokenKind : std::uint8_t { kName, kNumber, kEquals, kBar };
+
+struct Token {
+  TokenKind kind = TokenKind::kName;
+  std::string text;
+  int column = 0;  // 1-based byte column
+};
+
+bool is_name_start(char c) {
+  return std::isalpha(static_cast<unsigned char>(c)) != 0 || c == '_';
+}
+bool is_name_char(char c) {
+  return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_';
+}
+bool is_digit(char c) {
+  return c >= '0' && c <= '9';
+}
+bool is_blank(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
+
+std::string lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+// How a token is quoted in messages.
+std::string quoted(const Token& t) {
+  return fmt::format("'{}'", t.text);
+}
+
+std::string describe_char(char c) {
+  const auto u = static_cast<unsigned char>(c);
+  if (u >= 0x21 && u < 0x7f) return fmt::format("'{}'", c);
+  return fmt::format("byte 0x{:02x}", static_cast<unsigned>(u));
+}
+
+// ---- keywords ----------------------------------------------------------------------------------------------------
+
+struct CommandSpec {
+  const char* keyword;  // lower case
+  CommandKind kind;
+  const char* needs;  // what the argument must be, for messages ("a workpiece")
+};
+
+constexpr std::array<CommandSpec, 8> kCommands{{
+    {"pick", CommandKind::kPick, "a workpiece"},
+    {"put", CommandKind::kPut, "a robot"},
+    {"get", CommandKind::kGet, "a robot"},
+    {"place", CommandKind::kPlace, "a workpiece or location"},
+    {"signal", CommandKind::kSignal, "a semaphore"},
+    {"wait", CommandKind::kWait, "a semaphore"},
+    {"enter", CommandKind::kEnter, "a region"},
+    {"leave", CommandKind::kLeave, "a region"},
+}};
+
+// Statements that open a top-level line. Also reserved: they cannot be names.
+constexpr std::array<const char*, 8> kStatements{"robot",  "workpiece", "location", "semaphore",
+                                                 "region", "steps",     "sequence", "end"};
+
+const CommandSpec* find_command(std::string_view word) {
+  const std::string w = lower(word);
+  for (const CommandSpec& c : kCommands) {
+    if (w == c.keyword) return &c;
+  }
+  return nullptr;
+}
+
+const CommandSpec& spec_of(CommandKind kind) {
+  for (const CommandSpec& c : kCommands) {
+    if (c.kind == kind) return c;
+  }
+  return kCommands[0];
+}
+
+bool is_statement(std::string_view word, std::string_view statement) {
+  return lower(word) == statement;
+}
+
+bool is_keyword(std::string_view word) {
+  const std::string w = lower(word);
+  for (const char* s : kStatements) {
+    if (w == s) return true;
+  }
+  return find_command(w) != nullptr;
+}
+
+// A statement keyword that can only begin a top-level line (everything but `end`).
+bool is_top_level_statement(const Token& t) {
+  if (t.kind != TokenKind::kName) return false;
+  const std::string w = lower(t.text);
+  return w != "end" && std::find_if(kStatements.begin(), kStatements.end(), [&](const char* s) { return w == s; }) !=
+                           kStatements.end();
+}
+
+constexpr const char* kCommandList = "Pick, Put, Get, Place, signal, wait, enter or leave";
+
+// ---- parser ------------------------------------------------------------------------------------------------------
+
+class Parser {
+ public:
+  Parser(std::string_view text, std::string file) : text_(text) { program_.file = std::move(file); }
+
+  Program run() {
+    std::size_t pos = 0;
+    int line = 0;
+    while (pos <= text_.size()) {
+      const std::size_t nl = text_.find('\n', pos);
+      const std::size_t end = nl == std::string_view::npos ? text_.size() : nl;
+      ++line;
+      line_ = line;
+      tokens_ = lex(text_.substr(pos, end - pos));
+      if (!tokens_.empty()) parse_line();
+      if (nl == std::string_view::npos) break;
+      pos = nl + 1;
+    }
+    if (mode_ != Mode::kTop) {
+      const char* what = mode_ == Mode::kSequence ? "sequence" : "steps";
+      throw InputError(block_where_, fmt::format("the {} block opened here has no matching 'end' before the end "
+                                                 "of the file",
+                                                 what));
+    }
+    resolve();
+    return std::move(program_);
+  }
+
+ private:
+  enum class Mode : std::uint8_t { kTop, kStepsHeader, kSteps, kSequence };
+
+  SourceLocation at(int column) const { return {program_.file, line_, column}; }
+  SourceLocation at(const Token& t) const { return at(t.column); }
+
+  [[noreturn]] void fail(const Token& t, std::string problem) const { throw InputError(at(t), std::move(problem)); }
+
+  std::vector<Token> lex(std::string_view s) const {
+    std::vector<Token> out;
+    std::size_t i = 0;
+    while (i < s.size()) {
+      const char c = s[i];
+      const int column = static_cast<int>(i) + 1;
+      if (c == '#') break;
+      if (is_blank(c)) {
+        ++i;
+        continue;
+      }
+      if (is_name_start(c)) {
+        std::size_t j = i;
+        while (j < s.size() && is_name_char(s[j])) ++j;
+        out.push_back({TokenKind::kName, std::string(s.substr(i, j - i)), column});
+        i = j;
+      } else if (is_digit(c) || (c == '-' && i + 1 < s.size() && is_digit(s[i + 1]))) {
+        std::size_t j = i + 1;
+        while (j < s.size() && is_name_char(s[j])) ++j;
+        const std::string_view word = s.substr(i, j - i);
+        if (!std::all_of(word.begin() + 1, word.end(), is_digit)) {
+          throw InputError(at(column), fmt::format("'{}' is not a valid name or number: names start with a letter "
+                                                   "or '_', numbers have only digits",
+                                                   word));
+        }
+        out.push_back({TokenKind::kNumber, std::string(word), column});
+        i = j;
+      } else if (c == '=') {
+        out.push_back({TokenKind::kEquals, "=", column});
+        ++i;
+      } else if (c == '|') {
+        out.push_back({TokenKind::kBar, "|", column});
+        ++i;
+      } else {
+        throw InputError(at(column), fmt::format("unexpected character {}", describe_char(c)));
+      }
+    }
+    return out;
+  }
+
+  void parse_line() {
+    switch (mode_) {
+      case Mode::kTop:
+        parse_top();
+        return;
+      case Mode::kStepsHeader:
+      case Mode::kSteps:
+      case Mode::kSequence:
+        parse_block_line();
+        return;
+    }
+  }
+
+  // A name token used as a new name in a declaration.
+  const Token& expect_new_name(std::size_t i, const char* what) const {
+    if (i >= tokens_.size()) {
+      fail(tokens_.back(), fmt::format("{} needs a name after '{}'", what, tokens_.back().text));
+    }
+    const Token& t = tokens_[i];
+    if (t.kind != TokenKind::kName) fail(t, fmt::format("expected a {} name, found {}", what, quoted(t)));
+    if (is_keyword(t.text)) fail(t, fmt::format("'{}' is a keyword and cannot be used as a name", t.text));
+    return t;
+  }
+
+  void declare(NameKind kind, const Token& name, std::uint32_t initial) {
+    if (const Declaration* d = find_declaration(program_, name.text)) {
+      fail(name,
+           fmt::format("'{}' is already declared as a {} on line {}", name.text, to_string(d->kind), d->where.line));
+    }
+    program_.declarations.push_back({kind, name.text, initial, at(name)});
+  }
+
+  void parse_top() {
+    const Token& first = tokens_.front();
+    if (first.kind != TokenKind::kName) {
+      fail(first, fmt::format("expected a statement (robot, workpiece, location, semaphore, region, steps or "
+                              "sequence), found {}",
+                              quoted(first)));
+    }
+    const std::string word = lower(first.text);
+    if (word == "robot" || word == "workpiece" || word == "location" || word == "region") {
+      const NameKind kind = word == "robot"       ? NameKind::kRobot
+                            : word == "workpiece" ? NameKind::kWorkpiece
+                            : word == "location"  ? NameKind::kLocation
+                                                  : NameKind::kRegion;
+      if (tokens_.size() == 1) fail(first, fmt::format("'{}' needs at least one name", first.text));
+      for (std::size_t i = 1; i < tokens_.size(); ++i) declare(kind, expect_new_name(i, to_string(kind)), 0);
+    } else if (word == "semaphore") {
+      if (tokens_.size() == 1) fail(first, fmt::format("'{}' needs at least one name", first.text));
+      std::size_t i = 1;
+      while (i < tokens_.size()) {
+        const Token& name = expect_new_name(i, "semaphore");
+        std::uint32_t initial = 0;
+        ++i;
+        if (i < tokens_.size() && tokens_[i].kind == TokenKind::kEquals) {
+          const Token& eq = tokens_[i];
+          if (i + 1 >= tokens_.size() || tokens_[i + 1].kind != TokenKind::kNumber) {
+            fail(i + 1 < tokens_.size() ? tokens_[i + 1] : eq,
+                 fmt::format("'=' after semaphore '{}' needs its initial count (a number 0 or more)", name.text));
+          }
+          initial = parse_count(tokens_[i + 1], name.text);
+          i += 2;
+        }
+        declare(NameKind::kSemaphore, name, initial);
+      }
+    } else if (word == "steps") {
+      if (program_.steps) {
+        fail(first,
+             fmt::format("only one steps block is allowed; the first is on line {}", program_.steps->where.line));
+      }
+      expect_alone(first);
+      program_.steps.emplace();
+      program_.steps->where = at(first);
+      block_where_ = at(first);
+      mode_ = Mode::kStepsHeader;
+    } else if (word == "sequence") {
+      if (tokens_.size() == 1) fail(first, "'sequence' needs the name of the robot it programs");
+      const Token& robot = tokens_[1];
+      if (robot.kind != TokenKind::kName) fail(robot, fmt::format("expected a robot name, found {}", quoted(robot)));
+      if (tokens_.size() > 2) {
+        fail(tokens_[2], fmt::format("unexpected {} after 'sequence {}': a sequence programs one robot",
+                                     quoted(tokens_[2]), robot.text));
+      }
+      program_.sequences.push_back({robot.text, at(robot), {}});
+      block_where_ = at(first);
+      mode_ = Mode::kSequence;
+    } else if (word == "end") {
+      fail(first, "'end' without an open steps or sequence block");
+    } else if (find_command(word) != nullptr) {
+      fail(first, fmt::format("'{}' must stand inside a steps or sequence block", first.text));
+    } else {
+      fail(first, fmt::format("unknown statement '{}' (expected robot, workpiece, location, semaphore, region, "
+                              "steps or sequence)",
+                              first.text));
+    }
+  }
+
+  std::uint32_t parse_count(const Token& t, const std::string& semaphore) const {
+    if (t.text.front() == '-') {
+      fail(t, fmt::format("the initial count of semaphore '{}' must be 0 or more, not {}", semaphore, t.text));
+    }
+    std::uint64_t value = 0;
+    for (char c : t.text) {
+      value = value * 10 + static_cast<std::uint64_t>(c - '0');
+      if (value > std::numeric_limits<std::uint32_t>::max()) {
+        fail(t, fmt::format("the initial count of semaphore '{}' is too large: {} (at most {})", semaphore, t.text,
+                            std::numeric_limits<std::uint32_t>::max()));
+      }
+    }
+    return static_cast<std::uint32_t>(value);
+  }
+
+  void expect_alone(const Token& first) const {
+    if (tokens_.size() > 1) {
+      fail(tokens_[1], fmt::format("unexpected {} after '{}'", quoted(tokens_[1]), first.text));
+    }
+  }
+
+  void parse_block_line() {
+    const Token& first = tokens_.front();
+    const char* block = mode_ == Mode::kSequence ? "sequence" : "steps";
+    if (first.kind == TokenKind::kName && is_statement(first.text, "end")) {
+      expect_alone(first);
+      if (mode_ == Mode::kStepsHeader) fail(first, "the steps block has no header line naming its robot columns");
+      mode_ = Mode::kTop;
+      return;
+    }
+    if (is_top_level_statement(first)) {
+      fail(first, fmt::format("'{}' inside the {} block opened on line {}: is its 'end' missing?", first.text, block,
+                              block_where_.line));
+    }
+    switch (mode_) {
+      case Mode::kStepsHeader:
+        parse_header();
+        mode_ = Mode::kSteps;
+        return;
+      case Mode::kSteps:
+        parse_step_line();
+        return;
+      case Mode::kSequence:
+        parse_sequence_line();
+        return;
+      case Mode::kTop:
+        return;
+    }
+  }
+
+  // Splits the line's tokens at '|' into [begin, end) index ranges, one per cell.
+  std::vector<std::pair<std::size_t, std::size_t>> cells() const {
+    std::vector<std::pair<std::size_t, std::size_t>> out;
+    std::size_t begin = 0;
+    for (std::size_t i = 0; i < tokens_.size(); ++i) {
+      if (tokens_[i].kind == TokenKind::kBar) {
+        out.emplace_back(begin, i);
+        begin = i + 1;
+      }
+    }
+    out.emplace_back(begin, tokens_.size());
+    return out;
+  }
+
+  void parse_header() {
+    StepTable& table = *program_.steps;
+    const auto columns = cells();
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      const auto [b, e] = columns[c];
+      if (b == e) {
+        // Point at the bar that closes (or, for the last column, opens) the empty cell.
+        const Token& bar = b < tokens_.size() ? tokens_[b] : tokens_[b - 1];
+        fail(bar, fmt::format("column {} of the steps header is empty: the header names one robot per column", c + 1));
+      }
+      const Token& name = tokens_[b];
+      if (name.kind != TokenKind::kName) fail(name, fmt::format("expected a robot name, found {}", quoted(name)));
+      if (find_command(name.text) != nullptr) {
+        fail(name, fmt::format("the first line of a steps block is its header naming the robot columns (like "
+                               "'r1 | r2'), found the command '{}'",
+                               name.text));
+      }
+      if (e - b > 1) {
+        fail(tokens_[b + 1], fmt::format("unexpected {} after robot '{}': separate the header's robot columns "
+                                         "with '|'",
+                                         quoted(tokens_[b + 1]), name.text));
+      }
+      const auto dup = std::find(table.robots.begin(), table.robots.end(), name.text);
+      if (dup != table.robots.end()) {
+        const auto first = static_cast<std::size_t>(dup - table.robots.begin());
+        fail(name, fmt::format("robot '{}' is named twice in the steps header (columns {} and {}): it would get "
+                               "two commands on one line",
+                               name.text, first + 1, c + 1));
+      }
+      table.robots.push_back(name.text);
+      table.robot_where.push_back(at(name));
+    }
+  }
+
+  void parse_step_line() {
+    StepTable& table = *program_.steps;
+    const auto columns = cells();
+    if (columns.size() > table.robots.size()) {
+      const Token& bar = tokens_[columns[table.robots.size()].first - 1];
+      fail(bar, fmt::format("this line has {} cells but the steps header (line {}) names {} robot{}", columns.size(),
+                            table.robot_where.front().line, table.robots.size(), table.robots.size() == 1 ? "" : "s"));
+    }
+    StepLine step;
+    step.step = static_cast<int>(table.lines.size()) + 1;
+    step.where = at(tokens_.front());
+    step.cells.resize(table.robots.size());
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      const auto [b, e] = columns[c];
+      if (b != e) step.cells[c] = parse_command(b, e, table.robots[c], "steps table");
+    }
+    table.lines.push_back(std::move(step));
+  }
+
+  void parse_sequence_line() {
+    Sequence& seq = program_.sequences.back();
+    for (const Token& t : tokens_) {
+      if (t.kind == TokenKind::kBar) {
+        fail(t, fmt::format("'|' separates the columns of the steps table; a sequence has one command per line"));
+      }
+    }
+    seq.commands.push_back(parse_command(0, tokens_.size(), seq.robot, "sequence"));
+  }
+
+  // The command in tokens [b, e) for `robot`.
+  Command parse_command(std::size_t b, std::size_t e, const std::string& robot, const char* block) const {
+    const Token& word = tokens_[b];
+    if (word.kind != TokenKind::kName) {
+      fail(word, fmt::format("expected a command ({}), found {}", kCommandList, quoted(word)));
+    }
+    const CommandSpec* spec = find_command(word.text);
+    if (spec == nullptr) fail(word, fmt::format("unknown command '{}' (expected {})", word.text, kCommandList));
+    if (e - b < 2) fail(word, fmt::format("{} needs an argument: {} name", to_string(spec->kind), spec->needs));
+    const Token& arg = tokens_[b + 1];
+    if (arg.kind != TokenKind::kName) {
+      fail(arg, fmt::format("{} needs {} name, found {}", to_string(spec->kind), spec->needs, quoted(arg)));
+    }
+    if (e - b > 2) {
+      const Token& extra = tokens_[b + 2];
+      if (extra.kind == TokenKind::kName && find_command(extra.text) != nullptr) {
+        fail(extra, fmt::format("two commands for robot '{}' on line {} ('{} {}' and '{}'): the {} allows one "
+                                "command per robot on a line",
+                                robot, line_, word.text, arg.text, extra.text, block));
+      }
+      fail(extra, fmt::format("extra argument {} after '{} {}': {} takes one argument", quoted(extra), word.text,
+                              arg.text, to_string(spec->kind)));
+    }
+    Command cmd;
+    cmd.kind = spec->kind;
+    cmd.argument = arg.text;
+    cmd.where = at(word);
+    cmd.argument_where = at(arg);
+    return cmd;
+  }
+
+  // ---- name resolution (after the whole file is read) ----
+
+  [[noreturn]] static void fail_at(const SourceLocation& where, std::string problem) {
+    throw InputError(where, std::move(problem));
+  }
+
+  void expect_robot(const std::string& name, const SourceLocation& where) const {
+    const Declaration* d = find_declaration(program_, name);
+    if (d == nullptr) fail_at(where, fmt::format("unknown robot '{}'", name));
+    if (d->kind != NameKind::kRobot) {
+      fail_at(where, fmt::format("expected a robot, but '{}' is a {} (declared on line {})", name, to_string(d->kind),
+                                 d->where.line));
+    }
+  }
+
+  void resolve_command(Command& cmd) const {
+    const Declaration* d = find_declaration(program_, cmd.argument);
+    const CommandSpec& spec = spec_of(cmd.kind);
+    std::vector<NameKind> allowed;
+    switch (cmd.kind) {
+      case CommandKind::kPick:
+        allowed = {NameKind::kWorkpiece};
+        break;
+      case CommandKind::kPut:
+      case CommandKind::kGet:
+        allowed = {NameKind::kRobot};
+        break;
+      case CommandKind::kPlace:
+        allowed = {NameKind::kWorkpiece, NameKind::kLocation};
+        break;
+      case CommandKind::kSignal:
+      case CommandKind::kWait:
+        allowed = {NameKind::kSemaphore};
+        break;
+      case CommandKind::kEnter:
+      case CommandKind::kLeave:
+        allowed = {NameKind::kRegion};
+        break;
+    }
+    if (d == nullptr) {
+      // "a workpiece" -> "unknown workpiece 'X'"
+      fail_at(cmd.argument_where, fmt::format("unknown {} '{}'", std::string(spec.needs).substr(2), cmd.argument));
+    }
+    if (std::find(allowed.begin(), allowed.end(), d->kind) == allowed.end()) {
+      std::string hint;
+      if (d->kind == NameKind::kRegion && (cmd.kind == CommandKind::kSignal || cmd.kind == CommandKind::kWait)) {
+        hint = "; use enter/leave for regions";
+      } else if (d->kind == NameKind::kSemaphore &&
+                 (cmd.kind == CommandKind::kEnter || cmd.kind == CommandKind::kLeave)) {
+        hint = "; use signal/wait for semaphores";
+      }
+      fail_at(cmd.argument_where,
+              fmt::format("{} expects {}, but '{}' is a {} (declared on line {}){}", to_string(cmd.kind), spec.needs,
+                          cmd.argument, to_string(d->kind), d->where.line, hint));
+    }
+    cmd.argument_kind = d->kind;
+  }
+
+  void resolve_table(StepTable& table) const {
+    for (std::size_t c = 0; c < table.robots.size(); ++c) expect_robot(table.robots[c], table.robot_where[c]);
+    for (StepLine& line : table.lines) {
+      for (std::optional<Command>& cell : line.cells) {
+        if (cell) resolve_command(*cell);
+      }
+    }
+  }
+
+  void resolve_sequence(Sequence& seq, std::size_t index) const {
+    expect_robot(seq.robot, seq.where);
+    if (program_.steps) {
+      const StepTable& table = *program_.steps;
+      const auto col = std::find(table.robots.begin(), table.robots.end(), seq.robot);
+      if (col != table.robots.end()) {
+        fail_at(seq.where, fmt::format("robot '{}' has a column in the steps table (line {}); a robot is programmed "
+                                       "either in the steps table or in one sequence, not both",
+                                       seq.robot, table.where.line));
+      }
+    }
+    for (std::size_t i = 0; i < index; ++i) {
+      if (program_.sequences[i].robot == seq.robot) {
+        fail_at(seq.where, fmt::format("robot '{}' already has a sequence (line {}); a robot has one sequence at most",
+                                       seq.robot, program_.sequences[i].where.line));
+      }
+    }
+    for (Command& cmd : seq.commands) resolve_command(cmd);
+  }
+
+  // Resolves the blocks in source order, so the first error in the file is the one reported.
+  void resolve() {
+    bool table_done = !program_.steps.has_value();
+    for (std::size_t i = 0; i < program_.sequences.size(); ++i) {
+      if (!table_done && program_.steps->where.line < program_.sequences[i].where.line) {
+        resolve_table(*program_.steps);
+        table_done = true;
+      }
+      resolve_sequence(program_.sequences[i], i);
+    }
+    if (!table_done) resolve_table(*program_.steps);
+  }
+
+  std::string_view text_;
+  Program program_;
+  std::vector<Token> tokens_;
+  int line_ = 0;
+  Mode mode_ = Mode::kTop;
+  SourceLocation block_where_;
+};
+
+}  // namespace
+
+Program parse_program(std::string_view text, const std::string& file) {
+  return Parser(text, file).run();
+}
+
+Program load_program(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) {
+    throw InputError({name, 0, 0}, "cannot read the program: no such file");
+  }
+  if (std::filesystem::is_directory(status)) {
+    throw InputError({name, 0, 0}, "cannot read the program: it is a directory");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError({name, 0, 0}, "cannot read the program: the file cannot be opened");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw InputError({name, 0, 0}, "cannot read the program: read error");
+  return parse_program(text.str(), name);
+}
+
+}  // namespace cellwright::task

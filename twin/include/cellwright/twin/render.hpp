@@ -1,0 +1,69 @@
+// Offscreen snapshots of a scene, headless: software OpenGL through OSMesa, no display and no GPU.
+//
+// MuJoCo 2.2.2 loads its OpenGL functions at run time from whatever context is current when mjr_makeContext runs;
+// the Renderer makes an OSMesa context current first, so MuJoCo renders with OSMesa whatever MUJOCO_GL says.
+//
+// Threads: an OpenGL context is bound to one thread. A Renderer is created, used and destroyed on one thread (its
+// methods check this and throw InternalError otherwise); several Renderers may live on different threads. Rendering
+// reads the mjData (MuJoCo's mjv_updateScene takes it non-const and uses its scratch stack), so no other thread may
+// use that mjData meanwhile.
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <opencv2/core.hpp>
+
+#include <filesystem>
+#include <memory>
+#include <string_view>
+#include <thread>
+
+namespace cellwright::twin {
+
+class Scene;
+
+class Renderer {
+ public:
+  // An OSMesa context and MuJoCo's rendering context for `model`, able to render images up to max_width x
+  // max_height pixels. `model` must outlive the Renderer. Throws std::runtime_error if no OpenGL context can be made
+  // or MuJoCo cannot render offscreen with it; InternalError if a size is not positive.
+  Renderer(const mjModel* model, int max_width, int max_height);
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  int max_width() const { return max_width_; }
+  int max_height() const { return max_height_; }
+
+  // Renders `data` (made for this renderer's model) seen by the model's camera `camera_id`, as a BGR image (OpenCV's
+  // channel order) of width x height pixels, top row first. The camera's vertical field of view spans the image
+  // height. width and height must be within 1..max (else InternalError).
+  cv::Mat render_camera(mjData* data, int camera_id, int width, int height);
+
+  // As render_camera, from a free camera that frames the whole cell from above and in front, at an angle.
+  cv::Mat render_overview(mjData* data, int width, int height);
+
+ private:
+  cv::Mat render(mjData* data, const mjvCamera& camera, int width, int height);
+
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  const mjModel* model_;
+  int max_width_, max_height_;
+  std::thread::id owner_;
+};
+
+// The name that selects render_overview in render_view and `twin snapshot --camera`.
+inline constexpr std::string_view kOverviewCamera = "overview";
+
+// Renders the scene's camera `camera` (kOverviewCamera for the overview) at width x height; a renderer of that size
+// is made for the call. Throws InputError if the scene has no such camera (naming the cameras it has), or if width or
+// height is not within 1..4096; otherwise as Renderer.
+cv::Mat render_view(Scene& scene, std::string_view camera, int width, int height);
+
+// Writes an image as a PNG file atomically: to a temporary file in the same directory, then renamed over `path`, so
+// that readers never see half a file. Throws InputError naming the path if the directory does not exist or the file
+// cannot be written.
+void write_png(const cv::Mat& image, const std::filesystem::path& path);
+
+}  // namespace cellwright::twin

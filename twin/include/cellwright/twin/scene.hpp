@@ -1,0 +1,129 @@
+// The MuJoCo scene of a cell: one MJCF model of the whole cell built from a CellDescription, compiled to an
+// mjModel, with the ids robot control and the renderer need.
+//
+// What the scene holds (docs/cell-description.md, "The simulated cell", says why each choice was made):
+//  - each robot's URDF links as bodies named "<robot>/<link>" with the URDF's inertials and primitive geoms, its
+//    joints as hinge/slide joints "<robot>/<joint>" with their ranges; a position servo per joint and finger
+//    (actuator named like the joint); a wrist force/torque sensor at the flange ("<robot>/wrist_force",
+//    "<robot>/wrist_torque"), finger position sensors ("<robot>/finger_left_pos", ...), touch sensors on the finger
+//    pads ("<robot>/finger_left_touch", ...), arm joint position sensors ("<robot>/joint1_pos", ...) and a site
+//    "<robot>/tcp". A robot based above the floor stands on a pedestal.
+//  - each conveyor as a static frame with a belt body "conveyor/<name>/belt" that slides along the conveyor and is
+//    driven at the belt speed by a velocity actuator "conveyor/<name>/belt"; parts are carried by the friction of
+//    their contact with the moving belt. The belt is longer than the conveyor and is moved back by one period
+//    (wrap_belts) whenever it has run that far, which leaves its flat top, and whatever rests on it, unchanged.
+//  - each machine as a static body "machine/<name>" with its fixture plate; each workpiece as a free body
+//    "workpiece/<name>"; cameras and lights as described; sites "location/<name>" and "handover/<name>" (hidden).
+//
+// Threads: a Scene and its mjData belong to one thread at a time (MuJoCo's mjData is not thread-safe). The
+// functions here install no MuJoCo error or warning handlers: that is the application's choice.
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <array>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cellwright/twin/cell.hpp"
+
+namespace cellwright::twin {
+
+// MuJoCo ids of one robot. Arrays of two are {left, right} fingers.
+struct RobotIds {
+  std::string name;
+  std::vector<std::string> joints;  // MuJoCo names of the arm joints, base to tip ("puma/joint1", ...)
+  std::vector<int> joint, qpos_adr, dof_adr, actuator, joint_pos_sensor;  // per arm joint, same order
+  std::array<int, 2> finger_joint{}, finger_qpos_adr{}, finger_dof_adr{}, finger_actuator{};
+  std::array<int, 2> finger_pos_sensor{}, finger_touch_sensor{};
+  std::array<double, 2> finger_range{};  // finger joint travel {closed, open} (metres, same for both fingers)
+  int wrist_force_sensor = -1, wrist_torque_sensor = -1;  // 3 values each: force (N) and torque (N m) on the flange
+  int tcp_site = -1, wrist_site = -1;
+  int base_body = -1, flange_body = -1;
+  std::vector<double> home;  // radians, per arm joint
+};
+
+struct ConveyorIds {
+  std::string name;
+  int body = -1, belt_body = -1, belt_joint = -1, belt_qpos_adr = -1, belt_dof_adr = -1, belt_actuator = -1;
+  double speed = 0;  // the belt speed the description asks for, m/s
+  double wrap = 0;   // belt travel after which wrap_belts moves it back
+};
+
+struct MachineIds {
+  std::string name;
+  int body = -1;
+  int fixture_geom = -1;
+};
+
+struct WorkpieceIds {
+  std::string name;
+  int body = -1, joint = -1, qpos_adr = -1, dof_adr = -1, geom = -1;
+};
+
+class Scene {
+ public:
+  Scene(Scene&&) noexcept;
+  Scene& operator=(Scene&&) noexcept;
+  ~Scene();
+
+  const mjModel* model() const { return model_.get(); }
+  mjData* data() { return data_.get(); }
+  const mjData* data() const { return data_.get(); }
+  const CellDescription& cell() const { return cell_; }
+  const std::string& mjcf() const { return mjcf_; }
+
+  const std::vector<RobotIds>& robots() const { return robots_; }
+  const std::vector<ConveyorIds>& conveyors() const { return conveyors_; }
+  const std::vector<MachineIds>& machines() const { return machines_; }
+  const std::vector<WorkpieceIds>& workpieces() const { return workpieces_; }
+  // Lookups by name; nullptr when there is none.
+  const RobotIds* find_robot(std::string_view name) const;
+  const ConveyorIds* find_conveyor(std::string_view name) const;
+  const WorkpieceIds* find_workpiece(std::string_view name) const;
+  // MuJoCo id of the camera with this name, -1 if there is none.
+  int camera_id(std::string_view name) const;
+
+  // Puts the cell in its described initial state: robots at home with open grippers and servo targets there,
+  // workpieces at their initial poses at rest, belts at their speed; time 0; then mj_forward.
+  void reset();
+  // Advances the simulation by n steps of the model's timestep, wrapping the belts after each step.
+  void step(int n = 1);
+  // Moves each belt back by its wrap distance once it has run that far. Call after every mj_step on this scene's
+  // model when stepping without step(); `data` must have been made for this scene's model.
+  void wrap_belts(mjData* data) const;
+
+ private:
+  friend Scene build_scene(const CellDescription& cell);
+  Scene() = default;
+
+  struct ModelDeleter {
+    void operator()(mjModel* m) const { mj_deleteModel(m); }
+  };
+  struct DataDeleter {
+    void operator()(mjData* d) const { mj_deleteData(d); }
+  };
+
+  CellDescription cell_;
+  std::string mjcf_;
+  std::unique_ptr<mjModel, ModelDeleter> model_;
+  std::unique_ptr<mjData, DataDeleter> data_;
+  std::vector<RobotIds> robots_;
+  std::vector<ConveyorIds> conveyors_;
+  std::vector<MachineIds> machines_;
+  std::vector<WorkpieceIds> workpieces_;
+};
+
+// The MJCF text of the whole cell. Reads each robot's URDF (primitive geometry only: box, cylinder, sphere).
+// Throws InputError naming the URDF when it cannot be read or lacks what the scene needs (links flange and tcp,
+// prismatic joints finger_left_joint and finger_right_joint, inertials on moving links, no mesh geometry).
+std::string scene_mjcf(const CellDescription& cell);
+
+// Builds the MJCF, compiles it in memory (MuJoCo's virtual file system: nothing is written to disk) and returns
+// the scene, reset to its initial state. Throws InputError as scene_mjcf, or naming the cell file with MuJoCo's
+// message if MuJoCo rejects the model.
+Scene build_scene(const CellDescription& cell);
+
+}  // namespace cellwright::twin

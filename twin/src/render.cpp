@@ -1,0 +1,201 @@
+// Offscreen rendering with OSMesa (render.hpp).
+#include "cellwright/twin/render.hpp"
+
+#include <GL/osmesa.h>
+#include <unistd.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <stdexcept>
+#include <vector>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/twin/scene.hpp"
+
+namespace cellwright::twin {
+
+namespace {
+constexpr int kMaxSide = 4096;
+constexpr int kMaxGeoms = 4000;  // visual geoms per frame: the cell has a few hundred
+}  // namespace
+
+struct Renderer::Impl {
+  OSMesaContext gl = nullptr;
+  std::vector<unsigned char> framebuffer;  // OSMesa's window buffer; MuJoCo draws into its own offscreen buffer
+  mjvScene scene{};
+  mjrContext context{};
+  mjvOption option{};
+  std::vector<unsigned char> rgb;
+  bool scene_made = false, context_made = false;
+
+  ~Impl() {
+    if (gl != nullptr) OSMesaMakeCurrent(gl, framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1);
+    if (context_made) mjr_freeContext(&context);
+    if (scene_made) mjv_freeScene(&scene);
+    if (gl != nullptr) OSMesaDestroyContext(gl);
+  }
+};
+
+Renderer::Renderer(const mjModel* model, int max_width, int max_height)
+    : impl_(std::make_unique<Impl>()),
+      model_(model),
+      max_width_(max_width),
+      max_height_(max_height),
+      owner_(std::this_thread::get_id()) {
+  CW_CHECK(model != nullptr, "Renderer needs a model");
+  CW_CHECK(max_width > 0 && max_height > 0 && max_width <= kMaxSide && max_height <= kMaxSide,
+           "renderer size {}x{} outside 1..{}", max_width, max_height, kMaxSide);
+  Impl& r = *impl_;
+  r.gl = OSMesaCreateContextExt(OSMESA_RGBA, 24, 8, 0, nullptr);
+  if (r.gl == nullptr) throw std::runtime_error("OSMesa could not create an OpenGL context");
+  r.framebuffer.resize(4);
+  if (!OSMesaMakeCurrent(r.gl, r.framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
+    throw std::runtime_error("OSMesa could not make its OpenGL context current");
+  }
+  mjv_defaultOption(&r.option);
+  mjv_defaultScene(&r.scene);
+  mjv_makeScene(model, &r.scene, kMaxGeoms);
+  r.scene_made = true;
+  mjr_defaultContext(&r.context);
+  // MuJoCo sizes its offscreen buffer from the model's visual settings; a copy of the model's header with the size
+  // we need leaves the caller's model untouched (mjr_makeContext only reads the model).
+  mjModel sized = *model;
+  sized.vis.global.offwidth = max_width;
+  sized.vis.global.offheight = max_height;
+  mjr_makeContext(&sized, &r.context, mjFONTSCALE_100);
+  r.context_made = true;
+  mjr_setBuffer(mjFB_OFFSCREEN, &r.context);
+  if (r.context.currentBuffer != mjFB_OFFSCREEN) {
+    throw std::runtime_error("MuJoCo cannot render offscreen with this OpenGL (OSMesa) context");
+  }
+  if (r.context.offWidth < max_width || r.context.offHeight < max_height) {
+    throw std::runtime_error(fmt::format("MuJoCo's offscreen buffer is {}x{}, smaller than the {}x{} asked for",
+                                         r.context.offWidth, r.context.offHeight, max_width, max_height));
+  }
+}
+
+Renderer::~Renderer() = default;
+
+cv::Mat Renderer::render_camera(mjData* data, int camera_id, int width, int height) {
+  CW_CHECK(camera_id >= 0 && camera_id < model_->ncam, "camera id {} not in the model (it has {})", camera_id,
+           model_->ncam);
+  mjvCamera cam;
+  mjv_defaultCamera(&cam);
+  cam.type = mjCAMERA_FIXED;
+  cam.fixedcamid = camera_id;
+  return render(data, cam, width, height);
+}
+
+cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
+  CW_CHECK(data != nullptr, "render needs data");
+  // Frame the bounding sphere of every visible geom but the floor plane, where they are now, from in front and
+  // above: far enough back that the sphere fits both the vertical and the horizontal field of view.
+  Eigen::AlignedBox3d box;
+  for (int g = 0; g < model_->ngeom; ++g) {
+    if (model_->geom_type[g] == mjGEOM_PLANE || model_->geom_group[g] > 2 || model_->geom_rgba[4 * g + 3] == 0) {
+      continue;
+    }
+    const Eigen::Vector3d c(data->geom_xpos[3 * g], data->geom_xpos[3 * g + 1], data->geom_xpos[3 * g + 2]);
+    box.extend(c - Eigen::Vector3d::Constant(model_->geom_rbound[g]));
+    box.extend(c + Eigen::Vector3d::Constant(model_->geom_rbound[g]));
+  }
+  if (box.isEmpty()) box = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1));
+  // Bounding spheres of geoms overestimate; the box's half diagonal is a generous radius for the whole cell.
+  const Eigen::Vector3d centre = box.center();
+  const double radius = 0.5 * box.diagonal().norm();
+  const double half_fovy = 0.5 * model_->vis.global.fovy * std::numbers::pi / 180.0;
+  const double half_fovx = std::atan(std::tan(half_fovy) * width / height);
+  mjvCamera cam;
+  mjv_defaultCamera(&cam);
+  cam.type = mjCAMERA_FREE;
+  for (int i = 0; i < 3; ++i) cam.lookat[i] = centre[i];
+  cam.distance = 0.8 * radius / std::sin(std::min(half_fovy, half_fovx));
+  cam.azimuth = 60;
+  cam.elevation = -30;
+  return render(data, cam, width, height);
+}
+
+cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int height) {
+  CW_CHECK(std::this_thread::get_id() == owner_, "a Renderer is used on the thread that made it only");
+  CW_CHECK(data != nullptr, "render needs data");
+  CW_CHECK(width >= 1 && height >= 1 && width <= max_width_ && height <= max_height_,
+           "image size {}x{} outside 1x1..{}x{}", width, height, max_width_, max_height_);
+  Impl& r = *impl_;
+  if (!OSMesaMakeCurrent(r.gl, r.framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
+    throw std::runtime_error("OSMesa could not make its OpenGL context current");
+  }
+  mjvCamera cam = camera;
+  const mjrRect viewport{0, 0, width, height};
+  mjv_updateScene(model_, data, &r.option, nullptr, &cam, mjCAT_ALL, &r.scene);
+  mjr_setBuffer(mjFB_OFFSCREEN, &r.context);
+  mjr_render(viewport, &r.scene, &r.context);
+  r.rgb.resize(static_cast<std::size_t>(3) * static_cast<std::size_t>(width) * static_cast<std::size_t>(height));
+  mjr_readPixels(r.rgb.data(), nullptr, viewport, &r.context);
+  const int gl_error = mjr_getError();
+  if (gl_error != 0) throw std::runtime_error(fmt::format("OpenGL error {} while rendering", gl_error));
+  // OpenGL's rows run bottom to top; images run top to bottom.
+  const cv::Mat rgb(height, width, CV_8UC3, r.rgb.data());
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  cv::flip(bgr, bgr, 0);
+  return bgr;
+}
+
+cv::Mat render_view(Scene& scene, std::string_view camera, int width, int height) {
+  const std::string where = scene.cell().source.string();
+  if (width < 1 || height < 1 || width > kMaxSide || height > kMaxSide) {
+    throw InputError({where, 0, 0}, fmt::format("image size {}x{} is not within 1x1..{}x{} pixels", width, height,
+                                                kMaxSide, kMaxSide));
+  }
+  int id = -1;
+  if (camera != kOverviewCamera) {
+    id = scene.camera_id(camera);
+    if (id < 0) {
+      std::string names(kOverviewCamera);
+      for (const auto& c : scene.cell().cameras) names += ", " + c.name;
+      throw InputError({where, 0, 0}, fmt::format("the cell has no camera '{}' (cameras: {})", camera, names));
+    }
+  }
+  Renderer renderer(scene.model(), width, height);
+  return id < 0 ? renderer.render_overview(scene.data(), width, height)
+                : renderer.render_camera(scene.data(), id, width, height);
+}
+
+void write_png(const cv::Mat& image, const std::filesystem::path& path) {
+  CW_CHECK(!image.empty() && image.type() == CV_8UC3, "write_png needs an 8-bit, 3-channel image");
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) {
+    throw InputError({path.string(), 0, 0},
+                     fmt::format("cannot write the image: directory '{}' does not exist", dir.string()));
+  }
+  // The temporary name ends in .png so that OpenCV picks the PNG encoder.
+  const std::filesystem::path tmp =
+      dir / fmt::format(".{}.{}.tmp.png", path.filename().string(), static_cast<long>(::getpid()));
+  bool ok = false;
+  std::string why = "the encoder failed";
+  try {
+    ok = cv::imwrite(tmp.string(), image);
+  } catch (const cv::Exception& e) {
+    why = e.what();
+  }
+  if (!ok) {
+    std::filesystem::remove(tmp, ec);
+    throw InputError({path.string(), 0, 0}, fmt::format("cannot write the image: {}", why));
+  }
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    const std::string message = ec.message();
+    std::filesystem::remove(tmp, ec);
+    throw InputError({path.string(), 0, 0}, fmt::format("cannot write the image: {}", message));
+  }
+}
+
+}  // namespace cellwright::twin

@@ -1,0 +1,911 @@
+// The MuJoCo scene of a cell (scene.hpp). MuJoCo 2.2.2 has no model-editing API (mjSpec, attach) and compiles one
+// URDF at a time, so the whole cell is written here as one MJCF text: robots from their URDFs (read with urdfdom),
+// conveyors, machines, workpieces, cameras and lights; then compiled from memory through MuJoCo's virtual file system.
+#include "cellwright/twin/scene.hpp"
+
+#include <urdf_parser/urdf_parser.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+namespace cellwright::twin {
+
+namespace {
+
+// --- Servo tuning ------------------------------------------------------------------------------------------------
+// Position servos are PD controllers (MuJoCo 2.2.2 has no gravity compensation), so a joint sags under gravity by
+// torque / kp. kp is chosen per joint from an upper bound of the gravity torque on it, so that the sag stays under
+// kSagBound everywhere in the workspace with kPayload in the hand. Armature (the reflected inertia of the geared
+// motor, which real arms have) keeps each servo's natural frequency under kOmegaStep / timestep so that the
+// explicit position feedback stays stable whatever the link inertia; damping makes the servo about critically damped.
+constexpr double kGravity = 9.81;
+constexpr double kSagBound = 0.004;       // rad
+constexpr double kPayload = 1.0;          // kg, at the tool centre point
+constexpr double kKpMin = 100.0;          // N m / rad
+constexpr double kOmegaStep = 0.3;        // rad per timestep at the servo's natural frequency
+constexpr double kFingerSqueeze = 0.002;  // m of squeeze at which a finger reaches its grip force
+
+// --- Conveyor belts -------------------------------------------------------------------------------------------
+// The belt is a body sliding along the conveyor, driven by a velocity servo; its friction carries the parts. It is
+// kBeltWrap longer than the conveyor and moves back by kBeltWrap after running that far (Scene::wrap_belts): its flat
+// top is the same before and after, so parts resting on it do not notice.
+constexpr double kBeltThickness = 0.01;
+constexpr double kBeltWrap = 0.05;
+constexpr double kBeltMass = 2.0;
+constexpr double kBeltKv = 500.0;  // N / (m/s): 1 N of drag slows the belt by 2 mm/s
+constexpr double kPedestalSide = 0.3;
+
+const char* const kPadFriction = "1 0.005 0.0001";  // sliding, torsional, rolling (facts.md: grasps hold with these)
+
+// --- XML writing -------------------------------------------------------------------------------------------------
+
+std::string escape(std::string_view s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+std::string num(double v) {
+  if (std::abs(v) < 1e-12) v = 0;  // no "-0" or 1e-17 noise in the file
+  return fmt::format("{:.10g}", v);
+}
+std::string nums(std::initializer_list<double> v) {
+  std::string s;
+  for (double x : v) s += (s.empty() ? "" : " ") + num(x);
+  return s;
+}
+std::string vec(const Eigen::Vector3d& v) {
+  return nums({v.x(), v.y(), v.z()});
+}
+std::string quat(const Eigen::Quaterniond& q) {
+  return nums({q.w(), q.x(), q.y(), q.z()});
+}
+std::string quat(const Eigen::Matrix3d& r) {
+  return quat(Eigen::Quaterniond(r).normalized());
+}
+std::string rgba(const Eigen::Vector4d& c) {
+  return nums({c[0], c[1], c[2], c[3]});
+}
+
+using Attrs = std::vector<std::pair<std::string, std::string>>;
+
+class Xml {
+ public:
+  void open(const std::string& tag, const Attrs& attrs = {}) {
+    start(tag, attrs);
+    out_ += ">\n";
+    stack_.push_back(tag);
+  }
+  void leaf(const std::string& tag, const Attrs& attrs = {}) {
+    start(tag, attrs);
+    out_ += "/>\n";
+  }
+  void close() {
+    CW_CHECK(!stack_.empty(), "closing an element that was not opened");
+    indent(stack_.size() - 1);
+    out_ += "</" + stack_.back() + ">\n";
+    stack_.pop_back();
+  }
+  // Appends already written elements, indented to the current depth.
+  void raw(const std::string& text) {
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);) {
+      indent(stack_.size());
+      out_ += line + "\n";
+    }
+  }
+  void comment(const std::string& text) {
+    indent(stack_.size());
+    out_ += "<!-- " + text + " -->\n";
+  }
+  std::string str() const {
+    CW_CHECK(stack_.empty(), "unclosed element <{}>", stack_.empty() ? "" : stack_.back());
+    return out_;
+  }
+
+ private:
+  void indent(std::size_t depth) { out_.append(2 * depth, ' '); }
+  void start(const std::string& tag, const Attrs& attrs) {
+    indent(stack_.size());
+    out_ += "<" + tag;
+    for (const auto& [k, v] : attrs) out_ += " " + k + "=\"" + escape(v) + "\"";
+  }
+  std::string out_;
+  std::vector<std::string> stack_;
+};
+
+// --- URDF ------------------------------------------------------------------------------------------------------
+
+Eigen::Vector3d to_eigen(const urdf::Vector3& v) {
+  return {v.x, v.y, v.z};
+}
+Eigen::Quaterniond to_eigen(const urdf::Rotation& r) {
+  return Eigen::Quaterniond(r.w, r.x, r.y, r.z).normalized();
+}
+Eigen::Isometry3d to_eigen(const urdf::Pose& p) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = to_eigen(p.rotation).toRotationMatrix();
+  t.translation() = to_eigen(p.position);
+  return t;
+}
+
+bool movable(const urdf::Joint& j) {
+  return j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::CONTINUOUS || j.type == urdf::Joint::PRISMATIC;
+}
+
+// urdfdom reports through a process-wide logger; parses in this file take turns.
+std::mutex& urdf_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+struct RobotModel {
+  const RobotSpec* spec = nullptr;
+  urdf::ModelInterfaceSharedPtr urdf;
+  std::vector<std::string> arm_joints;  // movable joints from base_link to tcp
+  std::set<std::string> finger_links;
+};
+
+RobotModel read_robot_model(const RobotSpec& spec) {
+  RobotModel r;
+  r.spec = &spec;
+  const std::string file = spec.urdf.string();
+  {
+    std::lock_guard<std::mutex> lock(urdf_mutex());
+    r.urdf = urdf::parseURDFFile(file);
+  }
+  auto fail = [&](const std::string& problem) -> InputError {
+    return InputError({file, 0, 0}, fmt::format("robot '{}': {}", spec.name, problem));
+  };
+  if (!r.urdf) throw fail("not a valid URDF file");
+  if (!r.urdf->getRoot() || r.urdf->getRoot()->name != "base_link") {
+    throw fail("the URDF's root link must be 'base_link'");
+  }
+  for (const char* link : {"flange", "tcp"}) {
+    if (!r.urdf->getLink(link)) throw fail(fmt::format("the URDF has no link '{}'", link));
+  }
+  for (const char* joint : {"finger_left_joint", "finger_right_joint"}) {
+    auto j = r.urdf->getJoint(joint);
+    if (!j || j->type != urdf::Joint::PRISMATIC || !j->limits) {
+      throw fail(fmt::format("the URDF needs a prismatic joint '{}' with limits (the gripper's fingers)", joint));
+    }
+    r.finger_links.insert(j->child_link_name);
+  }
+  auto left = r.urdf->getJoint("finger_left_joint")->limits;
+  auto right = r.urdf->getJoint("finger_right_joint")->limits;
+  if (left->lower != right->lower || left->upper != right->upper || !(left->upper > left->lower)) {
+    throw fail("finger_left_joint and finger_right_joint must have the same travel (lower < upper)");
+  }
+  for (auto link = r.urdf->getLink("tcp"); link && link->getParent(); link = link->getParent()) {
+    const auto& j = *link->parent_joint;
+    if (movable(j)) r.arm_joints.insert(r.arm_joints.begin(), j.name);
+  }
+  if (r.arm_joints.size() != spec.home.size()) {
+    throw InputError(spec.where, fmt::format("robot '{}': 'home' has {} angles but {} has {} joints from base_link "
+                                             "to tcp",
+                                             spec.name, spec.home.size(), file, r.arm_joints.size()));
+  }
+  for (const auto& [name, joint] : r.urdf->joints_) {
+    if (joint->mimic) throw fail(fmt::format("joint '{}' is a mimic joint; the scene drives every joint", name));
+    if (joint->type == urdf::Joint::FLOATING || joint->type == urdf::Joint::PLANAR) {
+      throw fail(
+          fmt::format("joint '{}' is floating or planar; only fixed, revolute, continuous and prismatic joints "
+                      "are supported",
+                      name));
+    }
+  }
+  return r;
+}
+
+// Upper bounds, over all configurations, of the gravity load on a joint and of the inertia it moves: every link
+// below the joint is taken at the largest distance from the joint's axis the chain allows (the sum of the joint
+// offsets on the way, plus its centre of gravity's offset).
+struct LoadBound {
+  double torque = 0;   // N m (revolute) or N (prismatic)
+  double inertia = 0;  // kg m^2 (revolute) or kg (prismatic)
+};
+
+void accumulate_load(const urdf::Link& link, double reach, bool prismatic, LoadBound& b) {
+  if (link.inertial) {
+    const auto& in = *link.inertial;
+    const double r = reach + to_eigen(in.origin.position).norm();
+    b.torque += in.mass * kGravity * (prismatic ? 1.0 : r);
+    b.inertia += prismatic ? in.mass : in.mass * r * r + 0.5 * (in.ixx + in.iyy + in.izz);
+  }
+  if (link.name == "tcp") {
+    b.torque += kPayload * kGravity * (prismatic ? 1.0 : reach);
+    b.inertia += prismatic ? kPayload : kPayload * reach * reach;
+  }
+  for (const auto& j : link.child_joints) {
+    const auto child = std::find_if(link.child_links.begin(), link.child_links.end(),
+                                    [&](const auto& l) { return l->name == j->child_link_name; });
+    if (child == link.child_links.end()) continue;
+    accumulate_load(**child, reach + to_eigen(j->parent_to_joint_origin_transform.position).norm(), prismatic, b);
+  }
+}
+
+// --- The cell's MJCF -------------------------------------------------------------------------------------------
+
+struct Builder {
+  const CellDescription& cell;
+  Xml x;
+  std::vector<double> qpos;  // initial qpos in MuJoCo's order (joints in document order)
+  std::vector<double> ctrl;  // initial actuator targets, in the order actuators are written
+  std::string actuators;     // <actuator> children, written after the worldbody
+  std::string sensors;
+  std::vector<std::pair<std::string, std::string>> excludes;
+
+  void actuator(const std::string& tag, const Attrs& attrs, double initial) {
+    Xml a;
+    a.leaf(tag, attrs);
+    actuators += a.str();
+    ctrl.push_back(initial);
+  }
+  void sensor(const std::string& tag, const Attrs& attrs) {
+    Xml s;
+    s.leaf(tag, attrs);
+    sensors += s.str();
+  }
+
+  // --- Robots ---
+
+  void geom_attrs(Attrs& a, const urdf::Geometry& g, const urdf::Pose& origin, const RobotModel& r,
+                  const std::string& link) {
+    const Eigen::Isometry3d t = to_eigen(origin);
+    a.emplace_back("pos", vec(t.translation()));
+    a.emplace_back("quat", quat(t.linear()));
+    switch (g.type) {
+      case urdf::Geometry::BOX: {
+        const auto& b = static_cast<const urdf::Box&>(g);
+        a.emplace_back("type", "box");
+        a.emplace_back("size", nums({b.dim.x / 2, b.dim.y / 2, b.dim.z / 2}));
+        break;
+      }
+      case urdf::Geometry::CYLINDER: {
+        const auto& c = static_cast<const urdf::Cylinder&>(g);
+        a.emplace_back("type", "cylinder");
+        a.emplace_back("size", nums({c.radius, c.length / 2}));
+        break;
+      }
+      case urdf::Geometry::SPHERE: {
+        const auto& s = static_cast<const urdf::Sphere&>(g);
+        a.emplace_back("type", "sphere");
+        a.emplace_back("size", num(s.radius));
+        break;
+      }
+      default:
+        throw InputError({r.spec->urdf.string(), 0, 0},
+                         fmt::format("robot '{}': link '{}' uses mesh geometry; the twin supports box, cylinder and "
+                                     "sphere only",
+                                     r.spec->name, link));
+    }
+  }
+
+  // Half extents and centre of a geometry's bounding box in its link frame (for the touch sensor zones).
+  static std::pair<Eigen::Vector3d, Eigen::Vector3d> bounds(const urdf::Geometry& g) {
+    switch (g.type) {
+      case urdf::Geometry::BOX: {
+        const auto& b = static_cast<const urdf::Box&>(g);
+        return {Eigen::Vector3d::Zero(), Eigen::Vector3d(b.dim.x, b.dim.y, b.dim.z) / 2};
+      }
+      case urdf::Geometry::CYLINDER: {
+        const auto& c = static_cast<const urdf::Cylinder&>(g);
+        return {Eigen::Vector3d::Zero(), Eigen::Vector3d(c.radius, c.radius, c.length / 2)};
+      }
+      case urdf::Geometry::SPHERE: {
+        const auto& s = static_cast<const urdf::Sphere&>(g);
+        return {Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(s.radius)};
+      }
+      default:
+        return {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+    }
+  }
+
+  void robot_link(const RobotModel& r, const urdf::Link& link, std::vector<std::string>& collision_bodies) {
+    const std::string& robot = r.spec->name;
+    const std::string body = robot + "/" + link.name;
+    if (link.inertial) {
+      const auto& in = *link.inertial;
+      const Eigen::Isometry3d t = to_eigen(in.origin);
+      // MJCF takes a full inertia tensor only in the body's axes: turn the URDF's (given in the inertial frame).
+      Eigen::Matrix3d inertia;
+      inertia << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+      inertia = t.linear() * inertia * t.linear().transpose();
+      x.leaf("inertial", {{"pos", vec(t.translation())},
+                          {"mass", num(in.mass)},
+                          {"fullinertia", nums({inertia(0, 0), inertia(1, 1), inertia(2, 2), inertia(0, 1),
+                                                inertia(0, 2), inertia(1, 2)})}});
+    }
+    for (const auto& v : link.visual_array) {
+      if (!v || !v->geometry) continue;
+      Attrs a{{"class", "visual"}};
+      geom_attrs(a, *v->geometry, v->origin, r, link.name);
+      if (v->material) {
+        const auto& c = v->material->color;
+        a.emplace_back("rgba", nums({c.r, c.g, c.b, c.a}));
+      }
+      x.leaf("geom", a);
+    }
+    const bool finger = r.finger_links.count(link.name) != 0;
+    bool has_pad = false;
+    for (const auto& c : link.collision_array) {
+      if (c && c->name.find("pad") != std::string::npos) has_pad = true;
+    }
+    bool collides = false;
+    for (const auto& c : link.collision_array) {
+      if (!c || !c->geometry) continue;
+      // Finger pads grip: four contact dimensions (torsional friction too) so that a held part does not pivot.
+      const bool pad = finger && (!has_pad || c->name.find("pad") != std::string::npos);
+      Attrs a{{"class", pad ? "pad" : "collision"}};
+      if (!c->name.empty()) a.emplace_back("name", body + "/" + c->name);
+      geom_attrs(a, *c->geometry, c->origin, r, link.name);
+      x.leaf("geom", a);
+      collides = true;
+      if (pad) {
+        // The touch sensor zone: the pad enlarged by 3 mm, so that contacts on its face fall inside.
+        const auto [centre, half] = bounds(*c->geometry);
+        const Eigen::Isometry3d t = to_eigen(c->origin);
+        const std::string side = link.name == r.urdf->getJoint("finger_left_joint")->child_link_name ? "left" : "right";
+        x.leaf("site", {{"name", fmt::format("{}/finger_{}_touch", robot, side)},
+                        {"type", "box"},
+                        {"group", "4"},
+                        {"pos", vec(t * centre)},
+                        {"quat", quat(t.linear())},
+                        {"size", vec(half + Eigen::Vector3d::Constant(0.003))},
+                        {"rgba", "0.2 0.9 0.2 0.3"}});
+      }
+    }
+    if (collides) collision_bodies.push_back(body);
+    if (link.name == "flange") {
+      x.leaf("site", {{"name", robot + "/wrist_ft"}, {"size", "0.01"}, {"group", "4"}, {"rgba", "0.9 0.2 0.2 0.5"}});
+    }
+    if (link.name == "tcp") {
+      x.leaf("site", {{"name", robot + "/tcp"}, {"size", "0.005"}, {"group", "4"}, {"rgba", "0.2 0.2 0.9 0.5"}});
+    }
+    for (const auto& j : link.child_joints) {
+      auto child = r.urdf->getLink(j->child_link_name);
+      CW_CHECK(child != nullptr, "URDF joint {} without child link", j->name);
+      const Eigen::Isometry3d t = to_eigen(j->parent_to_joint_origin_transform);
+      x.open("body", {{"name", robot + "/" + child->name}, {"pos", vec(t.translation())}, {"quat", quat(t.linear())}});
+      if (movable(*j)) robot_joint(r, *j, *child);
+      robot_link(r, *child, collision_bodies);
+      x.close();
+    }
+  }
+
+  void robot_joint(const RobotModel& r, const urdf::Joint& j, const urdf::Link& child) {
+    const std::string& robot = r.spec->name;
+    const std::string name = robot + "/" + j.name;
+    const bool prismatic = j.type == urdf::Joint::PRISMATIC;
+    const bool limited = j.type != urdf::Joint::CONTINUOUS && j.limits;
+    LoadBound load;
+    accumulate_load(child, 0, prismatic, load);
+
+    const auto arm = std::find(r.arm_joints.begin(), r.arm_joints.end(), j.name);
+    const bool is_arm = arm != r.arm_joints.end();
+    const bool is_finger = j.name == "finger_left_joint" || j.name == "finger_right_joint";
+    const double omega_max = kOmegaStep / cell.timestep;
+    double kp = 0, force_limit = 0, initial = 0;
+    if (is_finger) {
+      // Fingers push with at most the grip force; they reach it after kFingerSqueeze of squeeze on a part.
+      force_limit = r.spec->grip_force;
+      kp = force_limit / kFingerSqueeze;
+      initial = j.limits->upper;  // open
+    } else {
+      kp = std::max(kKpMin, load.torque / kSagBound);
+      force_limit = j.limits && j.limits->effort > 0 ? j.limits->effort : 0;
+      initial = is_arm ? r.spec->home[static_cast<std::size_t>(arm - r.arm_joints.begin())] : 0;
+    }
+    const double armature = std::max(kp / (omega_max * omega_max), prismatic ? 0.01 : 0.01);
+    const double damping =
+        std::max(j.dynamics ? j.dynamics->damping : 0.0, 2.0 * std::sqrt(kp * (armature + 0.5 * load.inertia)));
+    Attrs ja{{"name", name},
+             {"type", prismatic ? "slide" : "hinge"},
+             {"axis", vec(to_eigen(j.axis))},
+             {"armature", num(armature)},
+             {"damping", num(damping)}};
+    if (limited) {
+      ja.emplace_back("limited", "true");
+      ja.emplace_back("range", nums({j.limits->lower, j.limits->upper}));
+    }
+    x.leaf("joint", ja);
+    qpos.push_back(initial);
+
+    Attrs aa{{"name", name}, {"joint", name}, {"kp", num(kp)}};
+    if (limited) {
+      aa.emplace_back("ctrllimited", "true");
+      aa.emplace_back("ctrlrange", nums({j.limits->lower, j.limits->upper}));
+    }
+    if (force_limit > 0) {
+      aa.emplace_back("forcelimited", "true");
+      aa.emplace_back("forcerange", nums({-force_limit, force_limit}));
+    }
+    actuator("position", aa, initial);
+    if (is_finger) {
+      const std::string side = j.name == "finger_left_joint" ? "left" : "right";
+      sensor("jointpos", {{"name", fmt::format("{}/finger_{}_pos", robot, side)}, {"joint", name}});
+    } else {
+      sensor("jointpos", {{"name", name + "_pos"}, {"joint", name}});
+    }
+  }
+
+  void robot(const RobotModel& r) {
+    const RobotSpec& spec = *r.spec;
+    x.comment(fmt::format("robot '{}' from {}", spec.name, spec.urdf.string()));
+    if (spec.base.xyz.z() > 1e-3) {
+      // A robot mounted above the floor stands on a pedestal.
+      x.leaf("geom", {{"name", spec.name + "/pedestal"},
+                      {"type", "box"},
+                      {"pos", vec(Eigen::Vector3d(spec.base.xyz.x(), spec.base.xyz.y(), spec.base.xyz.z() / 2))},
+                      {"quat", quat(Eigen::Matrix3d(Eigen::AngleAxisd(spec.base.rpy.z(), Eigen::Vector3d::UnitZ())))},
+                      {"size", nums({kPedestalSide / 2, kPedestalSide / 2, spec.base.xyz.z() / 2})},
+                      {"material", "pedestal"}});
+    }
+    x.open("body",
+           {{"name", spec.name + "/base_link"}, {"pos", vec(spec.base.xyz)}, {"quat", quat(spec.base.rotation())}});
+    std::vector<std::string> bodies;
+    robot_link(r, *r.urdf->getRoot(), bodies);
+    x.close();
+    // Self-collision inside one arm is not simulated (its URDF geometry overlaps at the joints); arms still collide
+    // with each other, with the cell and with parts.
+    for (std::size_t a = 0; a < bodies.size(); ++a) {
+      for (std::size_t b = a + 1; b < bodies.size(); ++b) excludes.emplace_back(bodies[a], bodies[b]);
+    }
+    sensor("force", {{"name", spec.name + "/wrist_force"}, {"site", spec.name + "/wrist_ft"}});
+    sensor("torque", {{"name", spec.name + "/wrist_torque"}, {"site", spec.name + "/wrist_ft"}});
+    for (const char* side : {"left", "right"}) {
+      sensor("touch", {{"name", fmt::format("{}/finger_{}_touch", spec.name, side)},
+                       {"site", fmt::format("{}/finger_{}_touch", spec.name, side)}});
+    }
+  }
+
+  // --- Conveyors, machines, workpieces ---
+
+  void conveyor(const ConveyorSpec& c) {
+    const std::string name = "conveyor/" + c.name;
+    const double l = c.length, w = c.width, h = c.height, t = kBeltThickness;
+    x.comment(fmt::format("conveyor '{}': belt top {} m above the floor, {} m/s", c.name, num(h), num(c.speed)));
+    x.open("body", {{"name", name}, {"pos", vec(c.pose.xyz)}, {"quat", quat(c.pose.rotation())}});
+    x.leaf("geom", {{"name", name + "/frame"},
+                    {"type", "box"},
+                    {"pos", nums({0, 0, (h - t) / 2})},
+                    {"size", nums({l / 2, w / 2, (h - t) / 2})},
+                    {"material", "conveyor_frame"}});
+    x.leaf("geom", {{"class", "visual"},
+                    {"type", "box"},
+                    {"pos", nums({0, 0, h - t / 2})},
+                    {"size", nums({l / 2, w / 2, t / 2})},
+                    {"material", "belt"}});
+    for (double end : {-l / 2, l / 2}) {
+      x.leaf("geom",
+             {{"class", "visual"},
+              {"type", "cylinder"},
+              {"pos", nums({end, 0, h - t / 2 - 0.01})},
+              {"quat", quat(Eigen::Matrix3d(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitX())))},
+              {"size", nums({t / 2 + 0.01, w / 2 + 0.01})},
+              {"material", "conveyor_frame"}});
+    }
+    if (c.stop) {
+      x.leaf("geom", {{"name", name + "/stop"},
+                      {"type", "box"},
+                      {"pos", nums({c.leave - l / 2 + 0.005, 0, h + 0.02})},
+                      {"size", nums({0.005, w / 2, 0.02})},
+                      {"material", "stop"}});
+    }
+    // The belt: kBeltWrap longer than the conveyor, reaching kBeltWrap upstream at q = 0, so that for q in
+    // [0, kBeltWrap) its top covers the whole conveyor. Collision only: the visible belt is the static plate above.
+    x.open("body", {{"name", name + "/belt"}, {"pos", nums({0, 0, h - t / 2})}});
+    x.leaf("joint", {{"name", name + "/belt"}, {"type", "slide"}, {"axis", "1 0 0"}, {"damping", "0"}});
+    qpos.push_back(0);
+    x.leaf("inertial", {{"pos", "0 0 0"}, {"mass", num(kBeltMass)}, {"diaginertia", "0.1 0.1 0.1"}});
+    x.leaf("geom", {{"name", name + "/belt"},
+                    {"type", "box"},
+                    {"group", "3"},
+                    {"rgba", "0.1 0.1 0.1 0.3"},
+                    {"pos", nums({-kBeltWrap / 2, 0, 0})},
+                    {"size", nums({(l + kBeltWrap) / 2, w / 2, t / 2})},
+                    {"friction", kPadFriction}});
+    x.close();
+    x.close();
+    excludes.emplace_back(name, name + "/belt");
+    actuator("velocity",
+             {{"name", name + "/belt"},
+              {"joint", name + "/belt"},
+              {"kv", num(kBeltKv)},
+              {"ctrllimited", "true"},
+              {"ctrlrange", "-2 2"}},
+             c.speed);
+  }
+
+  void machine(const MachineSpec& m) {
+    const std::string name = "machine/" + m.name;
+    x.comment(fmt::format("machine '{}': process time {} s", m.name, num(m.process_time)));
+    x.open("body", {{"name", name}, {"pos", vec(m.pose.xyz)}, {"quat", quat(m.pose.rotation())}});
+    x.leaf("geom", {{"name", name + "/body"},
+                    {"type", "box"},
+                    {"pos", nums({0, 0, m.size.z() / 2})},
+                    {"size", vec(m.size / 2)},
+                    {"material", "machine"}});
+    x.leaf("geom", {{"name", name + "/fixture"},
+                    {"type", "box"},
+                    {"pos", nums({0, 0, m.size.z() + m.fixture_size.z() / 2})},
+                    {"size", vec(m.fixture_size / 2)},
+                    {"material", "fixture"}});
+    // A status lamp on a corner, for the eye only.
+    x.leaf("geom", {{"class", "visual"},
+                    {"type", "cylinder"},
+                    {"pos", nums({m.size.x() / 2 - 0.03, m.size.y() / 2 - 0.03, m.size.z() + 0.04})},
+                    {"size", "0.015 0.04"},
+                    {"rgba", "0.1 0.8 0.2 1"}});
+    x.close();
+  }
+
+  void workpiece(const WorkpieceSpec& w) {
+    const std::string name = "workpiece/" + w.name;
+    const Eigen::Quaterniond q(w.pose.rotation());
+    x.open("body", {{"name", name}, {"pos", vec(w.pose.xyz)}, {"quat", quat(q)}});
+    x.leaf("joint", {{"name", name}, {"type", "free"}});
+    qpos.insert(qpos.end(), {w.pose.xyz.x(), w.pose.xyz.y(), w.pose.xyz.z(), q.w(), q.x(), q.y(), q.z()});
+    Attrs a{{"name", name}, {"class", "part"}, {"mass", num(w.mass)}, {"rgba", rgba(w.rgba)}};
+    if (w.shape == Shape::kBox) {
+      a.emplace_back("type", "box");
+      a.emplace_back("size", vec(w.size / 2));
+    } else {
+      a.emplace_back("type", "cylinder");
+      a.emplace_back("size", nums({w.size.x() / 2, w.size.z() / 2}));
+    }
+    x.leaf("geom", a);
+    x.close();
+  }
+
+  // --- Whole cell ---
+
+  Eigen::AlignedBox3d extent() const {
+    Eigen::AlignedBox3d box(Eigen::Vector3d(-0.5, -0.5, 0), Eigen::Vector3d(0.5, 0.5, 0.5));
+    for (const auto& r : cell.robots) box.extend(r.base.xyz);
+    for (const auto& c : cell.conveyors) {
+      box.extend(c.belt_point(0));
+      box.extend(c.belt_point(c.length));
+    }
+    for (const auto& m : cell.machines) box.extend(m.fixture_top().xyz);
+    for (const auto& w : cell.workpieces) box.extend(w.pose.xyz);
+    for (const auto& l : cell.locations) box.extend(l.pose.xyz);
+    return box;
+  }
+
+  std::string build(const std::vector<RobotModel>& robots) {
+    x.open("mujoco", {{"model", cell.name}});
+    x.leaf("compiler", {{"angle", "radian"}, {"autolimits", "false"}, {"inertiafromgeom", "auto"}});
+    // Elliptic friction cones and a high impratio make friction grasps hold without creep (facts.md); the
+    // implicit integrator treats joint damping and the belts' velocity servos implicitly, which keeps them stable.
+    x.leaf("option",
+           {{"timestep", num(cell.timestep)}, {"integrator", "implicit"}, {"cone", "elliptic"}, {"impratio", "10"}});
+    x.leaf("size", {{"njmax", "4000"}, {"nconmax", "1000"}});
+    int offwidth = 640, offheight = 480;
+    for (const auto& c : cell.cameras) {
+      offwidth = std::max(offwidth, c.width);
+      offheight = std::max(offheight, c.height);
+    }
+    x.open("visual");
+    x.leaf("global", {{"offwidth", std::to_string(offwidth)}, {"offheight", std::to_string(offheight)}});
+    x.leaf("quality", {{"shadowsize", "2048"}});
+    x.leaf("headlight", {{"ambient", "0.35 0.35 0.35"}, {"diffuse", "0.45 0.45 0.45"}, {"specular", "0.1 0.1 0.1"}});
+    x.close();
+
+    x.open("asset");
+    x.leaf("texture", {{"name", "sky"},
+                       {"type", "skybox"},
+                       {"builtin", "gradient"},
+                       {"rgb1", "0.75 0.82 0.9"},
+                       {"rgb2", "0.3 0.35 0.4"},
+                       {"width", "256"},
+                       {"height", "256"}});
+    x.leaf("texture", {{"name", "floor"},
+                       {"type", "2d"},
+                       {"builtin", "checker"},
+                       {"rgb1", "0.62 0.62 0.6"},
+                       {"rgb2", "0.55 0.55 0.53"},
+                       {"width", "256"},
+                       {"height", "256"}});
+    x.leaf("material", {{"name", "floor"}, {"texture", "floor"}, {"texrepeat", "8 8"}, {"reflectance", "0.05"}});
+    x.leaf("material", {{"name", "conveyor_frame"}, {"rgba", "0.35 0.45 0.55 1"}});
+    x.leaf("material", {{"name", "belt"}, {"rgba", "0.12 0.12 0.12 1"}});
+    x.leaf("material", {{"name", "stop"}, {"rgba", "0.95 0.75 0.1 1"}});
+    x.leaf("material", {{"name", "machine"}, {"rgba", "0.3 0.5 0.35 1"}});
+    x.leaf("material", {{"name", "fixture"}, {"rgba", "0.7 0.7 0.72 1"}});
+    x.leaf("material", {{"name", "pedestal"}, {"rgba", "0.3 0.3 0.32 1"}});
+    x.close();
+
+    x.open("default");
+    x.open("default", {{"class", "visual"}});
+    x.leaf("geom", {{"contype", "0"}, {"conaffinity", "0"}, {"group", "1"}, {"density", "0"}});
+    x.close();
+    x.open("default", {{"class", "collision"}});
+    x.leaf("geom", {{"group", "3"}, {"density", "0"}, {"rgba", "0.5 0.5 0.9 0.4"}});
+    x.close();
+    x.open("default", {{"class", "pad"}});
+    x.leaf(
+        "geom",
+        {{"group", "3"}, {"density", "0"}, {"condim", "4"}, {"friction", kPadFriction}, {"rgba", "0.9 0.5 0.2 0.5"}});
+    x.close();
+    x.open("default", {{"class", "part"}});
+    x.leaf("geom", {{"condim", "4"}, {"friction", kPadFriction}});
+    x.close();
+    x.close();
+
+    x.open("worldbody");
+    const Eigen::AlignedBox3d box = extent();
+    const Eigen::Vector3d centre = box.center();
+    const Eigen::Vector3d half = box.sizes() / 2 + Eigen::Vector3d::Constant(1.5);
+    x.leaf("geom", {{"name", "floor"},
+                    {"type", "plane"},
+                    {"pos", nums({centre.x(), centre.y(), 0})},
+                    {"size", nums({half.x(), half.y(), 0.1})},
+                    {"material", "floor"}});
+    if (cell.lights.empty()) {
+      x.leaf("light", {{"name", "default"},
+                       {"pos", nums({centre.x(), centre.y(), 3})},
+                       {"dir", "0 0 -1"},
+                       {"directional", "false"},
+                       {"castshadow", "true"},
+                       {"diffuse", "0.6 0.6 0.6"}});
+    }
+    for (const auto& l : cell.lights) {
+      x.leaf("light", {{"name", l.name},
+                       {"pos", vec(l.position)},
+                       {"dir", vec(l.direction)},
+                       {"directional", l.directional ? "true" : "false"},
+                       {"castshadow", l.cast_shadow ? "true" : "false"},
+                       {"diffuse", vec(l.diffuse)}});
+    }
+    for (const auto& c : cell.cameras) {
+      x.leaf("camera", {{"name", c.name},
+                        {"pos", vec(c.pose.xyz)},
+                        {"quat", quat(c.pose.rotation())},
+                        {"fovy", num(c.fovy * 180.0 / std::numbers::pi)}});
+    }
+    for (const auto& l : cell.locations) {
+      x.leaf("site", {{"name", "location/" + l.name},
+                      {"pos", vec(l.pose.xyz)},
+                      {"quat", quat(l.pose.rotation())},
+                      {"size", "0.01"},
+                      {"group", "5"},
+                      {"rgba", "0.9 0.9 0.1 0.6"}});
+    }
+    if (cell.handover) {
+      x.leaf("site", {{"name", "handover/" + cell.handover->name},
+                      {"pos", vec(cell.handover->pose.xyz)},
+                      {"quat", quat(cell.handover->pose.rotation())},
+                      {"size", "0.01"},
+                      {"group", "5"},
+                      {"rgba", "0.9 0.1 0.9 0.6"}});
+    }
+    for (const auto& r : robots) robot(r);
+    for (const auto& c : cell.conveyors) conveyor(c);
+    for (const auto& m : cell.machines) machine(m);
+    for (const auto& w : cell.workpieces) workpiece(w);
+    x.close();
+
+    x.open("contact");
+    for (const auto& [a, b] : excludes) x.leaf("exclude", {{"body1", a}, {"body2", b}});
+    x.close();
+    // Actuators and sensors were collected while the bodies were written.
+    x.open("actuator");
+    x.raw(actuators);
+    x.close();
+    x.open("sensor");
+    x.raw(sensors);
+    x.close();
+    // The initial state, so that the saved MJCF opens in MuJoCo's viewer as the cell starts.
+    x.open("keyframe");
+    x.leaf("key", {{"name", "initial"}, {"qpos", join(qpos)}, {"ctrl", join(ctrl)}});
+    x.close();
+    x.close();
+    return x.str();
+  }
+  static std::string join(const std::vector<double>& v) {
+    std::string s;
+    for (double d : v) s += (s.empty() ? "" : " ") + num(d);
+    return s;
+  }
+};
+
+std::vector<RobotModel> read_robot_models(const CellDescription& cell) {
+  std::vector<RobotModel> out;
+  for (const auto& r : cell.robots) out.push_back(read_robot_model(r));
+  return out;
+}
+
+int id_of(const mjModel* m, mjtObj type, const std::string& name) {
+  const int id = mj_name2id(m, type, name.c_str());
+  CW_CHECK(id >= 0, "the scene has no {} named '{}'", static_cast<int>(type), name);
+  return id;
+}
+
+// Frees a VFS allocated on the heap (it holds 2000 file names of 1000 bytes: too big for the stack).
+struct VfsDeleter {
+  void operator()(mjVFS* v) const {
+    mj_deleteVFS(v);
+    delete v;
+  }
+};
+
+}  // namespace
+
+std::string scene_mjcf(const CellDescription& cell) {
+  const std::vector<RobotModel> robots = read_robot_models(cell);
+  Builder b{cell, {}, {}, {}, {}, {}, {}};
+  return b.build(robots);
+}
+
+Scene::Scene(Scene&&) noexcept = default;
+Scene& Scene::operator=(Scene&&) noexcept = default;
+Scene::~Scene() = default;
+
+Scene build_scene(const CellDescription& cell) {
+  Scene s;
+  s.cell_ = cell;
+  s.mjcf_ = scene_mjcf(cell);
+
+  std::unique_ptr<mjVFS, VfsDeleter> vfs(new mjVFS);
+  mj_defaultVFS(vfs.get());
+  const char* kFile = "cell.xml";
+  CW_CHECK(mj_makeEmptyFileVFS(vfs.get(), kFile, static_cast<int>(s.mjcf_.size())) == 0, "VFS refused {}", kFile);
+  const int index = mj_findFileVFS(vfs.get(), kFile);
+  CW_CHECK(index >= 0, "VFS lost {}", kFile);
+  std::copy(s.mjcf_.begin(), s.mjcf_.end(), static_cast<char*>(vfs->filedata[index]));
+  std::array<char, 1024> error{};
+  s.model_.reset(mj_loadXML(kFile, vfs.get(), error.data(), static_cast<int>(error.size())));
+  if (!s.model_) {
+    throw InputError({cell.source.string(), 0, 0},
+                     fmt::format("MuJoCo rejected the scene built from this cell: {}", error.data()));
+  }
+  if (error[0] != '\0') {
+    // A compiler warning (e.g. an inertia fixed up): the model is not what the files describe.
+    throw InputError({cell.source.string(), 0, 0}, fmt::format("MuJoCo warns about the scene: {}", error.data()));
+  }
+  s.data_.reset(mj_makeData(s.model_.get()));
+  CW_CHECK(s.data_ != nullptr, "mj_makeData failed");
+  const mjModel* m = s.model_.get();
+
+  for (const auto& r : cell.robots) {
+    RobotIds ids;
+    ids.name = r.name;
+    ids.home = r.home;
+    ids.base_body = id_of(m, mjOBJ_BODY, r.name + "/base_link");
+    ids.flange_body = id_of(m, mjOBJ_BODY, r.name + "/flange");
+    ids.tcp_site = id_of(m, mjOBJ_SITE, r.name + "/tcp");
+    ids.wrist_site = id_of(m, mjOBJ_SITE, r.name + "/wrist_ft");
+    ids.wrist_force_sensor = id_of(m, mjOBJ_SENSOR, r.name + "/wrist_force");
+    ids.wrist_torque_sensor = id_of(m, mjOBJ_SENSOR, r.name + "/wrist_torque");
+    // Arm joints: the hinge/slide joints of this robot that are not fingers, in MuJoCo's (depth-first) order,
+    // which along a serial chain is base to tip.
+    const std::string prefix = r.name + "/";
+    for (int j = 0; j < m->njnt; ++j) {
+      const std::string jn = mj_id2name(m, mjOBJ_JOINT, j) ? mj_id2name(m, mjOBJ_JOINT, j) : "";
+      if (jn.rfind(prefix, 0) != 0) continue;
+      const std::string local = jn.substr(prefix.size());
+      if (local == "finger_left_joint" || local == "finger_right_joint") continue;
+      ids.joints.push_back(jn);
+      ids.joint.push_back(j);
+      ids.qpos_adr.push_back(m->jnt_qposadr[j]);
+      ids.dof_adr.push_back(m->jnt_dofadr[j]);
+      ids.actuator.push_back(id_of(m, mjOBJ_ACTUATOR, jn));
+      ids.joint_pos_sensor.push_back(id_of(m, mjOBJ_SENSOR, jn + "_pos"));
+    }
+    CW_CHECK(ids.joints.size() == r.home.size(), "robot {}: {} arm joints in the scene, {} home angles", r.name,
+             ids.joints.size(), r.home.size());
+    for (int side = 0; side < 2; ++side) {
+      const std::string finger = side == 0 ? "left" : "right";
+      const std::string jn = fmt::format("{}/finger_{}_joint", r.name, finger);
+      const int j = id_of(m, mjOBJ_JOINT, jn);
+      ids.finger_joint[side] = j;
+      ids.finger_qpos_adr[side] = m->jnt_qposadr[j];
+      ids.finger_dof_adr[side] = m->jnt_dofadr[j];
+      ids.finger_actuator[side] = id_of(m, mjOBJ_ACTUATOR, jn);
+      ids.finger_pos_sensor[side] = id_of(m, mjOBJ_SENSOR, fmt::format("{}/finger_{}_pos", r.name, finger));
+      ids.finger_touch_sensor[side] = id_of(m, mjOBJ_SENSOR, fmt::format("{}/finger_{}_touch", r.name, finger));
+      ids.finger_range = {m->jnt_range[2 * j], m->jnt_range[2 * j + 1]};
+    }
+    s.robots_.push_back(std::move(ids));
+  }
+  for (const auto& c : cell.conveyors) {
+    ConveyorIds ids;
+    ids.name = c.name;
+    ids.body = id_of(m, mjOBJ_BODY, "conveyor/" + c.name);
+    ids.belt_body = id_of(m, mjOBJ_BODY, "conveyor/" + c.name + "/belt");
+    ids.belt_joint = id_of(m, mjOBJ_JOINT, "conveyor/" + c.name + "/belt");
+    ids.belt_qpos_adr = m->jnt_qposadr[ids.belt_joint];
+    ids.belt_dof_adr = m->jnt_dofadr[ids.belt_joint];
+    ids.belt_actuator = id_of(m, mjOBJ_ACTUATOR, "conveyor/" + c.name + "/belt");
+    ids.speed = c.speed;
+    ids.wrap = kBeltWrap;
+    s.conveyors_.push_back(ids);
+  }
+  for (const auto& mc : cell.machines) {
+    s.machines_.push_back(MachineIds{mc.name, id_of(m, mjOBJ_BODY, "machine/" + mc.name),
+                                     id_of(m, mjOBJ_GEOM, "machine/" + mc.name + "/fixture")});
+  }
+  for (const auto& w : cell.workpieces) {
+    WorkpieceIds ids;
+    ids.name = w.name;
+    ids.body = id_of(m, mjOBJ_BODY, "workpiece/" + w.name);
+    ids.joint = id_of(m, mjOBJ_JOINT, "workpiece/" + w.name);
+    ids.qpos_adr = m->jnt_qposadr[ids.joint];
+    ids.dof_adr = m->jnt_dofadr[ids.joint];
+    ids.geom = id_of(m, mjOBJ_GEOM, "workpiece/" + w.name);
+    s.workpieces_.push_back(ids);
+  }
+  s.reset();
+  return s;
+}
+
+namespace {
+template <typename T>
+const T* find_by_name(const std::vector<T>& v, std::string_view name) {
+  for (const auto& e : v) {
+    if (e.name == name) return &e;
+  }
+  return nullptr;
+}
+}  // namespace
+
+const RobotIds* Scene::find_robot(std::string_view name) const {
+  return find_by_name(robots_, name);
+}
+const ConveyorIds* Scene::find_conveyor(std::string_view name) const {
+  return find_by_name(conveyors_, name);
+}
+const WorkpieceIds* Scene::find_workpiece(std::string_view name) const {
+  return find_by_name(workpieces_, name);
+}
+
+int Scene::camera_id(std::string_view name) const {
+  return mj_name2id(model_.get(), mjOBJ_CAMERA, std::string(name).c_str());
+}
+
+void Scene::reset() {
+  const int key = mj_name2id(model_.get(), mjOBJ_KEY, "initial");
+  CW_CHECK(key >= 0, "the scene has no 'initial' keyframe");
+  mj_resetDataKeyframe(model_.get(), data_.get(), key);
+  mj_forward(model_.get(), data_.get());
+}
+
+void Scene::step(int n) {
+  for (int i = 0; i < n; ++i) {
+    mj_step(model_.get(), data_.get());
+    wrap_belts(data_.get());
+  }
+}
+
+void Scene::wrap_belts(mjData* d) const {
+  for (const auto& c : conveyors_) {
+    mjtNum& q = d->qpos[c.belt_qpos_adr];
+    if (q >= c.wrap) q -= c.wrap;
+    if (q < 0) q += c.wrap;
+  }
+}
+
+}  // namespace cellwright::twin

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/petri/analysis.hpp"
 
 namespace cellwright::petri {
 namespace {
@@ -423,7 +424,8 @@ TEST(PnmlExport, GeneratedIdsAvoidNodeIdsAndEmptyNamesStayEmpty) {
 }
 
 // Random nets with hostile text: XML specials, quotes, unicode, spaces inside ids, large weights and markings.
-Net random_net(std::mt19937& rng) {
+// `small`: token counts and weights up to 3, so that the reachability graph stays small enough to analyse.
+Net random_net(std::mt19937& rng, bool small = false) {
   const auto pick = [&](std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng); };
   static const std::vector<std::string> kPieces = {"a",   "<", ">",     "&",  "\"", "'",  "é",  "→", "x y",  "\\",
                                                    "]]>", "7", "&amp;", "\t", "ü",  "\r", "\n", " ", "\r\n", "\x01"};
@@ -434,6 +436,7 @@ Net random_net(std::mt19937& rng) {
     return s;
   };
   const auto tokens = [&]() -> Tokens {
+    if (small) return static_cast<Tokens>(pick(4));
     switch (pick(4)) {
       case 0:
         return 0;
@@ -518,6 +521,95 @@ TEST(PnmlExport, RandomNetsRoundTrip) {
       ADD_FAILURE() << xml;
       break;
     }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Analysis of imported nets: the figures must match independent counts, and survive a round trip.
+
+void expect_same_analysis(const AnalysisResult& a, const AnalysisResult& b) {
+  EXPECT_EQ(a.complete, b.complete);
+  EXPECT_EQ(a.states, b.states);
+  EXPECT_EQ(a.edges, b.edges);
+  EXPECT_EQ(a.deadlocks, b.deadlocks);
+  EXPECT_EQ(a.final_states, b.final_states);
+  EXPECT_EQ(a.bounded, b.bounded);
+  EXPECT_EQ(a.unbounded_places, b.unbounded_places);
+  EXPECT_EQ(a.place_bounds, b.place_bounds);
+  EXPECT_EQ(a.dead_transitions, b.dead_transitions);
+  EXPECT_EQ(a.mutex_ok, b.mutex_ok);
+  EXPECT_EQ(a.ok(), b.ok());
+}
+
+// The same net with every initial marking multiplied by n.
+Net scaled(const Net& net, Tokens n) {
+  NetBuilder b(net.name());
+  for (Place p : net.places()) {
+    p.initial *= n;
+    b.add_place(std::move(p));
+  }
+  for (const Transition& t : net.transitions()) b.add_transition(t);
+  return std::move(b).build();
+}
+
+TEST(PnmlAnalysis, KanbanStateCountsFollowTheClosedForm) {
+  // Ciardo and Tilgner's Kanban net: C(N+3,3)^2 * (3N^5+30N^4+115N^3+210N^2+182N+60)/60 reachable markings
+  // (facts.md: 160 for N=1, 4,600 for N=2).
+  const auto expected = [](std::uint64_t n) {
+    const std::uint64_t c = (n + 3) * (n + 2) * (n + 1) / 6;
+    return c * c * (3 * n * n * n * n * n + 30 * n * n * n * n + 115 * n * n * n + 210 * n * n + 182 * n + 60) / 60;
+  };
+  const Net kanban = read_pnml(kData / "kanban-1.pnml");
+  for (Tokens n = 1; n <= 3; ++n) {
+    SCOPED_TRACE("N=" + std::to_string(n));
+    const AnalysisResult r = analyze(scaled(kanban, n));
+    EXPECT_TRUE(r.complete);
+    EXPECT_EQ(r.states, expected(n));
+    EXPECT_EQ(r.deadlocks, 0u);
+    EXPECT_TRUE(r.bounded);
+    EXPECT_TRUE(r.ok());
+  }
+}
+
+TEST(PnmlAnalysis, PhilosophersDeadlockWhenBothHoldTheirLeftFork) {
+  const Net net = read_pnml(kData / "philosophers-2.pnml");
+  const AnalysisResult r = analyze(net);
+  // By hand: both thinking; one holds the left fork (2 ways); both hold it (the deadlock); one eats (2 ways).
+  EXPECT_EQ(r.states, 6u);
+  EXPECT_EQ(r.deadlocks, 1u);
+  EXPECT_FALSE(r.ok());
+  ASSERT_FALSE(r.deadlock_examples.empty());
+  std::vector<std::string> path;
+  for (TransitionId t : r.deadlock_examples[0].path) path.push_back(net.transitions()[t].id);
+  EXPECT_THAT(path, ::testing::UnorderedElementsAre("take_left1", "take_left2"));
+}
+
+TEST(PnmlAnalysis, ProducerConsumerBufferIsBoundedByItsCapacity) {
+  const Net net = read_pnml(kData / "producer-consumer.pnml");
+  const AnalysisResult r = analyze(net);
+  // Producer (2 states) x consumer (2 states) x items in the buffer (0..3): all 16 reachable, none dead.
+  EXPECT_EQ(r.states, 16u);
+  EXPECT_EQ(r.deadlocks, 0u);
+  EXPECT_TRUE(r.ok());
+  EXPECT_EQ(r.place_bounds.at(*net.find_place("p-7A01-1B13-4")), 3u);  // buffer
+}
+
+TEST(PnmlAnalysis, FiguresSurviveARoundTrip) {
+  for (const char* file : {"kanban-1.pnml", "philosophers-2.pnml", "producer-consumer.pnml", "epnk-references.pnml"}) {
+    SCOPED_TRACE(file);
+    const Net net = read_pnml(kData / file);
+    expect_same_analysis(analyze(net), analyze(parse_pnml(to_pnml(net), file)));
+  }
+  const Net cw = cellwright_net();
+  expect_same_analysis(analyze(cw), analyze(parse_pnml(to_pnml(cw), "cellwright.pnml")));
+
+  std::mt19937 rng(77);
+  AnalysisOptions options;
+  options.max_states = 20'000;  // random nets may be unbounded or large; the limit is part of what must agree
+  for (int i = 0; i < 100; ++i) {
+    SCOPED_TRACE("random net #" + std::to_string(i));
+    const Net net = random_net(rng, true);
+    expect_same_analysis(analyze(net, options), analyze(parse_pnml(to_pnml(net), "random.pnml"), options));
   }
 }
 

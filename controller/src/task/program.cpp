@@ -111,7 +111,7 @@ std::string quoted(const Token& t) {
 
 std::string describe_char(char c) {
   const auto u = static_cast<unsigned char>(c);
-  if (u >= 0x21 && u < 0x7f) return fmt::format("'{}'", c);
+  if (u >= 0x21 && u < 0x7f) return fmt::format("character '{}'", c);
   return fmt::format("byte 0x{:02x}", static_cast<unsigned>(u));
 }
 
@@ -246,7 +246,7 @@ class Parser {
         out.push_back({TokenKind::kBar, "|", column});
         ++i;
       } else {
-        throw InputError(at(column), fmt::format("unexpected character {}", describe_char(c)));
+        throw InputError(at(column), fmt::format("unexpected {}", describe_char(c)));
       }
     }
     return out;
@@ -267,9 +267,7 @@ class Parser {
 
   // A name token used as a new name in a declaration.
   const Token& expect_new_name(std::size_t i, const char* what) const {
-    if (i >= tokens_.size()) {
-      fail(tokens_.back(), fmt::format("{} needs a name after '{}'", what, tokens_.back().text));
-    }
+    CW_CHECK(i < tokens_.size(), "token {} of {}", i, tokens_.size());
     const Token& t = tokens_[i];
     if (t.kind != TokenKind::kName) fail(t, fmt::format("expected a {} name, found {}", what, quoted(t)));
     if (is_keyword(t.text)) fail(t, fmt::format("'{}' is a keyword and cannot be used as a name", t.text));
@@ -470,7 +468,7 @@ class Parser {
     Sequence& seq = program_.sequences.back();
     for (const Token& t : tokens_) {
       if (t.kind == TokenKind::kBar) {
-        fail(t, fmt::format("'|' separates the columns of the steps table; a sequence has one command per line"));
+        fail(t, "'|' separates the columns of the steps table; a sequence has one command per line");
       }
     }
     seq.commands.push_back(parse_command(0, tokens_.size(), seq.robot, "sequence"));

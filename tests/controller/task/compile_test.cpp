@@ -461,6 +461,13 @@ TEST(CompileErrors, SemanticErrorsHaveTheProgramFileInWhat) {
   }
 }
 
+TEST(CompileErrors, HandMadeProgramBreakingTheParserInvariantsIsABug) {
+  Program p;
+  p.file = "made.task";
+  p.sequences.push_back({"ghost", {"made.task", 1, 1}, {}});  // no robot 'ghost' declared
+  EXPECT_THROW(compile(p), InternalError);
+}
+
 // ---- garbage in --------------------------------------------------------------------------------------------------
 
 std::string read_file(const std::filesystem::path& path) {

@@ -99,6 +99,11 @@ TEST(ParseProgram, FewerCellsMeanTheRestIdle) {
   EXPECT_FALSE(p.steps->lines[0].cells[1].has_value());
   EXPECT_FALSE(p.steps->lines[0].cells[2].has_value());
   EXPECT_TRUE(p.steps->lines[1].cells[2].has_value());
+  // A line of empty cells is a step in which no robot acts.
+  const Program idle = parse_program("robot r1 r2\nsteps\nr1|r2\n |\nend\n", "t");
+  ASSERT_EQ(idle.steps->lines.size(), 1u);
+  EXPECT_FALSE(idle.steps->lines[0].cells[0].has_value());
+  EXPECT_FALSE(idle.steps->lines[0].cells[1].has_value());
 }
 
 TEST(ParseProgram, DeclarationsSemaphoresRegionsAndSequences) {
@@ -282,9 +287,9 @@ TEST(ParseErrors, RobotInTableAndSequenceOrInTwoSequences) {
 
 TEST(ParseErrors, LexicalProblems) {
   expect_failure("robot r1 r$\n", 1, 11, "unexpected character '$'");
-  expect_failure("robot r1\n\x01", 2, 1, "unexpected character byte 0x01");
-  expect_failure(std::string("robot r\xc3\xa9\n"), 1, 8, "unexpected character byte 0xc3");
-  expect_failure(std::string("robot r1\0", 9), 1, 9, "unexpected character byte 0x00");
+  expect_failure("robot r1\n\x01", 2, 1, "unexpected byte 0x01");
+  expect_failure(std::string("robot r\xc3\xa9\n"), 1, 8, "unexpected byte 0xc3");
+  expect_failure(std::string("robot r1\0", 9), 1, 9, "unexpected byte 0x00");
   expect_failure("robot 2a\n", 1, 7,
                  "'2a' is not a valid name or number: names start with a letter or '_', numbers have only digits");
   expect_failure("robot 1\n", 1, 7, "expected a robot name, found '1'");

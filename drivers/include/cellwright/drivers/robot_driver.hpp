@@ -167,7 +167,7 @@ struct Capabilities {
   std::size_t digital_inputs = 0;       // WaitInput channels 1..n
   std::vector<double> max_joint_speed;  // per joint at speed 1.0 (rad/s, or m/s for prismatic joints)
   double max_tool_speed = 0.0;          // m/s of the tool centre point at speed 1.0
-  std::size_t queue_depth = 1;          // commands in flight at most (serial controllers: 1)
+  std::size_t queue_depth = 1;          // commands in flight at most (queued in the driver or the controller)
   bool reads_joints = false;            // request_position() reports joint positions
   bool reads_pose = false;              // request_position() reports the tool pose (Movemaster `WH`: pose only)
 };

@@ -1,0 +1,32 @@
+// From a compiled task program to the Petri net that the task-control thread executes (paper section 2, Fig. 1).
+//
+// Per robot with primitives p0..p(n-1) the net has a chain of places and transitions:
+//
+//   start --T0--> P0 --T1--> P1 ... P(n-1) --Tn--> done
+//
+// Place Pk means "robot executing primitive k" (kExecuting), or, for a wait, "robot waiting for the event"
+// (kWaiting). Transition Tk is the end of primitive k-1 and the begin of primitive k: firing it sends primitive k to
+// the robot (Transition::starts_robot/starts_primitive). Synchronisation is by shared places:
+//  - `signal e` as primitive k: Tk also puts a token on the event place of e (the signal is instant);
+//  - `wait e` as primitive k: the robot waits in Pk; T(k+1) also takes a token from e, so it fires only once e has
+//    been signalled;
+//  - a critical region Z is a place with one token (free); entering is a wait on it, leaving a signal, and the places
+//    in between are Region::inside, so mutual exclusion can be checked on the reachability graph.
+// One token per robot; the final marking has every robot in its done place.
+#pragma once
+
+#include "cellwright/petri/net.hpp"
+#include "cellwright/task/compiled.hpp"
+
+namespace cellwright::task {
+
+petri::Net to_net(const CompiledProgram& program);
+
+// Ids of the places and transitions, so that runtime code and tests can find them without string building.
+std::string place_id(const std::string& robot, std::size_t primitive);
+std::string transition_id(const std::string& robot, std::size_t primitive);
+std::string start_place_id(const std::string& robot);
+std::string done_place_id(const std::string& robot);
+std::string event_place_id(const std::string& event);
+
+}  // namespace cellwright::task

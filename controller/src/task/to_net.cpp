@@ -1,0 +1,151 @@
+#include "cellwright/task/to_net.hpp"
+
+#include <fmt/format.h>
+
+#include <map>
+
+namespace cellwright::task {
+
+std::string place_id(const std::string& robot, std::size_t primitive) {
+  return fmt::format("{}.p{}", robot, primitive);
+}
+std::string transition_id(const std::string& robot, std::size_t primitive) {
+  return fmt::format("{}.t{}", robot, primitive);
+}
+std::string start_place_id(const std::string& robot) {
+  return robot + ".start";
+}
+std::string done_place_id(const std::string& robot) {
+  return robot + ".done";
+}
+std::string event_place_id(const std::string& event) {
+  return "ev." + event;
+}
+
+namespace {
+
+petri::Origin origin_of(const std::string& robot, const Primitive& p, std::size_t index) {
+  petri::Origin o;
+  o.robot = robot;
+  o.line = p.where.line;
+  o.column = p.where.column;
+  o.task = p.task;
+  o.motion = p.motion;
+  o.primitive = static_cast<int>(index);
+  return o;
+}
+
+}  // namespace
+
+petri::Net to_net(const CompiledProgram& program) {
+  CW_CHECK(program.programs.size() == program.robots.size(), "{} robot programs for {} robots", program.programs.size(),
+           program.robots.size());
+  petri::NetBuilder b(program.file.empty() ? std::string("program") : program.file);
+  b.set_robots(program.robots);
+
+  // Shared places first: events/semaphores and region resources.
+  std::map<std::string, petri::PlaceId> shared;
+  for (const Semaphore& s : program.semaphores) {
+    petri::Place p;
+    p.id = event_place_id(s.name);
+    p.name = s.region ? fmt::format("region {} free", s.name) : fmt::format("event {}", s.name);
+    p.initial = s.initial;
+    p.kind = s.region ? petri::PlaceKind::kRegion : petri::PlaceKind::kEvent;
+    p.origin.line = s.declared.line;
+    p.origin.column = s.declared.column;
+    shared[s.name] = b.add_place(std::move(p));
+  }
+  auto shared_place = [&](const std::string& robot, const Primitive& prim) {
+    auto it = shared.find(prim.event);
+    if (it == shared.end()) {
+      throw InputError(prim.where,
+                       fmt::format("robot {}: {} of undeclared event '{}'", robot, to_string(prim.kind), prim.event));
+    }
+    return it->second;
+  };
+
+  std::vector<petri::Arc> final_places;
+  // Robot chains; remember each robot's primitive places for the regions.
+  std::map<std::string, std::vector<petri::PlaceId>> chain;
+  for (std::size_t r = 0; r < program.programs.size(); ++r) {
+    const RobotProgram& rp = program.programs[r];
+    CW_CHECK(rp.robot == program.robots[r], "program {} is for '{}', expected '{}'", r, rp.robot, program.robots[r]);
+    const auto& prims = rp.primitives;
+
+    petri::Place start;
+    start.id = start_place_id(rp.robot);
+    start.name = fmt::format("{} ready", rp.robot);
+    start.initial = 1;
+    start.kind = petri::PlaceKind::kStart;
+    start.origin.robot = rp.robot;
+    const petri::PlaceId start_id = b.add_place(std::move(start));
+
+    std::vector<petri::PlaceId>& places = chain[rp.robot];
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      petri::Place p;
+      p.id = place_id(rp.robot, k);
+      const bool waiting = prims[k].kind == PrimitiveKind::kWait;
+      p.name = waiting ? fmt::format("{} waiting for {}", rp.robot, prims[k].event)
+                       : fmt::format("{} executing {}", rp.robot, to_string(prims[k]));
+      p.kind = waiting ? petri::PlaceKind::kWaiting : petri::PlaceKind::kExecuting;
+      p.origin = origin_of(rp.robot, prims[k], k);
+      places.push_back(b.add_place(std::move(p)));
+    }
+
+    petri::Place done;
+    done.id = done_place_id(rp.robot);
+    done.name = fmt::format("{} done", rp.robot);
+    done.kind = petri::PlaceKind::kDone;
+    done.origin.robot = rp.robot;
+    const petri::PlaceId done_id = b.add_place(std::move(done));
+    final_places.push_back({done_id, 1});
+
+    // Tk: end of primitive k-1, begin of primitive k (k == n: end of the program).
+    for (std::size_t k = 0; k <= prims.size(); ++k) {
+      petri::Transition t;
+      t.id = transition_id(rp.robot, k);
+      t.inputs.push_back({k == 0 ? start_id : places[k - 1], 1});
+      if (k > 0 && prims[k - 1].kind == PrimitiveKind::kWait) {
+        t.inputs.push_back({shared_place(rp.robot, prims[k - 1]), 1});
+      }
+      t.outputs.push_back({k == prims.size() ? done_id : places[k], 1});
+      if (k < prims.size() && prims[k].kind == PrimitiveKind::kSignal) {
+        // If the robot just waited for the same event, this is a self-loop (consume, then produce): kept as two
+        // arcs, since the wait must still find a token.
+        t.outputs.push_back({shared_place(rp.robot, prims[k]), 1});
+      }
+      if (k < prims.size()) {
+        t.name = fmt::format("{} begin {}", rp.robot, to_string(prims[k]));
+        t.origin = origin_of(rp.robot, prims[k], k);
+        t.starts_robot = static_cast<std::uint32_t>(r);
+        t.starts_primitive = static_cast<int>(k);
+      } else {
+        t.name = fmt::format("{} finish", rp.robot);
+        t.origin.robot = rp.robot;
+        if (!prims.empty()) {
+          t.origin = origin_of(rp.robot, prims.back(), prims.size() - 1);
+          t.origin.primitive = -1;
+        }
+      }
+      b.add_transition(std::move(t));
+    }
+  }
+
+  for (const RegionUse& use : program.regions) {
+    petri::Region region;
+    region.name = use.name;
+    region.capacity = 1;
+    for (const RegionSpan& span : use.spans) {
+      auto it = chain.find(span.robot);
+      CW_CHECK(it != chain.end(), "region {} names unknown robot {}", use.name, span.robot);
+      CW_CHECK(span.begin <= span.end && span.end <= it->second.size(), "region {} span [{}, {}) of {} primitives",
+               use.name, span.begin, span.end, it->second.size());
+      for (std::size_t k = span.begin; k < span.end; ++k) region.inside.push_back(it->second[k]);
+    }
+    b.add_region(std::move(region));
+  }
+  b.set_final(std::move(final_places));
+  return std::move(b).build();
+}
+
+}  // namespace cellwright::task

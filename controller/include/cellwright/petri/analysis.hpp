@@ -2,9 +2,16 @@
 // mutual exclusion of every critical region.
 //
 // Exploration is breadth-first, so the firing sequence reported for a deadlock is a shortest one. Markings are stored
-// bit-packed; it stops cleanly at `max_states` and says so rather than exhausting memory. Unboundedness is found
-// without running forever: when a new marking strictly covers one of its ancestors (Karp-Miller), the places that
-// grew are unbounded and exploration stops.
+// bit-packed (each place in as many bits as the largest count seen needs; widening repacks the store), with a 32-bit
+// open-addressing hash set and a parent link per marking: typically 15-30 bytes per marking for robot programs. It
+// stops cleanly at `max_states` and says so rather than exhausting memory. Unboundedness is found without running
+// forever: when a new marking strictly covers one of its ancestors on its BFS path (Karp-Miller), the places that grew
+// are unbounded and exploration stops. The covering test runs only for markings that hold more tokens in all than
+// every marking before them on their BFS path, which keeps it cheap (never, for nets that conserve tokens) and is
+// still complete: every unbounded net is reported unbounded, given enough max_states to reach the covering.
+//
+// Thread safety: analyze() and the report functions are re-entrant and share no state; a Net may be analysed from
+// several threads at once.
 #pragma once
 
 #include <cstdint>
@@ -19,7 +26,8 @@
 namespace cellwright::petri {
 
 struct AnalysisOptions {
-  std::uint64_t max_states = 5'000'000;  // stop with complete == false beyond this many stored markings
+  // Stop with complete == false beyond this many stored markings (at least 1; values above 2^32 - 2 act as 2^32 - 2).
+  std::uint64_t max_states = 5'000'000;
   std::size_t max_deadlocks_reported = 1;  // how many counterexample paths to keep (the count is always exact)
 };
 
@@ -30,23 +38,26 @@ struct Deadlock {
 
 struct RegionCheck {
   std::string name;
-  bool exclusive = true;          // never more than capacity tokens inside
-  Tokens max_inside = 0;          // the most tokens found inside at once
+  bool exclusive = true;            // never more than capacity tokens inside
+  Tokens max_inside = 0;            // the most tokens found inside at once
   std::optional<Deadlock> witness;  // a shortest path to a violating marking (Deadlock reused as a path holder)
 };
 
+// Counts and negative findings (a deadlock, an unbounded place, a region violation) are definite; when `complete` is
+// false, the absence of a problem only holds for the part explored.
 struct AnalysisResult {
   bool complete = false;           // the whole reachability set was explored (no state limit, net bounded)
-  std::string stop_reason;         // why exploration stopped early, empty when complete
+  std::string stop_reason;         // why exploration stopped early, empty when complete, e.g.
+                                   // "state limit of N markings reached; raise --max-states"
   std::uint64_t states = 0;        // reachable markings found
   std::uint64_t edges = 0;         // (marking, transition) firings found
   std::uint64_t deadlocks = 0;     // dead markings that are not proper ends
   std::uint64_t final_states = 0;  // dead markings that are proper ends (every robot done)
   std::vector<Deadlock> deadlock_examples;
-  bool bounded = true;
-  std::vector<PlaceId> unbounded_places;
-  std::optional<Deadlock> unbounded_witness;  // path to the marking that strictly covers an ancestor
-  std::vector<Tokens> place_bounds;           // max tokens seen per place (valid when complete)
+  bool bounded = true;                         // false once a covering was found
+  std::vector<PlaceId> unbounded_places;       // the places that grew in that covering, ascending
+  std::optional<Deadlock> unbounded_witness;   // path to the marking that strictly covers an ancestor
+  std::vector<Tokens> place_bounds;            // max tokens seen per place (valid when complete)
   std::vector<TransitionId> dead_transitions;  // never enabled in any reachable marking (valid when complete)
   std::vector<RegionCheck> regions;
   bool mutex_ok = true;
@@ -56,16 +67,29 @@ struct AnalysisResult {
   bool ok() const { return complete && deadlocks == 0 && bounded && mutex_ok; }
 };
 
+// Explores the reachability graph of `net` from its initial marking. Throws std::invalid_argument if
+// options.max_states is 0; std::bad_alloc only if memory runs out below the state limit.
 AnalysisResult analyze(const Net& net, const AnalysisOptions& options = {});
 
-// A firing sequence told in the program's terms: one line per transition, e.g.
-// "r1 line 2 'Put r2' (hand over r2): signal step2.r1" or the transition name for foreign nets.
+// A firing sequence told in the program's terms: one numbered line per transition, e.g.
+// "3. r1 line 2 'Put r2' (hand over r2): r1 begin signal step2.r1>r2", or "3. t7" (name, else id) for foreign nets.
+// No trailing newline.
 std::string describe_path(const Net& net, const std::vector<TransitionId>& path);
-// Which robot is where in a marking, e.g. "r1: waiting for step2.r2 (line 2 'Put r2'); r2: done".
+// Which robot is where in a marking, e.g. "r1: waiting for event step2.r2>r1 (line 2 'Put r2'); r2: done", then
+// pending events ("pending: event e (x2)") and other marked places ("p3: 2"); for foreign nets just the marked
+// places by name (else id).
 std::string describe_marking(const Net& net, const Marking& m);
 
-// Human-readable report and the JSON report (keys: states, edges, deadlocks, bounded, mutex_ok, complete, ...).
+// Human-readable report: the verdict first ("OK: ...", "FAIL: 1 deadlock, region Z not exclusive", "UNKNOWN: ..."),
+// then the counts, the shortest deadlock path and where the robots are stuck, the unbounded witness, each region,
+// and the transitions never enabled. Ends with a newline.
 std::string format_report(const Net& net, const AnalysisResult& r);
+// The JSON report. Keys: ok, complete, stop_reason, states, edges, deadlocks, final_states, bounded, mutex_ok,
+// stored_bytes, unbounded_places (place ids), unbounded_path, dead_transitions (transition ids; null unless complete),
+// place_bounds ({place id: max tokens}; null unless complete), regions ([{name, exclusive, max_inside, capacity,
+// witness_path, witness_marking}]), deadlock_path, deadlock_marking ({place id: tokens}, non-zero places only),
+// deadlock_description (describe_marking), deadlock_examples ([{path, marking}]). A path is a list of {transition
+// (id), name, robot, line, task, motion} ("" and 0 where the net has no origin); absent paths and markings are null.
 nlohmann::json to_json(const Net& net, const AnalysisResult& r);
 
 }  // namespace cellwright::petri

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace cellwright::petri {
@@ -23,12 +24,12 @@ using Marking = std::vector<Tokens>;
 // sequence, a dead transition) can be told in the program's own terms. Empty for nets read from PNML files that
 // Cellwright did not write.
 struct Origin {
-  std::string robot;    // robot label ("r1"), empty for shared places (semaphores, regions, events)
-  int line = 0;         // 1-based line of the task-level command in the program file, 0 if none
-  int column = 0;       // 1-based column of that command
-  std::string task;     // the task-level command as written ("Pick A")
-  std::string motion;   // the motion-level command ("approach A")
-  int primitive = -1;   // index into the robot's primitive program (task/compile.hpp), -1 if none
+  std::string robot;   // robot label ("r1"), empty for shared places (semaphores, regions, events)
+  int line = 0;        // 1-based line of the task-level command in the program file, 0 if none
+  int column = 0;      // 1-based column of that command
+  std::string task;    // the task-level command as written ("Pick A")
+  std::string motion;  // the motion-level command ("approach A")
+  int primitive = -1;  // index into the robot's primitive program (task/compile.hpp), -1 if none
 };
 
 // What a place means at run time (paper section 2): a robot executing a command, a robot waiting for a message, a
@@ -92,12 +93,15 @@ class Net {
 
   std::size_t num_places() const { return places_.size(); }
   std::size_t num_transitions() const { return transitions_.size(); }
+  // Each place's initial tokens, indexed by PlaceId.
   Marking initial_marking() const;
 
+  // The place or transition with this id, or nullopt. Constant time (hash lookup).
   std::optional<PlaceId> find_place(const std::string& id) const;
   std::optional<TransitionId> find_transition(const std::string& id) const;
 
-  // True when `m` is dead and covers final_places(): the program finished.
+  // True when `m` is dead and covers final_places(): the program finished. Always false when final_places() is
+  // empty. Throws InternalError if m.size() != num_places().
   bool is_final(const Marking& m) const;
 
  private:
@@ -108,11 +112,17 @@ class Net {
   std::vector<Region> regions_;
   std::vector<std::string> robots_;
   std::vector<Arc> final_;
+  std::unordered_map<std::string, PlaceId> place_index_;
+  std::unordered_map<std::string, TransitionId> transition_index_;
 };
 
-// Builds a Net and validates it on build(): ids unique and non-empty, arcs name existing places, no duplicate arc to
-// one place within a transition's pre- or post-set, weights positive. Violations throw std::invalid_argument naming
-// the element (callers that read files wrap it in an InputError with the file position).
+// Builds a Net and validates it on build(): ids non-empty and unique (places and transitions share one id space, as
+// in PNML), arcs name existing places, no duplicate arc to one place within a transition's pre- or post-set (a place
+// may be in both the pre- and the post-set: a self-loop), weights positive; regions have a non-empty, unique name and
+// name existing places, each once; robot labels are non-empty and unique and Transition::starts_robot indexes them;
+// final places exist, each once, with positive weights. Violations throw std::invalid_argument naming the element
+// (callers that read files wrap it in an InputError with the file position). add_* return the new element's index;
+// they do not validate (so that arcs may be fixed up before build()). A NetBuilder is used by one thread.
 class NetBuilder {
  public:
   explicit NetBuilder(std::string name = "net");
@@ -121,7 +131,8 @@ class NetBuilder {
   void add_region(Region r);
   void set_robots(std::vector<std::string> robots);
   void set_final(std::vector<Arc> final_places);
-  // Mutable access while building (e.g. to add an arc to a place created later).
+  // Mutable access while building (e.g. to add an arc to a place created later). Throws std::out_of_range for an
+  // index not returned by add_*.
   Transition& transition(TransitionId t);
   Place& place(PlaceId p);
   std::size_t num_places() const { return net_.places_.size(); }
@@ -132,6 +143,7 @@ class NetBuilder {
   Net net_;
 };
 
+// "plain", "start", "executing", "waiting", "done", "event", "region".
 const char* to_string(PlaceKind k);
 
 }  // namespace cellwright::petri

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/common/error.hpp"  // InputError, thrown by the from_urdf_* factories
+
 namespace cellwright::models {
 
 // Directory holding the robot models (models/ in the source tree); the URDF files are in models_dir()/urdf.
@@ -77,13 +79,16 @@ class KinematicChain {
   // linear velocity, rows 3-5 to its angular velocity. q.size() must equal dof() (else InternalError).
   Eigen::Matrix<double, 6, Eigen::Dynamic> jacobian(const Eigen::VectorXd& q) const;
 
-  // A joint vector within limits whose tip pose is `target` within the tolerances, preferring the one closest to
-  // q_seed: damped least squares (Levenberg-Marquardt) from q_seed, then, if that fails, from options.restarts fixed
-  // pseudo-random starts, keeping the converged answer nearest q_seed; revolute joints are shifted by whole turns
-  // towards q_seed where the limits allow. The answer's forward kinematics is checked before kOk is returned.
-  // Never throws for an unreachable or non-finite target: returns kUnreachable with a reason. Deterministic: the same
-  // arguments give the same result. q_seed.size() must equal dof() (else InternalError); a seed outside the limits is
-  // clamped into them. Any thread may call it.
+  // A joint vector within limits whose tip pose is `target` within the tolerances, the one closest to q_seed
+  // (Euclidean distance in joint space) among those found. For a 6-joint chain whose last three axes meet in a point
+  // (a spherical wrist, as both cell arms have) it lists every solution: the wrist-centre position problem of the
+  // first three joints is solved from many starts, the wrist in closed form (Paden-Kahan subproblems), and revolute
+  // joints are shifted by whole turns towards q_seed where the limits allow. Any chain also gets damped least squares
+  // (Levenberg-Marquardt) from q_seed and, if nothing was found yet, from options.restarts fixed pseudo-random starts.
+  // The answer's forward kinematics is checked before kOk is returned. Never throws for an unreachable or non-finite
+  // target: returns kUnreachable with a reason. Deterministic: the same arguments give the same result.
+  // q_seed.size() must equal dof() (else InternalError); a seed outside the limits is clamped into them. Any thread
+  // may call it.
   IkResult inverse(const Eigen::Isometry3d& target, const Eigen::VectorXd& q_seed, const IkOptions& options = {}) const;
 
   // An upper bound on the distance from joint 1's origin (a point on its axis; it does not move with q) to the tip:
@@ -99,7 +104,26 @@ class KinematicChain {
     bool prismatic;
   };
 
+  // A spherical wrist: joints 4-6 (indices 3-5) are revolute with axes meeting at one point, the wrist centre.
+  struct Wrist {
+    bool present = false;
+    Eigen::Vector3d centre_in_arm = Eigen::Vector3d::Zero();  // the wrist centre in the moving frame of joint 3
+    Eigen::Vector3d centre_in_tip =
+        Eigen::Vector3d::Zero();  // the wrist centre in the tip frame (constant, as the wrist is spherical)
+    Eigen::Vector3d axis[3] = {
+        Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ(),
+        Eigen::Vector3d::UnitZ()};  // joint 4-6 axes in joint 3's moving frame, wrist joints at 0
+    Eigen::Matrix3d tip_rotation =
+        Eigen::Matrix3d::Identity();  // tip orientation in joint 3's moving frame, wrist joints at 0
+  };
+
   KinematicChain() = default;
+  // Fills wrist_ if the chain has a spherical wrist.
+  void find_spherical_wrist();
+  // Moving frame of joint `count - 1` (after its motion), i.e. the product of the first `count` joint transforms.
+  Eigen::Isometry3d partial_forward(const Eigen::VectorXd& q, std::size_t count) const;
+  // All joint vectors (limits ignored) putting the tip at `target`, through the spherical wrist decomposition.
+  std::vector<Eigen::VectorXd> wrist_solutions(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed) const;
 
   std::string base_, tip_;
   std::vector<Joint> joints_;
@@ -108,6 +132,7 @@ class KinematicChain {
   Eigen::Isometry3d tip_offset_ = Eigen::Isometry3d::Identity();  // from the last joint's moving frame to the tip
   double max_reach_ = 0;
   Eigen::Vector3d first_joint_origin_ = Eigen::Vector3d::Zero();
+  Wrist wrist_;
 };
 
 }  // namespace cellwright::models

@@ -1,0 +1,50 @@
+#include "cellwright/common/files.hpp"
+
+#include <gtest/gtest.h>
+
+#include "cellwright/common/error.hpp"
+
+namespace cellwright {
+namespace {
+
+namespace fs = std::filesystem;
+
+class Files : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / fmt::format("cw_files_{}", ::testing::UnitTest::GetInstance()->random_seed());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(Files, WriteThenReadRoundTripsBytes) {
+  const std::string bytes("a\0b\nc", 5);
+  write_file_atomically(dir_ / "x.bin", bytes);
+  EXPECT_EQ(read_file(dir_ / "x.bin"), bytes);
+  write_file_atomically(dir_ / "x.bin", "second");
+  EXPECT_EQ(read_file(dir_ / "x.bin"), "second");
+  // No temporary file is left beside it.
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1);
+}
+
+TEST_F(Files, MissingFileNamesThePath) {
+  try {
+    (void)read_file(dir_ / "nope.txt");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("nope.txt"), std::string::npos);
+  }
+  EXPECT_THROW((void)read_file(dir_), InputError);
+}
+
+TEST_F(Files, UnwritableDirectoryLeavesTheOldFileIntact) {
+  write_file_atomically(dir_ / "keep.txt", "old");
+  EXPECT_THROW(write_file_atomically(dir_ / "missing_dir" / "f.txt", "x"), InputError);
+  EXPECT_EQ(read_file(dir_ / "keep.txt"), "old");
+}
+
+}  // namespace
+}  // namespace cellwright

@@ -1,0 +1,229 @@
+// SimDriver: the RobotDriver (drivers/robot_driver.hpp) of a simulated robot, on its MuJoCo position servos. It
+// follows the interface contract exactly: the lifecycle table, ids 1, 2, 3, ..., one queue shared by home(), submit()
+// and request_position(), cancellation of everything behind a failed command, the notifier.
+//
+// WHO CALLS WHAT
+//  - The owner (one robot-control thread) calls the RobotDriver methods and the queries below (last_grip(),
+//    planned_joints()). They only read and change the driver's state behind its mutex; they never touch mjData.
+//  - The World (world.hpp) creates the drivers (World::add_sim_driver) and, on the simulation thread, calls step()
+//    before every physics step: that is where commands start, servo targets move along their trajectories, position
+//    read-backs are taken, and commands complete. So a command submitted between two World::advance calls starts at
+//    the next physics step; completion is seen after the World::advance that completed it.
+//  - The notifier is called on the simulation thread (inside World::advance), with no driver lock held.
+//
+// HOW COMMANDS EXECUTE (all times are simulation time)
+//  - MoveJoints: a quintic joint trajectory from the joints' current targets to the goal (trajectory.hpp), lasting
+//    long enough for every joint to stay within max_joint_speed * speed, and at least min_move_time. The servo target
+//    each step is the trajectory's position plus feed-forward terms (joint damping times the trajectory's velocity,
+//    and gravity and Coriolis forces, divided by the servo's stiffness), so that the arm follows the trajectory
+//    without lag or sag. Done when the trajectory has ended and every joint is within joint_tolerance of the goal
+//    and slower than settle_speed; failed with timeout (the errors of every joint in the message) if that has not
+//    happened settle_timeout after the trajectory's end, e.g. because the arm is blocked. A goal outside the joint
+//    limits fails with unreachable when the command starts.
+//  - MovePose (cartesian_control and linear_motion are supported; the arms have six axes): the pose is in the
+//    robot's base frame. The joint goal comes from the robot's inverse kinematics (models::KinematicChain on its
+//    URDF), seeded with the goal of the motion queued before it (or the current joints), choosing the solution
+//    closest to that seed. Path::joint then moves like MoveJoints. Path::linear solves IK at waypoints at most
+//    linear_step apart along the straight line (orientation by slerp), each seeded with the previous one, and follows
+//    that polyline; the tool then deviates from the line by well under a millimetre. It fails with unreachable when
+//    a pose has no IK solution, or a linear path would need a jump of the arm (two successive waypoints more than
+//    max_waypoint_step apart in some joint: a singularity or a change of configuration on the line). The duration
+//    also keeps the tool within max_tool_speed * speed.
+//  - Grip: the finger targets move at finger_speed towards the goal (open: fully open, or `width`; close: fully
+//    closed, or `width`). The grip force (default: the robot's grip_force from the cell, also the maximum) limits the
+//    squeeze: each finger's target never gets further than force / stiffness ahead of the finger, so a finger that
+//    meets the part pushes on it with exactly that force. Open completes when both fingers are within
+//    finger_tolerance of the goal and at rest; close completes when the finger targets have reached the goal and both
+//    fingers have come to rest (on a part or at the goal). A close that ends on nothing is still done: last_grip()
+//    tells whether the fingers stopped on a part, and the robot-control thread decides.
+//  - SetOutput sets a signal of the SignalTable shared by the cell (signals.hpp) and completes at once. WaitInput
+//    completes at the first step on which the signal has the wanted level, or fails with timeout.
+//  - request_position() completes at the next step: the joints and the tool centre point's pose (base frame) of the
+//    simulation at that step, stamped with its simulation time.
+//  - home() moves the arm to the cell's home configuration (home_speed) and opens the gripper; then the driver is
+//    homed. connect() always succeeds (the simulated controller is always there).
+//  - stop() and disconnect() cancel every command and brake the arm: from its current position and velocity the
+//    targets follow a smooth deceleration to rest (within brake_time at most) and then hold still.
+//  - World::advance puts every driver in fault (commands failed with hardware) if MuJoCo had to reset the
+//    simulation after a numerical failure; reset() then brings it back to connected.
+#pragma once
+
+#include <mujoco/mujoco.h>
+#include <Eigen/Geometry>
+
+#include <array>
+#include <chrono>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/drivers/robot_driver.hpp"
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/sim/signals.hpp"
+#include "cellwright/twin/sim/trajectory.hpp"
+
+namespace cellwright::twin::sim {
+
+// Tuning of a simulated controller. Units: SI; times in seconds of simulation time.
+struct SimDriverOptions {
+  SourceLocation where;                 // the robot's entry in the cell or scenario file, for messages
+  std::vector<double> max_joint_speed;  // rad/s per arm joint at speed 1; empty: the URDF joints' velocity limits
+  double max_tool_speed = 0.5;          // m/s of the tool centre point at speed 1 (straight-line moves)
+  double min_move_time = 0.2;           // the shortest motion
+  double joint_tolerance = 0.002;       // rad: a move is done when every joint is this close to its goal ...
+  double settle_speed = 0.02;           // rad/s: ... and slower than this
+  double settle_timeout = 2.0;          // after the trajectory's end, before a move fails with timeout
+  double linear_step = 0.005;           // m between the IK waypoints of a straight-line move
+  double max_waypoint_step = 0.25;      // rad: larger joint steps between waypoints make a line unreachable
+  double finger_speed = 0.05;           // m/s of each finger's target
+  double finger_tolerance = 0.0005;     // m: an open is done when each finger is this close to its goal ...
+  double finger_settle_speed = 0.002;   // m/s: ... and fingers slower than this count as stopped
+  double home_speed = 0.5;              // speed fraction of home()
+  double brake_time = 0.3;              // at most, to brake to rest after stop()
+  std::size_t queue_depth = 16;         // commands in flight at most
+  models::IkOptions ik;                 // how hard the inverse kinematics tries
+};
+
+// How the last completed Grip ended.
+struct GripOutcome {
+  drivers::CommandId command = 0;
+  drivers::Grip::Action action = drivers::Grip::Action::close;
+  double opening = 0;                       // m between the finger pads when it completed
+  std::array<bool, 2> touch{false, false};  // {left, right} pad touch sensors reading a force
+  // close only: both pads touch something and the fingers stopped short of fully closed (by more than 1 mm).
+  bool on_part = false;
+};
+
+class SimDriver final : public drivers::RobotDriver {
+ public:
+  // Built by World::add_sim_driver (which validates the robot name); `robot` indexes scene.robots(). Reads the
+  // robot's URDF for its kinematics and joint speed limits. Throws InputError naming options.where when
+  // max_joint_speed has the wrong length or a non-positive value, or an option is out of range; InputError from
+  // models::KinematicChain when the URDF cannot be read. The scene and the signal table must outlive the driver.
+  SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals, SimDriverOptions options);
+  SimDriver(const SimDriver&) = delete;
+  SimDriver& operator=(const SimDriver&) = delete;
+
+  // ---- RobotDriver (the owner thread): see drivers/robot_driver.hpp and the notes above ----
+  const drivers::Capabilities& capabilities() const override;
+  drivers::DriverState state() const override;
+  drivers::ErrorCode connect() override;
+  void disconnect() override;
+  drivers::Submitted home() override;
+  drivers::ErrorCode activate() override;
+  void stop() override;
+  drivers::ErrorCode reset() override;
+  drivers::Submitted submit(const drivers::Command& command) override;
+  drivers::Submitted request_position() override;
+  drivers::CommandStatus poll(drivers::CommandId id) const override;
+  std::optional<drivers::PositionReading> last_position() const override;
+  void set_notifier(std::function<void()> notify) override;
+
+  // ---- Queries (any thread) ----
+
+  // The robot's name in the cell.
+  const std::string& name() const { return name_; }
+  // How the most recent Grip command that completed ended; nullopt before the first.
+  std::optional<GripOutcome> last_grip() const;
+  // The robot's kinematics (base_link to tcp), as used for MovePose.
+  const models::KinematicChain& kinematics() const { return chain_; }
+
+  // ---- The simulation side (the World, on the simulation thread only) ----
+
+  // Advances the controller to simulation time `now` (the time of the physics step about to be taken): starts,
+  // runs and completes commands, and writes this robot's servo targets into data->ctrl. Reads only this robot's
+  // state from `data`. Calls the notifier (lock released) if a command finished.
+  void step(std::chrono::nanoseconds now, const mjModel* model, mjData* data);
+
+  // MuJoCo reset the simulation: every command fails with hardware, the driver enters fault (unless disconnected),
+  // and the targets are taken from `data` as it is now. Calls the notifier.
+  void fault(const std::string& message, const mjData* data);
+
+ private:
+  enum class JobKind : std::uint8_t { home, command, position };
+  struct Job {
+    drivers::CommandId id = 0;
+    JobKind kind = JobKind::command;
+    std::optional<drivers::Command> command;
+    // Precomputed at submit() for motions: the joint path (empty when unreachable, with `problem` saying why).
+    std::vector<Eigen::VectorXd> path;
+    double speed = 1.0;
+    drivers::ErrorCode problem_code = drivers::ErrorCode::none;
+    std::string problem;
+  };
+
+  // What the running job is doing on the simulation side.
+  struct Motion {
+    std::optional<JointPath> arm;       // arm trajectory of a move or home
+    std::chrono::nanoseconds start{0};  // when it started
+    bool grip = false;                  // a finger motion is part of the job
+    double finger_goal = 0;             // joint value of each finger at the goal
+    double finger_force = 0;            // N
+    bool closing = false;
+    std::chrono::nanoseconds deadline{0};  // wait-input timeout, or the settle deadline of a move
+  };
+
+  // mutex_ held for all below.
+  drivers::Submitted refuse(drivers::ErrorCode error, std::string message);
+  drivers::Submitted enqueue(Job job);
+  void set_status(drivers::CommandId id, drivers::CommandPhase phase,
+                  drivers::ErrorCode error = drivers::ErrorCode::none, std::string message = {});
+  bool fail_all(drivers::ErrorCode error, const std::string& message);
+  void finish_head(bool ok, drivers::ErrorCode error = drivers::ErrorCode::none, std::string message = {});
+  // Plans the joint path of a motion command from `from` (IK included); fills job.path or job.problem.
+  void plan(Job& job, const Eigen::VectorXd& from) const;
+  // The arm joints' goal at the end of everything queued (for IK seeds and paths).
+  Eigen::VectorXd queue_end_joints() const;
+  // Simulation side, per step.
+  void start_job(std::chrono::nanoseconds now, const mjModel* model, const mjData* data);
+  bool run_job(std::chrono::nanoseconds now, const mjModel* model, const mjData* data);  // true when it finished
+  void write_targets(std::chrono::nanoseconds now, const mjModel* model, mjData* data);
+  void begin_brake(std::chrono::nanoseconds now, const mjData* data);
+  Eigen::VectorXd joints(const mjData* data) const;
+  Eigen::VectorXd joint_speeds(const mjData* data) const;
+  double opening(const mjData* data) const;
+  std::array<bool, 2> touch(const mjData* data) const;
+
+  const Scene& scene_;
+  const RobotIds& ids_;
+  SignalTable& signals_;
+  const SimDriverOptions options_;
+  const std::string name_;
+  const models::KinematicChain chain_;
+  drivers::Capabilities capabilities_;
+  Eigen::VectorXd max_speed_, lower_, upper_, home_;
+  double grip_force_ = 0;
+  Eigen::Isometry3d base_ = Eigen::Isometry3d::Identity();  // base_link in the world
+
+  mutable std::mutex mutex_;
+  drivers::DriverState state_ = drivers::DriverState::disconnected;
+  drivers::CommandId next_id_ = 1;
+  std::deque<Job> queue_;
+  bool head_started_ = false;
+  std::map<drivers::CommandId, drivers::CommandStatus> statuses_;
+  std::deque<drivers::CommandId> finished_;
+  std::function<void()> notify_;
+  bool notify_pending_ = false;
+  std::optional<drivers::PositionReading> last_position_;
+  std::optional<GripOutcome> last_grip_;
+  bool brake_requested_ = false;
+
+  // Simulation side (touched only in step()/fault(), but under mutex_ as the queue is shared).
+  Motion motion_;
+  bool targets_initialised_ = false;
+  std::optional<JointPath> hold_;  // arm targets when no motion runs (after a move, or a brake)
+  std::chrono::nanoseconds hold_start_{0};
+  Eigen::VectorXd arm_target_;   // current arm joint targets (trajectory position)
+  double finger_target_ = 0;     // current finger joint target (both fingers)
+  double finger_force_ = 0;      // current force limit of the fingers
+  Eigen::VectorXd last_joints_;  // joints at the last step, for planning in submit()
+};
+
+}  // namespace cellwright::twin::sim

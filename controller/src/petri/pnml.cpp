@@ -520,8 +520,9 @@ class Reader {
     }
     for (const auto& [element, t] : starts_) {
       if (*transitions_[t].starts_robot >= robots.size()) {
-        fail(element, fmt::format("transition {} starts robot {}, but the net lists {} robots",
-                                  quote(transitions_[t].id), *transitions_[t].starts_robot, robots.size()));
+        fail(element,
+             fmt::format("transition {} starts robot #{}, but the net lists {} robot{}", quote(transitions_[t].id),
+                         *transitions_[t].starts_robot, robots.size(), robots.size() == 1 ? "" : "s"));
       }
     }
     builder.set_robots(std::move(robots));
@@ -552,7 +553,7 @@ class Reader {
       read_net_block(ts, builder);
     } else {
       for (const auto& [element, t] : starts_) {
-        fail(element, fmt::format("transition {} starts robot {}, but the net lists no robots",
+        fail(element, fmt::format("transition {} starts robot #{}, but the net lists no robots",
                                   quote(transitions_[t].id), *transitions_[t].starts_robot));
       }
     }

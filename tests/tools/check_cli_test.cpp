@@ -1,0 +1,97 @@
+// `twin check` and `twin compile` as a user runs them on the example programs in scenes/.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "tools/twin_cli.hpp"
+
+namespace cellwright::testing {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string scene(const std::string& name) { return shell_quote(source_path("scenes/" + name)); }
+
+TEST(CheckCli, Table1ExchangeAndSinglePickPlacePass) {
+  TwinCli cli("cw-check");
+  for (const char* program : {"exchange.task", "pick_place.task", "regions.task"}) {
+    const Outcome r = cli.run("check " + scene(program));
+    EXPECT_EQ(r.status, 0) << program << "\n" << r.out << r.err;
+    EXPECT_THAT(r.out, HasSubstr("OK")) << program;
+  }
+}
+
+TEST(CheckCli, CrossedWaitsAreRefusedWithTheCounterexample) {
+  TwinCli cli("cw-check");
+  const Outcome r = cli.run("check " + scene("deadlock.task"));
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("deadlock"));
+  // The counterexample is told in the program's terms: both robots stuck in their waits, with the lines.
+  EXPECT_THAT(r.out, HasSubstr("r1: waiting for event s1"));
+  EXPECT_THAT(r.out, HasSubstr("r2: waiting for event s2"));
+  EXPECT_THAT(r.out, HasSubstr("line "));
+}
+
+TEST(CheckCli, JsonReportHasTheFiguresUsersScriptAgainst) {
+  TwinCli cli("cw-check");
+  const Outcome ok = cli.run("check --json " + scene("exchange.task"));
+  ASSERT_EQ(ok.status, 0) << ok.err;
+  const auto j = nlohmann::json::parse(ok.out);
+  for (const char* key : {"states", "edges", "deadlocks", "bounded", "mutex_ok"}) EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_GT(j["states"].get<int>(), 1);
+  EXPECT_EQ(j["deadlocks"].get<int>(), 0);
+  EXPECT_TRUE(j["bounded"].get<bool>());
+  EXPECT_TRUE(j["mutex_ok"].get<bool>());
+
+  const Outcome bad = cli.run("check --json " + scene("deadlock.task"));
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_EQ(nlohmann::json::parse(bad.out)["deadlocks"].get<int>(), 1);
+}
+
+TEST(CheckCli, StateLimitStopsWithAClearMessageAndNonZeroExit) {
+  TwinCli cli("cw-check");
+  const Outcome r = cli.run("check --max-states 3 " + scene("exchange.task"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("state limit"));
+}
+
+TEST(CheckCli, BadProgramNamesFileLineAndProblem) {
+  TwinCli cli("cw-check");
+  const auto path = cli.dir() / "bad.task";
+  std::ofstream(path) << "robot r1\nworkpiece A\nsequence r1\n  Pick Z\nend\n";
+  const Outcome r = cli.run("check " + shell_quote(path.string()));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("bad.task:4:"));
+  EXPECT_THAT(r.err, HasSubstr("'Z'"));
+  const Outcome missing = cli.run("check " + shell_quote((cli.dir() / "nope.task").string()));
+  EXPECT_EQ(missing.status, 2);
+  EXPECT_THAT(missing.err, HasSubstr("nope.task"));
+}
+
+TEST(CompileCli, DotAndPnmlExportOfTheProgramNet) {
+  TwinCli cli("cw-compile");
+  const auto pnml = cli.dir() / "exchange.pnml";
+  const Outcome r = cli.run("compile --dot --pnml " + shell_quote(pnml.string()) + " " + scene("exchange.task"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("digraph"));
+  EXPECT_THAT(r.out, HasSubstr("r1"));
+  // The PNML written is the same net: analysing it gives the figures `twin check` gives for the program.
+  const Outcome from_pnml = cli.run("analyze --json " + shell_quote(pnml.string()));
+  const Outcome from_program = cli.run("check --json " + scene("exchange.task"));
+  ASSERT_EQ(from_pnml.status, 0) << from_pnml.out << from_pnml.err;
+  const auto a = nlohmann::json::parse(from_pnml.out), b = nlohmann::json::parse(from_program.out);
+  for (const char* key : {"states", "edges", "deadlocks", "final_states"}) EXPECT_EQ(a[key], b[key]) << key;
+}
+
+TEST(CompileCli, ListingShowsEachRobotsPrimitives) {
+  TwinCli cli("cw-compile");
+  const Outcome r = cli.run("compile " + scene("exchange.task"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_THAT(r.out, HasSubstr("move above(A)"));
+  EXPECT_THAT(r.out, HasSubstr("close A"));
+  EXPECT_THAT(r.out, HasSubstr("signal "));
+}
+
+}  // namespace
+}  // namespace cellwright::testing

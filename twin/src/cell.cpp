@@ -53,8 +53,15 @@ std::string describe(const YAML::Node& n) {
 // silently ignored), and remembers where each field is so that errors can point at it.
 class Fields {
  public:
-  Fields(const Doc& doc, const YAML::Node& map, std::string what, std::initializer_list<std::string_view> allowed)
+  // `what` names the mapping in errors ("the cell description"). A named object passes its kind ("workpiece")
+  // with named = true: errors then say "workpiece 'A'" once its name is known, "a workpiece" before.
+  Fields(const Doc& doc, const YAML::Node& map, std::string what, std::initializer_list<std::string_view> allowed,
+         bool named = false)
       : doc_(doc), map_(map), what_(std::move(what)) {
+    if (named) {
+      const YAML::Node name = map.IsMap() ? map["name"] : YAML::Node();
+      what_ = name.IsDefined() && name.IsScalar() ? fmt::format("{} '{}'", what_, name.Scalar()) : "a " + what_;
+    }
     if (!map.IsMap()) doc.fail(map, fmt::format("{} must be a mapping of fields, got {}", what_, describe(map)));
     for (const auto& kv : map) {
       if (!kv.first.IsScalar()) doc.fail(kv.first, fmt::format("{}: field names must be plain words", what_));
@@ -85,7 +92,6 @@ class Fields {
   }
   const YAML::Node& map() const { return map_; }
   const std::string& what() const { return what_; }
-  void rename(std::string what) { what_ = std::move(what); }
   std::string field(const std::string& key) const { return fmt::format("field '{}' of {}", key, what_); }
 
   double number(const std::string& key) const { return as_number(node(key), field(key)); }
@@ -286,11 +292,10 @@ SerialSettings read_serial(const Doc& doc, const YAML::Node& n, const std::strin
 }
 
 RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const std::filesystem::path& base_dir) {
-  Fields f(doc, n, "a robot", {"name", "urdf", "base", "home", "grip_force", "driver", "serial"});
+  Fields f(doc, n, "robot", {"name", "urdf", "base", "home", "grip_force", "driver", "serial"}, true);
   RobotSpec r;
   r.where = doc.at(n);
   r.name = names.take(f, "robot");
-  f.rename(fmt::format("robot '{}'", r.name));
   const std::string urdf = f.text("urdf");
   r.urdf = std::filesystem::path(urdf).is_absolute() ? std::filesystem::path(urdf) : base_dir / urdf;
   r.urdf = r.urdf.lexically_normal();
@@ -328,11 +333,10 @@ RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const st
 }
 
 ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "a conveyor", {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop"});
+  Fields f(doc, n, "conveyor", {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop"}, true);
   ConveyorSpec c;
   c.where = doc.at(n);
   c.name = names.take(f, "conveyor");
-  f.rename(fmt::format("conveyor '{}'", c.name));
   c.pose = read_pose(doc, f.node("pose"), f.field("pose"));
   c.length = f.positive("length");
   c.width = f.positive("width");
@@ -363,11 +367,10 @@ ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
 }
 
 MachineSpec read_machine(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "a machine", {"name", "pose", "size", "fixture", "process_time"});
+  Fields f(doc, n, "machine", {"name", "pose", "size", "fixture", "process_time"}, true);
   MachineSpec m;
   m.where = doc.at(n);
   m.name = names.take(f, "machine");
-  f.rename(fmt::format("machine '{}'", m.name));
   m.pose = read_pose(doc, f.node("pose"), f.field("pose"));
   m.size = f.vec3("size");
   if ((m.size.array() <= 0).any()) {
@@ -410,11 +413,11 @@ struct PendingLocation {
 };
 
 PendingLocation read_location(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "a location", {"name", "pose", "at", "offset", "yaw", "reach", "grasp_height", "approach_height"});
+  Fields f(doc, n, "location", {"name", "pose", "at", "offset", "yaw", "reach", "grasp_height", "approach_height"},
+           true);
   PendingLocation p;
   p.spec.where = doc.at(n);
   p.spec.name = names.take(f, "location");
-  f.rename(fmt::format("location '{}'", p.spec.name));
   if (f.has("pose") == f.has("at")) {
     doc.fail(n, fmt::format("location '{}' needs exactly one of 'pose' (world) or 'at' (e.g. input.leave, "
                             "machine.fixture)",
@@ -446,12 +449,11 @@ struct PendingWorkpiece {
 };
 
 PendingWorkpiece read_workpiece(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "a workpiece", {"name", "shape", "size", "mass", "colour", "pose", "on"});
+  Fields f(doc, n, "workpiece", {"name", "shape", "size", "mass", "colour", "pose", "on"}, true);
   PendingWorkpiece p;
   WorkpieceSpec& w = p.spec;
   w.where = doc.at(n);
   w.name = names.take(f, "workpiece");
-  f.rename(fmt::format("workpiece '{}'", w.name));
   const std::string shape = f.text("shape");
   if (shape == "box") {
     w.shape = Shape::kBox;
@@ -523,11 +525,10 @@ Eigen::Vector3d look_at_rpy(const Eigen::Vector3d& from, const Eigen::Vector3d& 
 }
 
 CameraSpec read_camera(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "a camera", {"name", "pose", "position", "look_at", "up", "resolution", "fovy"});
+  Fields f(doc, n, "camera", {"name", "pose", "position", "look_at", "up", "resolution", "fovy"}, true);
   CameraSpec c;
   c.where = doc.at(n);
   c.name = names.take(f, "camera");
-  f.rename(fmt::format("camera '{}'", c.name));
   if (f.has("pose") == f.has("position")) {
     doc.fail(n, fmt::format("camera '{}' needs exactly one of 'pose' or 'position' with 'look_at'", c.name));
   }
@@ -568,11 +569,11 @@ CameraSpec read_camera(const Doc& doc, Names& names, const YAML::Node& n) {
 }
 
 LightSpec read_light(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "a light", {"name", "position", "direction", "look_at", "directional", "cast_shadow", "diffuse"});
+  Fields f(doc, n, "light", {"name", "position", "direction", "look_at", "directional", "cast_shadow", "diffuse"},
+           true);
   LightSpec l;
   l.where = doc.at(n);
   l.name = names.take(f, "light");
-  f.rename(fmt::format("light '{}'", l.name));
   l.position = f.vec3("position");
   if (f.has("direction") && f.has("look_at")) {
     doc.fail(f.node("look_at"), fmt::format("light '{}': give 'direction' or 'look_at', not both", l.name));
@@ -770,25 +771,16 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
     cell.locations.push_back(p.spec);
   }
 
-  // Parts put on a conveyor queue up from its entry point downstream, 2 cm apart.
-  std::map<std::string, double> queue_end;
+  // Parts put on a conveyor stand in a row from its entry point downstream, 2 cm apart, in reverse order of listing:
+  // the first listed is furthest along and reaches the end of the belt (and the robot) first.
+  std::map<std::string, std::vector<std::pair<std::size_t, YAML::Node>>> rows;  // conveyor -> (part, `on` node)
   for (const auto& n : list_of(doc, top, "workpieces")) {
     PendingWorkpiece p = read_workpiece(doc, names, n);
     WorkpieceSpec& w = p.spec;
     if (p.on) {
       w.on = p.on->name;
       if (const ConveyorSpec* c = cell.find_conveyor(w.on)) {
-        auto [it, fresh] = queue_end.try_emplace(c->name, c->enter);
-        const double s = it->second + (fresh ? 0.0 : w.size.x() / 2 + 0.02);
-        const double next = s + w.size.x() / 2;
-        const double limit = c->stop ? c->leave : c->length;
-        if (next > limit) {
-          doc.fail(p.on->node, fmt::format("workpiece '{}' does not fit on conveyor '{}': the parts queued from "
-                                           "its entry point reach {:.3f} m, beyond {:.3f} m",
-                                           w.name, c->name, next, limit));
-        }
-        it->second = next;
-        w.pose.xyz = c->belt_point(s) + Eigen::Vector3d(0, 0, w.size.z() / 2);
+        rows[c->name].emplace_back(cell.workpieces.size(), p.on->node);
         w.pose.rpy = Eigen::Vector3d(0, 0, c->pose.rpy.z());
       } else if (const LocationSpec* l = cell.find_location(w.on)) {
         w.pose.xyz = l->pose.xyz + Eigen::Vector3d(0, 0, w.size.z() / 2);
@@ -800,6 +792,24 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
       }
     }
     cell.workpieces.push_back(w);
+  }
+  constexpr double kRowGap = 0.02;
+  for (const auto& [conveyor, row] : rows) {
+    const ConveyorSpec& c = *cell.find_conveyor(conveyor);
+    const double limit = c.stop ? c.leave : c.length;
+    double s = c.enter;  // centre of the next part, walking downstream from the last listed
+    for (auto it = row.rbegin(); it != row.rend(); ++it) {
+      WorkpieceSpec& w = cell.workpieces[it->first];
+      if (it != row.rbegin()) s += w.size.x() / 2;
+      if (s + w.size.x() / 2 > limit + 1e-9) {
+        doc.fail(row.back().second,
+                 fmt::format("the {} parts put on conveyor '{}' do not fit on it: standing in a row from its entry "
+                             "point ({} m) they reach past {} m, where {}",
+                             row.size(), c.name, c.enter, limit, c.stop ? "its stop is" : "the belt ends"));
+      }
+      w.pose.xyz = c.belt_point(s) + Eigen::Vector3d(0, 0, w.size.z() / 2);
+      s += w.size.x() / 2 + kRowGap;
+    }
   }
   for (const auto& n : list_of(doc, top, "cameras")) cell.cameras.push_back(read_camera(doc, names, n));
   for (const auto& n : list_of(doc, top, "lights")) cell.lights.push_back(read_light(doc, names, n));

@@ -37,10 +37,14 @@ constexpr double kFingerSqueeze = 0.002;  // m of squeeze at which a finger reac
 constexpr double kBeltThickness = 0.01;
 constexpr double kBeltWrap = 0.05;
 constexpr double kBeltMass = 2.0;
-constexpr double kBeltKv = 500.0;  // N / (m/s): 1 N of drag slows the belt by 2 mm/s
+constexpr double kBeltKv = 2000.0;  // N / (m/s): 1 N of drag slows the belt by 0.5 mm/s
 constexpr double kPedestalSide = 0.3;
 
 const char* const kPadFriction = "1 0.005 0.0001";  // sliding, torsional, rolling (facts.md: grasps hold with these)
+// Gripper pads and parts: contacts twice as stiff as MuJoCo's default and nearly hard once touching, so that a part
+// sits in the fingers within half a millimetre of where they close on it.
+const char* const kGripSolref = "0.01 1";
+const char* const kGripSolimp = "0.95 0.99 0.001";
 
 // --- XML writing -------------------------------------------------------------------------------------------------
 
@@ -69,7 +73,7 @@ std::string escape(std::string_view s) {
 
 std::string num(double v) {
   if (std::abs(v) < 1e-12) v = 0;  // no "-0" or 1e-17 noise in the file
-  return fmt::format("{:.10g}", v);
+  return fmt::format("{}", v);     // the shortest text that reads back as the same double
 }
 std::string nums(std::initializer_list<double> v) {
   std::string s;
@@ -256,6 +260,7 @@ struct Builder {
   std::string actuators;     // <actuator> children, written after the worldbody
   std::string sensors;
   std::vector<std::pair<std::string, std::string>> excludes;
+  std::vector<std::pair<std::string, std::string>> couplings;  // joints that move together (joint1 = joint2)
 
   void actuator(const std::string& tag, const Attrs& attrs, double initial) {
     Xml a;
@@ -473,6 +478,9 @@ struct Builder {
     for (std::size_t a = 0; a < bodies.size(); ++a) {
       for (std::size_t b = a + 1; b < bodies.size(); ++b) excludes.emplace_back(bodies[a], bodies[b]);
     }
+    // The fingers of a parallel gripper move together (rack and pinion): without the coupling, two force-limited
+    // servos squeezing a part leave it free to drift along the closing direction.
+    couplings.emplace_back(spec.name + "/finger_left_joint", spec.name + "/finger_right_joint");
     sensor("force", {{"name", spec.name + "/wrist_force"}, {"site", spec.name + "/wrist_ft"}});
     sensor("torque", {{"name", spec.name + "/wrist_torque"}, {"site", spec.name + "/wrist_ft"}});
     for (const char* side : {"left", "right"}) {
@@ -512,7 +520,11 @@ struct Builder {
                       {"type", "box"},
                       {"pos", nums({c.leave - l / 2 + 0.005, 0, h + 0.02})},
                       {"size", nums({0.005, w / 2, 0.02})},
-                      {"material", "stop"}});
+                      {"material", "stop"},
+                      // A smooth stop: with grippy friction there, the belt pulling a part's bottom while the stop
+                      // holds its face wedges it down onto the belt with many times its weight.
+                      {"priority", "1"},
+                      {"friction", "0.1 0.005 0.0001"}});
     }
     // The belt: kBeltWrap longer than the conveyor, reaching kBeltWrap upstream at q = 0, so that for q in
     // [0, kBeltWrap) its top covers the whole conveyor. Collision only: the visible belt is the static plate above.
@@ -598,10 +610,14 @@ struct Builder {
   std::string build(const std::vector<RobotModel>& robots) {
     x.open("mujoco", {{"model", cell.name}});
     x.leaf("compiler", {{"angle", "radian"}, {"autolimits", "false"}, {"inertiafromgeom", "auto"}});
-    // Elliptic friction cones and a high impratio make friction grasps hold without creep (facts.md); the
+    // Elliptic friction cones and a high impratio make friction grasps hold (facts.md); a few noslip iterations
+    // remove the slow creep of soft friction (a held part otherwise slides about 0.1 mm/s down the pads). The
     // implicit integrator treats joint damping and the belts' velocity servos implicitly, which keeps them stable.
-    x.leaf("option",
-           {{"timestep", num(cell.timestep)}, {"integrator", "implicit"}, {"cone", "elliptic"}, {"impratio", "10"}});
+    x.leaf("option", {{"timestep", num(cell.timestep)},
+                      {"integrator", "implicit"},
+                      {"cone", "elliptic"},
+                      {"impratio", "10"},
+                      {"noslip_iterations", "3"}});
     x.leaf("size", {{"njmax", "4000"}, {"nconmax", "1000"}});
     int offwidth = 640, offheight = 480;
     for (const auto& c : cell.cameras) {
@@ -651,7 +667,7 @@ struct Builder {
         {{"group", "3"}, {"density", "0"}, {"condim", "4"}, {"friction", kPadFriction}, {"rgba", "0.9 0.5 0.2 0.5"}});
     x.close();
     x.open("default", {{"class", "part"}});
-    x.leaf("geom", {{"condim", "4"}, {"friction", kPadFriction}});
+    x.leaf("geom", {{"condim", "4"}, {"friction", kPadFriction}, {"solref", kGripSolref}, {"solimp", kGripSolimp}});
     x.close();
     x.close();
 
@@ -711,6 +727,9 @@ struct Builder {
     x.open("contact");
     for (const auto& [a, b] : excludes) x.leaf("exclude", {{"body1", a}, {"body2", b}});
     x.close();
+    x.open("equality");
+    for (const auto& [a, b] : couplings) x.leaf("joint", {{"joint1", a}, {"joint2", b}, {"polycoef", "0 1 0 0 0"}});
+    x.close();
     // Actuators and sensors were collected while the bodies were written.
     x.open("actuator");
     x.raw(actuators);
@@ -756,7 +775,7 @@ struct VfsDeleter {
 
 std::string scene_mjcf(const CellDescription& cell) {
   const std::vector<RobotModel> robots = read_robot_models(cell);
-  Builder b{cell, {}, {}, {}, {}, {}, {}};
+  Builder b{cell, {}, {}, {}, {}, {}, {}, {}};
   return b.build(robots);
 }
 

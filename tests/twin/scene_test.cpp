@@ -1,0 +1,274 @@
+// The MuJoCo scene of the paper's cell: it compiles without warnings, nothing overlaps at the start, the arms hold
+// their home pose under gravity, belts carry parts by friction, grippers hold parts, and the sensors read what the
+// physics says.
+#include "cellwright/twin/scene.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "twin/mujoco_fixture.hpp"
+
+namespace cellwright::twin {
+namespace {
+
+using ::testing::HasSubstr;
+
+const std::filesystem::path kSource = CW_SOURCE_DIR;
+
+class SceneTest : public testing::MujocoTest {
+ protected:
+  static const CellDescription& paper_cell() {
+    static const CellDescription cell = load_cell(kSource / "scenes/cell.yaml");
+    return cell;
+  }
+};
+
+std::string body_of_geom(const mjModel* m, int g) {
+  const char* name = mj_id2name(m, mjOBJ_BODY, m->geom_bodyid[g]);
+  return name != nullptr ? name : "world";
+}
+
+// Contacts deeper than `depth` (metres), as "body1 / body2: depth".
+std::vector<std::string> penetrations(const Scene& s, double depth) {
+  std::vector<std::string> out;
+  const mjData* d = s.data();
+  for (int i = 0; i < d->ncon; ++i) {
+    const mjContact& c = d->contact[i];
+    if (c.dist < -depth) {
+      out.push_back(fmt::format("{} / {}: {:.4f} m", body_of_geom(s.model(), c.geom1), body_of_geom(s.model(), c.geom2),
+                                -c.dist));
+    }
+  }
+  return out;
+}
+
+Eigen::Vector3d body_pos(const Scene& s, int body) {
+  return Eigen::Vector3d(s.data()->xpos[3 * body], s.data()->xpos[3 * body + 1], s.data()->xpos[3 * body + 2]);
+}
+
+Eigen::Vector3d sensor3(const Scene& s, int sensor) {
+  const mjtNum* v = s.data()->sensordata + s.model()->sensor_adr[sensor];
+  return {v[0], v[1], v[2]};
+}
+
+double sensor1(const Scene& s, int sensor) {
+  return s.data()->sensordata[s.model()->sensor_adr[sensor]];
+}
+
+TEST_F(SceneTest, FixtureCatchesWarnings) {
+  mju_warning("a test warning");
+  ASSERT_EQ(warnings().size(), 1u);
+  EXPECT_THAT(warnings()[0], HasSubstr("a test warning"));
+  warnings().clear();
+}
+
+TEST_F(SceneTest, BuildsTheWholeCellWithNamedParts) {
+  Scene s = build_scene(paper_cell());
+  const mjModel* m = s.model();
+  // Per robot: six arm joints and two fingers, each with a position servo; one velocity servo per belt.
+  EXPECT_EQ(m->nu, 2 * 8 + 2);
+  // Robots 2 x 8, belts 2 x 1, workpieces 4 x 7.
+  EXPECT_EQ(m->nq, 16 + 2 + 28);
+  ASSERT_EQ(s.robots().size(), 2u);
+  const RobotIds& puma = *s.find_robot("puma");
+  EXPECT_EQ(puma.joints, (std::vector<std::string>{"puma/joint1", "puma/joint2", "puma/joint3", "puma/joint4",
+                                                   "puma/joint5", "puma/joint6"}));
+  EXPECT_EQ(m->sensor_dim[puma.wrist_force_sensor], 3);
+  EXPECT_EQ(m->sensor_dim[puma.wrist_torque_sensor], 3);
+  EXPECT_EQ(m->sensor_type[puma.finger_touch_sensor[0]], mjSENS_TOUCH);
+  EXPECT_EQ(m->sensor_type[puma.finger_pos_sensor[1]], mjSENS_JOINTPOS);
+  EXPECT_DOUBLE_EQ(puma.finger_range[0], 0.0);
+  EXPECT_DOUBLE_EQ(puma.finger_range[1], 0.04);
+  EXPECT_STREQ(mj_id2name(m, mjOBJ_SITE, puma.tcp_site), "puma/tcp");
+  for (int a : puma.actuator) EXPECT_EQ(m->actuator_trntype[a], mjTRN_JOINT);
+  ASSERT_EQ(s.workpieces().size(), 4u);
+  EXPECT_EQ(s.find_workpiece("C")->body, mj_name2id(m, mjOBJ_BODY, "workpiece/C"));
+  EXPECT_EQ(s.find_conveyor("input")->belt_joint, mj_name2id(m, mjOBJ_JOINT, "conveyor/input/belt"));
+  EXPECT_GE(s.camera_id("overhead"), 0);
+  EXPECT_EQ(s.camera_id("nowhere"), -1);
+  // The gripper pads grip with torsional friction; the friction cone is elliptic with a high impratio.
+  EXPECT_EQ(m->geom_condim[mj_name2id(m, mjOBJ_GEOM, "puma/finger_left/finger_left_pad")], 4);
+  EXPECT_EQ(m->opt.cone, mjCONE_ELLIPTIC);
+  EXPECT_DOUBLE_EQ(m->opt.impratio, 10);
+  // The same description always gives the same model text.
+  EXPECT_EQ(scene_mjcf(paper_cell()), s.mjcf());
+  expect_no_data_warnings(s.data());
+}
+
+TEST_F(SceneTest, NothingOverlapsAtTheStartAndTheRobotsTouchNothing) {
+  Scene s = build_scene(paper_cell());
+  EXPECT_THAT(penetrations(s, 1e-4), ::testing::IsEmpty());
+  for (int i = 0; i < s.data()->ncon; ++i) {
+    const mjContact& c = s.data()->contact[i];
+    for (int g : {c.geom1, c.geom2}) {
+      const std::string body = body_of_geom(s.model(), g);
+      EXPECT_FALSE(body.rfind("puma/", 0) == 0 || body.rfind("melfa/", 0) == 0) << body << " touches something";
+    }
+  }
+}
+
+TEST_F(SceneTest, OverlapCheckSeesAPartInsideTheMachine) {
+  // The check above can fail: a part placed inside the machine's body is reported.
+  CellDescription cell = paper_cell();
+  cell.workpieces[0].pose.xyz = Eigen::Vector3d(0.05, 0.6, 0.38);
+  Scene s = build_scene(cell);
+  const auto found = penetrations(s, 1e-4);
+  ASSERT_FALSE(found.empty());
+  EXPECT_THAT(found[0], HasSubstr("workpiece/A"));
+}
+
+TEST_F(SceneTest, ArmsHoldTheirHomePoseUnderGravity) {
+  Scene s = build_scene(paper_cell());
+  const int steps = static_cast<int>(2.0 / s.model()->opt.timestep);
+  double worst = 0;
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    for (const RobotIds& r : s.robots()) {
+      for (std::size_t j = 0; j < r.joints.size(); ++j) {
+        worst = std::max(worst, std::abs(s.data()->qpos[r.qpos_adr[j]] - r.home[j]));
+      }
+    }
+  }
+  EXPECT_LT(worst, 0.005) << "largest deviation from home over 2 s, rad";
+  for (const RobotIds& r : s.robots()) {
+    for (std::size_t j = 0; j < r.joints.size(); ++j) {
+      EXPECT_LT(std::abs(s.data()->qvel[r.dof_adr[j]]), 1e-3) << r.joints[j] << " still moving";
+      EXPECT_NEAR(sensor1(s, r.joint_pos_sensor[j]), s.data()->qpos[r.qpos_adr[j]], 1e-12);
+    }
+    for (int side = 0; side < 2; ++side) {
+      EXPECT_NEAR(sensor1(s, r.finger_pos_sensor[side]), r.finger_range[1], 1e-3) << r.name << " finger not open";
+    }
+  }
+  expect_no_data_warnings(s.data());
+}
+
+TEST_F(SceneTest, SensorsAtRestReadTheWeightOfTheHand) {
+  Scene s = build_scene(paper_cell());
+  s.step(250);
+  for (const RobotIds& r : s.robots()) {
+    SCOPED_TRACE(r.name);
+    // The flange carries the gripper: the wrist sensor reads its weight.
+    const double weight = s.model()->body_subtreemass[r.flange_body] * s.model()->opt.gravity[2];
+    EXPECT_NEAR(sensor3(s, r.wrist_force_sensor).norm(), std::abs(weight), 0.02 * std::abs(weight));
+    EXPECT_DOUBLE_EQ(sensor1(s, r.finger_touch_sensor[0]), 0.0);
+    EXPECT_DOUBLE_EQ(sensor1(s, r.finger_touch_sensor[1]), 0.0);
+  }
+}
+
+TEST_F(SceneTest, TheBeltCarriesPartsAtItsSpeed) {
+  Scene s = build_scene(paper_cell());
+  const ConveyorIds& input = *s.find_conveyor("input");
+  const int part = s.find_workpiece("A")->body;
+  const double dt = s.model()->opt.timestep;
+  s.step(static_cast<int>(0.5 / dt));  // settle on the belt
+  const Eigen::Vector3d before = body_pos(s, part);
+  const double seconds = 3.0;
+  s.step(static_cast<int>(seconds / dt));
+  const Eigen::Vector3d after = body_pos(s, part);
+  // The input conveyor runs along +x.
+  EXPECT_NEAR(after.x() - before.x(), input.speed * seconds, 0.05 * input.speed * seconds);
+  EXPECT_NEAR(after.y(), before.y(), 0.002);
+  EXPECT_NEAR(after.z(), before.z(), 0.002);
+  // The belt was wrapped several times and stays within its travel.
+  const double q = s.data()->qpos[input.belt_qpos_adr];
+  EXPECT_GE(q, 0.0);
+  EXPECT_LT(q, input.wrap);
+  EXPECT_NEAR(s.data()->qvel[input.belt_dof_adr], input.speed, 0.01 * input.speed);
+  expect_no_data_warnings(s.data());
+}
+
+TEST_F(SceneTest, TheStopHoldsPartsWhereTheRobotPicksThem) {
+  Scene s = build_scene(paper_cell());
+  // A travels 1.05 m at 0.05 m/s to the stop; give it 25 s.
+  s.step(static_cast<int>(25.0 / s.model()->opt.timestep));
+  const Eigen::Vector3d pick = paper_cell().find_location("input_pick")->pose.xyz;
+  const Eigen::Vector3d a = body_pos(s, s.find_workpiece("A")->body);
+  const Eigen::Vector3d b = body_pos(s, s.find_workpiece("B")->body);
+  EXPECT_NEAR(a.x(), pick.x(), 0.003);
+  EXPECT_NEAR(a.y(), pick.y(), 0.003);
+  EXPECT_NEAR(a.z(), pick.z() + 0.03, 0.002);
+  // B queues right behind A.
+  EXPECT_NEAR(b.x(), a.x() - 0.04, 0.003);
+  expect_no_data_warnings(s.data());
+}
+
+TEST_F(SceneTest, TheGripperHoldsAPartByFriction) {
+  Scene s = build_scene(paper_cell());
+  const RobotIds& puma = *s.find_robot("puma");
+  const WorkpieceIds& part = *s.find_workpiece("B");
+  mjData* d = s.data();
+  const mjModel* m = s.model();
+  // Put B (40 mm wide) between the fingers at the tool centre point, fingers 1 mm clear of it on each side, and
+  // close them.
+  const mjtNum* tcp = d->site_xpos + 3 * puma.tcp_site;
+  mjtNum quat[4];
+  mju_mat2Quat(quat, d->site_xmat + 9 * puma.tcp_site);
+  for (int i = 0; i < 3; ++i) d->qpos[part.qpos_adr + i] = tcp[i];
+  for (int i = 0; i < 4; ++i) d->qpos[part.qpos_adr + 3 + i] = quat[i];
+  for (int side = 0; side < 2; ++side) {
+    d->qpos[puma.finger_qpos_adr[side]] = 0.021;
+    d->ctrl[puma.finger_actuator[side]] = puma.finger_range[0];
+  }
+  mj_forward(m, d);
+  EXPECT_THAT(penetrations(s, 1e-4), ::testing::IsEmpty());
+  const Eigen::Vector3d start = body_pos(s, part.body);
+  s.step(static_cast<int>(0.2 / m->opt.timestep));
+  const Eigen::Vector3d gripped = body_pos(s, part.body);
+  s.step(static_cast<int>(1.5 / m->opt.timestep));
+  const Eigen::Vector3d held = body_pos(s, part.body);
+  EXPECT_LT((gripped - start).norm(), 0.003) << "the part fell before the fingers closed";
+  EXPECT_LT((held - gripped).norm(), 0.001) << "the part slipped in the fingers";
+  for (int side = 0; side < 2; ++side) {
+    // Each finger presses with the robot's grip force and stands at half the part's width.
+    EXPECT_NEAR(sensor1(s, puma.finger_touch_sensor[side]), paper_cell().robots[0].grip_force, 0.5);
+    EXPECT_NEAR(sensor1(s, puma.finger_pos_sensor[side]), 0.02, 0.001);
+  }
+  // The wrist now carries the hand and the part.
+  const double weight = (m->body_subtreemass[puma.flange_body] + m->body_mass[part.body]) * 9.81;
+  EXPECT_NEAR(sensor3(s, puma.wrist_force_sensor).norm(), weight, 0.03 * weight);
+  expect_no_data_warnings(d);
+}
+
+TEST_F(SceneTest, ResetRestoresTheInitialState) {
+  Scene s = build_scene(paper_cell());
+  std::vector<mjtNum> initial(s.data()->qpos, s.data()->qpos + s.model()->nq);
+  s.step(500);
+  s.reset();
+  EXPECT_DOUBLE_EQ(s.data()->time, 0.0);
+  for (int i = 0; i < s.model()->nq; ++i) EXPECT_DOUBLE_EQ(s.data()->qpos[i], initial[i]) << "qpos " << i;
+  const RobotIds& melfa = *s.find_robot("melfa");
+  for (std::size_t j = 0; j < melfa.joints.size(); ++j) {
+    EXPECT_DOUBLE_EQ(s.data()->qpos[melfa.qpos_adr[j]], melfa.home[j]);
+    EXPECT_DOUBLE_EQ(s.data()->ctrl[melfa.actuator[j]], melfa.home[j]);
+  }
+  EXPECT_DOUBLE_EQ(s.data()->ctrl[s.find_conveyor("output")->belt_actuator], 0.05);
+}
+
+TEST_F(SceneTest, MeshGeometryIsRejectedNamingTheUrdf) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellwright_scene_test";
+  std::filesystem::create_directories(dir);
+  std::ifstream in(kSource / "models/urdf/puma560.urdf");
+  std::string urdf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string cylinder = R"(<geometry><cylinder radius="0.1" length="0.5"/></geometry>)";
+  ASSERT_NE(urdf.find(cylinder), std::string::npos);
+  urdf.replace(urdf.find(cylinder), cylinder.size(), R"(<geometry><mesh filename="pedestal.stl"/></geometry>)");
+  std::ofstream(dir / "meshy.urdf") << urdf;
+  CellDescription cell = paper_cell();
+  cell.robots[0].urdf = dir / "meshy.urdf";
+  try {
+    scene_mjcf(cell);
+    FAIL() << "a mesh was accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, (dir / "meshy.urdf").string());
+    EXPECT_THAT(e.what(), HasSubstr("link 'base_link' uses mesh geometry"));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace cellwright::twin

@@ -45,6 +45,11 @@ struct FlatNet {
   std::vector<std::uint32_t> reg_index;
   std::vector<std::int64_t> reg_delta;
   std::vector<std::int64_t> total_delta;  // change of the token total
+  // Each transition is listed under one of its input places (the one with the fewest consumers), so that only the
+  // transitions listed under marked places need an enabling test; transitions without inputs are always tested.
+  std::vector<std::uint32_t> trigger_begin;  // places + 1 offsets into trigger
+  std::vector<TransitionId> trigger;
+  std::vector<TransitionId> sources;
 };
 
 FlatNet flatten(const Net& net) {
@@ -96,6 +101,26 @@ FlatNet flatten(const Net& net) {
   f.in_begin.push_back(static_cast<std::uint32_t>(f.in_place.size()));
   f.eff_begin.push_back(static_cast<std::uint32_t>(f.eff_place.size()));
   f.reg_begin.push_back(static_cast<std::uint32_t>(f.reg_index.size()));
+
+  std::vector<std::uint32_t> consumers(f.places, 0);
+  for (PlaceId p : f.in_place) ++consumers[p];
+  std::vector<std::vector<TransitionId>> under(f.places);
+  for (std::size_t t = 0; t < f.transitions; ++t) {
+    if (f.in_begin[t] == f.in_begin[t + 1]) {
+      f.sources.push_back(static_cast<TransitionId>(t));
+      continue;
+    }
+    PlaceId best = f.in_place[f.in_begin[t]];
+    for (std::uint32_t k = f.in_begin[t]; k < f.in_begin[t + 1]; ++k) {
+      if (consumers[f.in_place[k]] < consumers[best]) best = f.in_place[k];
+    }
+    under[best].push_back(static_cast<TransitionId>(t));
+  }
+  for (const auto& list : under) {
+    f.trigger_begin.push_back(static_cast<std::uint32_t>(f.trigger.size()));
+    f.trigger.insert(f.trigger.end(), list.begin(), list.end());
+  }
+  f.trigger_begin.push_back(static_cast<std::uint32_t>(f.trigger.size()));
   return f;
 }
 
@@ -106,6 +131,8 @@ struct Layout {
   std::vector<std::uint64_t> limit;   // largest count the field holds
   std::uint32_t words = 1;            // 64-bit words of an unpacked-to-words marking
   std::uint32_t bytes = 1;            // stored bytes per marking
+  std::vector<PlaceId> bit_place;     // the place each bit belongs to (kNone for padding)
+  bool unit = true;                   // every field is one bit wide: counts are popcounts
 
   explicit Layout(std::vector<std::uint32_t> widths) : width(std::move(widths)) {
     std::uint32_t bits = 0;
@@ -113,10 +140,15 @@ struct Layout {
       offset.push_back(bits);
       limit.push_back((std::uint64_t{1} << w) - 1);
       bits += w;
+      unit = unit && w == 1;
     }
     bits = std::max<std::uint32_t>(bits, 1);
     words = (bits + 63) / 64;
     bytes = (bits + 7) / 8;
+    bit_place.assign(std::size_t{words} * 64, UINT32_MAX);
+    for (std::size_t p = 0; p < width.size(); ++p) {
+      std::fill_n(bit_place.begin() + offset[p], width[p], static_cast<PlaceId>(p));
+    }
   }
 };
 
@@ -161,7 +193,8 @@ constexpr std::uint32_t kChunkMarkings = 1u << kChunkShift;
 // The store: packed markings, parent links and the hash set over them.
 class MarkingStore {
  public:
-  MarkingStore(std::uint32_t stride, std::uint32_t words, std::uint64_t max_states) : stride_(stride), words_(words) {
+  MarkingStore(std::uint32_t stride, std::uint32_t words, std::uint64_t max_states) {
+    set_shape(stride, words);
     const int idx_bits = std::max(16, static_cast<int>(std::bit_width(max_states)));
     idx_bits_ = static_cast<std::uint32_t>(std::min(idx_bits, 32));
     idx_mask_ = idx_bits_ == 32 ? UINT32_MAX : (1u << idx_bits_) - 1;
@@ -172,13 +205,12 @@ class MarkingStore {
   std::uint32_t stride() const { return stride_; }
   std::uint32_t words() const { return words_; }
 
-  const std::uint8_t* packed(std::uint32_t i) const {
-    return chunks_[i >> kChunkShift].get() + static_cast<std::size_t>(i & (kChunkMarkings - 1)) * stride_;
-  }
-  // Copies marking i into `w` (words() words, zero-padded).
+  // Copies marking i into `w` (words() words, zero-padded). Records are read and written a word at a time: the last
+  // word of a record may reach into the next record or the chunk's padding, and is masked.
   void load(std::uint32_t i, std::uint64_t* w) const {
-    w[words_ - 1] = 0;
-    std::memcpy(w, packed(i), stride_);
+    const std::uint8_t* p = packed(i);
+    for (std::uint32_t k = 0; k < words_; ++k) std::memcpy(&w[k], p + 8 * k, 8);
+    w[words_ - 1] &= tail_mask_;
   }
   std::uint32_t parent(std::uint32_t i) const { return link(i).parent; }
   std::uint32_t via(std::uint32_t i) const { return link(i).via; }
@@ -194,7 +226,23 @@ class MarkingStore {
       if (s == 0) return kNone;
       if ((s & ~idx_mask_) == tag) {
         const std::uint32_t i = (s & idx_mask_) - 1;
-        if (std::memcmp(packed(i), w, stride_) == 0) return i;
+        if (equals(i, w)) return i;
+      }
+    }
+  }
+
+  // Hints for a lookup of `w` soon: fetch its slot's cache line; then (once that has arrived) the record of the first
+  // slot whose tag matches. Lookups of a batch of successors so overlap their cache misses.
+  void prefetch_slot(std::uint64_t h) const { __builtin_prefetch(&slots_[h & (slots_.size() - 1)]); }
+  void prefetch_record(std::uint64_t h) const {
+    const std::size_t mask = slots_.size() - 1;
+    const std::uint32_t tag = tag_of(h);
+    for (std::size_t pos = h & mask;; pos = (pos + 1) & mask) {
+      const std::uint32_t s = slots_[pos];
+      if (s == 0) return;
+      if ((s & ~idx_mask_) == tag) {
+        __builtin_prefetch(packed((s & idx_mask_) - 1));
+        return;
       }
     }
   }
@@ -212,29 +260,29 @@ class MarkingStore {
   void repack(const Layout& from, const Layout& to) {
     const std::vector<std::unique_ptr<std::uint8_t[]>> old = std::move(chunks_);
     const std::uint32_t old_stride = stride_;
+    const std::uint32_t old_words = words_;
+    const std::uint64_t old_tail = tail_mask_;
     chunks_.clear();
-    stride_ = to.bytes;
-    words_ = to.words;
+    set_shape(to.bytes, to.words);
     std::vector<std::uint64_t> a(from.words + 1), b(to.words + 1);
     for (std::uint32_t i = 0; i < size_; ++i) {
-      const std::size_t in_chunk = i & (kChunkMarkings - 1);
-      std::fill(a.begin(), a.end(), 0);
-      std::memcpy(a.data(), old[i >> kChunkShift].get() + in_chunk * old_stride, old_stride);
+      const std::uint8_t* rec =
+          old[i >> kChunkShift].get() + static_cast<std::size_t>(i & (kChunkMarkings - 1)) * old_stride;
+      for (std::uint32_t k = 0; k < old_words; ++k) std::memcpy(&a[k], rec + 8 * k, 8);
+      a[old_words - 1] &= old_tail;
       std::fill(b.begin(), b.end(), 0);
       for (std::size_t p = 0; p < from.width.size(); ++p) {
         set_field(b.data(), to.offset[p], to.width[p], get_field(a.data(), from.offset[p], from.width[p]));
       }
-      if (in_chunk == 0) {
-        chunks_.push_back(std::make_unique_for_overwrite<std::uint8_t[]>(std::size_t{kChunkMarkings} * stride_));
-      }
-      std::memcpy(chunks_.back().get() + in_chunk * stride_, b.data(), stride_);
+      if ((i & (kChunkMarkings - 1)) == 0) chunks_.push_back(new_chunk());
+      write(i, b.data());
     }
     rehash();
   }
 
   std::uint64_t bytes() const {
-    return chunks_.size() * std::uint64_t{kChunkMarkings} * stride_ +
-           links_.size() * std::uint64_t{kChunkMarkings} * sizeof(Link) + slots_.size() * sizeof(std::uint32_t);
+    return chunks_.size() * chunk_bytes() + links_.size() * std::uint64_t{kChunkMarkings} * sizeof(Link) +
+           slots_.size() * sizeof(std::uint32_t);
   }
 
  private:
@@ -246,6 +294,41 @@ class MarkingStore {
 
   const Link& link(std::uint32_t i) const { return links_[i >> kChunkShift][i & (kChunkMarkings - 1)]; }
 
+  void set_shape(std::uint32_t stride, std::uint32_t words) {
+    stride_ = stride;
+    words_ = words;
+    const std::uint32_t tail = stride - 8 * (words - 1);  // bytes of the record in its last word, 1..8
+    tail_mask_ = tail == 8 ? ~std::uint64_t{0} : (std::uint64_t{1} << (8 * tail)) - 1;
+  }
+  // One chunk of records plus 8 bytes, so that word-wise access to the last record stays inside.
+  std::size_t chunk_bytes() const { return std::size_t{kChunkMarkings} * stride_ + 8; }
+  std::unique_ptr<std::uint8_t[]> new_chunk() const {
+    auto c = std::make_unique_for_overwrite<std::uint8_t[]>(chunk_bytes());
+    std::memset(c.get() + chunk_bytes() - 8, 0, 8);
+    return c;
+  }
+  std::uint8_t* packed(std::uint32_t i) const {
+    return chunks_[i >> kChunkShift].get() + static_cast<std::size_t>(i & (kChunkMarkings - 1)) * stride_;
+  }
+  bool equals(std::uint32_t i, const std::uint64_t* w) const {
+    const std::uint8_t* p = packed(i);
+    std::uint64_t diff = 0;
+    for (std::uint32_t k = 0; k + 1 < words_; ++k) {
+      std::uint64_t v;
+      std::memcpy(&v, p + 8 * k, 8);
+      diff |= v ^ w[k];
+    }
+    std::uint64_t last;
+    std::memcpy(&last, p + 8 * (words_ - 1), 8);
+    return (diff | ((last ^ w[words_ - 1]) & tail_mask_)) == 0;
+  }
+  // Records are appended in index order, so bytes written past record i belong to the not yet written record i + 1
+  // (or to the chunk's padding).
+  void write(std::uint32_t i, const std::uint64_t* w) {
+    std::uint8_t* p = packed(i);
+    for (std::uint32_t k = 0; k < words_; ++k) std::memcpy(p + 8 * k, &w[k], 8);
+  }
+
   std::uint32_t tag_of(std::uint64_t h) const {
     if (idx_bits_ == 32) return 0;
     return static_cast<std::uint32_t>(h >> (32 + idx_bits_)) << idx_bits_;
@@ -254,10 +337,10 @@ class MarkingStore {
   std::uint32_t append(const std::uint64_t* w, const Link& link) {
     const std::uint32_t i = size_;
     if ((i & (kChunkMarkings - 1)) == 0) {
-      chunks_.push_back(std::make_unique_for_overwrite<std::uint8_t[]>(std::size_t{kChunkMarkings} * stride_));
+      chunks_.push_back(new_chunk());
       links_.push_back(std::make_unique_for_overwrite<Link[]>(kChunkMarkings));
     }
-    std::memcpy(chunks_.back().get() + static_cast<std::size_t>(i & (kChunkMarkings - 1)) * stride_, w, stride_);
+    write(i, w);
     links_.back()[i & (kChunkMarkings - 1)] = link;
     ++size_;
     return i;
@@ -284,8 +367,9 @@ class MarkingStore {
     }
   }
 
-  std::uint32_t stride_;
-  std::uint32_t words_;
+  std::uint32_t stride_ = 1;
+  std::uint32_t words_ = 1;
+  std::uint64_t tail_mask_ = 0xFF;
   std::uint32_t idx_bits_ = 32;
   std::uint32_t idx_mask_ = UINT32_MAX;
   std::uint32_t size_ = 0;
@@ -324,216 +408,348 @@ std::string place_list(const Net& net, const std::vector<PlaceId>& places) {
   return s;
 }
 
+// One exploration: the store, the scratch buffers and what has been found so far.
+class Explorer {
+ public:
+  Explorer(const Net& net, const AnalysisOptions& options)
+      : net_(net),
+        f_(flatten(net)),
+        max_states_(std::min<std::uint64_t>(options.max_states, UINT32_MAX - 1)),
+        max_examples_(options.max_deadlocks_reported),
+        initial_(net.initial_marking()),
+        layout_(initial_widths(initial_)),
+        store_(layout_.bytes, layout_.words, max_states_),
+        max_seen_(initial_),
+        ever_enabled_(f_.transitions, false),
+        region_witness_(net.regions().size(), kNone),
+        cur_inside_(net.regions().size()),
+        cur_inside_known_(net.regions().size()) {
+    r_.regions.resize(net.regions().size());
+    for (TransitionId t : f_.sources) sources_.push_back(t);
+    cand_bits_.assign((f_.transitions + 63) / 64, 0);
+    reshape();
+  }
+
+  AnalysisResult run() {
+    encode(initial_, cur_w_);
+    std::uint64_t total = 0;
+    for (Tokens v : initial_) total += v;
+    const std::uint32_t root =
+        store_.insert(cur_w_.data(), hash_words(cur_w_.data(), layout_.words), kNone, kNone, saturate(total));
+    for (std::size_t k = 0; k < net_.regions().size(); ++k) note_inside(k, inside_of(cur_w_.data(), k), root);
+
+    for (std::uint32_t at = 0; at < store_.size() && !stopped_; ++at) expand(at);
+    return finish();
+  }
+
+ private:
+  static constexpr std::size_t kBatch = 32;  // successors whose lookups are overlapped
+
+  static std::vector<std::uint32_t> initial_widths(const Marking& m) {
+    std::vector<std::uint32_t> w(m.size());
+    for (std::size_t p = 0; p < m.size(); ++p) w[p] = std::max(1u, static_cast<std::uint32_t>(std::bit_width(m[p])));
+    return w;
+  }
+
+  // Buffers and region masks follow the layout. One spare word per packed marking lets set_field touch the word
+  // after a field that ends on a word boundary.
+  void reshape() {
+    const std::size_t stride = layout_.words + 1;
+    cur_w_.assign(stride, 0);
+    anc_w_.assign(stride, 0);
+    batch_w_.assign(stride * kBatch, 0);
+    const std::size_t nr = net_.regions().size();
+    region_mask_.assign(nr, std::vector<std::uint64_t>(layout_.words, 0));
+    region_unit_.assign(nr, true);
+    for (std::size_t k = 0; k < nr; ++k) {
+      for (PlaceId p : net_.regions()[k].inside) {
+        region_unit_[k] = region_unit_[k] && layout_.width[p] == 1;
+        region_mask_[k][layout_.offset[p] >> 6] |= std::uint64_t{1} << (layout_.offset[p] & 63);
+      }
+    }
+  }
+
+  std::uint64_t value(const std::uint64_t* w, PlaceId p) const {
+    return get_field(w, layout_.offset[p], layout_.width[p]);
+  }
+
+  void encode(const Marking& m, std::vector<std::uint64_t>& w) const {
+    std::fill(w.begin(), w.end(), 0);
+    for (std::size_t p = 0; p < m.size(); ++p) set_field(w.data(), layout_.offset[p], layout_.width[p], m[p]);
+  }
+
+  Marking decode_words(const std::uint64_t* w) const {
+    Marking m(f_.places);
+    for (std::size_t p = 0; p < m.size(); ++p) m[p] = static_cast<Tokens>(value(w, static_cast<PlaceId>(p)));
+    return m;
+  }
+
+  std::uint64_t total_of(const std::uint64_t* w) const {
+    std::uint64_t sum = 0;
+    if (layout_.unit) {
+      for (std::uint32_t i = 0; i < layout_.words; ++i) sum += static_cast<std::uint64_t>(std::popcount(w[i]));
+    } else {
+      for (std::size_t p = 0; p < f_.places; ++p) sum += value(w, static_cast<PlaceId>(p));
+    }
+    return sum;
+  }
+
+  // Tokens inside region k: a popcount under a mask when its places are one bit wide.
+  std::uint64_t inside_of(const std::uint64_t* w, std::size_t k) const {
+    std::uint64_t sum = 0;
+    if (region_unit_[k]) {
+      for (std::uint32_t i = 0; i < layout_.words; ++i) {
+        sum += static_cast<std::uint64_t>(std::popcount(w[i] & region_mask_[k][i]));
+      }
+    } else {
+      for (PlaceId p : net_.regions()[k].inside) sum += value(w, p);
+    }
+    return sum;
+  }
+
+  void note_inside(std::size_t k, std::uint64_t inside, std::uint32_t at) {
+    RegionCheck& rc = r_.regions[k];
+    rc.max_inside = static_cast<Tokens>(std::max<std::uint64_t>(rc.max_inside, inside));
+    if (inside > net_.regions()[k].capacity && region_witness_[k] == kNone) region_witness_[k] = at;
+  }
+
+  // The enabled transitions of cur_w_, ascending: only those listed under a marked place (found from the set bits)
+  // and the source transitions are tested. Ascending order keeps successors, and so the reported paths, independent
+  // of the layout.
+  void find_enabled() {
+    enabled_.clear();
+    for (TransitionId t : sources_) cand_bits_[t >> 6] |= std::uint64_t{1} << (t & 63);
+    PlaceId last = kNone;
+    for (std::uint32_t i = 0; i < layout_.words; ++i) {
+      for (std::uint64_t bits = cur_w_[i]; bits != 0; bits &= bits - 1) {
+        const PlaceId p = layout_.bit_place[i * 64 + static_cast<std::uint32_t>(std::countr_zero(bits))];
+        if (p == last) continue;
+        last = p;
+        for (std::uint32_t k = f_.trigger_begin[p]; k < f_.trigger_begin[p + 1]; ++k) {
+          cand_bits_[f_.trigger[k] >> 6] |= std::uint64_t{1} << (f_.trigger[k] & 63);
+        }
+      }
+    }
+    for (std::size_t cw = 0; cw < cand_bits_.size(); ++cw) {
+      for (; cand_bits_[cw] != 0; cand_bits_[cw] &= cand_bits_[cw] - 1) {
+        const auto t = static_cast<TransitionId>(cw * 64 + static_cast<std::size_t>(std::countr_zero(cand_bits_[cw])));
+        bool en = true;
+        for (std::uint32_t k = f_.in_begin[t]; k < f_.in_begin[t + 1] && en; ++k) {
+          en = value(cur_w_.data(), f_.in_place[k]) >= f_.in_weight[k];
+        }
+        if (en) enabled_.push_back(t);
+      }
+    }
+  }
+
+  // Writes the successor of cur_w_ under t into `out`. Returns false when a count did not fit its field: then the
+  // place has been widened and the store repacked (every packed buffer is stale), or, past the Tokens range,
+  // exploration has stopped.
+  bool build(TransitionId t, std::uint64_t* out) {
+    for (std::uint32_t i = 0; i < layout_.words; ++i) out[i] = cur_w_[i];
+    for (std::uint32_t k = f_.eff_begin[t]; k < f_.eff_begin[t + 1]; ++k) {
+      const PlaceId p = f_.eff_place[k];
+      const auto v = static_cast<std::uint64_t>(static_cast<std::int64_t>(value(cur_w_.data(), p)) + f_.eff_delta[k]);
+      if (v <= layout_.limit[p]) {
+        set_field(out, layout_.offset[p], layout_.width[p], v);
+        continue;
+      }
+      if (v > std::numeric_limits<Tokens>::max()) {
+        stop(fmt::format("place '{}' would hold {} tokens, more than the {} a marking can count", net_.places()[p].id,
+                         v, std::numeric_limits<Tokens>::max()));
+        return false;
+      }
+      const Marking cur = decode_words(cur_w_.data());
+      std::vector<std::uint32_t> widths = layout_.width;
+      widths[p] = static_cast<std::uint32_t>(std::bit_width(v));
+      Layout wider(std::move(widths));
+      store_.repack(layout_, wider);
+      layout_ = std::move(wider);
+      reshape();
+      encode(cur, cur_w_);
+      return false;
+    }
+    return true;
+  }
+
+  void stop(std::string reason) {
+    r_.stop_reason = std::move(reason);
+    stopped_ = true;
+  }
+
+  void expand(std::uint32_t at) {
+    store_.load(at, cur_w_.data());
+    find_enabled();
+    if (enabled_.empty()) {
+      const Marking cur = decode_words(cur_w_.data());
+      if (net_.is_final(cur)) {
+        ++r_.final_states;
+      } else {
+        ++r_.deadlocks;
+        if (deadlock_at_.size() < max_examples_) deadlock_at_.push_back(at);
+      }
+      return;
+    }
+    r_.edges += enabled_.size();
+    for (TransitionId t : enabled_) ever_enabled_[t] = true;
+    cur_total_known_ = false;
+    std::fill(cur_inside_known_.begin(), cur_inside_known_.end(), false);
+
+    for (std::size_t b = 0; b < enabled_.size() && !stopped_; b += kBatch) {
+      const std::size_t n = std::min(kBatch, enabled_.size() - b);
+      // Build the batch's successors and start fetching their hash slots; a widening restarts the batch.
+      std::size_t built = 0;
+      while (built < n) {
+        std::uint64_t* w = &batch_w_[built * (layout_.words + 1)];
+        if (!build(enabled_[b + built], w)) {
+          if (stopped_) return;
+          built = 0;
+          continue;
+        }
+        hash_[built] = hash_words(w, layout_.words);
+        store_.prefetch_slot(hash_[built]);
+        ++built;
+      }
+      for (std::size_t j = 0; j < n; ++j) store_.prefetch_record(hash_[j]);
+      for (std::size_t j = 0; j < n && !stopped_; ++j) {
+        add(at, enabled_[b + j], &batch_w_[j * (layout_.words + 1)], hash_[j]);
+      }
+    }
+  }
+
+  // Stores the successor `w` of marking `at` under t unless it is known, and checks it.
+  void add(std::uint32_t at, TransitionId t, const std::uint64_t* w, std::uint64_t h) {
+    if (store_.find(w, h) != kNone) return;
+    if (store_.size() >= max_states_) {
+      stop(fmt::format("state limit of {} markings reached; raise --max-states", max_states_));
+      return;
+    }
+    const std::uint32_t parent_max = store_.path_max(at);
+    // Only a transition that adds tokens can exceed the path maximum, which is at least the parent's total.
+    const bool adds = f_.total_delta[t] > 0;
+    std::uint64_t total = 0;
+    if (adds) {
+      if (!cur_total_known_) {
+        cur_total_ = total_of(cur_w_.data());
+        cur_total_known_ = true;
+      }
+      total = cur_total_ + static_cast<std::uint64_t>(f_.total_delta[t]);
+    }
+    const std::uint32_t next = store_.insert(w, h, at, t, std::max(parent_max, saturate(total)));
+
+    for (std::uint32_t k = f_.eff_begin[t]; k < f_.eff_begin[t + 1]; ++k) {
+      if (f_.eff_delta[k] > 0) {
+        const PlaceId p = f_.eff_place[k];
+        max_seen_[p] = std::max(max_seen_[p], static_cast<Tokens>(value(w, p)));
+      }
+    }
+    // Only a transition that adds tokens to a region can raise its maximum or break its capacity.
+    for (std::uint32_t k = f_.reg_begin[t]; k < f_.reg_begin[t + 1]; ++k) {
+      if (f_.reg_delta[k] <= 0) continue;
+      const std::size_t reg = f_.reg_index[k];
+      if (!cur_inside_known_[reg]) {
+        cur_inside_[reg] = inside_of(cur_w_.data(), reg);
+        cur_inside_known_[reg] = true;
+      }
+      note_inside(reg, cur_inside_[reg] + static_cast<std::uint64_t>(f_.reg_delta[k]), next);
+    }
+    if (adds && total > parent_max) check_covering(at, next, w);
+  }
+
+  // Karp-Miller: a new marking that covers an ancestor (and differs from it, being new) can repeat the firing
+  // sequence between them forever, so the places that grew are unbounded. Checked only when the new marking holds
+  // more tokens in all than any marking before it on its BFS path. That is still complete: an unbounded net has an
+  // infinite BFS path, along which the token total is unbounded (Dickson's lemma gives an infinite chain
+  // m1 < m2 < ... on it); the infinitely many path-maxima of the total contain, again by Dickson, a pair m <= m' with
+  // m an ancestor of m', and m' is checked. (Checking only markings that raise some place above every count seen
+  // anywhere before is not complete: a sibling branch can keep setting the new maxima without covering anything,
+  // while the pumping branch stays just below them.)
+  void check_covering(std::uint32_t parent, std::uint32_t next, const std::uint64_t* w) {
+    for (std::uint32_t a = parent; a != kNone; a = store_.parent(a)) {
+      store_.load(a, anc_w_.data());
+      bool covers = true;
+      for (std::size_t p = 0; p < f_.places && covers; ++p) {
+        covers = value(w, static_cast<PlaceId>(p)) >= value(anc_w_.data(), static_cast<PlaceId>(p));
+      }
+      if (!covers) continue;
+      for (std::size_t p = 0; p < f_.places; ++p) {
+        if (value(w, static_cast<PlaceId>(p)) > value(anc_w_.data(), static_cast<PlaceId>(p))) {
+          r_.unbounded_places.push_back(static_cast<PlaceId>(p));
+        }
+      }
+      r_.bounded = false;
+      unbounded_at_ = next;
+      stop(fmt::format(
+          "the net is unbounded: {} grow{} without limit (a firing sequence leads from a reachable marking to a "
+          "strictly larger one and can be repeated)",
+          place_list(net_, r_.unbounded_places), r_.unbounded_places.size() == 1 ? "s" : ""));
+      return;
+    }
+  }
+
+  AnalysisResult finish() {
+    r_.states = store_.size();
+    r_.complete = !stopped_;
+    r_.place_bounds = max_seen_;
+    if (r_.complete) {
+      for (std::size_t t = 0; t < f_.transitions; ++t) {
+        if (!ever_enabled_[t]) r_.dead_transitions.push_back(static_cast<TransitionId>(t));
+      }
+    }
+    for (std::uint32_t i : deadlock_at_) {
+      r_.deadlock_examples.push_back({decode(store_, layout_, i), path_to(store_, i)});
+    }
+    if (unbounded_at_ != kNone) {
+      r_.unbounded_witness = Deadlock{decode(store_, layout_, unbounded_at_), path_to(store_, unbounded_at_)};
+    }
+    for (std::size_t k = 0; k < net_.regions().size(); ++k) {
+      RegionCheck& rc = r_.regions[k];
+      rc.name = net_.regions()[k].name;
+      if (region_witness_[k] != kNone) {
+        rc.exclusive = false;
+        r_.mutex_ok = false;
+        rc.witness = Deadlock{decode(store_, layout_, region_witness_[k]), path_to(store_, region_witness_[k])};
+      }
+    }
+    r_.stored_bytes = store_.bytes();
+    return std::move(r_);
+  }
+
+  const Net& net_;
+  const FlatNet f_;
+  const std::uint64_t max_states_;
+  const std::size_t max_examples_;
+  const Marking initial_;
+  Layout layout_;
+  MarkingStore store_;
+
+  AnalysisResult r_;
+  bool stopped_ = false;
+  std::vector<Tokens> max_seen_;
+  std::vector<bool> ever_enabled_;
+  std::vector<std::uint32_t> region_witness_;
+  std::vector<std::uint32_t> deadlock_at_;
+  std::uint32_t unbounded_at_ = kNone;
+
+  // Scratch for the marking being expanded.
+  std::vector<TransitionId> sources_;
+  std::vector<std::uint64_t> cand_bits_;
+  std::vector<TransitionId> enabled_;
+  std::vector<std::uint64_t> cur_w_, anc_w_, batch_w_;
+  std::uint64_t hash_[kBatch] = {};
+  std::vector<std::vector<std::uint64_t>> region_mask_;
+  std::vector<bool> region_unit_;
+  std::uint64_t cur_total_ = 0;
+  bool cur_total_known_ = false;
+  std::vector<std::uint64_t> cur_inside_;
+  std::vector<bool> cur_inside_known_;
+};
+
 }  // namespace
 
 AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
   if (options.max_states == 0) throw std::invalid_argument("analysis: max_states must be at least 1");
-  // Indices are 32-bit and UINT32_MAX means "no parent".
-  const std::uint64_t max_states = std::min<std::uint64_t>(options.max_states, UINT32_MAX - 1);
-  const FlatNet f = flatten(net);
-  const std::size_t np = f.places;
-  const std::size_t nt = f.transitions;
-
-  AnalysisResult r;
-  const Marking initial = net.initial_marking();
-  std::vector<std::uint32_t> widths(np);
-  for (std::size_t p = 0; p < np; ++p) widths[p] = std::max(1u, static_cast<std::uint32_t>(std::bit_width(initial[p])));
-  Layout layout(widths);
-  MarkingStore store(layout.bytes, layout.words, max_states);
-
-  // Scratch: the marking being expanded (unpacked and packed) and a successor. One spare word lets set_field write
-  // the word after a field that ends exactly on a word boundary without a branch.
-  Marking cur(np);
-  std::vector<std::uint64_t> cur_w(layout.words + 1, 0), succ_w(layout.words + 1, 0);
-  std::vector<std::uint64_t> succ_val(np);
-
-  auto encode = [&](const Marking& m, std::vector<std::uint64_t>& w) {
-    std::fill(w.begin(), w.end(), 0);
-    for (std::size_t p = 0; p < np; ++p) set_field(w.data(), layout.offset[p], layout.width[p], m[p]);
-  };
-
-  std::vector<Tokens> max_seen = initial;
-  std::vector<bool> ever_enabled(nt, false);
-  const std::size_t nr = net.regions().size();
-  r.regions.resize(nr);
-  std::vector<std::uint64_t> cur_inside(nr, 0);
-  std::vector<std::uint32_t> region_witness(nr, kNone);
-  std::vector<std::uint32_t> deadlock_at;
-  std::uint32_t unbounded_at = kNone;
-
-  auto inside_sums = [&](const Marking& m, std::vector<std::uint64_t>& sums) {
-    for (std::size_t k = 0; k < nr; ++k) {
-      std::uint64_t s = 0;
-      for (PlaceId p : net.regions()[k].inside) s += m[p];
-      sums[k] = s;
-    }
-  };
-  auto note_inside = [&](std::size_t k, std::uint64_t inside, std::uint32_t at) {
-    RegionCheck& rc = r.regions[k];
-    rc.max_inside = static_cast<Tokens>(std::max<std::uint64_t>(rc.max_inside, inside));
-    if (inside > net.regions()[k].capacity && region_witness[k] == kNone) region_witness[k] = at;
-  };
-
-  {
-    encode(initial, cur_w);
-    std::uint64_t total = 0;
-    for (Tokens v : initial) total += v;
-    const std::uint32_t root =
-        store.insert(cur_w.data(), hash_words(cur_w.data(), layout.words), kNone, kNone, saturate(total));
-    inside_sums(initial, cur_inside);
-    for (std::size_t k = 0; k < nr; ++k) note_inside(k, cur_inside[k], root);
-  }
-
-  std::vector<std::uint64_t> anc_w;
-  bool stopped = false;
-  for (std::uint32_t at = 0; at < store.size() && !stopped; ++at) {
-    store.load(at, cur_w.data());
-    for (std::size_t p = 0; p < np; ++p) {
-      cur[p] = static_cast<Tokens>(get_field(cur_w.data(), layout.offset[p], layout.width[p]));
-    }
-    inside_sums(cur, cur_inside);
-    std::uint64_t cur_total = 0;
-    for (Tokens v : cur) cur_total += v;
-    const std::uint32_t cur_path_max = store.path_max(at);
-    bool any_enabled = false;
-    for (std::size_t t = 0; t < nt && !stopped; ++t) {
-      bool en = true;
-      for (std::uint32_t k = f.in_begin[t]; k < f.in_begin[t + 1]; ++k) {
-        if (cur[f.in_place[k]] < f.in_weight[k]) {
-          en = false;
-          break;
-        }
-      }
-      if (!en) continue;
-      any_enabled = true;
-      ever_enabled[t] = true;
-      ++r.edges;
-
-      // The successor, packed: the parent's words with the changed fields rewritten. A count that does not fit its
-      // field widens that place (repacking the store) and the successor is built again.
-      bool built = false;
-      while (!built && !stopped) {
-        built = true;
-        std::copy(cur_w.begin(), cur_w.end(), succ_w.begin());
-        for (std::uint32_t k = f.eff_begin[t]; k < f.eff_begin[t + 1]; ++k) {
-          const PlaceId p = f.eff_place[k];
-          const std::uint64_t v = static_cast<std::uint64_t>(static_cast<std::int64_t>(cur[p]) + f.eff_delta[k]);
-          if (v <= layout.limit[p]) {
-            set_field(succ_w.data(), layout.offset[p], layout.width[p], v);
-            continue;
-          }
-          if (v > std::numeric_limits<Tokens>::max()) {
-            r.stop_reason = fmt::format("place '{}' would hold {} tokens, more than the {} a marking can count",
-                                        net.places()[p].id, v, std::numeric_limits<Tokens>::max());
-            stopped = true;
-            break;
-          }
-          std::vector<std::uint32_t> w = layout.width;
-          w[p] = static_cast<std::uint32_t>(std::bit_width(v));
-          Layout wider(std::move(w));
-          store.repack(layout, wider);
-          layout = std::move(wider);
-          cur_w.assign(layout.words + 1, 0);
-          succ_w.assign(layout.words + 1, 0);
-          encode(cur, cur_w);
-          built = false;
-          break;
-        }
-      }
-      if (stopped) break;
-
-      const std::uint64_t h = hash_words(succ_w.data(), layout.words);
-      if (store.find(succ_w.data(), h) != kNone) continue;
-      if (store.size() >= max_states) {
-        r.stop_reason = fmt::format("state limit of {} markings reached; raise --max-states", max_states);
-        stopped = true;
-        break;
-      }
-      const std::uint64_t succ_total =
-          static_cast<std::uint64_t>(static_cast<std::int64_t>(cur_total) + f.total_delta[t]);
-      const std::uint32_t next = store.insert(succ_w.data(), h, at, static_cast<TransitionId>(t),
-                                              std::max(cur_path_max, saturate(succ_total)));
-
-      for (std::uint32_t k = f.eff_begin[t]; k < f.eff_begin[t + 1]; ++k) {
-        const PlaceId p = f.eff_place[k];
-        const std::uint64_t v = static_cast<std::uint64_t>(static_cast<std::int64_t>(cur[p]) + f.eff_delta[k]);
-        max_seen[p] = std::max(max_seen[p], static_cast<Tokens>(v));
-      }
-      for (std::uint32_t k = f.reg_begin[t]; k < f.reg_begin[t + 1]; ++k) {
-        const std::size_t reg = f.reg_index[k];
-        note_inside(reg, static_cast<std::uint64_t>(static_cast<std::int64_t>(cur_inside[reg]) + f.reg_delta[k]), next);
-      }
-
-      // Karp-Miller: a new marking that covers an ancestor (and differs from it, being new) can repeat the firing
-      // sequence between them forever, so the places that grew are unbounded. Checked only when the new marking
-      // holds more tokens in all than any marking before it on its BFS path. That is still complete: an unbounded
-      // net has an infinite BFS path, along which the token total is unbounded (Dickson's lemma gives an infinite
-      // chain m1 < m2 < ... on it); the infinitely many path-maxima of the total contain, again by Dickson, a pair
-      // m <= m' with m an ancestor of m', and m' is checked. (Checking only markings that raise some place above
-      // every count seen anywhere before is not complete: a sibling branch can always set the new maxima without
-      // covering anything, while the pumping branch stays just below them.)
-      if (succ_total > cur_path_max) {
-        for (std::size_t p = 0; p < np; ++p) succ_val[p] = cur[p];
-        for (std::uint32_t k = f.eff_begin[t]; k < f.eff_begin[t + 1]; ++k) {
-          succ_val[f.eff_place[k]] =
-              static_cast<std::uint64_t>(static_cast<std::int64_t>(cur[f.eff_place[k]]) + f.eff_delta[k]);
-        }
-        anc_w.assign(layout.words + 1, 0);
-        for (std::uint32_t a = at; a != kNone && !stopped; a = store.parent(a)) {
-          store.load(a, anc_w.data());
-          bool covers = true;
-          for (std::size_t p = 0; p < np && covers; ++p) {
-            covers = succ_val[p] >= get_field(anc_w.data(), layout.offset[p], layout.width[p]);
-          }
-          if (!covers) continue;
-          for (std::size_t p = 0; p < np; ++p) {
-            if (succ_val[p] > get_field(anc_w.data(), layout.offset[p], layout.width[p])) {
-              r.unbounded_places.push_back(static_cast<PlaceId>(p));
-            }
-          }
-          r.bounded = false;
-          unbounded_at = next;
-          r.stop_reason = fmt::format(
-              "the net is unbounded: {} grow{} without limit (a firing sequence leads from a reachable marking to a "
-              "strictly larger one and can be repeated)",
-              place_list(net, r.unbounded_places), r.unbounded_places.size() == 1 ? "s" : "");
-          stopped = true;
-        }
-      }
-    }
-    if (stopped) break;
-    if (!any_enabled) {
-      if (net.is_final(cur)) {
-        ++r.final_states;
-      } else {
-        ++r.deadlocks;
-        if (deadlock_at.size() < options.max_deadlocks_reported) deadlock_at.push_back(at);
-      }
-    }
-  }
-
-  r.states = store.size();
-  r.complete = !stopped;
-  r.place_bounds = max_seen;
-  if (r.complete) {
-    for (std::size_t t = 0; t < nt; ++t) {
-      if (!ever_enabled[t]) r.dead_transitions.push_back(static_cast<TransitionId>(t));
-    }
-  }
-  for (std::uint32_t i : deadlock_at) r.deadlock_examples.push_back({decode(store, layout, i), path_to(store, i)});
-  if (unbounded_at != kNone)
-    r.unbounded_witness = Deadlock{decode(store, layout, unbounded_at), path_to(store, unbounded_at)};
-  for (std::size_t k = 0; k < nr; ++k) {
-    RegionCheck& rc = r.regions[k];
-    rc.name = net.regions()[k].name;
-    if (region_witness[k] != kNone) {
-      rc.exclusive = false;
-      r.mutex_ok = false;
-      rc.witness = Deadlock{decode(store, layout, region_witness[k]), path_to(store, region_witness[k])};
-    }
-  }
-  r.stored_bytes = store.bytes();
-  return r;
+  return Explorer(net, options).run();
 }
 
 }  // namespace cellwright::petri

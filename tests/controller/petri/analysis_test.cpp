@@ -58,15 +58,15 @@ TEST(Analysis, SmallNetsHaveTheirKnownCounts) {
 }
 
 TEST(Analysis, KanbanMatchesThePublishedStateCounts) {
-  EXPECT_EQ(testnets::kanban_states(1), 160u);
-  EXPECT_EQ(testnets::kanban_states(2), 4600u);
+  EXPECT_EQ(generators::kanban_reachable(1), 160u);
+  EXPECT_EQ(generators::kanban_reachable(2), 4600u);
   for (Tokens n : {1u, 2u, 3u}) {
-    const Net net = testnets::kanban(n);
+    const Net net = generators::kanban(n);
     EXPECT_EQ(net.num_places(), 16u);
     EXPECT_EQ(net.num_transitions(), 16u);
     const AnalysisResult r = analyze(net);
     EXPECT_TRUE(r.complete) << r.stop_reason;
-    EXPECT_EQ(r.states, testnets::kanban_states(n)) << "N=" << n;
+    EXPECT_EQ(r.states, generators::kanban_reachable(n)) << "N=" << n;
     EXPECT_EQ(r.deadlocks, 0u);
     EXPECT_TRUE(r.bounded);
     // Each station's cards never exceed N in any place (places widen from 0 tokens = 1 bit to N's width).
@@ -77,7 +77,7 @@ TEST(Analysis, KanbanMatchesThePublishedStateCounts) {
 
 TEST(Analysis, PhilosophersDeadlockWithAShortestReplayablePath) {
   for (int n : {2, 3, 5}) {
-    const Net net = testnets::philosophers(n);
+    const Net net = generators::philosophers(n);
     const AnalysisResult r = analyze(net);
     EXPECT_TRUE(r.complete);
     EXPECT_EQ(r.deadlocks, 1u) << "only 'everyone holds the left fork' is dead";
@@ -522,7 +522,7 @@ TEST(Report, OkAndIncompleteVerdicts) {
 }
 
 TEST(Report, ForeignNetsAreToldByNamesAndIds) {
-  const Net net = testnets::philosophers(2);
+  const Net net = generators::philosophers(2);
   const AnalysisResult r = analyze(net);
   ASSERT_FALSE(r.deadlock_examples.empty());
   EXPECT_EQ(describe_path(net, r.deadlock_examples[0].path), "1. takeLeft0\n2. takeLeft1");

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cellwright/petri/firing.hpp"
+#include "cellwright/petri/generators.hpp"
 #include "cellwright/petri/net.hpp"
 
 namespace cellwright::petri::testnets {
@@ -32,57 +33,6 @@ inline TransitionId add_transition(NetBuilder& b, const std::string& id, std::ve
   t.inputs = std::move(in);
   t.outputs = std::move(out);
   return b.add_transition(std::move(t));
-}
-
-// The Kanban system of Ciardo & Tilgner (1996): four stations, N kanban cards each. Station i holds parts being
-// machined (Pm), sent back for rework (Pback), finished (Pout), and free cards (Pkan). Station 1 feeds stations 2 and
-// 3 in one synchronised step, which together feed station 4.
-inline Net kanban(Tokens n) {
-  NetBuilder b(fmt::format("kanban-{}", n));
-  PlaceId pm[5], pback[5], pkan[5], pout[5];
-  for (int i = 1; i <= 4; ++i) {
-    pm[i] = add_place(b, fmt::format("Pm{}", i));
-    pback[i] = add_place(b, fmt::format("Pback{}", i));
-    pkan[i] = add_place(b, fmt::format("Pkan{}", i), n);
-    pout[i] = add_place(b, fmt::format("Pout{}", i));
-  }
-  add_transition(b, "tin1", {{pkan[1], 1}}, {{pm[1], 1}});
-  for (int i = 1; i <= 4; ++i) {
-    add_transition(b, fmt::format("tredo{}", i), {{pm[i], 1}}, {{pback[i], 1}});
-    add_transition(b, fmt::format("tback{}", i), {{pback[i], 1}}, {{pm[i], 1}});
-    add_transition(b, fmt::format("tok{}", i), {{pm[i], 1}}, {{pout[i], 1}});
-  }
-  add_transition(b, "tsynch1_23", {{pout[1], 1}, {pkan[2], 1}, {pkan[3], 1}}, {{pkan[1], 1}, {pm[2], 1}, {pm[3], 1}});
-  add_transition(b, "tsynch4_23", {{pout[2], 1}, {pout[3], 1}, {pkan[4], 1}}, {{pkan[2], 1}, {pkan[3], 1}, {pm[4], 1}});
-  add_transition(b, "tout4", {{pout[4], 1}}, {{pkan[4], 1}});
-  return std::move(b).build();
-}
-
-// The published closed form for the Kanban net's reachable markings: C(N+3,3)^2 (3N^5+30N^4+115N^3+210N^2+182N+60)/60.
-inline std::uint64_t kanban_states(std::uint64_t n) {
-  const std::uint64_t c = (n + 3) * (n + 2) * (n + 1) / 6;
-  return c * c * (3 * n * n * n * n * n + 30 * n * n * n * n + 115 * n * n * n + 210 * n * n + 182 * n + 60) / 60;
-}
-
-// Dining philosophers: each takes the left fork, then the right one, eats, and puts both back. All holding their
-// left fork is a deadlock.
-inline Net philosophers(int n) {
-  NetBuilder b(fmt::format("philosophers-{}", n));
-  std::vector<PlaceId> think, fork, left, eat;
-  for (int i = 0; i < n; ++i) {
-    think.push_back(add_place(b, fmt::format("think{}", i), 1));
-    fork.push_back(add_place(b, fmt::format("fork{}", i), 1));
-    left.push_back(add_place(b, fmt::format("hasLeft{}", i)));
-    eat.push_back(add_place(b, fmt::format("eat{}", i)));
-  }
-  for (int i = 0; i < n; ++i) {
-    const PlaceId right = fork[static_cast<std::size_t>((i + 1) % n)];
-    const auto k = static_cast<std::size_t>(i);
-    add_transition(b, fmt::format("takeLeft{}", i), {{think[k], 1}, {fork[k], 1}}, {{left[k], 1}});
-    add_transition(b, fmt::format("takeRight{}", i), {{left[k], 1}, {right, 1}}, {{eat[k], 1}});
-    add_transition(b, fmt::format("release{}", i), {{eat[k], 1}}, {{think[k], 1}, {fork[k], 1}, {right, 1}});
-  }
-  return std::move(b).build();
 }
 
 // `robots` robots, each looping forever: outside -> (take the region token) inside -> (give it back) outside. The

@@ -1,0 +1,96 @@
+// Petri net engine figures: reachability exploration speed and memory (targets: >= 1,000,000 markings/s on one core,
+// <= 64 bytes per stored marking, counting packed markings, parent links and hash table), and the token-game rate
+// the task-control thread can sustain on a 100-transition net. Rates are per CPU second (the machine is shared; CPU
+// time is what one core delivers), Google Benchmark's default.
+//
+//   cmake --build build --target petri_bench && build/tools/petri_bench
+#include <benchmark/benchmark.h>
+
+#include <cstdint>
+#include <string>
+
+#include "cellwright/petri/analysis.hpp"
+#include "cellwright/petri/firing.hpp"
+#include "cellwright/petri/generators.hpp"
+
+namespace cellwright::petri {
+namespace {
+
+// Explores `net` completely each iteration; reports markings/s, bytes per marking and the sizes, and fails the run if
+// the count differs from the closed form.
+void explore(benchmark::State& state, const Net& net, std::uint64_t expected) {
+  AnalysisResult r;
+  std::uint64_t markings = 0;
+  std::uint64_t edges = 0;
+  for (auto _ : state) {
+    r = analyze(net);
+    markings += r.states;
+    edges += r.edges;
+    benchmark::DoNotOptimize(r.states);
+  }
+  if (!r.complete || r.states != expected) {
+    state.SkipWithError(("expected " + std::to_string(expected) + " markings, got " + std::to_string(r.states) +
+                         (r.complete ? "" : " (" + r.stop_reason + ")"))
+                            .c_str());
+    return;
+  }
+  state.counters["markings"] = static_cast<double>(r.states);
+  state.counters["edges"] = static_cast<double>(r.edges);
+  state.counters["markings/s"] = benchmark::Counter(static_cast<double>(markings), benchmark::Counter::kIsRate);
+  state.counters["edges/s"] = benchmark::Counter(static_cast<double>(edges), benchmark::Counter::kIsRate);
+  state.counters["bytes/marking"] = static_cast<double>(r.stored_bytes) / static_cast<double>(r.states);
+}
+
+// 8 robots cycling through 8 command places each, sharing two critical regions: 1,507,328 markings, 66 places.
+void BM_ExploreRobotCell(benchmark::State& state) {
+  const int robots = static_cast<int>(state.range(0));
+  const Net net = generators::robot_cell(robots, 8, 2);
+  explore(state, net, generators::robot_cell_reachable(robots, 8, 2));
+}
+BENCHMARK(BM_ExploreRobotCell)->Arg(8)->Unit(benchmark::kMillisecond);
+
+// The classic Kanban model with N = 5 cards per station: 2,546,432 markings (published), 16 places up to 5 tokens.
+void BM_ExploreKanban(benchmark::State& state) {
+  const auto n = static_cast<Tokens>(state.range(0));
+  explore(state, generators::kanban(n), generators::kanban_reachable(n));
+}
+BENCHMARK(BM_ExploreKanban)->Arg(5)->Unit(benchmark::kMillisecond);
+
+// The token game as the task-control thread plays it: choose a maximal fair step, fire it. 20 robots x 5 steps =
+// 100 transitions around one shared region.
+void BM_TokenGameChooseFire(benchmark::State& state) {
+  const Net net = generators::robot_cell(20, 5, 1);
+  Marking m = net.initial_marking();
+  Arbiter arbiter = make_arbiter(net);
+  std::uint64_t fired = 0;
+  for (auto _ : state) {
+    const std::vector<TransitionId> step = choose(net, m, arbiter);
+    fire_chosen(net, m, arbiter, step);
+    fired += step.size();
+  }
+  state.counters["transitions"] = static_cast<double>(net.num_transitions());
+  state.counters["firings/s"] = benchmark::Counter(static_cast<double>(fired), benchmark::Counter::kIsRate);
+  state.counters["steps/s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_TokenGameChooseFire);
+
+// One firing at a time: the enabled set, then fire one of them (rotating, so every robot moves).
+void BM_TokenGameEnabledFire(benchmark::State& state) {
+  const Net net = generators::robot_cell(20, 5, 1);
+  Marking m = net.initial_marking();
+  std::uint64_t fired = 0;
+  std::size_t turn = 0;
+  for (auto _ : state) {
+    const std::vector<TransitionId> en = enabled(net, m);
+    fire_in_place(net, m, en[turn++ % en.size()]);
+    ++fired;
+  }
+  state.counters["transitions"] = static_cast<double>(net.num_transitions());
+  state.counters["firings/s"] = benchmark::Counter(static_cast<double>(fired), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_TokenGameEnabledFire);
+
+}  // namespace
+}  // namespace cellwright::petri
+
+BENCHMARK_MAIN();

@@ -56,10 +56,10 @@ void BM_ExploreKanban(benchmark::State& state) {
 }
 BENCHMARK(BM_ExploreKanban)->Arg(5)->Unit(benchmark::kMillisecond);
 
-// The token game as the task-control thread plays it: choose a maximal fair step, fire it. 20 robots x 5 steps =
-// 100 transitions around one shared region.
+// The token game as the task-control thread plays it: choose a maximal fair step, fire it. 10 robots x 10 steps =
+// 100 transitions, sharing three regions.
 void BM_TokenGameChooseFire(benchmark::State& state) {
-  const Net net = generators::robot_cell(20, 5, 1);
+  const Net net = generators::robot_cell(10, 10, 3);
   Marking m = net.initial_marking();
   Arbiter arbiter = make_arbiter(net);
   std::uint64_t fired = 0;
@@ -76,7 +76,7 @@ BENCHMARK(BM_TokenGameChooseFire);
 
 // One firing at a time: the enabled set, then fire one of them (rotating, so every robot moves).
 void BM_TokenGameEnabledFire(benchmark::State& state) {
-  const Net net = generators::robot_cell(20, 5, 1);
+  const Net net = generators::robot_cell(10, 10, 3);
   Marking m = net.initial_marking();
   std::uint64_t fired = 0;
   std::size_t turn = 0;

@@ -173,10 +173,11 @@ std::string format_report(const Net& net, const AnalysisResult& r) {
   } else if (!r.complete) {
     out = "UNKNOWN: exploration stopped early; no problem found so far\n";
   } else {
-    out = "OK: no deadlock, bounded, mutual exclusion holds\n";
+    out = net.regions().empty() ? "OK: no deadlock, bounded\n" : "OK: no deadlock, bounded, mutual exclusion holds\n";
   }
-  out += fmt::format("explored {}, {}, {}", plural(r.states, "marking", "markings"), plural(r.edges, "edge", "edges"),
-                     plural(r.final_states, "proper end", "proper ends"));
+  out += fmt::format("explored {}, {}", plural(r.states, "marking", "markings"), plural(r.edges, "edge", "edges"));
+  // Proper ends only mean something when the net declares its final marking.
+  if (!net.final_places().empty()) out += ", " + plural(r.final_states, "proper end", "proper ends");
   out += r.complete ? " (complete)\n" : fmt::format("; stopped: {}\n", r.stop_reason);
 
   if (!r.deadlock_examples.empty()) {
@@ -193,7 +194,8 @@ std::string format_report(const Net& net, const AnalysisResult& r) {
     const RegionCheck& rc = r.regions[k];
     const Tokens cap = k < net.regions().size() ? net.regions()[k].capacity : 1;
     if (rc.exclusive) {
-      out += fmt::format("region {}: exclusive (at most {} inside, capacity {})\n", rc.name, rc.max_inside, cap);
+      out += fmt::format("region {}: exclusive{} (at most {} inside, capacity {})\n", rc.name,
+                         r.complete ? "" : " so far", rc.max_inside, cap);
     } else {
       out += fmt::format("region {}: {} inside at once (capacity {})", rc.name, rc.max_inside, cap);
       if (rc.witness) {

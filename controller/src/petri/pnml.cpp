@@ -1,21 +1,21 @@
 // PNML import/export (see pnml.hpp for what is accepted and how errors are reported).
 #include "cellwright/petri/pnml.hpp"
 
-#include <fcntl.h>
 #include <sys/stat.h>
 #include <tinyxml2.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iterator>
 #include <limits>
-#include <map>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <unordered_map>
 #include <utility>
 

@@ -5,7 +5,7 @@
 // Breadth-first order is the store's insertion order, so the queue is just a cursor into the store.
 //
 // Field widths start at what the initial marking needs (at least one bit). When a successor needs more, that place
-// is widened to exactly the bits it needs and every stored marking is repacked (indices, parents and BFS order are
+// is widened to the bits it needs plus one and every stored marking is repacked (indices, parents and BFS order are
 // kept). This was preferred over bounds from place invariants: it needs no invariant computation, is exact for nets
 // without covering invariants (PNML imports, unbounded nets), and widening happens at most 32 times per place and
 // usually early in the search.
@@ -124,6 +124,46 @@ FlatNet flatten(const Net& net) {
   return f;
 }
 
+// Field access reads or writes the 8 bytes starting at the field's first byte (little-endian): a field of at most 32
+// bits shifted by at most 7 fits, so there is no word-straddling case. Buffers of packed markings therefore carry one
+// spare word.
+inline std::uint64_t get_field(const std::uint64_t* w, std::uint32_t off, std::uint32_t width) {
+  std::uint64_t v;
+  std::memcpy(&v, reinterpret_cast<const unsigned char*>(w) + (off >> 3), 8);
+  return (v >> (off & 7)) & ((std::uint64_t{1} << width) - 1);
+}
+
+inline void set_field(std::uint64_t* w, std::uint32_t off, std::uint32_t width, std::uint64_t v) {
+  unsigned char* at = reinterpret_cast<unsigned char*>(w) + (off >> 3);
+  const std::uint32_t shift = off & 7;
+  const std::uint64_t mask = ((std::uint64_t{1} << width) - 1) << shift;
+  std::uint64_t word;
+  std::memcpy(&word, at, 8);
+  word = (word & ~mask) | (v << shift);
+  std::memcpy(at, &word, 8);
+}
+
+// A field's position, precomputed: first byte, shift within it, and the mask (= the largest count it holds).
+struct Field {
+  std::uint32_t byte = 0;
+  std::uint32_t shift = 0;
+  std::uint64_t mask = 1;
+};
+
+inline std::uint64_t get(const std::uint64_t* w, const Field& f) {
+  std::uint64_t v;
+  std::memcpy(&v, reinterpret_cast<const unsigned char*>(w) + f.byte, 8);
+  return (v >> f.shift) & f.mask;
+}
+
+inline void set(std::uint64_t* w, const Field& f, std::uint64_t v) {
+  unsigned char* at = reinterpret_cast<unsigned char*>(w) + f.byte;
+  std::uint64_t word;
+  std::memcpy(&word, at, 8);
+  word = (word & ~(f.mask << f.shift)) | (v << f.shift);
+  std::memcpy(at, &word, 8);
+}
+
 // Where each place's count lives in a packed marking.
 struct Layout {
   std::vector<std::uint32_t> offset;  // bit offset
@@ -131,6 +171,7 @@ struct Layout {
   std::vector<std::uint64_t> limit;   // largest count the field holds
   std::uint32_t words = 1;            // 64-bit words of an unpacked-to-words marking
   std::uint32_t bytes = 1;            // stored bytes per marking
+  std::vector<Field> field;           // offset and width, precomputed for access
   std::vector<PlaceId> bit_place;     // the place each bit belongs to (kNone for padding)
   bool unit = true;                   // every field is one bit wide: counts are popcounts
 
@@ -145,31 +186,15 @@ struct Layout {
     bits = std::max<std::uint32_t>(bits, 1);
     words = (bits + 63) / 64;
     bytes = (bits + 7) / 8;
+    for (std::size_t p = 0; p < width.size(); ++p) {
+      field.push_back(Field{offset[p] >> 3, offset[p] & 7, limit[p]});
+    }
     bit_place.assign(std::size_t{words} * 64, UINT32_MAX);
     for (std::size_t p = 0; p < width.size(); ++p) {
       std::fill_n(bit_place.begin() + offset[p], width[p], static_cast<PlaceId>(p));
     }
   }
 };
-
-inline std::uint64_t get_field(const std::uint64_t* w, std::uint32_t off, std::uint32_t width) {
-  const std::uint32_t i = off >> 6;
-  const std::uint32_t s = off & 63;
-  std::uint64_t v = w[i] >> s;
-  if (s + width > 64) v |= w[i + 1] << (64 - s);
-  return v & ((std::uint64_t{1} << width) - 1);
-}
-
-inline void set_field(std::uint64_t* w, std::uint32_t off, std::uint32_t width, std::uint64_t v) {
-  const std::uint32_t i = off >> 6;
-  const std::uint32_t s = off & 63;
-  const std::uint64_t mask = (std::uint64_t{1} << width) - 1;
-  w[i] = (w[i] & ~(mask << s)) | (v << s);
-  if (s + width > 64) {
-    const std::uint32_t hi = s + width - 64;
-    w[i + 1] = (w[i + 1] & ~((std::uint64_t{1} << hi) - 1)) | (v >> (64 - s));
-  }
-}
 
 inline std::uint64_t hash_words(const std::uint64_t* w, std::uint32_t n) {
   std::uint64_t h = 0x243F6A8885A308D3ull ^ n;
@@ -451,9 +476,12 @@ class Explorer {
     return w;
   }
 
-  // Buffers and region masks follow the layout. One spare word per packed marking lets set_field touch the word
-  // after a field that ends on a word boundary.
+  // Buffers, arc fields and region masks follow the layout. Packed buffers carry one spare word for field access.
   void reshape() {
+    in_field_.clear();
+    for (PlaceId p : f_.in_place) in_field_.push_back(layout_.field[p]);
+    eff_field_.clear();
+    for (PlaceId p : f_.eff_place) eff_field_.push_back(layout_.field[p]);
     const std::size_t stride = layout_.words + 1;
     cur_w_.assign(stride, 0);
     anc_w_.assign(stride, 0);
@@ -469,9 +497,7 @@ class Explorer {
     }
   }
 
-  std::uint64_t value(const std::uint64_t* w, PlaceId p) const {
-    return get_field(w, layout_.offset[p], layout_.width[p]);
-  }
+  std::uint64_t value(const std::uint64_t* w, PlaceId p) const { return get(w, layout_.field[p]); }
 
   void encode(const Marking& m, std::vector<std::uint64_t>& w) const {
     std::fill(w.begin(), w.end(), 0);
@@ -535,7 +561,7 @@ class Explorer {
         const auto t = static_cast<TransitionId>(cw * 64 + static_cast<std::size_t>(std::countr_zero(cand_bits_[cw])));
         bool en = true;
         for (std::uint32_t k = f_.in_begin[t]; k < f_.in_begin[t + 1] && en; ++k) {
-          en = value(cur_w_.data(), f_.in_place[k]) >= f_.in_weight[k];
+          en = get(cur_w_.data(), in_field_[k]) >= f_.in_weight[k];
         }
         if (en) enabled_.push_back(t);
       }
@@ -548,12 +574,13 @@ class Explorer {
   bool build(TransitionId t, std::uint64_t* out) {
     for (std::uint32_t i = 0; i < layout_.words; ++i) out[i] = cur_w_[i];
     for (std::uint32_t k = f_.eff_begin[t]; k < f_.eff_begin[t + 1]; ++k) {
-      const PlaceId p = f_.eff_place[k];
-      const auto v = static_cast<std::uint64_t>(static_cast<std::int64_t>(value(cur_w_.data(), p)) + f_.eff_delta[k]);
-      if (v <= layout_.limit[p]) {
-        set_field(out, layout_.offset[p], layout_.width[p], v);
+      const Field& fld = eff_field_[k];
+      const auto v = static_cast<std::uint64_t>(static_cast<std::int64_t>(get(cur_w_.data(), fld)) + f_.eff_delta[k]);
+      if (v <= fld.mask) {
+        set(out, fld, v);
         continue;
       }
+      const PlaceId p = f_.eff_place[k];
       if (v > std::numeric_limits<Tokens>::max()) {
         stop(fmt::format("place '{}' would hold {} tokens, more than the {} a marking can count", net_.places()[p].id,
                          v, std::numeric_limits<Tokens>::max()));
@@ -561,7 +588,9 @@ class Explorer {
       }
       const Marking cur = decode_words(cur_w_.data());
       std::vector<std::uint32_t> widths = layout_.width;
-      widths[p] = static_cast<std::uint32_t>(std::bit_width(v));
+      // One bit of headroom: a place that outgrows its field usually keeps growing, and each repack costs a pass over
+      // the whole store.
+      widths[p] = std::min(32u, static_cast<std::uint32_t>(std::bit_width(v)) + 1);
       Layout wider(std::move(widths));
       store_.repack(layout_, wider);
       layout_ = std::move(wider);
@@ -639,8 +668,8 @@ class Explorer {
 
     for (std::uint32_t k = f_.eff_begin[t]; k < f_.eff_begin[t + 1]; ++k) {
       if (f_.eff_delta[k] > 0) {
-        const PlaceId p = f_.eff_place[k];
-        max_seen_[p] = std::max(max_seen_[p], static_cast<Tokens>(value(w, p)));
+        Tokens& seen = max_seen_[f_.eff_place[k]];
+        seen = std::max(seen, static_cast<Tokens>(get(w, eff_field_[k])));
       }
     }
     // Only a transition that adds tokens to a region can raise its maximum or break its capacity.
@@ -736,6 +765,8 @@ class Explorer {
   std::vector<std::uint64_t> cand_bits_;
   std::vector<TransitionId> enabled_;
   std::vector<std::uint64_t> cur_w_, anc_w_, batch_w_;
+  std::vector<Field> in_field_;   // per input arc (parallel to FlatNet::in_place)
+  std::vector<Field> eff_field_;  // per effect (parallel to FlatNet::eff_place)
   std::uint64_t hash_[kBatch] = {};
   std::vector<std::vector<std::uint64_t>> region_mask_;
   std::vector<bool> region_unit_;

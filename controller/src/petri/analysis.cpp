@@ -20,13 +20,12 @@
 #include <memory>
 #include <stdexcept>
 
-#include "cellwright/common/error.hpp"
-
 namespace cellwright::petri {
 
 namespace {
 
-// Packed markings are stored as the first `bytes` bytes of little-endian 64-bit words.
+// Packed markings are stored as the first `bytes` bytes of little-endian 64-bit words, and fields are read through
+// unaligned 64-bit loads.
 static_assert(std::endian::native == std::endian::little, "the marking store assumes a little-endian machine");
 
 constexpr std::uint32_t kNone = UINT32_MAX;
@@ -124,26 +123,9 @@ FlatNet flatten(const Net& net) {
   return f;
 }
 
-// Field access reads or writes the 8 bytes starting at the field's first byte (little-endian): a field of at most 32
-// bits shifted by at most 7 fits, so there is no word-straddling case. Buffers of packed markings therefore carry one
-// spare word.
-inline std::uint64_t get_field(const std::uint64_t* w, std::uint32_t off, std::uint32_t width) {
-  std::uint64_t v;
-  std::memcpy(&v, reinterpret_cast<const unsigned char*>(w) + (off >> 3), 8);
-  return (v >> (off & 7)) & ((std::uint64_t{1} << width) - 1);
-}
-
-inline void set_field(std::uint64_t* w, std::uint32_t off, std::uint32_t width, std::uint64_t v) {
-  unsigned char* at = reinterpret_cast<unsigned char*>(w) + (off >> 3);
-  const std::uint32_t shift = off & 7;
-  const std::uint64_t mask = ((std::uint64_t{1} << width) - 1) << shift;
-  std::uint64_t word;
-  std::memcpy(&word, at, 8);
-  word = (word & ~mask) | (v << shift);
-  std::memcpy(at, &word, 8);
-}
-
 // A field's position, precomputed: first byte, shift within it, and the mask (= the largest count it holds).
+// Access reads or writes the 8 bytes starting at the field's first byte (little-endian): a field of at most 32 bits
+// shifted by at most 7 fits, so no field straddles two reads. Buffers of packed markings carry one spare word for it.
 struct Field {
   std::uint32_t byte = 0;
   std::uint32_t shift = 0;
@@ -168,10 +150,9 @@ inline void set(std::uint64_t* w, const Field& f, std::uint64_t v) {
 struct Layout {
   std::vector<std::uint32_t> offset;  // bit offset
   std::vector<std::uint32_t> width;   // 1..32 bits
-  std::vector<std::uint64_t> limit;   // largest count the field holds
+  std::vector<Field> field;           // offset and width, precomputed for access
   std::uint32_t words = 1;            // 64-bit words of an unpacked-to-words marking
   std::uint32_t bytes = 1;            // stored bytes per marking
-  std::vector<Field> field;           // offset and width, precomputed for access
   std::vector<PlaceId> bit_place;     // the place each bit belongs to (kNone for padding)
   bool unit = true;                   // every field is one bit wide: counts are popcounts
 
@@ -179,16 +160,13 @@ struct Layout {
     std::uint32_t bits = 0;
     for (std::uint32_t w : width) {
       offset.push_back(bits);
-      limit.push_back((std::uint64_t{1} << w) - 1);
+      field.push_back(Field{bits >> 3, bits & 7, (std::uint64_t{1} << w) - 1});
       bits += w;
       unit = unit && w == 1;
     }
     bits = std::max<std::uint32_t>(bits, 1);
     words = (bits + 63) / 64;
     bytes = (bits + 7) / 8;
-    for (std::size_t p = 0; p < width.size(); ++p) {
-      field.push_back(Field{offset[p] >> 3, offset[p] & 7, limit[p]});
-    }
     bit_place.assign(std::size_t{words} * 64, UINT32_MAX);
     for (std::size_t p = 0; p < width.size(); ++p) {
       std::fill_n(bit_place.begin() + offset[p], width[p], static_cast<PlaceId>(p));
@@ -227,10 +205,8 @@ class MarkingStore {
   }
 
   std::uint32_t size() const { return size_; }
-  std::uint32_t stride() const { return stride_; }
-  std::uint32_t words() const { return words_; }
 
-  // Copies marking i into `w` (words() words, zero-padded). Records are read and written a word at a time: the last
+  // Copies marking i into `w` (its words, zero-padded). Records are read and written a word at a time: the last
   // word of a record may reach into the next record or the chunk's padding, and is masked.
   void load(std::uint32_t i, std::uint64_t* w) const {
     const std::uint8_t* p = packed(i);
@@ -297,7 +273,7 @@ class MarkingStore {
       a[old_words - 1] &= old_tail;
       std::fill(b.begin(), b.end(), 0);
       for (std::size_t p = 0; p < from.width.size(); ++p) {
-        set_field(b.data(), to.offset[p], to.width[p], get_field(a.data(), from.offset[p], from.width[p]));
+        set(b.data(), to.field[p], get(a.data(), from.field[p]));
       }
       if ((i & (kChunkMarkings - 1)) == 0) chunks_.push_back(new_chunk());
       write(i, b.data());
@@ -415,7 +391,7 @@ Marking decode(const MarkingStore& store, const Layout& layout, std::uint32_t i)
   store.load(i, w.data());
   Marking m(layout.width.size());
   for (std::size_t p = 0; p < m.size(); ++p) {
-    m[p] = static_cast<Tokens>(get_field(w.data(), layout.offset[p], layout.width[p]));
+    m[p] = static_cast<Tokens>(get(w.data(), layout.field[p]));
   }
   return m;
 }
@@ -501,7 +477,7 @@ class Explorer {
 
   void encode(const Marking& m, std::vector<std::uint64_t>& w) const {
     std::fill(w.begin(), w.end(), 0);
-    for (std::size_t p = 0; p < m.size(); ++p) set_field(w.data(), layout_.offset[p], layout_.width[p], m[p]);
+    for (std::size_t p = 0; p < m.size(); ++p) set(w.data(), layout_.field[p], m[p]);
   }
 
   Marking decode_words(const std::uint64_t* w) const {

@@ -57,6 +57,48 @@ TEST(Analysis, SmallNetsHaveTheirKnownCounts) {
   EXPECT_FALSE(r.ok());
 }
 
+TEST(Analysis, DegenerateNets) {
+  // No places: one (empty) marking; a transition without arcs is always enabled and loops on it.
+  NetBuilder loop("empty-loop");
+  add_transition(loop, "noop", {}, {});
+  const AnalysisResult r = analyze(std::move(loop).build());
+  EXPECT_EQ(r.states, 1u);
+  EXPECT_EQ(r.edges, 1u);
+  EXPECT_EQ(r.deadlocks, 0u);
+  EXPECT_TRUE(r.ok());
+  // No transitions: the initial marking is dead.
+  NetBuilder still("still");
+  add_place(still, "p", 3);
+  const AnalysisResult d = analyze(std::move(still).build());
+  EXPECT_EQ(d.states, 1u);
+  EXPECT_EQ(d.deadlocks, 1u);
+  ASSERT_EQ(d.deadlock_examples.size(), 1u);
+  EXPECT_TRUE(d.deadlock_examples[0].path.empty());
+  EXPECT_EQ(d.deadlock_examples[0].marking, (Marking{3}));
+  // A source transition: tokens from nowhere.
+  NetBuilder source("source");
+  const PlaceId p = add_place(source, "p");
+  add_transition(source, "make", {}, {{p, 1}});
+  const AnalysisResult u = analyze(std::move(source).build());
+  EXPECT_FALSE(u.bounded);
+  EXPECT_EQ(u.unbounded_places, (std::vector<PlaceId>{p}));
+}
+
+TEST(Analysis, SameNetSameAnswer) {
+  const Net net = generators::philosophers(4);
+  AnalysisOptions opt;
+  opt.max_deadlocks_reported = 3;
+  const AnalysisResult a = analyze(net, opt);
+  const AnalysisResult b = analyze(net, opt);
+  EXPECT_EQ(a.states, b.states);
+  EXPECT_EQ(a.edges, b.edges);
+  ASSERT_EQ(a.deadlock_examples.size(), b.deadlock_examples.size());
+  for (std::size_t i = 0; i < a.deadlock_examples.size(); ++i) {
+    EXPECT_EQ(a.deadlock_examples[i].path, b.deadlock_examples[i].path);
+  }
+  EXPECT_EQ(format_report(net, a), format_report(net, b));
+}
+
 TEST(Analysis, KanbanMatchesThePublishedStateCounts) {
   EXPECT_EQ(generators::kanban_reachable(1), 160u);
   EXPECT_EQ(generators::kanban_reachable(2), 4600u);

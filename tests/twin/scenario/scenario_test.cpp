@@ -1,0 +1,275 @@
+// The scenario loader: every field read, every kind of bad input refused with the file, line and reason, and the
+// preflight (program check, reach of every place the program goes to).
+#include "cellwright/twin/scenario/scenario.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace cellwright::twin::scenario {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+const std::string kScenes = std::string(CW_SOURCE_DIR) + "/scenes";
+
+// A scenario file in a fresh directory, naming the repository's cell and programs by absolute path.
+class ScenarioFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::path(::testing::TempDir()) /
+           fmt::format("scenario_test_{}", ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path write(const std::string& name, const std::string& text) {
+    const fs::path p = dir_ / name;
+    std::ofstream(p) << text;
+    return p;
+  }
+  // The head every scenario here shares: line 1 cell, line 2 program; the caller's lines follow from line 3.
+  fs::path scenario(const std::string& rest, const std::string& program = "exchange.task") {
+    return write("s.yaml", fmt::format("cell: {}/cell.yaml\nprogram: {}/{}\n{}", kScenes, kScenes, program, rest));
+  }
+  // Loads and expects an InputError at `line` of the scenario file whose message contains `text`.
+  void expect_error(const fs::path& file, int line, const std::string& text) {
+    try {
+      load_scenario(file);
+      ADD_FAILURE() << "no error; expected line " << line << ": " << text;
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.where().file, file.string()) << e.what();
+      EXPECT_EQ(e.where().line, line) << e.what();
+      EXPECT_THAT(e.what(), HasSubstr(text));
+    }
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(ScenarioFiles, ReadsEveryField) {
+  const fs::path f = scenario(R"(seed: 42
+drivers: {puma: sim}
+robots: {r1: puma, r2: melfa}
+bind: {B: output_drop}
+feed: {conveyor: input, workpieces: [B, C], start: 2, period: 8}
+limits: {sim_time: 90, wall_time: 30}
+expect:
+  A: output
+  B: {at: output_drop, tolerance: 0.05}
+tolerance: 0.03
+options: {realtime: true, control_period: 0.02, settle_time: 0.5}
+)");
+  const Scenario s = load_scenario(f);
+  EXPECT_EQ(s.source, f);
+  EXPECT_EQ(s.cell_file, fs::path(kScenes + "/cell.yaml"));
+  EXPECT_EQ(s.program.robots, (std::vector<std::string>{"r1", "r2"}));
+  EXPECT_EQ(s.seed, 42u);
+  EXPECT_EQ(s.robot_of("r1"), "puma");
+  EXPECT_EQ(s.robot_of("r2"), "melfa");
+  EXPECT_EQ(s.workpiece_of("A"), "A");  // by default, the cell object of the same name
+  EXPECT_EQ(s.location_of("B"), "output_drop");
+  EXPECT_EQ(s.robots[0].where.line, 5);
+  ASSERT_EQ(s.drivers.size(), 2u);
+  EXPECT_EQ(s.drivers[0].kind, DriverKind::kSim);
+  ASSERT_TRUE(s.feed);
+  EXPECT_EQ(s.feed->conveyor, "input");
+  EXPECT_EQ(s.feed->workpieces, (std::vector<std::string>{"B", "C"}));
+  EXPECT_DOUBLE_EQ(s.feed->arrival(1), 10.0);
+  EXPECT_DOUBLE_EQ(s.limits.sim_time, 90);
+  EXPECT_DOUBLE_EQ(s.limits.wall_time, 30);
+  ASSERT_EQ(s.expect.size(), 2u);
+  EXPECT_EQ(s.expect[0].workpiece, "A");
+  EXPECT_EQ(s.expect[0].place, "output");
+  EXPECT_DOUBLE_EQ(s.expect[0].tolerance, 0.03);
+  EXPECT_EQ(s.expect[1].place, "output_drop");
+  EXPECT_DOUBLE_EQ(s.expect[1].tolerance, 0.05);
+  EXPECT_EQ(s.expect[1].where.line, 11);
+  EXPECT_TRUE(s.options.realtime);
+  EXPECT_DOUBLE_EQ(s.options.control_period, 0.02);
+  EXPECT_DOUBLE_EQ(s.options.settle_time, 0.5);
+}
+
+TEST_F(ScenarioFiles, DefaultsWhenOptionalFieldsAreMissing) {
+  const fs::path f = scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n");
+  const Scenario s = load_scenario(f);
+  EXPECT_EQ(s.seed, 1u);
+  EXPECT_FALSE(s.feed);
+  EXPECT_TRUE(s.expect.empty());
+  EXPECT_DOUBLE_EQ(s.limits.sim_time, 300);
+  EXPECT_DOUBLE_EQ(s.limits.wall_time, 0);
+  EXPECT_FALSE(s.options.realtime);
+  EXPECT_DOUBLE_EQ(s.options.control_period, 0.01);
+}
+
+TEST_F(ScenarioFiles, RelativePathsAreRelativeToTheScenarioFile) {
+  fs::copy_file(kScenes + "/exchange.task", dir_ / "prog.task");
+  const fs::path f = write("s.yaml", fmt::format("cell: {}/cell.yaml\nprogram: prog.task\nrobots: {{r1: puma, r2: "
+                                                 "melfa}}\nbind: {{B: output_drop}}\n",
+                                                 kScenes));
+  EXPECT_EQ(load_scenario(f).program_file, dir_ / "prog.task");
+}
+
+TEST_F(ScenarioFiles, MissingScenarioFile) {
+  try {
+    load_scenario(dir_ / "nope.yaml");
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("nope.yaml"));
+    EXPECT_THAT(e.what(), HasSubstr("not found"));
+  }
+}
+
+TEST_F(ScenarioFiles, NotYaml) {
+  expect_error(write("s.yaml", "cell: x\nprogram: [unclosed\n"), 3, "not a valid YAML file");
+}
+
+TEST_F(ScenarioFiles, UnknownField) {
+  expect_error(scenario("robots: {r1: puma, r2: melfa}\nexpected: {A: output}\n"), 4,
+               "unknown field 'expected' in the scenario");
+}
+
+TEST_F(ScenarioFiles, MissingProgramField) {
+  expect_error(write("s.yaml", fmt::format("cell: {}/cell.yaml\nseed: 3\n", kScenes)), 1, "no field 'program'");
+}
+
+TEST_F(ScenarioFiles, MissingProgramFile) {
+  expect_error(write("s.yaml", fmt::format("cell: {}/cell.yaml\nprogram: missing.task\n", kScenes)), 2,
+               "field 'program' names 'missing.task'");
+}
+
+TEST_F(ScenarioFiles, MissingCellFile) {
+  expect_error(write("s.yaml", fmt::format("cell: nocell.yaml\nprogram: {}/exchange.task\n", kScenes)), 1,
+               "field 'cell' names 'nocell.yaml'");
+}
+
+TEST_F(ScenarioFiles, ProgramErrorsPointIntoTheProgram) {
+  const fs::path prog = write("bad.task", "robot r1\nworkpiece A\nsteps\n  r1\n  Pick B\nend\n");
+  try {
+    load_scenario(write("s.yaml", fmt::format("cell: {}/cell.yaml\nprogram: {}\n", kScenes, prog.string())));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.where().file, HasSubstr("bad.task"));
+    EXPECT_EQ(e.where().line, 5);
+  }
+}
+
+TEST_F(ScenarioFiles, ProgramRobotBoundToNothing) {
+  // r1 and r2 are not cell robots, and no `robots` field binds them: reported at the `program` field.
+  expect_error(scenario("seed: 1\n"), 2, "program robot 'r1' (exchange.task) is bound to nothing in the cell");
+}
+
+TEST_F(ScenarioFiles, RobotBoundToAMissingCellRobot) {
+  expect_error(scenario("robots: {r1: puma, r2: kuka}\n"), 3, "robot 'r2' is bound to 'kuka', which is not a robot");
+}
+
+TEST_F(ScenarioFiles, BindingOfALabelTheProgramLacks) {
+  expect_error(scenario("robots:\n  r1: puma\n  r3: melfa\n"), 5, "'r3', which is not a robot of the program");
+  expect_error(scenario("robots: {r1: puma, r2: melfa}\nbind:\n  Z: output_drop\n"), 5,
+               "'Z', which is not a workpiece or location of the program");
+}
+
+TEST_F(ScenarioFiles, LocationBoundToNothing) {
+  // B is a program location; the cell has no location named B.
+  expect_error(scenario("robots: {r1: puma, r2: melfa}\n"), 2,
+               "program location 'B' (exchange.task) is bound to "
+               "nothing in the cell");
+}
+
+TEST_F(ScenarioFiles, LocationBoundToAMissingLocation) {
+  expect_error(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: machine}\n"), 4,
+               "location 'B' is bound to 'machine', which is not a location of the cell");
+}
+
+TEST_F(ScenarioFiles, TwoLabelsOnOneRobot) {
+  expect_error(scenario("robots:\n  r1: puma\n  r2: puma\n"), 5, "are both bound to the cell robot 'puma'");
+}
+
+TEST_F(ScenarioFiles, DriverNotAvailableYet) {
+  expect_error(scenario("drivers:\n  melfa: movemaster\nrobots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"), 4,
+               "robot 'melfa' would run on the movemaster driver, which is not available yet");
+}
+
+TEST_F(ScenarioFiles, DriverUnknown) {
+  expect_error(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\ndrivers: {melfa: mujoco}\n"), 5,
+               "must be sim, movemaster or val2, got 'mujoco'");
+  expect_error(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\ndrivers: {kuka: sim}\n"), 5,
+               "'kuka', which is not a robot of the cell");
+}
+
+TEST_F(ScenarioFiles, FeedErrors) {
+  const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
+  expect_error(scenario(head + "feed: {conveyor: belt, workpieces: [A]}\n"), 5, "conveyor 'belt' is not a conveyor");
+  expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces: [A, Q]\n"), 7, "workpiece 'Q', which is not");
+  expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces:\n    - A\n    - A\n"), 9,
+               "names workpiece 'A' twice (first on line 8)");
+  expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces: [A, B]\n"), 6, "but no 'period'");
+  expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces: [A, B]\n  period: -2\n"), 8,
+               "must be greater than 0");
+  expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces: []\n"), 7, "must be a non-empty list");
+}
+
+TEST_F(ScenarioFiles, ExpectationErrors) {
+  const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
+  expect_error(scenario(head + "expect:\n  Q: output\n"), 6, "names workpiece 'Q', which is not in the cell");
+  expect_error(scenario(head + "expect:\n  A: the_moon\n"), 6,
+               "expected at 'the_moon', which is not a location, conveyor or machine");
+  expect_error(scenario(head + "expect:\n  A: {at: output, tolerance: 0}\n"), 6, "must be greater than 0");
+  expect_error(scenario(head + "expect:\n  A: {at: output, within: 1}\n"), 6, "unknown field 'within'");
+}
+
+TEST_F(ScenarioFiles, NumbersOutOfRange) {
+  const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
+  expect_error(scenario(head + "seed: -1\n"), 5, "field 'seed' of the scenario must be a whole number");
+  expect_error(scenario(head + "limits: {sim_time: 0}\n"), 5, "must be greater than 0");
+  expect_error(scenario(head + "options:\n  control_period: 0.0001\n"), 6, "at least the cell's simulation time step");
+  expect_error(scenario(head + "options: {realtime: maybe}\n"), 5, "must be true or false");
+}
+
+// --- preflight ---
+
+TEST_F(ScenarioFiles, ExchangeScenarioPassesPreflight) {
+  const Scenario s = load_scenario(kScenes + "/exchange.yaml");
+  const Preflight p = preflight(s);
+  EXPECT_TRUE(p.analysis.ok());
+  EXPECT_TRUE(p.ok()) << (p.problems.empty() ? "" : p.problems.front());
+  // r1 goes to A at the input stop and to the hand-over; r2 to the hand-over and to the drop point.
+  std::vector<std::string> needs;
+  for (const ReachNeed& n : p.needs) needs.push_back(n.robot + ": " + n.target);
+  EXPECT_THAT(needs,
+              ::testing::ElementsAre("puma: workpiece 'A' at location 'input_pick'", "puma: the hand-over 'exchange'",
+                                     "melfa: the hand-over 'exchange'", "melfa: location 'output_drop'"));
+  for (const ReachCheck& c : p.reach) EXPECT_TRUE(c.reachable) << c.robot << " " << c.target;
+}
+
+TEST_F(ScenarioFiles, DeadlockingProgramFailsPreflightWithTheCheck) {
+  const Scenario s = load_scenario(scenario("robots: {r1: puma, r2: melfa}\n", "deadlock.task"));
+  const Preflight p = preflight(s);
+  EXPECT_FALSE(p.ok());
+  EXPECT_FALSE(p.analysis.ok());
+  ASSERT_EQ(p.problems.size(), 1u);
+  EXPECT_THAT(p.problems[0], HasSubstr("fails the check"));
+  EXPECT_THAT(p.problems[0], HasSubstr("deadlock"));
+}
+
+TEST_F(ScenarioFiles, UnreachableTargetFailsPreflightNamingRobotTargetAndCommand) {
+  // The MELFA is bound to the single-robot pick-and-place: the input stop and the machine are beyond its reach.
+  const Scenario s = load_scenario(scenario("robots: {r1: melfa}\nbind: {B: machine_fixture}\n", "pick_place.task"));
+  const Preflight p = preflight(s);
+  EXPECT_TRUE(p.analysis.ok());
+  ASSERT_FALSE(p.ok());
+  EXPECT_THAT(p.problems[0], HasSubstr("robot 'melfa' cannot reach workpiece 'A' at location 'input_pick'"));
+  EXPECT_THAT(p.problems[0], HasSubstr("pick_place.task:"));
+  EXPECT_THAT(p.problems[0], HasSubstr("'Pick A'"));
+  EXPECT_THAT(p.problems[0], HasSubstr("maximum reach"));
+}
+
+}  // namespace
+}  // namespace cellwright::twin::scenario

@@ -1,0 +1,143 @@
+// A scenario: everything `twin run` needs to execute a task program on the simulated cell and judge the result — the
+// cell, the program, how the program's labels map onto the cell, which driver runs each robot, the workpiece feed,
+// the limits and the expected outcome. docs/scenarios.md documents every field of the YAML file.
+//
+// Loading is in two stages, both before any thread starts:
+//  1. load_scenario() reads the YAML file, the cell description and the task program, and binds every program label
+//     to a cell object. Anything wrong with the input throws InputError naming the file, line and field.
+//  2. preflight() builds the program's Petri net, analyses it (as `twin check` does) and checks that every robot can
+//     reach every place its program sends it to (twin::check_reach). It reports rather than throws, so that the
+//     caller can print the analysis; Preflight::ok() says whether the run may start.
+//
+// Thread safety: plain values and re-entrant functions; any thread may call them.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/petri/analysis.hpp"
+#include "cellwright/petri/net.hpp"
+#include "cellwright/task/compiled.hpp"
+#include "cellwright/twin/cell.hpp"
+
+namespace cellwright::twin::scenario {
+
+// One program label bound to a cell object: robot r1 -> puma, workpiece A -> A, location B -> output_drop.
+struct Binding {
+  std::string label;     // as declared in the program
+  std::string name;      // the cell object it stands for
+  SourceLocation where;  // the binding in the scenario file (the `robots`/`bind` entry), or the `program` field when
+                         // the label is bound to the cell object of the same name by default
+};
+
+// The driver of one cell robot.
+struct DriverChoice {
+  std::string robot;  // cell robot name
+  DriverKind kind = DriverKind::kSim;
+  SourceLocation where;  // the `drivers` entry, or the robot in the cell file when the cell's choice is used
+};
+
+// Workpieces put on a conveyor during the run, one every `period` seconds from `start` on, in the listed order. They
+// are cell workpieces: before their turn they are kept out of the cell (the simulated world parks them), then they
+// appear at rest on the conveyor's entry point (ConveyorSpec::enter).
+struct Feed {
+  std::string conveyor;
+  std::vector<std::string> workpieces;  // cell workpiece names, in order of arrival
+  double start = 0;                     // s, sim time of the first arrival
+  double period = 0;                    // s between arrivals (> 0 when more than one)
+  SourceLocation where;
+
+  // Sim time at which workpieces[i] arrives.
+  double arrival(std::size_t i) const { return start + period * static_cast<double>(i); }
+};
+
+// Where a workpiece must end up: a cell location, conveyor or machine (its fixture or top), within `tolerance`.
+struct Expectation {
+  std::string workpiece;  // cell workpiece name
+  std::string place;      // cell location, conveyor or machine name
+  double tolerance = 0;   // m
+  SourceLocation where;
+};
+
+struct Limits {
+  double sim_time = 300;  // s of simulated time; the run fails when the program has not finished by then
+  double wall_time = 0;   // s of wall-clock time; 0 = no limit
+};
+
+struct Options {
+  bool realtime = false;         // pace the simulation to the wall clock (default: lock-step on the virtual clock)
+  double control_period = 0.01;  // s of sim time between the control threads' turns
+  double settle_time = 1.0;      // s simulated after the program finishes, before the outcome is judged
+};
+
+struct Scenario {
+  std::filesystem::path source;        // the scenario file (absolute)
+  std::filesystem::path cell_file;     // absolute
+  std::filesystem::path program_file;  // absolute
+  CellDescription cell;
+  task::CompiledProgram program;
+  std::uint64_t seed = 1;
+  std::vector<Binding> robots;        // one per program robot, in program order
+  std::vector<Binding> workpieces;    // one per program workpiece, in program order
+  std::vector<Binding> locations;     // one per program location, in program order
+  std::vector<DriverChoice> drivers;  // one per cell robot, in cell order
+  std::optional<Feed> feed;
+  Limits limits;
+  std::vector<Expectation> expect;  // in file order
+  Options options;
+
+  // The cell object bound to a program label of that kind; throws InternalError for an unknown label (the loader
+  // binds every label, so that is a bug).
+  const std::string& robot_of(std::string_view label) const;
+  const std::string& workpiece_of(std::string_view label) const;
+  const std::string& location_of(std::string_view label) const;
+};
+
+// Reads a scenario file, the cell description and the task program it names (paths relative to the scenario file),
+// compiles the program and binds its labels. Throws InputError naming the scenario file, line, column and field when:
+// the file is missing or is not YAML; a field is unknown, missing, given twice or of the wrong type or range; the
+// cell or program file is missing or wrong (the error from load_cell / compile, which names that file); a binding
+// names a label the program does not declare, or a cell object that does not exist or is of the wrong kind; a
+// program robot, workpiece or location is bound to nothing in the cell (no explicit binding and no cell object of the
+// same name); two labels are bound to one cell object; a driver is named for a robot that is not in the cell, is not
+// one of sim/movemaster/val2, or is not available yet (only sim is); the feed names an unknown conveyor or workpiece,
+// a workpiece twice, or lacks a period for several workpieces; an expectation names an unknown workpiece or place.
+Scenario load_scenario(const std::filesystem::path& yaml_file);
+
+// As load_scenario, from YAML text; `source` names the text in errors and its directory resolves relative paths.
+Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path& source);
+
+// One place a robot's program sends it to, checked for reach.
+struct ReachNeed {
+  std::string robot;   // cell robot
+  std::string target;  // what it must reach, e.g. "location 'output_drop'", "workpiece 'A' at the input stop"
+  std::string why;     // the program command that needs it: "exchange.task:10:14 'Place B'"
+};
+
+struct Preflight {
+  petri::Net net;
+  petri::AnalysisResult analysis;
+  std::vector<ReachNeed> needs;       // every (robot, target) pair the program needs, in the order a run meets them
+  std::vector<ReachCheck> reach;      // the checks run for them (check_reach on the needed targets)
+  std::vector<std::string> problems;  // one line per reason the run may not start, empty when it may
+
+  bool ok() const { return problems.empty(); }
+};
+
+// Builds the program's Petri net and analyses it (petri::analyze with default options: the run is refused unless the
+// analysis is complete, deadlock-free, bounded and every region exclusive), and checks the reach of every target the
+// program's moves need: for each program robot, the grasp and approach poses of the locations it moves to, of the
+// places where it picks workpieces (their initial pose, or a conveyor's pick point: the stop bar when it has one),
+// and its grasp at the hand-over when it puts or gets. A robot missing from the cell's hand-over grasps is a problem.
+// Throws InputError only if a URDF cannot be read (load_scenario has read them once already).
+Preflight preflight(const Scenario& scenario);
+
+// "sim", "movemaster", "val2".
+const char* to_string(DriverKind kind);
+
+}  // namespace cellwright::twin::scenario

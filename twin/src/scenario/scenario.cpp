@@ -1,0 +1,683 @@
+// Reading a scenario file and checking it before anything runs (scenario.hpp; format in docs/scenarios.md).
+#include "cellwright/twin/scenario/scenario.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <set>
+
+#include "cellwright/common/files.hpp"
+#include "cellwright/petri/firing.hpp"
+#include "cellwright/task/compile.hpp"
+#include "cellwright/task/to_net.hpp"
+
+namespace cellwright::twin::scenario {
+
+namespace {
+
+// --- YAML with positions in every error ---------------------------------------------------------------------------
+
+class Doc {
+ public:
+  explicit Doc(std::string file) : file_(std::move(file)) {}
+  SourceLocation at(const YAML::Node& n) const {
+    const YAML::Mark m = n.Mark();
+    if (m.is_null()) return {file_, 0, 0};
+    return {file_, m.line + 1, m.column + 1};
+  }
+  [[noreturn]] void fail(const YAML::Node& n, std::string problem) const {
+    throw InputError(at(n), std::move(problem));
+  }
+  const std::string& file() const { return file_; }
+
+ private:
+  std::string file_;
+};
+
+std::string describe(const YAML::Node& n) {
+  if (n.IsScalar()) return fmt::format("'{}'", n.Scalar());
+  if (n.IsSequence()) return "a list";
+  if (n.IsMap()) return "a mapping";
+  return "nothing";
+}
+
+// The fields of one mapping: unknown and repeated keys are errors (a typo must not be silently ignored).
+class Fields {
+ public:
+  Fields(const Doc& doc, const YAML::Node& map, std::string what, std::initializer_list<std::string_view> allowed)
+      : doc_(doc), map_(map), what_(std::move(what)) {
+    if (!map.IsMap()) doc.fail(map, fmt::format("{} must be a mapping of fields, got {}", what_, describe(map)));
+    for (const auto& kv : map) {
+      if (!kv.first.IsScalar()) doc.fail(kv.first, fmt::format("{}: field names must be plain words", what_));
+      const std::string key = kv.first.Scalar();
+      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
+        std::string list;
+        for (auto a : allowed) list += fmt::format("{}{}", list.empty() ? "" : ", ", a);
+        doc.fail(kv.first, fmt::format("unknown field '{}' in {} (expected one of: {})", key, what_, list));
+      }
+      if (fields_.count(key) != 0) {
+        doc.fail(kv.first, fmt::format("field '{}' of {} is given twice (first on line {})", key, what_,
+                                       doc.at(fields_.at(key).first).line));
+      }
+      fields_.emplace(key, std::make_pair(kv.first, kv.second));
+    }
+  }
+
+  bool has(const std::string& key) const { return fields_.count(key) != 0; }
+  const YAML::Node& node(const std::string& key) const {
+    auto it = fields_.find(key);
+    if (it == fields_.end()) doc_.fail(map_, fmt::format("{} has no field '{}' (it is required)", what_, key));
+    return it->second.second;
+  }
+  const YAML::Node& key_node(const std::string& key) const { return fields_.at(key).first; }
+  std::string field(const std::string& key) const { return fmt::format("field '{}' of {}", key, what_); }
+
+  double number(const std::string& key) const {
+    const YAML::Node& n = node(key);
+    double v = 0;
+    if (!n.IsScalar() || !YAML::convert<double>::decode(n, v)) {
+      doc_.fail(n, fmt::format("{} must be a number, got {}", field(key), describe(n)));
+    }
+    if (!std::isfinite(v)) doc_.fail(n, fmt::format("{} must be a finite number, got {}", field(key), n.Scalar()));
+    return v;
+  }
+  double positive_or(const std::string& key, double fallback) const {
+    if (!has(key)) return fallback;
+    const double v = number(key);
+    if (!(v > 0)) doc_.fail(node(key), fmt::format("{} must be greater than 0, got {}", field(key), v));
+    return v;
+  }
+  double non_negative_or(const std::string& key, double fallback) const {
+    if (!has(key)) return fallback;
+    const double v = number(key);
+    if (v < 0) doc_.fail(node(key), fmt::format("{} must not be negative, got {}", field(key), v));
+    return v;
+  }
+  std::string text(const std::string& key) const { return text_of(node(key), field(key)); }
+  std::string text_of(const YAML::Node& n, const std::string& what) const {
+    if (!n.IsScalar() || n.Scalar().empty()) doc_.fail(n, fmt::format("{} must be a word, got {}", what, describe(n)));
+    return n.Scalar();
+  }
+  bool boolean_or(const std::string& key, bool fallback) const {
+    if (!has(key)) return fallback;
+    const YAML::Node& n = node(key);
+    bool v = false;
+    if (!n.IsScalar() || !YAML::convert<bool>::decode(n, v)) {
+      doc_.fail(n, fmt::format("{} must be true or false, got {}", field(key), describe(n)));
+    }
+    return v;
+  }
+  // A mapping of word -> word, in file order, with the position of each key; keys given twice are errors.
+  std::vector<std::pair<std::string, std::pair<YAML::Node, YAML::Node>>> word_map(const std::string& key) const {
+    const YAML::Node& n = node(key);
+    if (!n.IsMap()) doc_.fail(n, fmt::format("{} must be a mapping of names, got {}", field(key), describe(n)));
+    std::vector<std::pair<std::string, std::pair<YAML::Node, YAML::Node>>> out;
+    std::map<std::string, int> seen;
+    for (const auto& kv : n) {
+      const std::string k = text_of(kv.first, fmt::format("a name in {}", field(key)));
+      if (auto it = seen.find(k); it != seen.end()) {
+        doc_.fail(kv.first, fmt::format("'{}' is given twice in {} (first on line {})", k, field(key), it->second));
+      }
+      seen.emplace(k, doc_.at(kv.first).line);
+      out.push_back({k, {kv.first, kv.second}});
+    }
+    return out;
+  }
+
+ private:
+  const Doc& doc_;
+  YAML::Node map_;
+  std::string what_;
+  std::map<std::string, std::pair<YAML::Node, YAML::Node>> fields_;
+};
+
+std::string list_names(const std::vector<std::string>& names) {
+  if (names.empty()) return "none";
+  std::string out;
+  for (const auto& n : names) out += fmt::format("{}{}", out.empty() ? "" : ", ", n);
+  return out;
+}
+
+template <typename T>
+std::vector<std::string> names_of(const std::vector<T>& items) {
+  std::vector<std::string> out;
+  for (const auto& i : items) out.push_back(i.name);
+  return out;
+}
+
+std::filesystem::path resolve(const std::filesystem::path& base_dir, const std::string& p) {
+  std::filesystem::path path(p);
+  if (path.is_relative()) path = base_dir / path;
+  return path.lexically_normal();
+}
+
+std::optional<DriverKind> driver_kind(const std::string& s) {
+  if (s == "sim") return DriverKind::kSim;
+  if (s == "movemaster") return DriverKind::kMovemaster;
+  if (s == "val2") return DriverKind::kVal2;
+  return std::nullopt;
+}
+
+// Reads an error of another file (the cell, the program) and says that the scenario led there, keeping the other
+// file's position: that is where the user must look.
+template <typename F>
+auto with_context(const Doc& doc, const YAML::Node& field, const std::string& what, F&& fn) {
+  try {
+    return fn();
+  } catch (const InputError& e) {
+    if (e.where().file == doc.file() || e.where().line > 0) throw;
+    // The other file could not be opened: point at the scenario field that names it.
+    throw InputError(doc.at(field), fmt::format("{}: {}", what, e.what()));
+  }
+}
+
+// The kind of label in a program, and the labels of that kind.
+struct LabelKind {
+  const char* noun;                        // "robot"
+  const std::vector<std::string>* labels;  // the program's labels of that kind
+};
+
+}  // namespace
+
+const char* to_string(DriverKind kind) {
+  switch (kind) {
+    case DriverKind::kSim:
+      return "sim";
+    case DriverKind::kMovemaster:
+      return "movemaster";
+    case DriverKind::kVal2:
+      return "val2";
+  }
+  return "?";
+}
+
+namespace {
+
+const std::string& find_binding(const std::vector<Binding>& bindings, std::string_view label, const char* kind) {
+  for (const auto& b : bindings) {
+    if (b.label == label) return b.name;
+  }
+  CW_CHECK(false, "no binding for {} label '{}'", kind, label);
+  static const std::string none;
+  return none;
+}
+
+}  // namespace
+
+const std::string& Scenario::robot_of(std::string_view label) const {
+  return find_binding(robots, label, "robot");
+}
+const std::string& Scenario::workpiece_of(std::string_view label) const {
+  return find_binding(workpieces, label, "workpiece");
+}
+const std::string& Scenario::location_of(std::string_view label) const {
+  return find_binding(locations, label, "location");
+}
+
+Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path& source) {
+  const Doc doc(source.string());
+  YAML::Node root;
+  try {
+    root = YAML::Load(std::string(yaml_text));
+  } catch (const YAML::Exception& e) {
+    throw InputError({doc.file(), e.mark.is_null() ? 0 : e.mark.line + 1, e.mark.is_null() ? 0 : e.mark.column + 1},
+                     fmt::format("not a valid YAML file: {}", e.msg));
+  }
+  if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
+  const Fields f(
+      doc, root, "the scenario",
+      {"cell", "program", "seed", "drivers", "robots", "bind", "feed", "limits", "expect", "tolerance", "options"});
+  const std::filesystem::path dir = source.parent_path();
+
+  Scenario s;
+  s.source = source;
+
+  // The cell and the program: their own loaders report errors in their own files.
+  s.cell_file = resolve(dir, f.text("cell"));
+  s.cell = with_context(doc, f.node("cell"), fmt::format("field 'cell' names '{}'", f.text("cell")),
+                        [&] { return load_cell(s.cell_file); });
+  s.program_file = resolve(dir, f.text("program"));
+  s.program = with_context(doc, f.node("program"), fmt::format("field 'program' names '{}'", f.text("program")),
+                           [&] { return task::compile_file(s.program_file); });
+
+  if (f.has("seed")) {
+    const YAML::Node& n = f.node("seed");
+    std::uint64_t seed = 0;
+    if (!n.IsScalar() || !YAML::convert<std::uint64_t>::decode(n, seed) || n.Scalar().starts_with("-")) {
+      doc.fail(n, fmt::format("{} must be a whole number from 0 to 2^64-1, got {}", f.field("seed"), describe(n)));
+    }
+    s.seed = seed;
+  }
+
+  // --- bindings ---
+  const YAML::Node& program_node = f.node("program");
+  auto bind_labels = [&](const std::vector<std::string>& labels, const char* noun,
+                         const std::vector<std::pair<std::string, std::pair<YAML::Node, YAML::Node>>>& given,
+                         const std::vector<std::string>& cell_names, const char* cell_noun, const char* field_name,
+                         std::vector<Binding>& out) {
+    for (const auto& label : labels) {
+      Binding b;
+      b.label = label;
+      auto it = std::find_if(given.begin(), given.end(), [&](const auto& g) { return g.first == label; });
+      if (it != given.end()) {
+        const YAML::Node& v = it->second.second;
+        b.name = f.text_of(v, fmt::format("the cell {} bound to {} '{}'", cell_noun, noun, label));
+        b.where = doc.at(it->second.first);
+        if (std::find(cell_names.begin(), cell_names.end(), b.name) == cell_names.end()) {
+          doc.fail(v,
+                   fmt::format("{} '{}' is bound to '{}', which is not a {} of the cell {} ({}s: {})", noun, label,
+                               b.name, cell_noun, s.cell_file.filename().string(), cell_noun, list_names(cell_names)));
+        }
+      } else {
+        b.name = label;
+        b.where = f.has(field_name) ? doc.at(f.key_node(field_name)) : doc.at(program_node);
+        if (std::find(cell_names.begin(), cell_names.end(), label) == cell_names.end()) {
+          throw InputError(
+              b.where, fmt::format("program {} '{}' ({}) is bound to nothing in the cell {}: it has no {} named "
+                                   "'{}' ({}s: {}); bind it with `{}: {{{}: <{}>}}`",
+                                   noun, label, s.program_file.filename().string(), s.cell_file.filename().string(),
+                                   cell_noun, label, cell_noun, list_names(cell_names), field_name, label, cell_noun));
+        }
+      }
+      out.push_back(std::move(b));
+    }
+    // Two labels on one cell object would make two program entities fight over one thing.
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      for (std::size_t j = i + 1; j < out.size(); ++j) {
+        if (out[i].name == out[j].name) {
+          throw InputError(out[j].where, fmt::format("program {}s '{}' and '{}' are both bound to the cell {} '{}'",
+                                                     noun, out[i].label, out[j].label, cell_noun, out[j].name));
+        }
+      }
+    }
+  };
+
+  std::vector<std::pair<std::string, std::pair<YAML::Node, YAML::Node>>> robot_map, bind_map;
+  if (f.has("robots")) robot_map = f.word_map("robots");
+  if (f.has("bind")) bind_map = f.word_map("bind");
+  for (const auto& [label, nodes] : robot_map) {
+    if (std::find(s.program.robots.begin(), s.program.robots.end(), label) == s.program.robots.end()) {
+      doc.fail(nodes.first,
+               fmt::format("field 'robots' binds '{}', which is not a robot of the program {} (robots: {})", label,
+                           s.program_file.filename().string(), list_names(s.program.robots)));
+    }
+  }
+  std::vector<std::pair<std::string, std::pair<YAML::Node, YAML::Node>>> wp_map, loc_map;
+  for (const auto& entry : bind_map) {
+    const std::string& label = entry.first;
+    if (std::find(s.program.workpieces.begin(), s.program.workpieces.end(), label) != s.program.workpieces.end()) {
+      wp_map.push_back(entry);
+    } else if (std::find(s.program.locations.begin(), s.program.locations.end(), label) != s.program.locations.end()) {
+      loc_map.push_back(entry);
+    } else {
+      const bool robot = std::find(s.program.robots.begin(), s.program.robots.end(), label) != s.program.robots.end();
+      doc.fail(entry.second.first,
+               fmt::format("field 'bind' binds '{}', which is not a workpiece or location of the program {}{} "
+                           "(workpieces: {}; locations: {})",
+                           label, s.program_file.filename().string(), robot ? " (robots are bound under 'robots')" : "",
+                           list_names(s.program.workpieces), list_names(s.program.locations)));
+    }
+  }
+  bind_labels(s.program.robots, "robot", robot_map, names_of(s.cell.robots), "robot", "robots", s.robots);
+  bind_labels(s.program.workpieces, "workpiece", wp_map, names_of(s.cell.workpieces), "workpiece", "bind",
+              s.workpieces);
+  bind_labels(s.program.locations, "location", loc_map, names_of(s.cell.locations), "location", "bind", s.locations);
+
+  // --- drivers: the cell's choice unless the scenario overrides it ---
+  std::map<std::string, std::pair<YAML::Node, YAML::Node>> driver_given;
+  if (f.has("drivers")) {
+    for (const auto& [robot, nodes] : f.word_map("drivers")) {
+      if (s.cell.find_robot(robot) == nullptr) {
+        doc.fail(nodes.first,
+                 fmt::format("field 'drivers' names '{}', which is not a robot of the cell {} (robots: {})", robot,
+                             s.cell_file.filename().string(), list_names(names_of(s.cell.robots))));
+      }
+      driver_given.emplace(robot, nodes);
+    }
+  }
+  for (const auto& r : s.cell.robots) {
+    DriverChoice d;
+    d.robot = r.name;
+    d.kind = r.driver;
+    d.where = r.where;
+    if (auto it = driver_given.find(r.name); it != driver_given.end()) {
+      const YAML::Node& v = it->second.second;
+      const std::string text = f.text_of(v, fmt::format("the driver of robot '{}'", r.name));
+      const auto kind = driver_kind(text);
+      if (!kind)
+        doc.fail(v, fmt::format("the driver of robot '{}' must be sim, movemaster or val2, got '{}'", r.name, text));
+      d.kind = *kind;
+      d.where = doc.at(v);
+    }
+    const bool used = std::any_of(s.robots.begin(), s.robots.end(), [&](const Binding& b) { return b.name == r.name; });
+    if (used && d.kind != DriverKind::kSim) {
+      throw InputError(d.where, fmt::format("robot '{}' would run on the {} driver, which is not available yet; "
+                                            "use `drivers: {{{}: sim}}`",
+                                            r.name, to_string(d.kind), r.name));
+    }
+    s.drivers.push_back(std::move(d));
+  }
+
+  // --- feed ---
+  if (f.has("feed")) {
+    const Fields ff(doc, f.node("feed"), "field 'feed'", {"conveyor", "workpieces", "start", "period"});
+    Feed feed;
+    feed.where = doc.at(f.key_node("feed"));
+    feed.conveyor = ff.text("conveyor");
+    if (s.cell.find_conveyor(feed.conveyor) == nullptr) {
+      doc.fail(ff.node("conveyor"),
+               fmt::format("the feed's conveyor '{}' is not a conveyor of the cell (conveyors: {})", feed.conveyor,
+                           list_names(names_of(s.cell.conveyors))));
+    }
+    const YAML::Node& list = ff.node("workpieces");
+    if (!list.IsSequence() || list.size() == 0) {
+      doc.fail(list, fmt::format("{} must be a non-empty list of cell workpieces, got {}", ff.field("workpieces"),
+                                 describe(list)));
+    }
+    std::map<std::string, int> seen;
+    for (const auto& e : list) {
+      const std::string w = ff.text_of(e, fmt::format("an entry of {}", ff.field("workpieces")));
+      if (s.cell.find_workpiece(w) == nullptr) {
+        doc.fail(e, fmt::format("the feed names workpiece '{}', which is not in the cell (workpieces: {})", w,
+                                list_names(names_of(s.cell.workpieces))));
+      }
+      if (auto it = seen.find(w); it != seen.end()) {
+        doc.fail(e, fmt::format("the feed names workpiece '{}' twice (first on line {}): a workpiece arrives once", w,
+                                it->second));
+      }
+      seen.emplace(w, doc.at(e).line);
+      feed.workpieces.push_back(w);
+    }
+    feed.start = ff.non_negative_or("start", 0.0);
+    if (feed.workpieces.size() > 1 && !ff.has("period")) {
+      doc.fail(f.node("feed"),
+               fmt::format("field 'feed' lists {} workpieces but no 'period' (seconds between arrivals)",
+                           feed.workpieces.size()));
+    }
+    feed.period = ff.positive_or("period", 0.0);
+    s.feed = std::move(feed);
+  }
+
+  // --- limits and options ---
+  if (f.has("limits")) {
+    const Fields lf(doc, f.node("limits"), "field 'limits'", {"sim_time", "wall_time"});
+    s.limits.sim_time = lf.positive_or("sim_time", s.limits.sim_time);
+    s.limits.wall_time = lf.positive_or("wall_time", 0.0);
+  }
+  if (f.has("options")) {
+    const Fields of(doc, f.node("options"), "field 'options'", {"realtime", "control_period", "settle_time"});
+    s.options.realtime = of.boolean_or("realtime", s.options.realtime);
+    s.options.control_period = of.positive_or("control_period", s.options.control_period);
+    s.options.settle_time = of.non_negative_or("settle_time", s.options.settle_time);
+    if (s.options.control_period < s.cell.timestep) {
+      doc.fail(of.node("control_period"),
+               fmt::format("{} must be at least the cell's simulation time step ({} s), got {}",
+                           of.field("control_period"), s.cell.timestep, s.options.control_period));
+    }
+  }
+
+  // --- expected outcome ---
+  const double tolerance = f.positive_or("tolerance", 0.02);
+  if (f.has("expect")) {
+    std::vector<std::string> places;
+    for (const auto& l : s.cell.locations) places.push_back(l.name);
+    for (const auto& c : s.cell.conveyors) places.push_back(c.name);
+    for (const auto& m : s.cell.machines) places.push_back(m.name);
+    for (const auto& [workpiece, nodes] : f.word_map("expect")) {
+      Expectation e;
+      e.workpiece = workpiece;
+      e.where = doc.at(nodes.first);
+      e.tolerance = tolerance;
+      if (s.cell.find_workpiece(workpiece) == nullptr) {
+        doc.fail(nodes.first, fmt::format("field 'expect' names workpiece '{}', which is not in the cell (workpieces: "
+                                          "{}); expectations use cell names, not program labels",
+                                          workpiece, list_names(names_of(s.cell.workpieces))));
+      }
+      const YAML::Node& v = nodes.second;
+      YAML::Node place_node = v;
+      if (v.IsMap()) {
+        const Fields ef(doc, v, fmt::format("the expectation for '{}'", workpiece), {"at", "tolerance"});
+        place_node = ef.node("at");
+        e.tolerance = ef.positive_or("tolerance", tolerance);
+      }
+      e.place = f.text_of(place_node, fmt::format("where workpiece '{}' must end up", workpiece));
+      if (std::find(places.begin(), places.end(), e.place) == places.end()) {
+        doc.fail(place_node, fmt::format("workpiece '{}' is expected at '{}', which is not a location, conveyor or "
+                                         "machine of the cell (they are: {})",
+                                         workpiece, e.place, list_names(places)));
+      }
+      s.expect.push_back(std::move(e));
+    }
+  }
+  return s;
+}
+
+Scenario load_scenario(const std::filesystem::path& yaml_file) {
+  std::error_code ec;
+  const std::filesystem::path abs = std::filesystem::absolute(yaml_file, ec).lexically_normal();
+  std::string text;
+  try {
+    text = read_file(abs);
+  } catch (const InputError&) {
+    throw InputError({yaml_file.string(), 0, 0}, "cannot read the scenario: file not found or unreadable");
+  }
+  return parse_scenario(text, abs);
+}
+
+// --- preflight ------------------------------------------------------------------------------------------------------
+
+namespace {
+
+// Where a workpiece is, for the reach checks: the point its bottom rests on and the yaw of a grasp there.
+struct Spot {
+  std::string text;  // "location 'input_pick'", "workpiece 'A' at the stop of conveyor 'input'"
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  double yaw = 0;
+  double grasp_height = 0.02;
+  double approach_height = 0.08;
+  bool handover = false;  // at the hand-over (reach is checked with the hand-over grasps)
+};
+
+Spot location_spot(const LocationSpec& l) {
+  Spot s;
+  s.text = fmt::format("location '{}'", l.name);
+  s.point = l.pose.xyz;
+  s.yaw = l.pose.rpy.z();
+  s.grasp_height = l.grasp_height;
+  s.approach_height = l.approach_height;
+  return s;
+}
+
+// Where a workpiece is picked first: a conveyor carries it to its stop bar (or its end); otherwise it stays where it
+// was put. A cell location at that point (within 1 cm) lends its name, yaw and heights.
+Spot initial_spot(const CellDescription& cell, const WorkpieceSpec& w, const std::optional<Feed>& feed) {
+  std::string conveyor = w.on;
+  if (feed && std::find(feed->workpieces.begin(), feed->workpieces.end(), w.name) != feed->workpieces.end()) {
+    conveyor = feed->conveyor;
+  }
+  Spot s;
+  s.yaw = w.pose.rpy.z();
+  s.grasp_height = w.size.z() / 2;
+  if (const ConveyorSpec* c = cell.find_conveyor(conveyor)) {
+    s.point = c->belt_point(c->leave - (c->stop ? w.size.x() / 2 : 0.0));
+    s.text = fmt::format("workpiece '{}' at the {} of conveyor '{}'", w.name, c->stop ? "stop" : "end", c->name);
+  } else {
+    s.point = w.pose.xyz - Eigen::Vector3d(0, 0, w.size.z() / 2);
+    s.text = fmt::format("workpiece '{}' where it starts", w.name);
+  }
+  for (const auto& l : cell.locations) {
+    if ((l.pose.xyz - s.point).norm() < 0.01) {
+      Spot named = location_spot(l);
+      named.text = fmt::format("workpiece '{}' at location '{}'", w.name, l.name);
+      return named;
+    }
+  }
+  return s;
+}
+
+std::string command_text(const task::Primitive& p) {
+  return fmt::format("{}:{}:{} '{}'", std::filesystem::path(p.where.file).filename().string(), p.where.line,
+                     p.where.column, p.task);
+}
+
+}  // namespace
+
+Preflight preflight(const Scenario& s) {
+  Preflight out;
+  out.net = task::to_net(s.program);
+  out.analysis = petri::analyze(out.net);
+  if (!out.analysis.ok()) {
+    const std::string report = petri::format_report(out.net, out.analysis);
+    out.problems.push_back(fmt::format("the program {} fails the check (twin check): {}", s.program_file.string(),
+                                       report.substr(0, report.find('\n'))));
+    return out;  // a program that cannot finish is not worth a reach check
+  }
+
+  // Follow one run of the net (any run: the analysis shows every run reaches the end) to learn where each workpiece is
+  // when a robot goes to it. Primitives start when their transition fires.
+  std::map<std::string, Spot> where_is;  // cell workpiece -> where it lies now
+  for (const auto& b : s.workpieces) {
+    where_is[b.name] = initial_spot(s.cell, *s.cell.find_workpiece(b.name), s.feed);
+  }
+  std::map<std::string, std::string> holding;          // cell robot -> cell workpiece it holds
+  std::map<std::string, Spot> last_target;             // cell robot -> the spot of its last move (for open)
+  std::set<std::pair<std::string, std::string>> seen;  // (robot, target text) already needed
+  std::vector<std::pair<ReachNeed, Spot>> needs;
+
+  auto need = [&](const std::string& robot, const Spot& spot, const task::Primitive& p) {
+    if (!seen.insert({robot, spot.text}).second) return;
+    needs.push_back({ReachNeed{robot, spot.text, command_text(p)}, spot});
+  };
+  auto spot_of_object = [&](const std::string& mover, const std::string& label) -> std::optional<Spot> {
+    if (std::find(s.program.workpieces.begin(), s.program.workpieces.end(), label) != s.program.workpieces.end()) {
+      const std::string& w = s.workpiece_of(label);
+      // A workpiece in a gripper is not a place to go to.
+      for (const auto& [robot, held] : holding) {
+        if (held == w) return std::nullopt;
+      }
+      Spot spot = where_is.at(w);
+      // Putting something down on a workpiece (stacking) goes onto its top.
+      if (holding.count(mover) != 0) {
+        spot.point.z() += s.cell.find_workpiece(w)->size.z();
+        spot.text = fmt::format("the top of {}", spot.text);
+      }
+      return spot;
+    }
+    return location_spot(*s.cell.find_location(s.location_of(label)));
+  };
+
+  petri::Marking m = out.net.initial_marking();
+  petri::Arbiter arbiter = petri::make_arbiter(out.net);
+  while (!petri::is_dead(out.net, m)) {
+    const auto chosen = petri::choose(out.net, m, arbiter);
+    for (petri::TransitionId t : chosen) {
+      const petri::Transition& tr = out.net.transitions()[t];
+      if (!tr.starts_robot) continue;
+      const std::string& label = s.program.robots[*tr.starts_robot];
+      const std::string& robot = s.robot_of(label);
+      const task::Primitive& p =
+          s.program.programs[*tr.starts_robot].primitives[static_cast<std::size_t>(tr.starts_primitive)];
+      switch (p.kind) {
+        case task::PrimitiveKind::kMove: {
+          const task::Target& target = p.target;
+          if (target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt) {
+            if (auto spot = spot_of_object(robot, target.object)) {
+              need(robot, *spot, p);
+              last_target[robot] = *spot;
+            }
+          } else if (target.kind == task::TargetKind::kHandover || target.kind == task::TargetKind::kHandApproach ||
+                     target.kind == task::TargetKind::kHandGrasp) {
+            Spot h;
+            h.handover = true;
+            h.text = s.cell.handover ? fmt::format("the hand-over '{}'", s.cell.handover->name) : "the hand-over";
+            need(robot, h, p);
+            last_target[robot] = h;
+          }
+          break;
+        }
+        case task::PrimitiveKind::kClose:
+          if (!p.workpiece.empty()) holding[robot] = s.workpiece_of(p.workpiece);
+          break;
+        case task::PrimitiveKind::kOpen:
+          if (!p.workpiece.empty()) {
+            const std::string& w = s.workpiece_of(p.workpiece);
+            if (auto it = last_target.find(robot); it != last_target.end()) {
+              Spot put = it->second;
+              put.text = put.handover ? put.text : fmt::format("workpiece '{}' on {}", w, it->second.text);
+              where_is[w] = put;
+            }
+            holding.erase(robot);
+          }
+          break;
+        case task::PrimitiveKind::kSignal:
+        case task::PrimitiveKind::kWait:
+          break;
+      }
+    }
+    petri::fire_chosen(out.net, m, arbiter, chosen);
+  }
+
+  // One check_reach call over a cell whose reach lists are exactly the needs. check_reach reports locations in order
+  // (grasp, then approach, per robot) and then the hand-over grasps in order; `owner` maps each check to its need.
+  CellDescription probe = s.cell;
+  probe.locations.clear();
+  const std::optional<HandoverSpec>& handover = s.cell.handover;
+  if (probe.handover) probe.handover->grasps.clear();
+  std::vector<std::size_t> location_need, handover_need;
+  for (std::size_t i = 0; i < needs.size(); ++i) {
+    const auto& [n, spot] = needs[i];
+    out.needs.push_back(n);
+    if (spot.handover) {
+      const HandoverGrasp* g = nullptr;
+      if (handover) {
+        for (const auto& candidate : handover->grasps) {
+          if (candidate.robot == n.robot) g = &candidate;
+        }
+      }
+      if (g == nullptr) {
+        out.problems.push_back(fmt::format("robot '{}' must take part in a hand-over ({}), but the cell {} {}", n.robot,
+                                           n.why, s.cell_file.filename().string(),
+                                           handover
+                                               ? fmt::format("gives it no grasp at the hand-over '{}'", handover->name)
+                                               : std::string("has no hand-over")));
+        continue;
+      }
+      probe.handover->grasps.push_back(*g);
+      handover_need.push_back(i);
+      continue;
+    }
+    LocationSpec l;
+    l.name = fmt::format("need{}", i);
+    l.pose.xyz = spot.point;
+    l.pose.rpy = Eigen::Vector3d(0, 0, spot.yaw);
+    l.reach = {n.robot};
+    l.grasp_height = spot.grasp_height;
+    l.approach_height = spot.approach_height;
+    l.where = {s.source.string(), 0, 0};
+    probe.locations.push_back(std::move(l));
+    location_need.push_back(i);
+  }
+  if (probe.handover && probe.handover->grasps.empty()) probe.handover.reset();
+  out.reach = check_reach(probe);
+  CW_CHECK(out.reach.size() == 2 * location_need.size() + handover_need.size(), "{} reach checks for {} + {} needs",
+           out.reach.size(), location_need.size(), handover_need.size());
+  for (std::size_t k = 0; k < out.reach.size(); ++k) {
+    ReachCheck& c = out.reach[k];
+    const bool at_location = k < 2 * location_need.size();
+    const ReachNeed& n = out.needs[at_location ? location_need[k / 2] : handover_need[k - 2 * location_need.size()]];
+    c.target = at_location ? fmt::format("{} ({})", n.target, k % 2 == 0 ? "grasp" : "approach") : n.target;
+    c.where = {s.source.string(), 0, 0};
+    if (c.reachable) continue;
+    out.problems.push_back(fmt::format(
+        "robot '{}' cannot reach {}, needed by {}: the gripper pose at ({:.3f}, {:.3f}, {:.3f}) is {:.3f} m from its "
+        "first joint (maximum reach {:.3f} m){}",
+        c.robot, c.target, n.why, c.tcp_world.translation().x(), c.tcp_world.translation().y(),
+        c.tcp_world.translation().z(), c.distance, c.max_reach, c.reason.empty() ? "" : ": " + c.reason));
+  }
+  return out;
+}
+
+}  // namespace cellwright::twin::scenario

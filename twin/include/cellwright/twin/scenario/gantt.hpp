@@ -1,0 +1,31 @@
+// The Gantt chart of a run: one row per robot, one bar per command coloured by what the robot does (move, grip,
+// wait, blocked), a time axis with ticks and labels in seconds, and a legend. Drawn with OpenCV from a Timeline
+// (report.hpp), so it shows exactly the times report.json states.
+//
+// Thread safety: pure functions; any thread may call them.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include <string>
+
+#include "cellwright/twin/scenario/report.hpp"
+
+namespace cellwright::twin::scenario {
+
+struct GanttOptions {
+  int width = 1600;     // px of the whole image
+  int row_height = 70;  // px per robot row
+  std::string title;    // drawn above the chart; empty: none
+};
+
+// The chart as a BGR image. The time axis runs from 0 to timeline.end (at least 1 s) with "nice" tick steps (1, 2 or
+// 5 times a power of ten, about 10-20 ticks); bars wide enough carry their command's text. InternalError if the width
+// is under 400 px or the row height under 30 px.
+cv::Mat draw_gantt(const Timeline& timeline, const GanttOptions& options = {});
+
+// The tick step draw_gantt uses for an axis of `span` seconds (> 0): the smallest of 1, 2, 5 x 10^k giving at most
+// `max_ticks` intervals.
+double tick_step(double span, int max_ticks = 20);
+
+}  // namespace cellwright::twin::scenario

@@ -1,0 +1,146 @@
+// What a run did, told from its event log (runtime/event_log.hpp) and the workpieces' final poses: the robots'
+// timelines (what the Gantt chart draws), per-robot busy/waiting/blocked/idle time, each workpiece's cycle time and
+// final location against the expected outcome, throughput, collisions, and the verdict `twin run` exits with.
+// docs/scenarios.md describes report.json field by field.
+//
+// Everything here is computed from values (the log's lines, the poses), so a report can be rebuilt from a saved
+// events.jsonl, and tests feed it synthetic logs.
+//
+// Thread safety: plain values and pure functions; any thread may call them.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cellwright/task/compiled.hpp"
+#include "cellwright/twin/cell.hpp"
+#include "cellwright/twin/scenario/scenario.hpp"
+
+namespace cellwright::twin::scenario {
+
+// Parses JSON Lines (an events.jsonl). Blank lines are skipped. Throws InputError naming `file` and the line when a
+// line is not a JSON object with a numeric "t" and a string "type".
+std::vector<nlohmann::json> parse_event_log(std::string_view jsonl, const std::string& file);
+
+// --- Timelines -------------------------------------------------------------------------------------------------------
+
+// What a robot is doing during a bar of the Gantt chart.
+enum class Activity {
+  kMove,     // executing a move (from the firing that started it to the robot's report that it is done)
+  kGrip,     // executing an open or close, likewise
+  kWait,     // in a wait place: waiting for an event another robot signals
+  kBlocked,  // its command is done but its next transition has not fired yet
+};
+
+// "move", "grip", "wait", "blocked".
+const char* to_string(Activity a);
+
+struct Bar {
+  double start = 0, end = 0;  // s of simulation time, end >= start
+  Activity activity = Activity::kMove;
+  int primitive = -1;  // index in the robot's primitive program
+  std::string label;   // the primitive ("move at(A)", "wait put9.r1>r2.ready") or, blocked, what it waits to start
+  std::string task;    // the task-level command it belongs to ("Pick A")
+};
+
+struct RobotTimeline {
+  std::string robot;      // program label
+  std::string cell;       // cell robot name
+  std::vector<Bar> bars;  // in time order, not overlapping
+  // Seconds in each activity; idle is the rest of [0, Timeline::end] (before its first command, after its last).
+  double busy = 0, waiting = 0, blocked = 0, idle = 0;
+  std::size_t commands = 0;  // move/open/close commands started
+};
+
+struct Timeline {
+  double end = 0;                     // s: the run's end (run_end), else the last event's time
+  std::vector<RobotTimeline> robots;  // in the order of run_start's robots (program order)
+};
+
+// Builds the robots' timelines from the events of a run of `program`. A primitive k of robot r spans the time from
+// the firing of r's transition k (it starts the primitive) to the firing of transition k+1 (or the run's end): a
+// move/open/close is a move/grip bar up to its command_end and blocked after it; a wait is a wait bar; a signal takes
+// no time (a blocked bar if its next transition fired later). Throws InputError naming `file` when the events
+// contradict the program (an unknown robot or primitive) or lack run_start.
+Timeline build_timeline(const std::vector<nlohmann::json>& events, const task::CompiledProgram& program,
+                        const std::string& file = "events.jsonl");
+
+// --- Where workpieces ended up ---------------------------------------------------------------------------------------
+
+// A workpiece's state at the end of a run (from the runtime's environment model).
+struct FinalPose {
+  std::string name;                                        // cell workpiece
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // the part's centre, world
+  bool present = true;                                     // false: never fed, or carried out of the cell
+  std::string held_by;                                     // cell robot holding it, "" if none
+};
+
+// The named places a workpiece is at, most specific first: cell locations whose point its bottom centre is within
+// `tolerance` of; the conveyor whose belt it rests on (bottom within `tolerance` of the belt's top, centre over the
+// belt); the machine it rests on (its fixture or its top, likewise); "held by <robot>"; "floor" (bottom within
+// `tolerance` of z = 0); "not in the cell" when it is not present. Empty when it is none of these (in the air,
+// on another part, ...).
+std::vector<std::string> places_of(const CellDescription& cell, const WorkpieceSpec& spec, const FinalPose& final,
+                                   double tolerance);
+
+// --- The report ------------------------------------------------------------------------------------------------------
+
+struct WorkpieceReport {
+  std::string name;                                    // cell workpiece
+  std::string label;                                   // program label bound to it, "" if the program does not use it
+  std::string final_location;                          // places_of()'s first, else "elsewhere"
+  std::vector<std::string> at;                         // everything places_of() found
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // centre, world
+  std::optional<std::string> expected;                 // the scenario's expectation, if any
+  double tolerance = 0;                                // the one used for `at`
+  std::optional<bool> ok;                              // expected is among `at`; nullopt without an expectation
+  std::optional<double> pick_start;                    // the first command_start of a Pick of it
+  std::optional<double> place_end;   // the end of the last Place that released it (its depart included)
+  std::optional<double> cycle_time;  // place_end - pick_start
+};
+
+struct Report {
+  std::string outcome = "timeout";             // run_end's outcome: "finished", "failed", "timeout"
+  std::string reason;                          // run_end's reason
+  double end_time = 0;                         // s
+  std::optional<double> finished_at;           // s: when the program reached its final marking (the last firing)
+  std::optional<double> estimated_cycle_time;  // s, from the estimate (estimate.hpp)
+  std::uint64_t firings = 0;
+  std::vector<WorkpieceReport> workpieces;  // cell order
+  std::optional<double> throughput;         // parts per minute: completed parts / (last place end - first pick start)
+  std::size_t parts_completed = 0;          // workpieces with a place end
+  Timeline timeline;
+  struct CollisionEntry {
+    double t = 0;
+    std::string a, b;
+    double depth = 0;
+  };
+  std::vector<CollisionEntry> collisions;
+  std::vector<std::string> failures;  // why the run is not ok, one line each; empty when ok
+
+  // The run finished and every expected outcome holds.
+  bool ok() const { return failures.empty(); }
+};
+
+// Builds the report of a run of `scenario` from its event log, the final poses of the cell's workpieces and the
+// estimate made before the run (if any). Failures: the run did not finish (outcome and reason), an expected
+// workpiece is not where it should be (where it is instead), an expected workpiece has no final pose. Collisions are
+// reported, not counted as failures (an expectation decides what matters). Throws InputError as build_timeline.
+Report make_report(const Scenario& scenario, const std::vector<nlohmann::json>& events,
+                   const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time,
+                   const std::string& file = "events.jsonl");
+
+// report.json (docs/scenarios.md). Times in seconds rounded to 4 decimals, so equal runs give equal bytes.
+nlohmann::json to_json(const Scenario& scenario, const Report& report);
+
+// The summary printed at the end of `twin run`: the verdict, estimated vs measured cycle time, throughput, each
+// expectation that failed and why, collisions. Ends with a newline.
+std::string format_summary(const Report& report);
+
+}  // namespace cellwright::twin::scenario

@@ -1,0 +1,441 @@
+// The report of a run, from its event log and the final poses (report.hpp).
+#include "cellwright/twin/scenario/report.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "cellwright/task/to_net.hpp"
+
+namespace cellwright::twin::scenario {
+
+using nlohmann::json;
+
+std::vector<json> parse_event_log(std::string_view jsonl, const std::string& file) {
+  std::vector<json> out;
+  int line_no = 0;
+  std::size_t pos = 0;
+  while (pos < jsonl.size()) {
+    std::size_t end = jsonl.find('\n', pos);
+    if (end == std::string_view::npos) end = jsonl.size();
+    std::string_view line = jsonl.substr(pos, end - pos);
+    pos = end + 1;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (line.find_first_not_of(" \t") == std::string_view::npos) continue;
+    json j = json::parse(line, nullptr, false);
+    if (j.is_discarded()) throw InputError({file, line_no, 0}, "not a JSON value");
+    if (!j.is_object()) throw InputError({file, line_no, 0}, "an event must be a JSON object");
+    if (!j.contains("t") || !j["t"].is_number()) throw InputError({file, line_no, 0}, "the event has no numeric \"t\"");
+    if (!j.contains("type") || !j["type"].is_string()) {
+      throw InputError({file, line_no, 0}, "the event has no string \"type\"");
+    }
+    j["_log_line"] = line_no;  // for errors about this event
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+const char* to_string(Activity a) {
+  switch (a) {
+    case Activity::kMove:
+      return "move";
+    case Activity::kGrip:
+      return "grip";
+    case Activity::kWait:
+      return "wait";
+    case Activity::kBlocked:
+      return "blocked";
+  }
+  return "?";
+}
+
+namespace {
+
+// A field of an event, with the log position in the error.
+template <typename T>
+T field(const json& e, const char* key, const std::string& file) {
+  const int line = e.value("_log_line", 0);
+  if (!e.contains(key)) {
+    throw InputError({file, line, 0}, fmt::format("{} event has no \"{}\"", e["type"].get<std::string>(), key));
+  }
+  try {
+    return e[key].get<T>();
+  } catch (const json::exception&) {
+    throw InputError({file, line, 0}, fmt::format("{} event: \"{}\" has the wrong type ({})",
+                                                  e["type"].get<std::string>(), key, e[key].dump()));
+  }
+}
+
+double round4(double x) {
+  return std::round(x * 1e4) / 1e4;
+}
+
+}  // namespace
+
+Timeline build_timeline(const std::vector<json>& events, const task::CompiledProgram& program,
+                        const std::string& file) {
+  Timeline tl;
+  const json* start = nullptr;
+  for (const json& e : events) {
+    if (e["type"] == "run_start" && start == nullptr) start = &e;
+    tl.end = std::max(tl.end, e["t"].get<double>());
+    if (e["type"] == "run_end") tl.end = e["t"].get<double>();
+  }
+  if (start == nullptr) throw InputError({file, 0, 0}, "the event log has no run_start event");
+
+  // Robots as run_start lists them; each must be a robot of the program.
+  std::map<std::string, std::size_t> index;  // label -> index in program.robots
+  for (const json& r : field<json>(*start, "robots", file)) {
+    RobotTimeline rt;
+    rt.robot = field<std::string>(r, "robot", file);
+    rt.cell = r.value("cell", std::string());
+    auto it = std::find(program.robots.begin(), program.robots.end(), rt.robot);
+    if (it == program.robots.end()) {
+      throw InputError(
+          {file, start->value("_log_line", 0), 0},
+          fmt::format("run_start names robot '{}', which the program {} does not have", rt.robot, program.file));
+    }
+    index[rt.robot] = static_cast<std::size_t>(it - program.robots.begin());
+    tl.robots.push_back(std::move(rt));
+  }
+
+  for (RobotTimeline& rt : tl.robots) {
+    const task::RobotProgram& rp = program.programs[index.at(rt.robot)];
+    const std::size_t n = rp.primitives.size();
+    // When each of the robot's transitions fired (transition k starts primitive k; n ends the program), and when each
+    // primitive's command ended.
+    std::vector<std::optional<double>> fired(n + 1), ended(n);
+    std::map<std::string, std::size_t> transition_index;
+    for (std::size_t k = 0; k <= n; ++k) transition_index[task::transition_id(rt.robot, k)] = k;
+    for (const json& e : events) {
+      const std::string type = e["type"].get<std::string>();
+      if (type == "fire") {
+        auto it = transition_index.find(field<std::string>(e, "transition", file));
+        if (it != transition_index.end() && !fired[it->second]) fired[it->second] = e["t"].get<double>();
+      } else if ((type == "command_start" || type == "command_end") &&
+                 field<std::string>(e, "robot", file) == rt.robot) {
+        const auto k = field<std::int64_t>(e, "primitive", file);
+        if (k < 0 || static_cast<std::size_t>(k) >= n) {
+          throw InputError({file, e.value("_log_line", 0), 0},
+                           fmt::format("{} of robot {} names primitive {}, but its program has {} primitives", type,
+                                       rt.robot, k, n));
+        }
+        if (type == "command_start") {
+          ++rt.commands;
+        } else if (!ended[static_cast<std::size_t>(k)]) {
+          ended[static_cast<std::size_t>(k)] = e["t"].get<double>();
+        }
+      }
+    }
+
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!fired[k]) break;  // the robot never got here
+      const double begin = *fired[k];
+      const double finish = fired[k + 1] ? *fired[k + 1] : tl.end;
+      const task::Primitive& p = rp.primitives[k];
+      Bar bar;
+      bar.primitive = static_cast<int>(k);
+      bar.task = p.task;
+      bar.label = task::to_string(p);
+      bar.start = begin;
+      switch (p.kind) {
+        case task::PrimitiveKind::kMove:
+        case task::PrimitiveKind::kOpen:
+        case task::PrimitiveKind::kClose: {
+          bar.activity = p.kind == task::PrimitiveKind::kMove ? Activity::kMove : Activity::kGrip;
+          bar.end = std::clamp(ended[k].value_or(finish), begin, std::max(begin, finish));
+          if (bar.end > bar.start || !ended[k]) rt.bars.push_back(bar);
+          if (ended[k] && finish > bar.end) {
+            Bar blocked = bar;
+            blocked.activity = Activity::kBlocked;
+            blocked.start = bar.end;
+            blocked.end = finish;
+            blocked.label = k + 1 < n ? fmt::format("before {}", task::to_string(rp.primitives[k + 1])) : "before done";
+            rt.bars.push_back(blocked);
+          }
+          break;
+        }
+        case task::PrimitiveKind::kWait:
+          bar.activity = Activity::kWait;
+          bar.end = finish;
+          if (bar.end > bar.start) rt.bars.push_back(bar);
+          break;
+        case task::PrimitiveKind::kSignal:
+          if (finish > begin) {
+            bar.activity = Activity::kBlocked;
+            bar.end = finish;
+            rt.bars.push_back(bar);
+          }
+          break;
+      }
+    }
+    for (const Bar& b : rt.bars) {
+      const double d = b.end - b.start;
+      switch (b.activity) {
+        case Activity::kMove:
+        case Activity::kGrip:
+          rt.busy += d;
+          break;
+        case Activity::kWait:
+          rt.waiting += d;
+          break;
+        case Activity::kBlocked:
+          rt.blocked += d;
+          break;
+      }
+    }
+    rt.idle = std::max(0.0, tl.end - rt.busy - rt.waiting - rt.blocked);
+  }
+  return tl;
+}
+
+std::vector<std::string> places_of(const CellDescription& cell, const WorkpieceSpec& spec, const FinalPose& final,
+                                   double tolerance) {
+  std::vector<std::string> out;
+  if (!final.present) {
+    out.push_back("not in the cell");
+    return out;
+  }
+  const Eigen::Vector3d centre = final.pose.translation();
+  // The lowest point of the part's axis: its bottom centre when it stands upright (a part on its side has no bottom
+  // face down, and is at no location).
+  const Eigen::Vector3d bottom = centre - final.pose.linear() * Eigen::Vector3d(0, 0, spec.size.z() / 2);
+  for (const auto& l : cell.locations) {
+    if ((bottom - l.pose.xyz).norm() <= tolerance) out.push_back(l.name);
+  }
+  for (const auto& c : cell.conveyors) {
+    const Eigen::Vector3d local = c.pose.transform().inverse() * bottom;
+    if (std::abs(local.x()) <= c.length / 2 + tolerance && std::abs(local.y()) <= c.width / 2 + tolerance &&
+        std::abs(local.z() - c.height) <= tolerance) {
+      out.push_back(c.name);
+    }
+  }
+  for (const auto& m : cell.machines) {
+    const Pose top = m.fixture_top();
+    const Eigen::Vector3d on_fixture = top.transform().inverse() * bottom;
+    const Eigen::Vector3d on_body = m.pose.transform().inverse() * bottom;
+    const bool fixture = std::abs(on_fixture.x()) <= m.fixture_size.x() / 2 + tolerance &&
+                         std::abs(on_fixture.y()) <= m.fixture_size.y() / 2 + tolerance &&
+                         std::abs(on_fixture.z()) <= tolerance;
+    const bool body = std::abs(on_body.x()) <= m.size.x() / 2 + tolerance &&
+                      std::abs(on_body.y()) <= m.size.y() / 2 + tolerance &&
+                      std::abs(on_body.z() - m.size.z()) <= tolerance;
+    if (fixture || body) out.push_back(m.name);
+  }
+  if (!final.held_by.empty()) out.push_back(fmt::format("held by {}", final.held_by));
+  if (std::abs(bottom.z()) <= tolerance && out.empty()) out.push_back("floor");
+  return out;
+}
+
+Report make_report(const Scenario& s, const std::vector<json>& events, const std::vector<FinalPose>& finals,
+                   std::optional<double> estimated_cycle_time, const std::string& file) {
+  Report r;
+  r.timeline = build_timeline(events, s.program, file);
+  r.estimated_cycle_time = estimated_cycle_time;
+  r.end_time = r.timeline.end;
+  bool ended = false;
+  std::optional<double> last_fire;
+  for (const json& e : events) {
+    const std::string type = e["type"].get<std::string>();
+    if (type == "run_end") {
+      ended = true;
+      r.outcome = field<std::string>(e, "outcome", file);
+      r.reason = field<std::string>(e, "reason", file);
+      r.firings = field<std::uint64_t>(e, "firings", file);
+    } else if (type == "fire") {
+      last_fire = e["t"].get<double>();
+    } else if (type == "collision") {
+      r.collisions.push_back({e["t"].get<double>(), field<std::string>(e, "a", file), field<std::string>(e, "b", file),
+                              field<double>(e, "depth", file)});
+    }
+  }
+  if (!ended) {
+    r.outcome = "unfinished";
+    r.reason = "the event log has no run_end: the run was cut short";
+  }
+  if (r.outcome == "finished") r.finished_at = last_fire;
+  if (r.outcome != "finished") {
+    r.failures.push_back(
+        fmt::format("the run did not finish: {}{}", r.outcome, r.reason.empty() ? "" : ": " + r.reason));
+  }
+
+  // Cycle times: a workpiece (program label W) is picked when the first command of a "Pick W" starts, and done when
+  // the last command of the "Place X" that released it ("open W") has ended (its depart included).
+  std::map<std::string, std::string> label_of;  // cell workpiece -> label
+  for (const auto& b : s.workpieces) label_of[b.name] = b.label;
+  std::map<std::string, double> pick_start, place_end;           // by label
+  std::map<std::pair<std::string, std::size_t>, double> end_of;  // (robot, primitive) -> command_end time
+  std::vector<std::pair<std::string, std::pair<std::string, std::size_t>>> releases;  // W -> (robot, last primitive)
+  for (const json& e : events) {
+    const std::string type = e["type"].get<std::string>();
+    if (type != "command_start" && type != "command_end") continue;
+    const std::string robot = field<std::string>(e, "robot", file);
+    const auto k = static_cast<std::size_t>(field<std::int64_t>(e, "primitive", file));
+    const auto it = std::find(s.program.robots.begin(), s.program.robots.end(), robot);
+    if (it == s.program.robots.end()) continue;  // build_timeline has refused unknown robots already
+    const auto& prims = s.program.programs[static_cast<std::size_t>(it - s.program.robots.begin())].primitives;
+    const task::Primitive& p = prims.at(k);
+    if (type == "command_start") {
+      if (p.task.starts_with("Pick ")) pick_start.try_emplace(p.task.substr(5), e["t"].get<double>());
+      continue;
+    }
+    end_of[{robot, k}] = e["t"].get<double>();
+    if (p.kind == task::PrimitiveKind::kOpen && !p.workpiece.empty() && p.task.starts_with("Place ")) {
+      std::size_t last = k;
+      while (last + 1 < prims.size() && prims[last + 1].task == p.task && prims[last + 1].where.line == p.where.line &&
+             prims[last + 1].where.column == p.where.column) {
+        ++last;
+      }
+      releases.push_back({p.workpiece, {robot, last}});
+    }
+  }
+  for (const auto& [w, robot_primitive] : releases) {
+    if (auto it = end_of.find(robot_primitive); it != end_of.end()) {
+      place_end[w] = it->second;
+    } else {
+      place_end.erase(w);  // its last Place has not ended
+    }
+  }
+
+  std::vector<double> picks, places;
+  for (const WorkpieceSpec& w : s.cell.workpieces) {
+    WorkpieceReport wr;
+    wr.name = w.name;
+    if (auto it = label_of.find(w.name); it != label_of.end()) wr.label = it->second;
+    const Expectation* expect = nullptr;
+    for (const auto& e : s.expect) {
+      if (e.workpiece == w.name) expect = &e;
+    }
+    wr.tolerance = expect != nullptr ? expect->tolerance : (s.expect.empty() ? 0.02 : s.expect.front().tolerance);
+    auto fp = std::find_if(finals.begin(), finals.end(), [&](const FinalPose& f) { return f.name == w.name; });
+    if (fp != finals.end()) {
+      wr.position = fp->pose.translation();
+      wr.at = places_of(s.cell, w, *fp, wr.tolerance);
+      wr.final_location = wr.at.empty() ? "elsewhere" : wr.at.front();
+    } else {
+      wr.final_location = "unknown";
+    }
+    if (expect != nullptr) {
+      wr.expected = expect->place;
+      wr.ok = std::find(wr.at.begin(), wr.at.end(), expect->place) != wr.at.end();
+      if (!*wr.ok) {
+        r.failures.push_back(
+            fp == finals.end()
+                ? fmt::format("workpiece {} must end at {}, but its final pose is unknown", w.name, expect->place)
+                : fmt::format(
+                      "workpiece {} must end at {} (within {} m) but is {} at ({:.3f}, {:.3f}, {:.3f})", w.name,
+                      expect->place, expect->tolerance,
+                      wr.at.empty() ? std::string("elsewhere") : "at " + fmt::format("{}", fmt::join(wr.at, ", ")),
+                      wr.position.x(), wr.position.y(), wr.position.z()));
+      }
+    }
+    if (!wr.label.empty()) {
+      if (auto it = pick_start.find(wr.label); it != pick_start.end()) wr.pick_start = it->second;
+      if (auto it = place_end.find(wr.label); it != place_end.end()) wr.place_end = it->second;
+      if (wr.pick_start && wr.place_end && *wr.place_end >= *wr.pick_start) {
+        wr.cycle_time = *wr.place_end - *wr.pick_start;
+        ++r.parts_completed;
+        picks.push_back(*wr.pick_start);
+        places.push_back(*wr.place_end);
+      }
+    }
+    r.workpieces.push_back(std::move(wr));
+  }
+  if (!picks.empty()) {
+    const double span = *std::max_element(places.begin(), places.end()) - *std::min_element(picks.begin(), picks.end());
+    if (span > 0) r.throughput = static_cast<double>(r.parts_completed) * 60.0 / span;
+  }
+  return r;
+}
+
+namespace {
+
+json opt(const std::optional<double>& v) {
+  return v ? json(round4(*v)) : json();
+}
+
+}  // namespace
+
+json to_json(const Scenario& s, const Report& r) {
+  json j;
+  j["scenario"] = s.source.filename().string();
+  j["program"] = s.program_file.filename().string();
+  j["cell"] = s.cell_file.filename().string();
+  j["seed"] = s.seed;
+  j["result"] = r.ok() ? "ok" : "failed";
+  j["failures"] = r.failures;
+  j["outcome"] = r.outcome;
+  j["reason"] = r.reason;
+  j["end_time"] = round4(r.end_time);
+  j["firings"] = r.firings;
+  j["cycle_time"] = {{"estimated", opt(r.estimated_cycle_time)}, {"measured", opt(r.finished_at)}};
+  j["throughput_parts_per_min"] = opt(r.throughput);
+  j["parts_completed"] = r.parts_completed;
+  json wps = json::array();
+  for (const WorkpieceReport& w : r.workpieces) {
+    json wj;
+    wj["name"] = w.name;
+    wj["label"] = w.label.empty() ? json() : json(w.label);
+    wj["final_location"] = w.final_location;
+    wj["at"] = w.at;
+    wj["position"] = {round4(w.position.x()), round4(w.position.y()), round4(w.position.z())};
+    wj["expected"] = w.expected ? json(*w.expected) : json();
+    wj["tolerance"] = w.tolerance;
+    wj["ok"] = w.ok ? json(*w.ok) : json();
+    wj["pick_start"] = opt(w.pick_start);
+    wj["place_end"] = opt(w.place_end);
+    wj["cycle_time"] = opt(w.cycle_time);
+    wps.push_back(std::move(wj));
+  }
+  j["workpieces"] = std::move(wps);
+  json robots = json::array();
+  for (const RobotTimeline& t : r.timeline.robots) {
+    robots.push_back({{"robot", t.robot},
+                      {"cell", t.cell},
+                      {"commands", t.commands},
+                      {"busy", round4(t.busy)},
+                      {"waiting", round4(t.waiting)},
+                      {"blocked", round4(t.blocked)},
+                      {"idle", round4(t.idle)}});
+  }
+  j["robots"] = std::move(robots);
+  json collisions = json::array();
+  for (const auto& c : r.collisions) {
+    collisions.push_back({{"t", round4(c.t)}, {"a", c.a}, {"b", c.b}, {"depth", c.depth}});
+  }
+  j["collisions"] = std::move(collisions);
+  return j;
+}
+
+std::string format_summary(const Report& r) {
+  std::string out;
+  out += fmt::format("{}: {} at t = {:.2f} s, {} firings{}\n", r.ok() ? "OK" : "FAILED", r.outcome, r.end_time,
+                     r.firings, r.reason.empty() ? "" : " (" + r.reason + ")");
+  out += fmt::format("estimated cycle time {} s, measured {} s\n",
+                     r.estimated_cycle_time ? fmt::format("{:.2f}", *r.estimated_cycle_time) : std::string("n/a"),
+                     r.finished_at ? fmt::format("{:.2f}", *r.finished_at) : std::string("n/a"));
+  if (r.parts_completed > 0) {
+    out += fmt::format("parts completed {}, throughput {} parts/min\n", r.parts_completed,
+                       r.throughput ? fmt::format("{:.2f}", *r.throughput) : std::string("n/a"));
+  }
+  for (const RobotTimeline& t : r.timeline.robots) {
+    out += fmt::format("  {} ({}): busy {:.2f} s, waiting {:.2f} s, blocked {:.2f} s, idle {:.2f} s\n", t.robot, t.cell,
+                       t.busy, t.waiting, t.blocked, t.idle);
+  }
+  for (const WorkpieceReport& w : r.workpieces) {
+    if (!w.expected) continue;
+    out +=
+        fmt::format("  {} {}: expected {}, is {}{}\n", *w.ok ? "ok  " : "FAIL", w.name, *w.expected, w.final_location,
+                    w.cycle_time ? fmt::format(" (cycle {:.2f} s)", *w.cycle_time) : std::string());
+  }
+  out += fmt::format("collisions: {}\n", r.collisions.size());
+  for (const auto& c : r.collisions) out += fmt::format("  t = {:.3f} s: {} - {} ({:.4f} m)\n", c.t, c.a, c.b, c.depth);
+  for (const std::string& f : r.failures) out += fmt::format("  failure: {}\n", f);
+  return out;
+}
+
+}  // namespace cellwright::twin::scenario

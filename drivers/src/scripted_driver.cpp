@@ -154,7 +154,7 @@ void ScriptedDriver::advance(std::uint64_t ticks) {
     if (head.command && std::holds_alternative<WaitInput>(*head.command)) {
       const auto& w = std::get<WaitInput>(*head.command);
       if (inputs_[static_cast<std::size_t>(w.channel - 1)] == w.on) {
-        complete_head();
+        finish_head();
         changed = true;
         continue;
       }
@@ -168,14 +168,7 @@ void ScriptedDriver::advance(std::uint64_t ticks) {
       continue;
     }
     if (--head.remaining > 0) continue;
-    const auto injected = injected_failures_.find(head.id);
-    if (injected != injected_failures_.end()) {
-      auto [error, message] = injected->second;
-      injected_failures_.erase(injected);
-      fail_head(error, std::move(message));
-    } else {
-      complete_head();
-    }
+    finish_head();
     changed = true;
   }
   notify_if(changed, lock);
@@ -281,6 +274,17 @@ bool ScriptedDriver::fail_all(ErrorCode error, const std::string& message) {
   for (const Job& j : queue_) set_status(j.id, CommandPhase::failed, error, message);
   queue_.clear();
   return any;
+}
+
+void ScriptedDriver::finish_head() {
+  const auto injected = injected_failures_.find(queue_.front().id);
+  if (injected == injected_failures_.end()) {
+    complete_head();
+    return;
+  }
+  auto [error, message] = injected->second;
+  injected_failures_.erase(injected);
+  fail_head(error, std::move(message));
 }
 
 void ScriptedDriver::complete_head() {

@@ -266,6 +266,17 @@ TEST(ScriptedDriverCommands, OutputsAndInputs) {
   EXPECT_EQ(d.poll(after.id).phase, CommandPhase::running);
 }
 
+TEST(ScriptedDriverFaults, AnInjectedFailureHitsAWaitForInputToo) {
+  ScriptedDriver d(config());
+  bring_to(d, DriverState::active);
+  d.fail_command(2, ErrorCode::protocol, "reply 'SIG?' not understood");
+  const Submitted wait = d.submit(WaitInput{1, true, {}});
+  d.set_input(1, true);
+  const CommandStatus s = run_until_finished(d, wait.id);
+  EXPECT_EQ(s.error, ErrorCode::protocol);
+  EXPECT_EQ(d.state(), DriverState::fault);
+}
+
 TEST(ScriptedDriverCommands, AWaitForInputTimesOut) {
   ScriptedDriver d(config());
   bring_to(d, DriverState::active);

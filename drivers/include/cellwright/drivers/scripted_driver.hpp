@@ -123,6 +123,8 @@ class ScriptedDriver final : public RobotDriver {
   void set_status(CommandId id, CommandPhase phase, ErrorCode error = ErrorCode::none, std::string message = {});
   // Fails every queued job from the front with `error` and `message`; returns whether there was any.
   bool fail_all(ErrorCode error, const std::string& message);
+  // The head job's work is over: it fails if a failure was injected for it, else completes.
+  void finish_head();
   // Completes the head job successfully, applying its effect.
   void complete_head();
   // Fails the head job with `error`; the rest are cancelled (or lose the link too); fatal errors enter fault.

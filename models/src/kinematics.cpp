@@ -2,6 +2,7 @@
 #include "cellwright/models/kinematics.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -210,7 +211,7 @@ void KinematicChain::find_spherical_wrist() {
 }
 
 std::vector<Eigen::VectorXd> KinematicChain::wrist_solutions(const Eigen::Isometry3d& target,
-                                                             const Eigen::VectorXd& seed) const {
+                                                             const Eigen::VectorXd& seed, bool& complete) const {
   std::vector<Eigen::VectorXd> out;
   const Eigen::Vector3d centre = target * wrist_.centre_in_tip;
 
@@ -223,7 +224,10 @@ std::vector<Eigen::VectorXd> KinematicChain::wrist_solutions(const Eigen::Isomet
   constexpr double kArmTolerance = 1e-11;
   std::vector<Eigen::Vector3d> arms;
   SplitMix64 rng(0x7772697374ULL);
-  for (int s_i = 0; s_i < kArmStarts; ++s_i) {
+  // Three joints place a point in at most four ways (a quartic), so the search can stop at four.
+  constexpr std::size_t kMaxArmSolutions = 4;
+  bool isolated = true;
+  for (int s_i = 0; s_i < kArmStarts && arms.size() < kMaxArmSolutions; ++s_i) {
     Eigen::VectorXd q = seed;
     for (int i = 0, cell = s_i - 1; s_i > 0 && i < 3; cell /= kCells[i], ++i) {
       const auto k = static_cast<std::size_t>(i);
@@ -233,14 +237,10 @@ std::vector<Eigen::VectorXd> KinematicChain::wrist_solutions(const Eigen::Isomet
       q[i] = r.lower + width * ((cell % kCells[i]) + rng.next());
     }
     bool converged = false;
+    Eigen::Matrix3d jac;
     for (int it = 0; it < 100; ++it) {
       const Eigen::Isometry3d arm = partial_forward(q, 3);
       const Eigen::Vector3d c = arm * wrist_.centre_in_arm, e = centre - c;
-      if (e.norm() < kArmTolerance) {
-        converged = true;
-        break;
-      }
-      Eigen::Matrix3d jac;
       Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
       for (std::size_t i = 0; i < 3; ++i) {
         t = t * joints_[i].origin;
@@ -253,6 +253,10 @@ std::vector<Eigen::VectorXd> KinematicChain::wrist_solutions(const Eigen::Isomet
         } else {
           t.rotate(Eigen::AngleAxisd(qi, joints_[i].axis));
         }
+      }
+      if (e.norm() < kArmTolerance) {
+        converged = true;
+        break;
       }
       Eigen::Matrix3d h = jac.transpose() * jac;
       h.diagonal().array() += e.squaredNorm() + 1e-12;
@@ -278,7 +282,12 @@ std::vector<Eigen::VectorXd> KinematicChain::wrist_solutions(const Eigen::Isomet
       return true;
     };
     if (std::none_of(arms.begin(), arms.end(), same)) arms.push_back(arm);
+    // At a singular arm pose the solutions form a continuum (e.g. the wrist centre on joint 1's axis), so four
+    // found ones are not all of them.
+    isolated = isolated && Eigen::JacobiSVD<Eigen::Matrix3d>(jac).singularValues().minCoeff() > 1e-6;
   }
+
+  complete = arms.size() == kMaxArmSolutions && isolated;
 
   // Joints 4-6 then turn the tip into place: exp(w4 q4) exp(w5 q5) exp(w6 q6) = wanted, in joint 3's moving frame.
   const Eigen::Vector3d& w4 = wrist_.axis[0];
@@ -332,7 +341,7 @@ IkResult KinematicChain::inverse(const Eigen::Isometry3d& target, const Eigen::V
     return unreachable("the target's rotation part is not a rotation matrix", nullptr);
   }
   const double distance = (target.translation() - first_joint_origin_).norm();
-  if (distance > max_reach_) {
+  if (distance > max_reach_ + options.position_tolerance) {  // the tolerance: a stretched arm is exactly at max_reach
     return unreachable(fmt::format("out of reach: {:.3f} m from {}'s origin > max reach {:.3f} m", distance,
                                    names_.front(), max_reach_),
                        nullptr);
@@ -413,8 +422,9 @@ IkResult KinematicChain::inverse(const Eigen::Isometry3d& target, const Eigen::V
   std::vector<Eigen::VectorXd> candidates;
   std::vector<std::string> violations;
   int solutions_ignoring_limits = 0;
+  bool all_solutions_known = false;
   if (wrist_.present) {
-    for (Eigen::VectorXd q : wrist_solutions(target, seed)) {
+    for (Eigen::VectorXd q : wrist_solutions(target, seed, all_solutions_known)) {
       ++solutions_ignoring_limits;
       std::string violation = fit_limits(q);
       if (violation.empty()) {
@@ -449,9 +459,9 @@ IkResult KinematicChain::inverse(const Eigen::Isometry3d& target, const Eigen::V
   if (auto found = pick()) return *found;
 
   // Nothing yet: pseudo-random restarts (the only search for chains without a spherical wrist, a safety net for the
-  // others).
+  // others unless their solutions are all known to lie outside the limits).
   SplitMix64 rng(0x43656c6c77726967ULL);  // fixed: the same call always gives the same answer
-  for (int r_i = 0; r_i < options.restarts; ++r_i) {
+  for (int r_i = 0; r_i < options.restarts && !all_solutions_known; ++r_i) {
     Eigen::VectorXd start(n);
     for (Eigen::Index i = 0; i < n; ++i) {
       const JointLimit range = sampling_range(limits_[static_cast<std::size_t>(i)]);

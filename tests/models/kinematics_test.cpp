@@ -326,6 +326,22 @@ Eigen::Isometry3d pose_down(double x, double y, double z) {
   return t;
 }
 
+// Arm straight up: the wrist centre is on joint 1's axis and joints 4 and 6 are aligned, so joint 1 and joints 4 + 6
+// are free (a continuum of answers). The solver must still answer, and stay at the seed's values of the free joints.
+TEST_F(MelfaTest, SingularPosesAreSolvedNearTheSeed) {
+  const Eigen::Isometry3d up = tcp.forward(Eigen::VectorXd::Zero(6));
+  const IkResult at_zero = tcp.inverse(up, Eigen::VectorXd::Zero(6));
+  ASSERT_EQ(at_zero.status, IkStatus::kOk) << at_zero.reason;
+  EXPECT_LT(at_zero.q.norm(), 1e-6) << at_zero.q.transpose();
+
+  // Any q1 + q4 + q6 = 0 with the rest 0 is an answer; this seed is 0.05 rad or less from (1, 0, 0, 0.4, 0, -1.4).
+  const Eigen::VectorXd seed = vec({1.0, 0.05, -0.05, 0.4, 0.02, -1.4});
+  const IkResult r = tcp.inverse(up, seed);
+  ASSERT_EQ(r.status, IkStatus::kOk) << r.reason;
+  EXPECT_LT((tcp.forward(r.q).translation() - up.translation()).norm(), 1e-5);
+  EXPECT_LT((r.q - vec({1.0, 0, 0, 0.4, 0, -1.4})).norm(), 0.01) << r.q.transpose();
+}
+
 TEST_F(MelfaTest, BelowTheFloorIsOutOfReach) {
   const IkResult r = tcp.inverse(pose_down(0.1, 0, -0.3), Eigen::VectorXd::Zero(6));
   EXPECT_EQ(r.status, IkStatus::kUnreachable);
@@ -396,6 +412,17 @@ TEST_F(MelfaTest, ChainsWithoutASphericalWristAreSolvedIteratively) {
   }
   std::printf("[ info     ] MELFA base..link5 (5 joints): %d of %d solved\n", solved, kPoses);
   EXPECT_GE(solved, kPoses * 9 / 10);
+}
+
+// The forearm is offset 150 mm sideways from the shoulder (d3), so the wrist centre can never be on joint 1's axis;
+// and a target 0.2 m in front of and below the shoulder, pointing down, needs the elbow folded past its limit.
+TEST_F(PumaTest, UnreachablePosesWithinReachSayWhy) {
+  const IkResult on_axis = tcp.inverse(pose_down(0, 0, 0.6), Eigen::VectorXd::Zero(6));
+  EXPECT_EQ(on_axis.status, IkStatus::kUnreachable);
+  EXPECT_THAT(on_axis.reason, HasSubstr("wrist centre (0.000, -0.000, 0.746) m cannot be reached"));
+  const IkResult folded = tcp.inverse(pose_down(0.2, 0, 0.67183 - 0.2), Eigen::VectorXd::Zero(6));
+  EXPECT_EQ(folded.status, IkStatus::kUnreachable);
+  EXPECT_THAT(folded.reason, HasSubstr("outside the joint limits"));
 }
 
 TEST_F(PumaTest, ReachesAPickPoseOnATableInFrontAndKeepsJointSixNearTheSeed) {

@@ -122,8 +122,10 @@ class KinematicChain {
   void find_spherical_wrist();
   // Moving frame of joint `count - 1` (after its motion), i.e. the product of the first `count` joint transforms.
   Eigen::Isometry3d partial_forward(const Eigen::VectorXd& q, std::size_t count) const;
-  // All joint vectors (limits ignored) putting the tip at `target`, through the spherical wrist decomposition.
-  std::vector<Eigen::VectorXd> wrist_solutions(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed) const;
+  // Joint vectors (limits ignored) putting the tip at `target`, through the spherical wrist decomposition; `complete`
+  // is set when the search provably found them all (four wrist-centre solutions, the most three joints can have).
+  std::vector<Eigen::VectorXd> wrist_solutions(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed,
+                                               bool& complete) const;
 
   std::string base_, tip_;
   std::vector<Joint> joints_;

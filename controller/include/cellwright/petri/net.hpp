@@ -137,6 +137,7 @@ class NetBuilder {
   Place& place(PlaceId p);
   std::size_t num_places() const { return net_.places_.size(); }
   std::size_t num_transitions() const { return net_.transitions_.size(); }
+  // Validates (see above) and returns the net; the builder is moved from. Throws std::invalid_argument.
   Net build() &&;
 
  private:

@@ -18,5 +18,6 @@ using Command = std::function<int()>;
 void add_compile(CLI::App& app, Command* run);
 void add_check(CLI::App& app, Command* run);
 void add_analyze(CLI::App& app, Command* run);
+void add_snapshot(CLI::App& app, Command* run);
 
 }  // namespace cellwright::tools

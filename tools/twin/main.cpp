@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   cellwright::tools::add_compile(app, &run);
   cellwright::tools::add_check(app, &run);
   cellwright::tools::add_analyze(app, &run);
+  cellwright::tools::add_snapshot(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

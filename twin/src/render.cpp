@@ -116,7 +116,7 @@ cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
   mjv_defaultCamera(&cam);
   cam.type = mjCAMERA_FREE;
   for (int i = 0; i < 3; ++i) cam.lookat[i] = centre[i];
-  cam.distance = 0.8 * radius / std::sin(std::min(half_fovy, half_fovx));
+  cam.distance = 0.65 * radius / std::sin(std::min(half_fovy, half_fovx));
   cam.azimuth = 60;
   cam.elevation = -30;
   return render(data, cam, width, height);

@@ -5,8 +5,11 @@
 
 #include <urdf_parser/urdf_parser.h>
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <numbers>
@@ -626,7 +629,7 @@ struct Builder {
     }
     x.open("visual");
     x.leaf("global", {{"offwidth", std::to_string(offwidth)}, {"offheight", std::to_string(offheight)}});
-    x.leaf("quality", {{"shadowsize", "2048"}});
+    x.leaf("quality", {{"shadowsize", "1024"}, {"offsamples", "0"}});
     x.leaf("headlight", {{"ambient", "0.35 0.35 0.35"}, {"diffuse", "0.45 0.45 0.45"}, {"specular", "0.1 0.1 0.1"}});
     x.close();
 
@@ -645,7 +648,7 @@ struct Builder {
                        {"rgb2", "0.55 0.55 0.53"},
                        {"width", "256"},
                        {"height", "256"}});
-    x.leaf("material", {{"name", "floor"}, {"texture", "floor"}, {"texrepeat", "8 8"}, {"reflectance", "0.05"}});
+    x.leaf("material", {{"name", "floor"}, {"texture", "floor"}, {"texrepeat", "8 8"}, {"reflectance", "0"}});
     x.leaf("material", {{"name", "conveyor_frame"}, {"rgba", "0.35 0.45 0.55 1"}});
     x.leaf("material", {{"name", "belt"}, {"rgba", "0.12 0.12 0.12 1"}});
     x.leaf("material", {{"name", "stop"}, {"rgba", "0.95 0.75 0.1 1"}});
@@ -916,6 +919,28 @@ void Scene::step(int n) {
   for (int i = 0; i < n; ++i) {
     mj_step(model_.get(), data_.get());
     wrap_belts(data_.get());
+  }
+}
+
+void write_mjcf(const std::string& mjcf, const std::filesystem::path& path) {
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  const std::filesystem::path tmp =
+      dir / fmt::format(".{}.{}.tmp", path.filename().string(), static_cast<long>(::getpid()));
+  std::error_code ec;
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << mjcf;
+    out.close();
+    if (!out) {
+      std::filesystem::remove(tmp, ec);
+      throw InputError({path.string(), 0, 0}, "cannot write the MJCF file (does its directory exist?)");
+    }
+  }
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    const std::string message = ec.message();
+    std::filesystem::remove(tmp, ec);
+    throw InputError({path.string(), 0, 0}, fmt::format("cannot write the MJCF file: {}", message));
   }
 }
 

@@ -22,6 +22,7 @@
 #include <mujoco/mujoco.h>
 
 #include <array>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -97,6 +98,10 @@ class Scene {
 
  private:
   friend Scene build_scene(const CellDescription& cell);
+
+  // Writes MJCF text (e.g. Scene::mjcf(), for MuJoCo's viewer or for debugging) atomically: to a temporary file in
+  // the same directory, then renamed over `path`. Throws InputError naming the path if it cannot be written.
+  void write_mjcf(const std::string& mjcf, const std::filesystem::path& path);
   Scene() = default;
 
   struct ModelDeleter {
@@ -125,5 +130,9 @@ std::string scene_mjcf(const CellDescription& cell);
 // the scene, reset to its initial state. Throws InputError as scene_mjcf, or naming the cell file with MuJoCo's
 // message if MuJoCo rejects the model.
 Scene build_scene(const CellDescription& cell);
+
+// Writes MJCF text (e.g. Scene::mjcf(), for MuJoCo's viewer or for debugging) atomically: to a temporary file in
+// the same directory, then renamed over `path`. Throws InputError naming the path if it cannot be written.
+void write_mjcf(const std::string& mjcf, const std::filesystem::path& path);
 
 }  // namespace cellwright::twin

@@ -271,6 +271,22 @@ TEST(CellErrors, UnknownRobotModel) {
   expect_error(text, "unknown robot model for robot 'melfa': URDF file", line_of(text, "melfa_rv99"));
 }
 
+TEST(CellErrors, UnusableUrdf) {
+  // A URDF without the `tcp` link: the error points at the robot's `urdf` field and repeats the URDF's problem.
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellwright_cell_test";
+  std::filesystem::create_directories(dir);
+  std::ifstream in(urdf("melfa_rve2.urdf"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (auto pos = text.find("\"tcp\""); pos != std::string::npos; pos = text.find("\"tcp\"", pos)) {
+    text.replace(pos, 5, "\"tool\"");
+  }
+  std::ofstream(dir / "no_tcp.urdf") << text;
+  const std::string yaml = with(base_yaml(), urdf("melfa_rve2.urdf"), (dir / "no_tcp.urdf").string());
+  expect_error(yaml, "robot 'melfa': its URDF cannot be used: " + (dir / "no_tcp.urdf").string(),
+               line_of(yaml, "no_tcp.urdf"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CellErrors, WrongType) {
   const std::string text = with(base_yaml(), "length: 1.2", "length: long");
   expect_error(text, "field 'length' of conveyor 'belt' must be a number, got 'long'", line_of(text, "length: long"));

@@ -8,8 +8,11 @@
 
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
+
+#include "cellwright/models/kinematics.hpp"
 
 #include "twin/mujoco_fixture.hpp"
 
@@ -98,6 +101,39 @@ TEST_F(SceneTest, BuildsTheWholeCellWithNamedParts) {
   // The same description always gives the same model text.
   EXPECT_EQ(scene_mjcf(paper_cell()), s.mjcf());
   expect_no_data_warnings(s.data());
+}
+
+// The arms in MuJoCo move exactly as their URDFs say: the tool centre point site agrees with the kinematics library's
+// forward kinematics (a separate reading of the same URDF) at random configurations within the limits.
+TEST_F(SceneTest, RobotsFollowTheirUrdfKinematics) {
+  Scene s = build_scene(paper_cell());
+  const mjModel* m = s.model();
+  mjData* d = s.data();
+  std::mt19937_64 rng(20240501);
+  for (const RobotIds& r : s.robots()) {
+    SCOPED_TRACE(r.name);
+    const RobotSpec& spec = *paper_cell().find_robot(r.name);
+    const auto chain = models::KinematicChain::from_urdf_file(spec.urdf);
+    ASSERT_EQ(chain.dof(), r.joints.size());
+    for (int trial = 0; trial < 20; ++trial) {
+      Eigen::VectorXd q(static_cast<Eigen::Index>(chain.dof()));
+      for (std::size_t j = 0; j < chain.dof(); ++j) {
+        std::uniform_real_distribution<double> u(chain.limits()[j].lower, chain.limits()[j].upper);
+        q[static_cast<Eigen::Index>(j)] = u(rng);
+        d->qpos[r.qpos_adr[j]] = q[static_cast<Eigen::Index>(j)];
+        // The servo limits are the joint limits.
+        EXPECT_DOUBLE_EQ(m->actuator_ctrlrange[2 * r.actuator[j]], chain.limits()[j].lower);
+      }
+      mj_kinematics(m, d);
+      const Eigen::Isometry3d expected = spec.base.transform() * chain.forward(q);
+      const Eigen::Vector3d pos(d->site_xpos[3 * r.tcp_site], d->site_xpos[3 * r.tcp_site + 1],
+                                d->site_xpos[3 * r.tcp_site + 2]);
+      Eigen::Matrix3d rot;
+      for (int i = 0; i < 9; ++i) rot(i / 3, i % 3) = d->site_xmat[9 * r.tcp_site + i];  // row-major
+      EXPECT_LT((pos - expected.translation()).norm(), 1e-9) << "q = " << q.transpose();
+      EXPECT_LT((rot - expected.linear()).norm(), 1e-9) << "q = " << q.transpose();
+    }
+  }
 }
 
 TEST_F(SceneTest, NothingOverlapsAtTheStartAndTheRobotsTouchNothing) {

@@ -817,8 +817,16 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
   // The robots' models: home configurations must fit them, and every location and the hand-over must be reachable.
   for (std::size_t i = 0; i < cell.robots.size(); ++i) {
     const RobotSpec& r = cell.robots[i];
-    const models::KinematicChain chain = models::KinematicChain::from_urdf_file(r.urdf, "base_link", "tcp");
-    const YAML::Node home = list_of(doc, top, "robots")[i]["home"];
+    const YAML::Node robot_node = list_of(doc, top, "robots")[i];
+    std::optional<models::KinematicChain> loaded;
+    try {
+      loaded = models::KinematicChain::from_urdf_file(r.urdf, "base_link", "tcp");
+    } catch (const InputError& e) {
+      // Point at the robot's `urdf` field, and keep the URDF's own file and line in the message.
+      doc.fail(robot_node["urdf"], fmt::format("robot '{}': its URDF cannot be used: {}", r.name, e.what()));
+    }
+    const models::KinematicChain& chain = *loaded;
+    const YAML::Node home = robot_node["home"];
     if (r.home.size() != chain.dof()) {
       doc.fail(home, fmt::format("robot '{}': 'home' has {} angles but {} has {} joints from base_link to tcp ({})",
                                  r.name, r.home.size(), r.urdf.filename().string(), chain.dof(),

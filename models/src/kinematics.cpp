@@ -114,18 +114,7 @@ bool KinematicChain::within_limits(const Eigen::VectorXd& q) const {
 Eigen::Isometry3d KinematicChain::forward(const Eigen::VectorXd& q) const {
   CW_CHECK(static_cast<std::size_t>(q.size()) == dof(), "forward: q has {} entries, the chain {} joints", q.size(),
            dof());
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  for (std::size_t i = 0; i < joints_.size(); ++i) {
-    const Joint& j = joints_[i];
-    const double qi = q[static_cast<Eigen::Index>(i)];
-    t = t * j.origin;
-    if (j.prismatic) {
-      t.translate(qi * j.axis);
-    } else {
-      t.rotate(Eigen::AngleAxisd(qi, j.axis));
-    }
-  }
-  return t * tip_offset_;
+  return partial_forward(q, dof()) * tip_offset_;
 }
 
 Jacobian KinematicChain::jacobian(const Eigen::VectorXd& q) const {

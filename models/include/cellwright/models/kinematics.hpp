@@ -34,17 +34,22 @@ struct IkOptions {
   double position_tolerance = 1e-5;
   double orientation_tolerance = 1e-4;
   int max_iterations = 200;  // per start
-  int restarts = 8;          // further starts, from fixed pseudo-random joint vectors, after the one from q_seed
+  int restarts = 8;          // further damped-least-squares starts from fixed pseudo-random joint vectors (see inverse)
 };
 
 enum class IkStatus { kOk, kUnreachable };
 
 struct IkResult {
   IkStatus status;
-  Eigen::VectorXd q;         // kOk: the joint vector found (within limits). kUnreachable: the best one tried
+  // kOk: the joint vector found (within limits). kUnreachable: the nearest miss the search tried, or the seed
+  // (clamped into the limits) with infinite errors when the target was rejected before any search.
+  Eigen::VectorXd q;
   double position_error;     // |p(q) - p_target| in metres, for q above
   double orientation_error;  // angle of R(q)^T R_target in radians, for q above
-  std::string reason;        // kUnreachable only: why, e.g. "out of reach: 1.32 m from joint1 > max reach 1.16 m"
+  // kUnreachable only: why, e.g. "out of reach: 1.513 m from joint1's origin > max reach 1.161 m", "outside the joint
+  // limits: the pose has 8 joint solution(s) ignoring limits and none within them (e.g. joint3 = 1.950 outside
+  // [-3.927, 0.785])" or "the wrist centre (...) m cannot be reached by joints joint1, joint2, joint3".
+  std::string reason;
 };
 
 class KinematicChain {
@@ -87,8 +92,8 @@ class KinematicChain {
   // (Levenberg-Marquardt) from q_seed and, if nothing was found yet, from options.restarts fixed pseudo-random starts.
   // The answer's forward kinematics is checked before kOk is returned. Never throws for an unreachable or non-finite
   // target: returns kUnreachable with a reason. Deterministic: the same arguments give the same result.
-  // q_seed.size() must equal dof() (else InternalError); a seed outside the limits is clamped into them. Any thread
-  // may call it.
+  // q_seed.size() must equal dof() and the options must have positive tolerances and iterations and restarts >= 0
+  // (else InternalError); a seed outside the limits is clamped into them. Any thread may call it.
   IkResult inverse(const Eigen::Isometry3d& target, const Eigen::VectorXd& q_seed, const IkOptions& options = {}) const;
 
   // An upper bound on the distance from joint 1's origin (a point on its axis; it does not move with q) to the tip:
@@ -107,14 +112,14 @@ class KinematicChain {
   // A spherical wrist: joints 4-6 (indices 3-5) are revolute with axes meeting at one point, the wrist centre.
   struct Wrist {
     bool present = false;
-    Eigen::Vector3d centre_in_arm = Eigen::Vector3d::Zero();  // the wrist centre in the moving frame of joint 3
-    Eigen::Vector3d centre_in_tip =
-        Eigen::Vector3d::Zero();  // the wrist centre in the tip frame (constant, as the wrist is spherical)
-    Eigen::Vector3d axis[3] = {
-        Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ(),
-        Eigen::Vector3d::UnitZ()};  // joint 4-6 axes in joint 3's moving frame, wrist joints at 0
-    Eigen::Matrix3d tip_rotation =
-        Eigen::Matrix3d::Identity();  // tip orientation in joint 3's moving frame, wrist joints at 0
+    // The wrist centre in the moving frame of joint 3.
+    Eigen::Vector3d centre_in_arm = Eigen::Vector3d::Zero();
+    // The wrist centre in the tip frame (constant, as the wrist is spherical).
+    Eigen::Vector3d centre_in_tip = Eigen::Vector3d::Zero();
+    // Joint 4-6 axes in joint 3's moving frame, with the wrist joints at 0.
+    Eigen::Vector3d axis[3] = {Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ()};
+    // The tip's orientation in joint 3's moving frame, with the wrist joints at 0.
+    Eigen::Matrix3d tip_rotation = Eigen::Matrix3d::Identity();
   };
 
   KinematicChain() = default;
@@ -123,7 +128,8 @@ class KinematicChain {
   // Moving frame of joint `count - 1` (after its motion), i.e. the product of the first `count` joint transforms.
   Eigen::Isometry3d partial_forward(const Eigen::VectorXd& q, std::size_t count) const;
   // Joint vectors (limits ignored) putting the tip at `target`, through the spherical wrist decomposition; `complete`
-  // is set when the search provably found them all (four wrist-centre solutions, the most three joints can have).
+  // is set when the search provably found them all (four isolated wrist-centre solutions, the most three joints
+  // can have).
   std::vector<Eigen::VectorXd> wrist_solutions(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed,
                                                bool& complete) const;
 

@@ -15,13 +15,16 @@
 //    the robot waits for it (Resolution::kWait).
 //  - above(X) / at(X), X a location: at = the location's grasp point (grasp_height above it); when the robot holds a
 //    part, the tool goes where it puts the part's bottom on the location (the hold's height above the part bottom)
-//    with the approach it holds the part with (down, or from the side); above = at raised by approach_height.
+//    with the approach it holds the part with (down, or from the side: then with the tool axis horizontal, pointing
+//    away from the robot's base if it can, else turned about the vertical in 30 degree steps, least turned preferred);
+//    above = at raised by approach_height.
 //  - handover(R): the giver presents the part at the hand-over pose: its tool goes to hand-over pose + its grasp's
 //    offset (HandoverSpec), with its grasp's approach and the hand-over's yaw.
 //  - hand_grasp(P): the taker's tool at the part P presents (its centre, from the model, when P holds one; else the
 //    hand-over pose) + the taker's grasp offset, with the taker's approach.
 //  - hand_approach(P): the hand-over pose + the taker's offset, backed off `handover_clearance` along the tool's
-//    approach axis.
+//    approach axis; where the arm cannot reach that, the same pose lowered by `handover_clearance` instead (the open
+//    fingers straddle the part from below, clear of the giver's hand above), then backed off half as far.
 //  - home: the robot's home joints.
 // Poses are offered as alternatives (the fingers turned half a turn about the approach axis give the same grasp);
 // robot control takes the reachable one closest to the current joints.
@@ -47,10 +50,10 @@ namespace cellwright::twin::runtime {
 struct WorkpieceState {
   std::string name;
   Shape shape = Shape::kBox;
-  Eigen::Vector3d size = Eigen::Vector3d::Zero();  // full extents (cell description)
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();          // full extents (cell description)
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // centre, world
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();      // m/s, world
-  bool present = true;    // in the cell now
+  bool present = true;                                     // in the cell now
   std::string held_by;    // cell robot holding it, empty if none (set by robot control on close/open)
   double confidence = 1;  // 1 for the CAD data and the simulation's truth; vision's confidence after correct()
   SimDuration stamp{0};   // simulation time the pose was measured at
@@ -66,7 +69,7 @@ struct Hold {
 struct RobotState {
   std::string name;
   Eigen::Isometry3d base = Eigen::Isometry3d::Identity();  // base_link in the world
-  std::vector<double> home;    // radians
+  std::vector<double> home;                                // radians
   std::vector<double> joints;  // current arm joints (truth); the home joints until the first update
   std::optional<Hold> hold;    // what it holds, if anything
   // From the plant's truth: the workpiece between the finger pads ("" none), nullopt if the plant cannot tell.
@@ -143,10 +146,13 @@ struct MotionTarget {
     kFail,  // cannot be resolved (names nothing usable): the command fails with `reason`
   };
   Resolution resolution = Resolution::kFail;
-  std::vector<double> joints;              // set for home: go to these joints
-  std::vector<Eigen::Isometry3d> poses;    // tool centre point poses in the world, preferred first
-  std::string description;                 // e.g. "above A: tool at (0.550, -0.550, 0.630)"
-  std::string reason;                      // kWait/kFail: why
+  std::vector<double> joints;            // set for home: go to these joints
+  std::vector<Eigen::Isometry3d> poses;  // tool centre point poses in the world
+  // Preference of each pose (same size as poses; lower is better): robot control goes to a reachable pose of the
+  // best rank, and among those to the one closest to the current joints.
+  std::vector<int> rank;
+  std::string description;  // e.g. "above A: tool at (0.550, -0.550, 0.630)"
+  std::string reason;       // kWait/kFail: why
 };
 
 // Resolves `target` for robot `robot` (cell name). target.object must already be bound to a cell name: a workpiece

@@ -15,11 +15,11 @@ namespace cellwright::twin::runtime {
 // Task control -> robot control: execute primitive `index` of robot `robot`'s program. Only move/open/close are
 // sent; signal and wait are net-only and complete as their transition fires.
 struct MotionCommand {
-  std::size_t robot = 0;             // index into the program's robots (and Net::robots())
-  std::size_t index = 0;             // primitive index in that robot's program
-  task::Primitive primitive;         // the primitive, with its provenance
+  std::size_t robot = 0;               // index into the program's robots (and Net::robots())
+  std::size_t index = 0;               // primitive index in that robot's program
+  task::Primitive primitive;           // the primitive, with its provenance
   petri::TransitionId transition = 0;  // the transition whose firing started it
-  SimDuration sent{0};               // simulation time it was sent
+  SimDuration sent{0};                 // simulation time it was sent
 };
 
 enum class CommandOutcome { kDone, kFailed };
@@ -35,8 +35,8 @@ struct RobotStatus {
   std::size_t robot = 0;
   std::size_t index = kNoCommand;  // the primitive the status is about
   CommandOutcome outcome = CommandOutcome::kDone;
-  std::string reason;              // kFailed: why, naming the values involved
-  SimDuration time{0};             // simulation time it ended
+  std::string reason;   // kFailed: why, naming the values involved
+  SimDuration time{0};  // simulation time it ended
 };
 
 }  // namespace cellwright::twin::runtime

@@ -25,7 +25,7 @@ namespace cellwright::twin::runtime {
 
 // One workpiece as the physics has it.
 struct WorkpieceTruth {
-  std::string name;  // the cell's workpiece name
+  std::string name;                                        // the cell's workpiece name
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // centre of the part, world frame
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();      // linear velocity of the centre, m/s, world frame
   bool present = true;  // false while a fed part has not arrived yet (or has been carried out of the cell)

@@ -47,6 +47,7 @@ namespace cellwright::twin::runtime {
 struct MotionOptions {
   double speed = 0.5;                // fraction of the robot's maximum speed for moves, (0, 1]
   double position_tolerance = 0.01;  // rad: "position reached" when every joint is this close to the goal
+  double pose_tolerance = 0.005;     // m: the same for a MovePose (tool centre point distance to the goal)
   TargetOptions targets;
   models::IkOptions ik;
 };
@@ -83,10 +84,13 @@ class RobotControl {
   // `index` is the robot's index in the program (its RobotStatus::robot); `label` its program label, `cell_name` its
   // cell robot; `chain` its kinematics (base_link..tcp); `grip_force` the cell's grip force (N). The driver, queues,
   // environment and log must outlive the RobotControl.
+  // `await_fresh_truth`: check a completed command's sensor condition only on an environment model updated after the
+  // completion was seen. Real-time mode needs it (the simulation thread may not have written the step's truth yet);
+  // in lock-step the simulation's turn always precedes the robot's, so the model is fresh and the check is immediate.
   RobotControl(std::size_t index, std::string label, std::string cell_name, drivers::RobotDriver& driver,
                models::KinematicChain chain, double grip_force, NameMap names, SharedEnvironment& environment,
                MessageQueue<MotionCommand>& inbox, MessageQueue<RobotStatus>& status_out, EventLog& log,
-               MotionOptions options = {});
+               MotionOptions options = {}, bool await_fresh_truth = false);
 
   // Main thread, before the threads start: connects a disconnected driver. Throws InputError when the driver's
   // configuration cannot work, InternalError if the driver refuses for another reason.
@@ -105,10 +109,13 @@ class RobotControl {
  private:
   struct Current {
     MotionCommand command;
-    drivers::CommandId id = 0;       // 0 until submitted
-    std::vector<double> goal;        // move: the joint goal
+    drivers::CommandId id = 0;                   // 0 until submitted
+    std::vector<double> goal;                    // move: the joint goal (MoveJoints)
+    std::optional<Eigen::Isometry3d> goal_pose;  // move: the tool goal in the base frame (MovePose)
+    std::optional<SimDuration> done_seen;        // when the driver was first seen done
     std::string detail;
-    bool wait_logged = false;
+    bool start_logged = false;  // command_start written
+    bool wait_logged = false;   // the "waiting_for_part" sensor event written
   };
 
   void bring_up(SimDuration now);
@@ -119,6 +126,7 @@ class RobotControl {
   void complete(SimDuration now);
   void fail(SimDuration now, std::string reason);
   void report(SimDuration now, CommandOutcome outcome, std::string reason);
+  void log_start(SimDuration now);
   std::string bound(const std::string& label) const;
 
   const std::size_t index_;
@@ -132,6 +140,7 @@ class RobotControl {
   MessageQueue<RobotStatus>& status_out_;
   EventLog& log_;
   const MotionOptions options_;
+  const bool await_fresh_truth_;
 
   RobotPhase phase_ = RobotPhase::kBringUp;
   drivers::CommandId home_id_ = 0;

@@ -108,16 +108,16 @@ struct RunResult {
   std::optional<SimDuration> finished_at;  // when the program reached its final marking
   petri::Marking final_marking;
   std::uint64_t firings = 0;
-  std::vector<RobotTime> robots;           // program order
-  std::vector<Collision> collisions;       // every collision logged, in order
-  EnvironmentModel environment;            // the environment model at the end
+  std::vector<RobotTime> robots;      // program order
+  std::vector<Collision> collisions;  // every collision logged, in order
+  EnvironmentModel environment;       // the environment model at the end
 };
 
 // The state `twin step` shows after each step.
 struct StepState {
-  bool ended = false;                // the run is over (then `result` is set)
+  bool ended = false;  // the run is over (then `result` is set)
   SimDuration time{0};
-  TaskView task;                     // marking, last firings, per-robot activity as task control sees it
+  TaskView task;                         // marking, last firings, per-robot activity as task control sees it
   std::vector<RobotControlView> robots;  // per robot: its command and phase as robot control sees it
   std::optional<RunResult> result;
 };
@@ -150,6 +150,11 @@ class Runtime {
   const RunConfig& config() const { return config_; }
 
  private:
+  // Connects the drivers, logs run_start and starts the threads.
+  void start();
+  // Joins the threads and builds the result (once); rethrows an exception a thread died of.
+  RunResult finish();
+
   struct Impl;
   RunConfig config_;
   std::unique_ptr<EventLog> log_;

@@ -22,11 +22,12 @@ namespace cellwright::twin::runtime {
 
 class ScriptedPlant final : public Plant {
  public:
-  // `drivers`: the scripted driver of each cell robot, by name (not owned; they must outlive the plant). Every
-  // driver's tick must divide the periods advance() is called with. Throws InternalError for a name that is not a
-  // cell robot; InputError when a robot's URDF cannot be read.
+  // `drivers`: the scripted driver of each cell robot, by name (not owned; they must outlive the plant); `tick` the
+  // drivers' ScriptedDriverConfig::tick, which must divide every dt given to advance(). Arm joints are read from the
+  // drivers, so their home_joints should be the cell's home. Throws InternalError for a name that is not a cell
+  // robot or a tick that is not positive; InputError when a robot's URDF cannot be read.
   ScriptedPlant(const CellDescription& cell, std::map<std::string, drivers::ScriptedDriver*> drivers,
-                double grasp_radius = 0.03);
+                SimDuration tick = std::chrono::milliseconds(1), double grasp_radius = 0.03);
 
   void advance(SimDuration dt) override;
   Truth truth() const override;
@@ -43,16 +44,19 @@ class ScriptedPlant final : public Plant {
     models::KinematicChain chain;
     Eigen::Isometry3d base;
     bool closed = false;
-    std::optional<std::size_t> held;                          // workpiece index
+    std::optional<std::size_t> held;                                // workpiece index
     Eigen::Isometry3d held_offset = Eigen::Isometry3d::Identity();  // part pose in the tool frame
   };
+  // Which robot a part follows: the one that grasped it last and still holds it.
   Eigen::Isometry3d tool_pose(const Robot& r) const;
 
+  SimDuration tick_;
   double grasp_radius_;
   SimDuration time_{0};
   std::vector<Robot> robots_;
   std::vector<std::string> names_;
   std::vector<Eigen::Isometry3d> poses_;
+  std::vector<std::optional<std::size_t>> follows_;  // per workpiece: robot index
 };
 
 }  // namespace cellwright::twin::runtime

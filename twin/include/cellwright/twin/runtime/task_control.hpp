@@ -56,16 +56,16 @@ struct ActivityTime {
 
 // One robot as task control sees it.
 struct RobotView {
-  std::string robot;          // program label
+  std::string robot;  // program label
   RobotActivity activity = RobotActivity::kIdle;
-  int primitive = -1;         // the primitive its token is at (-1: start or done)
-  std::string command;        // that primitive as text ("move at(A)"), "" when none
-  std::string place;          // id of the place holding its token
-  bool done = false;          // its program has finished
+  int primitive = -1;   // the primitive its token is at (-1: start or done)
+  std::string command;  // that primitive as text ("move at(A)"), "" when none
+  std::string place;    // id of the place holding its token
+  bool done = false;    // its program has finished
 };
 
 struct TaskView {
-  SimDuration time{0};                  // when the last step ran
+  SimDuration time{0};  // when the last step ran
   petri::Marking marking;
   std::vector<std::string> last_fired;  // transition ids fired in the last step, in firing order
   std::uint64_t firings = 0;            // transitions fired so far
@@ -109,7 +109,6 @@ class TaskControl {
   void detect_end(SimDuration now);
   void classify(SimDuration now);
   std::vector<bool> allowed() const;
-  std::size_t robot_of_place(petri::PlaceId p) const;
 
   const petri::Net& net_;
   const task::CompiledProgram& program_;

@@ -43,6 +43,9 @@ case "$mode" in
     mkdir -p out
     "$build"/tools/twin check scenes/exchange.task
     "$build"/tools/twin compile scenes/exchange.task
+    "$build"/tools/twin snapshot scenes/cell.yaml -o out/cell.png
+    "$build"/tools/twin snapshot scenes/cell.yaml --camera overhead -o out/overhead.png
+    echo "demo: wrote out/cell.png and out/overhead.png"
     ;;
   test)
     ctest --test-dir "$build" --output-on-failure -j "$jobs"

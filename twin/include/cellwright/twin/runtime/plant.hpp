@@ -1,5 +1,5 @@
 // Plant: what the runtime's simulation thread steps. It is the physics side of the twin seen from the runtime: the
-// MuJoCo World (twin/sim, adapted by make_world_plant in world_plant.hpp) or, in tests and benchmarks without
+// MuJoCo World (twin/sim, adapted by WorldPlant in world_plant.hpp) or, in tests and benchmarks without
 // MuJoCo, a ScriptedPlant (scripted_plant.hpp) that advances ScriptedDrivers.
 //
 // Every period the simulation thread calls advance(period), then truth(), new_collisions() and new_arrivals(), and

@@ -1,0 +1,185 @@
+// The environment model: pre-coded from the cell, updated from truth, corrected by vision, and the targets robot
+// control resolves against it.
+#include "cellwright/twin/runtime/environment_model.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "twin/runtime/scripted_cell.hpp"
+
+namespace cellwright::twin::runtime {
+namespace {
+
+using cellwright::testing::paper_cell;
+using std::chrono::milliseconds;
+using ::testing::HasSubstr;
+
+task::Target target(task::TargetKind kind, std::string object) {
+  return task::Target{kind, std::move(object)};
+}
+
+TEST(RuntimeEnvironment, IsPreCodedFromTheCellDescription) {
+  const CellDescription& cell = paper_cell();
+  const EnvironmentModel m = make_environment_model(cell);
+  ASSERT_EQ(m.robots.size(), cell.robots.size());
+  EXPECT_EQ(m.find_robot("melfa")->joints, cell.find_robot("melfa")->home);
+  EXPECT_TRUE(m.find_robot("melfa")->base.isApprox(cell.find_robot("melfa")->base.transform()));
+  ASSERT_EQ(m.workpieces.size(), cell.workpieces.size());
+  const WorkpieceState& a = *m.find_workpiece("A");
+  EXPECT_TRUE(a.pose.isApprox(cell.find_workpiece("A")->pose.transform()));
+  EXPECT_TRUE(a.present);
+  EXPECT_EQ(a.held_by, "");
+  EXPECT_EQ(a.confidence, 1.0);
+  EXPECT_EQ(m.locations.size(), cell.locations.size());
+  EXPECT_EQ(m.conveyors.size(), 2u);
+  EXPECT_EQ(m.machines.size(), 1u);
+  ASSERT_TRUE(m.handover.has_value());
+  EXPECT_EQ(m.handover->name, "exchange");
+  EXPECT_EQ(m.find_robot("kuka"), nullptr);
+}
+
+TEST(RuntimeEnvironment, TruthUpdatesPosesJointsAndFingersButNotWhoHolds) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  m.find_workpiece("A")->held_by = "puma";
+  Truth t;
+  t.time = milliseconds(1230);
+  Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+  p.translation() = Eigen::Vector3d(0.1, 0.2, 0.3);
+  t.workpieces.push_back({"A", p, {0.05, 0, 0}, true});
+  t.workpieces.push_back({"B", p, {0, 0, 0}, false});
+  t.workpieces.push_back({"no-such-part", p, {0, 0, 0}, true});
+  t.robots.push_back({"puma", {1, 2, 3, 4, 5, 6}, std::string("A")});
+  t.robots.push_back({"melfa", {}, std::nullopt});
+  apply_truth(m, t);
+  EXPECT_EQ(m.time, milliseconds(1230));
+  EXPECT_TRUE(m.find_workpiece("A")->pose.isApprox(p));
+  EXPECT_DOUBLE_EQ(m.find_workpiece("A")->velocity.x(), 0.05);
+  EXPECT_EQ(m.find_workpiece("A")->held_by, "puma");
+  EXPECT_EQ(m.find_workpiece("A")->stamp, milliseconds(1230));
+  EXPECT_FALSE(m.find_workpiece("B")->present);
+  EXPECT_EQ(m.find_robot("puma")->joints, (std::vector<double>{1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(m.find_robot("puma")->between_fingers, std::optional<std::string>("A"));
+  EXPECT_EQ(m.find_robot("melfa")->joints, paper_cell().find_robot("melfa")->home);  // empty joints: unknown, kept
+  EXPECT_FALSE(m.find_robot("melfa")->between_fingers.has_value());
+}
+
+TEST(RuntimeEnvironment, VisionCorrectsFreePartsOnly) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  m.time = milliseconds(2000);
+  Eigen::Isometry3d seen = Eigen::Isometry3d::Identity();
+  seen.translation() = Eigen::Vector3d(0.4, -0.5, 0.53);
+  EXPECT_TRUE(correct(m, "B", seen, 0.8, milliseconds(400)));
+  EXPECT_TRUE(m.find_workpiece("B")->pose.isApprox(seen));
+  EXPECT_EQ(m.find_workpiece("B")->confidence, 0.8);
+  EXPECT_EQ(m.find_workpiece("B")->stamp, milliseconds(1600));
+  const WorkpieceState before = *m.find_workpiece("C");
+  m.find_workpiece("C")->held_by = "melfa";
+  EXPECT_FALSE(correct(m, "C", seen, 0.9, milliseconds(0)));  // the hand hides it
+  EXPECT_TRUE(m.find_workpiece("C")->pose.isApprox(before.pose));
+  EXPECT_FALSE(correct(m, "nothing", seen, 0.9, milliseconds(0)));
+  EXPECT_FALSE(correct(m, "B", seen, 1.5, milliseconds(0)));
+  EXPECT_FALSE(correct(m, "B", seen, std::nan(""), milliseconds(0)));
+  EXPECT_FALSE(correct(m, "B", seen, 0.5, milliseconds(-1)));
+}
+
+TEST(RuntimeEnvironment, AboveAndAtAPartAtALocationUseThatLocationsHeights) {
+  const EnvironmentModel m = make_environment_model(paper_cell());  // A rests at input_pick
+  const LocationState& pick = *m.find_location("input_pick");
+  const MotionTarget at = resolve_target(m, "puma", target(task::TargetKind::kAt, "A"));
+  const MotionTarget above = resolve_target(m, "puma", target(task::TargetKind::kAbove, "A"));
+  ASSERT_EQ(at.resolution, MotionTarget::Resolution::kOk) << at.reason;
+  ASSERT_EQ(above.resolution, MotionTarget::Resolution::kOk) << above.reason;
+  ASSERT_EQ(at.poses.size(), 2u);  // the fingers either way round
+  const Eigen::Vector3d grasp = pick.pose.translation() + Eigen::Vector3d(0, 0, pick.grasp_height);
+  for (const auto& p : at.poses) {
+    EXPECT_TRUE(p.translation().isApprox(grasp, 1e-9)) << p.translation().transpose();
+    EXPECT_TRUE(p.linear().col(2).isApprox(Eigen::Vector3d(0, 0, -1), 1e-9));  // pointing down
+  }
+  EXPECT_TRUE(at.poses[0].linear().col(1).isApprox(-at.poses[1].linear().col(1), 1e-9));
+  EXPECT_NEAR(above.poses[0].translation().z() - grasp.z(), pick.approach_height, 1e-9);
+  EXPECT_THAT(at.description, HasSubstr("at(A): tool at ("));
+}
+
+TEST(RuntimeEnvironment, APartThatIsMovingAbsentOrHeldElsewhereIsWaitedFor) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  m.find_workpiece("A")->velocity = Eigen::Vector3d(0.05, 0, 0);
+  MotionTarget t = resolve_target(m, "puma", target(task::TargetKind::kAbove, "A"));
+  EXPECT_EQ(t.resolution, MotionTarget::Resolution::kWait);
+  EXPECT_THAT(t.reason, HasSubstr("workpiece A is still moving (0.0500 m/s)"));
+  m.find_workpiece("A")->velocity.setZero();
+  m.find_workpiece("A")->present = false;
+  t = resolve_target(m, "puma", target(task::TargetKind::kAbove, "A"));
+  EXPECT_EQ(t.resolution, MotionTarget::Resolution::kWait);
+  EXPECT_THAT(t.reason, HasSubstr("not in the cell yet"));
+  m.find_workpiece("A")->present = true;
+  m.find_workpiece("A")->held_by = "melfa";
+  t = resolve_target(m, "puma", target(task::TargetKind::kAt, "A"));
+  EXPECT_EQ(t.resolution, MotionTarget::Resolution::kWait);
+  EXPECT_THAT(t.reason, HasSubstr("held by melfa"));
+}
+
+TEST(RuntimeEnvironment, PuttingDownKeepsTheHoldSoThePartsBottomLandsOnTheLocation) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  const LocationState& drop = *m.find_location("output_drop");
+  RobotState& melfa = *m.find_robot("melfa");
+  melfa.hold = Hold{"A", Approach::kSide, 0.01};
+  const MotionTarget at = resolve_target(m, "melfa", target(task::TargetKind::kAt, "output_drop"));
+  ASSERT_EQ(at.resolution, MotionTarget::Resolution::kOk);
+  ASSERT_EQ(at.poses.size(), at.rank.size());
+  ASSERT_GT(at.poses.size(), 2u);  // side holds offer turned tool directions
+  for (const auto& p : at.poses) {
+    EXPECT_NEAR(p.translation().z(), drop.pose.translation().z() + 0.01, 1e-9);
+    EXPECT_NEAR(p.linear().col(2).z(), 0.0, 1e-9);  // tool axis horizontal: the part stays upright
+  }
+  EXPECT_EQ(*std::min_element(at.rank.begin(), at.rank.end()), 0);
+  melfa.hold = Hold{"A", Approach::kDown, 0.05};
+  const MotionTarget down = resolve_target(m, "melfa", target(task::TargetKind::kAbove, "output_drop"));
+  ASSERT_EQ(down.poses.size(), 2u);
+  EXPECT_NEAR(down.poses[0].translation().z(), drop.pose.translation().z() + 0.05 + drop.approach_height, 1e-9);
+}
+
+TEST(RuntimeEnvironment, HandOverTargetsFollowTheCellsHandOverSpec) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  const HandoverSpec& h = *m.handover;
+  const MotionTarget give = resolve_target(m, "puma", target(task::TargetKind::kHandover, "melfa"));
+  ASSERT_EQ(give.resolution, MotionTarget::Resolution::kOk);
+  EXPECT_TRUE(give.poses[0].translation().isApprox(h.pose.xyz + h.grasps[0].offset, 1e-9));
+  EXPECT_TRUE(give.poses[0].linear().col(2).isApprox(Eigen::Vector3d(0, 0, -1), 1e-9));
+
+  const MotionTarget grasp = resolve_target(m, "melfa", target(task::TargetKind::kHandGrasp, "puma"));
+  ASSERT_EQ(grasp.resolution, MotionTarget::Resolution::kOk);
+  EXPECT_TRUE(grasp.poses[0].translation().isApprox(h.pose.xyz + h.grasps[1].offset, 1e-9));
+  EXPECT_NEAR(grasp.poses[0].linear().col(2).z(), 0.0, 1e-9);  // from the side
+  // Where the giver really presents the part counts: 1 cm off, the taker goes 1 cm off too.
+  m.find_robot("puma")->hold = Hold{"A", Approach::kDown, 0.05};
+  m.find_workpiece("A")->pose.translation() = h.pose.xyz + Eigen::Vector3d(0, 0.01, 0);
+  const MotionTarget real = resolve_target(m, "melfa", target(task::TargetKind::kHandGrasp, "puma"));
+  EXPECT_TRUE(
+      real.poses[0].translation().isApprox(h.pose.xyz + h.grasps[1].offset + Eigen::Vector3d(0, 0.01, 0), 1e-9));
+
+  const MotionTarget approach = resolve_target(m, "melfa", target(task::TargetKind::kHandApproach, "puma"));
+  ASSERT_EQ(approach.resolution, MotionTarget::Resolution::kOk);
+  ASSERT_EQ(approach.rank[0], 0);
+  const Eigen::Vector3d back =
+      h.pose.xyz + h.grasps[1].offset - grasp.poses[0].linear().col(2) * TargetOptions{}.handover_clearance;
+  EXPECT_TRUE(approach.poses[0].translation().isApprox(back, 1e-9));
+}
+
+TEST(RuntimeEnvironment, TargetsNamingNothingFailWithTheName) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  MotionTarget t = resolve_target(m, "puma", target(task::TargetKind::kAt, "nowhere"));
+  EXPECT_EQ(t.resolution, MotionTarget::Resolution::kFail);
+  EXPECT_THAT(t.reason, HasSubstr("'nowhere' is neither a workpiece nor a location"));
+  t = resolve_target(m, "kuka", target(task::TargetKind::kHome, ""));
+  EXPECT_EQ(t.resolution, MotionTarget::Resolution::kFail);
+  m.handover.reset();
+  t = resolve_target(m, "puma", target(task::TargetKind::kHandover, "melfa"));
+  EXPECT_EQ(t.resolution, MotionTarget::Resolution::kFail);
+  EXPECT_THAT(t.reason, HasSubstr("the cell has no hand-over"));
+  const MotionTarget home = resolve_target(m, "melfa", target(task::TargetKind::kHome, ""));
+  ASSERT_EQ(home.resolution, MotionTarget::Resolution::kOk);
+  EXPECT_EQ(home.joints, paper_cell().find_robot("melfa")->home);
+}
+
+}  // namespace
+}  // namespace cellwright::twin::runtime

@@ -1,0 +1,50 @@
+// WorldPlant: the MuJoCo World (twin/sim/world.hpp) as the runtime's Plant, with an optional workpiece feed.
+//
+//  - advance(dt) feeds the parts that are due (each FeedEvent at its time; a feed the World refuses because the
+//    conveyor's entry is still occupied is retried every period until it succeeds), then steps the World by dt.
+//  - truth() converts the World's truth: workpiece poses and linear velocities, present unless parked; robot joints;
+//    between_fingers = the workpiece whose held_by names the robot (both finger pads touch it), else "".
+//  - new_collisions() names the two bodies and the depth of the deepest contact; new_arrivals() lists the parts fed
+//    since the last call, where = the conveyor.
+//  - MuJoCo warnings are drained every advance and kept (warnings()): a run that raised any is suspect, and tests
+//    fail on them.
+//
+// Threads: as Plant (plant.hpp); warnings() and feed_log() only while the simulation thread is not running.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "cellwright/twin/runtime/plant.hpp"
+#include "cellwright/twin/sim/world.hpp"
+
+namespace cellwright::twin::runtime {
+
+struct FeedEvent {
+  SimDuration time{0};
+  std::string workpiece;  // parked in the World (WorldOptions::parked)
+  std::string conveyor;
+};
+
+class WorldPlant final : public Plant {
+ public:
+  // The World must outlive the plant. Feed events are sorted by time (stable: equal times keep their order).
+  explicit WorldPlant(sim::World& world, std::vector<FeedEvent> feed = {});
+
+  void advance(SimDuration dt) override;
+  Truth truth() const override;
+  std::vector<Collision> new_collisions() override;
+  std::vector<Arrival> new_arrivals() override;
+
+  // Every MuJoCo warning raised so far, as the World words them.
+  const std::vector<std::string>& warnings() const { return warnings_; }
+
+ private:
+  sim::World& world_;
+  std::vector<FeedEvent> feed_;
+  std::size_t next_feed_ = 0;
+  std::vector<Arrival> arrivals_;
+  std::vector<std::string> warnings_;
+};
+
+}  // namespace cellwright::twin::runtime

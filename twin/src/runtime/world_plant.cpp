@@ -1,0 +1,60 @@
+#include "cellwright/twin/runtime/world_plant.hpp"
+
+#include <algorithm>
+
+#include "cellwright/common/error.hpp"
+
+namespace cellwright::twin::runtime {
+
+WorldPlant::WorldPlant(sim::World& world, std::vector<FeedEvent> feed) : world_(world), feed_(std::move(feed)) {
+  std::stable_sort(feed_.begin(), feed_.end(), [](const FeedEvent& a, const FeedEvent& b) { return a.time < b.time; });
+}
+
+void WorldPlant::advance(SimDuration dt) {
+  // Due parts first, in order; one still blocked by the part before it waits (and so do the ones behind it).
+  while (next_feed_ < feed_.size() && feed_[next_feed_].time <= world_.now()) {
+    const FeedEvent& f = feed_[next_feed_];
+    const sim::FeedResult r = world_.feed(f.workpiece, f.conveyor);
+    if (r.status == sim::FeedStatus::occupied) break;
+    CW_CHECK(r.ok(), "feeding {} onto {} at {} ns: {}", f.workpiece, f.conveyor, f.time.count(), r.message);
+    arrivals_.push_back({f.workpiece, f.conveyor});
+    ++next_feed_;
+  }
+  world_.advance(dt);
+  for (std::string& w : world_.drain_warnings()) warnings_.push_back(std::move(w));
+}
+
+Truth WorldPlant::truth() const {
+  const sim::WorldTruth w = world_.truth();
+  Truth t;
+  t.time = w.time;
+  for (const sim::WorkpieceTruth& p : w.workpieces) {
+    t.workpieces.push_back({p.name, p.pose, p.linear_velocity, !p.parked});
+  }
+  for (std::size_t r = 0; r < w.robots.size(); ++r) {
+    RobotTruth rt;
+    rt.name = w.robots[r].name;
+    rt.joints = w.robots[r].joints;
+    std::string held;
+    for (const sim::WorkpieceTruth& p : w.workpieces) {
+      if (p.held_by == r) held = p.name;
+    }
+    rt.between_fingers = held;
+    t.robots.push_back(std::move(rt));
+  }
+  return t;
+}
+
+std::vector<Collision> WorldPlant::new_collisions() {
+  std::vector<Collision> out;
+  for (const sim::Collision& c : world_.new_collisions()) out.push_back({c.body1, c.body2, c.depth});
+  return out;
+}
+
+std::vector<Arrival> WorldPlant::new_arrivals() {
+  std::vector<Arrival> out;
+  out.swap(arrivals_);
+  return out;
+}
+
+}  // namespace cellwright::twin::runtime

@@ -427,13 +427,18 @@ struct Builder {
       initial = is_arm ? r.spec->home[static_cast<std::size_t>(arm - r.arm_joints.begin())] : 0;
     }
     const double armature = std::max(kp / (omega_max * omega_max), prismatic ? 0.01 : 0.01);
-    const double damping =
-        std::max(j.dynamics ? j.dynamics->damping : 0.0, 2.0 * std::sqrt(kp * (armature + 0.5 * load.inertia)));
+    const double urdf_damping = j.dynamics ? j.dynamics->damping : 0.0;
+    const double damping = std::max(urdf_damping, 2.0 * std::sqrt(kp * (armature + 0.5 * load.inertia)));
+    // An arm servo's damping acts in the servo (force = kp (ctrl - q) - kd qdot, within the joint's effort), not as
+    // friction of the joint: as joint damping, the effort limit would cap the joint speed at effort / kd (0.14 rad/s
+    // for the PUMA's first joint). A controller adds kd times the wanted speed to its target (sim_driver.hpp), so the
+    // servo only spends effort on the tracking error. The fingers keep joint damping: their force limit is the grip.
+    const bool servo_damped = !is_finger;
     Attrs ja{{"name", name},
              {"type", prismatic ? "slide" : "hinge"},
              {"axis", vec(to_eigen(j.axis))},
              {"armature", num(armature)},
-             {"damping", num(damping)}};
+             {"damping", num(servo_damped ? urdf_damping : damping)}};
     if (limited) {
       ja.emplace_back("limited", "true");
       ja.emplace_back("range", nums({j.limits->lower, j.limits->upper}));
@@ -441,7 +446,14 @@ struct Builder {
     x.leaf("joint", ja);
     qpos.push_back(initial);
 
-    Attrs aa{{"name", name}, {"joint", name}, {"kp", num(kp)}};
+    Attrs aa{{"name", name}, {"joint", name}};
+    if (servo_damped) {
+      aa.insert(
+          aa.end(),
+          {{"gaintype", "fixed"}, {"gainprm", num(kp)}, {"biastype", "affine"}, {"biasprm", nums({0, -kp, -damping})}});
+    } else {
+      aa.emplace_back("kp", num(kp));
+    }
     if (limited) {
       aa.emplace_back("ctrllimited", "true");
       aa.emplace_back("ctrlrange", nums({j.limits->lower, j.limits->upper}));
@@ -450,7 +462,7 @@ struct Builder {
       aa.emplace_back("forcelimited", "true");
       aa.emplace_back("forcerange", nums({-force_limit, force_limit}));
     }
-    actuator("position", aa, initial);
+    actuator(servo_damped ? "general" : "position", aa, initial);
     if (is_finger) {
       const std::string side = j.name == "finger_left_joint" ? "left" : "right";
       sensor("jointpos", {{"name", fmt::format("{}/finger_{}_pos", robot, side)}, {"joint", name}});

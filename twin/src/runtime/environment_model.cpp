@@ -203,17 +203,19 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
         }
         const Eigen::Vector3d bottom = w->pose.translation() - Eigen::Vector3d(0, 0, w->size.z() / 2);
         LocationState heights;  // the LocationSpec defaults, unless the part rests at a location
+        double yaw = yaw_of(w->pose.linear());
         for (const LocationState& l : model.locations) {
           const Eigen::Vector3d d = bottom - l.pose.translation();
           if (d.norm() <= options.at_location_tolerance) {
             heights = l;
+            yaw = yaw_of(l.pose.linear());  // the cell says how fingers close there (e.g. clear of a stop bar)
             break;
           }
         }
         const double grasp = mine ? r->hold->tcp_above_bottom : heights.grasp_height;
         const Eigen::Vector3d point = bottom + Eigen::Vector3d(0, 0, grasp + (above ? heights.approach_height : 0.0));
         const Approach approach = mine ? r->hold->approach : Approach::kDown;
-        return ok(both_ways(point, approach, yaw_of(w->pose.linear()), r->base), what);
+        return ok(both_ways(point, approach, yaw, r->base), what);
       }
       if (const LocationState* l = model.find_location(target.object)) {
         const double grasp = r->hold ? r->hold->tcp_above_bottom : l->grasp_height;

@@ -1,10 +1,16 @@
 #include "cellwright/twin/runtime/world_plant.hpp"
 
 #include <algorithm>
+#include <limits>
 
 #include "cellwright/common/error.hpp"
 
 namespace cellwright::twin::runtime {
+
+namespace {
+// How far outside a part's box the tool centre point may be and still count as inside it (m).
+constexpr double kInside = 0.01;
+}  // namespace
 
 WorldPlant::WorldPlant(sim::World& world, std::vector<FeedEvent> feed) : world_(world), feed_(std::move(feed)) {
   std::stable_sort(feed_.begin(), feed_.end(), [](const FeedEvent& a, const FeedEvent& b) { return a.time < b.time; });
@@ -35,9 +41,24 @@ Truth WorldPlant::truth() const {
     RobotTruth rt;
     rt.name = w.robots[r].name;
     rt.joints = w.robots[r].joints;
+    // The World names one holder per part, but during a hand-over two hands hold it. So, as a real gripper would tell:
+    // both pad touch sensors read a force, and the part is the one the tool centre point is inside of.
     std::string held;
-    for (const sim::WorkpieceTruth& p : w.workpieces) {
-      if (p.held_by == r) held = p.name;
+    const sim::RobotTruth& robot = w.robots[r];
+    if (robot.finger_contact[0] && robot.finger_contact[1]) {
+      double best = std::numeric_limits<double>::infinity();
+      for (const sim::WorkpieceTruth& p : w.workpieces) {
+        if (p.parked) continue;
+        const Eigen::Vector3d local = p.pose.inverse() * robot.tcp.translation();
+        const WorkpieceSpec* spec = world_.scene().cell().find_workpiece(p.name);
+        if (spec == nullptr) continue;
+        const Eigen::Vector3d half = spec->size / 2;
+        const double d = (robot.tcp.translation() - p.pose.translation()).norm();
+        if ((local.cwiseAbs() - half).maxCoeff() <= kInside && d < best) {
+          best = d;
+          held = p.name;
+        }
+      }
     }
     rt.between_fingers = held;
     t.robots.push_back(std::move(rt));

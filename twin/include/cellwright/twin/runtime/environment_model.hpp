@@ -8,9 +8,10 @@
 //
 // Target resolution (resolve_target) turns a primitive's symbolic move target into tool poses for one robot:
 //  - above(X) / at(X), X a workpiece: at = the part's grasp point, the tool centre point `grasp_height` above the
-//    part's bottom centre, gripper pointing down, fingers closing along the part's yaw (or half a turn round);
-//    above = the same raised by `approach_height`. grasp/approach heights are those of the cell location the part
-//    rests at (within WorkpieceOptions::at_location_tolerance), else the LocationSpec defaults (0.02 m / 0.08 m).
+//    part's bottom centre, gripper pointing down, fingers closing along the yaw of the cell location the part rests
+//    at (within TargetOptions::at_location_tolerance), else along the part's own yaw (or half a turn round);
+//    above = the same raised by `approach_height`. grasp/approach heights are those of that location, else the
+//    LocationSpec defaults (0.02 m / 0.08 m).
 //    A part that is absent, held by another robot, or still moving (faster than part_at_rest_speed) is not ready:
 //    the robot waits for it (Resolution::kWait).
 //  - above(X) / at(X), X a location: at = the location's grasp point (grasp_height above it); when the robot holds a

@@ -92,6 +92,9 @@ struct SimDriverOptions {
 };
 
 // How the last completed Grip ended.
+// A pad touch sensor reading above this (newtons) counts as contact.
+inline constexpr double kTouchThreshold = 0.05;
+
 struct GripOutcome {
   drivers::CommandId command = 0;
   drivers::Grip::Action action = drivers::Grip::Action::close;
@@ -144,7 +147,7 @@ class SimDriver final : public drivers::RobotDriver {
 
   // MuJoCo reset the simulation: every command fails with hardware, the driver enters fault (unless disconnected),
   // and the targets are taken from `data` as it is now. Calls the notifier.
-  void fault(const std::string& message, const mjData* data);
+  void fault(const std::string& message, std::chrono::nanoseconds now, const mjData* data);
 
  private:
   enum class JobKind : std::uint8_t { home, command, position };
@@ -152,46 +155,62 @@ class SimDriver final : public drivers::RobotDriver {
     drivers::CommandId id = 0;
     JobKind kind = JobKind::command;
     std::optional<drivers::Command> command;
-    // Precomputed at submit() for motions: the joint path (empty when unreachable, with `problem` saying why).
-    std::vector<Eigen::VectorXd> path;
+    // Motions (moves, home), planned when queued: the joint polyline from the planned start, its arc (straight
+    // lines: uniform in tool travel; empty otherwise), the speed fraction and the tool travel. When the motion cannot
+    // be made, `problem` says why and the job fails with `problem_code` when it starts.
+    std::vector<Eigen::VectorXd> points;
+    std::vector<double> arc;
     double speed = 1.0;
+    double tool_distance = 0;
     drivers::ErrorCode problem_code = drivers::ErrorCode::none;
     std::string problem;
+    // Execution (simulation side).
+    bool started = false;
+    std::chrono::nanoseconds start{0};
+    std::chrono::nanoseconds deadline{0};  // move: end + settle timeout; wait: the timeout (0: none)
+    double duration = 0;                   // arm motion, seconds
+    bool moves_arm = false, moves_fingers = false;
+    std::optional<std::chrono::nanoseconds> resting_since;  // fingers: when they were last seen stopped
   };
 
-  // What the running job is doing on the simulation side.
-  struct Motion {
-    std::optional<JointPath> arm;       // arm trajectory of a move or home
-    std::chrono::nanoseconds start{0};  // when it started
-    bool grip = false;                  // a finger motion is part of the job
-    double finger_goal = 0;             // joint value of each finger at the goal
-    double finger_force = 0;            // N
-    bool closing = false;
-    std::chrono::nanoseconds deadline{0};  // wait-input timeout, or the settle deadline of a move
-  };
-
-  // mutex_ held for all below.
+  // Everything below: mutex_ held.
   drivers::Submitted refuse(drivers::ErrorCode error, std::string message);
   drivers::Submitted enqueue(Job job);
   void set_status(drivers::CommandId id, drivers::CommandPhase phase,
                   drivers::ErrorCode error = drivers::ErrorCode::none, std::string message = {});
+  // Fails every queued job with `error`; returns whether there was any.
   bool fail_all(drivers::ErrorCode error, const std::string& message);
-  void finish_head(bool ok, drivers::ErrorCode error = drivers::ErrorCode::none, std::string message = {});
-  // Plans the joint path of a motion command from `from` (IK included); fills job.path or job.problem.
-  void plan(Job& job, const Eigen::VectorXd& from) const;
-  // The arm joints' goal at the end of everything queued (for IK seeds and paths).
+  // Ends the head job (done, or failed with the rest cancelled) and applies its effect on the state.
+  void finish_head(drivers::CommandPhase phase, drivers::ErrorCode error = drivers::ErrorCode::none,
+                   std::string message = {});
+  // The arm joints where everything queued will leave the arm: the seed and start of the next planned motion.
   Eigen::VectorXd queue_end_joints() const;
-  // Simulation side, per step.
-  void start_job(std::chrono::nanoseconds now, const mjModel* model, const mjData* data);
-  bool run_job(std::chrono::nanoseconds now, const mjModel* model, const mjData* data);  // true when it finished
+  // Planning at submission (owner thread).
+  void plan_joints(Job& job, const Eigen::VectorXd& goal, double speed) const;
+  void plan_pose(Job& job, const drivers::MovePose& move) const;
+  // Simulation side, per step: start the head job, check whether it has finished (true when it has, then it was
+  // finished with finish_head), and write the servo targets.
+  void start_head(std::chrono::nanoseconds now);
+  bool check_head(std::chrono::nanoseconds now, const mjModel* model, const mjData* data);
   void write_targets(std::chrono::nanoseconds now, const mjModel* model, mjData* data);
-  void begin_brake(std::chrono::nanoseconds now, const mjData* data);
+  // Starts a smooth finger motion to `goal` (finger joint value) with force limit `force`.
+  void move_fingers(std::chrono::nanoseconds now, double goal, double force);
+  // Arm and finger targets at time `now`.
+  struct ArmTarget {
+    Eigen::VectorXd position, velocity, acceleration;
+  };
+  ArmTarget arm_target(std::chrono::nanoseconds now) const;
+  double finger_ramp(std::chrono::nanoseconds now, double* velocity) const;
+  // Holds everything where the data says it is now (first step, after MuJoCo reset the simulation).
+  void hold_here(std::chrono::nanoseconds now, const mjData* data);
   Eigen::VectorXd joints(const mjData* data) const;
   Eigen::VectorXd joint_speeds(const mjData* data) const;
-  double opening(const mjData* data) const;
-  std::array<bool, 2> touch(const mjData* data) const;
+  double finger_position(const mjData* data, int side) const;
+  double finger_speed(const mjData* data, int side) const;
+  std::array<bool, 2> touch(const mjModel* model, const mjData* data) const;
+  double finger_stiffness(const mjModel* model, int side) const;
+  void record_grip(const Job& job, const mjModel* model, const mjData* data);
 
-  const Scene& scene_;
   const RobotIds& ids_;
   SignalTable& signals_;
   const SimDriverOptions options_;
@@ -200,30 +219,36 @@ class SimDriver final : public drivers::RobotDriver {
   drivers::Capabilities capabilities_;
   Eigen::VectorXd max_speed_, lower_, upper_, home_;
   double grip_force_ = 0;
-  Eigen::Isometry3d base_ = Eigen::Isometry3d::Identity();  // base_link in the world
+  double finger_closed_ = 0, finger_open_ = 0;  // finger joint travel
 
   mutable std::mutex mutex_;
   drivers::DriverState state_ = drivers::DriverState::disconnected;
   drivers::CommandId next_id_ = 1;
   std::deque<Job> queue_;
-  bool head_started_ = false;
   std::map<drivers::CommandId, drivers::CommandStatus> statuses_;
-  std::deque<drivers::CommandId> finished_;
+  std::deque<drivers::CommandId> finished_;  // terminal ids, oldest first, for retention
   std::function<void()> notify_;
-  bool notify_pending_ = false;
+  bool changed_ = false;  // a command finished since the notifier was last called
   std::optional<drivers::PositionReading> last_position_;
   std::optional<GripOutcome> last_grip_;
   bool brake_requested_ = false;
 
-  // Simulation side (touched only in step()/fault(), but under mutex_ as the queue is shared).
-  Motion motion_;
-  bool targets_initialised_ = false;
-  std::optional<JointPath> hold_;  // arm targets when no motion runs (after a move, or a brake)
-  std::chrono::nanoseconds hold_start_{0};
-  Eigen::VectorXd arm_target_;   // current arm joint targets (trajectory position)
-  double finger_target_ = 0;     // current finger joint target (both fingers)
-  double finger_force_ = 0;      // current force limit of the fingers
-  Eigen::VectorXd last_joints_;  // joints at the last step, for planning in submit()
+  // The servo targets (simulation side; under mutex_ because submit() plans from arm_goal_).
+  bool initialised_ = false;
+  std::optional<JointPath> arm_path_;  // the arm follows this (held at its end) ...
+  std::chrono::nanoseconds arm_start_{0};
+  double arm_duration_ = 1.0;
+  bool braking_ = false;  // ... or brakes from brake_q_ at brake_v_
+  Eigen::VectorXd brake_q_, brake_v_;
+  std::chrono::nanoseconds brake_start_{0};
+  double brake_duration_ = 0;
+  Eigen::VectorXd arm_goal_;      // where the arm targets come to rest
+  Eigen::VectorXd arm_position_;  // the arm targets written at the last step
+  Eigen::VectorXd arm_velocity_;
+  double finger_from_ = 0, finger_goal_ = 0, finger_force_ = 0;
+  bool finger_closing_ = false;  // the last finger motion closed (the force limit holds the fingers on a part)
+  std::chrono::nanoseconds finger_start_{0};
+  double finger_duration_ = 0;
 };
 
 }  // namespace cellwright::twin::sim

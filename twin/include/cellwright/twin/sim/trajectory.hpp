@@ -7,7 +7,8 @@
 //
 // A path is a polyline in joint space: two points for a joint-interpolated move, many for a straight line of the
 // tool (waypoints solved by inverse kinematics, a few millimetres apart). The time scaling runs along the polyline's
-// normalised arc parameter; the duration makes the fastest joint reach, at the profile's peak, its speed limit.
+// normalised arc parameter; the duration makes the joint that needs it most reach its speed limit at the profile's
+// peak.
 //
 // The functions here are pure and may be called from any thread: the SimDriver uses them on the simulation thread,
 // the cycle-time estimate uses them before a run starts.
@@ -22,39 +23,47 @@ namespace cellwright::twin::sim {
 // Peak speed of the quintic scaling relative to the mean speed (distance / duration).
 inline constexpr double kQuinticPeakSpeed = 15.0 / 8.0;
 
-// The quintic scaling: s(u) in [0, 1] for u in [0, 1] (clamped outside), and its first derivative ds/du.
+// The quintic scaling s(u) in [0, 1] for u in [0, 1] (held at the ends outside), and its derivatives ds/du, d2s/du2.
 double quintic(double u);
 double quintic_rate(double u);
+double quintic_accel(double u);
 
-// Duration of a motion along `path` (at least two points, all of the same size): the shortest T such that no joint
-// exceeds max_speed[j] * speed at the profile's peak, and at least min_time. max_speed has one entry per joint, all
-// > 0; speed in (0, 1]. Throws InternalError on inconsistent sizes or non-positive limits (callers validate input).
-double path_duration(const std::vector<Eigen::VectorXd>& path, const Eigen::VectorXd& max_speed, double speed,
-                     double min_time);
+// One point of a trajectory: joint positions, velocities and accelerations.
+struct JointSample {
+  Eigen::VectorXd position, velocity, acceleration;
+};
 
-// A joint-space polyline traversed in time `duration` with the quintic scaling along its arc parameter. The arc
-// parameter is the normalised sum of the segments' largest joint steps, so a two-point path is exactly a quintic
-// joint move and a fine polyline follows its waypoints at a speed that varies smoothly.
+// A joint-space polyline, to be traversed with the quintic scaling along its arc parameter a in [0, 1].
 class JointPath {
  public:
-  // path: at least two points of equal size; duration > 0. Throws InternalError otherwise.
-  JointPath(std::vector<Eigen::VectorXd> path, double duration);
+  // `points`: at least two, all of the same non-zero size. `arc`: the cumulative arc parameter at each point,
+  // from 0 rising to 1 (e.g. the distance travelled by the tool along a straight line, normalised); empty: the
+  // normalised sum of the segments' largest joint steps, so that a two-point path is exactly a quintic joint move.
+  // A path that does not move at all gets a uniform arc. Throws InternalError on inconsistent input.
+  explicit JointPath(std::vector<Eigen::VectorXd> points, std::vector<double> arc = {});
 
-  double duration() const { return duration_; }
   const Eigen::VectorXd& start() const { return points_.front(); }
   const Eigen::VectorXd& end() const { return points_.back(); }
+  const std::vector<Eigen::VectorXd>& points() const { return points_; }
+  std::size_t joints() const { return static_cast<std::size_t>(points_.front().size()); }
 
-  // Position and velocity at time t seconds since the start (held at the ends outside [0, duration]).
-  Eigen::VectorXd position(double t) const;
-  Eigen::VectorXd velocity(double t) const;
+  // The shortest duration (seconds) in which no joint j exceeds max_speed[j] * speed at the profile's peak, and at
+  // least min_time. max_speed: one value > 0 per joint; speed in (0, 1]; min_time >= 0 (InternalError otherwise).
+  double min_duration(const Eigen::VectorXd& max_speed, double speed, double min_time) const;
+
+  // Position, velocity and acceleration at time t (seconds since the start) of a traversal lasting `duration`
+  // seconds (> 0); held at the ends outside [0, duration]. Between waypoints the velocity is continuous only as far
+  // as the polyline is smooth.
+  JointSample sample(double t, double duration) const;
 
  private:
-  // The segment index and the fraction along it for arc parameter a in [0, 1].
-  void locate(double a, std::size_t& segment, double& fraction) const;
-
   std::vector<Eigen::VectorXd> points_;
-  std::vector<double> arc_;  // cumulative arc parameter at each point, arc_.front() = 0, arc_.back() = 1
-  double duration_;
+  std::vector<double> arc_;
 };
+
+// The duration of a joint-interpolated move from `from` to `to` (same sizes as max_speed): JointPath({from, to})
+// .min_duration(max_speed, speed, min_time). The cycle-time estimate uses it for the motions it predicts.
+double move_duration(const Eigen::VectorXd& from, const Eigen::VectorXd& to, const Eigen::VectorXd& max_speed,
+                     double speed, double min_time);
 
 }  // namespace cellwright::twin::sim

@@ -54,7 +54,9 @@ struct WorldOptions {
 };
 
 // What a workpiece rests on: the body supporting it from below (the contact with the largest normal force among
-// those pushing it up), or the gripper holding it.
+// those pushing it up; when no contact pushes it up, e.g. a part wedged against a conveyor's stop by the part behind
+// it, chattering a fraction of a millimetre off the belt, the body just under its centre, within 2 mm), or the
+// gripper holding it.
 enum class SupportKind : std::uint8_t {
   none,       // falling, or only touched from the side
   gripper,    // held: both finger pads of a robot touch it (`robot` says which)
@@ -63,7 +65,7 @@ enum class SupportKind : std::uint8_t {
   floor,      // on the floor
   workpiece,  // on another workpiece (`name`: that workpiece)
   robot,      // on a robot's link without being held (`name`: the robot)
-  other,      // on other static geometry, e.g. a pedestal (`name`: the MuJoCo body)
+  other,      // on other static geometry, e.g. a pedestal (`name`: the MuJoCo geom, else its body)
   parked,     // waiting in the parking row for feed()
 };
 

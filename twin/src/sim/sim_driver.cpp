@@ -1,0 +1,729 @@
+#include "cellwright/twin/sim/sim_driver.hpp"
+
+#include <fmt/format.h>
+#include <tinyxml2.h>
+
+#include <algorithm>
+#include <cmath>
+#include <type_traits>
+
+namespace cellwright::twin::sim {
+
+using drivers::CommandId;
+using drivers::CommandPhase;
+using drivers::DriverState;
+using drivers::ErrorCode;
+using drivers::Submitted;
+
+namespace {
+
+constexpr double kFingerRestWindow = 0.02;  // s the fingers must stay stopped for a grip to be done
+constexpr double kFingerMinTime = 0.1;      // s, the shortest finger motion
+constexpr double kLinearAngleStep = 0.05;   // rad of tool rotation between straight-line waypoints
+constexpr double kOnPartMargin = 0.001;     // m short of fully closed for a close to count as on a part
+
+double seconds(std::chrono::nanoseconds d) {
+  return std::chrono::duration<double>(d).count();
+}
+
+std::chrono::nanoseconds nanos(double s) {
+  return std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(s * 1e9)));
+}
+
+// The velocity limits of the named joints in a URDF file (0 where a joint gives none). The URDF was read by the
+// scene builder already, so a failure here is unexpected; it is still reported as the user's file.
+std::vector<double> urdf_velocity_limits(const std::filesystem::path& urdf, const std::vector<std::string>& joints) {
+  tinyxml2::XMLDocument doc;
+  if (doc.LoadFile(urdf.c_str()) != tinyxml2::XML_SUCCESS) {
+    throw InputError({urdf.string(), doc.ErrorLineNum(), 0}, fmt::format("cannot read the URDF: {}", doc.ErrorStr()));
+  }
+  std::vector<double> out(joints.size(), 0.0);
+  const tinyxml2::XMLElement* robot = doc.FirstChildElement("robot");
+  for (const auto* j = robot ? robot->FirstChildElement("joint") : nullptr; j; j = j->NextSiblingElement("joint")) {
+    const char* name = j->Attribute("name");
+    const auto it = name ? std::find(joints.begin(), joints.end(), name) : joints.end();
+    if (it == joints.end()) continue;
+    if (const auto* limit = j->FirstChildElement("limit")) {
+      out[static_cast<std::size_t>(it - joints.begin())] = limit->DoubleAttribute("velocity", 0.0);
+    }
+  }
+  return out;
+}
+
+std::string joint_list(const Eigen::VectorXd& v, const char* unit) {
+  std::string s;
+  for (Eigen::Index i = 0; i < v.size(); ++i) {
+    s += fmt::format("{}joint{} {:.4f} {}", i ? ", " : "", i + 1, v[i], unit);
+  }
+  return s;
+}
+
+}  // namespace
+
+SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals, SimDriverOptions options)
+    : ids_(scene.robots().at(robot)),
+      signals_(signals),
+      options_(std::move(options)),
+      name_(ids_.name),
+      chain_(models::KinematicChain::from_urdf_file(scene.cell().robots.at(robot).urdf)) {
+  const RobotSpec& spec = scene.cell().robots.at(robot);
+  const std::size_t n = ids_.joints.size();
+  auto fail = [&](const std::string& problem) {
+    return InputError(options_.where, fmt::format("simulated robot '{}': {}", name_, problem));
+  };
+  CW_CHECK(chain_.dof() == n, "robot {}: the kinematics has {} joints, the scene {}", name_, chain_.dof(), n);
+  for (std::size_t j = 0; j < n; ++j) {
+    CW_CHECK(ids_.joints[j] == name_ + "/" + chain_.joint_names()[j], "robot {}: scene joint {} is {}, kinematics {}",
+             name_, j, ids_.joints[j], chain_.joint_names()[j]);
+  }
+  std::vector<double> speeds = options_.max_joint_speed;
+  if (speeds.empty()) {
+    speeds = urdf_velocity_limits(spec.urdf, chain_.joint_names());
+    for (std::size_t j = 0; j < n; ++j) {
+      if (!(speeds[j] > 0.0)) {
+        throw InputError({spec.urdf.string(), 0, 0},
+                         fmt::format("robot '{}': joint '{}' has no velocity limit; the simulated controller needs "
+                                     "one (or max_joint_speed in its options)",
+                                     name_, chain_.joint_names()[j]));
+      }
+    }
+  }
+  if (speeds.size() != n) {
+    throw fail(fmt::format("max_joint_speed has {} values for {} joints", speeds.size(), n));
+  }
+  for (std::size_t j = 0; j < n; ++j) {
+    if (!std::isfinite(speeds[j]) || speeds[j] <= 0.0) {
+      throw fail(fmt::format("max_joint_speed of joint {} is {}; it must be > 0", j + 1, speeds[j]));
+    }
+  }
+  const auto positive = [&](const char* what, double v) {
+    if (!std::isfinite(v) || v <= 0.0) throw fail(fmt::format("{} is {}; it must be > 0", what, v));
+  };
+  positive("max_tool_speed", options_.max_tool_speed);
+  positive("joint_tolerance", options_.joint_tolerance);
+  positive("settle_speed", options_.settle_speed);
+  positive("settle_timeout", options_.settle_timeout);
+  positive("linear_step", options_.linear_step);
+  positive("max_waypoint_step", options_.max_waypoint_step);
+  positive("finger_speed", options_.finger_speed);
+  positive("finger_tolerance", options_.finger_tolerance);
+  positive("finger_settle_speed", options_.finger_settle_speed);
+  positive("brake_time", options_.brake_time);
+  if (!std::isfinite(options_.min_move_time) || options_.min_move_time < 0.0) {
+    throw fail(fmt::format("min_move_time is {}; it must be >= 0", options_.min_move_time));
+  }
+  if (!(options_.home_speed > 0.0 && options_.home_speed <= 1.0)) {
+    throw fail(fmt::format("home_speed is {}; it must be in (0, 1]", options_.home_speed));
+  }
+  if (options_.queue_depth == 0) throw fail("queue_depth must be at least 1");
+
+  max_speed_ = Eigen::Map<const Eigen::VectorXd>(speeds.data(), static_cast<Eigen::Index>(n));
+  lower_.resize(static_cast<Eigen::Index>(n));
+  upper_.resize(static_cast<Eigen::Index>(n));
+  for (std::size_t j = 0; j < n; ++j) {
+    lower_[static_cast<Eigen::Index>(j)] = chain_.limits()[j].lower;
+    upper_[static_cast<Eigen::Index>(j)] = chain_.limits()[j].upper;
+  }
+  home_ = Eigen::Map<const Eigen::VectorXd>(ids_.home.data(), static_cast<Eigen::Index>(n));
+  grip_force_ = spec.grip_force;
+  finger_closed_ = ids_.finger_range[0];
+  finger_open_ = ids_.finger_range[1];
+
+  capabilities_.joints = n;
+  capabilities_.joint_control = true;
+  capabilities_.cartesian_control = true;
+  capabilities_.linear_motion = true;
+  capabilities_.full_orientation = n >= 6;
+  capabilities_.gripper = true;
+  capabilities_.gripper_width = true;
+  capabilities_.gripper_force = true;
+  capabilities_.gripper_max_width = 2.0 * finger_open_;
+  capabilities_.gripper_max_force = grip_force_;
+  capabilities_.digital_outputs = signals_.size();
+  capabilities_.digital_inputs = signals_.size();
+  capabilities_.max_joint_speed = speeds;
+  capabilities_.max_tool_speed = options_.max_tool_speed;
+  capabilities_.queue_depth = options_.queue_depth;
+  capabilities_.reads_joints = true;
+  capabilities_.reads_pose = true;
+
+  // Until the first step reads the simulation, plan from the home configuration the scene starts in.
+  arm_goal_ = home_;
+  arm_position_ = home_;
+  arm_velocity_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n));
+  finger_from_ = finger_goal_ = finger_open_;
+  finger_force_ = grip_force_;
+}
+
+// ---- RobotDriver ----------------------------------------------------------------------------------------------
+
+const drivers::Capabilities& SimDriver::capabilities() const {
+  return capabilities_;
+}
+
+DriverState SimDriver::state() const {
+  std::lock_guard lock(mutex_);
+  return state_;
+}
+
+ErrorCode SimDriver::connect() {
+  std::lock_guard lock(mutex_);
+  if (state_ != DriverState::disconnected) return ErrorCode::wrong_state;
+  state_ = DriverState::connected;
+  return ErrorCode::none;
+}
+
+void SimDriver::disconnect() {
+  std::unique_lock lock(mutex_);
+  const bool changed = fail_all(ErrorCode::cancelled, "cancelled by disconnect()");
+  brake_requested_ = true;
+  state_ = DriverState::disconnected;
+  const auto notify = notify_;
+  lock.unlock();
+  if (changed && notify) notify();
+}
+
+Submitted SimDriver::home() {
+  std::lock_guard lock(mutex_);
+  if (state_ != DriverState::connected && state_ != DriverState::homed && state_ != DriverState::stopped) {
+    return refuse(ErrorCode::wrong_state, fmt::format("home() is not allowed while {}", drivers::to_string(state_)));
+  }
+  Job job;
+  job.kind = JobKind::home;
+  plan_joints(job, home_, options_.home_speed);
+  return enqueue(std::move(job));
+}
+
+ErrorCode SimDriver::activate() {
+  std::lock_guard lock(mutex_);
+  if (state_ != DriverState::homed && state_ != DriverState::stopped) return ErrorCode::wrong_state;
+  for (const Job& j : queue_) {
+    if (j.kind == JobKind::home) return ErrorCode::wrong_state;  // still homing
+  }
+  state_ = DriverState::active;
+  return ErrorCode::none;
+}
+
+void SimDriver::stop() {
+  std::unique_lock lock(mutex_);
+  const bool changed = fail_all(ErrorCode::cancelled, "cancelled by stop()");
+  brake_requested_ = true;
+  if (state_ == DriverState::active) state_ = DriverState::stopped;
+  const auto notify = notify_;
+  lock.unlock();
+  if (changed && notify) notify();
+}
+
+ErrorCode SimDriver::reset() {
+  std::lock_guard lock(mutex_);
+  if (state_ != DriverState::fault) return ErrorCode::wrong_state;
+  state_ = DriverState::connected;  // the simulated link never drops
+  return ErrorCode::none;
+}
+
+Submitted SimDriver::submit(const drivers::Command& command) {
+  std::lock_guard lock(mutex_);
+  if (state_ != DriverState::active) {
+    return refuse(ErrorCode::wrong_state, fmt::format("{} refused: the driver is {}, not active",
+                                                      drivers::describe(command), drivers::to_string(state_)));
+  }
+  if (drivers::Refusal r = drivers::check_command(command, capabilities_)) return refuse(r.error, std::move(r.message));
+  if (queue_.size() >= options_.queue_depth) {
+    return refuse(ErrorCode::busy,
+                  fmt::format("{} command(s) already in flight (queue depth {})", queue_.size(), options_.queue_depth));
+  }
+  Job job;
+  job.kind = JobKind::command;
+  job.command = command;
+  if (const auto* move = std::get_if<drivers::MoveJoints>(&command)) {
+    plan_joints(
+        job,
+        Eigen::Map<const Eigen::VectorXd>(move->positions.data(), static_cast<Eigen::Index>(move->positions.size())),
+        move->speed);
+  } else if (const auto* pose = std::get_if<drivers::MovePose>(&command)) {
+    plan_pose(job, *pose);
+  }
+  return enqueue(std::move(job));
+}
+
+Submitted SimDriver::request_position() {
+  std::lock_guard lock(mutex_);
+  if (state_ != DriverState::homed && state_ != DriverState::active && state_ != DriverState::stopped) {
+    return refuse(ErrorCode::wrong_state,
+                  fmt::format("request_position() is not allowed while {}", drivers::to_string(state_)));
+  }
+  Job job;
+  job.kind = JobKind::position;
+  return enqueue(std::move(job));
+}
+
+drivers::CommandStatus SimDriver::poll(CommandId id) const {
+  std::lock_guard lock(mutex_);
+  const auto it = statuses_.find(id);
+  if (it != statuses_.end()) return it->second;
+  return {id, CommandPhase::failed, ErrorCode::unknown_command,
+          fmt::format("command {} was never issued or is no longer retained", id)};
+}
+
+std::optional<drivers::PositionReading> SimDriver::last_position() const {
+  std::lock_guard lock(mutex_);
+  return last_position_;
+}
+
+void SimDriver::set_notifier(std::function<void()> notify) {
+  std::lock_guard lock(mutex_);
+  notify_ = std::move(notify);
+}
+
+std::optional<GripOutcome> SimDriver::last_grip() const {
+  std::lock_guard lock(mutex_);
+  return last_grip_;
+}
+
+// ---- Queue bookkeeping (mutex held) ----------------------------------------------------------------------------
+
+Submitted SimDriver::refuse(ErrorCode error, std::string message) {
+  return {0, error, std::move(message)};
+}
+
+Submitted SimDriver::enqueue(Job job) {
+  if (queue_.size() >= options_.queue_depth) {
+    return refuse(ErrorCode::busy,
+                  fmt::format("{} command(s) already in flight (queue depth {})", queue_.size(), options_.queue_depth));
+  }
+  job.id = next_id_++;
+  const CommandId id = job.id;
+  queue_.push_back(std::move(job));
+  set_status(id, queue_.size() == 1 ? CommandPhase::running : CommandPhase::pending);
+  return {id, ErrorCode::none, {}};
+}
+
+void SimDriver::set_status(CommandId id, CommandPhase phase, ErrorCode error, std::string message) {
+  statuses_[id] = {id, phase, error, std::move(message)};
+  if (phase != CommandPhase::done && phase != CommandPhase::failed) return;
+  changed_ = true;
+  finished_.push_back(id);
+  while (finished_.size() > drivers::kStatusRetention) {
+    statuses_.erase(finished_.front());
+    finished_.pop_front();
+  }
+}
+
+bool SimDriver::fail_all(ErrorCode error, const std::string& message) {
+  const bool any = !queue_.empty();
+  for (const Job& j : queue_) set_status(j.id, CommandPhase::failed, error, message);
+  queue_.clear();
+  return any;
+}
+
+void SimDriver::finish_head(CommandPhase phase, ErrorCode error, std::string message) {
+  Job job = std::move(queue_.front());
+  queue_.pop_front();
+  if (phase == CommandPhase::done) {
+    if (job.kind == JobKind::home) state_ = DriverState::homed;
+    set_status(job.id, CommandPhase::done);
+    if (!queue_.empty()) set_status(queue_.front().id, CommandPhase::running);
+    return;
+  }
+  set_status(job.id, CommandPhase::failed, error, std::move(message));
+  fail_all(ErrorCode::cancelled, fmt::format("cancelled: command {} before it failed", job.id));
+  // A failed motion leaves the arm where it is (the targets stop at once, smoothly).
+  if (job.moves_arm) brake_requested_ = true;
+}
+
+Eigen::VectorXd SimDriver::queue_end_joints() const {
+  for (auto it = queue_.rbegin(); it != queue_.rend(); ++it) {
+    if (!it->points.empty() && it->problem.empty()) return it->points.back();
+  }
+  return arm_goal_;
+}
+
+// ---- Planning (owner thread, mutex held) -----------------------------------------------------------------------
+
+void SimDriver::plan_joints(Job& job, const Eigen::VectorXd& goal, double speed) const {
+  job.speed = speed;
+  for (Eigen::Index j = 0; j < goal.size(); ++j) {
+    if (goal[j] < lower_[j] || goal[j] > upper_[j]) {
+      job.problem_code = ErrorCode::unreachable;
+      job.problem = fmt::format("joint {} target {:.6f} rad is outside its limits [{:.6f}, {:.6f}] rad", j + 1, goal[j],
+                                lower_[j], upper_[j]);
+      return;
+    }
+  }
+  job.points = {queue_end_joints(), goal};
+}
+
+void SimDriver::plan_pose(Job& job, const drivers::MovePose& move) const {
+  job.speed = move.speed;
+  const Eigen::VectorXd seed = queue_end_joints();
+  if (move.path == drivers::Path::joint) {
+    const models::IkResult ik = chain_.inverse(move.pose, seed, options_.ik);
+    if (ik.status != models::IkStatus::kOk) {
+      job.problem_code = ErrorCode::unreachable;
+      job.problem = fmt::format("no joint solution for the pose: {}", ik.reason);
+      return;
+    }
+    job.points = {seed, ik.q};
+    return;
+  }
+  // A straight line of the tool: waypoints close enough that joint interpolation between them stays on the line.
+  const Eigen::Isometry3d from = chain_.forward(seed);
+  const Eigen::Vector3d p0 = from.translation(), p1 = move.pose.translation();
+  const Eigen::Quaterniond r0(from.linear()), r1(move.pose.linear());
+  const double distance = (p1 - p0).norm();
+  const double angle = r0.angularDistance(r1);
+  const int steps =
+      std::max(1, static_cast<int>(std::ceil(std::max(distance / options_.linear_step, angle / kLinearAngleStep))));
+  job.points = {seed};
+  job.arc = {0.0};
+  job.tool_distance = distance;
+  for (int i = 1; i <= steps; ++i) {
+    const double f = static_cast<double>(i) / steps;
+    Eigen::Isometry3d waypoint = Eigen::Isometry3d::Identity();
+    waypoint.linear() = r0.slerp(f, r1).toRotationMatrix();
+    waypoint.translation() = p0 + f * (p1 - p0);
+    const models::IkResult ik = chain_.inverse(waypoint, job.points.back(), options_.ik);
+    if (ik.status != models::IkStatus::kOk) {
+      job.problem_code = ErrorCode::unreachable;
+      job.problem = fmt::format(
+          "straight line: no joint solution at {:.1f}% of the way, ({:.4f}, {:.4f}, {:.4f}) m: {}", 100.0 * f,
+          waypoint.translation().x(), waypoint.translation().y(), waypoint.translation().z(), ik.reason);
+      job.points.clear();
+      return;
+    }
+    const Eigen::VectorXd jump = (ik.q - job.points.back()).cwiseAbs();
+    Eigen::Index worst = 0;
+    if (jump.maxCoeff(&worst) > options_.max_waypoint_step) {
+      job.problem_code = ErrorCode::unreachable;
+      job.problem = fmt::format(
+          "straight line: joint {} would jump {:.3f} rad at {:.1f}% of the way (a singularity or a change of "
+          "configuration on the line)",
+          worst + 1, jump[worst], 100.0 * f);
+      job.points.clear();
+      return;
+    }
+    job.points.push_back(ik.q);
+    job.arc.push_back(f);
+  }
+}
+
+// ---- The simulation side ---------------------------------------------------------------------------------------
+
+Eigen::VectorXd SimDriver::joints(const mjData* data) const {
+  Eigen::VectorXd q(static_cast<Eigen::Index>(ids_.qpos_adr.size()));
+  for (std::size_t j = 0; j < ids_.qpos_adr.size(); ++j) q[static_cast<Eigen::Index>(j)] = data->qpos[ids_.qpos_adr[j]];
+  return q;
+}
+
+Eigen::VectorXd SimDriver::joint_speeds(const mjData* data) const {
+  Eigen::VectorXd v(static_cast<Eigen::Index>(ids_.dof_adr.size()));
+  for (std::size_t j = 0; j < ids_.dof_adr.size(); ++j) v[static_cast<Eigen::Index>(j)] = data->qvel[ids_.dof_adr[j]];
+  return v;
+}
+
+double SimDriver::finger_position(const mjData* data, int side) const {
+  return data->qpos[ids_.finger_qpos_adr[static_cast<std::size_t>(side)]];
+}
+
+double SimDriver::finger_speed(const mjData* data, int side) const {
+  return data->qvel[ids_.finger_dof_adr[static_cast<std::size_t>(side)]];
+}
+
+std::array<bool, 2> SimDriver::touch(const mjModel* model, const mjData* data) const {
+  std::array<bool, 2> t{};
+  for (std::size_t side = 0; side < 2; ++side) {
+    t[side] = data->sensordata[model->sensor_adr[ids_.finger_touch_sensor[side]]] > kTouchThreshold;
+  }
+  return t;
+}
+
+double SimDriver::finger_stiffness(const mjModel* model, int side) const {
+  return model->actuator_gainprm[ids_.finger_actuator[static_cast<std::size_t>(side)] * mjNGAIN];
+}
+
+void SimDriver::hold_here(std::chrono::nanoseconds now, const mjData* data) {
+  const Eigen::VectorXd q = joints(data);
+  arm_path_.emplace(std::vector<Eigen::VectorXd>{q, q});
+  arm_start_ = now;
+  arm_duration_ = 1.0;
+  braking_ = false;
+  arm_goal_ = q;
+  arm_position_ = q;
+  arm_velocity_.setZero();
+  const double f = 0.5 * (finger_position(data, 0) + finger_position(data, 1));
+  finger_from_ = finger_goal_ = f;
+  finger_start_ = now;
+  finger_duration_ = 0;
+  finger_closing_ = false;
+}
+
+SimDriver::ArmTarget SimDriver::arm_target(std::chrono::nanoseconds now) const {
+  ArmTarget t;
+  if (braking_) {
+    // Constant deceleration from the velocity the targets had: smooth in position and velocity.
+    const double tau = std::min(seconds(now - brake_start_), brake_duration_);
+    const double T = brake_duration_;
+    t.position = brake_q_ + brake_v_ * (tau - tau * tau / (2.0 * T));
+    t.velocity = brake_v_ * (1.0 - tau / T);
+    t.acceleration = tau < T ? Eigen::VectorXd(-brake_v_ / T) : Eigen::VectorXd::Zero(brake_v_.size());
+    return t;
+  }
+  const JointSample s = arm_path_->sample(seconds(now - arm_start_), arm_duration_);
+  t.position = s.position;
+  t.velocity = s.velocity;
+  t.acceleration = s.acceleration;
+  return t;
+}
+
+double SimDriver::finger_ramp(std::chrono::nanoseconds now, double* velocity) const {
+  if (finger_duration_ <= 0.0) {
+    if (velocity) *velocity = 0.0;
+    return finger_goal_;
+  }
+  const double u = seconds(now - finger_start_) / finger_duration_;
+  if (velocity) *velocity = (finger_goal_ - finger_from_) * quintic_rate(u) / finger_duration_;
+  return finger_from_ + (finger_goal_ - finger_from_) * quintic(u);
+}
+
+void SimDriver::move_fingers(std::chrono::nanoseconds now, double goal, double force) {
+  finger_from_ = finger_ramp(now, nullptr);
+  finger_goal_ = goal;
+  finger_force_ = force;
+  finger_closing_ = goal < finger_from_;
+  finger_start_ = now;
+  finger_duration_ =
+      std::max(kFingerMinTime, kQuinticPeakSpeed * std::abs(goal - finger_from_) / options_.finger_speed);
+}
+
+void SimDriver::start_head(std::chrono::nanoseconds now) {
+  Job& job = queue_.front();
+  job.started = true;
+  job.start = now;
+  if (!job.problem.empty()) return;  // check_head fails it
+  if (!job.points.empty()) {
+    job.moves_arm = true;
+    // The planned start is where the targets were expected to come to rest; start exactly from where they are.
+    job.points.front() = arm_target(now).position;
+    JointPath path(job.points, job.arc);
+    double duration = path.min_duration(max_speed_, job.speed, options_.min_move_time);
+    if (!job.arc.empty()) {
+      duration = std::max(duration, kQuinticPeakSpeed * job.tool_distance / (options_.max_tool_speed * job.speed));
+    }
+    arm_path_.emplace(std::move(path));
+    arm_start_ = now;
+    arm_duration_ = duration;
+    braking_ = false;
+    arm_goal_ = arm_path_->end();
+    job.duration = duration;
+    job.deadline = now + nanos(duration + options_.settle_timeout);
+  }
+  if (job.kind == JobKind::home) {
+    job.moves_fingers = true;
+    move_fingers(now, finger_open_, grip_force_);
+    return;
+  }
+  if (job.kind == JobKind::position) return;
+  std::visit(
+      [&](const auto& c) {
+        using C = std::decay_t<decltype(c)>;
+        if constexpr (std::is_same_v<C, drivers::Grip>) {
+          job.moves_fingers = true;
+          const bool close = c.action == drivers::Grip::Action::close;
+          double goal = close ? finger_closed_ : finger_open_;
+          if (c.width) goal = std::clamp(*c.width / 2.0, finger_closed_, finger_open_);
+          move_fingers(now, goal, c.force.value_or(grip_force_));
+        } else if constexpr (std::is_same_v<C, drivers::WaitInput>) {
+          job.deadline = c.timeout.count() > 0 ? now + c.timeout : std::chrono::nanoseconds(0);
+        }
+      },
+      *job.command);
+}
+
+bool SimDriver::check_head(std::chrono::nanoseconds now, const mjModel* model, const mjData* data) {
+  Job& job = queue_.front();
+  if (!job.problem.empty()) {
+    finish_head(CommandPhase::failed, job.problem_code, job.problem);
+    return true;
+  }
+  if (job.kind == JobKind::position) {
+    drivers::PositionReading r;
+    r.request = job.id;
+    r.stamp = now;
+    const Eigen::VectorXd q = joints(data);
+    r.joints.assign(q.data(), q.data() + q.size());
+    // The tool centre point in the base frame: the URDF's kinematics of the joints read (MuJoCo's tcp site is the
+    // same frame, but its pose in mjData dates from before the last step's integration).
+    r.tool_pose = chain_.forward(q);
+    last_position_ = std::move(r);
+    finish_head(CommandPhase::done);
+    return true;
+  }
+  if (job.command) {
+    if (const auto* out = std::get_if<drivers::SetOutput>(&*job.command)) {
+      signals_.set(out->channel, out->on);
+      finish_head(CommandPhase::done);
+      return true;
+    }
+    if (const auto* wait = std::get_if<drivers::WaitInput>(&*job.command)) {
+      if (signals_.get(wait->channel) == wait->on) {
+        finish_head(CommandPhase::done);
+        return true;
+      }
+      if (job.deadline.count() > 0 && now >= job.deadline) {
+        finish_head(CommandPhase::failed, ErrorCode::timeout,
+                    fmt::format("digital input {} stayed {} for {:.3f} s", wait->channel, wait->on ? "off" : "on",
+                                seconds(now - job.start)));
+        return true;
+      }
+      return false;
+    }
+  }
+  bool arm_done = true;
+  if (job.moves_arm) {
+    const Eigen::VectorXd error = joints(data) - arm_goal_;
+    const Eigen::VectorXd speed = joint_speeds(data);
+    arm_done = seconds(now - job.start) >= job.duration && error.cwiseAbs().maxCoeff() <= options_.joint_tolerance &&
+               speed.cwiseAbs().maxCoeff() <= options_.settle_speed;
+    if (!arm_done && now >= job.deadline) {
+      finish_head(CommandPhase::failed, ErrorCode::timeout,
+                  fmt::format("the arm did not settle within {:.3f} s of the trajectory's end (tolerance {} rad, {} "
+                              "rad/s); joint errors: {}; joint speeds: {}",
+                              options_.settle_timeout, options_.joint_tolerance, options_.settle_speed,
+                              joint_list(error, "rad"), joint_list(speed, "rad/s")));
+      return true;
+    }
+  }
+  bool fingers_done = true;
+  if (job.moves_fingers) {
+    const bool ramp_over = seconds(now - finger_start_) >= finger_duration_;
+    const std::array<bool, 2> touching = touch(model, data);
+    bool settled = true;
+    for (int side = 0; side < 2; ++side) {
+      const double q = finger_position(data, side);
+      const double kp = finger_stiffness(model, side);
+      const bool at_goal = ramp_over && std::abs(q - finger_goal_) <= options_.finger_tolerance;
+      // Pressing: closing, the finger touches something, and its target is held at the force limit because the
+      // finger is blocked short of the ramp.
+      const bool pressing = finger_closing_ && touching[static_cast<std::size_t>(side)] &&
+                            finger_ramp(now, nullptr) < q - finger_force_ / kp;
+      const bool slow = std::abs(finger_speed(data, side)) <= options_.finger_settle_speed;
+      settled = settled && slow && (at_goal || pressing);
+    }
+    if (settled) {
+      if (!job.resting_since) job.resting_since = now;
+    } else {
+      job.resting_since.reset();
+    }
+    fingers_done = job.resting_since && seconds(now - *job.resting_since) >= kFingerRestWindow;
+    // A finger that cannot reach its goal (blocked while opening) fails like a blocked arm.
+    if (!fingers_done && ramp_over && now - finger_start_ >= nanos(finger_duration_ + options_.settle_timeout)) {
+      finish_head(CommandPhase::failed, ErrorCode::timeout,
+                  fmt::format("the fingers did not reach {:.4f} m (each) within {:.3f} s: left at {:.4f} m, right at "
+                              "{:.4f} m",
+                              finger_goal_, finger_duration_ + options_.settle_timeout, finger_position(data, 0),
+                              finger_position(data, 1)));
+      return true;
+    }
+  }
+  if (!(arm_done && fingers_done)) return false;
+  if (job.command && std::holds_alternative<drivers::Grip>(*job.command)) record_grip(job, model, data);
+  finish_head(CommandPhase::done);
+  return true;
+}
+
+void SimDriver::record_grip(const Job& job, const mjModel* model, const mjData* data) {
+  GripOutcome g;
+  g.command = job.id;
+  g.action = std::get<drivers::Grip>(*job.command).action;
+  const double left = finger_position(data, 0), right = finger_position(data, 1);
+  g.opening = left + right;
+  g.touch = touch(model, data);
+  g.on_part = g.action == drivers::Grip::Action::close && g.touch[0] && g.touch[1] &&
+              g.opening > 2.0 * finger_closed_ + kOnPartMargin;
+  last_grip_ = g;
+}
+
+void SimDriver::write_targets(std::chrono::nanoseconds now, const mjModel* model, mjData* data) {
+  const ArmTarget t = arm_target(now);
+  arm_position_ = t.position;
+  arm_velocity_ = t.velocity;
+  // Feed-forward: what the servo must push beyond the target so that the joint follows it (damping, gravity and
+  // Coriolis forces, the joint's own inertia), expressed as an offset of the position target.
+  for (std::size_t j = 0; j < ids_.actuator.size(); ++j) {
+    const auto i = static_cast<Eigen::Index>(j);
+    const int dof = ids_.dof_adr[j];
+    const int act = ids_.actuator[j];
+    const double kp = model->actuator_gainprm[act * mjNGAIN];
+    const double inertia = data->qM[model->dof_Madr[dof]];
+    // Damping of the joint, plus the servo's own velocity term (bias kv) when it has one.
+    const double damping = model->dof_damping[dof] - model->actuator_biasprm[act * mjNBIAS + 2];
+    const double force = damping * t.velocity[i] + data->qfrc_bias[dof] + inertia * t.acceleration[i];
+    data->ctrl[act] = t.position[i] + force / kp;
+  }
+  double v = 0;
+  const double ramp = finger_ramp(now, &v);
+  const bool closing = finger_closing_;
+  for (int side = 0; side < 2; ++side) {
+    const auto s = static_cast<std::size_t>(side);
+    const int dof = ids_.finger_dof_adr[s];
+    const double kp = finger_stiffness(model, side);
+    const double q = finger_position(data, side);
+    const int act = ids_.finger_actuator[s];
+    double target = ramp + (model->dof_damping[dof] - model->actuator_biasprm[act * mjNBIAS + 2]) * v / kp;
+    // The force limit: never further ahead of the finger than force / stiffness.
+    const double reach = finger_force_ / kp;
+    target = closing ? std::max(target, q - reach) : std::min(target, q + reach);
+    data->ctrl[act] = target;
+  }
+}
+
+void SimDriver::step(std::chrono::nanoseconds now, const mjModel* model, mjData* data) {
+  std::unique_lock lock(mutex_);
+  if (!initialised_) {
+    hold_here(now, data);
+    initialised_ = true;
+  }
+  if (brake_requested_) {
+    brake_requested_ = false;
+    const ArmTarget t = arm_target(now);
+    brake_q_ = t.position;
+    brake_v_ = t.velocity;
+    brake_start_ = now;
+    // Decelerate at no more than each joint's speed limit per brake_time, within brake_time.
+    double T = 0;
+    for (Eigen::Index j = 0; j < brake_v_.size(); ++j) {
+      T = std::max(T, options_.brake_time * std::abs(brake_v_[j]) / max_speed_[j]);
+    }
+    brake_duration_ = std::max(T, 1e-3);
+    braking_ = true;
+    arm_goal_ = brake_q_ + brake_v_ * brake_duration_ / 2.0;
+    // The fingers stop where their targets are (still pressing if they were closing on a part).
+    const double f = finger_ramp(now, nullptr);
+    finger_from_ = finger_goal_ = f;
+    finger_duration_ = 0;
+  }
+  while (!queue_.empty()) {
+    if (!queue_.front().started) start_head(now);
+    if (!check_head(now, model, data)) break;
+  }
+  write_targets(now, model, data);
+  const bool changed = changed_;
+  changed_ = false;
+  const auto notify = changed ? notify_ : std::function<void()>();
+  lock.unlock();
+  if (notify) notify();
+}
+
+void SimDriver::fault(const std::string& message, std::chrono::nanoseconds now, const mjData* data) {
+  std::unique_lock lock(mutex_);
+  fail_all(ErrorCode::hardware, message);
+  if (state_ != DriverState::disconnected) state_ = DriverState::fault;
+  hold_here(now, data);
+  initialised_ = true;
+  changed_ = false;
+  const auto notify = notify_;
+  lock.unlock();
+  if (notify) notify();
+}
+
+}  // namespace cellwright::twin::sim

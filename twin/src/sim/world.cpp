@@ -1,0 +1,540 @@
+#include "cellwright/twin/sim/world.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace cellwright::twin::sim {
+
+namespace {
+
+constexpr std::size_t npos = std::numeric_limits<std::size_t>::max();
+constexpr double kParkingGap = 0.1;         // m between parked parts, and from the cell to the parking row
+constexpr double kFeedClearance = 0.005;    // m: a part closer than this to the feed spot blocks it
+constexpr double kUprightCos = 0.98480775;  // cos(10 degrees)
+constexpr double kSupportNormal = 0.5;      // a contact supports a part when its normal is this close to vertical
+constexpr double kRestGap = 0.002;          // m: a part this close above a surface rests on it (chatter, see truth())
+
+const char* warning_text(int i) {
+  switch (i) {
+    case mjWARN_INERTIA:
+      return "an inertia matrix is too close to singular";
+    case mjWARN_CONTACTFULL:
+      return "the contact buffer is full (contacts were dropped)";
+    case mjWARN_CNSTRFULL:
+      return "the constraint buffer is full (constraints were dropped)";
+    case mjWARN_VGEOMFULL:
+      return "the visual geom buffer is full";
+    case mjWARN_BADQPOS:
+      return "bad qpos (NaN or huge): MuJoCo reset the simulation";
+    case mjWARN_BADQVEL:
+      return "bad qvel (NaN or huge): MuJoCo reset the simulation";
+    case mjWARN_BADQACC:
+      return "bad qacc (NaN or huge): MuJoCo reset the simulation";
+    case mjWARN_BADCTRL:
+      return "bad ctrl (NaN or huge)";
+    default:
+      return "unknown warning";
+  }
+}
+
+bool resets_simulation(int i) {
+  return i == mjWARN_BADQPOS || i == mjWARN_BADQVEL || i == mjWARN_BADQACC;
+}
+
+std::string name_of(const mjModel* m, mjtObj type, int id) {
+  const char* n = mj_id2name(m, type, id);
+  return n ? n : "";
+}
+
+Eigen::Isometry3d free_pose(const mjData* d, int qpos_adr) {
+  const mjtNum* q = d->qpos + qpos_adr;
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() << q[0], q[1], q[2];
+  t.linear() = Eigen::Quaterniond(q[3], q[4], q[5], q[6]).normalized().toRotationMatrix();
+  return t;
+}
+
+}  // namespace
+
+World::World(Scene scene, WorldOptions options)
+    : scene_(std::move(scene)), options_(std::move(options)), signals_(std::max<std::size_t>(options_.signals, 1)) {
+  const mjModel* m = scene_.model();
+  const double ns = m->opt.timestep * 1e9;
+  if (!(ns >= 1.0) || std::abs(ns - std::round(ns)) > 1e-6) {
+    throw InputError(options_.where, fmt::format("the cell's timestep {} s is not a whole number of nanoseconds; the "
+                                                 "simulation clock counts whole steps",
+                                                 m->opt.timestep));
+  }
+  if (options_.signals == 0) throw InputError(options_.where, "the cell needs at least one digital signal");
+  timestep_ = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(ns)));
+  scene_.reset();
+  drivers_.resize(scene_.robots().size());
+  parked_.assign(scene_.workpieces().size(), false);
+  classify_bodies();
+
+  // The parking row: on the floor, beyond everything the cell holds in +x, along y.
+  double max_x = -std::numeric_limits<double>::infinity(), min_y = std::numeric_limits<double>::infinity();
+  const mjData* d = scene_.data();
+  for (int g = 0; g < m->ngeom; ++g) {
+    if (m->geom_type[g] == mjGEOM_PLANE) continue;
+    if (bodies_[static_cast<std::size_t>(m->geom_bodyid[g])].workpiece >= 0) continue;
+    max_x = std::max(max_x, d->geom_xpos[3 * g] + m->geom_rbound[g]);
+    min_y = std::min(min_y, d->geom_xpos[3 * g + 1] - m->geom_rbound[g]);
+  }
+  parking_origin_ = Eigen::Vector3d(max_x + kParkingGap, min_y, 0.0);
+
+  for (const std::string& name : options_.parked) {
+    const std::size_t w = workpiece_index(name);
+    if (w == npos) {
+      throw InputError(options_.where,
+                       fmt::format("parked workpiece '{}' is not a workpiece of cell '{}'", name, scene_.cell().name));
+    }
+    place_at_rest(w, parking_pose(w));
+    parked_[w] = true;
+  }
+  for (int i = 0; i < mjNWARNING; ++i) warning_counts_[static_cast<std::size_t>(i)] = d->warning[i].number;
+}
+
+World::~World() = default;
+
+void World::classify_bodies() {
+  const mjModel* m = scene_.model();
+  bodies_.assign(static_cast<std::size_t>(m->nbody), BodyInfo{});
+  for (int b = 0; b < m->nbody; ++b) {
+    BodyInfo& info = bodies_[static_cast<std::size_t>(b)];
+    info.fixed = m->body_weldid[b] == 0;
+    // A robot's bodies are its base and everything below it; the gripper is the flange and below.
+    for (int a = b; a > 0; a = m->body_parentid[a]) {
+      for (std::size_t r = 0; r < scene_.robots().size(); ++r) {
+        const RobotIds& ids = scene_.robots()[r];
+        if (a == ids.flange_body) info.gripper = true;
+        if (a == ids.base_body) info.robot = static_cast<int>(r);
+      }
+      if (info.robot >= 0) break;
+    }
+    if (info.robot < 0) info.gripper = false;
+  }
+  for (const RobotIds& ids : scene_.robots()) {
+    for (int side = 0; side < 2; ++side) {
+      BodyInfo& info =
+          bodies_[static_cast<std::size_t>(m->jnt_bodyid[ids.finger_joint[static_cast<std::size_t>(side)]])];
+      info.finger = true;
+      info.finger_side = side;
+    }
+  }
+  for (std::size_t w = 0; w < scene_.workpieces().size(); ++w) {
+    bodies_[static_cast<std::size_t>(scene_.workpieces()[w].body)].workpiece = static_cast<int>(w);
+  }
+}
+
+std::size_t World::workpiece_index(std::string_view name) const {
+  for (std::size_t w = 0; w < scene_.workpieces().size(); ++w) {
+    if (scene_.workpieces()[w].name == name) return w;
+  }
+  return npos;
+}
+
+Eigen::Isometry3d World::parking_pose(std::size_t workpiece) const {
+  double y = parking_origin_.y();
+  for (std::size_t w = 0; w < workpiece; ++w) y += scene_.cell().workpieces[w].size.y() + kParkingGap;
+  const Eigen::Vector3d& size = scene_.cell().workpieces[workpiece].size;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(parking_origin_.x() + size.x() / 2, y + size.y() / 2, size.z() / 2);
+  return pose;
+}
+
+void World::place_at_rest(std::size_t workpiece, const Eigen::Isometry3d& pose) {
+  const mjModel* m = scene_.model();
+  mjData* d = scene_.data();
+  const WorkpieceIds& ids = scene_.workpieces()[workpiece];
+  const Eigen::Quaterniond q(pose.linear());
+  mjtNum* qpos = d->qpos + ids.qpos_adr;
+  qpos[0] = pose.translation().x();
+  qpos[1] = pose.translation().y();
+  qpos[2] = pose.translation().z();
+  qpos[3] = q.w();
+  qpos[4] = q.x();
+  qpos[5] = q.y();
+  qpos[6] = q.z();
+  for (int i = 0; i < 6; ++i) {
+    d->qvel[ids.dof_adr + i] = 0;
+    d->qacc_warmstart[ids.dof_adr + i] = 0;
+  }
+  // Positions, contacts and sensors follow the move at once (the state itself is only what was set above).
+  mj_forward(m, d);
+}
+
+SimDriver& World::add_sim_driver(std::string_view robot, SimDriverOptions options) {
+  const RobotIds* ids = scene_.find_robot(robot);
+  if (!ids) {
+    throw InputError(options_.where,
+                     fmt::format("no robot '{}' in cell '{}' for a simulation driver", robot, scene_.cell().name));
+  }
+  const auto r = static_cast<std::size_t>(ids - scene_.robots().data());
+  if (drivers_[r]) throw InputError(options_.where, fmt::format("robot '{}' has a simulation driver already", robot));
+  drivers_[r] = std::make_unique<SimDriver>(scene_, r, signals_, std::move(options));
+  return *drivers_[r];
+}
+
+SimDriver* World::driver(std::string_view robot) {
+  const RobotIds* ids = scene_.find_robot(robot);
+  if (!ids) return nullptr;
+  return drivers_[static_cast<std::size_t>(ids - scene_.robots().data())].get();
+}
+
+void World::advance(std::chrono::nanoseconds dt) {
+  CW_CHECK(dt.count() >= 0 && dt.count() % timestep_.count() == 0,
+           "advance({} ns) is not a whole number of {} ns timesteps", dt.count(), timestep_.count());
+  step(dt.count() / timestep_.count());
+}
+
+void World::step(std::int64_t n) {
+  CW_CHECK(n >= 0, "cannot step {} times", n);
+  const mjModel* m = scene_.model();
+  mjData* d = scene_.data();
+  for (std::int64_t i = 0; i < n; ++i) {
+    for (auto& driver : drivers_) {
+      if (driver) driver->step(now(), m, d);
+    }
+    mj_step(m, d);
+    scene_.wrap_belts(d);
+    ++steps_;
+    check_contacts();
+    check_warnings();
+  }
+}
+
+void World::check_contacts() {
+  const mjModel* m = scene_.model();
+  const mjData* d = scene_.data();
+  // Pairs of bodies in unintended contact in this step, with their deepest contact.
+  std::vector<std::pair<std::pair<int, int>, int>> now_touching;
+  for (int c = 0; c < d->ncon; ++c) {
+    const mjContact& con = d->contact[c];
+    if (con.exclude != 0) continue;  // in the margin gap, not touching
+    int b1 = m->geom_bodyid[con.geom1], b2 = m->geom_bodyid[con.geom2];
+    const BodyInfo* i1 = &bodies_[static_cast<std::size_t>(b1)];
+    const BodyInfo* i2 = &bodies_[static_cast<std::size_t>(b2)];
+    if (i1->robot < 0 && i2->robot < 0) continue;  // no robot involved
+    if (i1->robot < 0) {
+      std::swap(b1, b2);
+      std::swap(i1, i2);
+    }
+    // i1 is a robot's body now.
+    bool counts = false;
+    if (i2->robot >= 0) {
+      counts = i2->robot != i1->robot;
+    } else if (i2->workpiece >= 0) {
+      counts = !i1->gripper;
+    } else {
+      counts = true;  // the cell's geometry
+    }
+    if (!counts) continue;
+    const std::pair<int, int> key{std::min(b1, b2), std::max(b1, b2)};
+    const auto it =
+        std::find_if(now_touching.begin(), now_touching.end(), [&](const auto& e) { return e.first == key; });
+    if (it == now_touching.end()) {
+      now_touching.emplace_back(key, c);
+    } else if (con.dist < d->contact[it->second].dist) {
+      it->second = c;
+    }
+  }
+  std::set<std::pair<int, int>> touching;
+  for (const auto& [key, c] : now_touching) {
+    touching.insert(key);
+    if (touching_.count(key) != 0) continue;
+    const mjContact& con = d->contact[c];
+    Collision col;
+    col.time = now();
+    col.body1 = name_of(m, mjOBJ_BODY, key.first);
+    col.body2 = name_of(m, mjOBJ_BODY, key.second);
+    const bool in_order = m->geom_bodyid[con.geom1] == key.first;
+    col.geom1 = name_of(m, mjOBJ_GEOM, in_order ? con.geom1 : con.geom2);
+    col.geom2 = name_of(m, mjOBJ_GEOM, in_order ? con.geom2 : con.geom1);
+    const int r1 = bodies_[static_cast<std::size_t>(key.first)].robot;
+    const int r2 = bodies_[static_cast<std::size_t>(key.second)].robot;
+    if (r1 >= 0) col.robot1 = scene_.robots()[static_cast<std::size_t>(r1)].name;
+    if (r2 >= 0) col.robot2 = scene_.robots()[static_cast<std::size_t>(r2)].name;
+    col.position = Eigen::Vector3d(con.pos[0], con.pos[1], con.pos[2]);
+    col.depth = std::max(0.0, -con.dist);
+    collisions_.push_back(std::move(col));
+  }
+  touching_ = std::move(touching);
+}
+
+void World::check_warnings() {
+  const mjData* d = scene_.data();
+  bool reset = false;
+  for (int i = 0; i < mjNWARNING; ++i) {
+    const int count = d->warning[i].number;
+    int& seen = warning_counts_[static_cast<std::size_t>(i)];
+    if (count < seen) seen = 0;  // MuJoCo reset the data (and its counters) after a numerical failure
+    if (count == seen) continue;
+    warnings_.push_back(fmt::format("t={:.3f} s: MuJoCo warning: {} (raised {} time{}; last info {})", time(),
+                                    warning_text(i), count - seen, count - seen == 1 ? "" : "s",
+                                    d->warning[i].lastinfo));
+    seen = count;
+    reset = reset || resets_simulation(i);
+  }
+  if (!reset) return;
+  const std::string message =
+      fmt::format("the simulation was reset by MuJoCo at t={:.3f} s after a numerical failure", time());
+  for (auto& driver : drivers_) {
+    if (driver) driver->fault(message, now(), d);
+  }
+}
+
+std::vector<Collision> World::new_collisions() {
+  std::vector<Collision> out;
+  out.swap(collisions_);
+  return out;
+}
+
+std::vector<std::pair<std::string, std::string>> World::touching_pairs() const {
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const auto& [a, b] : touching_) {
+    out.emplace_back(name_of(scene_.model(), mjOBJ_BODY, a), name_of(scene_.model(), mjOBJ_BODY, b));
+  }
+  return out;
+}
+
+std::vector<std::string> World::drain_warnings() {
+  std::vector<std::string> out;
+  out.swap(warnings_);
+  return out;
+}
+
+FeedResult World::feed(std::string_view workpiece, std::string_view conveyor) {
+  const std::size_t w = workpiece_index(workpiece);
+  if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to feed", workpiece)};
+  const ConveyorSpec* c = scene_.cell().find_conveyor(conveyor);
+  if (!c) return {FeedStatus::unknown_conveyor, fmt::format("no conveyor '{}' to feed '{}' onto", conveyor, workpiece)};
+  if (!parked_[w]) {
+    return {FeedStatus::not_parked, fmt::format("workpiece '{}' is in the cell already, not parked", workpiece)};
+  }
+  const WorkpieceSpec& spec = scene_.cell().workpieces[w];
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = c->pose.rotation();
+  pose.translation() = c->belt_point(c->enter) + Eigen::Vector3d(0, 0, spec.size.z() / 2);
+  const double radius = 0.5 * std::hypot(spec.size.x(), spec.size.y());
+  const mjData* d = scene_.data();
+  for (std::size_t o = 0; o < scene_.workpieces().size(); ++o) {
+    if (o == w || parked_[o]) continue;
+    const WorkpieceSpec& other = scene_.cell().workpieces[o];
+    const Eigen::Vector3d p = free_pose(d, scene_.workpieces()[o].qpos_adr).translation();
+    const double gap =
+        (p - pose.translation()).head<2>().norm() - radius - 0.5 * std::hypot(other.size.x(), other.size.y());
+    const bool level = std::abs(p.z() - pose.translation().z()) < 0.5 * (spec.size.z() + other.size.z());
+    if (level && gap < kFeedClearance) {
+      return {FeedStatus::occupied,
+              fmt::format("workpiece '{}' is still at the entry of conveyor '{}' ({:.3f} m from where '{}' would go)",
+                          other.name, c->name, (p - pose.translation()).norm(), workpiece)};
+    }
+  }
+  place_at_rest(w, pose);
+  parked_[w] = false;
+  return {};
+}
+
+FeedResult World::park(std::string_view workpiece) {
+  const std::size_t w = workpiece_index(workpiece);
+  if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to park", workpiece)};
+  place_at_rest(w, parking_pose(w));
+  parked_[w] = true;
+  return {};
+}
+
+bool World::parked(std::string_view workpiece) const {
+  const std::size_t w = workpiece_index(workpiece);
+  CW_CHECK(w != npos, "no workpiece '{}'", workpiece);
+  return parked_[w];
+}
+
+WorldTruth World::truth() const {
+  const mjModel* m = scene_.model();
+  const mjData* d = scene_.data();
+  const CellDescription& cell = scene_.cell();
+  WorldTruth t;
+  t.time = now();
+
+  for (const RobotIds& ids : scene_.robots()) {
+    RobotTruth r;
+    r.name = ids.name;
+    for (std::size_t j = 0; j < ids.qpos_adr.size(); ++j) {
+      r.joints.push_back(d->qpos[ids.qpos_adr[j]]);
+      r.joint_velocities.push_back(d->qvel[ids.dof_adr[j]]);
+    }
+    const mjtNum* p = d->site_xpos + 3 * ids.tcp_site;
+    const mjtNum* x = d->site_xmat + 9 * ids.tcp_site;
+    r.tcp.translation() << p[0], p[1], p[2];
+    r.tcp.linear() << x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8];
+    r.finger_opening = d->qpos[ids.finger_qpos_adr[0]] + d->qpos[ids.finger_qpos_adr[1]];
+    for (std::size_t side = 0; side < 2; ++side) {
+      r.finger_touch[side] = d->sensordata[m->sensor_adr[ids.finger_touch_sensor[side]]];
+      r.finger_contact[side] = r.finger_touch[side] > kTouchThreshold;
+    }
+    const mjtNum* f = d->sensordata + m->sensor_adr[ids.wrist_force_sensor];
+    const mjtNum* tq = d->sensordata + m->sensor_adr[ids.wrist_torque_sensor];
+    r.wrist_force = Eigen::Vector3d(f[0], f[1], f[2]);
+    r.wrist_torque = Eigen::Vector3d(tq[0], tq[1], tq[2]);
+    t.robots.push_back(std::move(r));
+  }
+
+  for (const ConveyorIds& c : scene_.conveyors()) t.conveyors.push_back({c.name, d->qvel[c.belt_dof_adr]});
+
+  // Per workpiece: which fingers touch it, and its strongest support from below.
+  const std::size_t nw = scene_.workpieces().size();
+  std::vector<std::vector<std::array<bool, 2>>> fingers(nw, std::vector<std::array<bool, 2>>(scene_.robots().size()));
+  std::vector<double> support_force(nw, 0.0);
+  std::vector<int> support_geom(nw, -1);
+  for (int c = 0; c < d->ncon; ++c) {
+    const mjContact& con = d->contact[c];
+    if (con.exclude != 0) continue;
+    for (int side = 0; side < 2; ++side) {
+      const int g = side == 0 ? con.geom1 : con.geom2;
+      const int other = side == 0 ? con.geom2 : con.geom1;
+      const BodyInfo& part = bodies_[static_cast<std::size_t>(m->geom_bodyid[g])];
+      if (part.workpiece < 0) continue;
+      const auto w = static_cast<std::size_t>(part.workpiece);
+      const BodyInfo& o = bodies_[static_cast<std::size_t>(m->geom_bodyid[other])];
+      if (o.finger) {
+        fingers[w][static_cast<std::size_t>(o.robot)][static_cast<std::size_t>(o.finger_side)] = true;
+      }
+      // The contact normal points from geom1 to geom2; turned to point from the other body into the part.
+      const double up = (side == 0 ? -1.0 : 1.0) * con.frame[2];
+      if (up < kSupportNormal) continue;
+      mjtNum force[6];
+      mj_contactForce(m, d, c, force);
+      if (force[0] > support_force[w]) {
+        support_force[w] = force[0];
+        support_geom[w] = other;
+      }
+    }
+  }
+
+  for (std::size_t w = 0; w < nw; ++w) {
+    const WorkpieceIds& ids = scene_.workpieces()[w];
+    const WorkpieceSpec& spec = cell.workpieces[w];
+    WorkpieceTruth p;
+    p.name = ids.name;
+    p.pose = free_pose(d, ids.qpos_adr);
+    const mjtNum* v = d->qvel + ids.dof_adr;
+    p.linear_velocity = Eigen::Vector3d(v[0], v[1], v[2]);
+    p.angular_velocity = p.pose.linear() * Eigen::Vector3d(v[3], v[4], v[5]);  // free joints: local frame
+    p.upright = p.pose.linear()(2, 2) >= kUprightCos;
+    p.parked = parked_[w];
+    for (std::size_t r = 0; r < scene_.robots().size(); ++r) {
+      if (fingers[w][r][0] && fingers[w][r][1]) {
+        p.held_by = r;
+        break;
+      }
+    }
+    if (!p.parked && !p.held_by && support_geom[w] < 0 && p.upright) {
+      // Nothing pushes it up, yet it may rest there: a part held against a stop by the belt and the part behind it
+      // chatters a fraction of a millimetre off the belt. Then the support is what lies just under its centre.
+      const mjtNum from[3] = {p.pose.translation().x(), p.pose.translation().y(), p.pose.translation().z()};
+      const mjtNum down[3] = {0, 0, -1};
+      int hit = -1;
+      const mjtNum distance = mj_ray(m, d, from, down, nullptr, 1, ids.body, &hit);
+      if (hit >= 0 && distance >= 0 && distance - spec.size.z() / 2 <= kRestGap) support_geom[w] = hit;
+    }
+    if (p.parked) {
+      p.support = SupportKind::parked;
+    } else if (p.held_by) {
+      p.support = SupportKind::gripper;
+      p.support_name = scene_.robots()[*p.held_by].name;
+    } else if (support_geom[w] >= 0) {
+      const int g = support_geom[w];
+      const int b = m->geom_bodyid[g];
+      const BodyInfo& o = bodies_[static_cast<std::size_t>(b)];
+      if (o.workpiece >= 0) {
+        p.support = SupportKind::workpiece;
+        p.support_name = scene_.workpieces()[static_cast<std::size_t>(o.workpiece)].name;
+      } else if (o.robot >= 0) {
+        p.support = SupportKind::robot;
+        p.support_name = scene_.robots()[static_cast<std::size_t>(o.robot)].name;
+      } else {
+        p.support = SupportKind::other;
+        p.support_name = name_of(m, mjOBJ_GEOM, g);
+        if (p.support_name.empty()) p.support_name = name_of(m, mjOBJ_BODY, b);
+        for (const ConveyorIds& c : scene_.conveyors()) {
+          if (b == c.body || b == c.belt_body) {
+            p.support = SupportKind::conveyor;
+            p.support_name = c.name;
+          }
+        }
+        for (const MachineIds& mc : scene_.machines()) {
+          if (b == mc.body) {
+            p.support = SupportKind::machine;
+            p.support_name = mc.name;
+          }
+        }
+        if (m->geom_type[g] == mjGEOM_PLANE) {
+          p.support = SupportKind::floor;
+          p.support_name = name_of(m, mjOBJ_GEOM, g);
+        }
+      }
+    }
+    if (!p.parked) {
+      // The bottom centre of an upright part, against the locations' points.
+      const Eigen::Vector3d bottom = p.pose.translation() - Eigen::Vector3d(0, 0, spec.size.z() / 2);
+      double best = std::numeric_limits<double>::infinity();
+      for (const LocationSpec& l : cell.locations) {
+        const Eigen::Vector3d diff = bottom - l.pose.xyz;
+        const double horizontal = diff.head<2>().norm();
+        if (horizontal <= options_.location_tolerance && std::abs(diff.z()) <= options_.location_height_tolerance &&
+            horizontal < best) {
+          best = horizontal;
+          p.location = l.name;
+        }
+      }
+    }
+    t.workpieces.push_back(std::move(p));
+  }
+  return t;
+}
+
+std::string_view to_string(SupportKind kind) {
+  switch (kind) {
+    case SupportKind::none:
+      return "none";
+    case SupportKind::gripper:
+      return "gripper";
+    case SupportKind::conveyor:
+      return "conveyor";
+    case SupportKind::machine:
+      return "machine";
+    case SupportKind::floor:
+      return "floor";
+    case SupportKind::workpiece:
+      return "workpiece";
+    case SupportKind::robot:
+      return "robot";
+    case SupportKind::other:
+      return "other";
+    case SupportKind::parked:
+      return "parked";
+  }
+  return "?";
+}
+
+std::string_view to_string(FeedStatus status) {
+  switch (status) {
+    case FeedStatus::ok:
+      return "ok";
+    case FeedStatus::unknown_workpiece:
+      return "unknown_workpiece";
+    case FeedStatus::unknown_conveyor:
+      return "unknown_conveyor";
+    case FeedStatus::not_parked:
+      return "not_parked";
+    case FeedStatus::occupied:
+      return "occupied";
+  }
+  return "?";
+}
+
+}  // namespace cellwright::twin::sim

@@ -229,7 +229,8 @@ TEST_F(ScenarioFiles, NumbersOutOfRange) {
   const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
   expect_error(scenario(head + "seed: -1\n"), 5, "field 'seed' of the scenario must be a whole number");
   expect_error(scenario(head + "limits: {sim_time: 0}\n"), 5, "must be greater than 0");
-  expect_error(scenario(head + "options:\n  control_period: 0.0001\n"), 6, "at least the cell's simulation time step");
+  expect_error(scenario(head + "options:\n  control_period: 0.0001\n"), 6, "whole multiple of the cell's simulation");
+  expect_error(scenario(head + "options:\n  control_period: 0.005\n"), 6, "whole multiple of the cell's simulation");
   expect_error(scenario(head + "options: {realtime: maybe}\n"), 5, "must be true or false");
 }
 
@@ -247,6 +248,20 @@ TEST_F(ScenarioFiles, ExchangeScenarioPassesPreflight) {
               ::testing::ElementsAre("puma: workpiece 'A' at location 'input_pick'", "puma: the hand-over 'exchange'",
                                      "melfa: the hand-over 'exchange'", "melfa: location 'output_drop'"));
   for (const ReachCheck& c : p.reach) EXPECT_TRUE(c.reachable) << c.robot << " " << c.target;
+}
+
+TEST_F(ScenarioFiles, MoveThePlanCannotMakeIsRefused) {
+  // Backed off 30 cm from its side grasp at the hand-over, the MELFA's tool would be at its own base: both of its
+  // moves to hand_approach(r1) (approach, and depart holding A) are refused, naming the command and its source.
+  const Scenario s = load_scenario(
+      scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\noptions: {handover_clearance: 0.3}\n"));
+  const Preflight p = preflight(s);
+  EXPECT_FALSE(p.ok());
+  const auto approach =
+      ::testing::AllOf(HasSubstr("robot 'melfa' (r2) cannot make 'move hand_approach(r1)'"),
+                       HasSubstr("(exchange.task:9:14 'Get r1')"), HasSubstr("no joint configuration"));
+  EXPECT_THAT(p.problems, ::testing::Contains(approach).Times(2));
+  EXPECT_THAT(p.problems, ::testing::Contains(HasSubstr("holding A")));
 }
 
 TEST_F(ScenarioFiles, DeadlockingProgramFailsPreflightWithTheCheck) {

@@ -13,6 +13,7 @@
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/task/compile.hpp"
 #include "cellwright/task/to_net.hpp"
+#include "cellwright/twin/scenario/estimate.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -408,13 +409,17 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     s.limits.wall_time = lf.positive_or("wall_time", 0.0);
   }
   if (f.has("options")) {
-    const Fields of(doc, f.node("options"), "field 'options'", {"realtime", "control_period", "settle_time"});
+    const Fields of(doc, f.node("options"), "field 'options'",
+                    {"realtime", "control_period", "settle_time", "handover_clearance"});
     s.options.realtime = of.boolean_or("realtime", s.options.realtime);
     s.options.control_period = of.positive_or("control_period", s.options.control_period);
     s.options.settle_time = of.non_negative_or("settle_time", s.options.settle_time);
-    if (s.options.control_period < s.cell.timestep) {
+    s.options.handover_clearance = of.positive_or("handover_clearance", s.options.handover_clearance);
+    // The simulation advances a whole number of physics steps per control period.
+    const double steps = s.options.control_period / s.cell.timestep;
+    if (steps < 1 - 1e-9 || std::abs(steps - std::round(steps)) > 1e-6) {
       doc.fail(of.node("control_period"),
-               fmt::format("{} must be at least the cell's simulation time step ({} s), got {}",
+               fmt::format("{} must be a whole multiple of the cell's simulation time step ({} s), got {}",
                            of.field("control_period"), s.cell.timestep, s.options.control_period));
     }
   }
@@ -676,6 +681,14 @@ Preflight preflight(const Scenario& s) {
         "first joint (maximum reach {:.3f} m){}",
         c.robot, c.target, n.why, c.tcp_world.translation().x(), c.tcp_world.translation().y(),
         c.tcp_world.translation().z(), c.distance, c.max_reach, c.reason.empty() ? "" : ": " + c.reason));
+  }
+
+  // Every move as robot control will make it: a part held from the side is put down from the side, a taker waits
+  // backed off from the hand-over; check_reach's grasps from above do not cover those.
+  if (out.problems.empty()) {
+    runtime::TargetOptions targets;
+    targets.handover_clearance = s.options.handover_clearance;
+    for (std::string& p : plan_motions(s, out.net, targets).problems()) out.problems.push_back(std::move(p));
   }
   return out;
 }

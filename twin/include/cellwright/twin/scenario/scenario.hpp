@@ -24,6 +24,7 @@
 #include "cellwright/petri/net.hpp"
 #include "cellwright/task/compiled.hpp"
 #include "cellwright/twin/cell.hpp"
+#include "cellwright/twin/runtime/environment_model.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -73,6 +74,9 @@ struct Options {
   bool realtime = false;         // pace the simulation to the wall clock (default: lock-step on the virtual clock)
   double control_period = 0.01;  // s of sim time between the control threads' turns
   double settle_time = 1.0;      // s simulated after the program finishes, before the outcome is judged
+  // m: how far a taker's tool stays back from the hand-over grasp while it waits for the giver (hand_approach);
+  // the runtime's TargetOptions default unless the scenario sets it.
+  double handover_clearance = runtime::TargetOptions{}.handover_clearance;
 };
 
 struct Scenario {
@@ -133,7 +137,10 @@ struct Preflight {
 // analysis is complete, deadlock-free, bounded and every region exclusive), and checks the reach of every target the
 // program's moves need: for each program robot, the grasp and approach poses of the locations it moves to, of the
 // places where it picks workpieces (their initial pose, or a conveyor's pick point: the stop bar when it has one),
-// and its grasp at the hand-over when it puts or gets. A robot missing from the cell's hand-over grasps is a problem.
+// and its grasp at the hand-over when it puts or gets (a robot missing from the cell's hand-over grasps is a problem).
+// When all of that holds, it also plans every move as robot control will make it (estimate.hpp plan_motions, with
+// options.handover_clearance) and reports each move that cannot be made: a part held from the side that cannot be
+// put down from the side, a taker that cannot wait backed off from the hand-over.
 // Throws InputError only if a URDF cannot be read (load_scenario has read them once already).
 Preflight preflight(const Scenario& scenario);
 

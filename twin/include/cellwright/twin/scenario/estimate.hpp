@@ -1,0 +1,111 @@
+// The cycle-time estimate made before a run: the program's Petri net timed with the durations of its commands and
+// simulated at earliest firing times (timed_net.hpp), all robots concurrent, waits resolved at the times of their
+// signals.
+//
+// First the motion plan (plan_motions), which follows the program in the order one untimed run of the net gives: each
+// move's target is resolved as robot control resolves it (runtime::resolve_target on an environment model that
+// follows the program: parts held move with the hand and keep the approach they were grasped with, parts put down
+// rest where they were put, parts on a conveyor are picked at its stop) and solved with the robot's inverse kinematics
+// from its previous joints (the solution within the limits closest to them). Preflight refuses a program with a move
+// the plan cannot make.
+//
+// Then the command durations, per robot primitive:
+//  - move: timed as the simulated controller times a joint move (sim::move_duration: the quintic profile's peak within
+//    max_joint_speed x speed, at least min_move_time);
+//  - open/close: the fingers' quintic travel across their whole range at finger_speed;
+//  - signal/wait: 0 (a wait lasts until its signal, which the timed net resolves);
+//  - each move/open/close also costs `dispatch` seconds: the control periods between a command's completion and the
+//    firing that starts the next one.
+// A part that arrives on a conveyor (fed, or carried to the stop from where it starts) holds back the move that goes
+// to pick it until it has arrived, at the belt's speed; parts queueing behind each other are not modelled.
+//
+// Thread safety: pure functions; any thread may call them.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/petri/net.hpp"
+#include "cellwright/task/compiled.hpp"
+#include "cellwright/twin/runtime/environment_model.hpp"
+#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/twin/scenario/timed_net.hpp"
+
+namespace cellwright::twin::scenario {
+
+// One primitive of the program as the motion plan follows it.
+struct PlannedCommand {
+  std::string robot;  // program label
+  std::string cell;   // cell robot
+  std::size_t primitive = 0;
+  task::PrimitiveKind kind = task::PrimitiveKind::kMove;
+  std::string command;   // "move above(A)"
+  std::string source;    // the task-level command it belongs to: "exchange.task:10:14 'Place B'"
+  bool reached = false;  // the untimed run of the net reached it
+  // Moves only:
+  std::vector<double> from, goal;  // joints before and after (goal empty when the move cannot be made)
+  std::string target;              // the resolved target ("above B: tool at (...)"), or "" when unresolved
+  std::string problem;             // why the move cannot be made, "" when it can
+};
+
+// A part that has to arrive before a robot can go to it: `transition` starts the first move to it.
+struct ArrivalGate {
+  petri::TransitionId transition = 0;
+  std::string workpiece;  // cell name
+  double ready = 0;       // s: when it is at the stop, at rest
+};
+
+struct MotionPlan {
+  std::vector<std::vector<PlannedCommand>> commands;  // per program robot, per primitive
+  std::vector<ArrivalGate> gates;
+  // One line per move that cannot be made: the robot, the command, its source and why.
+  std::vector<std::string> problems() const;
+};
+
+// Follows one untimed run of the net (petri::choose over everything enabled) and plans every move as robot control
+// will make it (see the top): parts ride conveyors to their stop, are held, handed over and put down. Moves whose
+// target cannot be resolved or has no inverse-kinematics solution within the joint limits are reported in
+// PlannedCommand::problem (the robot then stays where it was). Throws InputError if a URDF cannot be read.
+MotionPlan plan_motions(const Scenario& scenario, const petri::Net& net, const runtime::TargetOptions& targets);
+
+// How fast one robot's controller executes commands (the simulated controller's settings).
+struct RobotTiming {
+  std::vector<double> max_joint_speed;  // rad/s per arm joint at speed 1
+  double speed = 0.5;                   // fraction of max_joint_speed the moves use
+  double min_move_time = 0.2;           // s, the shortest motion
+  double finger_speed = 0.05;           // m/s of each finger
+  double finger_travel = 0.04;          // m of each finger from fully open to fully closed
+};
+
+struct EstimateOptions {
+  std::map<std::string, RobotTiming> robots;  // by cell robot name; every program robot needs one
+  double dispatch = 0.02;                     // s per command, see the top
+  runtime::TargetOptions targets;
+};
+
+// One primitive's estimated duration and what it is based on.
+struct CommandEstimate {
+  std::string robot;  // program label
+  std::size_t primitive = 0;
+  std::string command;  // "move above(A)"
+  double seconds = 0;
+  std::string basis;  // "joint move, largest step 1.234 rad (joint 2)", "finger travel ...", "net only"
+};
+
+struct Estimate {
+  std::vector<CommandEstimate> commands;  // every primitive of every robot, program order
+  std::vector<double> place_duration;     // per place of the timed net
+  petri::Net timed_net;                   // the program's net with the arrival places added
+  TimedRun run;
+  double cycle_time = 0;           // run.finish: when the last robot is done
+  std::vector<std::string> notes;  // targets that could not be resolved (their moves count min_move_time)
+};
+
+// Estimates the cycle time of the scenario's program, whose net is `net` (task::to_net of the program), from its
+// motion plan. Throws InternalError when a program robot has no timing in `options` (or one of the wrong size);
+// InputError if a URDF cannot be read.
+Estimate estimate_cycle_time(const Scenario& scenario, const petri::Net& net, const EstimateOptions& options);
+
+}  // namespace cellwright::twin::scenario

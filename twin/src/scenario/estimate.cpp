@@ -1,0 +1,292 @@
+// The cycle-time estimate before a run (estimate.hpp).
+#include "cellwright/twin/scenario/estimate.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/petri/firing.hpp"
+#include "cellwright/task/to_net.hpp"
+#include "cellwright/twin/sim/trajectory.hpp"
+
+namespace cellwright::twin::scenario {
+
+namespace {
+
+Eigen::VectorXd vec(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+// When a part on a conveyor can first be picked: it rides the belt to the stop (or the end), from where it starts
+// or, when fed, from the entry point at its arrival time. nullopt for a part not on a conveyor.
+std::optional<double> pick_ready_time(const CellDescription& cell, const WorkpieceSpec& w,
+                                      const std::optional<Feed>& feed, Eigen::Isometry3d& pick_pose) {
+  std::optional<std::size_t> fed;
+  if (feed) {
+    auto it = std::find(feed->workpieces.begin(), feed->workpieces.end(), w.name);
+    if (it != feed->workpieces.end()) fed = static_cast<std::size_t>(it - feed->workpieces.begin());
+  }
+  const ConveyorSpec* c = cell.find_conveyor(fed ? feed->conveyor : w.on);
+  if (c == nullptr) return std::nullopt;
+  const double start_time = fed ? feed->arrival(*fed) : 0.0;
+  const double start_s = fed ? c->enter : (c->pose.transform().inverse() * w.pose.xyz).x() + c->length / 2;
+  const double stop_s = c->stop ? c->leave - w.size.x() / 2 : c->leave;
+  pick_pose = Eigen::Isometry3d::Identity();
+  pick_pose.linear() = Eigen::AngleAxisd(c->pose.rpy.z(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  pick_pose.translation() = c->belt_point(stop_s) + Eigen::Vector3d(0, 0, w.size.z() / 2);
+  const double travel = std::max(0.0, stop_s - start_s);
+  return start_time + (c->speed > 0 ? travel / c->speed : 0.0);
+}
+
+// The program's net with extra places: one per part that arrives late, a self-loop on the transition that starts the
+// first move to it, holding its token until the part is there.
+petri::Net with_arrivals(const petri::Net& net, const std::vector<ArrivalGate>& gates, std::vector<double>& durations) {
+  petri::NetBuilder b(net.name());
+  for (const petri::Place& p : net.places()) b.add_place(p);
+  for (const petri::Transition& t : net.transitions()) b.add_transition(t);
+  for (const ArrivalGate& g : gates) {
+    petri::Place p;
+    p.id = fmt::format("arrival.{}", g.workpiece);
+    p.name = fmt::format("{} arrived", g.workpiece);
+    p.initial = 1;
+    const petri::PlaceId id = b.add_place(std::move(p));
+    durations.push_back(g.ready);
+    b.transition(g.transition).inputs.push_back({id, 1});
+    b.transition(g.transition).outputs.push_back({id, 1});
+  }
+  for (const petri::Region& r : net.regions()) b.add_region(r);
+  b.set_robots(net.robots());
+  b.set_final(net.final_places());
+  return std::move(b).build();
+}
+
+}  // namespace
+
+std::vector<std::string> MotionPlan::problems() const {
+  std::vector<std::string> out;
+  for (const auto& robot : commands) {
+    for (const PlannedCommand& c : robot) {
+      if (!c.problem.empty()) {
+        out.push_back(
+            fmt::format("robot '{}' ({}) cannot make '{}' ({}): {}", c.cell, c.robot, c.command, c.source, c.problem));
+      }
+    }
+  }
+  return out;
+}
+
+MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime::TargetOptions& targets) {
+  const task::CompiledProgram& prog = s.program;
+  struct Arm {
+    std::string cell;
+    models::KinematicChain chain;
+    Eigen::Isometry3d base;
+  };
+  std::vector<Arm> arms;
+  for (const std::string& label : prog.robots) {
+    const RobotSpec& spec = *s.cell.find_robot(s.robot_of(label));
+    arms.push_back(
+        {spec.name, models::KinematicChain::from_urdf_file(spec.urdf, "base_link", "tcp"), spec.base.transform()});
+  }
+
+  MotionPlan plan;
+  plan.commands.resize(prog.robots.size());
+  for (std::size_t r = 0; r < prog.robots.size(); ++r) {
+    const auto& prims = prog.programs[r].primitives;
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      PlannedCommand c;
+      c.robot = prog.robots[r];
+      c.cell = arms[r].cell;
+      c.primitive = k;
+      c.kind = prims[k].kind;
+      c.command = task::to_string(prims[k]);
+      c.source = fmt::format("{}:{}:{} '{}'", std::filesystem::path(prims[k].where.file).filename().string(),
+                             prims[k].where.line, prims[k].where.column, prims[k].task);
+      plan.commands[r].push_back(std::move(c));
+    }
+  }
+
+  // The environment model the plan follows: parts that ride a conveyor wait at its stop, at rest.
+  runtime::EnvironmentModel model = runtime::make_environment_model(s.cell);
+  std::map<std::string, double> ready_at;  // cell workpiece -> when it can be picked
+  for (const WorkpieceSpec& w : s.cell.workpieces) {
+    Eigen::Isometry3d pick = Eigen::Isometry3d::Identity();
+    if (auto t = pick_ready_time(s.cell, w, s.feed, pick)) {
+      runtime::WorkpieceState& ws = *model.find_workpiece(w.name);
+      ws.pose = pick;
+      ws.present = true;
+      ready_at[w.name] = *t;
+    }
+  }
+  // What each arm holds, relative to its tool (parts held move with the hand).
+  std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> held;  // cell robot -> (workpiece, tcp^-1 part)
+
+  auto tcp_of = [&](const Arm& a, const std::vector<double>& q) { return a.base * a.chain.forward(vec(q)); };
+  auto bound = [&](const task::Target& t) {
+    task::Target out = t;
+    if (t.kind == task::TargetKind::kAbove || t.kind == task::TargetKind::kAt) {
+      out.object = std::find(prog.workpieces.begin(), prog.workpieces.end(), t.object) != prog.workpieces.end()
+                       ? s.workpiece_of(t.object)
+                       : s.location_of(t.object);
+    } else if (t.kind != task::TargetKind::kHome) {
+      out.object = s.robot_of(t.object);
+    }
+    return out;
+  };
+
+  petri::Marking m = net.initial_marking();
+  petri::Arbiter arbiter = petri::make_arbiter(net);
+  std::uint64_t guard = 0;
+  while (!petri::is_dead(net, m) && guard++ < 1'000'000) {
+    const auto chosen = petri::choose(net, m, arbiter);
+    for (petri::TransitionId t : chosen) {
+      const petri::Transition& tr = net.transitions()[t];
+      if (!tr.starts_robot) continue;
+      const std::size_t r = *tr.starts_robot;
+      const std::size_t k = static_cast<std::size_t>(tr.starts_primitive);
+      PlannedCommand& c = plan.commands[r][k];
+      if (c.reached) continue;  // programs are straight lines: each primitive runs once
+      c.reached = true;
+      const task::Primitive& p = prog.programs[r].primitives[k];
+      const Arm& arm = arms[r];
+      runtime::RobotState& rs = *model.find_robot(arm.cell);
+      switch (p.kind) {
+        case task::PrimitiveKind::kMove: {
+          const task::Target target = bound(p.target);
+          // A part still to come holds back the first move to it.
+          if (target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt) {
+            if (auto it = ready_at.find(target.object); it != ready_at.end()) {
+              if (it->second > 0) plan.gates.push_back({t, target.object, it->second});
+              ready_at.erase(it);
+            }
+          }
+          c.from = rs.joints;
+          const runtime::MotionTarget mt = runtime::resolve_target(model, arm.cell, target, targets);
+          if (mt.resolution != runtime::MotionTarget::Resolution::kOk) {
+            c.problem = mt.reason;
+            break;
+          }
+          c.target = mt.description;
+          const Eigen::VectorXd from = vec(rs.joints);
+          std::optional<Eigen::VectorXd> goal;
+          std::string why;
+          if (!mt.joints.empty()) {
+            goal = vec(mt.joints);
+          } else {
+            for (const Eigen::Isometry3d& pose : mt.poses) {
+              const models::IkResult ik = arm.chain.inverse(arm.base.inverse() * pose, from);
+              if (ik.status == models::IkStatus::kOk && (!goal || (ik.q - from).norm() < (*goal - from).norm())) {
+                goal = ik.q;
+              }
+              if (ik.status != models::IkStatus::kOk && why.empty()) why = ik.reason;
+            }
+          }
+          if (!goal) {
+            const Eigen::Isometry3d& pose = mt.poses.front();
+            c.problem = fmt::format(
+                "no joint configuration puts its tool at ({:.3f}, {:.3f}, {:.3f}) pointing ({:.2f}, "
+                "{:.2f}, {:.2f}){}: {}",
+                pose.translation().x(), pose.translation().y(), pose.translation().z(), pose.linear()(0, 2),
+                pose.linear()(1, 2), pose.linear()(2, 2),
+                rs.hold ? fmt::format(" holding {}", rs.hold->workpiece) : std::string(), why);
+            break;
+          }
+          c.goal.assign(goal->data(), goal->data() + goal->size());
+          rs.joints = c.goal;
+          if (auto h = held.find(arm.cell); h != held.end()) {
+            model.find_workpiece(h->second.first)->pose = tcp_of(arm, rs.joints) * h->second.second;
+          }
+          break;
+        }
+        case task::PrimitiveKind::kOpen:
+        case task::PrimitiveKind::kClose: {
+          if (p.workpiece.empty()) break;
+          const std::string w = s.workpiece_of(p.workpiece);
+          runtime::WorkpieceState& ws = *model.find_workpiece(w);
+          const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
+          if (p.kind == task::PrimitiveKind::kClose) {
+            held[arm.cell] = {w, tcp.inverse() * ws.pose};
+            ws.held_by = arm.cell;
+            // As robot control records it: held from above when the tool points down, else from the side.
+            const bool down = tcp.linear().col(2).z() < -0.7;
+            const double bottom = ws.pose.translation().z() - ws.size.z() / 2;
+            rs.hold = runtime::Hold{w, down ? Approach::kDown : Approach::kSide, tcp.translation().z() - bottom};
+          } else {
+            held.erase(arm.cell);
+            rs.hold.reset();
+            if (ws.held_by == arm.cell) ws.held_by.clear();
+          }
+          break;
+        }
+        case task::PrimitiveKind::kSignal:
+        case task::PrimitiveKind::kWait:
+          break;
+      }
+    }
+    petri::fire_chosen(net, m, arbiter, chosen);
+  }
+  return plan;
+}
+
+Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const EstimateOptions& options) {
+  Estimate est;
+  const task::CompiledProgram& prog = s.program;
+  std::vector<const RobotTiming*> timing;
+  for (const std::string& label : prog.robots) {
+    const std::string& cell_name = s.robot_of(label);
+    auto it = options.robots.find(cell_name);
+    CW_CHECK(it != options.robots.end(), "no timing for robot {}", cell_name);
+    timing.push_back(&it->second);
+  }
+  const MotionPlan plan = plan_motions(s, net, options.targets);
+  est.notes = plan.problems();
+
+  std::vector<double> durations(net.num_places(), 0.0);
+  for (std::size_t r = 0; r < plan.commands.size(); ++r) {
+    const RobotTiming& rt = *timing[r];
+    for (const PlannedCommand& c : plan.commands[r]) {
+      CommandEstimate ce;
+      ce.robot = c.robot;
+      ce.primitive = c.primitive;
+      ce.command = c.command;
+      switch (c.kind) {
+        case task::PrimitiveKind::kMove:
+          if (c.goal.empty()) {
+            ce.seconds = rt.min_move_time + options.dispatch;
+            ce.basis = c.reached ? "move that cannot be made" : "not reached";
+          } else {
+            CW_CHECK(rt.max_joint_speed.size() == c.goal.size(), "robot {}: {} joint speeds for {} joints", c.cell,
+                     rt.max_joint_speed.size(), c.goal.size());
+            const Eigen::VectorXd from = vec(c.from), goal = vec(c.goal);
+            ce.seconds =
+                sim::move_duration(from, goal, vec(rt.max_joint_speed), rt.speed, rt.min_move_time) + options.dispatch;
+            Eigen::Index j = 0;
+            const double largest = (goal - from).cwiseAbs().maxCoeff(&j);
+            ce.basis = fmt::format("joint move, largest step {:.3f} rad (joint {})", largest, j + 1);
+          }
+          break;
+        case task::PrimitiveKind::kOpen:
+        case task::PrimitiveKind::kClose:
+          ce.seconds = sim::kQuinticPeakSpeed * rt.finger_travel / rt.finger_speed + options.dispatch;
+          ce.basis = fmt::format("finger travel {:.3f} m at {:.3f} m/s", rt.finger_travel, rt.finger_speed);
+          break;
+        case task::PrimitiveKind::kSignal:
+        case task::PrimitiveKind::kWait:
+          ce.basis = "net only";
+          break;
+      }
+      durations[*net.find_place(task::place_id(c.robot, c.primitive))] = ce.seconds;
+      est.commands.push_back(std::move(ce));
+    }
+  }
+  est.timed_net = with_arrivals(net, plan.gates, durations);
+  est.place_duration = durations;
+  est.run = simulate_timed(est.timed_net, durations);
+  est.cycle_time = est.run.finish;
+  return est;
+}
+
+}  // namespace cellwright::twin::scenario

@@ -19,5 +19,7 @@ void add_compile(CLI::App& app, Command* run);
 void add_check(CLI::App& app, Command* run);
 void add_analyze(CLI::App& app, Command* run);
 void add_snapshot(CLI::App& app, Command* run);
+void add_run(CLI::App& app, Command* run);
+void add_step(CLI::App& app, Command* run);
 
 }  // namespace cellwright::tools

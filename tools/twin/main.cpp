@@ -13,6 +13,8 @@ int main(int argc, char** argv) {
   cellwright::tools::add_check(app, &run);
   cellwright::tools::add_analyze(app, &run);
   cellwright::tools::add_snapshot(app, &run);
+  cellwright::tools::add_run(app, &run);
+  cellwright::tools::add_step(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

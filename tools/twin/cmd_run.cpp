@@ -1,0 +1,164 @@
+// `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet]`: run a scenario's task program on the simulated cell,
+// headless, and judge the outcome. Exit 0 when the run finished and every expected outcome holds, 1 when not, 2 on
+// bad input (refused before any thread starts, nothing written).
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "cellwright/petri/analysis.hpp"
+#include "cellwright/twin/scenario/run.hpp"
+#include "cellwright/twin/scenario/scenario.hpp"
+#include "commands.hpp"
+
+namespace cellwright::tools {
+
+namespace {
+
+using twin::runtime::SimDuration;
+
+// The progress line: sim time, firings and what each robot is doing. Robot commands are taken from the runtime's view
+// between steps (main thread) and printed by the simulation thread's progress callback, hence the mutex.
+class Progress {
+ public:
+  explicit Progress(bool quiet) : quiet_(quiet), tty_(isatty(STDOUT_FILENO) == 1) {}
+
+  bool tty() const { return tty_; }
+  // How often (sim time) the callback prints: often on a terminal (the line is overwritten), every few seconds in a
+  // log.
+  SimDuration every() const { return tty_ ? std::chrono::milliseconds(200) : std::chrono::seconds(5); }
+
+  void set_robots(const std::vector<twin::runtime::RobotView>& robots) {
+    std::string s;
+    for (const auto& r : robots) {
+      s += fmt::format(
+          "  {}: {}", r.robot,
+          r.done ? std::string("done") : fmt::format("{} {}", twin::runtime::to_string(r.activity), r.command));
+    }
+    std::lock_guard lock(mutex_);
+    robots_ = std::move(s);
+  }
+
+  void print(SimDuration t, std::uint64_t firings) {
+    if (quiet_) return;
+    std::string robots;
+    {
+      std::lock_guard lock(mutex_);
+      robots = robots_;
+    }
+    const std::string line =
+        fmt::format("t = {:7.2f} s  firings {:4}{}", std::chrono::duration<double>(t).count(), firings, robots);
+    if (tty_) {
+      // Overwrite the previous line; pad so a shorter line leaves nothing behind.
+      std::printf("\r%-*s", static_cast<int>(std::max(width_, line.size())), line.c_str());
+      width_ = line.size();
+    } else {
+      std::printf("%s\n", line.c_str());
+    }
+    std::fflush(stdout);
+  }
+
+  // Ends an overwritten line before other output.
+  void finish() {
+    if (!quiet_ && tty_ && width_ > 0) std::printf("\n");
+    width_ = 0;
+  }
+
+ private:
+  const bool quiet_, tty_;
+  std::mutex mutex_;
+  std::string robots_;
+  std::size_t width_ = 0;
+};
+
+}  // namespace
+
+void add_run(CLI::App& app, Command* run) {
+  auto* cmd = app.add_subcommand("run",
+                                 "Run a scenario's task program on the simulated cell, headless. Writes events.jsonl, "
+                                 "report.json, gantt.png and final.png with -o. Exit 0 only if the run finished and "
+                                 "every expected outcome holds; 1 if not; 2 on bad input.");
+  struct Args {
+    std::string scenario;
+    std::string out;
+    bool realtime = false;
+    bool quiet = false;
+  };
+  auto args = std::make_shared<Args>();
+  cmd->add_option("scenario", args->scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
+  cmd->add_option("-o,--out", args->out, "directory for the outputs (created if needed)");
+  cmd->add_flag("--realtime", args->realtime, "pace the simulation to the wall clock instead of lock-step");
+  cmd->add_flag("--quiet", args->quiet, "no progress line");
+  cmd->callback([run, args] {
+    *run = [args] {
+      using namespace cellwright::twin::scenario;
+      const Scenario s = load_scenario(args->scenario);
+      const Preflight pre = preflight(s);
+      if (!pre.ok()) {
+        std::fprintf(stderr, "%s: refused, nothing was run:\n", args->scenario.c_str());
+        for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+        if (!pre.analysis.ok()) {
+          std::fprintf(stderr, "%s: %s", s.program_file.string().c_str(),
+                       petri::format_report(pre.net, pre.analysis).c_str());
+        }
+        return 2;
+      }
+
+      auto progress = std::make_shared<Progress>(args->quiet);
+      RunOptions options;
+      if (args->realtime) options.realtime = true;
+      options.on_progress = [progress](SimDuration t, std::uint64_t firings) { progress->print(t, firings); };
+      options.progress_every = progress->every();
+      ScenarioRun sr(s, pre.net, options);
+
+      if (!args->quiet) {
+        std::string robots;
+        for (const Binding& b : s.robots) robots += fmt::format(" {}={}", b.label, b.name);
+        std::printf("%s: %s on %s,%s, %s\n", args->scenario.c_str(), s.program_file.filename().c_str(),
+                    s.cell.name.c_str(), robots.c_str(), sr.realtime() ? "real time" : "lock-step");
+        std::printf("estimated cycle time %.2f s\n", sr.estimate().cycle_time);
+        std::fflush(stdout);
+      }
+
+      // Lock-step runs go firing by firing, so that the progress line can say what each robot does and the wall-time
+      // limit can end a run that takes too long; real-time runs are paced by the wall clock anyway.
+      std::optional<std::string> cut_short;
+      const auto wall_start = std::chrono::steady_clock::now();
+      if (sr.realtime()) {
+        sr.runtime().run();
+      } else {
+        for (;;) {
+          const twin::runtime::StepState st = sr.runtime().step();
+          if (st.ended) break;
+          progress->set_robots(st.task.robots);
+          const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+          if (s.limits.wall_time > 0 && wall > s.limits.wall_time) {
+            cut_short = fmt::format("wall time limit of {} s reached at sim time {:.2f} s", s.limits.wall_time,
+                                    std::chrono::duration<double>(st.time).count());
+            break;
+          }
+        }
+      }
+      progress->finish();
+
+      Report report = sr.report();
+      if (cut_short) {
+        report.outcome = "timeout";
+        report.reason = *cut_short;
+        report.failures.insert(report.failures.begin(), fmt::format("the run did not finish: {}", *cut_short));
+      }
+      if (!args->out.empty()) {
+        write_outputs(args->out, s, report, sr.runtime().log().text(), sr.snapshot(800, 600));
+      }
+      std::printf("%s", format_summary(report).c_str());
+      if (!args->out.empty()) std::printf("outputs in %s\n", args->out.c_str());
+      return report.ok() ? 0 : 1;
+    };
+  });
+}
+
+}  // namespace cellwright::tools

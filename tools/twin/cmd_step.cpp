@@ -1,0 +1,151 @@
+// `twin step <scenario.yaml>`: step the concurrent processes one firing at a time from the terminal, as the paper's
+// simulator does for debugging. Commands are read from standard input, one per line (a pipe works as well as a
+// terminal): Enter or `n` next firing, `c` continue to the end, `s FILE` save a snapshot PNG, `m` show the marking,
+// `q` quit, `h` help. Exit status as `twin run` once the run has ended; 0 when quit before; 2 on bad input.
+#include <unistd.h>
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "cellwright/petri/analysis.hpp"
+#include "cellwright/twin/render.hpp"
+#include "cellwright/twin/scenario/run.hpp"
+#include "cellwright/twin/scenario/scenario.hpp"
+#include "commands.hpp"
+
+namespace cellwright::tools {
+
+namespace {
+
+const char* const kHelp =
+    "commands: Enter or n = next firing, c = continue to the end, s FILE = save a snapshot PNG, m = show the "
+    "marking, q = quit, h = this help\n";
+
+// "r1 line 8 'Pick A' (grasp A): r1 begin close A" for transition t (describe_path without its numbering).
+std::string describe_transition(const petri::Net& net, petri::TransitionId t) {
+  std::string s = petri::describe_path(net, {t});
+  if (const auto dot = s.find(". "); dot != std::string::npos && dot < 6) s = s.substr(dot + 2);
+  return fmt::format("{}: {}", net.transitions()[t].id, s);
+}
+
+void print_marking(const petri::Net& net, const petri::Marking& m) {
+  std::printf("  marking: %s\n", petri::describe_marking(net, m).c_str());
+}
+
+void print_state(const petri::Net& net, const twin::runtime::StepState& st, bool with_firings) {
+  std::printf("t = %.3f s, %llu firings\n", std::chrono::duration<double>(st.time).count(),
+              static_cast<unsigned long long>(st.task.firings));
+  if (with_firings) {
+    for (const std::string& id : st.task.last_fired) {
+      if (auto t = net.find_transition(id)) std::printf("  fired %s\n", describe_transition(net, *t).c_str());
+    }
+  }
+  print_marking(net, st.task.marking);
+  for (std::size_t i = 0; i < st.task.robots.size(); ++i) {
+    const twin::runtime::RobotView& task_view = st.task.robots[i];
+    std::string line = fmt::format("  {}: {}", task_view.robot,
+                                   task_view.done ? std::string("done")
+                                                  : fmt::format("{} {}", twin::runtime::to_string(task_view.activity),
+                                                                task_view.command.empty() ? "-" : task_view.command));
+    if (i < st.robots.size()) {
+      const twin::runtime::RobotControlView& rc = st.robots[i];
+      line += fmt::format("  [{} {}, driver {}{}]", rc.cell, twin::runtime::to_string(rc.phase),
+                          drivers::to_string(rc.driver), rc.detail.empty() ? "" : ": " + rc.detail);
+    }
+    std::printf("%s\n", line.c_str());
+  }
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+void add_step(CLI::App& app, Command* run) {
+  auto* cmd = app.add_subcommand("step",
+                                 "Step a scenario one firing at a time, reading commands from standard input: Enter/n "
+                                 "next firing, c continue, s FILE snapshot, m marking, q quit.");
+  auto scenario = std::make_shared<std::string>();
+  cmd->add_option("scenario", *scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
+  cmd->callback([run, scenario] {
+    *run = [scenario] {
+      using namespace cellwright::twin::scenario;
+      const Scenario s = load_scenario(*scenario);
+      const Preflight pre = preflight(s);
+      if (!pre.ok()) {
+        std::fprintf(stderr, "%s: refused, nothing was run:\n", scenario->c_str());
+        for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+        return 2;
+      }
+      RunOptions options;
+      options.realtime = false;  // stepping is lock-step
+      ScenarioRun sr(s, pre.net, options);
+      const petri::Net& net = sr.runtime().config().net;
+      const bool interactive = isatty(STDIN_FILENO) == 1;
+
+      std::printf("%s: %s on %s, stepping one firing at a time\n", scenario->c_str(), s.program_file.filename().c_str(),
+                  s.cell.name.c_str());
+      std::printf("estimated cycle time %.2f s\n", sr.estimate().cycle_time);
+      print_marking(net, net.initial_marking());
+      std::printf("%s", kHelp);
+      std::fflush(stdout);
+
+      std::optional<twin::runtime::StepState> last;
+      auto finish = [&](const twin::runtime::StepState& st) {
+        print_state(net, st, false);
+        const Report report = sr.report();
+        std::printf("%s", format_summary(report).c_str());
+        return report.ok() ? 0 : 1;
+      };
+      std::string line;
+      for (;;) {
+        if (interactive) {
+          std::printf("(step) ");
+          std::fflush(stdout);
+        }
+        if (!std::getline(std::cin, line)) line = "q";  // end of input quits
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        const std::string word = line.substr(0, line.find(' '));
+        const std::string rest = line.find(' ') == std::string::npos ? "" : line.substr(line.find(' ') + 1);
+        if (word.empty() || word == "n") {
+          last = sr.runtime().step();
+          if (last->ended) {
+            std::printf("the run has ended (%s)\n", twin::runtime::to_string(last->result->outcome));
+            return finish(*last);
+          }
+          print_state(net, *last, true);
+        } else if (word == "c") {
+          sr.runtime().run();
+          last = sr.runtime().step();  // the ended state: the same result again, with the views
+          std::printf("ran to the end (%s)\n", twin::runtime::to_string(last->result->outcome));
+          return finish(*last);
+        } else if (word == "m") {
+          print_marking(net, last ? last->task.marking : net.initial_marking());
+          std::fflush(stdout);
+        } else if (word == "s") {
+          if (rest.empty()) {
+            std::printf("s needs a file name: s FILE.png\n");
+          } else {
+            try {
+              twin::write_png(sr.snapshot(800, 600), rest);
+              std::printf("saved %s\n", rest.c_str());
+            } catch (const InputError& e) {
+              std::printf("%s\n", e.what());
+            }
+          }
+          std::fflush(stdout);
+        } else if (word == "q") {
+          std::printf("quit at t = %.3f s\n", last ? std::chrono::duration<double>(last->time).count() : 0.0);
+          return 0;
+        } else if (word == "h" || word == "?") {
+          std::printf("%s", kHelp);
+        } else {
+          std::printf("unknown command '%s'; %s", line.c_str(), kHelp);
+          std::fflush(stdout);
+        }
+      }
+    };
+  });
+}
+
+}  // namespace cellwright::tools

@@ -1,0 +1,94 @@
+// One run of a scenario on the simulated cell: everything `twin run`, `twin step` and the pipeline benchmark share.
+// It builds the MuJoCo scene and World, the simulation drivers, the plant (with the scenario's workpiece feed), the
+// cycle-time estimate and the Runtime; after the run it turns the result into the report and writes the outputs.
+//
+// Order of use (main thread):
+//    Scenario s = load_scenario(file);            // InputError: bad input
+//    Preflight p = preflight(s);                  // !p.ok(): refuse, nothing built
+//    ScenarioRun run(s, p.net, options);          // builds, starts no thread
+//    RunResult r = run.runtime().run();           // or runtime().step() ...
+//    Report rep = run.report();
+//    write_outputs(dir, s, rep, run.runtime().log().text(), run.snapshot(800, 600));
+//
+// Threads: a ScenarioRun is used by one thread, the caller's; the Runtime it holds starts and joins the others.
+// world() and snapshot() may be used only while the runtime's threads are not running (before run(), between
+// steps, after the run).
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/petri/net.hpp"
+#include "cellwright/twin/runtime/runtime.hpp"
+#include "cellwright/twin/scenario/estimate.hpp"
+#include "cellwright/twin/scenario/report.hpp"
+#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/twin/sim/world.hpp"
+
+namespace cellwright::twin::scenario {
+
+struct RunOptions {
+  std::optional<bool> realtime;  // overrides the scenario's options.realtime when set (`--realtime`)
+  // Called on the simulation thread every `progress_every` of simulation time with the time and the firings so far.
+  // Must be short and must not touch the ScenarioRun.
+  std::function<void(runtime::SimDuration, std::uint64_t)> on_progress;
+  runtime::SimDuration progress_every = std::chrono::seconds(1);
+};
+
+class ScenarioRun {
+ public:
+  // Builds the scene and World (feed workpieces parked), a simulation driver per program robot, the plant that feeds
+  // workpieces at their times, the estimate and the Runtime. `net` is preflight's net of the scenario's program.
+  // Throws InputError if MuJoCo rejects the cell or a driver's configuration cannot work; nothing runs yet.
+  ScenarioRun(const Scenario& scenario, const petri::Net& net, RunOptions options = {});
+  ~ScenarioRun();
+  ScenarioRun(const ScenarioRun&) = delete;
+  ScenarioRun& operator=(const ScenarioRun&) = delete;
+
+  const Scenario& scenario() const { return scenario_; }
+  const Estimate& estimate() const { return estimate_; }
+  runtime::Runtime& runtime() { return *runtime_; }
+  sim::World& world() { return *world_; }
+  bool realtime() const { return realtime_; }
+
+  // The cell's workpieces as the simulation has them now (ground truth: parked parts are not present, a part both
+  // finger pads of a robot touch is held by it). Only while the runtime's threads are not running.
+  std::vector<FinalPose> final_poses() const;
+
+  // The report of the run so far (make_report on the runtime's event log, final_poses() and the estimate). Only while
+  // the runtime's threads are not running: after run(), or between steps (then the log has no run_end yet).
+  Report report() const;
+
+  // The overview camera's view of the cell now (a copy of the simulation state is rendered, headless).
+  cv::Mat snapshot(int width, int height) const;
+
+ private:
+  const Scenario& scenario_;
+  bool realtime_ = false;
+  std::unique_ptr<sim::World> world_;
+  std::unique_ptr<runtime::Plant> plant_;
+  Estimate estimate_;
+  std::unique_ptr<runtime::Runtime> runtime_;
+};
+
+// The file names write_outputs writes into its directory.
+inline constexpr const char* kEventsFile = "events.jsonl";
+inline constexpr const char* kReportFile = "report.json";
+inline constexpr const char* kGanttFile = "gantt.png";
+inline constexpr const char* kFinalFile = "final.png";
+
+// Writes events.jsonl (the log's text as given), report.json, gantt.png (draw_gantt of the report's timeline) and,
+// if `final_image` is not empty, final.png into `dir`, creating it if needed; each file atomically (temporary file,
+// then rename). Throws InputError naming the path when a file or the directory cannot be written.
+void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
+                   const std::string& events, const cv::Mat& final_image);
+
+}  // namespace cellwright::twin::scenario

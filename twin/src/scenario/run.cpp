@@ -1,0 +1,130 @@
+// One run of a scenario on the simulated cell (run.hpp).
+#include "cellwright/twin/scenario/run.hpp"
+
+#include <fmt/format.h>
+
+#include <memory>
+#include <system_error>
+
+#include "cellwright/common/files.hpp"
+#include "cellwright/twin/render.hpp"
+#include "cellwright/twin/runtime/world_plant.hpp"
+#include "cellwright/twin/scenario/gantt.hpp"
+#include "cellwright/twin/scene.hpp"
+
+namespace cellwright::twin::scenario {
+
+namespace {
+
+runtime::SimDuration seconds(double s) {
+  return std::chrono::duration_cast<runtime::SimDuration>(std::chrono::duration<double>(s));
+}
+
+}  // namespace
+
+ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions options)
+    : scenario_(s), realtime_(options.realtime.value_or(s.options.realtime)) {
+  sim::WorldOptions world_options;
+  world_options.where = {s.source.string(), 0, 0};
+  if (s.feed) world_options.parked = s.feed->workpieces;
+  world_ = std::make_unique<sim::World>(build_scene(s.cell), world_options);
+
+  runtime::RunConfig config;
+  config.program = s.program;
+  config.net = net;
+  config.cell = s.cell;
+  config.binding.where = {s.source.string(), 0, 0};
+  for (const Binding& b : s.robots) config.binding.robots[b.label] = {b.name, b.where};
+  for (const Binding& b : s.workpieces) config.binding.objects[b.label] = {b.name, b.where};
+  for (const Binding& b : s.locations) config.binding.objects[b.label] = {b.name, b.where};
+
+  // A simulation driver for each robot the program uses, and the timing the estimate needs from it.
+  EstimateOptions estimate_options;
+  estimate_options.targets.handover_clearance = s.options.handover_clearance;
+  // A command's completion is seen by robot control in the round the simulation completed it; task control fires the
+  // next transition in the following round, and the driver starts it at the next physics step: two control periods.
+  estimate_options.dispatch = 2 * s.options.control_period;
+  for (const Binding& b : s.robots) {
+    sim::SimDriverOptions driver_options;
+    for (const DriverChoice& d : s.drivers) {
+      if (d.robot == b.name) driver_options.where = d.where;
+    }
+    sim::SimDriver& driver = world_->add_sim_driver(b.name, driver_options);
+    config.drivers[b.name] = &driver;
+    RobotTiming timing;
+    timing.max_joint_speed = driver.capabilities().max_joint_speed;
+    timing.speed = config.motion.speed;
+    timing.min_move_time = driver_options.min_move_time;
+    timing.finger_speed = driver_options.finger_speed;
+    const RobotIds& ids = *world_->scene().find_robot(b.name);
+    timing.finger_travel = ids.finger_range[1] - ids.finger_range[0];
+    estimate_options.robots[b.name] = timing;
+  }
+
+  std::vector<runtime::FeedEvent> feed;
+  if (s.feed) {
+    for (std::size_t i = 0; i < s.feed->workpieces.size(); ++i) {
+      feed.push_back({seconds(s.feed->arrival(i)), s.feed->workpieces[i], s.feed->conveyor});
+    }
+  }
+  plant_ = std::make_unique<runtime::WorldPlant>(*world_, std::move(feed));
+  estimate_ = estimate_cycle_time(s, net, estimate_options);
+
+  config.plant = plant_.get();
+  config.mode = realtime_ ? runtime::Mode::kRealtime : runtime::Mode::kLockstep;
+  config.period = seconds(s.options.control_period);
+  config.limits.sim_time = seconds(s.limits.sim_time);
+  config.limits.settle = seconds(s.options.settle_time);
+  config.motion.targets.handover_clearance = s.options.handover_clearance;
+  config.on_progress = std::move(options.on_progress);
+  config.progress_every = options.progress_every;
+  runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
+}
+
+ScenarioRun::~ScenarioRun() {
+  runtime_.reset();  // joins the threads before the plant and the World they use go
+}
+
+std::vector<FinalPose> ScenarioRun::final_poses() const {
+  std::vector<FinalPose> out;
+  const sim::WorldTruth truth = world_->truth();
+  for (const sim::WorkpieceTruth& w : truth.workpieces) {
+    FinalPose f;
+    f.name = w.name;
+    f.pose = w.pose;
+    f.present = !w.parked;
+    if (w.held_by) f.held_by = world_->scene().robots().at(*w.held_by).name;
+    out.push_back(std::move(f));
+  }
+  return out;
+}
+
+Report ScenarioRun::report() const {
+  return make_report(scenario_, parse_event_log(runtime_->log().text(), kEventsFile), final_poses(),
+                     estimate_.cycle_time, kEventsFile);
+}
+
+cv::Mat ScenarioRun::snapshot(int width, int height) const {
+  // Render a copy: the renderer's scene update needs a mutable mjData, and the World's stays untouched.
+  const mjModel* model = world_->scene().model();
+  std::unique_ptr<mjData, void (*)(mjData*)> copy(mj_makeData(model), mj_deleteData);
+  mj_copyData(copy.get(), model, world_->data());
+  Renderer renderer(model, width, height);
+  return renderer.render_overview(copy.get(), width, height);
+}
+
+void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
+                   const std::string& events, const cv::Mat& final_image) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the output directory: {}", ec.message()));
+  write_file_atomically(dir / kEventsFile, events);
+  write_file_atomically(dir / kReportFile, to_json(scenario, report).dump(2) + "\n");
+  GanttOptions gantt;
+  gantt.title = fmt::format("{}: {} ({}), {:.2f} s", scenario.source.filename().string(),
+                            scenario.program_file.filename().string(), report.outcome, report.end_time);
+  write_png(draw_gantt(report.timeline, gantt), dir / kGanttFile);
+  if (!final_image.empty()) write_png(final_image, dir / kFinalFile);
+}
+
+}  // namespace cellwright::twin::scenario

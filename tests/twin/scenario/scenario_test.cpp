@@ -225,6 +225,36 @@ TEST_F(ScenarioFiles, ExpectationErrors) {
   expect_error(scenario(head + "expect:\n  A: {at: output, within: 1}\n"), 6, "unknown field 'within'");
 }
 
+TEST_F(ScenarioFiles, LocationsOfTheScenarioJoinTheCell) {
+  const Scenario s = load_scenario(scenario(R"(locations:
+  - {name: belt_end, at: output.leave, offset: [-0.1, 0, 0], yaw: 90, approach_height: 0.05}
+  - {name: spot, pose: {xyz: [0.2, 0.3, 0.4]}}
+robots: {r1: puma, r2: melfa}
+bind: {B: belt_end}
+expect: {A: spot}
+)"));
+  const LocationSpec* end = s.cell.find_location("belt_end");
+  ASSERT_NE(end, nullptr);
+  const ConveyorSpec& out = *s.cell.find_conveyor("output");
+  EXPECT_TRUE(end->pose.xyz.isApprox(out.belt_point(out.leave) + Eigen::Vector3d(-0.1, 0, 0)));
+  EXPECT_NEAR(end->pose.rpy.z(), out.pose.rpy.z() + M_PI / 2, 1e-12);
+  EXPECT_DOUBLE_EQ(end->approach_height, 0.05);
+  EXPECT_DOUBLE_EQ(end->grasp_height, 0.02);  // the cell description's default
+  EXPECT_EQ(end->where.line, 4);
+  EXPECT_TRUE(s.cell.find_location("spot")->pose.xyz.isApprox(Eigen::Vector3d(0.2, 0.3, 0.4)));
+  EXPECT_EQ(s.location_of("B"), "belt_end");
+  EXPECT_EQ(s.expect[0].place, "spot");
+}
+
+TEST_F(ScenarioFiles, LocationErrors) {
+  expect_error(scenario("locations:\n  - {name: input, at: output.enter}\n"), 4, "the name is already used");
+  expect_error(scenario("locations:\n  - {name: x, at: output.middle}\n"), 4, "'at' must be <conveyor>.enter");
+  expect_error(scenario("locations:\n  - {name: x}\n"), 4, "needs either 'at' or 'pose'");
+  expect_error(scenario("locations:\n  - {name: x, pose: {xyz: [1, 2]}}\n"), 4, "must be a list of 3 numbers");
+  expect_error(scenario("locations:\n  - {name: 9x, pose: {xyz: [1, 2, 3]}}\n"), 4, "is not valid");
+  expect_error(scenario("locations: {name: x}\n"), 3, "must be a list of locations");
+}
+
 TEST_F(ScenarioFiles, NumbersOutOfRange) {
   const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
   expect_error(scenario(head + "seed: -1\n"), 5, "field 'seed' of the scenario must be a whole number");

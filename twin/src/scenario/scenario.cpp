@@ -181,6 +181,85 @@ struct LabelKind {
   const std::vector<std::string>* labels;  // the program's labels of that kind
 };
 
+// Every name the cell already uses (all kinds share one namespace in the cell description).
+std::vector<std::string> cell_names(const CellDescription& c) {
+  std::vector<std::string> out;
+  for (const auto& x : c.robots) out.push_back(x.name);
+  for (const auto& x : c.conveyors) out.push_back(x.name);
+  for (const auto& x : c.machines) out.push_back(x.name);
+  for (const auto& x : c.workpieces) out.push_back(x.name);
+  for (const auto& x : c.locations) out.push_back(x.name);
+  for (const auto& x : c.cameras) out.push_back(x.name);
+  for (const auto& x : c.lights) out.push_back(x.name);
+  if (c.handover) out.push_back(c.handover->name);
+  return out;
+}
+
+// A location of the scenario, in the cell description's format (docs/cell-description.md): `at` a conveyor's entry
+// or exit point or a machine's fixture plus a world `offset`, or an explicit `pose`; `yaw` in degrees; optional
+// grasp and approach heights. Which robots must reach it follows from the program (preflight).
+LocationSpec read_location(const Doc& doc, const CellDescription& cell, const YAML::Node& n) {
+  const Fields f(doc, n, "a location of the scenario",
+                 {"name", "at", "offset", "pose", "yaw", "grasp_height", "approach_height"});
+  LocationSpec l;
+  l.where = doc.at(n);
+  l.name = f.text("name");
+  const std::vector<std::string> taken = cell_names(cell);
+  const bool valid = (std::isalpha(static_cast<unsigned char>(l.name[0])) || l.name[0] == '_') &&
+                     std::all_of(l.name.begin(), l.name.end(), [](char c) {
+                       return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-';
+                     });
+  if (!valid || l.name.size() > 64) {
+    doc.fail(f.node("name"), fmt::format("location name '{}' is not valid: use letters, digits, '_' and '-', starting "
+                                         "with a letter or '_', at most 64 characters",
+                                         l.name));
+  }
+  if (std::find(taken.begin(), taken.end(), l.name) != taken.end()) {
+    doc.fail(f.node("name"), fmt::format("location '{}': the name is already used in the cell", l.name));
+  }
+  if (f.has("at") == f.has("pose")) {
+    doc.fail(n, fmt::format("location '{}' needs either 'at' or 'pose'", l.name));
+  }
+  const double yaw = f.has("yaw") ? f.number("yaw") * std::numbers::pi / 180.0 : 0.0;
+  auto vec3 = [&](const YAML::Node& v, const std::string& what) {
+    if (!v.IsSequence() || v.size() != 3) doc.fail(v, fmt::format("{} must be a list of 3 numbers", what));
+    Eigen::Vector3d out;
+    for (std::size_t i = 0; i < 3; ++i) {
+      double x = 0;
+      if (!v[i].IsScalar() || !YAML::convert<double>::decode(v[i], x) || !std::isfinite(x)) {
+        doc.fail(v[i], fmt::format("{} must be a list of 3 numbers, got {}", what, describe(v[i])));
+      }
+      out[static_cast<Eigen::Index>(i)] = x;
+    }
+    return out;
+  };
+  if (f.has("pose")) {
+    const Fields pf(doc, f.node("pose"), fmt::format("the pose of location '{}'", l.name), {"xyz"});
+    l.pose.xyz = vec3(pf.node("xyz"), pf.field("xyz"));
+    l.pose.rpy = Eigen::Vector3d(0, 0, yaw);
+  } else {
+    const std::string ref = f.text("at");
+    const auto dot = ref.rfind('.');
+    const std::string object = dot == std::string::npos ? ref : ref.substr(0, dot);
+    const std::string point = dot == std::string::npos ? "" : ref.substr(dot + 1);
+    if (const ConveyorSpec* c = cell.find_conveyor(object); c != nullptr && (point == "enter" || point == "leave")) {
+      l.pose.xyz = c->belt_point(point == "enter" ? c->enter : c->leave);
+      l.pose.rpy = Eigen::Vector3d(0, 0, c->pose.rpy.z() + yaw);
+    } else if (const MachineSpec* m = cell.find_machine(object); m != nullptr && point == "fixture") {
+      l.pose = m->fixture_top();
+      l.pose.rpy.z() += yaw;
+    } else {
+      doc.fail(f.node("at"), fmt::format("location '{}': 'at' must be <conveyor>.enter, <conveyor>.leave or "
+                                         "<machine>.fixture of the cell, got '{}'",
+                                         l.name, ref));
+    }
+    if (f.has("offset")) l.pose.xyz += vec3(f.node("offset"), f.field("offset"));
+  }
+  l.grasp_height = f.positive_or("grasp_height", l.grasp_height);
+  l.approach_height = f.positive_or("approach_height", l.approach_height);
+  return l;
+}
+
 }  // namespace
 
 const char* to_string(DriverKind kind) {
@@ -230,7 +309,8 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
   const Fields f(
       doc, root, "the scenario",
-      {"cell", "program", "seed", "drivers", "robots", "bind", "feed", "limits", "expect", "tolerance", "options"});
+      {"cell", "program", "seed", "locations", "drivers", "robots", "bind", "feed", "limits", "expect", "tolerance",
+       "options"});
   const std::filesystem::path dir = source.parent_path();
 
   Scenario s;
@@ -251,6 +331,15 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       doc.fail(n, fmt::format("{} must be a whole number from 0 to 2^64-1, got {}", f.field("seed"), describe(n)));
     }
     s.seed = seed;
+  }
+
+  // --- places of this scenario, added to the cell before anything is bound to them ---
+  if (f.has("locations")) {
+    const YAML::Node& list = f.node("locations");
+    if (!list.IsSequence()) {
+      doc.fail(list, fmt::format("{} must be a list of locations, got {}", f.field("locations"), describe(list)));
+    }
+    for (const YAML::Node& n : list) s.cell.locations.push_back(read_location(doc, s.cell, n));
   }
 
   // --- bindings ---

@@ -83,7 +83,7 @@ struct Scenario {
   std::filesystem::path source;        // the scenario file (absolute)
   std::filesystem::path cell_file;     // absolute
   std::filesystem::path program_file;  // absolute
-  CellDescription cell;
+  CellDescription cell;  // the cell description, with the scenario's own `locations` appended
   task::CompiledProgram program;
   std::uint64_t seed = 1;
   std::vector<Binding> robots;        // one per program robot, in program order
@@ -105,7 +105,8 @@ struct Scenario {
 // Reads a scenario file, the cell description and the task program it names (paths relative to the scenario file),
 // compiles the program and binds its labels. Throws InputError naming the scenario file, line, column and field when:
 // the file is missing or is not YAML; a field is unknown, missing, given twice or of the wrong type or range; the
-// cell or program file is missing or wrong (the error from load_cell / compile, which names that file); a binding
+// cell or program file is missing or wrong (the error from load_cell / compile, which names that file); a location
+// of the scenario reuses a cell name or is `at` nothing of the cell; a binding
 // names a label the program does not declare, or a cell object that does not exist or is of the wrong kind; a
 // program robot, workpiece or location is bound to nothing in the cell (no explicit binding and no cell object of the
 // same name); two labels are bound to one cell object; a driver is named for a robot that is not in the cell, is not

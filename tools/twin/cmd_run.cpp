@@ -125,8 +125,10 @@ void add_run(CLI::App& app, Command* run) {
       }
 
       // Lock-step runs go firing by firing, so that the progress line can say what each robot does and the wall-time
-      // limit can end a run that takes too long; real-time runs are paced by the wall clock anyway.
+      // limit can end a run that takes too long (checked at each firing; the sim-time limit bounds the time between
+      // firings); real-time runs are paced by the wall clock anyway.
       std::optional<std::string> cut_short;
+      std::uint64_t firings_so_far = 0;
       const auto wall_start = std::chrono::steady_clock::now();
       if (sr.realtime()) {
         sr.runtime().run();
@@ -135,6 +137,7 @@ void add_run(CLI::App& app, Command* run) {
           const twin::runtime::StepState st = sr.runtime().step();
           if (st.ended) break;
           progress->set_robots(st.task.robots);
+          firings_so_far = st.task.firings;
           const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
           if (s.limits.wall_time > 0 && wall > s.limits.wall_time) {
             cut_short = fmt::format("wall time limit of {} s reached at sim time {:.2f} s", s.limits.wall_time,
@@ -149,6 +152,7 @@ void add_run(CLI::App& app, Command* run) {
       if (cut_short) {
         report.outcome = "timeout";
         report.reason = *cut_short;
+        report.firings = firings_so_far;
         report.failures.insert(report.failures.begin(), fmt::format("the run did not finish: {}", *cut_short));
       }
       if (!args->out.empty()) {

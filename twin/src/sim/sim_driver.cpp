@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <type_traits>
 
 namespace cellwright::twin::sim {
@@ -357,7 +358,26 @@ void SimDriver::plan_pose(Job& job, const drivers::MovePose& move) const {
   job.speed = move.speed;
   const Eigen::VectorXd seed = queue_end_joints();
   if (move.path == drivers::Path::joint) {
-    const models::IkResult ik = chain_.inverse(move.pose, seed, options_.ik);
+    // The solution closest to the seed can be a different arm configuration (shoulder or elbow flipped) when the
+    // target lies far round the base: the arm would then swing through the air. So IK is also seeded with the first
+    // joint turned towards the target, and the solution that changes the arm's configuration least wins: the least
+    // motion of the joints between the first and the last (turning about the base or the tool axis keeps it).
+    models::IkResult ik = chain_.inverse(move.pose, seed, options_.ik);
+    const Eigen::Vector3d from = chain_.forward(seed).translation() - chain_.first_joint_origin();
+    const Eigen::Vector3d to = move.pose.translation() - chain_.first_joint_origin();
+    Eigen::VectorXd turned = seed;
+    turned[0] += std::remainder(std::atan2(to.y(), to.x()) - std::atan2(from.y(), from.x()), 2.0 * std::numbers::pi);
+    if (chain_.within_limits(turned)) {
+      const auto reconfiguration = [&](const Eigen::VectorXd& q) {
+        const Eigen::Index inner = std::max<Eigen::Index>(q.size() - 2, 0);
+        return (q - seed).segment(1, inner).cwiseAbs().sum();
+      };
+      const models::IkResult other = chain_.inverse(move.pose, turned, options_.ik);
+      if (other.status == models::IkStatus::kOk &&
+          (ik.status != models::IkStatus::kOk || reconfiguration(other.q) < reconfiguration(ik.q))) {
+        ik = other;
+      }
+    }
     if (ik.status != models::IkStatus::kOk) {
       job.problem_code = ErrorCode::unreachable;
       job.problem = fmt::format("no joint solution for the pose: {}", ik.reason);

@@ -15,7 +15,8 @@ constexpr double kParkingGap = 0.1;         // m between parked parts, and from 
 constexpr double kFeedClearance = 0.005;    // m: a part closer than this to the feed spot blocks it
 constexpr double kUprightCos = 0.98480775;  // cos(10 degrees)
 constexpr double kSupportNormal = 0.5;      // a contact supports a part when its normal is this close to vertical
-constexpr double kRestGap = 0.002;          // m: a part this close above a surface rests on it (chatter, see truth())
+constexpr std::chrono::nanoseconds kCollisionQuiet = std::chrono::milliseconds(100);  // see check_contacts()
+constexpr double kRestGap = 0.002;  // m: a part this close above a surface rests on it (chatter, see truth())
 
 const char* warning_text(int i) {
   switch (i) {
@@ -242,10 +243,16 @@ void World::check_contacts() {
       it->second = c;
     }
   }
+  // A pair is reported when it starts touching, and again only after it has been apart for kCollisionQuiet: a
+  // contact that chatters (touching every few steps while two bodies press on each other) is one collision.
+  const std::int64_t quiet = kCollisionQuiet / timestep_;
   std::set<std::pair<int, int>> touching;
   for (const auto& [key, c] : now_touching) {
     touching.insert(key);
-    if (touching_.count(key) != 0) continue;
+    const auto last = last_touch_.find(key);
+    const bool reported = last != last_touch_.end() && steps_ - last->second <= quiet;
+    last_touch_[key] = steps_;
+    if (reported) continue;
     const mjContact& con = d->contact[c];
     Collision col;
     col.time = now();
@@ -263,6 +270,8 @@ void World::check_contacts() {
     collisions_.push_back(std::move(col));
   }
   touching_ = std::move(touching);
+  // Pairs apart for longer than the quiet time are forgotten.
+  std::erase_if(last_touch_, [&](const auto& e) { return steps_ - e.second > quiet; });
 }
 
 void World::check_warnings() {

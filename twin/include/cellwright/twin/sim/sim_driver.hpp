@@ -23,7 +23,10 @@
 //  - MovePose (cartesian_control and linear_motion are supported; the arms have six axes): the pose is in the
 //    robot's base frame. The joint goal comes from the robot's inverse kinematics (models::KinematicChain on its
 //    URDF), seeded with the goal of the motion queued before it (or the current joints), choosing the solution
-//    closest to that seed. Path::joint then moves like MoveJoints. Path::linear solves IK at waypoints at most
+//    closest to that seed; Path::joint also tries the seed with the first joint turned towards the target and keeps
+//    the solution that changes the joints between the first and the last least (the closest solution may flip the
+//    shoulder or elbow and swing the arm through the air).
+//    Path::joint then moves like MoveJoints. Path::linear solves IK at waypoints at most
 //    linear_step apart along the straight line (orientation by slerp), each seeded with the previous one, and follows
 //    that polyline; the tool then deviates from the line by well under a millimetre. It fails with unreachable when
 //    a pose has no IK solution, or a linear path would need a jump of the arm (two successive waypoints more than

@@ -111,7 +111,7 @@ struct WorldTruth {
 // is not part of its gripper, i.e. not the flange or below it) touching a workpiece. Not counted: a robot's own
 // bodies (not simulated), the gripper touching workpieces (grasping), workpieces touching anything else (resting,
 // being put down). A pair of bodies is reported once when it starts touching; it is reported again only after it
-// has been apart for at least one step.
+// has been apart for more than 100 ms (two bodies pressed together touch and part every few steps: one collision).
 struct Collision {
   std::chrono::nanoseconds time{0};
   std::string body1, body2;    // MuJoCo body names ("puma/link3", "melfa/finger_left", "conveyor/input", "world"), in
@@ -224,10 +224,11 @@ class World {
   std::vector<BodyInfo> bodies_;                     // by MuJoCo body id
   std::vector<bool> parked_;                         // by workpiece index
   Eigen::Vector3d parking_origin_ = Eigen::Vector3d::Zero();
-  std::set<std::pair<int, int>> touching_;        // body pairs in contact at the last step
-  std::vector<Collision> collisions_;             // not yet reported
-  std::array<int, mjNWARNING> warning_counts_{};  // MuJoCo's counters at the last check
-  std::vector<std::string> warnings_;             // not yet drained
+  std::set<std::pair<int, int>> touching_;                  // body pairs in contact at the last step
+  std::map<std::pair<int, int>, std::int64_t> last_touch_;  // step at which a pair last touched (recent ones)
+  std::vector<Collision> collisions_;                       // not yet reported
+  std::array<int, mjNWARNING> warning_counts_{};            // MuJoCo's counters at the last check
+  std::vector<std::string> warnings_;                       // not yet drained
 };
 
 // Names for logs: "gripper", "conveyor", ...; "ok", "occupied", ...

@@ -307,10 +307,9 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
                      fmt::format("not a valid YAML file: {}", e.msg));
   }
   if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
-  const Fields f(
-      doc, root, "the scenario",
-      {"cell", "program", "seed", "locations", "drivers", "robots", "bind", "feed", "limits", "expect", "tolerance",
-       "options"});
+  const Fields f(doc, root, "the scenario",
+                 {"cell", "program", "seed", "locations", "drivers", "robots", "bind", "feed", "limits", "expect",
+                  "tolerance", "options"});
   const std::filesystem::path dir = source.parent_path();
 
   Scenario s;

@@ -83,7 +83,7 @@ struct Scenario {
   std::filesystem::path source;        // the scenario file (absolute)
   std::filesystem::path cell_file;     // absolute
   std::filesystem::path program_file;  // absolute
-  CellDescription cell;  // the cell description, with the scenario's own `locations` appended
+  CellDescription cell;                // the cell description, with the scenario's own `locations` appended
   task::CompiledProgram program;
   std::uint64_t seed = 1;
   std::vector<Binding> robots;        // one per program robot, in program order

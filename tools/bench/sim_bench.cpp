@@ -1,0 +1,103 @@
+// Simulation speed on the paper's cell: raw mj_step against World::advance with both simulation drivers following
+// trajectories (the overhead of the drivers, belt wrapping, collision and warning checks). Target: World steps per
+// second at least half of raw mj_step. Counters: steps_per_s (simulated steps per wall-clock second), rt_factor
+// (simulated seconds per wall-clock second) and, for the World, ratio_to_raw (measured in the same process on the
+// same compiled model just before).
+#include <benchmark/benchmark.h>
+#include <mujoco/mujoco.h>
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+#include "cellwright/twin/cell.hpp"
+#include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/sim/world.hpp"
+
+namespace {
+
+using namespace cellwright;
+using namespace std::chrono_literals;
+
+const twin::CellDescription& cell() {
+  static const twin::CellDescription c = twin::load_cell(std::filesystem::path(CW_SOURCE_DIR) / "scenes/cell.yaml");
+  return c;
+}
+
+// Raw mj_step on its own copy of the scene's initial state, wrapping nothing and checking nothing; returns steps/s.
+double raw_steps_per_second(const twin::Scene& scene, int steps) {
+  std::unique_ptr<mjData, void (*)(mjData*)> d(mj_makeData(scene.model()), mj_deleteData);
+  mj_copyData(d.get(), scene.model(), scene.data());
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < steps; ++i) mj_step(scene.model(), d.get());
+  return steps / std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void BM_RawMjStep(benchmark::State& state) {
+  twin::Scene scene = twin::build_scene(cell());
+  std::unique_ptr<mjData, void (*)(mjData*)> d(mj_makeData(scene.model()), mj_deleteData);
+  mj_copyData(d.get(), scene.model(), scene.data());
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    mj_step(scene.model(), d.get());
+    ++steps;
+  }
+  state.counters["steps_per_s"] = benchmark::Counter(static_cast<double>(steps), benchmark::Counter::kIsRate);
+  state.counters["rt_factor"] =
+      benchmark::Counter(static_cast<double>(steps) * scene.model()->opt.timestep, benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_RawMjStep)->Unit(benchmark::kMicrosecond);
+
+// Keeps a driver moving: whenever its last move is done, it goes to the other end of a 0.6 rad swing of joint 1 (and
+// smaller swings of the others) at full speed.
+struct Mover {
+  twin::sim::SimDriver* driver;
+  std::vector<double> a, b;
+  drivers::CommandId last = 0;
+  bool to_b = true;
+
+  void keep_moving() {
+    if (last != 0 && driver->poll(last).phase != drivers::CommandPhase::done) return;
+    last = driver->submit(drivers::MoveJoints{to_b ? b : a, 1.0}).id;
+    to_b = !to_b;
+  }
+};
+
+void BM_WorldAdvance(benchmark::State& state) {
+  twin::sim::World world(twin::build_scene(cell()));
+  const double raw = raw_steps_per_second(world.scene(), 2000);
+  std::vector<Mover> movers;
+  for (const auto& r : cell().robots) {
+    twin::sim::SimDriver& d = world.add_sim_driver(r.name);
+    d.connect();
+    const auto home = d.home();
+    while (d.poll(home.id).phase != drivers::CommandPhase::done) world.advance(10ms);
+    d.activate();
+    Mover m{&d, r.home, r.home};
+    m.b[0] += 0.6;
+    m.b[1] -= 0.1;
+    m.b[2] += 0.15;
+    m.b[5] += 0.5;
+    movers.push_back(m);
+  }
+  const std::int64_t start_steps = world.steps();
+  const auto start = std::chrono::steady_clock::now();
+  for (auto _ : state) {
+    for (Mover& m : movers) m.keep_moving();
+    world.advance(10ms);  // the runtime's control period: 5 steps
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const auto steps = static_cast<double>(world.steps() - start_steps);
+  state.counters["steps_per_s"] = benchmark::Counter(steps, benchmark::Counter::kIsRate);
+  state.counters["rt_factor"] =
+      benchmark::Counter(steps * world.scene().model()->opt.timestep, benchmark::Counter::kIsRate);
+  state.counters["raw_steps_per_s"] = raw;
+  state.counters["ratio_to_raw"] = steps / wall / raw;
+  if (!world.drain_warnings().empty()) state.SkipWithError("MuJoCo warned during the benchmark");
+}
+BENCHMARK(BM_WorldAdvance)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

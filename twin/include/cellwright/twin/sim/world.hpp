@@ -13,8 +13,8 @@
 //    WorldOptions::parked); feed() puts the next one on a conveyor's entry point, at rest, as a scenario event. It is
 //    the only way a part moves without contacts: robots carry parts by friction only.
 //
-// THREADS. One thread (the simulation thread) calls every non-const member and truth(), new_collisions(),
-// drain_warnings(); scene() and the ids it holds never change and may be read from any thread. The SimDrivers it
+// THREADS. One thread (the simulation thread) calls every other member, const or not (now(), truth(), ...);
+// scene() and the ids it holds never change and may be read from any thread. The SimDrivers it
 // creates are used by their owners (robot-control threads) through the RobotDriver interface, which is thread-safe;
 // signals() may be used from any thread. World is neither copyable nor movable (drivers refer to it).
 //

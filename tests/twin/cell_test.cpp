@@ -131,14 +131,14 @@ TEST(Cell, PaperCellLoadsAsDescribed) {
   EXPECT_TRUE(input.stop);
   EXPECT_TRUE(input.belt_point(0).isApprox(Eigen::Vector3d(-1.1, -0.55, 0.5)));
   const ConveyorSpec& output = *cell.find_conveyor("output");
-  EXPECT_FALSE(output.stop);
+  EXPECT_TRUE(output.stop);
   EXPECT_DOUBLE_EQ(output.speed, 0.05);
 
   // Locations resolved from the objects they are at.
   EXPECT_TRUE(cell.find_location("input_pick")->pose.xyz.isApprox(Eigen::Vector3d(0.03, -0.55, 0.5)));
   EXPECT_NEAR(cell.find_location("input_pick")->pose.rpy.z(), 90 * kDeg, 1e-12);
   EXPECT_TRUE(cell.find_location("machine_fixture")->pose.xyz.isApprox(Eigen::Vector3d(0.05, 0.6, 0.43)));
-  EXPECT_TRUE(cell.find_location("output_drop")->pose.xyz.isApprox(Eigen::Vector3d(0.95, 0.35, 0.35)));
+  EXPECT_TRUE(cell.find_location("output_drop")->pose.xyz.isApprox(Eigen::Vector3d(0.95, 0.405, 0.35)));
 
   // Parts put on the input conveyor stand in a row from its entry point, 2 cm apart, resting on the belt, the first
   // listed furthest along.

@@ -39,6 +39,13 @@ constexpr double kFingerSqueeze = 0.002;  // m of squeeze at which a finger reac
 // top is the same before and after, so parts resting on it do not notice.
 constexpr double kBeltThickness = 0.01;
 constexpr double kBeltWrap = 0.05;
+// Collision bits: geoms collide when (contype & other's conaffinity) or the reverse is non-zero. Everything has the
+// default bit 1; the moving belts have only bit 2, workpieces both. So parts ride on the belts, while robots meet the
+// conveyor's static frame instead: the belt's collision box reaches kBeltWrap beyond the conveyor's upstream end,
+// where a gripper putting a part down at the belt's start would otherwise hit something invisible.
+constexpr const char* kBeltBits = "2";
+constexpr const char* kPartBits = "3";
+constexpr double kFrameGap = 0.002;  // m between the frame's top and the belt's top
 constexpr double kBeltMass = 2.0;
 constexpr double kBeltKv = 2000.0;  // N / (m/s): 1 N of drag slows the belt by 0.5 mm/s
 constexpr double kPedestalSide = 0.3;
@@ -511,10 +518,12 @@ struct Builder {
     const double l = c.length, w = c.width, h = c.height, t = kBeltThickness;
     x.comment(fmt::format("conveyor '{}': belt top {} m above the floor, {} m/s", c.name, num(h), num(c.speed)));
     x.open("body", {{"name", name}, {"pos", vec(c.pose.xyz)}, {"quat", quat(c.pose.rotation())}});
+    // The frame reaches up to kFrameGap under the belt top: it is what robots touch there (the belt below collides
+    // with workpieces only, see kBeltBits), with the conveyor's true extent.
     x.leaf("geom", {{"name", name + "/frame"},
                     {"type", "box"},
-                    {"pos", nums({0, 0, (h - t) / 2})},
-                    {"size", nums({l / 2, w / 2, (h - t) / 2})},
+                    {"pos", nums({0, 0, (h - kFrameGap) / 2})},
+                    {"size", nums({l / 2, w / 2, (h - kFrameGap) / 2})},
                     {"material", "conveyor_frame"}});
     x.leaf("geom", {{"class", "visual"},
                     {"type", "box"},
@@ -553,6 +562,8 @@ struct Builder {
                     {"rgba", "0.1 0.1 0.1 0.3"},
                     {"pos", nums({-kBeltWrap / 2, 0, 0})},
                     {"size", nums({(l + kBeltWrap) / 2, w / 2, t / 2})},
+                    {"contype", kBeltBits},
+                    {"conaffinity", kBeltBits},
                     {"friction", kPadFriction}});
     x.close();
     x.close();
@@ -682,7 +693,12 @@ struct Builder {
         {{"group", "3"}, {"density", "0"}, {"condim", "4"}, {"friction", kPadFriction}, {"rgba", "0.9 0.5 0.2 0.5"}});
     x.close();
     x.open("default", {{"class", "part"}});
-    x.leaf("geom", {{"condim", "4"}, {"friction", kPadFriction}, {"solref", kGripSolref}, {"solimp", kGripSolimp}});
+    x.leaf("geom", {{"contype", kPartBits},
+                    {"conaffinity", kPartBits},
+                    {"condim", "4"},
+                    {"friction", kPadFriction},
+                    {"solref", kGripSolref},
+                    {"solimp", kGripSolimp}});
     x.close();
     x.close();
 

@@ -138,6 +138,30 @@ TEST(RuntimeEnvironment, PuttingDownKeepsTheHoldSoThePartsBottomLandsOnTheLocati
   EXPECT_NEAR(down.poses[0].translation().z(), drop.pose.translation().z() + 0.05 + drop.approach_height, 1e-9);
 }
 
+TEST(RuntimeEnvironment, DepartingAfterAPutDownLiftsTheOpenHandStraightUp) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  const LocationState& drop = *m.find_location("output_drop");
+  RobotState& melfa = *m.find_robot("melfa");
+  // It opened its hand holding the part from the side, tool pointing along +y, 1 cm off the drop point.
+  Eigen::Isometry3d released = Eigen::Isometry3d::Identity();
+  released.linear() << 0, 0, 1,  //
+      -1, 0, 0,                  //
+      0, -1, 0;
+  released.translation() = drop.pose.translation() + Eigen::Vector3d(0.01, 0, 0.015);
+  melfa.released_tcp = released;
+  const MotionTarget depart = resolve_target(m, "melfa", target(task::TargetKind::kAbove, "output_drop"));
+  ASSERT_EQ(depart.resolution, MotionTarget::Resolution::kOk);
+  ASSERT_EQ(depart.poses.size(), 1u);
+  EXPECT_TRUE(depart.poses[0].linear().isApprox(released.linear()));
+  EXPECT_TRUE(depart.poses[0].translation().isApprox(released.translation() +
+                                                     Eigen::Vector3d(0, 0, drop.approach_height)));
+  // Released elsewhere (beyond the location tolerance): the usual approach from above.
+  melfa.released_tcp->translation() = drop.pose.translation() + Eigen::Vector3d(0.2, 0, 0);
+  const MotionTarget usual = resolve_target(m, "melfa", target(task::TargetKind::kAbove, "output_drop"));
+  ASSERT_EQ(usual.poses.size(), 2u);
+  EXPECT_NEAR(usual.poses[0].linear().col(2).z(), -1.0, 1e-9);
+}
+
 TEST(RuntimeEnvironment, HandOverTargetsFollowTheCellsHandOverSpec) {
   EnvironmentModel m = make_environment_model(paper_cell());
   const HandoverSpec& h = *m.handover;

@@ -218,6 +218,14 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
         return ok(both_ways(point, approach, yaw, r->base), what);
       }
       if (const LocationState* l = model.find_location(target.object)) {
+        if (above && !r->hold && r->released_tcp) {
+          const Eigen::Vector3d d = r->released_tcp->translation() - l->pose.translation();
+          if (std::hypot(d.x(), d.y()) <= options.at_location_tolerance) {
+            Eigen::Isometry3d lifted = *r->released_tcp;
+            lifted.translation().z() += l->approach_height;
+            return ok({lifted}, what);
+          }
+        }
         const double grasp = r->hold ? r->hold->tcp_above_bottom : l->grasp_height;
         const Eigen::Vector3d point =
             l->pose.translation() + Eigen::Vector3d(0, 0, grasp + (above ? l->approach_height : 0.0));

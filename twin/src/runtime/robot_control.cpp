@@ -302,6 +302,7 @@ void RobotControl::complete(SimDuration now) {
         hold.approach = tcp.linear().col(2).z() < -0.7 ? Approach::kDown : Approach::kSide;
         hold.tcp_above_bottom = tcp.translation().z() - (w->pose.translation().z() - w->size.z() / 2);
         r->hold = hold;
+        r->released_tcp.reset();
         w->held_by = cell_;
       });
     }
@@ -309,6 +310,7 @@ void RobotControl::complete(SimDuration now) {
     const std::string released = env_.write([&](EnvironmentModel& m) {
       RobotState* r = m.find_robot(cell_);
       if (r == nullptr || !r->hold) return std::string();
+      r->released_tcp = r->base * chain_.forward(to_eigen(r->joints));
       std::string name = r->hold->workpiece;
       if (WorkpieceState* w = m.find_workpiece(name); w != nullptr && w->held_by == cell_) w->held_by.clear();
       r->hold.reset();

@@ -18,7 +18,10 @@
 //    part, the tool goes where it puts the part's bottom on the location (the hold's height above the part bottom)
 //    with the approach it holds the part with (down, or from the side: then with the tool axis horizontal, pointing
 //    away from the robot's base if it can, else turned about the vertical in 30 degree steps, least turned preferred);
-//    above = at raised by approach_height.
+//    above = at raised by approach_height. Except when the robot holds nothing and opened its hand on a part within
+//    at_location_tolerance of the location: above is then that tool pose raised by approach_height, orientation
+//    kept, so that it departs straight up between the part and whatever it stands on (a hand that put a part down
+//    from the side would otherwise sweep its fingers through the surface, turning to point down).
 //  - handover(R): the giver presents the part at the hand-over pose: its tool goes to hand-over pose + its grasp's
 //    offset (HandoverSpec), with its grasp's approach and the hand-over's yaw.
 //  - hand_grasp(P): the taker's tool at the part P presents (its centre, from the model, when P holds one; else the
@@ -73,6 +76,9 @@ struct RobotState {
   std::vector<double> home;                                // radians
   std::vector<double> joints;  // current arm joints (truth); the home joints until the first update
   std::optional<Hold> hold;    // what it holds, if anything
+  // The tool pose (world) where it last opened its hand on a part; cleared when it closes again. Departing from a
+  // put-down lifts the open hand straight up from there (see above(X) at the top).
+  std::optional<Eigen::Isometry3d> released_tcp;
   // From the plant's truth: the workpiece between the finger pads ("" none), nullopt if the plant cannot tell.
   std::optional<std::string> between_fingers;
 };

@@ -153,8 +153,8 @@ TEST(RuntimeEnvironment, DepartingAfterAPutDownLiftsTheOpenHandStraightUp) {
   ASSERT_EQ(depart.resolution, MotionTarget::Resolution::kOk);
   ASSERT_EQ(depart.poses.size(), 1u);
   EXPECT_TRUE(depart.poses[0].linear().isApprox(released.linear()));
-  EXPECT_TRUE(depart.poses[0].translation().isApprox(released.translation() +
-                                                     Eigen::Vector3d(0, 0, drop.approach_height)));
+  EXPECT_TRUE(
+      depart.poses[0].translation().isApprox(released.translation() + Eigen::Vector3d(0, 0, drop.approach_height)));
   // Released elsewhere (beyond the location tolerance): the usual approach from above.
   melfa.released_tcp->translation() = drop.pose.translation() + Eigen::Vector3d(0.2, 0, 0);
   const MotionTarget usual = resolve_target(m, "melfa", target(task::TargetKind::kAbove, "output_drop"));

@@ -34,8 +34,11 @@ endfunction()
 # cw_test_suite(<name> DIR <tests/area> DEPS <targets...>)
 # One GoogleTest executable per area, one *_test.cpp file per unit under test.
 function(cw_test_suite name)
-  cmake_parse_arguments(ARG "" "DIR" "DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "DIR" "DEPS;EXCLUDE" ${ARGN})
   file(GLOB_RECURSE srcs CONFIGURE_DEPENDS ${ARG_DIR}/*_test.cpp)
+  foreach(sub ${ARG_EXCLUDE})  # subdirectories that are suites of their own
+    list(FILTER srcs EXCLUDE REGEX "^${ARG_DIR}/${sub}/")
+  endforeach()
   if(NOT srcs)
     return()
   endif()

@@ -58,9 +58,7 @@ double fired_at(const std::vector<nlohmann::json>& events, const std::string& tr
   return -1;
 }
 
-// Disabled until issue 4's hand-over release works on the MuJoCo cell (the PUMA's open is blocked by the MELFA's
-// fingers; see the closing note). Run it with --gtest_also_run_disabled_tests.
-TEST(RunCli, DISABLED_ExchangeMovesThePartToTheOutputConveyorAndRepeatsExactly) {
+TEST(RunCli, ExchangeMovesThePartToTheOutputConveyorAndRepeatsExactly) {
   TwinCli cli("cw-run-cli");
   const fs::path a = cli.dir() / "a", b = cli.dir() / "b";
   const Outcome first =

@@ -83,14 +83,14 @@ Renderer::Renderer(const mjModel* model, int max_width, int max_height)
 
 Renderer::~Renderer() = default;
 
-cv::Mat Renderer::render_camera(mjData* data, int camera_id, int width, int height) {
+cv::Mat Renderer::render_camera(mjData* data, int camera_id, int width, int height, RenderQuality quality) {
   CW_CHECK(camera_id >= 0 && camera_id < model_->ncam, "camera id {} not in the model (it has {})", camera_id,
            model_->ncam);
   mjvCamera cam;
   mjv_defaultCamera(&cam);
   cam.type = mjCAMERA_FIXED;
   cam.fixedcamid = camera_id;
-  return render(data, cam, width, height);
+  return render(data, cam, width, height, quality);
 }
 
 cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
@@ -119,10 +119,10 @@ cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
   cam.distance = 0.65 * radius / std::sin(std::min(half_fovy, half_fovx));
   cam.azimuth = 60;
   cam.elevation = -30;
-  return render(data, cam, width, height);
+  return render(data, cam, width, height, RenderQuality::kFull);
 }
 
-cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int height) {
+cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int height, RenderQuality quality) {
   CW_CHECK(std::this_thread::get_id() == owner_, "a Renderer is used on the thread that made it only");
   CW_CHECK(data != nullptr, "render needs data");
   CW_CHECK(width >= 1 && height >= 1 && width <= max_width_ && height <= max_height_,
@@ -134,6 +134,9 @@ cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int h
   mjvCamera cam = camera;
   const mjrRect viewport{0, 0, width, height};
   mjv_updateScene(model_, data, &r.option, nullptr, &cam, mjCAT_ALL, &r.scene);
+  // Shadows cost a depth pass per shadow-casting light, reflections a mirrored pass of the scene.
+  const mjtByte full = quality == RenderQuality::kFull ? 1 : 0;
+  for (int flag : {mjRND_SHADOW, mjRND_REFLECTION, mjRND_SKYBOX}) r.scene.flags[flag] = full;
   mjr_setBuffer(mjFB_OFFSCREEN, &r.context);
   mjr_render(viewport, &r.scene, &r.context);
   r.rgb.resize(static_cast<std::size_t>(3) * static_cast<std::size_t>(width) * static_cast<std::size_t>(height));

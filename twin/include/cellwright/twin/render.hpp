@@ -22,6 +22,13 @@ namespace cellwright::twin {
 
 class Scene;
 
+// How much of MuJoCo's rendering a picture gets.
+enum class RenderQuality {
+  kFull,    // everything: shadows, reflections, the skybox; pictures for people (snapshots, reports)
+  kVision,  // no shadows, reflections or skybox: the cheaper picture image processing works from (it needs the
+            // parts' colours and outlines, not the light's effects); render_bench and vision_bench measure both
+};
+
 class Renderer {
  public:
   // An OSMesa context and MuJoCo's rendering context for `model`, able to render images up to max_width x
@@ -38,13 +45,14 @@ class Renderer {
   // Renders `data` (made for this renderer's model) seen by the model's camera `camera_id`, as a BGR image (OpenCV's
   // channel order) of width x height pixels, top row first. The camera's vertical field of view spans the image
   // height. width and height must be within 1..max (else InternalError).
-  cv::Mat render_camera(mjData* data, int camera_id, int width, int height);
+  cv::Mat render_camera(mjData* data, int camera_id, int width, int height,
+                        RenderQuality quality = RenderQuality::kFull);
 
   // As render_camera, from a free camera that frames the whole cell from above and in front, at an angle.
   cv::Mat render_overview(mjData* data, int width, int height);
 
  private:
-  cv::Mat render(mjData* data, const mjvCamera& camera, int width, int height);
+  cv::Mat render(mjData* data, const mjvCamera& camera, int width, int height, RenderQuality quality);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -591,12 +591,13 @@ struct Builder {
                     {"pos", nums({0, 0, m.size.z() + m.fixture_size.z() / 2})},
                     {"size", vec(m.fixture_size / 2)},
                     {"material", "fixture"}});
-    // A status lamp on a corner, for the eye only.
+    // A status lamp on a corner, for the eye only. White: the overhead camera finds parts by their colour, and a
+    // green lamp looks like a green part to it (docs/vision.md).
     x.leaf("geom", {{"class", "visual"},
                     {"type", "cylinder"},
                     {"pos", nums({m.size.x() / 2 - 0.03, m.size.y() / 2 - 0.03, m.size.z() + 0.04})},
                     {"size", "0.015 0.04"},
-                    {"rgba", "0.1 0.8 0.2 1"}});
+                    {"rgba", "0.92 0.92 0.88 1"}});
     x.close();
   }
 
@@ -674,7 +675,8 @@ struct Builder {
     x.leaf("material", {{"name", "floor"}, {"texture", "floor"}, {"texrepeat", "8 8"}, {"reflectance", "0"}});
     x.leaf("material", {{"name", "conveyor_frame"}, {"rgba", "0.35 0.45 0.55 1"}});
     x.leaf("material", {{"name", "belt"}, {"rgba", "0.12 0.12 0.12 1"}});
-    x.leaf("material", {{"name", "stop"}, {"rgba", "0.95 0.75 0.1 1"}});
+    // The stop bars are light grey, not safety yellow: a yellow bar is a yellow part to the camera (docs/vision.md).
+    x.leaf("material", {{"name", "stop"}, {"rgba", "0.8 0.8 0.82 1"}});
     x.leaf("material", {{"name", "machine"}, {"rgba", "0.3 0.5 0.35 1"}});
     x.leaf("material", {{"name", "fixture"}, {"rgba", "0.7 0.7 0.72 1"}});
     x.leaf("material", {{"name", "pedestal"}, {"rgba", "0.3 0.3 0.32 1"}});

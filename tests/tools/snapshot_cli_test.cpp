@@ -67,6 +67,29 @@ TEST(SnapshotCli, SavesTheGeneratedModel) {
   EXPECT_THAT(text, HasSubstr("<key name=\"initial\""));
 }
 
+TEST(SnapshotCli, DetectionsAreFoundDrawnAndPrinted) {
+  TwinCli cli("cw-snapshot");
+  const auto plain = cli.dir() / "plain.png";
+  const auto marked = cli.dir() / "marked.png";
+  ASSERT_EQ(cli.run("snapshot " + kCell + " --camera overhead -o " + shell_quote(plain.string())).status, 0);
+  const Outcome r = cli.run("snapshot " + kCell + " --camera overhead --detections -o " + shell_quote(marked.string()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  // One line per part of the cell, where it starts: A, B, C on the input belt, D (a cylinder) on the fixture.
+  for (const char* part : {"A", "B", "C"}) {
+    EXPECT_THAT(r.out, HasSubstr(std::string(part) + " at (")) << r.out;
+  }
+  EXPECT_THAT(r.out, HasSubstr("on conveyor input"));
+  EXPECT_THAT(r.out, HasSubstr("no yaw (cylinder), on machine mill fixture"));
+  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("not seen")));
+  // The picture has the drawings on it: not the plain picture.
+  EXPECT_EQ(png_size(marked), std::make_pair(640, 480));
+  EXPECT_NE(slurp(marked), slurp(plain));
+
+  const Outcome overview = cli.run("snapshot " + kCell + " --detections -o " + shell_quote(marked.string()));
+  EXPECT_EQ(overview.status, 2);
+  EXPECT_THAT(overview.err, HasSubstr("--detections needs --camera"));
+}
+
 TEST(SnapshotCli, BadInputIsRefusedClearly) {
   TwinCli cli("cw-snapshot");
   const auto out = cli.dir() / "x.png";

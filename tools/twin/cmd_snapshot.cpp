@@ -1,6 +1,8 @@
-// `twin snapshot <cell.yaml> [--camera NAME] [--width W --height H] [--after SECONDS] -o out.png [--mjcf out.xml]`:
-// build the cell's MuJoCo scene and render one picture of it offscreen (no display needed), optionally after
-// simulating it for a while, and/or save the generated MJCF. Exit 0 on success, 2 on bad input.
+// `twin snapshot <cell.yaml> [--camera NAME] [--width W --height H] [--after SECONDS] [--detections] -o out.png
+// [--mjcf out.xml]`: build the cell's MuJoCo scene and render one picture of it offscreen (no display needed),
+// optionally after simulating it for a while, and/or save the generated MJCF. With --detections (a cell camera
+// only), find the workpieces in the picture (vision/detector.hpp), draw them on it and print one line per workpiece.
+// Exit 0 on success, 2 on bad input.
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -8,6 +10,8 @@
 #include "cellwright/twin/cell.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/vision/detector.hpp"
+#include "cellwright/twin/vision/draw.hpp"
 #include "commands.hpp"
 
 namespace cellwright::tools {
@@ -20,6 +24,7 @@ void add_snapshot(CLI::App& app, Command* run) {
     double after = 0;
     std::string out;
     std::string mjcf;
+    bool detections = false;
   };
   auto opts = std::make_shared<Options>();
   CLI::App* sub = app.add_subcommand("snapshot", "Render a picture of a cell (offscreen, no display) to a PNG file");
@@ -34,10 +39,16 @@ void add_snapshot(CLI::App& app, Command* run) {
       ->check(CLI::Range(0.0, 3600.0));
   sub->add_option("-o,--output", opts->out, "PNG file to write (replaced atomically)");
   sub->add_option("--mjcf", opts->mjcf, "also write the generated MuJoCo model (MJCF) to this file");
+  sub->add_flag("--detections", opts->detections,
+                "find the workpieces in the camera's picture, draw them on it and print them (a cell camera only)");
   sub->callback([run, opts] {
     *run = [opts] {
       if (opts->out.empty() && opts->mjcf.empty()) {
         std::fprintf(stderr, "twin snapshot: error: nothing to write: give -o out.png and/or --mjcf out.xml\n");
+        return 2;
+      }
+      if (opts->detections && opts->camera == twin::kOverviewCamera) {
+        std::fprintf(stderr, "twin snapshot: error: --detections needs --camera NAME, a camera of the cell\n");
         return 2;
       }
       const twin::CellDescription cell = twin::load_cell(opts->cell);
@@ -52,7 +63,20 @@ void add_snapshot(CLI::App& app, Command* run) {
       if (opts->width > 0) width = opts->width;
       if (opts->height > 0) height = opts->height;
       scene.step(static_cast<int>(opts->after / scene.model()->opt.timestep + 0.5));
-      twin::write_png(twin::render_view(scene, opts->camera, width, height), opts->out);
+      cv::Mat image = twin::render_view(scene, opts->camera, width, height);
+      if (opts->detections) {
+        const twin::vision::Detector detector(
+            cell, twin::vision::CameraModel(*cell.find_camera(opts->camera), width, height));
+        const twin::vision::DetectionResult found = twin::vision::detect(detector, image);
+        twin::vision::draw_detections(image, found);
+        for (const auto& d : found.detections) std::printf("%s\n", twin::vision::describe(d).c_str());
+        for (const auto& r : found.rejected) {
+          std::printf("rejected a blob%s at (%d, %d): %s\n",
+                      r.workpiece.empty() ? "" : (" like " + r.workpiece).c_str(), r.box.x, r.box.y, r.reason.c_str());
+        }
+        for (const auto& name : found.not_seen) std::printf("%s not seen\n", name.c_str());
+      }
+      twin::write_png(image, opts->out);
       return 0;
     };
   });

@@ -38,7 +38,9 @@ void run_scenario(benchmark::State& state, const std::string& name, const std::s
   }
   Figures f;
   for (auto _ : state) {
-    ScenarioRun run(s, pre.net, RunOptions{false, {}, std::chrono::seconds(1)});
+    RunOptions options;
+    options.realtime = false;
+    ScenarioRun run(s, pre.net, options);
     const auto start = std::chrono::steady_clock::now();
     const auto result = run.runtime().run();
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -1,18 +1,22 @@
-// `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet]`: run a scenario's task program on the simulated cell,
-// headless, and judge the outcome. Exit 0 when the run finished and every expected outcome holds, 1 when not, 2 on
-// bad input (refused before any thread starts, nothing written).
+// `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]`: run
+// a scenario's task program on the simulated cell, headless, and judge the outcome. Exit 0 when the run finished and
+// every expected outcome holds, 1 when not, 2 on bad input (refused before any thread starts, nothing written).
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <mutex>
 #include <string>
 
+#include "cellwright/common/error.hpp"
 #include "cellwright/petri/analysis.hpp"
+#include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/run.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/twin/vision/draw.hpp"
 #include "commands.hpp"
 
 namespace cellwright::tools {
@@ -87,12 +91,20 @@ void add_run(CLI::App& app, Command* run) {
     std::string out;
     bool realtime = false;
     bool quiet = false;
+    std::string perception;
+    std::string frames;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("scenario", args->scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
   cmd->add_option("-o,--out", args->out, "directory for the outputs (created if needed)");
   cmd->add_flag("--realtime", args->realtime, "pace the simulation to the wall clock instead of lock-step");
   cmd->add_flag("--quiet", args->quiet, "no progress line");
+  cmd->add_option("--perception", args->perception,
+                  "where the controller learns where the parts are, instead of the scenario's choice: truth (the "
+                  "simulation), vision (the camera) or cad (the cell description only: vision off)")
+      ->check(CLI::IsMember({"truth", "vision", "cad"}));
+  cmd->add_option("--save-frames", args->frames,
+                  "with vision: write each camera frame, detections drawn on it, as DIR/frame_<ms>.png");
   cmd->callback([run, args] {
     *run = [args] {
       using namespace cellwright::twin::scenario;
@@ -111,6 +123,28 @@ void add_run(CLI::App& app, Command* run) {
       auto progress = std::make_shared<Progress>(args->quiet);
       RunOptions options;
       if (args->realtime) options.realtime = true;
+      if (args->perception == "truth") options.perception = twin::runtime::Perception::kTruth;
+      if (args->perception == "vision") options.perception = twin::runtime::Perception::kVision;
+      if (args->perception == "cad") options.perception = twin::runtime::Perception::kCad;
+      if (!args->frames.empty() && options.perception.value_or(s.perception) != twin::runtime::Perception::kVision) {
+        std::fprintf(stderr, "%s: --save-frames needs perception vision (the scenario's is %s)\n",
+                     args->scenario.c_str(), twin::runtime::to_string(options.perception.value_or(s.perception)));
+        return 2;
+      }
+      if (!args->frames.empty()) {
+        const std::filesystem::path dir = args->frames;
+        std::error_code ec;
+        std::filesystem::create_directories(dir, ec);
+        if (ec)
+          throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the frames directory: {}", ec.message()));
+        options.on_frame = [dir](const twin::runtime::VisionFrame& f) {
+          if (f.image.empty()) return;
+          const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(f.time).count();
+          cv::Mat drawn = f.image.clone();
+          twin::vision::draw_detections(drawn, f.result);
+          twin::write_png(drawn, dir / fmt::format("frame_{:06}.png", ms));
+        };
+      }
       options.on_progress = [progress](SimDuration t, std::uint64_t firings) { progress->print(t, firings); };
       options.progress_every = progress->every();
       ScenarioRun sr(s, pre.net, options);
@@ -118,8 +152,9 @@ void add_run(CLI::App& app, Command* run) {
       if (!args->quiet) {
         std::string robots;
         for (const Binding& b : s.robots) robots += fmt::format(" {}={}", b.label, b.name);
-        std::printf("%s: %s on %s,%s, %s\n", args->scenario.c_str(), s.program_file.filename().c_str(),
-                    s.cell.name.c_str(), robots.c_str(), sr.realtime() ? "real time" : "lock-step");
+        std::printf("%s: %s on %s,%s, %s, perception %s\n", args->scenario.c_str(), s.program_file.filename().c_str(),
+                    s.cell.name.c_str(), robots.c_str(), sr.realtime() ? "real time" : "lock-step",
+                    twin::runtime::to_string(sr.perception()));
         std::printf("estimated cycle time %.2f s\n", sr.estimate().cycle_time);
         std::fflush(stdout);
       }

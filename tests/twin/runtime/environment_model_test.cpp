@@ -4,6 +4,8 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <cmath>
+#include <numbers>
 
 #include "twin/runtime/scripted_cell.hpp"
 
@@ -160,6 +162,74 @@ TEST(RuntimeEnvironment, DepartingAfterAPutDownLiftsTheOpenHandStraightUp) {
   const MotionTarget usual = resolve_target(m, "melfa", target(task::TargetKind::kAbove, "output_drop"));
   ASSERT_EQ(usual.poses.size(), 2u);
   EXPECT_NEAR(usual.poses[0].linear().col(2).z(), -1.0, 1e-9);
+}
+
+TEST(RuntimeEnvironment, WithoutACameraTheModelPutsARestingPartAtItsLocationsNominalPose) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  const LocationState& pick = *m.find_location("input_pick");
+  const double half = m.find_workpiece("A")->size.z() / 2;
+  // The real part stands 5 cm to the side of the pick location, turned: the presence sensor there only says "a part".
+  Truth t;
+  t.time = milliseconds(500);
+  Eigen::Isometry3d real = pick.pose;
+  real.translation() += Eigen::Vector3d(0, 0.05, half);
+  real.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  t.workpieces.push_back({"A", real, {0, 0, 0}, true});
+  Eigen::Isometry3d riding = real;
+  riding.translation().x() -= 0.5;  // far from every location, moving
+  t.workpieces.push_back({"B", riding, {0.05, 0, 0}, true});
+  const Eigen::Isometry3d b_before = m.find_workpiece("B")->pose;
+  apply_truth(m, t, Perception::kCad);
+  const WorkpieceState& a = *m.find_workpiece("A");
+  EXPECT_TRUE(a.pose.translation().isApprox(pick.pose.translation() + Eigen::Vector3d(0, 0, half)));
+  EXPECT_TRUE(a.pose.linear().isApprox(pick.pose.linear()));
+  EXPECT_TRUE(a.present);
+  EXPECT_TRUE(m.find_workpiece("B")->pose.isApprox(b_before));  // the model cannot know where it is
+  EXPECT_DOUBLE_EQ(m.find_workpiece("B")->velocity.x(), 0.05);  // but the belt's encoder says it moves
+
+  // With a camera, the truth says nothing of the parts: only vision does.
+  EnvironmentModel v = make_environment_model(paper_cell());
+  const Eigen::Isometry3d a_before = v.find_workpiece("A")->pose;
+  t.robots.push_back({"puma", {1, 2, 3, 4, 5, 6}, std::string("")});
+  apply_truth(v, t, Perception::kVision);
+  EXPECT_TRUE(v.find_workpiece("A")->pose.isApprox(a_before));
+  EXPECT_EQ(v.find_robot("puma")->joints, (std::vector<double>{1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(v.time, milliseconds(500));
+}
+
+TEST(RuntimeEnvironment, APartSeenOnceIsNotGraspedUntilItsMotionIsKnown) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  const Eigen::Isometry3d p = m.find_workpiece("A")->pose;
+  ASSERT_TRUE(correct(m, "A", p, 0.9, milliseconds(0), std::nullopt));
+  const MotionTarget t = resolve_target(m, "puma", target(task::TargetKind::kAbove, "A"));
+  EXPECT_EQ(t.resolution, MotionTarget::Resolution::kWait);
+  EXPECT_THAT(t.reason, HasSubstr("seen once"));
+  ASSERT_TRUE(correct(m, "A", p, 0.9, milliseconds(0), Eigen::Vector3d::Zero()));
+  EXPECT_EQ(resolve_target(m, "puma", target(task::TargetKind::kAbove, "A")).resolution, MotionTarget::Resolution::kOk);
+  EXPECT_FALSE(correct(m, "A", p, 0.9, milliseconds(0), Eigen::Vector3d(NAN, 0, 0)));
+}
+
+TEST(RuntimeEnvironment, APartNearItsPickLocationIsTakenWithTheLocationsFingerDirection) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  const LocationState& pick = *m.find_location("input_pick");
+  WorkpieceState& a = *m.find_workpiece("A");
+  // 4 cm to the side of the pick point and turned by 80 degrees: a square box, so its faces are also at -10 degrees
+  // and 170, and the location's direction (90 degrees) is nearest to 80.
+  a.pose = pick.pose;
+  a.pose.translation() += Eigen::Vector3d(0, 0.04, a.size.z() / 2);
+  a.pose.linear() = Eigen::AngleAxisd(80 * std::numbers::pi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  a.velocity.setZero();
+  const MotionTarget t = resolve_target(m, "puma", target(task::TargetKind::kAt, "A"));
+  ASSERT_EQ(t.resolution, MotionTarget::Resolution::kOk);
+  const Eigen::Vector3d fingers = t.poses[0].linear().col(1);  // the closing direction
+  const double angle = std::atan2(fingers.y(), fingers.x());
+  const Eigen::Vector3d location_fingers =
+      resolve_target(m, "puma", target(task::TargetKind::kAt, "input_pick")).poses[0].linear().col(1);
+  const double want = std::atan2(location_fingers.y(), location_fingers.x());
+  // 10 degrees off the location's own direction (mod half a turn): the part's face, not the location's.
+  const double off = std::remainder(angle - want, std::numbers::pi);
+  EXPECT_NEAR(std::abs(off), 10 * std::numbers::pi / 180, 1e-6);
+  EXPECT_NEAR(t.poses[0].translation().z(), pick.pose.translation().z() + pick.grasp_height, 1e-9);
 }
 
 TEST(RuntimeEnvironment, HandOverTargetsFollowTheCellsHandOverSpec) {

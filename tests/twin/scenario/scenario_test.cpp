@@ -5,6 +5,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <numbers>
+
 #include <fmt/format.h>
 
 #include <filesystem>
@@ -214,6 +216,55 @@ TEST_F(ScenarioFiles, FeedErrors) {
   expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces: [A, B]\n  period: -2\n"), 8,
                "must be greater than 0");
   expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces: []\n"), 7, "must be a non-empty list");
+}
+
+TEST_F(ScenarioFiles, PerceptionAndVision) {
+  const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
+  const Scenario truth = load_scenario(scenario(head));
+  EXPECT_EQ(truth.perception, runtime::Perception::kTruth);
+  EXPECT_FALSE(truth.vision.has_value());
+  // Vision without a `vision` entry looks through the cell's first camera, every 400 ms.
+  const Scenario seen = load_scenario(scenario(head + "perception: vision\n"));
+  EXPECT_EQ(seen.perception, runtime::Perception::kVision);
+  ASSERT_TRUE(seen.vision.has_value());
+  EXPECT_EQ(seen.vision->camera, "overhead");
+  EXPECT_DOUBLE_EQ(seen.vision->period, 0.4);
+  EXPECT_DOUBLE_EQ(load_scenario(scenario(head + "perception: vision\nvision: {period: 0.2}\n")).vision->period, 0.2);
+  EXPECT_EQ(load_scenario(scenario(head + "perception: cad\n")).perception, runtime::Perception::kCad);
+
+  expect_error(scenario(head + "perception: eyes\n"), 5, "must be truth, vision or cad, got 'eyes'");
+  expect_error(scenario(head + "perception: cad\nvision: {camera: overhead}\n"), 6, "'perception' is not vision");
+  expect_error(scenario(head + "perception: vision\nvision: {camera: side}\n"), 6,
+               "camera 'side' is not a camera of the cell (cameras: overhead)");
+  expect_error(scenario(head + "perception: vision\nvision: {period: 0}\n"), 6, "must be greater than 0");
+}
+
+TEST_F(ScenarioFiles, Perturbation) {
+  const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
+  const Scenario s = load_scenario(scenario(head + "perturb: {workpieces: [A, C], offset: [0.01, 0.06], yaw: 20}\n"));
+  ASSERT_TRUE(s.perturb.has_value());
+  EXPECT_EQ(s.perturb->workpieces, (std::vector<std::string>{"A", "C"}));
+  // Each part moves by between half and all of the offset along each axis, either way, and turns by up to the yaw;
+  // the same seed draws the same, another seed something else.
+  const auto first = draw_perturbation(*s.perturb, 7);
+  ASSERT_EQ(first.size(), 2u);
+  for (const auto& [name, offset] : first) {
+    EXPECT_GE(std::abs(offset.translation().x()), 0.005 - 1e-12) << name;
+    EXPECT_LE(std::abs(offset.translation().x()), 0.01 + 1e-12) << name;
+    EXPECT_GE(std::abs(offset.translation().y()), 0.03 - 1e-12) << name;
+    EXPECT_LE(std::abs(offset.translation().y()), 0.06 + 1e-12) << name;
+    EXPECT_EQ(offset.translation().z(), 0.0);
+    EXPECT_LE(Eigen::AngleAxisd(offset.linear()).angle(), 20 * std::numbers::pi / 180 + 1e-12);
+  }
+  EXPECT_TRUE(draw_perturbation(*s.perturb, 7).at("A").isApprox(first.at("A")));
+  EXPECT_FALSE(draw_perturbation(*s.perturb, 8).at("A").isApprox(first.at("A")));
+
+  expect_error(scenario(head + "perturb: {workpieces: [Q]}\n"), 5, "names workpiece 'Q', which is not in the cell");
+  expect_error(scenario(head + "perturb: {workpieces: [A, A]}\n"), 5, "names workpiece 'A' twice");
+  expect_error(scenario(head + "perturb: {workpieces: [A], offset: [0.1]}\n"), 5, "must be a list of 2 numbers");
+  expect_error(scenario(head + "perturb: {workpieces: [A], offset: [0.1, -1]}\n"), 5, "from 0 to 0.5");
+  expect_error(scenario(head + "perturb: {workpieces: [A], yaw: 270}\n"), 5, "from 0 to 180");
+  expect_error(scenario(head + "perturb: {workpieces: [A], spin: 3}\n"), 5, "unknown field 'spin'");
 }
 
 TEST_F(ScenarioFiles, ExpectationErrors) {

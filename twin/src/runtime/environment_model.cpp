@@ -142,16 +142,53 @@ EnvironmentModel make_environment_model(const CellDescription& cell) {
   return m;
 }
 
-void apply_truth(EnvironmentModel& model, const Truth& truth) {
+const char* to_string(Perception perception) {
+  switch (perception) {
+    case Perception::kTruth:
+      return "truth";
+    case Perception::kVision:
+      return "vision";
+    case Perception::kCad:
+      return "cad";
+  }
+  return "?";
+}
+
+void apply_truth(EnvironmentModel& model, const Truth& truth, Perception perception) {
   model.time = truth.time;
   for (const WorkpieceTruth& w : truth.workpieces) {
+    if (perception == Perception::kVision) break;
     WorkpieceState* s = model.find_workpiece(w.name);
     if (s == nullptr) continue;
-    s->pose = w.pose;
-    s->velocity = w.velocity;
     s->present = w.present;
-    s->confidence = 1.0;
-    s->stamp = truth.time;
+    s->velocity = w.velocity;
+    s->motion_known = true;
+    if (perception == Perception::kTruth) {
+      s->pose = w.pose;
+      s->confidence = 1.0;
+      s->stamp = truth.time;
+      continue;
+    }
+    // kCad: a resting part near a location stands at its nominal pose there; otherwise the model keeps its pose.
+    if (!s->held_by.empty() || !w.present) continue;
+    const Eigen::Vector3d bottom = w.pose.translation() - Eigen::Vector3d(0, 0, s->size.z() / 2);
+    const LocationState* at = nullptr;
+    double nearest = kCadSensorRadius;
+    for (const LocationState& l : model.locations) {
+      const double d = (bottom - l.pose.translation()).norm();
+      if (d <= nearest) {
+        nearest = d;
+        at = &l;
+      }
+    }
+    if (at == nullptr) continue;
+    Eigen::Isometry3d nominal = at->pose;
+    nominal.translation().z() += s->size.z() / 2;
+    if (!s->pose.isApprox(nominal)) {
+      s->pose = nominal;
+      s->confidence = 1.0;
+      s->stamp = truth.time;
+    }
   }
   for (const RobotTruth& r : truth.robots) {
     RobotState* s = model.find_robot(r.name);
@@ -162,12 +199,14 @@ void apply_truth(EnvironmentModel& model, const Truth& truth) {
 }
 
 bool correct(EnvironmentModel& model, std::string_view workpiece, const Eigen::Isometry3d& pose, double confidence,
-             SimDuration age) {
+             SimDuration age, const std::optional<Eigen::Vector3d>& velocity) {
   WorkpieceState* w = model.find_workpiece(workpiece);
   if (w == nullptr || !w->held_by.empty()) return false;
   if (!std::isfinite(confidence) || confidence < 0.0 || confidence > 1.0 || age.count() < 0) return false;
-  if (!pose.matrix().allFinite()) return false;
+  if (!pose.matrix().allFinite() || (velocity && !velocity->allFinite())) return false;
   w->pose = pose;
+  w->motion_known = velocity.has_value();
+  w->velocity = velocity.value_or(Eigen::Vector3d::Zero());
   w->confidence = confidence;
   w->stamp = model.time - age;
   w->present = true;
@@ -198,18 +237,34 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
           return wait(fmt::format("workpiece {} is held by {}", w->name, w->held_by));
         }
         const double speed = w->velocity.norm();
+        if (!mine && !w->motion_known) {
+          return wait(fmt::format("workpiece {} has been seen once: whether it moves is not known yet", w->name));
+        }
         if (!mine && speed > options.part_at_rest_speed) {
           return wait(fmt::format("workpiece {} is still moving ({:.4f} m/s)", w->name, speed));
         }
         const Eigen::Vector3d bottom = w->pose.translation() - Eigen::Vector3d(0, 0, w->size.z() / 2);
         LocationState heights;  // the LocationSpec defaults, unless the part rests at a location
         double yaw = yaw_of(w->pose.linear());
+        const LocationState* near = nullptr;
+        double nearest = options.at_location_tolerance;
         for (const LocationState& l : model.locations) {
-          const Eigen::Vector3d d = bottom - l.pose.translation();
-          if (d.norm() <= options.at_location_tolerance) {
-            heights = l;
-            yaw = yaw_of(l.pose.linear());  // the cell says how fingers close there (e.g. clear of a stop bar)
-            break;
+          const double d = (bottom - l.pose.translation()).norm();
+          if (d <= nearest) {
+            nearest = d;
+            near = &l;
+          }
+        }
+        if (near != nullptr) {
+          heights = *near;
+          // The cell says how fingers close there (e.g. clear of a stop bar): of the directions that close on the
+          // part's faces, the one nearest the location's.
+          const double want = yaw_of(near->pose.linear());
+          if (w->shape == Shape::kCylinder) {
+            yaw = want;
+          } else {
+            const double period = std::abs(w->size.x() - w->size.y()) < 1e-9 ? std::numbers::pi / 2 : std::numbers::pi;
+            yaw += period * std::round((want - yaw) / period);
           }
         }
         const double grasp = mine ? r->hold->tcp_above_bottom : heights.grasp_height;

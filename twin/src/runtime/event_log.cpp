@@ -94,6 +94,32 @@ void EventLog::run_end(SimDuration t, std::string_view outcome, std::string_view
          true);
 }
 
+void EventLog::vision(SimDuration t, SimDuration frame_time, const std::vector<Seen>& seen,
+                      const std::vector<std::string>& not_seen, std::size_t rejected, std::string_view problem) {
+  // Fixed decimals, negative zero folded: the same numbers give the same bytes.
+  const auto fixed = [](double v, int decimals) {
+    std::string s = fmt::format("{:.{}f}", v, decimals);
+    if (s.find_first_not_of("-0.") == std::string::npos && s.front() == '-') s.erase(0, 1);
+    return s;
+  };
+  std::string list;
+  for (const Seen& p : seen) {
+    CW_CHECK(p.position.allFinite() && std::isfinite(p.confidence), "vision saw {} at a non-finite pose", p.workpiece);
+    if (!list.empty()) list += ',';
+    list += fmt::format("{{\"workpiece\":{},\"x\":{},\"y\":{},\"z\":{},\"yaw\":{},\"confidence\":{}}}", q(p.workpiece),
+                        fixed(p.position.x(), 4), fixed(p.position.y(), 4), fixed(p.position.z(), 4),
+                        p.yaw ? fixed(*p.yaw * 180.0 / 3.14159265358979323846, 2) : std::string("null"),
+                        fixed(p.confidence, 3));
+  }
+  std::string missing;
+  for (const std::string& w : not_seen) {
+    if (!missing.empty()) missing += ',';
+    missing += q(w);
+  }
+  append(fmt::format("{},\"frame\":{},\"seen\":[{}],\"not_seen\":[{}],\"rejected\":{},\"problem\":{}}}",
+                     head(t, "vision"), format_sim_time(frame_time), list, missing, rejected, q(problem)));
+}
+
 std::vector<std::string> EventLog::lines() const {
   std::lock_guard lock(mutex_);
   return lines_;

@@ -301,6 +301,7 @@ void RobotControl::complete(SimDuration now) {
         // Tool axis pointing mostly down: a grasp from above; otherwise from the side.
         hold.approach = tcp.linear().col(2).z() < -0.7 ? Approach::kDown : Approach::kSide;
         hold.tcp_above_bottom = tcp.translation().z() - (w->pose.translation().z() - w->size.z() / 2);
+        hold.in_hand = tcp.inverse() * w->pose;
         r->hold = hold;
         r->released_tcp.reset();
         w->held_by = cell_;
@@ -349,6 +350,7 @@ void RobotControl::start_next(SimDuration now) {
 
 void RobotControl::step(SimDuration now) {
   if (phase_ == RobotPhase::kFailed) return;
+  track_tool(options_.track_held_parts);
   if (phase_ == RobotPhase::kBringUp) {
     bring_up(now);
     if (phase_ != RobotPhase::kReady) return;
@@ -362,6 +364,21 @@ void RobotControl::step(SimDuration now) {
     poll_current(now);
     if (current_ || phase_ == RobotPhase::kFailed) return;  // still running, or failed
   }
+}
+
+void RobotControl::track_tool(bool held_part) {
+  env_.write([&](EnvironmentModel& m) {
+    RobotState* r = m.find_robot(cell_);
+    if (r == nullptr || r->joints.size() != chain_.dof()) return;
+    r->tcp = r->base * chain_.forward(to_eigen(r->joints));
+    if (!held_part || !r->hold) return;
+    WorkpieceState* w = m.find_workpiece(r->hold->workpiece);
+    if (w == nullptr) return;
+    w->pose = *r->tcp * r->hold->in_hand;
+    w->velocity.setZero();
+    w->motion_known = true;
+    w->stamp = m.time;
+  });
 }
 
 void RobotControl::halt() {

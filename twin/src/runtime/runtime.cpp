@@ -156,6 +156,11 @@ struct Runtime::Impl {
   std::unique_ptr<TaskControl> task;
   std::vector<std::unique_ptr<RobotControl>> robots;
   VirtualClock clock;
+  // Vision (Perception::kVision): frames from the simulation thread to the image-processing thread.
+  MessageQueue<Frame> frames{2};
+  std::unique_ptr<ImageProcessing> vision;
+  SimDuration next_frame{0};
+  std::uint64_t frames_dropped = 0;
   std::unique_ptr<LockstepScheduler> scheduler;
   std::vector<std::thread> threads;
   bool started = false;
@@ -196,6 +201,7 @@ struct Runtime::Impl {
   void end_all() {
     stopping = true;
     if (scheduler) scheduler->stop();
+    frames.close();
     task_wake.set();
     for (auto& e : robot_wake) e->set();
     std::lock_guard lock(m);
@@ -246,7 +252,21 @@ struct Runtime::Impl {
     Truth truth = cfg.plant->truth();
     const SimDuration t = now + cfg.period;
     truth.time = t;
-    env.write([&](EnvironmentModel& e) { apply_truth(e, truth); });
+    env.write([&](EnvironmentModel& e) { apply_truth(e, truth, cfg.perception); });
+    if (vision && t >= next_frame) {
+      // Rendered here: the simulation thread owns the physics state the camera shows, and the rendering context.
+      Frame f;
+      f.time = t;
+      std::string why;
+      if (std::optional<cv::Mat> image = cfg.plant->capture(vision->options().camera, &why)) {
+        f.image = std::move(*image);
+      } else {
+        f.problem = why;
+      }
+      // Real-time: image processing may lag; a frame it has no room for is dropped (the next one is newer anyway).
+      if (frames.try_push(std::move(f)) == QueueStatus::full) ++frames_dropped;
+      next_frame += vision->options().period;
+    }
     for (Collision& c : cfg.plant->new_collisions()) {
       log.collision(t, c.a, c.b, c.depth);
       collisions.push_back(std::move(c));
@@ -279,19 +299,28 @@ struct Runtime::Impl {
             announce_end();
             break;
           }
-        } else if (participant == 1) {
+        } else if (participant == task_seat() - 1) {
+          vision->step(clock.now());
+        } else if (participant == task_seat()) {
           task_step();
         } else {
-          robots[participant - 2]->step(clock.now());
+          robots[participant - first_robot_seat()]->step(clock.now());
         }
         seat.yield();
       }
-      if (participant >= 2) robots[participant - 2]->halt();
+      if (participant == 0) cfg.plant->release_thread_resources();
+      if (participant >= first_robot_seat()) robots[participant - first_robot_seat()]->halt();
     } catch (...) {
+      if (participant == 0) cfg.plant->release_thread_resources();
       record_error();
       end_all();
     }
   }
+
+  // Seats (lock-step turns, thread indices): simulation, image processing (with vision), task control, robots.
+  std::size_t task_seat() const { return vision ? 2 : 1; }
+  std::size_t first_robot_seat() const { return task_seat() + 1; }
+  std::size_t participants() const { return first_robot_seat() + robots.size(); }
 
   std::chrono::steady_clock::duration wall_period() const {
     return std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -307,8 +336,18 @@ struct Runtime::Impl {
           pacer.pace(clock.now() + cfg.period);
           if (!sim_turn()) break;
         }
+        cfg.plant->release_thread_resources();
         end_all();
-      } else if (participant == 1) {
+      } else if (participant == task_seat() - 1) {
+        while (!stopping) {
+          Frame f;
+          if (frames.pop_for(f, wall_period() * 10) != QueueStatus::ok) continue;
+          vision->process(f, clock.now());
+          // The model changed: whoever waits for a part looks again now.
+          task_wake.set();
+          for (auto& e : robot_wake) e->set();
+        }
+      } else if (participant == task_seat()) {
         while (!stopping) {
           // Woken by a status; at least once a period, for the time accounting.
           (void)task_wake.wait_for(wall_period());
@@ -319,7 +358,7 @@ struct Runtime::Impl {
           }
         }
       } else {
-        const std::size_t r = participant - 2;
+        const std::size_t r = participant - first_robot_seat();
         while (!stopping) {
           // Woken by a command or the driver's notifier; at least once a period, to watch sensor conditions.
           (void)robot_wake[r]->wait_for(wall_period());
@@ -330,6 +369,7 @@ struct Runtime::Impl {
         robots[r]->halt();
       }
     } catch (...) {
+      if (participant == 0) cfg.plant->release_thread_resources();
       record_error();
       end_all();
     }
@@ -351,6 +391,21 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     inbox_ptrs.push_back(im.inboxes.back().get());
     im.robot_wake.push_back(std::make_unique<Event>(Event::Kind::auto_reset));
   }
+  if (config_.perception == Perception::kVision) {
+    CW_CHECK(config_.vision.has_value() && config_.detector != nullptr,
+             "vision perception needs a camera and a detector");
+    im.vision = std::make_unique<ImageProcessing>(*config_.detector, im.env, im.frames, *log_, *config_.vision,
+                                                  config_.on_frame);
+    // Until the camera has seen them, parts are where the cell description puts them, unconfirmed: nothing is known
+    // of their motion.
+    im.env.write([](EnvironmentModel& m) {
+      for (WorkpieceState& w : m.workpieces) {
+        w.confidence = 0;
+        w.motion_known = false;
+      }
+    });
+  }
+  config_.motion.track_held_parts = config_.perception != Perception::kTruth;
   im.task = std::make_unique<TaskControl>(config_.net, config_.program, inbox_ptrs, im.statuses, *log_);
   for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
     const std::string& label = config_.program.robots[r];
@@ -440,7 +495,7 @@ void Runtime::start() {
   }
   log_->run_start(im.clock.now(), config_.program.file, config_.cell.name, to_string(config_.mode), config_.period,
                   names);
-  const std::size_t participants = 2 + im.robots.size();
+  const std::size_t participants = im.participants();
   im.started = true;
   if (config_.mode == Mode::kLockstep) {
     im.scheduler = std::make_unique<LockstepScheduler>(participants);

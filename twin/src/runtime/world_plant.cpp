@@ -1,7 +1,10 @@
 #include "cellwright/twin/runtime/world_plant.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <limits>
+#include <stdexcept>
 
 #include "cellwright/common/error.hpp"
 
@@ -20,7 +23,7 @@ void WorldPlant::advance(SimDuration dt) {
   // Due parts first, in order; one still blocked by the part before it waits (and so do the ones behind it).
   while (next_feed_ < feed_.size() && feed_[next_feed_].time <= world_.now()) {
     const FeedEvent& f = feed_[next_feed_];
-    const sim::FeedResult r = world_.feed(f.workpiece, f.conveyor);
+    const sim::FeedResult r = world_.feed(f.workpiece, f.conveyor, f.offset);
     if (r.status == sim::FeedStatus::occupied) break;
     CW_CHECK(r.ok(), "feeding {} onto {} at {} ns: {}", f.workpiece, f.conveyor, f.time.count(), r.message);
     arrivals_.push_back({f.workpiece, f.conveyor});
@@ -71,6 +74,31 @@ std::vector<Collision> WorldPlant::new_collisions() {
   for (const sim::Collision& c : world_.new_collisions()) out.push_back({c.body1, c.body2, c.depth});
   return out;
 }
+
+std::optional<cv::Mat> WorldPlant::capture(const std::string& camera, std::string* why) {
+  const CameraSpec* spec = world_.scene().cell().find_camera(camera);
+  const int id = world_.scene().camera_id(camera);
+  if (spec == nullptr || id < 0) {
+    if (why != nullptr) *why = fmt::format("the cell has no camera '{}'", camera);
+    return std::nullopt;
+  }
+  try {
+    if (!renderer_) {
+      const mjModel* m = world_.scene().model();
+      renderer_ = std::make_unique<Renderer>(m, m->vis.global.offwidth, m->vis.global.offheight);
+    }
+    return renderer_->render_camera(world_.render_data(), id, spec->width, spec->height);
+  } catch (const std::runtime_error& e) {
+    if (why != nullptr) *why = fmt::format("camera '{}' cannot render: {}", camera, e.what());
+    return std::nullopt;
+  }
+}
+
+void WorldPlant::release_thread_resources() {
+  renderer_.reset();
+}
+
+WorldPlant::~WorldPlant() = default;
 
 std::vector<Arrival> WorldPlant::new_arrivals() {
   std::vector<Arrival> out;

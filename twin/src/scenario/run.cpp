@@ -3,6 +3,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+#include <map>
 #include <memory>
 #include <system_error>
 
@@ -11,6 +14,8 @@
 #include "cellwright/twin/runtime/world_plant.hpp"
 #include "cellwright/twin/scenario/gantt.hpp"
 #include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/vision/camera_model.hpp"
+#include "cellwright/twin/vision/detector.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -23,11 +28,26 @@ runtime::SimDuration seconds(double s) {
 }  // namespace
 
 ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions options)
-    : scenario_(s), realtime_(options.realtime.value_or(s.options.realtime)) {
+    : scenario_(s),
+      realtime_(options.realtime.value_or(s.options.realtime)),
+      perception_(options.perception.value_or(s.perception)) {
   sim::WorldOptions world_options;
   world_options.where = {s.source.string(), 0, 0};
   if (s.feed) world_options.parked = s.feed->workpieces;
-  world_ = std::make_unique<sim::World>(build_scene(s.cell), world_options);
+  // The world as it really is: perturbed parts stand elsewhere than the cell description says.
+  const std::map<std::string, Eigen::Isometry3d> offsets =
+      s.perturb ? draw_perturbation(*s.perturb, s.seed) : std::map<std::string, Eigen::Isometry3d>{};
+  CellDescription real = s.cell;
+  for (WorkpieceSpec& w : real.workpieces) {
+    const auto it = offsets.find(w.name);
+    const bool fed =
+        s.feed && std::find(s.feed->workpieces.begin(), s.feed->workpieces.end(), w.name) != s.feed->workpieces.end();
+    if (it == offsets.end() || fed) continue;
+    const Eigen::Isometry3d moved = w.pose.transform() * it->second;
+    w.pose.xyz = moved.translation();
+    w.pose.rpy.z() += std::atan2(it->second.linear()(1, 0), it->second.linear()(0, 0));
+  }
+  world_ = std::make_unique<sim::World>(build_scene(real), world_options);
 
   runtime::RunConfig config;
   config.program = s.program;
@@ -64,7 +84,9 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   std::vector<runtime::FeedEvent> feed;
   if (s.feed) {
     for (std::size_t i = 0; i < s.feed->workpieces.size(); ++i) {
-      feed.push_back({seconds(s.feed->arrival(i)), s.feed->workpieces[i], s.feed->conveyor});
+      const auto it = offsets.find(s.feed->workpieces[i]);
+      feed.push_back({seconds(s.feed->arrival(i)), s.feed->workpieces[i], s.feed->conveyor,
+                      it == offsets.end() ? Eigen::Isometry3d::Identity() : it->second});
     }
   }
   plant_ = std::make_unique<runtime::WorldPlant>(*world_, std::move(feed));
@@ -76,6 +98,23 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   config.limits.sim_time = seconds(s.limits.sim_time);
   config.limits.settle = seconds(s.options.settle_time);
   config.motion.targets.handover_clearance = s.options.handover_clearance;
+  config.perception = perception_;
+  if (perception_ == runtime::Perception::kVision) {
+    VisionSettings v = s.vision.value_or(VisionSettings{});
+    if (v.camera.empty()) {
+      if (s.cell.cameras.empty()) {
+        throw InputError({s.source.string(), 0, 0}, "perception vision needs a camera, and the cell has none");
+      }
+      v.camera = s.cell.cameras.front().name;
+    }
+    const CameraSpec* camera = s.cell.find_camera(v.camera);
+    if (camera == nullptr) {
+      throw InputError(v.where, fmt::format("the vision camera '{}' is not a camera of the cell", v.camera));
+    }
+    config.vision = runtime::VisionOptions{v.camera, seconds(v.period)};
+    config.detector = std::make_shared<const vision::Detector>(s.cell, vision::CameraModel(*camera));
+    config.on_frame = std::move(options.on_frame);
+  }
   config.on_progress = std::move(options.on_progress);
   config.progress_every = options.progress_every;
   runtime_ = std::make_unique<runtime::Runtime>(std::move(config));

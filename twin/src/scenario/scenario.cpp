@@ -7,6 +7,7 @@
 #include <cmath>
 #include <map>
 #include <numbers>
+#include <random>
 #include <set>
 
 #include "cellwright/common/files.hpp"
@@ -297,6 +298,26 @@ const std::string& Scenario::location_of(std::string_view label) const {
   return find_binding(locations, label, "location");
 }
 
+std::map<std::string, Eigen::Isometry3d> draw_perturbation(const Perturbation& p, std::uint64_t seed) {
+  // The engine's raw output, not a std:: distribution: those are allowed to differ between standard libraries.
+  std::mt19937_64 rng(seed);
+  const auto unit = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };  // [0, 1)
+  std::map<std::string, Eigen::Isometry3d> out;
+  for (const std::string& w : p.workpieces) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 2; ++i) {
+      const double amount = p.offset[i] * (0.5 + 0.5 * unit());
+      d[i] = unit() < 0.5 ? -amount : amount;
+    }
+    const double yaw = p.yaw * (2 * unit() - 1);
+    Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+    offset.translation() = d;
+    offset.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    out[w] = offset;
+  }
+  return out;
+}
+
 Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path& source) {
   const Doc doc(source.string());
   YAML::Node root;
@@ -309,7 +330,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
   const Fields f(doc, root, "the scenario",
                  {"cell", "program", "seed", "locations", "drivers", "robots", "bind", "feed", "limits", "expect",
-                  "tolerance", "options"});
+                  "tolerance", "options", "perception", "vision", "perturb"});
   const std::filesystem::path dir = source.parent_path();
 
   Scenario s;
@@ -488,6 +509,88 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     }
     feed.period = ff.positive_or("period", 0.0);
     s.feed = std::move(feed);
+  }
+
+  // --- perception ---
+  if (f.has("perception")) {
+    const std::string p = f.text("perception");
+    if (p == "truth") {
+      s.perception = runtime::Perception::kTruth;
+    } else if (p == "vision") {
+      s.perception = runtime::Perception::kVision;
+    } else if (p == "cad") {
+      s.perception = runtime::Perception::kCad;
+    } else {
+      doc.fail(f.node("perception"),
+               fmt::format("{} must be truth, vision or cad, got '{}'", f.field("perception"), p));
+    }
+  }
+  if (f.has("vision") && s.perception != runtime::Perception::kVision) {
+    doc.fail(f.key_node("vision"), "field 'vision' is given but 'perception' is not vision");
+  }
+  if (s.perception == runtime::Perception::kVision) {
+    VisionSettings v;
+    v.where = doc.at(f.has("vision") ? f.key_node("vision") : f.key_node("perception"));
+    if (f.has("vision")) {
+      const Fields vf(doc, f.node("vision"), "field 'vision'", {"camera", "period"});
+      if (vf.has("camera")) v.camera = vf.text("camera");
+      v.period = vf.positive_or("period", v.period);
+      if (!v.camera.empty() && s.cell.find_camera(v.camera) == nullptr) {
+        doc.fail(vf.node("camera"), fmt::format("the vision camera '{}' is not a camera of the cell (cameras: {})",
+                                                v.camera, list_names(names_of(s.cell.cameras))));
+      }
+    }
+    if (v.camera.empty()) {
+      if (s.cell.cameras.empty()) {
+        doc.fail(f.node("perception"), "perception: vision needs a camera, and the cell has none");
+      }
+      v.camera = s.cell.cameras.front().name;
+    }
+    s.vision = v;
+  }
+  if (f.has("perturb")) {
+    const Fields pf(doc, f.node("perturb"), "field 'perturb'", {"workpieces", "offset", "yaw"});
+    Perturbation p;
+    p.where = doc.at(f.key_node("perturb"));
+    const YAML::Node& list = pf.node("workpieces");
+    if (!list.IsSequence() || list.size() == 0) {
+      doc.fail(list, fmt::format("{} must be a non-empty list of cell workpieces, got {}", pf.field("workpieces"),
+                                 describe(list)));
+    }
+    for (const auto& e : list) {
+      const std::string w = pf.text_of(e, fmt::format("an entry of {}", pf.field("workpieces")));
+      if (s.cell.find_workpiece(w) == nullptr) {
+        doc.fail(e, fmt::format("{} names workpiece '{}', which is not in the cell (workpieces: {})",
+                                pf.field("workpieces"), w, list_names(names_of(s.cell.workpieces))));
+      }
+      if (std::find(p.workpieces.begin(), p.workpieces.end(), w) != p.workpieces.end()) {
+        doc.fail(e, fmt::format("{} names workpiece '{}' twice", pf.field("workpieces"), w));
+      }
+      p.workpieces.push_back(w);
+    }
+    if (pf.has("offset")) {
+      const YAML::Node& v = pf.node("offset");
+      if (!v.IsSequence() || v.size() != 2) {
+        doc.fail(v, fmt::format("{} must be a list of 2 numbers (m along the part's x and y), got {}",
+                                pf.field("offset"), describe(v)));
+      }
+      for (std::size_t i = 0; i < 2; ++i) {
+        double x = 0;
+        if (!v[i].IsScalar() || !YAML::convert<double>::decode(v[i], x) || !std::isfinite(x) || x < 0 || x > 0.5) {
+          doc.fail(v[i],
+                   fmt::format("{} must hold 2 numbers from 0 to 0.5 (m), got {}", pf.field("offset"), describe(v[i])));
+        }
+        p.offset[static_cast<Eigen::Index>(i)] = x;
+      }
+    }
+    if (pf.has("yaw")) {
+      const double yaw = pf.number("yaw");
+      if (yaw < 0 || yaw > 180) {
+        doc.fail(pf.node("yaw"), fmt::format("{} must be from 0 to 180 (degrees), got {}", pf.field("yaw"), yaw));
+      }
+      p.yaw = yaw * std::numbers::pi / 180.0;
+    }
+    s.perturb = std::move(p);
   }
 
   // --- limits and options ---

@@ -316,7 +316,7 @@ std::vector<std::string> World::drain_warnings() {
   return out;
 }
 
-FeedResult World::feed(std::string_view workpiece, std::string_view conveyor) {
+FeedResult World::feed(std::string_view workpiece, std::string_view conveyor, const Eigen::Isometry3d& offset) {
   const std::size_t w = workpiece_index(workpiece);
   if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to feed", workpiece)};
   const ConveyorSpec* c = scene_.cell().find_conveyor(conveyor);
@@ -328,6 +328,7 @@ FeedResult World::feed(std::string_view workpiece, std::string_view conveyor) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.linear() = c->pose.rotation();
   pose.translation() = c->belt_point(c->enter) + Eigen::Vector3d(0, 0, spec.size.z() / 2);
+  pose = pose * offset;
   const double radius = 0.5 * std::hypot(spec.size.x(), spec.size.y());
   const mjData* d = scene_.data();
   for (std::size_t o = 0; o < scene_.workpieces().size(); ++o) {

@@ -8,8 +8,9 @@
 //
 // Target resolution (resolve_target) turns a primitive's symbolic move target into tool poses for one robot:
 //  - above(X) / at(X), X a workpiece: at = the part's grasp point, the tool centre point `grasp_height` above the
-//    part's bottom centre, gripper pointing down, fingers closing along the yaw of the cell location the part rests
-//    at (within TargetOptions::at_location_tolerance), else along the part's own yaw (or half a turn round);
+//    part's bottom centre, gripper pointing down, fingers closing on the part's faces: along the part's own yaw (or
+//    half a turn round), or, when the part rests at a cell location (its bottom within
+//    TargetOptions::at_location_tolerance of it), along the face direction nearest that location's yaw;
 //    above = the same raised by `approach_height`. grasp/approach heights are those of that location, else the
 //    LocationSpec defaults (0.02 m / 0.08 m).
 //    A part that is absent, held by another robot, or still moving (faster than part_at_rest_speed) is not ready:
@@ -57,7 +58,10 @@ struct WorkpieceState {
   Eigen::Vector3d size = Eigen::Vector3d::Zero();          // full extents (cell description)
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // centre, world
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();      // m/s, world
-  bool present = true;                                     // in the cell now
+  // Whether `velocity` is known: false for a part vision has seen once only (it may be riding a belt); such a part
+  // is not ready to be grasped.
+  bool motion_known = true;
+  bool present = true;    // in the cell now
   std::string held_by;    // cell robot holding it, empty if none (set by robot control on close/open)
   double confidence = 1;  // 1 for the CAD data and the simulation's truth; vision's confidence after correct()
   SimDuration stamp{0};   // simulation time the pose was measured at
@@ -68,6 +72,9 @@ struct Hold {
   std::string workpiece;
   Approach approach = Approach::kDown;
   double tcp_above_bottom = 0;  // tool centre point height above the part's bottom when it closed (m)
+  // The part's centre in the tool frame when it closed (from the model's estimate then): where the part is while held,
+  // when nothing measures it (Perception::kVision, kCad).
+  Eigen::Isometry3d in_hand = Eigen::Isometry3d::Identity();
 };
 
 struct RobotState {
@@ -76,6 +83,8 @@ struct RobotState {
   std::vector<double> home;                                // radians
   std::vector<double> joints;  // current arm joints (truth); the home joints until the first update
   std::optional<Hold> hold;    // what it holds, if anything
+  // The tool centre point (world) from `joints`, written by its robot control each step; nullopt before.
+  std::optional<Eigen::Isometry3d> tcp;
   // The tool pose (world) where it last opened its hand on a part; cleared when it closes again. Departing from a
   // put-down lifts the open hand straight up from there (see above(X) at the top).
   std::optional<Eigen::Isometry3d> released_tcp;
@@ -125,24 +134,48 @@ using SharedEnvironment = Guarded<EnvironmentModel>;
 // pose, present, held by nobody.
 EnvironmentModel make_environment_model(const CellDescription& cell);
 
-// Writes the plant's truth into the model: time, workpiece poses/velocities/presence (a part held by a robot keeps
-// its held_by), robot joints and finger contacts. Entries naming nothing in the model are ignored (a plant may know
-// more bodies than the model). Confidence becomes 1 and the stamp the truth's time.
-void apply_truth(EnvironmentModel& model, const Truth& truth);
+// Where the model's knowledge of the workpieces comes from.
+//  kTruth   the simulation's ground truth, every control period: a perfect sensor (the default; for checking task
+//           logic without perception in the way).
+//  kVision  the camera: the image-processing thread corrects the model (correct()); before a part is seen it is
+//           where the cell description puts it, or absent if it is fed later; while held it moves with the hand.
+//  kCad     the cell description only (the paper's off-line CAD data; "vision off"): the cell's presence sensors (a
+//           light barrier at each conveyor entry and location, the belts' encoders) tell whether a part is there and
+//           whether it moves, never where exactly: a part at rest within kCadSensorRadius of a location is taken to
+//           stand at that location's nominal pose. While held it moves with the hand.
+// The robots' joints and finger contacts always come from the truth (the robots' own encoders and gripper sensors).
+enum class Perception { kTruth, kVision, kCad };
+
+// "truth", "vision", "cad".
+const char* to_string(Perception perception);
+
+inline constexpr double kCadSensorRadius = 0.1;  // m
+
+// Writes the plant's truth into the model, as `perception` allows (see Perception): time, robot joints and finger
+// contacts always; workpiece poses, velocities and presence for kTruth (a part held by a robot keeps its held_by;
+// confidence becomes 1 and the stamp the truth's time); presence, velocity and the nominal pose of the location a
+// resting part stands at for kCad; nothing of the workpieces for kVision. Entries naming nothing in the model are
+// ignored (a plant may know more bodies than the model).
+void apply_truth(EnvironmentModel& model, const Truth& truth, Perception perception = Perception::kTruth);
 
 // Vision's entry point (issue 5): the workpiece was seen at `pose` (its centre, world) with `confidence` in [0, 1],
 // in an image taken `age` before model.time. Updates the pose and confidence, stamps it model.time - age, and marks
 // it present. A part held by a robot is left alone (the hand hides it; the hold is authoritative). Returns false,
 // changing nothing, when there is no such workpiece, it is held, the confidence is outside [0, 1] or not finite, or
 // the age is negative.
+// `velocity` is the part's measured velocity, nullopt when it could not be measured (seen once): then
+// motion_known becomes false.
 bool correct(EnvironmentModel& model, std::string_view workpiece, const Eigen::Isometry3d& pose, double confidence,
-             SimDuration age);
+             SimDuration age, const std::optional<Eigen::Vector3d>& velocity = Eigen::Vector3d::Zero());
 
 // Tunables of target resolution.
 struct TargetOptions {
-  double handover_clearance = 0.08;     // m: hand_approach backs off this far from the hand-over grasp
-  double part_at_rest_speed = 0.005;    // m/s: a part moving faster is not ready to be grasped
-  double at_location_tolerance = 0.03;  // m: a part this close to a location's point rests "at" it
+  double handover_clearance = 0.08;   // m: hand_approach backs off this far from the hand-over grasp
+  double part_at_rest_speed = 0.005;  // m/s: a part moving faster is not ready to be grasped
+  // m: a part this close to a location's point rests "at" it. Generous: a part a conveyor brings to its stop bar
+  // stands within a few centimetres of the pick location, and must be taken with the location's heights and finger
+  // direction (clear of the bar) wherever vision finds it there.
+  double at_location_tolerance = 0.1;
 };
 
 // The result of resolving a move target for one robot.

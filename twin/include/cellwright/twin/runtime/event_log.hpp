@@ -22,9 +22,12 @@
 // interleave. (Determinism of the order is the lock-step scheduler's job, not the log's.)
 #pragma once
 
+#include <Eigen/Core>
+
 #include <cstddef>
 #include <cstdint>
 #include <mutex>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <string_view>
@@ -63,6 +66,18 @@ class EventLog {
   void collision(SimDuration t, std::string_view a, std::string_view b, double depth);
   void workpiece_arrived(SimDuration t, std::string_view workpiece, std::string_view where);
   void run_end(SimDuration t, std::string_view outcome, std::string_view reason, std::uint64_t firings);
+
+  // One camera frame processed by the image-processing thread: taken at `frame_time`, what it saw (each part's
+  // centre, yaw when it has one, confidence), what it did not, how many blobs it rejected, and a problem that made
+  // the frame unusable ("" if none). Positions are written to 0.1 mm, angles to 0.01 degree.
+  struct Seen {
+    std::string workpiece;
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();
+    std::optional<double> yaw;  // radians
+    double confidence = 0;
+  };
+  void vision(SimDuration t, SimDuration frame_time, const std::vector<Seen>& seen,
+              const std::vector<std::string>& not_seen, std::size_t rejected, std::string_view problem);
 
   // Every line so far, without the newline.
   std::vector<std::string> lines() const;

@@ -15,6 +15,8 @@
 
 #include <Eigen/Geometry>
 
+#include <opencv2/core.hpp>
+
 #include <optional>
 #include <string>
 #include <vector>
@@ -76,6 +78,20 @@ class Plant {
 
   // Arrivals since the previous call, in a fixed order.
   virtual std::vector<Arrival> new_arrivals() = 0;
+
+  // An image of the plant now from its camera `camera`, as a BGR image (OpenCV's order, top row first) at that
+  // camera's resolution; nullopt when the plant has no such camera or cannot render (the problem is in *why). Made on
+  // the calling thread, which is the simulation thread: a rendering context lives there (see
+  // release_thread_resources). The default plant has no cameras.
+  virtual std::optional<cv::Mat> capture(const std::string& camera, std::string* why) {
+    if (why != nullptr) *why = "this plant has no cameras";
+    (void)camera;
+    return std::nullopt;
+  }
+
+  // Called by the simulation thread as it stops: frees what capture() made on it (an OpenGL context must be freed on
+  // the thread that made it).
+  virtual void release_thread_resources() {}
 };
 
 }  // namespace cellwright::twin::runtime

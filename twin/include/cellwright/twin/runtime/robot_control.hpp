@@ -50,6 +50,9 @@ struct MotionOptions {
   double pose_tolerance = 0.005;     // m: the same for a MovePose (tool centre point distance to the goal)
   TargetOptions targets;
   models::IkOptions ik;
+  // Each step, move the part this robot holds with its hand in the environment model (Hold::in_hand): the runtime
+  // sets this when nothing else measures held parts (Perception other than kTruth).
+  bool track_held_parts = false;
 };
 
 // Program labels -> cell names, resolved and checked by the Runtime (runtime.hpp Binding).
@@ -119,6 +122,9 @@ class RobotControl {
   };
 
   void bring_up(SimDuration now);
+  // Writes the robot's tool pose into the model and, with `held_part`, moves the part it holds with it (see
+  // MotionOptions::track_held_parts).
+  void track_tool(bool held_part);
   void start_next(SimDuration now);
   // Resolves and submits the current command; false when it must wait for its target.
   bool submit_current(SimDuration now);

@@ -1,16 +1,19 @@
 // Runtime: the paper's multithreaded control structure (Fig. 2) running one task program on one cell.
 //
 // Threads, started by run() (or the first step()):
-//   simulation     advances the Plant by one control period, writes the truth into the environment model, logs
-//                  collisions and arrivals, decides the end of the run (program finished + settle time, failure, sim
-//                  time limit);
+//   simulation     advances the Plant by one control period, writes the truth into the environment model (as much
+//                  as RunConfig::perception allows), logs collisions and arrivals, captures a camera frame every
+//                  vision period and queues it for image processing, decides the end of the run (program finished +
+//                  settle time, failure, sim time limit);
+//   image processing  with Perception::kVision only: ImageProcessing::step (image_processing.hpp), then wakes task
+//                  and robot control;
 //   task control   TaskControl::step (task_control.hpp);
 //   robot control  one per program robot, RobotControl::step (robot_control.hpp).
 // The main thread (the caller) builds everything, checks the input, starts and joins the threads.
 //
-// LOCK-STEP mode: the threads take turns through a LockstepScheduler in the fixed order simulation, task control,
-// robot 1..n, once per control period; each turn runs to quiescence without blocking. Simulation time is a
-// VirtualClock advanced by the simulation turn. Nothing depends on wall-clock time or the OS scheduler, so the event
+// LOCK-STEP mode: the threads take turns through a LockstepScheduler in the fixed order simulation, image processing,
+// task control, robot 1..n, once per control period; each turn runs to quiescence without blocking. Simulation time is
+// a VirtualClock advanced by the simulation turn. Nothing depends on wall-clock time or the OS scheduler, so the event
 // log is byte-identical from run to run and on one core or many.
 // REAL-TIME mode: the same threads run freely. The simulation thread paces itself to the wall clock (RealtimePacer,
 // at `realtime_speed`); task control and robot control sleep on an Event until a message or a driver notification
@@ -42,6 +45,7 @@
 #include "cellwright/twin/cell.hpp"
 #include "cellwright/twin/runtime/environment_model.hpp"
 #include "cellwright/twin/runtime/event_log.hpp"
+#include "cellwright/twin/runtime/image_processing.hpp"
 #include "cellwright/twin/runtime/plant.hpp"
 #include "cellwright/twin/runtime/robot_control.hpp"
 #include "cellwright/twin/runtime/task_control.hpp"
@@ -78,6 +82,13 @@ struct RunConfig {
   // advances them) must outlive the Runtime.
   std::map<std::string, drivers::RobotDriver*> drivers;
   Plant* plant = nullptr;  // not owned; required
+  // Where the model's knowledge of the workpieces comes from (environment_model.hpp). kVision needs `vision` and
+  // `detector`.
+  Perception perception = Perception::kTruth;
+  std::optional<VisionOptions> vision;
+  std::shared_ptr<const vision::Detector> detector;  // for the vision camera
+  // Called on the image-processing thread after each frame (e.g. to save it). Must not call the Runtime.
+  std::function<void(const VisionFrame&)> on_frame;
   Mode mode = Mode::kLockstep;
   SimDuration period = std::chrono::milliseconds(10);  // control period: one lock-step round
   double realtime_speed = 1.0;                         // real-time mode: simulation time per wall time

@@ -10,13 +10,18 @@
 //    since the last call, where = the conveyor.
 //  - MuJoCo warnings are drained every advance and kept (warnings()): a run that raised any is suspect, and tests
 //    fail on them.
+//  - capture(camera) renders the World's camera offscreen (OSMesa), with a Renderer made on the first call, on the
+//    calling thread, and freed by release_thread_resources() on the same thread (or by the destructor, which must then
+//    run on that thread too).
 //
 // Threads: as Plant (plant.hpp); warnings() and feed_log() only while the simulation thread is not running.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "cellwright/twin/render.hpp"
 #include "cellwright/twin/runtime/plant.hpp"
 #include "cellwright/twin/sim/world.hpp"
 
@@ -26,6 +31,9 @@ struct FeedEvent {
   SimDuration time{0};
   std::string workpiece;  // parked in the World (WorldOptions::parked)
   std::string conveyor;
+  // Moves and turns the part from the conveyor's entry point, in the conveyor's frame (x along the belt): a
+  // scenario's perturbation.
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
 };
 
 class WorldPlant final : public Plant {
@@ -37,6 +45,9 @@ class WorldPlant final : public Plant {
   Truth truth() const override;
   std::vector<Collision> new_collisions() override;
   std::vector<Arrival> new_arrivals() override;
+  std::optional<cv::Mat> capture(const std::string& camera, std::string* why) override;
+  void release_thread_resources() override;
+  ~WorldPlant() override;
 
   // Every MuJoCo warning raised so far, as the World words them.
   const std::vector<std::string>& warnings() const { return warnings_; }
@@ -47,6 +58,7 @@ class WorldPlant final : public Plant {
   std::size_t next_feed_ = 0;
   std::vector<Arrival> arrivals_;
   std::vector<std::string> warnings_;
+  std::unique_ptr<Renderer> renderer_;  // made by capture() on the simulation thread
 };
 
 }  // namespace cellwright::twin::runtime

@@ -1,6 +1,8 @@
 // One run of a scenario on the simulated cell: everything `twin run`, `twin step` and the pipeline benchmark share.
-// It builds the MuJoCo scene and World, the simulation drivers, the plant (with the scenario's workpiece feed), the
-// cycle-time estimate and the Runtime; after the run it turns the result into the report and writes the outputs.
+// It builds the MuJoCo scene and World (with the scenario's perturbation of where parts really are), the simulation
+// drivers, the plant (with the scenario's workpiece feed), the detector when the perception is vision, the cycle-time
+// estimate and the Runtime (given the cell description as written: the controller does not know the perturbation);
+// after the run it turns the result into the report and writes the outputs.
 //
 // Order of use (main thread):
 //    Scenario s = load_scenario(file);            // InputError: bad input
@@ -41,6 +43,11 @@ struct RunOptions {
   // Must be short and must not touch the ScenarioRun.
   std::function<void(runtime::SimDuration, std::uint64_t)> on_progress;
   runtime::SimDuration progress_every = std::chrono::seconds(1);
+  // Overrides the scenario's perception when set (`--perception`). Vision without a `vision:` entry in the scenario
+  // looks through the cell's first camera.
+  std::optional<runtime::Perception> perception;
+  // Called on the image-processing thread after each camera frame (`--save-frames`). Must not touch the ScenarioRun.
+  std::function<void(const runtime::VisionFrame&)> on_frame;
 };
 
 class ScenarioRun {
@@ -58,6 +65,7 @@ class ScenarioRun {
   runtime::Runtime& runtime() { return *runtime_; }
   sim::World& world() { return *world_; }
   bool realtime() const { return realtime_; }
+  runtime::Perception perception() const { return perception_; }
 
   // The cell's workpieces as the simulation has them now (ground truth: parked parts are not present, a part both
   // finger pads of a robot touch is held by it). Only while the runtime's threads are not running.
@@ -73,6 +81,7 @@ class ScenarioRun {
  private:
   const Scenario& scenario_;
   bool realtime_ = false;
+  runtime::Perception perception_ = runtime::Perception::kTruth;
   std::unique_ptr<sim::World> world_;
   std::unique_ptr<runtime::Plant> plant_;
   Estimate estimate_;

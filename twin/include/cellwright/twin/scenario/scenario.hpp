@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -79,6 +80,28 @@ struct Options {
   double handover_clearance = runtime::TargetOptions{}.handover_clearance;
 };
 
+// The camera the image-processing thread looks through (perception: vision).
+struct VisionSettings {
+  std::string camera;   // a cell camera
+  double period = 0.4;  // s of simulation time between frames
+  SourceLocation where;
+};
+
+// Where listed workpieces really start or arrive, unknown to the cell description (and so to the controller's model):
+// each is moved in its own frame (x along the conveyor it rides, or as the location it stands at is turned) by
+// between half and all of `offset` along each axis, either way, and turned by up to `yaw` either way; amounts and signs
+// are drawn from the scenario's seed.
+struct Perturbation {
+  std::vector<std::string> workpieces;               // cell workpiece names
+  Eigen::Vector2d offset = Eigen::Vector2d::Zero();  // m, along the part's x and y
+  double yaw = 0;                                    // radians
+  SourceLocation where;
+};
+
+// The offsets a perturbation gives each of its workpieces (a pose in the part's nominal frame), drawn from `seed`:
+// the same seed gives the same offsets.
+std::map<std::string, Eigen::Isometry3d> draw_perturbation(const Perturbation& p, std::uint64_t seed);
+
 struct Scenario {
   std::filesystem::path source;        // the scenario file (absolute)
   std::filesystem::path cell_file;     // absolute
@@ -94,6 +117,9 @@ struct Scenario {
   Limits limits;
   std::vector<Expectation> expect;  // in file order
   Options options;
+  runtime::Perception perception = runtime::Perception::kTruth;  // `perception:` truth (default), vision or cad
+  std::optional<VisionSettings> vision;                          // set when perception is vision
+  std::optional<Perturbation> perturb;
 
   // The cell object bound to a program label of that kind; throws InternalError for an unknown label (the loader
   // binds every label, so that is a bug).

@@ -151,6 +151,9 @@ class World {
   const Scene& scene() const { return scene_; }
   // MuJoCo's data, for rendering a snapshot on the simulation thread. Do not step it.
   const mjData* data() const { return scene_.data(); }
+  // The same, for a Renderer on the simulation thread (mjv_updateScene takes it mutable and uses its scratch stack;
+  // it changes no state a step reads). Do not step it.
+  mjData* render_data() { return scene_.data(); }
   const WorldOptions& options() const { return options_; }
   // The digital signals shared by the simulated controllers. Any thread.
   SignalTable& signals() { return signals_; }
@@ -191,7 +194,10 @@ class World {
 
   // Puts workpiece `workpiece`, waiting in the parking row, on conveyor `conveyor` at its entry point (`enter`), at
   // rest, upright, turned like the conveyor. Refuses (nothing moves) as FeedStatus says.
-  FeedResult feed(std::string_view workpiece, std::string_view conveyor);
+  // `offset`, in the conveyor's frame (x along the belt), moves and turns the part from the entry point (a scenario's
+  // perturbation); the part must still stand on the belt.
+  FeedResult feed(std::string_view workpiece, std::string_view conveyor,
+                  const Eigen::Isometry3d& offset = Eigen::Isometry3d::Identity());
   // Moves a workpiece to its place in the parking row, at rest (e.g. a part that has left the output conveyor).
   // Refuses with unknown_workpiece only.
   FeedResult park(std::string_view workpiece);

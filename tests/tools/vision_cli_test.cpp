@@ -1,0 +1,82 @@
+// `twin run` with the camera, as a user runs it: in scenes/vision.yaml workpiece A arrives 35-70 mm to the side of
+// where the cell description puts it. With vision the PUMA picks it where the camera sees it and the run succeeds;
+// with the camera off (perception cad: the controller knows only the cell description) the same pick misses and the
+// run fails. Frames are saved with --save-frames, and a vision run's log is the same on every run.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "tools/twin_cli.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using cellwright::testing::Outcome;
+using cellwright::testing::shell_quote;
+using cellwright::testing::slurp;
+using cellwright::testing::source_path;
+using cellwright::testing::TwinCli;
+using ::testing::HasSubstr;
+
+std::string run_vision(const TwinCli& cli, const fs::path& out, const std::string& extra, Outcome& outcome) {
+  outcome = cli.run("run " + shell_quote(source_path("scenes/vision.yaml")) + " --quiet -o " +
+                    shell_quote(out.string()) + " " + extra);
+  return fs::exists(out / "events.jsonl") ? slurp(out / "events.jsonl") : std::string();
+}
+
+TEST(VisionCli, PicksThePerturbedPartWhereTheCameraSeesItAndMissesItWithoutTheCamera) {
+  TwinCli cli("cw-vision-cli");
+  Outcome seen;
+  const fs::path frames = cli.dir() / "frames";
+  const std::string log = run_vision(cli, cli.dir() / "vision", "--save-frames " + shell_quote(frames.string()), seen);
+  ASSERT_EQ(seen.status, 0) << seen.out << seen.err;
+  EXPECT_THAT(seen.out, HasSubstr("ok   A: expected mill_side"));
+
+  // The camera saw A off its nominal place (the cell description puts it on the belt's centre line, y = -0.55), and
+  // the model took the camera's word: the vision events carry A's position.
+  bool saw_a_off_centre = false;
+  std::istringstream lines(log);
+  std::string line;
+  int frames_logged = 0;
+  while (std::getline(lines, line)) {
+    const nlohmann::json e = nlohmann::json::parse(line);
+    if (e["type"] != "vision") continue;
+    ++frames_logged;
+    for (const auto& s : e["seen"]) {
+      if (s["workpiece"] == "A" && std::abs(s["y"].get<double>() + 0.55) > 0.03) saw_a_off_centre = true;
+    }
+  }
+  EXPECT_TRUE(saw_a_off_centre);
+  // One frame every 400 ms of simulation time, each saved as a PNG.
+  const double end = nlohmann::json::parse(slurp(cli.dir() / "vision" / "report.json"))["end_time"].get<double>();
+  EXPECT_NEAR(frames_logged, end / 0.4, 2.0);
+  int pngs = 0;
+  for (const auto& f : fs::directory_iterator(frames)) pngs += f.path().extension() == ".png" ? 1 : 0;
+  EXPECT_EQ(pngs, frames_logged);
+
+  // The same run again: the same bytes.
+  Outcome again;
+  EXPECT_EQ(run_vision(cli, cli.dir() / "again", "", again), log);
+
+  // Vision off: the controller believes the cell description and the pick fails.
+  Outcome blind;
+  run_vision(cli, cli.dir() / "cad", "--perception cad", blind);
+  EXPECT_EQ(blind.status, 1) << blind.out << blind.err;
+  EXPECT_THAT(blind.out, HasSubstr("FAIL A: expected mill_side"));
+}
+
+TEST(VisionCli, SavingFramesWithoutVisionIsRefused) {
+  TwinCli cli("cw-vision-cli-refused");
+  const fs::path frames = cli.dir() / "frames";
+  const Outcome o = cli.run("run " + shell_quote(source_path("scenes/single.yaml")) + " --quiet --save-frames " +
+                            shell_quote(frames.string()));
+  EXPECT_EQ(o.status, 2) << o.out << o.err;
+  EXPECT_THAT(o.err, HasSubstr("--save-frames needs perception vision"));
+  EXPECT_FALSE(fs::exists(frames));
+}
+
+}  // namespace

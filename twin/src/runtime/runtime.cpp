@@ -253,8 +253,15 @@ struct Runtime::Impl {
     const SimDuration t = now + cfg.period;
     truth.time = t;
     env.write([&](EnvironmentModel& e) { apply_truth(e, truth, cfg.perception); });
+    for (Collision& c : cfg.plant->new_collisions()) {
+      log.collision(t, c.a, c.b, c.depth);
+      collisions.push_back(std::move(c));
+    }
+    for (const Arrival& a : cfg.plant->new_arrivals()) log.workpiece_arrived(t, a.workpiece, a.where);
+    clock.advance(cfg.period);  // after the model is written, so a reader at time t sees t's truth (real-time)
     if (vision && t >= next_frame) {
-      // Rendered here: the simulation thread owns the physics state the camera shows, and the rendering context.
+      // Rendered here (after the clock has moved to t, so that the image thread never sees a frame from its future):
+      // the simulation thread owns the physics state the camera shows, and the rendering context.
       Frame f;
       f.time = t;
       std::string why;
@@ -267,12 +274,6 @@ struct Runtime::Impl {
       if (frames.try_push(std::move(f)) == QueueStatus::full) ++frames_dropped;
       next_frame += vision->options().period;
     }
-    for (Collision& c : cfg.plant->new_collisions()) {
-      log.collision(t, c.a, c.b, c.depth);
-      collisions.push_back(std::move(c));
-    }
-    for (const Arrival& a : cfg.plant->new_arrivals()) log.workpiece_arrived(t, a.workpiece, a.where);
-    clock.advance(cfg.period);  // after the model is written, so a reader at time t sees t's truth (real-time)
     if (cfg.on_progress && t >= next_progress) {
       cfg.on_progress(t, task_firings.load());
       next_progress = t + cfg.progress_every;

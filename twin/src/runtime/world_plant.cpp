@@ -87,7 +87,9 @@ std::optional<cv::Mat> WorldPlant::capture(const std::string& camera, std::strin
       const mjModel* m = world_.scene().model();
       renderer_ = std::make_unique<Renderer>(m, m->vis.global.offwidth, m->vis.global.offheight);
     }
-    return renderer_->render_camera(world_.render_data(), id, spec->width, spec->height);
+    // Vision quality: no shadows, reflections or skybox; a third of the full render's cost, same detections
+    // (docs/vision.md).
+    return renderer_->render_camera(world_.render_data(), id, spec->width, spec->height, RenderQuality::kVision);
   } catch (const std::runtime_error& e) {
     if (why != nullptr) *why = fmt::format("camera '{}' cannot render: {}", camera, e.what());
     return std::nullopt;

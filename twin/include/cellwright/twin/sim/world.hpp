@@ -9,8 +9,9 @@
 //    what they rest on; robot joints, tool pose, finger opening, touch and wrist force/torque.
 //  - new_collisions() reports unintended contacts once, when they start (see Collision).
 //  - drain_warnings() reports MuJoCo's warnings (contact buffer full, bad accelerations, ...) as text.
-//  - The workpiece feed: parts that arrive later wait in a parking row on the floor outside the cell (chosen with
-//    WorldOptions::parked); feed() puts the next one on a conveyor's entry point, at rest, as a scenario event. It is
+//  - The workpiece feed: parts that arrive later wait in a parking row on the floor outside the cell and out of its
+//    downward cameras' view (chosen with WorldOptions::parked); feed() puts the next one on a conveyor's entry
+//    point, at rest, as a scenario event. It is
 //    the only way a part moves without contacts: robots carry parts by friction only.
 //
 // THREADS. One thread (the simulation thread) calls every other member, const or not (now(), truth(), ...);

@@ -39,6 +39,7 @@ TEST(VisionCli, PicksThePerturbedPartWhereTheCameraSeesItAndMissesItWithoutTheCa
   // The camera saw A off its nominal place (the cell description puts it on the belt's centre line, y = -0.55), and
   // the model took the camera's word: the vision events carry A's position.
   bool saw_a_off_centre = false;
+  bool saw_a_parked_part = false;  // B and C wait out of the camera's view to be fed after the run has ended
   std::istringstream lines(log);
   std::string line;
   int frames_logged = 0;
@@ -48,9 +49,11 @@ TEST(VisionCli, PicksThePerturbedPartWhereTheCameraSeesItAndMissesItWithoutTheCa
     ++frames_logged;
     for (const auto& s : e["seen"]) {
       if (s["workpiece"] == "A" && std::abs(s["y"].get<double>() + 0.55) > 0.03) saw_a_off_centre = true;
+      if (s["workpiece"] == "B" || s["workpiece"] == "C") saw_a_parked_part = true;
     }
   }
   EXPECT_TRUE(saw_a_off_centre);
+  EXPECT_FALSE(saw_a_parked_part);
   // One frame every 400 ms of simulation time, each saved as a PNG.
   const double end = nlohmann::json::parse(slurp(cli.dir() / "vision" / "report.json"))["end_time"].get<double>();
   EXPECT_NEAR(frames_logged, end / 0.4, 2.0);

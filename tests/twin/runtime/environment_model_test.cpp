@@ -151,14 +151,21 @@ TEST(RuntimeEnvironment, DepartingAfterAPutDownLiftsTheOpenHandStraightUp) {
       0, -1, 0;
   released.translation() = drop.pose.translation() + Eigen::Vector3d(0.01, 0, 0.015);
   melfa.released_tcp = released;
+  melfa.tcp = released;  // still there
   const MotionTarget depart = resolve_target(m, "melfa", target(task::TargetKind::kAbove, "output_drop"));
   ASSERT_EQ(depart.resolution, MotionTarget::Resolution::kOk);
   ASSERT_EQ(depart.poses.size(), 1u);
   EXPECT_TRUE(depart.poses[0].linear().isApprox(released.linear()));
   EXPECT_TRUE(
       depart.poses[0].translation().isApprox(released.translation() + Eigen::Vector3d(0, 0, drop.approach_height)));
+  // The hand has moved on since (a later visit): the usual approach from above.
+  melfa.tcp->translation().z() += 0.3;
+  const MotionTarget later = resolve_target(m, "melfa", target(task::TargetKind::kAbove, "output_drop"));
+  ASSERT_EQ(later.poses.size(), 2u);
+  EXPECT_NEAR(later.poses[0].linear().col(2).z(), -1.0, 1e-9);
   // Released elsewhere (beyond the location tolerance): the usual approach from above.
   melfa.released_tcp->translation() = drop.pose.translation() + Eigen::Vector3d(0.2, 0, 0);
+  melfa.tcp = melfa.released_tcp;
   const MotionTarget usual = resolve_target(m, "melfa", target(task::TargetKind::kAbove, "output_drop"));
   ASSERT_EQ(usual.poses.size(), 2u);
   EXPECT_NEAR(usual.poses[0].linear().col(2).z(), -1.0, 1e-9);

@@ -237,6 +237,8 @@ TEST_F(ScenarioFiles, PerceptionAndVision) {
   expect_error(scenario(head + "perception: vision\nvision: {camera: side}\n"), 6,
                "camera 'side' is not a camera of the cell (cameras: overhead)");
   expect_error(scenario(head + "perception: vision\nvision: {period: 0}\n"), 6, "must be greater than 0");
+  expect_error(scenario(head + "perception: vision\nvision: {period: 0.001}\n"), 6,
+               "must be at least the control period");
 }
 
 TEST_F(ScenarioFiles, Perturbation) {
@@ -264,6 +266,8 @@ TEST_F(ScenarioFiles, Perturbation) {
   expect_error(scenario(head + "perturb: {workpieces: [A], offset: [0.1]}\n"), 5, "must be a list of 2 numbers");
   expect_error(scenario(head + "perturb: {workpieces: [A], offset: [0.1, -1]}\n"), 5, "from 0 to 0.5");
   expect_error(scenario(head + "perturb: {workpieces: [A], yaw: 270}\n"), 5, "from 0 to 180");
+  expect_error(scenario(head + "perturb: {workpieces: [A], offset: [0, 0.09]}\n"), 5,
+               "moves workpiece 'A' up to 0.09 m across conveyor 'input', which leaves it room for 0.072 m");
   expect_error(scenario(head + "perturb: {workpieces: [A], spin: 3}\n"), 5, "unknown field 'spin'");
 }
 

@@ -170,7 +170,7 @@ void apply_truth(EnvironmentModel& model, const Truth& truth, Perception percept
       continue;
     }
     // kCad: a resting part near a location stands at its nominal pose there; otherwise the model keeps its pose.
-    if (!s->held_by.empty() || !w.present) continue;
+    if (!s->held_by.empty() || !w.present || w.velocity.norm() > kCadRestSpeed) continue;
     const Eigen::Vector3d bottom = w.pose.translation() - Eigen::Vector3d(0, 0, s->size.z() / 2);
     const LocationState* at = nullptr;
     double nearest = kCadSensorRadius;
@@ -263,8 +263,9 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
           if (w->shape == Shape::kCylinder) {
             yaw = want;
           } else {
-            const double period = std::abs(w->size.x() - w->size.y()) < 1e-9 ? std::numbers::pi / 2 : std::numbers::pi;
-            yaw += period * std::round((want - yaw) / period);
+            // Any of the four: an aligned part is taken exactly as the location says, whatever its footprint.
+            const double quarter = std::numbers::pi / 2;
+            yaw += quarter * std::round((want - yaw) / quarter);
           }
         }
         const double grasp = mine ? r->hold->tcp_above_bottom : heights.grasp_height;
@@ -273,7 +274,10 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
         return ok(both_ways(point, approach, yaw, r->base), what);
       }
       if (const LocationState* l = model.find_location(target.object)) {
-        if (above && !r->hold && r->released_tcp) {
+        // Only while the hand is still where it let go (the depart right after the put-down).
+        const bool just_released =
+            r->released_tcp && r->tcp && (r->tcp->translation() - r->released_tcp->translation()).norm() < 0.02;
+        if (above && !r->hold && just_released) {
           const Eigen::Vector3d d = r->released_tcp->translation() - l->pose.translation();
           if (std::hypot(d.x(), d.y()) <= options.at_location_tolerance) {
             Eigen::Isometry3d lifted = *r->released_tcp;

@@ -4,6 +4,8 @@
 #include <utility>
 #include <vector>
 
+#include <opencv2/core/utility.hpp>
+
 #include "cellwright/common/error.hpp"
 
 namespace cellwright::twin::runtime {
@@ -17,6 +19,10 @@ ImageProcessing::ImageProcessing(const vision::Detector& detector, SharedEnviron
       options_(std::move(options)),
       on_frame_(std::move(on_frame)) {
   CW_CHECK(options_.period.count() > 0, "the vision period must be positive, got {} ns", options_.period.count());
+  // The image-processing thread is the parallelism: OpenCV's own worker pool (TBB) is turned off, process-wide, so
+  // that a frame costs the same whatever else runs on the shared cores, and no threads the runtime does not know of
+  // (and ThreadSanitizer cannot follow) touch its frames.
+  cv::setNumThreads(0);
 }
 
 std::size_t ImageProcessing::step(SimDuration now) {
@@ -53,11 +59,16 @@ void ImageProcessing::process(const Frame& frame, SimDuration now) {
     // correct() stamps the estimate model.time - age: the frame's own time, whatever the model's clock says now.
     const SimDuration age = m.time - frame.time;
     for (const vision::Detection& d : result.detections) {
-      const bool under_a_tool = std::any_of(m.robots.begin(), m.robots.end(), [&](const RobotState& r) {
-        if (!r.tcp) return false;
-        const Eigen::Vector3d t = r.tcp->translation();
-        return t.z() > d.position.z() && (t - d.position).head<2>().norm() < options_.occlusion_radius;
-      });
+      // Only a confirmed estimate is worth keeping: a part not yet confirmed takes what the camera sees (else a part
+      // first seen with a tool near it would never be confirmed while the tool waits there).
+      const WorkpieceState* known = m.find_workpiece(d.workpiece);
+      const bool confirmed = known != nullptr && known->present && known->motion_known;
+      const bool under_a_tool =
+          confirmed && std::any_of(m.robots.begin(), m.robots.end(), [&](const RobotState& r) {
+            if (!r.tcp) return false;
+            const Eigen::Vector3d t = r.tcp->translation();
+            return t.z() > d.position.z() && (t - d.position).head<2>().norm() < options_.occlusion_radius;
+          });
       if (under_a_tool) {
         not_seen.push_back(d.workpiece);
         continue;

@@ -397,10 +397,11 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
              "vision perception needs a camera and a detector");
     im.vision = std::make_unique<ImageProcessing>(*config_.detector, im.env, im.frames, *log_, *config_.vision,
                                                   config_.on_frame);
-    // Until the camera has seen them, parts are where the cell description puts them, unconfirmed: nothing is known
-    // of their motion.
+    // Until the camera has seen them, parts are not known to be in the cell (a fed part may not have arrived): their
+    // poses stay the cell description's, unconfirmed, nothing known of their motion.
     im.env.write([](EnvironmentModel& m) {
       for (WorkpieceState& w : m.workpieces) {
+        w.present = false;
         w.confidence = 0;
         w.motion_known = false;
       }

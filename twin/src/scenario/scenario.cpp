@@ -590,6 +590,22 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       }
       p.yaw = yaw * std::numbers::pi / 180.0;
     }
+    // A part riding a conveyor must stay on its belt however the draw falls: across the belt it may move at most
+    // half the belt's width less half its own diagonal.
+    for (const std::string& w : p.workpieces) {
+      const WorkpieceSpec& spec = *s.cell.find_workpiece(w);
+      const bool fed =
+          s.feed && std::find(s.feed->workpieces.begin(), s.feed->workpieces.end(), w) != s.feed->workpieces.end();
+      const ConveyorSpec* belt = s.cell.find_conveyor(fed ? s.feed->conveyor : spec.on);
+      if (belt == nullptr) continue;
+      const double room = belt->width / 2 - std::hypot(spec.size.x(), spec.size.y()) / 2;
+      if (p.offset.y() > room) {
+        doc.fail(pf.node("offset"),
+                 fmt::format("{} moves workpiece '{}' up to {} m across conveyor '{}', which leaves it room for {:.3f} "
+                             "m (half its width less half the part's diagonal)",
+                             pf.field("offset"), w, p.offset.y(), belt->name, std::max(room, 0.0)));
+      }
+    }
     s.perturb = std::move(p);
   }
 
@@ -613,6 +629,13 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
                fmt::format("{} must be a whole multiple of the cell's simulation time step ({} s), got {}",
                            of.field("control_period"), s.cell.timestep, s.options.control_period));
     }
+  }
+
+  if (s.vision && s.vision->period < s.options.control_period) {
+    doc.fail(f.has("vision") ? f.node("vision") : f.node("perception"),
+             fmt::format("the vision period ({} s) must be at least the control period ({} s): one frame per period at "
+                         "most",
+                         s.vision->period, s.options.control_period));
   }
 
   // --- expected outcome ---

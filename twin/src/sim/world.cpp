@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace cellwright::twin::sim {
 
@@ -85,15 +86,16 @@ World::World(Scene scene, WorldOptions options)
     max_x = std::max(max_x, d->geom_xpos[3 * g] + m->geom_rbound[g]);
     min_y = std::min(min_y, d->geom_xpos[3 * g + 1] - m->geom_rbound[g]);
   }
-  // And out of sight of the cell's cameras that look down (a parked part is not in the cell; vision must not find it):
-  // beyond the floor area such a camera sees, a rectangle round the point below it bounded by its diagonal field of
-  // view. (A camera looking sideways sees the floor to the horizon; the row is not hidden from it.)
+  // And out of sight of the cell's cameras (a parked part is not in the cell; vision must not find it): beyond the
+  // floor a camera sees, bounded by its tilt plus its half diagonal field of view, measured from the point below it.
+  // A camera whose view reaches within 5 degrees of the horizon sees the floor too far to hide the row from it.
   for (const CameraSpec& c : scene_.cell().cameras) {
+    if (c.pose.xyz.z() <= 0) continue;
     const Eigen::Vector3d look = -c.pose.rotation().col(2);  // MuJoCo cameras look along their -z
-    if (look.z() > -0.5 || c.pose.xyz.z() <= 0) continue;
+    const double tilt = std::acos(std::clamp(-look.z(), -1.0, 1.0));
     const double half_diagonal = std::atan(std::tan(c.fovy / 2) * std::hypot(1.0, double(c.width) / c.height));
-    const Eigen::Vector3d below = c.pose.xyz + look * (c.pose.xyz.z() / -look.z());
-    max_x = std::max(max_x, below.x() + c.pose.xyz.z() * std::tan(std::acos(-look.z()) + half_diagonal));
+    if (tilt + half_diagonal >= std::numbers::pi / 2 - 5 * std::numbers::pi / 180) continue;
+    max_x = std::max(max_x, c.pose.xyz.x() + c.pose.xyz.z() * std::tan(tilt + half_diagonal));
   }
   parking_origin_ = Eigen::Vector3d(max_x + kParkingGap, min_y, 0.0);
 

@@ -10,7 +10,8 @@
 //  - above(X) / at(X), X a workpiece: at = the part's grasp point, the tool centre point `grasp_height` above the
 //    part's bottom centre, gripper pointing down, fingers closing on the part's faces: along the part's own yaw (or
 //    half a turn round), or, when the part rests at a cell location (its bottom within
-//    TargetOptions::at_location_tolerance of it), along the face direction nearest that location's yaw;
+//    TargetOptions::at_location_tolerance of it), along the face direction (of four, for a box) nearest that
+//    location's yaw;
 //    above = the same raised by `approach_height`. grasp/approach heights are those of that location, else the
 //    LocationSpec defaults (0.02 m / 0.08 m).
 //    A part that is absent, held by another robot, or still moving (faster than part_at_rest_speed) is not ready:
@@ -19,8 +20,9 @@
 //    part, the tool goes where it puts the part's bottom on the location (the hold's height above the part bottom)
 //    with the approach it holds the part with (down, or from the side: then with the tool axis horizontal, pointing
 //    away from the robot's base if it can, else turned about the vertical in 30 degree steps, least turned preferred);
-//    above = at raised by approach_height. Except when the robot holds nothing and opened its hand on a part within
-//    at_location_tolerance of the location: above is then that tool pose raised by approach_height, orientation
+//    above = at raised by approach_height. Except when the robot holds nothing, opened its hand on a part within
+//    at_location_tolerance of the location and its tool is still there: above is then that tool pose raised by
+//    approach_height, orientation
 //    kept, so that it departs straight up between the part and whatever it stands on (a hand that put a part down
 //    from the side would otherwise sweep its fingers through the surface, turning to point down).
 //  - handover(R): the giver presents the part at the hand-over pose: its tool goes to hand-over pose + its grasp's
@@ -137,8 +139,9 @@ EnvironmentModel make_environment_model(const CellDescription& cell);
 // Where the model's knowledge of the workpieces comes from.
 //  kTruth   the simulation's ground truth, every control period: a perfect sensor (the default; for checking task
 //           logic without perception in the way).
-//  kVision  the camera: the image-processing thread corrects the model (correct()); before a part is seen it is
-//           where the cell description puts it, or absent if it is fed later; while held it moves with the hand.
+//  kVision  the camera: the image-processing thread corrects the model (correct()); a part is absent until the camera
+//           has seen it (the runtime starts every part absent), present from then on; while held it moves with the
+//           hand.
 //  kCad     the cell description only (the paper's off-line CAD data; "vision off"): the cell's presence sensors (a
 //           light barrier at each conveyor entry and location, the belts' encoders) tell whether a part is there and
 //           whether it moves, never where exactly: a part at rest within kCadSensorRadius of a location is taken to
@@ -150,6 +153,7 @@ enum class Perception { kTruth, kVision, kCad };
 const char* to_string(Perception perception);
 
 inline constexpr double kCadSensorRadius = 0.1;  // m
+inline constexpr double kCadRestSpeed = 0.005;   // m/s: slower, a part is at rest for the presence sensors
 
 // Writes the plant's truth into the model, as `perception` allows (see Perception): time, robot joints and finger
 // contacts always; workpiece poses, velocities and presence for kTruth (a part held by a robot keeps its held_by;

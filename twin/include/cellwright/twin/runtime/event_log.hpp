@@ -15,8 +15,12 @@
 //                     workpiece ("" if none)
 //   collision         a, b, depth (m, 6 decimals)
 //   workpiece_arrived workpiece, where
+//   vision            frame (its sim time, 4 decimals), seen [{workpiece, x, y, z (m, 4 decimals), yaw (degrees, 2
+//                     decimals, null for a cylinder), confidence (3 decimals)}], not_seen [names], rejected (count),
+//                     problem ("" if none)
 //   run_end           outcome ("finished"|"failed"|"timeout"), reason, firings
-// Strings are JSON-escaped (nlohmann::json). Numbers other than "t", period and depth are integers.
+// Strings are JSON-escaped (nlohmann::json). Numbers other than "t", period, depth and the vision event's are
+// integers.
 //
 // Threads: every member may be called from any thread; each call appends one whole line under a mutex, so lines never
 // interleave. (Determinism of the order is the lock-step scheduler's job, not the log's.)

@@ -10,12 +10,14 @@
 //    (then the model does not let a robot grasp it yet: a part first seen may be riding a belt);
 //  - a part not seen (hidden by an arm, out of view, held): nothing; the model keeps its last estimate, whose stamp
 //    tells its age;
-//  - a part seen with a robot's tool above it, within VisionOptions::occlusion_radius horizontally: nothing either
+//  - a confirmed part (present, motion known) seen with a robot's tool above it, within
+//    VisionOptions::occlusion_radius horizontally: nothing either
 //    (logged as not seen): an arm over a part hides some of it, and a partly hidden part can still fit its shape well
 //    enough to pass the detector, a few millimetres off, which would read as motion.
 // A frame that could not be made (Frame::problem) or used (wrong size) is logged with its problem and changes nothing.
 //
-// Threads: constructed by the Runtime on the main thread; step() and process() on the image-processing thread only.
+// Threads: constructed by the Runtime on the main thread (it turns OpenCV's worker pool off, process-wide: OpenCV
+// then runs on the calling thread); step() and process() on the image-processing thread only.
 // The detector is shared read-only; the model is written under its lock; the on_frame callback runs on this thread.
 #pragma once
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <nlohmann/json.hpp>
+#include <numbers>
 
 #include "cellwright/common/error.hpp"
 
@@ -106,10 +107,10 @@ void EventLog::vision(SimDuration t, SimDuration frame_time, const std::vector<S
   for (const Seen& p : seen) {
     CW_CHECK(p.position.allFinite() && std::isfinite(p.confidence), "vision saw {} at a non-finite pose", p.workpiece);
     if (!list.empty()) list += ',';
-    list += fmt::format("{{\"workpiece\":{},\"x\":{},\"y\":{},\"z\":{},\"yaw\":{},\"confidence\":{}}}", q(p.workpiece),
-                        fixed(p.position.x(), 4), fixed(p.position.y(), 4), fixed(p.position.z(), 4),
-                        p.yaw ? fixed(*p.yaw * 180.0 / 3.14159265358979323846, 2) : std::string("null"),
-                        fixed(p.confidence, 3));
+    list +=
+        fmt::format("{{\"workpiece\":{},\"x\":{},\"y\":{},\"z\":{},\"yaw\":{},\"confidence\":{}}}", q(p.workpiece),
+                    fixed(p.position.x(), 4), fixed(p.position.y(), 4), fixed(p.position.z(), 4),
+                    p.yaw ? fixed(*p.yaw * 180.0 / std::numbers::pi, 2) : std::string("null"), fixed(p.confidence, 3));
   }
   std::string missing;
   for (const std::string& w : not_seen) {

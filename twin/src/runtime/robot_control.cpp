@@ -287,15 +287,11 @@ void RobotControl::complete(SimDuration now) {
       held = *between;
     }
     if (!held.empty()) {
-      const Eigen::Isometry3d tcp_in_base = [&] {
-        const std::vector<double> q = env_.read([&](const EnvironmentModel& m) { return m.find_robot(cell_)->joints; });
-        return chain_.forward(to_eigen(q));
-      }();
       env_.write([&](EnvironmentModel& m) {
         RobotState* r = m.find_robot(cell_);
         WorkpieceState* w = m.find_workpiece(held);
         if (r == nullptr || w == nullptr) return;
-        const Eigen::Isometry3d tcp = r->base * tcp_in_base;
+        const Eigen::Isometry3d tcp = tool_in_world(*r);
         Hold hold;
         hold.workpiece = held;
         // Tool axis pointing mostly down: a grasp from above; otherwise from the side.
@@ -311,7 +307,7 @@ void RobotControl::complete(SimDuration now) {
     const std::string released = env_.write([&](EnvironmentModel& m) {
       RobotState* r = m.find_robot(cell_);
       if (r == nullptr || !r->hold) return std::string();
-      r->released_tcp = r->base * chain_.forward(to_eigen(r->joints));
+      r->released_tcp = tool_in_world(*r);
       std::string name = r->hold->workpiece;
       if (WorkpieceState* w = m.find_workpiece(name); w != nullptr && w->held_by == cell_) w->held_by.clear();
       r->hold.reset();
@@ -366,11 +362,15 @@ void RobotControl::step(SimDuration now) {
   }
 }
 
+Eigen::Isometry3d RobotControl::tool_in_world(const RobotState& r) const {
+  return r.base * chain_.forward(to_eigen(r.joints));
+}
+
 void RobotControl::track_tool(bool held_part) {
   env_.write([&](EnvironmentModel& m) {
     RobotState* r = m.find_robot(cell_);
     if (r == nullptr || r->joints.size() != chain_.dof()) return;
-    r->tcp = r->base * chain_.forward(to_eigen(r->joints));
+    r->tcp = tool_in_world(*r);
     if (!held_part || !r->hold) return;
     WorkpieceState* w = m.find_workpiece(r->hold->workpiece);
     if (w == nullptr) return;

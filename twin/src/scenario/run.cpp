@@ -3,12 +3,12 @@
 
 #include <fmt/format.h>
 
-#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
 #include <system_error>
 
+#include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/runtime/world_plant.hpp"
@@ -40,9 +40,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   CellDescription real = s.cell;
   for (WorkpieceSpec& w : real.workpieces) {
     const auto it = offsets.find(w.name);
-    const bool fed =
-        s.feed && std::find(s.feed->workpieces.begin(), s.feed->workpieces.end(), w.name) != s.feed->workpieces.end();
-    if (it == offsets.end() || fed) continue;
+    if (it == offsets.end() || (s.feed && s.feed->feeds(w.name))) continue;
     const Eigen::Isometry3d moved = w.pose.transform() * it->second;
     w.pose.xyz = moved.translation();
     w.pose.rpy.z() += std::atan2(it->second.linear()(1, 0), it->second.linear()(0, 0));
@@ -100,17 +98,16 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   config.motion.targets.handover_clearance = s.options.handover_clearance;
   config.perception = perception_;
   if (perception_ == runtime::Perception::kVision) {
+    // The scenario's camera (checked when it was loaded), else, when --perception asks for vision, the cell's first.
     VisionSettings v = s.vision.value_or(VisionSettings{});
-    if (v.camera.empty()) {
+    if (!s.vision) {
       if (s.cell.cameras.empty()) {
         throw InputError({s.source.string(), 0, 0}, "perception vision needs a camera, and the cell has none");
       }
       v.camera = s.cell.cameras.front().name;
     }
     const CameraSpec* camera = s.cell.find_camera(v.camera);
-    if (camera == nullptr) {
-      throw InputError(v.where, fmt::format("the vision camera '{}' is not a camera of the cell", v.camera));
-    }
+    CW_CHECK(camera != nullptr, "the vision camera '{}' is not in the cell", v.camera);
     config.vision = runtime::VisionOptions{v.camera, seconds(v.period)};
     config.detector = std::make_shared<const vision::Detector>(s.cell, vision::CameraModel(*camera));
     config.on_frame = std::move(options.on_frame);

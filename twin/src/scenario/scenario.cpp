@@ -594,8 +594,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     // half the belt's width less half its own diagonal.
     for (const std::string& w : p.workpieces) {
       const WorkpieceSpec& spec = *s.cell.find_workpiece(w);
-      const bool fed =
-          s.feed && std::find(s.feed->workpieces.begin(), s.feed->workpieces.end(), w) != s.feed->workpieces.end();
+      const bool fed = s.feed && s.feed->feeds(w);
       const ConveyorSpec* belt = s.cell.find_conveyor(fed ? s.feed->conveyor : spec.on);
       if (belt == nullptr) continue;
       const double room = belt->width / 2 - std::hypot(spec.size.x(), spec.size.y()) / 2;

@@ -125,6 +125,8 @@ class RobotControl {
   // Writes the robot's tool pose into the model and, with `held_part`, moves the part it holds with it (see
   // MotionOptions::track_held_parts).
   void track_tool(bool held_part);
+  // The robot's tool centre point in the world, from its joints in the model.
+  Eigen::Isometry3d tool_in_world(const RobotState& r) const;
   void start_next(SimDuration now);
   // Resolves and submits the current command; false when it must wait for its target.
   bool submit_current(SimDuration now);

@@ -12,6 +12,7 @@
 // Thread safety: plain values and re-entrant functions; any thread may call them.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -56,6 +57,10 @@ struct Feed {
 
   // Sim time at which workpieces[i] arrives.
   double arrival(std::size_t i) const { return start + period * static_cast<double>(i); }
+  // Whether the feed brings this cell workpiece.
+  bool feeds(std::string_view workpiece) const {
+    return std::find(workpieces.begin(), workpieces.end(), workpiece) != workpieces.end();
+  }
 };
 
 // Where a workpiece must end up: a cell location, conveyor or machine (its fixture or top), within `tolerance`.

@@ -6,14 +6,6 @@
 
 namespace cellwright::drivers {
 
-namespace {
-
-bool fatal(ErrorCode e) {
-  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost;
-}
-
-}  // namespace
-
 ScriptedDriver::ScriptedDriver(ScriptedDriverConfig config)
     : config_(std::move(config)),
       inputs_(config_.capabilities.digital_inputs, false),
@@ -28,328 +20,188 @@ ScriptedDriver::ScriptedDriver(ScriptedDriverConfig config)
   CW_CHECK(config_.capabilities.queue_depth > 0, "queue_depth must be at least 1");
   CW_CHECK(joints_.size() == config_.capabilities.joints, "home_joints has {} values for {} joints", joints_.size(),
            config_.capabilities.joints);
+  set_capabilities(config_.capabilities);
 }
 
-const Capabilities& ScriptedDriver::capabilities() const {
-  return config_.capabilities;
-}
-
-DriverState ScriptedDriver::state() const {
-  std::lock_guard lock(mutex_);
-  return state_;
-}
-
-ErrorCode ScriptedDriver::connect() {
-  std::lock_guard lock(mutex_);
-  ++calls_.connect;
-  if (state_ != DriverState::disconnected) return ErrorCode::wrong_state;
+ErrorCode ScriptedDriver::connect_hook() {
+  const auto l = lock();
   if (!connect_problem_.empty()) throw InputError(config_.where, connect_problem_);
-  state_ = DriverState::connected;
-  link_up_ = true;
   return ErrorCode::none;
 }
 
-void ScriptedDriver::disconnect() {
-  std::unique_lock lock(mutex_);
-  ++calls_.disconnect;
-  const bool changed = fail_all(ErrorCode::cancelled, "cancelled by disconnect()");
-  state_ = DriverState::disconnected;
-  link_up_ = false;
-  notify_if(changed, lock);
-}
-
-Submitted ScriptedDriver::home() {
-  std::lock_guard lock(mutex_);
-  ++calls_.home;
-  if (state_ != DriverState::connected && state_ != DriverState::homed && state_ != DriverState::stopped) {
-    return refuse(ErrorCode::wrong_state, fmt::format("home() is not allowed while {}", to_string(state_)));
+void ScriptedDriver::accept_hook(Job& job) {
+  auto work = std::make_unique<Work>();
+  switch (job.kind) {
+    case JobKind::home:
+      work->remaining = config_.home_ticks;
+      break;
+    case JobKind::position:
+      work->remaining = config_.position_ticks;
+      break;
+    case JobKind::command:
+      work->remaining = config_.ticks_for ? config_.ticks_for(*job.command) : config_.command_ticks;
+      CW_CHECK(work->remaining > 0, "ticks_for gave 0 ticks for {}", describe(*job.command));
+      accepted_.emplace_back(job.id, *job.command);
+      break;
   }
-  return enqueue(JobKind::home, std::nullopt, config_.home_ticks);
-}
-
-ErrorCode ScriptedDriver::activate() {
-  std::lock_guard lock(mutex_);
-  ++calls_.activate;
-  if (state_ != DriverState::homed && state_ != DriverState::stopped) return ErrorCode::wrong_state;
-  for (const Job& j : queue_) {
-    if (j.kind == JobKind::home) return ErrorCode::wrong_state;  // still homing
-  }
-  state_ = DriverState::active;
-  return ErrorCode::none;
-}
-
-void ScriptedDriver::stop() {
-  std::unique_lock lock(mutex_);
-  ++calls_.stop;
-  const bool changed = fail_all(ErrorCode::cancelled, "cancelled by stop()");
-  if (state_ == DriverState::active) state_ = DriverState::stopped;
-  notify_if(changed, lock);
-}
-
-ErrorCode ScriptedDriver::reset() {
-  std::lock_guard lock(mutex_);
-  ++calls_.reset;
-  if (state_ != DriverState::fault) return ErrorCode::wrong_state;
-  if (!link_up_) {
-    state_ = DriverState::disconnected;
-    return ErrorCode::connection_lost;
-  }
-  state_ = DriverState::connected;
-  return ErrorCode::none;
-}
-
-Submitted ScriptedDriver::submit(const Command& command) {
-  std::lock_guard lock(mutex_);
-  ++calls_.submit;
-  if (state_ != DriverState::active) {
-    return refuse(ErrorCode::wrong_state,
-                  fmt::format("{} refused: the driver is {}, not active", describe(command), to_string(state_)));
-  }
-  if (Refusal r = check_command(command, config_.capabilities)) return refuse(r.error, std::move(r.message));
-  const std::uint64_t ticks = config_.ticks_for ? config_.ticks_for(command) : config_.command_ticks;
-  CW_CHECK(ticks > 0, "ticks_for gave 0 ticks for {}", describe(command));
-  Submitted s = enqueue(JobKind::command, command, ticks);
-  if (s.accepted()) accepted_.emplace_back(s.id, command);
-  return s;
-}
-
-Submitted ScriptedDriver::request_position() {
-  std::lock_guard lock(mutex_);
-  ++calls_.request_position;
-  if (state_ != DriverState::homed && state_ != DriverState::active && state_ != DriverState::stopped) {
-    return refuse(ErrorCode::wrong_state, fmt::format("request_position() is not allowed while {}", to_string(state_)));
-  }
-  return enqueue(JobKind::position, std::nullopt, config_.position_ticks);
-}
-
-CommandStatus ScriptedDriver::poll(CommandId id) const {
-  std::lock_guard lock(mutex_);
-  ++calls_.poll;
-  const auto it = statuses_.find(id);
-  if (it != statuses_.end()) return it->second;
-  return {id, CommandPhase::failed, ErrorCode::unknown_command,
-          fmt::format("command {} was never issued or is no longer retained", id)};
-}
-
-std::optional<PositionReading> ScriptedDriver::last_position() const {
-  std::lock_guard lock(mutex_);
-  ++calls_.last_position;
-  return last_position_;
-}
-
-void ScriptedDriver::set_notifier(std::function<void()> notify) {
-  std::lock_guard lock(mutex_);
-  ++calls_.set_notifier;
-  notify_ = std::move(notify);
+  job.data = std::move(work);
 }
 
 void ScriptedDriver::advance(std::uint64_t ticks) {
-  std::unique_lock lock(mutex_);
-  bool changed = false;
+  Controller c = controller();
   for (std::uint64_t t = 0; t < ticks; ++t) {
     ++now_;
-    if (queue_.empty()) continue;
-    Job& head = queue_.front();
-    if (never_complete_.count(head.id) != 0) continue;
-    if (head.command && std::holds_alternative<WaitInput>(*head.command)) {
-      const auto& w = std::get<WaitInput>(*head.command);
-      if (inputs_[static_cast<std::size_t>(w.channel - 1)] == w.on) {
-        finish_head();
-        changed = true;
-        continue;
-      }
-      ++head.waited;
-      if (w.timeout.count() > 0 && config_.tick * static_cast<std::int64_t>(head.waited) >= w.timeout) {
-        fail_head(ErrorCode::timeout,
-                  fmt::format("digital input {} stayed {} for {} ns", w.channel, w.on ? "off" : "on",
-                              (config_.tick * static_cast<std::int64_t>(head.waited)).count()));
-        changed = true;
-      }
-      continue;
+    tick_head(c);
+    tick_reads(c);
+  }
+}
+
+void ScriptedDriver::tick_head(Controller& c) {
+  Job* head = c.head();
+  if (head == nullptr || never_complete_.count(head->id) != 0) return;
+  Work& work = head->as<Work>();
+  if (head->command && std::holds_alternative<WaitInput>(*head->command)) {
+    const auto& w = std::get<WaitInput>(*head->command);
+    if (inputs_[static_cast<std::size_t>(w.channel - 1)] == w.on) {
+      finish(c, *head);
+      return;
     }
-    if (--head.remaining > 0) continue;
-    finish_head();
-    changed = true;
-  }
-  notify_if(changed, lock);
-}
-
-std::uint64_t ScriptedDriver::now_ticks() const {
-  std::lock_guard lock(mutex_);
-  return now_;
-}
-
-void ScriptedDriver::fail_command(CommandId id, ErrorCode error, std::string message) {
-  CW_CHECK(error == ErrorCode::unreachable || error == ErrorCode::timeout || fatal(error),
-           "a controller cannot fail a command with {}", to_string(error));
-  std::lock_guard lock(mutex_);
-  injected_failures_[id] = {error, std::move(message)};
-}
-
-void ScriptedDriver::never_complete(CommandId id) {
-  std::lock_guard lock(mutex_);
-  never_complete_.insert(id);
-}
-
-void ScriptedDriver::drop_connection() {
-  std::unique_lock lock(mutex_);
-  if (state_ == DriverState::disconnected) return;
-  fail_all(ErrorCode::connection_lost, "the link to the controller dropped");
-  state_ = DriverState::fault;
-  link_up_ = false;
-  notify_if(true, lock);
-}
-
-void ScriptedDriver::refuse_connect(std::string problem) {
-  std::lock_guard lock(mutex_);
-  connect_problem_ = std::move(problem);
-}
-
-void ScriptedDriver::set_input(int channel, bool on) {
-  std::lock_guard lock(mutex_);
-  CW_CHECK(channel >= 1 && static_cast<std::size_t>(channel) <= inputs_.size(), "input {} outside 1..{}", channel,
-           inputs_.size());
-  inputs_[static_cast<std::size_t>(channel - 1)] = on;
-}
-
-bool ScriptedDriver::output(int channel) const {
-  std::lock_guard lock(mutex_);
-  CW_CHECK(channel >= 1 && static_cast<std::size_t>(channel) <= outputs_.size(), "output {} outside 1..{}", channel,
-           outputs_.size());
-  return outputs_[static_cast<std::size_t>(channel - 1)];
-}
-
-ScriptedDriver::Calls ScriptedDriver::calls() const {
-  std::lock_guard lock(mutex_);
-  return calls_;
-}
-
-std::vector<std::pair<CommandId, Command>> ScriptedDriver::accepted() const {
-  std::lock_guard lock(mutex_);
-  return accepted_;
-}
-
-std::vector<double> ScriptedDriver::joints() const {
-  std::lock_guard lock(mutex_);
-  return joints_;
-}
-
-Eigen::Isometry3d ScriptedDriver::tool_pose() const {
-  std::lock_guard lock(mutex_);
-  return pose_;
-}
-
-bool ScriptedDriver::gripper_closed() const {
-  std::lock_guard lock(mutex_);
-  return gripper_closed_;
-}
-
-Submitted ScriptedDriver::refuse(ErrorCode error, std::string message) {
-  return {0, error, std::move(message)};
-}
-
-Submitted ScriptedDriver::enqueue(JobKind kind, std::optional<Command> command, std::uint64_t ticks) {
-  if (queue_.size() >= config_.capabilities.queue_depth) {
-    return refuse(ErrorCode::busy, fmt::format("{} command(s) already in flight (queue depth {})", queue_.size(),
-                                               config_.capabilities.queue_depth));
-  }
-  const CommandId id = next_id_++;
-  queue_.push_back({id, kind, std::move(command), ticks, 0});
-  set_status(id, queue_.size() == 1 ? CommandPhase::running : CommandPhase::pending);
-  return {id, ErrorCode::none, {}};
-}
-
-void ScriptedDriver::set_status(CommandId id, CommandPhase phase, ErrorCode error, std::string message) {
-  statuses_[id] = {id, phase, error, std::move(message)};
-  if (phase != CommandPhase::done && phase != CommandPhase::failed) return;
-  finished_.push_back(id);
-  while (finished_.size() > kStatusRetention) {
-    statuses_.erase(finished_.front());
-    finished_.pop_front();
-  }
-}
-
-bool ScriptedDriver::fail_all(ErrorCode error, const std::string& message) {
-  const bool any = !queue_.empty();
-  for (const Job& j : queue_) set_status(j.id, CommandPhase::failed, error, message);
-  queue_.clear();
-  return any;
-}
-
-void ScriptedDriver::finish_head() {
-  const auto injected = injected_failures_.find(queue_.front().id);
-  if (injected == injected_failures_.end()) {
-    complete_head();
+    ++work.waited;
+    const std::chrono::nanoseconds waited = config_.tick * static_cast<std::int64_t>(work.waited);
+    if (w.timeout.count() > 0 && waited >= w.timeout) {
+      c.fail(head->id, ErrorCode::timeout,
+             fmt::format("digital input {} stayed {} for {} ns", w.channel, w.on ? "off" : "on", waited.count()));
+    }
     return;
   }
-  auto [error, message] = injected->second;
-  injected_failures_.erase(injected);
-  fail_head(error, std::move(message));
+  if (--work.remaining > 0) return;
+  finish(c, *head);
 }
 
-void ScriptedDriver::complete_head() {
-  const Job job = std::move(queue_.front());
-  queue_.pop_front();
+void ScriptedDriver::tick_reads(Controller& c) {
+  std::vector<CommandId> over;
+  for (Job& r : c.reads()) {
+    if (never_complete_.count(r.id) == 0 && --r.as<Work>().remaining == 0) over.push_back(r.id);
+  }
+  for (const CommandId id : over) {
+    for (Job& r : c.reads()) {
+      if (r.id == id) {
+        finish(c, r);  // a fatal injected failure may clear the reads: look each one up again
+        break;
+      }
+    }
+  }
+}
+
+void ScriptedDriver::finish(Controller& c, Job& job) {
+  const CommandId id = job.id;
+  const auto injected = injected_failures_.find(id);
+  if (injected != injected_failures_.end()) {
+    auto [error, message] = std::move(injected->second);
+    injected_failures_.erase(injected);
+    c.fail(id, error, std::move(message));
+    return;
+  }
   switch (job.kind) {
     case JobKind::home:
       joints_ =
           config_.home_joints.empty() ? std::vector<double>(config_.capabilities.joints, 0.0) : config_.home_joints;
       pose_ = config_.home_pose;
       gripper_closed_ = false;
-      state_ = DriverState::homed;
-      break;
-    case JobKind::position: {
-      PositionReading r;
-      r.request = job.id;
-      r.stamp = config_.tick * static_cast<std::int64_t>(now_);
-      if (config_.capabilities.reads_joints) r.joints = joints_;
-      if (config_.capabilities.reads_pose) r.tool_pose = pose_;
-      last_position_ = std::move(r);
-      break;
-    }
+      c.complete(id);
+      return;
+    case JobKind::position:
+      c.complete(id, reading(c));
+      return;
     case JobKind::command:
       std::visit(
-          [&](const auto& c) {
-            using C = std::decay_t<decltype(c)>;
+          [&](const auto& cmd) {
+            using C = std::decay_t<decltype(cmd)>;
             if constexpr (std::is_same_v<C, MoveJoints>) {
-              joints_ = c.positions;
+              joints_ = cmd.positions;
             } else if constexpr (std::is_same_v<C, MovePose>) {
-              pose_ = c.pose;
+              pose_ = cmd.pose;
             } else if constexpr (std::is_same_v<C, Grip>) {
-              gripper_closed_ = c.action == Grip::Action::close;
+              gripper_closed_ = cmd.action == Grip::Action::close;
             } else if constexpr (std::is_same_v<C, SetOutput>) {
-              outputs_[static_cast<std::size_t>(c.channel - 1)] = c.on;
+              outputs_[static_cast<std::size_t>(cmd.channel - 1)] = cmd.on;
             }
           },
           *job.command);
-      break;
+      c.complete(id);
+      return;
   }
-  set_status(job.id, CommandPhase::done);
-  start_head();
 }
 
-void ScriptedDriver::fail_head(ErrorCode error, std::string message) {
-  const CommandId id = queue_.front().id;
-  queue_.pop_front();
-  set_status(id, CommandPhase::failed, error, std::move(message));
-  if (error == ErrorCode::connection_lost) {
-    fail_all(ErrorCode::connection_lost, "the link to the controller dropped");
-    link_up_ = false;
-  } else {
-    fail_all(ErrorCode::cancelled, fmt::format("cancelled: command {} before it failed", id));
-  }
-  if (fatal(error)) state_ = DriverState::fault;
+PositionReading ScriptedDriver::reading(const Controller& c) const {
+  PositionReading r;
+  r.stamp = c.stamp(config_.tick * static_cast<std::int64_t>(now_));
+  if (config_.capabilities.reads_joints) r.joints = joints_;
+  if (config_.capabilities.reads_pose) r.tool_pose = pose_;
+  return r;
 }
 
-void ScriptedDriver::start_head() {
-  if (!queue_.empty()) set_status(queue_.front().id, CommandPhase::running);
+std::uint64_t ScriptedDriver::now_ticks() const {
+  const auto l = lock();
+  return now_;
 }
 
-void ScriptedDriver::notify_if(bool changed, std::unique_lock<std::mutex>& lock) {
-  if (!changed) return;
-  const std::function<void()> notify = notify_;
-  lock.unlock();
-  if (notify) notify();
+void ScriptedDriver::fail_command(CommandId id, ErrorCode error, std::string message) {
+  CW_CHECK(error == ErrorCode::unreachable || error == ErrorCode::timeout || error == ErrorCode::hardware ||
+               error == ErrorCode::protocol || error == ErrorCode::connection_lost,
+           "a controller cannot fail a command with {}", to_string(error));
+  const auto l = lock();
+  injected_failures_[id] = {error, std::move(message)};
+}
+
+void ScriptedDriver::never_complete(CommandId id) {
+  const auto l = lock();
+  never_complete_.insert(id);
+}
+
+void ScriptedDriver::drop_connection() {
+  Controller c = controller();
+  if (c.state() == DriverState::disconnected) return;
+  c.raise_fault(ErrorCode::connection_lost, "the link to the controller dropped");
+}
+
+void ScriptedDriver::refuse_connect(std::string problem) {
+  const auto l = lock();
+  connect_problem_ = std::move(problem);
+}
+
+void ScriptedDriver::set_input(int channel, bool on) {
+  const auto l = lock();
+  CW_CHECK(channel >= 1 && static_cast<std::size_t>(channel) <= inputs_.size(), "input {} outside 1..{}", channel,
+           inputs_.size());
+  inputs_[static_cast<std::size_t>(channel - 1)] = on;
+}
+
+bool ScriptedDriver::output(int channel) const {
+  const auto l = lock();
+  CW_CHECK(channel >= 1 && static_cast<std::size_t>(channel) <= outputs_.size(), "output {} outside 1..{}", channel,
+           outputs_.size());
+  return outputs_[static_cast<std::size_t>(channel - 1)];
+}
+
+std::vector<std::pair<CommandId, Command>> ScriptedDriver::accepted() const {
+  const auto l = lock();
+  return accepted_;
+}
+
+std::vector<double> ScriptedDriver::joints() const {
+  const auto l = lock();
+  return joints_;
+}
+
+Eigen::Isometry3d ScriptedDriver::tool_pose() const {
+  const auto l = lock();
+  return pose_;
+}
+
+bool ScriptedDriver::gripper_closed() const {
+  const auto l = lock();
+  return gripper_closed_;
 }
 
 }  // namespace cellwright::drivers

@@ -36,12 +36,20 @@
 //     submit()                -           -        -     yes       -       -
 //     request_position()      -           -       yes    yes      yes      -
 //     reset()                 -           -        -      -        -      yes
-//     stop(), disconnect(), poll(), state(), capabilities(), last_position(), set_notifier(): every state.
+//     stop(), disconnect(), poll(), state(), capabilities(), last_position(), set_notifier(), set_clock(): every
+//     state.
 //
 // COMMANDS execute one after another in the order accepted (home(), submit() and request_position() share one
 // queue, as on a serial controller), at most capabilities().queue_depth in flight at once (further ones are refused
 // with ErrorCode::busy). When a command fails, every command queued behind it is cancelled (ErrorCode::cancelled),
 // so that a failed grasp is never followed by the move that assumed it.
+//
+// POSITION READS WHILE MOVING. When capabilities().reads_while_moving is true (a simulation can read its joints at
+// any time), request_position() does not queue behind the motions: it is answered at the controller's next tick (a
+// simulation step), even while a command runs, and is not cancelled when a command fails (it was behind nothing); it
+// still counts towards queue_depth and is cancelled by stop(), disconnect() and a fault. Ids keep their acceptance
+// order, but such a request may then complete before commands with smaller ids. When it is false (a Movemaster
+// answers `WH` only between commands), the request takes its place in the one queue like any command.
 //
 // COMPLETION AND ERRORS. Accepted commands get ids 1, 2, 3, ... in acceptance order (never 0, never reused for the
 // driver's life). poll(id) returns pending (queued), running (being executed), done, or failed with an ErrorCode and a
@@ -170,6 +178,7 @@ struct Capabilities {
   std::size_t queue_depth = 1;          // commands in flight at most (queued in the driver or the controller)
   bool reads_joints = false;            // request_position() reports joint positions
   bool reads_pose = false;              // request_position() reports the tool pose (Movemaster `WH`: pose only)
+  bool reads_while_moving = false;      // request_position() is answered at the next tick, not behind the motions
 };
 
 // The answer to home(), submit() or request_position().
@@ -189,10 +198,10 @@ struct CommandStatus {
 
 // The answer to a request_position(), as the controller reported it.
 struct PositionReading {
-  CommandId request = 0;              // the request_position() this answers
-  std::chrono::nanoseconds stamp{0};  // when the controller took it, on the runtime's clock (the virtual clock in
-                                      // simulation; steady time since connect() on real controllers)
-  std::vector<double> joints;         // empty unless capabilities().reads_joints
+  CommandId request = 0;                       // the request_position() this answers
+  std::chrono::nanoseconds stamp{0};           // when the controller took it, on the clock given to set_clock() (the
+                                               // runtime's); without one, the driver's own (see each driver)
+  std::vector<double> joints;                  // empty unless capabilities().reads_joints
   std::optional<Eigen::Isometry3d> tool_pose;  // set only if capabilities().reads_pose
 };
 
@@ -245,6 +254,13 @@ class RobotDriver {
   // made it happen (often the driver's own), with no driver lock held. It must be short and must not block or call
   // the driver: set an event (twin::runtime::Event) and let the owner poll. Pass {} to remove it.
   virtual void set_notifier(std::function<void()> notify) = 0;
+
+  // The clock that stamps position readings from now on (PositionReading::stamp): the runtime's clock, so that
+  // readings compare with everything else the runtime times. It is called from whichever thread takes a reading
+  // (often the driver's own, with the driver's lock held): it must be cheap, must not block and must not call the
+  // driver. Pass {} to go back to the driver's own time. Any state.
+  using Clock = std::function<std::chrono::nanoseconds()>;
+  virtual void set_clock(Clock clock) = 0;
 };
 
 // Why a call was refused, if it was.

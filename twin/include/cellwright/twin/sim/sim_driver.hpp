@@ -131,6 +131,7 @@ class SimDriver final : public drivers::RobotDriver {
   drivers::CommandStatus poll(drivers::CommandId id) const override;
   std::optional<drivers::PositionReading> last_position() const override;
   void set_notifier(std::function<void()> notify) override;
+  void set_clock(Clock) override {}  // stamps stay on simulation time until this driver is built on DriverCore
 
   // ---- Queries (any thread) ----
 

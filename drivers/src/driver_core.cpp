@@ -156,6 +156,10 @@ std::unique_lock<std::mutex> DriverCore::lock() const {
   return std::unique_lock(mutex_);
 }
 
+std::unique_lock<std::mutex> DriverCore::lock(std::try_to_lock_t) const {
+  return std::unique_lock(mutex_, std::try_to_lock);
+}
+
 DriverCore::Calls DriverCore::calls() const {
   std::lock_guard lock(mutex_);
   return calls_;

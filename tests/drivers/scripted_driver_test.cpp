@@ -313,6 +313,70 @@ TEST(ScriptedDriverCommands, PositionReadBackArrivesLaterStampedWithVirtualTime)
   ASSERT_TRUE(reading->tool_pose.has_value());
 }
 
+// A robot that can read its position while moving (capabilities.reads_while_moving) answers after position_ticks even
+// while a command runs; the ids keep their order, the read finishes first.
+TEST(ScriptedDriverCommands, WithReadsWhileMovingARequestDoesNotWaitForTheMotion) {
+  ScriptedDriverConfig cfg = config();
+  cfg.capabilities.reads_while_moving = true;
+  cfg.position_ticks = 2;
+  ScriptedDriver d(cfg);
+  bring_to(d, DriverState::active);
+  const Submitted move = d.submit(kMove);
+  d.advance(1);
+  const Submitted ask = d.request_position();
+  const Submitted grip = d.submit(Grip{});
+  EXPECT_LT(move.id, ask.id);
+  EXPECT_LT(ask.id, grip.id);
+  d.advance(1);
+  EXPECT_EQ(d.poll(ask.id).phase, CommandPhase::running);
+  d.advance(1);
+  EXPECT_EQ(d.poll(ask.id).phase, CommandPhase::done);
+  EXPECT_EQ(d.poll(move.id).phase, CommandPhase::running);
+  const auto reading = d.last_position();
+  ASSERT_TRUE(reading.has_value());
+  EXPECT_EQ(reading->request, ask.id);
+  EXPECT_EQ(reading->stamp, std::chrono::milliseconds(d.now_ticks()));
+  EXPECT_EQ(reading->joints, config().home_joints);  // the move has not finished: the robot is still at home
+  EXPECT_EQ(run_until_finished(d, grip.id).phase, CommandPhase::done);
+  // Without the capability the same request waits for the move (see PositionReadBackArrivesLater...).
+}
+
+TEST(ScriptedDriverCommands, WithReadsWhileMovingAFailedCommandDoesNotCancelARead) {
+  ScriptedDriverConfig cfg = config();
+  cfg.capabilities.reads_while_moving = true;
+  cfg.position_ticks = 3;
+  ScriptedDriver d(cfg);
+  bring_to(d, DriverState::active);
+  d.fail_command(2, ErrorCode::unreachable, "ER 2");
+  const Submitted move = d.submit(kMove);
+  const Submitted ask = d.request_position();
+  const Submitted behind = d.submit(kMove);
+  d.advance(3);
+  EXPECT_EQ(d.poll(ask.id).phase, CommandPhase::done);
+  d.advance(2);
+  EXPECT_EQ(d.poll(move.id).error, ErrorCode::unreachable);
+  EXPECT_EQ(d.poll(behind.id).error, ErrorCode::cancelled);
+  const Submitted late = d.request_position();
+  d.stop();
+  EXPECT_EQ(d.poll(late.id).message, "cancelled by stop()");
+}
+
+// The runtime gives the driver its clock: readings are stamped with it instead of the virtual ticks.
+TEST(ScriptedDriverCommands, ReadingsAreStampedOnTheClockGivenToTheDriver) {
+  ScriptedDriver d(config());
+  bring_to(d, DriverState::homed);
+  std::chrono::nanoseconds runtime_clock = 5s;
+  d.set_clock([&] { return runtime_clock; });
+  const Submitted ask = d.request_position();
+  runtime_clock = 6s;  // the reading is taken when the controller answers, not when it was asked
+  ASSERT_EQ(run_until_finished(d, ask.id).phase, CommandPhase::done);
+  EXPECT_EQ(d.last_position()->stamp, 6s);
+  d.set_clock({});
+  const Submitted again = d.request_position();
+  ASSERT_EQ(run_until_finished(d, again.id).phase, CommandPhase::done);
+  EXPECT_EQ(d.last_position()->stamp, std::chrono::milliseconds(d.now_ticks()));
+}
+
 TEST(ScriptedDriverCommands, ReadBackReportsOnlyWhatTheControllerCan) {
   ScriptedDriverConfig cfg = config();
   cfg.capabilities.reads_joints = false;  // Movemaster `WH`: a pose, no joints

@@ -172,6 +172,11 @@ class DriverCore : public RobotDriver {
   Controller controller();
   // The core's mutex, for a derived driver's own queries and controls (any thread; not from a hook).
   std::unique_lock<std::mutex> lock() const;
+  // The same without waiting: the lock owns the mutex only if it was free (from a thread that does not hold it).
+  std::unique_lock<std::mutex> lock(std::try_to_lock_t) const;
+  // The queue, head first, for hooks (mutex held) only: e.g. accept_hook plans a motion from where the ones before it
+  // end.
+  const std::deque<Job>& queued() const { return queue_; }
 
   // ---- Hooks ----
   // Open the link and check the controller answers (mutex NOT held; may block). Return none, or connection_lost

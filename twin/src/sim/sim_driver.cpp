@@ -11,7 +11,6 @@
 namespace cellwright::twin::sim {
 
 using drivers::CommandId;
-using drivers::CommandPhase;
 using drivers::DriverState;
 using drivers::ErrorCode;
 using drivers::Submitted;
@@ -67,7 +66,7 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
       options_(std::move(options)),
       name_(ids_.name),
       chain_(models::KinematicChain::from_urdf_file(scene.cell().robots.at(robot).urdf)) {
-  const RobotSpec& spec = scene.cell().robots.at(robot);
+  const models::RobotSpec& spec = scene.cell().robots.at(robot);
   const std::size_t n = ids_.joints.size();
   auto fail = [&](const std::string& problem) {
     return InputError(options_.where, fmt::format("simulated robot '{}': {}", name_, problem));
@@ -130,23 +129,26 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
   finger_closed_ = ids_.finger_range[0];
   finger_open_ = ids_.finger_range[1];
 
-  capabilities_.joints = n;
-  capabilities_.joint_control = true;
-  capabilities_.cartesian_control = true;
-  capabilities_.linear_motion = true;
-  capabilities_.full_orientation = n >= 6;
-  capabilities_.gripper = true;
-  capabilities_.gripper_width = true;
-  capabilities_.gripper_force = true;
-  capabilities_.gripper_max_width = 2.0 * finger_open_;
-  capabilities_.gripper_max_force = grip_force_;
-  capabilities_.digital_outputs = signals_.size();
-  capabilities_.digital_inputs = signals_.size();
-  capabilities_.max_joint_speed = speeds;
-  capabilities_.max_tool_speed = options_.max_tool_speed;
-  capabilities_.queue_depth = options_.queue_depth;
-  capabilities_.reads_joints = true;
-  capabilities_.reads_pose = true;
+  drivers::Capabilities caps;
+  caps.joints = n;
+  caps.joint_control = true;
+  caps.cartesian_control = true;
+  caps.linear_motion = true;
+  caps.full_orientation = n >= 6;
+  caps.gripper = true;
+  caps.gripper_width = true;
+  caps.gripper_force = true;
+  caps.gripper_max_width = 2.0 * finger_open_;
+  caps.gripper_max_force = grip_force_;
+  caps.digital_outputs = signals_.size();
+  caps.digital_inputs = signals_.size();
+  caps.max_joint_speed = speeds;
+  caps.max_tool_speed = options_.max_tool_speed;
+  caps.queue_depth = options_.queue_depth;
+  caps.reads_joints = true;
+  caps.reads_pose = true;
+  caps.reads_while_moving = true;  // the simulation's joints can be read at any step
+  set_capabilities(std::move(caps));
 
   // Until the first step reads the simulation, plan from the home configuration the scene starts in.
   arm_goal_ = home_;
@@ -156,192 +158,59 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
   finger_force_ = grip_force_;
 }
 
-// ---- RobotDriver ----------------------------------------------------------------------------------------------
+// ---- DriverCore hooks (mutex held) ----------------------------------------------------------------------------
 
-const drivers::Capabilities& SimDriver::capabilities() const {
-  return capabilities_;
+void SimDriver::accept_hook(Job& job) {
+  auto plan = std::make_unique<SimJob>();
+  if (job.kind == JobKind::home) {
+    plan_joints(*plan, home_, options_.home_speed);
+  } else if (job.kind == JobKind::command) {
+    if (const auto* move = std::get_if<drivers::MoveJoints>(&*job.command)) {
+      plan_joints(
+          *plan,
+          Eigen::Map<const Eigen::VectorXd>(move->positions.data(), static_cast<Eigen::Index>(move->positions.size())),
+          move->speed);
+    } else if (const auto* pose = std::get_if<drivers::MovePose>(&*job.command)) {
+      plan_pose(*plan, *pose);
+    }
+  }
+  job.data = std::move(plan);
 }
 
-DriverState SimDriver::state() const {
-  std::lock_guard lock(mutex_);
-  return state_;
-}
-
-ErrorCode SimDriver::connect() {
-  std::lock_guard lock(mutex_);
-  if (state_ != DriverState::disconnected) return ErrorCode::wrong_state;
-  state_ = DriverState::connected;
-  return ErrorCode::none;
-}
-
-void SimDriver::disconnect() {
-  std::unique_lock lock(mutex_);
-  const bool changed = fail_all(ErrorCode::cancelled, "cancelled by disconnect()");
+void SimDriver::halt_hook() {
   brake_requested_ = true;
-  state_ = DriverState::disconnected;
-  const auto notify = notify_;
-  lock.unlock();
-  if (changed && notify) notify();
-}
-
-Submitted SimDriver::home() {
-  std::lock_guard lock(mutex_);
-  if (state_ != DriverState::connected && state_ != DriverState::homed && state_ != DriverState::stopped) {
-    return refuse(ErrorCode::wrong_state, fmt::format("home() is not allowed while {}", drivers::to_string(state_)));
-  }
-  Job job;
-  job.kind = JobKind::home;
-  plan_joints(job, home_, options_.home_speed);
-  return enqueue(std::move(job));
-}
-
-ErrorCode SimDriver::activate() {
-  std::lock_guard lock(mutex_);
-  if (state_ != DriverState::homed && state_ != DriverState::stopped) return ErrorCode::wrong_state;
-  for (const Job& j : queue_) {
-    if (j.kind == JobKind::home) return ErrorCode::wrong_state;  // still homing
-  }
-  state_ = DriverState::active;
-  return ErrorCode::none;
-}
-
-void SimDriver::stop() {
-  std::unique_lock lock(mutex_);
-  const bool changed = fail_all(ErrorCode::cancelled, "cancelled by stop()");
-  brake_requested_ = true;
-  if (state_ == DriverState::active) state_ = DriverState::stopped;
-  const auto notify = notify_;
-  lock.unlock();
-  if (changed && notify) notify();
-}
-
-ErrorCode SimDriver::reset() {
-  std::lock_guard lock(mutex_);
-  if (state_ != DriverState::fault) return ErrorCode::wrong_state;
-  state_ = DriverState::connected;  // the simulated link never drops
-  return ErrorCode::none;
-}
-
-Submitted SimDriver::submit(const drivers::Command& command) {
-  std::lock_guard lock(mutex_);
-  if (state_ != DriverState::active) {
-    return refuse(ErrorCode::wrong_state, fmt::format("{} refused: the driver is {}, not active",
-                                                      drivers::describe(command), drivers::to_string(state_)));
-  }
-  if (drivers::Refusal r = drivers::check_command(command, capabilities_)) return refuse(r.error, std::move(r.message));
-  if (queue_.size() >= options_.queue_depth) {
-    return refuse(ErrorCode::busy,
-                  fmt::format("{} command(s) already in flight (queue depth {})", queue_.size(), options_.queue_depth));
-  }
-  Job job;
-  job.kind = JobKind::command;
-  job.command = command;
-  if (const auto* move = std::get_if<drivers::MoveJoints>(&command)) {
-    plan_joints(
-        job,
-        Eigen::Map<const Eigen::VectorXd>(move->positions.data(), static_cast<Eigen::Index>(move->positions.size())),
-        move->speed);
-  } else if (const auto* pose = std::get_if<drivers::MovePose>(&command)) {
-    plan_pose(job, *pose);
-  }
-  return enqueue(std::move(job));
-}
-
-Submitted SimDriver::request_position() {
-  std::lock_guard lock(mutex_);
-  if (state_ != DriverState::homed && state_ != DriverState::active && state_ != DriverState::stopped) {
-    return refuse(ErrorCode::wrong_state,
-                  fmt::format("request_position() is not allowed while {}", drivers::to_string(state_)));
-  }
-  Job job;
-  job.kind = JobKind::position;
-  return enqueue(std::move(job));
-}
-
-drivers::CommandStatus SimDriver::poll(CommandId id) const {
-  std::lock_guard lock(mutex_);
-  const auto it = statuses_.find(id);
-  if (it != statuses_.end()) return it->second;
-  return {id, CommandPhase::failed, ErrorCode::unknown_command,
-          fmt::format("command {} was never issued or is no longer retained", id)};
-}
-
-std::optional<drivers::PositionReading> SimDriver::last_position() const {
-  std::lock_guard lock(mutex_);
-  return last_position_;
-}
-
-void SimDriver::set_notifier(std::function<void()> notify) {
-  std::lock_guard lock(mutex_);
-  notify_ = std::move(notify);
 }
 
 std::optional<GripOutcome> SimDriver::last_grip() const {
-  std::lock_guard lock(mutex_);
+  const auto l = lock();
   return last_grip_;
 }
 
-// ---- Queue bookkeeping (mutex held) ----------------------------------------------------------------------------
+// ---- Queue (mutex held) ----------------------------------------------------------------------------------------
 
-Submitted SimDriver::refuse(ErrorCode error, std::string message) {
-  return {0, error, std::move(message)};
-}
-
-Submitted SimDriver::enqueue(Job job) {
-  if (queue_.size() >= options_.queue_depth) {
-    return refuse(ErrorCode::busy,
-                  fmt::format("{} command(s) already in flight (queue depth {})", queue_.size(), options_.queue_depth));
-  }
-  job.id = next_id_++;
+void SimDriver::finish_head(Controller& c, Job& job, ErrorCode error, std::string message) {
   const CommandId id = job.id;
-  queue_.push_back(std::move(job));
-  set_status(id, queue_.size() == 1 ? CommandPhase::running : CommandPhase::pending);
-  return {id, ErrorCode::none, {}};
-}
-
-void SimDriver::set_status(CommandId id, CommandPhase phase, ErrorCode error, std::string message) {
-  statuses_[id] = {id, phase, error, std::move(message)};
-  if (phase != CommandPhase::done && phase != CommandPhase::failed) return;
-  changed_ = true;
-  finished_.push_back(id);
-  while (finished_.size() > drivers::kStatusRetention) {
-    statuses_.erase(finished_.front());
-    finished_.pop_front();
-  }
-}
-
-bool SimDriver::fail_all(ErrorCode error, const std::string& message) {
-  const bool any = !queue_.empty();
-  for (const Job& j : queue_) set_status(j.id, CommandPhase::failed, error, message);
-  queue_.clear();
-  return any;
-}
-
-void SimDriver::finish_head(CommandPhase phase, ErrorCode error, std::string message) {
-  Job job = std::move(queue_.front());
-  queue_.pop_front();
-  if (phase == CommandPhase::done) {
-    if (job.kind == JobKind::home) state_ = DriverState::homed;
-    set_status(job.id, CommandPhase::done);
-    if (!queue_.empty()) set_status(queue_.front().id, CommandPhase::running);
+  if (error == ErrorCode::none) {
+    c.complete(id);
     return;
   }
-  set_status(job.id, CommandPhase::failed, error, std::move(message));
-  fail_all(ErrorCode::cancelled, fmt::format("cancelled: command {} before it failed", job.id));
   // A failed motion leaves the arm where it is (the targets stop at once, smoothly).
-  if (job.moves_arm) brake_requested_ = true;
+  if (job.as<SimJob>().moves_arm) brake_requested_ = true;
+  c.fail(id, error, std::move(message));
 }
 
 Eigen::VectorXd SimDriver::queue_end_joints() const {
-  for (auto it = queue_.rbegin(); it != queue_.rend(); ++it) {
-    if (!it->points.empty() && it->problem.empty()) return it->points.back();
+  const auto& queue = queued();
+  for (auto it = queue.rbegin(); it != queue.rend(); ++it) {
+    const SimJob& plan = it->as<SimJob>();
+    if (!plan.points.empty() && plan.problem.empty()) return plan.points.back();
   }
   return arm_goal_;
 }
 
 // ---- Planning (owner thread, mutex held) -----------------------------------------------------------------------
 
-void SimDriver::plan_joints(Job& job, const Eigen::VectorXd& goal, double speed) const {
+void SimDriver::plan_joints(SimJob& job, const Eigen::VectorXd& goal, double speed) const {
   job.speed = speed;
   for (Eigen::Index j = 0; j < goal.size(); ++j) {
     if (goal[j] < lower_[j] || goal[j] > upper_[j]) {
@@ -354,7 +223,7 @@ void SimDriver::plan_joints(Job& job, const Eigen::VectorXd& goal, double speed)
   job.points = {queue_end_joints(), goal};
 }
 
-void SimDriver::plan_pose(Job& job, const drivers::MovePose& move) const {
+void SimDriver::plan_pose(SimJob& job, const drivers::MovePose& move) const {
   job.speed = move.speed;
   const Eigen::VectorXd seed = queue_end_joints();
   if (move.path == drivers::Path::joint) {
@@ -515,8 +384,8 @@ void SimDriver::move_fingers(std::chrono::nanoseconds now, double goal, double f
       std::max(kFingerMinTime, kQuinticPeakSpeed * std::abs(goal - finger_from_) / options_.finger_speed);
 }
 
-void SimDriver::start_head(std::chrono::nanoseconds now) {
-  Job& job = queue_.front();
+void SimDriver::start_head(std::chrono::nanoseconds now, Job& head) {
+  SimJob& job = head.as<SimJob>();
   job.started = true;
   job.start = now;
   if (!job.problem.empty()) return;  // check_head fails it
@@ -537,12 +406,12 @@ void SimDriver::start_head(std::chrono::nanoseconds now) {
     job.duration = duration;
     job.deadline = now + nanos(duration + options_.settle_timeout);
   }
-  if (job.kind == JobKind::home) {
+  if (head.kind == JobKind::home) {
     job.moves_fingers = true;
     move_fingers(now, finger_open_, grip_force_);
     return;
   }
-  if (job.kind == JobKind::position) return;
+  if (head.kind == JobKind::position) return;
   std::visit(
       [&](const auto& c) {
         using C = std::decay_t<decltype(c)>;
@@ -556,41 +425,33 @@ void SimDriver::start_head(std::chrono::nanoseconds now) {
           job.deadline = c.timeout.count() > 0 ? now + c.timeout : std::chrono::nanoseconds(0);
         }
       },
-      *job.command);
+      *head.command);
 }
 
-bool SimDriver::check_head(std::chrono::nanoseconds now, const mjModel* model, const mjData* data) {
-  Job& job = queue_.front();
+bool SimDriver::check_head(Controller& c, std::chrono::nanoseconds now, const mjModel* model, const mjData* data) {
+  Job& head = *c.head();
+  SimJob& job = head.as<SimJob>();
   if (!job.problem.empty()) {
-    finish_head(CommandPhase::failed, job.problem_code, job.problem);
+    finish_head(c, head, job.problem_code, job.problem);
     return true;
   }
-  if (job.kind == JobKind::position) {
-    drivers::PositionReading r;
-    r.request = job.id;
-    r.stamp = now;
-    const Eigen::VectorXd q = joints(data);
-    r.joints.assign(q.data(), q.data() + q.size());
-    // The tool centre point in the base frame: the URDF's kinematics of the joints read (MuJoCo's tcp site is the
-    // same frame, but its pose in mjData dates from before the last step's integration).
-    r.tool_pose = chain_.forward(q);
-    last_position_ = std::move(r);
-    finish_head(CommandPhase::done);
+  if (head.kind == JobKind::position) {  // not with reads_while_moving; kept for a queue that holds reads
+    c.complete(head.id, reading(c, now, data));
     return true;
   }
-  if (job.command) {
-    if (const auto* out = std::get_if<drivers::SetOutput>(&*job.command)) {
+  if (head.command) {
+    if (const auto* out = std::get_if<drivers::SetOutput>(&*head.command)) {
       signals_.set(out->channel, out->on);
-      finish_head(CommandPhase::done);
+      finish_head(c, head);
       return true;
     }
-    if (const auto* wait = std::get_if<drivers::WaitInput>(&*job.command)) {
+    if (const auto* wait = std::get_if<drivers::WaitInput>(&*head.command)) {
       if (signals_.get(wait->channel) == wait->on) {
-        finish_head(CommandPhase::done);
+        finish_head(c, head);
         return true;
       }
       if (job.deadline.count() > 0 && now >= job.deadline) {
-        finish_head(CommandPhase::failed, ErrorCode::timeout,
+        finish_head(c, head, ErrorCode::timeout,
                     fmt::format("digital input {} stayed {} for {:.3f} s", wait->channel, wait->on ? "off" : "on",
                                 seconds(now - job.start)));
         return true;
@@ -605,7 +466,7 @@ bool SimDriver::check_head(std::chrono::nanoseconds now, const mjModel* model, c
     arm_done = seconds(now - job.start) >= job.duration && error.cwiseAbs().maxCoeff() <= options_.joint_tolerance &&
                speed.cwiseAbs().maxCoeff() <= options_.settle_speed;
     if (!arm_done && now >= job.deadline) {
-      finish_head(CommandPhase::failed, ErrorCode::timeout,
+      finish_head(c, head, ErrorCode::timeout,
                   fmt::format("the arm did not settle within {:.3f} s of the trajectory's end (tolerance {} rad, {} "
                               "rad/s); joint errors: {}; joint speeds: {}",
                               options_.settle_timeout, options_.joint_tolerance, options_.settle_speed,
@@ -637,7 +498,7 @@ bool SimDriver::check_head(std::chrono::nanoseconds now, const mjModel* model, c
     fingers_done = job.resting_since && seconds(now - *job.resting_since) >= kFingerRestWindow;
     // A finger that cannot reach its goal (blocked while opening) fails like a blocked arm.
     if (!fingers_done && ramp_over && now - finger_start_ >= nanos(finger_duration_ + options_.settle_timeout)) {
-      finish_head(CommandPhase::failed, ErrorCode::timeout,
+      finish_head(c, head, ErrorCode::timeout,
                   fmt::format("the fingers did not reach {:.4f} m (each) within {:.3f} s: left at {:.4f} m, right at "
                               "{:.4f} m",
                               finger_goal_, finger_duration_ + options_.settle_timeout, finger_position(data, 0),
@@ -646,9 +507,21 @@ bool SimDriver::check_head(std::chrono::nanoseconds now, const mjModel* model, c
     }
   }
   if (!(arm_done && fingers_done)) return false;
-  if (job.command && std::holds_alternative<drivers::Grip>(*job.command)) record_grip(job, model, data);
-  finish_head(CommandPhase::done);
+  if (head.command && std::holds_alternative<drivers::Grip>(*head.command)) record_grip(head, model, data);
+  finish_head(c, head);
   return true;
+}
+
+drivers::PositionReading SimDriver::reading(const Controller& c, std::chrono::nanoseconds now,
+                                            const mjData* data) const {
+  drivers::PositionReading r;
+  r.stamp = c.stamp(now);
+  const Eigen::VectorXd q = joints(data);
+  r.joints.assign(q.data(), q.data() + q.size());
+  // The tool centre point in the base frame: the URDF's kinematics of the joints read (MuJoCo's tcp site is the
+  // same frame, but its pose in mjData dates from before the last step's integration).
+  r.tool_pose = chain_.forward(q);
+  return r;
 }
 
 void SimDriver::record_grip(const Job& job, const mjModel* model, const mjData* data) {
@@ -698,7 +571,7 @@ void SimDriver::write_targets(std::chrono::nanoseconds now, const mjModel* model
 }
 
 void SimDriver::step(std::chrono::nanoseconds now, const mjModel* model, mjData* data) {
-  std::unique_lock lock(mutex_);
+  Controller c = controller();  // releases the lock and calls the notifier (if something finished) when it ends
   if (!initialised_) {
     hold_here(now, data);
     initialised_ = true;
@@ -722,28 +595,20 @@ void SimDriver::step(std::chrono::nanoseconds now, const mjModel* model, mjData*
     finger_from_ = finger_goal_ = f;
     finger_duration_ = 0;
   }
-  while (!queue_.empty()) {
-    if (!queue_.front().started) start_head(now);
-    if (!check_head(now, model, data)) break;
+  // Position requests are answered at this step whatever the arm does (reads_while_moving).
+  while (!c.reads().empty()) c.complete(c.reads().front().id, reading(c, now, data));
+  while (Job* head = c.head()) {
+    if (!head->as<SimJob>().started) start_head(now, *head);
+    if (!check_head(c, now, model, data)) break;
   }
   write_targets(now, model, data);
-  const bool changed = changed_;
-  changed_ = false;
-  const auto notify = changed ? notify_ : std::function<void()>();
-  lock.unlock();
-  if (notify) notify();
 }
 
 void SimDriver::fault(const std::string& message, std::chrono::nanoseconds now, const mjData* data) {
-  std::unique_lock lock(mutex_);
-  fail_all(ErrorCode::hardware, message);
-  if (state_ != DriverState::disconnected) state_ = DriverState::fault;
+  Controller c = controller();
+  c.raise_fault(ErrorCode::hardware, message);
   hold_here(now, data);
   initialised_ = true;
-  changed_ = false;
-  const auto notify = notify_;
-  lock.unlock();
-  if (notify) notify();
 }
 
 }  // namespace cellwright::twin::sim

@@ -1,10 +1,12 @@
-// SimDriver: the RobotDriver (drivers/robot_driver.hpp) of a simulated robot, on its MuJoCo position servos. It
-// follows the interface contract exactly: the lifecycle table, ids 1, 2, 3, ..., one queue shared by home(), submit()
-// and request_position(), cancellation of everything behind a failed command, the notifier.
+// SimDriver: the RobotDriver (drivers/robot_driver.hpp) of a simulated robot, on its MuJoCo position servos. It is
+// built on drivers::DriverCore (driver_core.hpp), which keeps the interface contract: the lifecycle table, ids 1, 2,
+// 3, ..., one queue shared by home() and submit(), cancellation of everything behind a failed command, retention, the
+// notifier. This file adds how a simulated controller executes the jobs.
 //
 // WHO CALLS WHAT
 //  - The owner (one robot-control thread) calls the RobotDriver methods and the queries below (last_grip(),
-//    planned_joints()). They only read and change the driver's state behind its mutex; they never touch mjData.
+//    kinematics()). They only read and change the driver's state behind the core's mutex; they never touch mjData.
+//    Planning (inverse kinematics of a MovePose) happens in submit(), on the owner thread.
 //  - The World (world.hpp) creates the drivers (World::add_sim_driver) and, on the simulation thread, calls step()
 //    before every physics step: that is where commands start, servo targets move along their trajectories, position
 //    read-backs are taken, and commands complete. So a command submitted between two World::advance calls starts at
@@ -41,8 +43,9 @@
 //    tells whether the fingers stopped on a part, and the robot-control thread decides.
 //  - SetOutput sets a signal of the SignalTable shared by the cell (signals.hpp) and completes at once. WaitInput
 //    completes at the first step on which the signal has the wanted level, or fails with timeout.
-//  - request_position() completes at the next step: the joints and the tool centre point's pose (base frame) of the
-//    simulation at that step, stamped with its simulation time.
+//  - request_position() completes at the next step, even while a motion runs (capabilities().reads_while_moving): the
+//    joints and the tool centre point's pose (base frame) of the simulation at that step, stamped with its
+//    simulation time, or with the time of the clock given to set_clock() (called on the simulation thread).
 //  - home() moves the arm to the cell's home configuration (home_speed) and opens the gripper; then the driver is
 //    homed. connect() always succeeds (the simulated controller is always there).
 //  - stop() and disconnect() cancel every command and brake the arm: from its current position and velocity the
@@ -56,17 +59,14 @@
 
 #include <array>
 #include <chrono>
-#include <deque>
 #include <functional>
-#include <map>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "cellwright/common/error.hpp"
-#include "cellwright/drivers/robot_driver.hpp"
+#include "cellwright/drivers/driver_core.hpp"
 #include "cellwright/models/kinematics.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/signals.hpp"
@@ -107,7 +107,7 @@ struct GripOutcome {
   bool on_part = false;
 };
 
-class SimDriver final : public drivers::RobotDriver {
+class SimDriver final : public drivers::DriverCore {
  public:
   // Built by World::add_sim_driver (which validates the robot name); `robot` indexes scene.robots(). Reads the
   // robot's URDF for its kinematics and joint speed limits. Throws InputError naming options.where when
@@ -117,21 +117,7 @@ class SimDriver final : public drivers::RobotDriver {
   SimDriver(const SimDriver&) = delete;
   SimDriver& operator=(const SimDriver&) = delete;
 
-  // ---- RobotDriver (the owner thread): see drivers/robot_driver.hpp and the notes above ----
-  const drivers::Capabilities& capabilities() const override;
-  drivers::DriverState state() const override;
-  drivers::ErrorCode connect() override;
-  void disconnect() override;
-  drivers::Submitted home() override;
-  drivers::ErrorCode activate() override;
-  void stop() override;
-  drivers::ErrorCode reset() override;
-  drivers::Submitted submit(const drivers::Command& command) override;
-  drivers::Submitted request_position() override;
-  drivers::CommandStatus poll(drivers::CommandId id) const override;
-  std::optional<drivers::PositionReading> last_position() const override;
-  void set_notifier(std::function<void()> notify) override;
-  void set_clock(Clock) override {}  // stamps stay on simulation time until this driver is built on DriverCore
+  // The RobotDriver methods (the owner thread) come from DriverCore: see drivers/robot_driver.hpp and the notes above.
 
   // ---- Queries (any thread) ----
 
@@ -154,11 +140,8 @@ class SimDriver final : public drivers::RobotDriver {
   void fault(const std::string& message, std::chrono::nanoseconds now, const mjData* data);
 
  private:
-  enum class JobKind : std::uint8_t { home, command, position };
-  struct Job {
-    drivers::CommandId id = 0;
-    JobKind kind = JobKind::command;
-    std::optional<drivers::Command> command;
+  // What the driver keeps with each job.
+  struct SimJob : JobData {
     // Motions (moves, home), planned when queued: the joint polyline from the planned start, its arc (straight
     // lines: uniform in tool travel; empty otherwise), the speed fraction and the tool travel. When the motion cannot
     // be made, `problem` says why and the job fails with `problem_code` when it starts.
@@ -177,25 +160,25 @@ class SimDriver final : public drivers::RobotDriver {
     std::optional<std::chrono::nanoseconds> resting_since;  // fingers: when they were last seen stopped
   };
 
-  // Everything below: mutex_ held.
-  drivers::Submitted refuse(drivers::ErrorCode error, std::string message);
-  drivers::Submitted enqueue(Job job);
-  void set_status(drivers::CommandId id, drivers::CommandPhase phase,
-                  drivers::ErrorCode error = drivers::ErrorCode::none, std::string message = {});
-  // Fails every queued job with `error`; returns whether there was any.
-  bool fail_all(drivers::ErrorCode error, const std::string& message);
-  // Ends the head job (done, or failed with the rest cancelled) and applies its effect on the state.
-  void finish_head(drivers::CommandPhase phase, drivers::ErrorCode error = drivers::ErrorCode::none,
+  // DriverCore hooks (the core's mutex held): plan a job when it is accepted; brake on stop() and disconnect().
+  void accept_hook(Job& job) override;
+  void halt_hook() override;
+
+  // Everything below: the core's mutex held.
+  // Ends the head job: done, or failed (the core cancels what is behind it; a failed motion brakes the arm).
+  void finish_head(Controller& c, Job& job, drivers::ErrorCode error = drivers::ErrorCode::none,
                    std::string message = {});
   // The arm joints where everything queued will leave the arm: the seed and start of the next planned motion.
   Eigen::VectorXd queue_end_joints() const;
   // Planning at submission (owner thread).
-  void plan_joints(Job& job, const Eigen::VectorXd& goal, double speed) const;
-  void plan_pose(Job& job, const drivers::MovePose& move) const;
+  void plan_joints(SimJob& job, const Eigen::VectorXd& goal, double speed) const;
+  void plan_pose(SimJob& job, const drivers::MovePose& move) const;
   // Simulation side, per step: start the head job, check whether it has finished (true when it has, then it was
   // finished with finish_head), and write the servo targets.
-  void start_head(std::chrono::nanoseconds now);
-  bool check_head(std::chrono::nanoseconds now, const mjModel* model, const mjData* data);
+  void start_head(std::chrono::nanoseconds now, Job& job);
+  bool check_head(Controller& c, std::chrono::nanoseconds now, const mjModel* model, const mjData* data);
+  // The position reading of the simulation at this step.
+  drivers::PositionReading reading(const Controller& c, std::chrono::nanoseconds now, const mjData* data) const;
   void write_targets(std::chrono::nanoseconds now, const mjModel* model, mjData* data);
   // Starts a smooth finger motion to `goal` (finger joint value) with force limit `force`.
   void move_fingers(std::chrono::nanoseconds now, double goal, double force);
@@ -220,24 +203,15 @@ class SimDriver final : public drivers::RobotDriver {
   const SimDriverOptions options_;
   const std::string name_;
   const models::KinematicChain chain_;
-  drivers::Capabilities capabilities_;
   Eigen::VectorXd max_speed_, lower_, upper_, home_;
   double grip_force_ = 0;
   double finger_closed_ = 0, finger_open_ = 0;  // finger joint travel
 
-  mutable std::mutex mutex_;
-  drivers::DriverState state_ = drivers::DriverState::disconnected;
-  drivers::CommandId next_id_ = 1;
-  std::deque<Job> queue_;
-  std::map<drivers::CommandId, drivers::CommandStatus> statuses_;
-  std::deque<drivers::CommandId> finished_;  // terminal ids, oldest first, for retention
-  std::function<void()> notify_;
-  bool changed_ = false;  // a command finished since the notifier was last called
-  std::optional<drivers::PositionReading> last_position_;
+  // Below: under the core's mutex.
   std::optional<GripOutcome> last_grip_;
   bool brake_requested_ = false;
 
-  // The servo targets (simulation side; under mutex_ because submit() plans from arm_goal_).
+  // The servo targets (simulation side; under the core's mutex because submit() plans from arm_goal_).
   bool initialised_ = false;
   std::optional<JointPath> arm_path_;  // the arm follows this (held at its end) ...
   std::chrono::nanoseconds arm_start_{0};

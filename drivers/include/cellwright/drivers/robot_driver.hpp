@@ -1,7 +1,8 @@
 // The one robot driver interface. Every robot in a cell is driven through it: the MuJoCo simulation driver, the
 // Movemaster EX driver and the VAL II driver over RS-232, and the ScriptedDriver test double. A robot-control thread
 // (paper section 3.4) owns one driver and turns motion-level commands into driver commands; nothing above it knows
-// which kind of robot it talks to.
+// which kind of robot it talks to. The drivers implement this contract once, in DriverCore (driver_core.hpp), and add
+// only what their controller needs; FaultyDriver (faulty_driver.hpp) wraps any of them to inject failures.
 //
 // ASYNCHRONOUS BY DESIGN. A real serial controller takes a command, acknowledges it a while later (Movemaster: the
 // host asks `ER` and gets 0/1/2), executes it for seconds, and reports its position only when asked (`WH`, `WHERE`).
@@ -252,7 +253,7 @@ class RobotDriver {
 
   // `notify` is called whenever a command reaches done or failed or the driver enters fault, from whichever thread
   // made it happen (often the driver's own), with no driver lock held. It must be short and must not block or call
-  // the driver: set an event (twin::runtime::Event) and let the owner poll. Pass {} to remove it.
+  // the driver: set an event (runtime::Event) and let the owner poll. Pass {} to remove it.
   virtual void set_notifier(std::function<void()> notify) = 0;
 
   // The clock that stamps position readings from now on (PositionReading::stamp): the runtime's clock, so that

@@ -25,15 +25,15 @@ const std::filesystem::path kSource = CW_SOURCE_DIR;
 
 class RenderTest : public testing::MujocoTest {
  protected:
-  static const CellDescription& paper_cell() {
-    static const CellDescription cell = load_cell(kSource / "scenes/cell.yaml");
+  static const models::CellDescription& paper_cell() {
+    static const models::CellDescription cell = models::load_cell(kSource / "scenes/cell.yaml");
     return cell;
   }
 };
 
 // Pixel (column, row from the top) where a world point appears in a pinhole camera described by the cell: MuJoCo's
 // camera looks along its -z axis with image up along +y; the vertical field of view spans the image height.
-cv::Point2d project(const CameraSpec& cam, const Eigen::Vector3d& world) {
+cv::Point2d project(const models::CameraSpec& cam, const Eigen::Vector3d& world) {
   const Eigen::Vector3d c = cam.pose.rotation().transpose() * (world - cam.pose.xyz);
   const double f = 0.5 * cam.height / std::tan(0.5 * cam.fovy);
   return {0.5 * cam.width + f * c.x() / -c.z(), 0.5 * cam.height - f * c.y() / -c.z()};
@@ -57,16 +57,16 @@ double similarity(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return a.normalized().dot(b.normalized());
 }
 
-Eigen::Vector3d part_top(const Scene& s, const WorkpieceIds& w, const WorkpieceSpec& spec) {
+Eigen::Vector3d part_top(const Scene& s, const WorkpieceIds& w, const models::WorkpieceSpec& spec) {
   const mjtNum* p = s.data()->xpos + 3 * w.body;
   return Eigen::Vector3d(p[0], p[1], p[2] + spec.size.z() / 2);
 }
 
 // Every part looks, in the overhead image, the colour it has (and more like it than like any other part's).
 void expect_parts_seen(const Scene& s, const cv::Mat& image) {
-  const CellDescription& cell = s.cell();
-  const CameraSpec& cam = *cell.find_camera("overhead");
-  for (const WorkpieceSpec& spec : cell.workpieces) {
+  const models::CellDescription& cell = s.cell();
+  const models::CameraSpec& cam = *cell.find_camera("overhead");
+  for (const models::WorkpieceSpec& spec : cell.workpieces) {
     SCOPED_TRACE("workpiece " + spec.name);
     const cv::Point2d px = project(cam, part_top(s, *s.find_workpiece(spec.name), spec));
     ASSERT_GT(px.x, 2);
@@ -76,7 +76,7 @@ void expect_parts_seen(const Scene& s, const cv::Mat& image) {
     const Eigen::Vector3d seen = colour_at(image, px);
     const Eigen::Vector3d own = spec.rgba.head<3>();
     EXPECT_GT(similarity(seen, own), 0.97) << "seen " << seen.transpose() << " at " << px;
-    for (const WorkpieceSpec& other : cell.workpieces) {
+    for (const models::WorkpieceSpec& other : cell.workpieces) {
       if (other.name == spec.name) continue;
       EXPECT_GT(similarity(seen, own), similarity(seen, other.rgba.head<3>())) << "looks like " << other.name;
     }
@@ -89,7 +89,7 @@ void expect_parts_seen(const Scene& s, const cv::Mat& image) {
 
 TEST_F(RenderTest, OverheadCameraSeesEachWorkpieceWhereTheSceneHasIt) {
   Scene s = build_scene(paper_cell());
-  const CameraSpec& cam = *paper_cell().find_camera("overhead");
+  const models::CameraSpec& cam = *paper_cell().find_camera("overhead");
   Renderer renderer(s.model(), cam.width, cam.height);
   const cv::Mat image = renderer.render_camera(s.data(), s.camera_id("overhead"), cam.width, cam.height);
   ASSERT_EQ(image.cols, 640);

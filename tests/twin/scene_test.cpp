@@ -25,8 +25,8 @@ const std::filesystem::path kSource = CW_SOURCE_DIR;
 
 class SceneTest : public testing::MujocoTest {
  protected:
-  static const CellDescription& paper_cell() {
-    static const CellDescription cell = load_cell(kSource / "scenes/cell.yaml");
+  static const models::CellDescription& paper_cell() {
+    static const models::CellDescription cell = models::load_cell(kSource / "scenes/cell.yaml");
     return cell;
   }
 };
@@ -112,7 +112,7 @@ TEST_F(SceneTest, RobotsFollowTheirUrdfKinematics) {
   std::mt19937_64 rng(20240501);
   for (const RobotIds& r : s.robots()) {
     SCOPED_TRACE(r.name);
-    const RobotSpec& spec = *paper_cell().find_robot(r.name);
+    const models::RobotSpec& spec = *paper_cell().find_robot(r.name);
     const auto chain = models::KinematicChain::from_urdf_file(spec.urdf);
     ASSERT_EQ(chain.dof(), r.joints.size());
     for (int trial = 0; trial < 20; ++trial) {
@@ -150,7 +150,7 @@ TEST_F(SceneTest, NothingOverlapsAtTheStartAndTheRobotsTouchNothing) {
 
 TEST_F(SceneTest, OverlapCheckSeesAPartInsideTheMachine) {
   // The check above can fail: a part placed inside the machine's body is reported.
-  CellDescription cell = paper_cell();
+  models::CellDescription cell = paper_cell();
   cell.workpieces[0].pose.xyz = Eigen::Vector3d(0.05, 0.6, 0.38);
   Scene s = build_scene(cell);
   const auto found = penetrations(s, 1e-4);
@@ -294,7 +294,7 @@ TEST_F(SceneTest, MeshGeometryIsRejectedNamingTheUrdf) {
   ASSERT_NE(urdf.find(cylinder), std::string::npos);
   urdf.replace(urdf.find(cylinder), cylinder.size(), R"(<geometry><mesh filename="pedestal.stl"/></geometry>)");
   std::ofstream(dir / "meshy.urdf") << urdf;
-  CellDescription cell = paper_cell();
+  models::CellDescription cell = paper_cell();
   cell.robots[0].urdf = dir / "meshy.urdf";
   try {
     scene_mjcf(cell);

@@ -7,16 +7,17 @@
 #include <filesystem>
 #include <string>
 
-#include "cellwright/twin/cell.hpp"
+#include "cellwright/models/cell.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scene.hpp"
 
 namespace {
 
+using namespace cellwright;
 using namespace cellwright::twin;
 
 Scene& cell_scene() {
-  static Scene scene = build_scene(load_cell(std::filesystem::path(CW_SOURCE_DIR) / "scenes" / "cell.yaml"));
+  static Scene scene = build_scene(models::load_cell(std::filesystem::path(CW_SOURCE_DIR) / "scenes" / "cell.yaml"));
   return scene;
 }
 

@@ -9,14 +9,14 @@
 #include <thread>
 #include <vector>
 
-#include "../../tests/twin/runtime/scripted_cell.hpp"
-#include "cellwright/twin/runtime/clock.hpp"
-#include "cellwright/twin/runtime/message_queue.hpp"
-#include "cellwright/twin/runtime/runtime.hpp"
+#include "../../tests/controller/runtime/scripted_cell.hpp"
+#include "cellwright/runtime/clock.hpp"
+#include "cellwright/runtime/message_queue.hpp"
+#include "cellwright/runtime/runtime.hpp"
 
 namespace {
 
-using namespace cellwright::twin::runtime;
+using namespace cellwright::runtime;
 using Clock = std::chrono::steady_clock;
 
 double percentile(std::vector<std::int64_t> v, double p) {

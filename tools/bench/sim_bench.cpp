@@ -11,7 +11,7 @@
 #include <memory>
 #include <vector>
 
-#include "cellwright/twin/cell.hpp"
+#include "cellwright/models/cell.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/world.hpp"
 
@@ -20,8 +20,8 @@ namespace {
 using namespace cellwright;
 using namespace std::chrono_literals;
 
-const twin::CellDescription& cell() {
-  static const twin::CellDescription c = twin::load_cell(std::filesystem::path(CW_SOURCE_DIR) / "scenes/cell.yaml");
+const models::CellDescription& cell() {
+  static const models::CellDescription c = models::load_cell(std::filesystem::path(CW_SOURCE_DIR) / "scenes/cell.yaml");
   return c;
 }
 

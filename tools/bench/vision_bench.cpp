@@ -23,13 +23,14 @@
 #include <string>
 #include <vector>
 
-#include "cellwright/twin/cell.hpp"
+#include "cellwright/models/cell.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scene.hpp"
-#include "cellwright/twin/vision/detector.hpp"
+#include "cellwright/vision/detector.hpp"
 
 namespace {
 
+using namespace cellwright;
 using namespace cellwright::twin;
 
 constexpr int kWidth = 640, kHeight = 480;
@@ -37,8 +38,9 @@ constexpr unsigned kSeed = 1;
 constexpr int kPlacements = 200;
 constexpr double kPi = std::numbers::pi;
 
-const CellDescription& cell() {
-  static const CellDescription c = load_cell(std::filesystem::path(CW_SOURCE_DIR) / "scenes" / "cell.yaml");
+const models::CellDescription& cell() {
+  static const models::CellDescription c =
+      models::load_cell(std::filesystem::path(CW_SOURCE_DIR) / "scenes" / "cell.yaml");
   return c;
 }
 
@@ -67,8 +69,8 @@ void place(Scene& s, const std::string& name, const Eigen::Vector3d& bottom, dou
 
 // One random placement of every workpiece (see the top of the file).
 void random_placement(Scene& s, std::mt19937& rng) {
-  const ConveyorSpec& belt = *s.cell().find_conveyor("input");
-  const MachineSpec& mill = *s.cell().find_machine("mill");
+  const models::ConveyorSpec& belt = *s.cell().find_conveyor("input");
+  const models::MachineSpec& mill = *s.cell().find_machine("mill");
   const auto& parts = s.cell().workpieces;
   std::uniform_real_distribution<double> unit(0, 1);
   std::vector<std::size_t> order(parts.size());
@@ -76,11 +78,11 @@ void random_placement(Scene& s, std::mt19937& rng) {
   std::shuffle(order.begin(), order.end(), rng);
   std::vector<std::pair<Eigen::Vector2d, double>> taken;
   for (std::size_t k = 0; k < order.size(); ++k) {
-    const WorkpieceSpec& w = parts[order[k]];
+    const models::WorkpieceSpec& w = parts[order[k]];
     const double radius = 0.5 * w.size.head<2>().norm();
     const double yaw = 2 * kPi * unit(rng);
     if (k == 0) {
-      const Pose top = mill.fixture_top();
+      const models::Pose top = mill.fixture_top();
       const Eigen::Vector2d room = mill.fixture_size.head<2>() / 2 - w.size.head<2>() / 2;
       place(s, w.name, top.xyz + Eigen::Vector3d(room.x() * (2 * unit(rng) - 1), room.y() * (2 * unit(rng) - 1), 0),
             yaw);

@@ -2,6 +2,7 @@
 // a scenario's task program on the simulated cell, headless, and judge the outcome. Exit 0 when the run finished and
 // every expected outcome holds, 1 when not, 2 on bad input (refused before any thread starts, nothing written).
 #include <unistd.h>
+#include <any>
 
 #include <chrono>
 #include <cstdio>
@@ -16,14 +17,15 @@
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/run.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
-#include "cellwright/twin/vision/draw.hpp"
+#include "cellwright/vision/cell_detector.hpp"
+#include "cellwright/vision/draw.hpp"
 #include "commands.hpp"
 
 namespace cellwright::tools {
 
 namespace {
 
-using twin::runtime::SimDuration;
+using runtime::SimDuration;
 
 // The progress line: sim time, firings and what each robot is doing. Robot commands are taken from the runtime's view
 // between steps (main thread) and printed by the simulation thread's progress callback, hence the mutex.
@@ -36,12 +38,11 @@ class Progress {
   // log.
   SimDuration every() const { return tty_ ? std::chrono::milliseconds(200) : std::chrono::seconds(5); }
 
-  void set_robots(const std::vector<twin::runtime::RobotView>& robots) {
+  void set_robots(const std::vector<runtime::RobotView>& robots) {
     std::string s;
     for (const auto& r : robots) {
-      s += fmt::format(
-          "  {}: {}", r.robot,
-          r.done ? std::string("done") : fmt::format("{} {}", twin::runtime::to_string(r.activity), r.command));
+      s += fmt::format("  {}: {}", r.robot,
+                       r.done ? std::string("done") : fmt::format("{} {}", runtime::to_string(r.activity), r.command));
     }
     std::lock_guard lock(mutex_);
     robots_ = std::move(s);
@@ -123,12 +124,12 @@ void add_run(CLI::App& app, Command* run) {
       auto progress = std::make_shared<Progress>(args->quiet);
       RunOptions options;
       if (args->realtime) options.realtime = true;
-      if (args->perception == "truth") options.perception = twin::runtime::Perception::kTruth;
-      if (args->perception == "vision") options.perception = twin::runtime::Perception::kVision;
-      if (args->perception == "cad") options.perception = twin::runtime::Perception::kCad;
-      if (!args->frames.empty() && options.perception.value_or(s.perception) != twin::runtime::Perception::kVision) {
+      if (args->perception == "truth") options.perception = runtime::Perception::kTruth;
+      if (args->perception == "vision") options.perception = runtime::Perception::kVision;
+      if (args->perception == "cad") options.perception = runtime::Perception::kCad;
+      if (!args->frames.empty() && options.perception.value_or(s.perception) != runtime::Perception::kVision) {
         std::fprintf(stderr, "%s: --save-frames needs perception vision (the scenario's is %s)\n",
-                     args->scenario.c_str(), twin::runtime::to_string(options.perception.value_or(s.perception)));
+                     args->scenario.c_str(), runtime::to_string(options.perception.value_or(s.perception)));
         return 2;
       }
       if (!args->frames.empty()) {
@@ -137,11 +138,13 @@ void add_run(CLI::App& app, Command* run) {
         std::filesystem::create_directories(dir, ec);
         if (ec)
           throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the frames directory: {}", ec.message()));
-        options.on_frame = [dir](const twin::runtime::VisionFrame& f) {
+        options.on_frame = [dir](const runtime::VisionFrame& f) {
           if (f.image.empty()) return;
           const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(f.time).count();
-          cv::Mat drawn = f.image.clone();
-          twin::vision::draw_detections(drawn, f.result);
+          cv::Mat drawn = vision::as_mat(f.image).clone();
+          if (const auto* found = std::any_cast<vision::DetectionResult>(&f.result.detail)) {
+            vision::draw_detections(drawn, *found);
+          }
           twin::write_png(drawn, dir / fmt::format("frame_{:06}.png", ms));
         };
       }
@@ -154,7 +157,7 @@ void add_run(CLI::App& app, Command* run) {
         for (const Binding& b : s.robots) robots += fmt::format(" {}={}", b.label, b.name);
         std::printf("%s: %s on %s,%s, %s, perception %s\n", args->scenario.c_str(), s.program_file.filename().c_str(),
                     s.cell.name.c_str(), robots.c_str(), sr.realtime() ? "real time" : "lock-step",
-                    twin::runtime::to_string(sr.perception()));
+                    runtime::to_string(sr.perception()));
         std::printf("estimated cycle time %.2f s\n", sr.estimate().cycle_time);
         std::fflush(stdout);
       }
@@ -169,7 +172,7 @@ void add_run(CLI::App& app, Command* run) {
         sr.runtime().run();
       } else {
         for (;;) {
-          const twin::runtime::StepState st = sr.runtime().step();
+          const runtime::StepState st = sr.runtime().step();
           if (st.ended) break;
           progress->set_robots(st.task.robots);
           firings_so_far = st.task.firings;

@@ -7,11 +7,11 @@
 #include <memory>
 #include <string>
 
-#include "cellwright/twin/cell.hpp"
+#include "cellwright/models/cell.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scene.hpp"
-#include "cellwright/twin/vision/detector.hpp"
-#include "cellwright/twin/vision/draw.hpp"
+#include "cellwright/vision/detector.hpp"
+#include "cellwright/vision/draw.hpp"
 #include "commands.hpp"
 
 namespace cellwright::tools {
@@ -51,12 +51,12 @@ void add_snapshot(CLI::App& app, Command* run) {
         std::fprintf(stderr, "twin snapshot: error: --detections needs --camera NAME, a camera of the cell\n");
         return 2;
       }
-      const twin::CellDescription cell = twin::load_cell(opts->cell);
+      const models::CellDescription cell = models::load_cell(opts->cell);
       twin::Scene scene = twin::build_scene(cell);
       if (!opts->mjcf.empty()) twin::write_mjcf(scene.mjcf(), opts->mjcf);
       if (opts->out.empty()) return 0;
       int width = 640, height = 480;
-      if (const twin::CameraSpec* cam = cell.find_camera(opts->camera)) {
+      if (const models::CameraSpec* cam = cell.find_camera(opts->camera)) {
         width = cam->width;
         height = cam->height;
       }
@@ -65,11 +65,10 @@ void add_snapshot(CLI::App& app, Command* run) {
       scene.step(static_cast<int>(opts->after / scene.model()->opt.timestep + 0.5));
       cv::Mat image = twin::render_view(scene, opts->camera, width, height);
       if (opts->detections) {
-        const twin::vision::Detector detector(
-            cell, twin::vision::CameraModel(*cell.find_camera(opts->camera), width, height));
-        const twin::vision::DetectionResult found = twin::vision::detect(detector, image);
-        twin::vision::draw_detections(image, found);
-        for (const auto& d : found.detections) std::printf("%s\n", twin::vision::describe(d).c_str());
+        const vision::Detector detector(cell, vision::CameraModel(*cell.find_camera(opts->camera), width, height));
+        const vision::DetectionResult found = vision::detect(detector, image);
+        vision::draw_detections(image, found);
+        for (const auto& d : found.detections) std::printf("%s\n", vision::describe(d).c_str());
         for (const auto& r : found.rejected) {
           std::printf("rejected a blob%s at (%d, %d): %s\n",
                       r.workpiece.empty() ? "" : (" like " + r.workpiece).c_str(), r.box.x, r.box.y, r.reason.c_str());

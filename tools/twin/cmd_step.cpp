@@ -34,7 +34,7 @@ void print_marking(const petri::Net& net, const petri::Marking& m) {
   std::printf("  marking: %s\n", petri::describe_marking(net, m).c_str());
 }
 
-void print_state(const petri::Net& net, const twin::runtime::StepState& st, bool with_firings) {
+void print_state(const petri::Net& net, const runtime::StepState& st, bool with_firings) {
   std::printf("t = %.3f s, %llu firings\n", std::chrono::duration<double>(st.time).count(),
               static_cast<unsigned long long>(st.task.firings));
   if (with_firings) {
@@ -44,14 +44,14 @@ void print_state(const petri::Net& net, const twin::runtime::StepState& st, bool
   }
   print_marking(net, st.task.marking);
   for (std::size_t i = 0; i < st.task.robots.size(); ++i) {
-    const twin::runtime::RobotView& task_view = st.task.robots[i];
+    const runtime::RobotView& task_view = st.task.robots[i];
     std::string line = fmt::format("  {}: {}", task_view.robot,
                                    task_view.done ? std::string("done")
-                                                  : fmt::format("{} {}", twin::runtime::to_string(task_view.activity),
+                                                  : fmt::format("{} {}", runtime::to_string(task_view.activity),
                                                                 task_view.command.empty() ? "-" : task_view.command));
     if (i < st.robots.size()) {
-      const twin::runtime::RobotControlView& rc = st.robots[i];
-      line += fmt::format("  [{} {}, driver {}{}]", rc.cell, twin::runtime::to_string(rc.phase),
+      const runtime::RobotControlView& rc = st.robots[i];
+      line += fmt::format("  [{} {}, driver {}{}]", rc.cell, runtime::to_string(rc.phase),
                           drivers::to_string(rc.driver), rc.detail.empty() ? "" : ": " + rc.detail);
     }
     std::printf("%s\n", line.c_str());
@@ -90,8 +90,8 @@ void add_step(CLI::App& app, Command* run) {
       std::printf("%s", kHelp);
       std::fflush(stdout);
 
-      std::optional<twin::runtime::StepState> last;
-      auto finish = [&](const twin::runtime::StepState& st) {
+      std::optional<runtime::StepState> last;
+      auto finish = [&](const runtime::StepState& st) {
         print_state(net, st, false);
         const Report report = sr.report();
         std::printf("%s", format_summary(report).c_str());
@@ -110,14 +110,14 @@ void add_step(CLI::App& app, Command* run) {
         if (word.empty() || word == "n") {
           last = sr.runtime().step();
           if (last->ended) {
-            std::printf("the run has ended (%s)\n", twin::runtime::to_string(last->result->outcome));
+            std::printf("the run has ended (%s)\n", runtime::to_string(last->result->outcome));
             return finish(*last);
           }
           print_state(net, *last, true);
         } else if (word == "c") {
           sr.runtime().run();
           last = sr.runtime().step();  // the ended state: the same result again, with the views
-          std::printf("ran to the end (%s)\n", twin::runtime::to_string(last->result->outcome));
+          std::printf("ran to the end (%s)\n", runtime::to_string(last->result->outcome));
           return finish(*last);
         } else if (word == "m") {
           print_marking(net, last ? last->task.marking : net.initial_marking());

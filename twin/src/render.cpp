@@ -151,6 +151,18 @@ cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int h
   return bgr;
 }
 
+vision::CameraModel camera_model(const mjModel* model, const mjData* data, int camera_id, int width, int height) {
+  CW_CHECK(model != nullptr && data != nullptr, "camera_model needs a model and data");
+  CW_CHECK(camera_id >= 0 && camera_id < model->ncam, "camera id {} not in the model (it has {})", camera_id,
+           model->ncam);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  const mjtNum* p = data->cam_xpos + 3 * camera_id;
+  const mjtNum* r = data->cam_xmat + 9 * camera_id;
+  pose.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+  pose.linear() = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r);
+  return vision::CameraModel(pose, model->cam_fovy[camera_id] * std::numbers::pi / 180.0, width, height);
+}
+
 cv::Mat render_view(Scene& scene, std::string_view camera, int width, int height) {
   const std::string where = scene.cell().source.string();
   if (width < 1 || height < 1 || width > kMaxSide || height > kMaxSide) {

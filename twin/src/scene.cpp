@@ -176,13 +176,13 @@ std::mutex& urdf_mutex() {
 }
 
 struct RobotModel {
-  const RobotSpec* spec = nullptr;
+  const models::RobotSpec* spec = nullptr;
   urdf::ModelInterfaceSharedPtr urdf;
   std::vector<std::string> arm_joints;  // movable joints from base_link to tcp
   std::set<std::string> finger_links;
 };
 
-RobotModel read_robot_model(const RobotSpec& spec) {
+RobotModel read_robot_model(const models::RobotSpec& spec) {
   RobotModel r;
   r.spec = &spec;
   const std::string file = spec.urdf.string();
@@ -263,7 +263,7 @@ void accumulate_load(const urdf::Link& link, double reach, bool prismatic, LoadB
 // --- The cell's MJCF -------------------------------------------------------------------------------------------
 
 struct Builder {
-  const CellDescription& cell;
+  const models::CellDescription& cell;
   Xml x;
   std::vector<double> qpos;  // initial qpos in MuJoCo's order (joints in document order)
   std::vector<double> ctrl;  // initial actuator targets, in the order actuators are written
@@ -479,7 +479,7 @@ struct Builder {
   }
 
   void robot(const RobotModel& r) {
-    const RobotSpec& spec = *r.spec;
+    const models::RobotSpec& spec = *r.spec;
     x.comment(fmt::format("robot '{}' from {}", spec.name, spec.urdf.string()));
     if (spec.base.xyz.z() > 1e-3) {
       // A robot mounted above the floor stands on a pedestal.
@@ -513,7 +513,7 @@ struct Builder {
 
   // --- Conveyors, machines, workpieces ---
 
-  void conveyor(const ConveyorSpec& c) {
+  void conveyor(const models::ConveyorSpec& c) {
     const std::string name = "conveyor/" + c.name;
     const double l = c.length, w = c.width, h = c.height, t = kBeltThickness;
     x.comment(fmt::format("conveyor '{}': belt top {} m above the floor, {} m/s", c.name, num(h), num(c.speed)));
@@ -577,7 +577,7 @@ struct Builder {
              c.speed);
   }
 
-  void machine(const MachineSpec& m) {
+  void machine(const models::MachineSpec& m) {
     const std::string name = "machine/" + m.name;
     x.comment(fmt::format("machine '{}': process time {} s", m.name, num(m.process_time)));
     x.open("body", {{"name", name}, {"pos", vec(m.pose.xyz)}, {"quat", quat(m.pose.rotation())}});
@@ -601,14 +601,14 @@ struct Builder {
     x.close();
   }
 
-  void workpiece(const WorkpieceSpec& w) {
+  void workpiece(const models::WorkpieceSpec& w) {
     const std::string name = "workpiece/" + w.name;
     const Eigen::Quaterniond q(w.pose.rotation());
     x.open("body", {{"name", name}, {"pos", vec(w.pose.xyz)}, {"quat", quat(q)}});
     x.leaf("joint", {{"name", name}, {"type", "free"}});
     qpos.insert(qpos.end(), {w.pose.xyz.x(), w.pose.xyz.y(), w.pose.xyz.z(), q.w(), q.x(), q.y(), q.z()});
     Attrs a{{"name", name}, {"class", "part"}, {"mass", num(w.mass)}, {"rgba", rgba(w.rgba)}};
-    if (w.shape == Shape::kBox) {
+    if (w.shape == models::Shape::kBox) {
       a.emplace_back("type", "box");
       a.emplace_back("size", vec(w.size / 2));
     } else {
@@ -784,7 +784,7 @@ struct Builder {
   }
 };
 
-std::vector<RobotModel> read_robot_models(const CellDescription& cell) {
+std::vector<RobotModel> read_robot_models(const models::CellDescription& cell) {
   std::vector<RobotModel> out;
   for (const auto& r : cell.robots) out.push_back(read_robot_model(r));
   return out;
@@ -806,7 +806,7 @@ struct VfsDeleter {
 
 }  // namespace
 
-std::string scene_mjcf(const CellDescription& cell) {
+std::string scene_mjcf(const models::CellDescription& cell) {
   const std::vector<RobotModel> robots = read_robot_models(cell);
   Builder b{cell, {}, {}, {}, {}, {}, {}, {}};
   return b.build(robots);
@@ -816,7 +816,7 @@ Scene::Scene(Scene&&) noexcept = default;
 Scene& Scene::operator=(Scene&&) noexcept = default;
 Scene::~Scene() = default;
 
-Scene build_scene(const CellDescription& cell) {
+Scene build_scene(const models::CellDescription& cell) {
   Scene s;
   s.cell_ = cell;
   s.mjcf_ = scene_mjcf(cell);

@@ -89,8 +89,8 @@ TEST_F(ExchangeEstimate, FasterJointsMakeMovesProportionallyShorter) {
 TEST_F(ExchangeEstimate, PuttingThePartOnTheBeltWaitsForItToReachTheStop) {
   const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2, 0.02));
   // A starts on the input belt and rides it to the stop bar at the belt's speed.
-  const ConveyorSpec& input = *s_.cell.find_conveyor("input");
-  const WorkpieceSpec& a = *s_.cell.find_workpiece("A");
+  const models::ConveyorSpec& input = *s_.cell.find_conveyor("input");
+  const models::WorkpieceSpec& a = *s_.cell.find_workpiece("A");
   const double s0 = (input.pose.transform().inverse() * a.pose.xyz).x() + input.length / 2;
   const double arrival = (input.leave - a.size.x() / 2 - s0) / input.speed;
   ASSERT_GT(arrival, 1.0);

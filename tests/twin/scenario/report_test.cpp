@@ -141,8 +141,8 @@ Scenario exchange_scenario() {
 
 // A final pose for A resting on the output conveyor's belt, `along` metres downstream of the drop point.
 FinalPose on_output(const Scenario& s, double along) {
-  const ConveyorSpec& c = *s.cell.find_conveyor("output");
-  const WorkpieceSpec& a = *s.cell.find_workpiece("A");
+  const models::ConveyorSpec& c = *s.cell.find_conveyor("output");
+  const models::WorkpieceSpec& a = *s.cell.find_workpiece("A");
   FinalPose f;
   f.name = "A";
   f.pose.translation() = c.belt_point(c.enter + along) + Eigen::Vector3d(0, 0, a.size.z() / 2);
@@ -256,7 +256,7 @@ TEST(Report, WrongPlaceFailsNamingWhereThePartIs) {
   const Scenario s = exchange_scenario();
   FinalPose f;
   f.name = "A";
-  const LocationSpec& fixture = *s.cell.find_location("machine_fixture");
+  const models::LocationSpec& fixture = *s.cell.find_location("machine_fixture");
   f.pose.translation() = fixture.pose.xyz + Eigen::Vector3d(0, 0, 0.03);
   const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {f}, std::nullopt);
   EXPECT_FALSE(r.ok());

@@ -80,7 +80,7 @@ options: {realtime: true, control_period: 0.02, settle_time: 0.5}
   EXPECT_EQ(s.location_of("B"), "output_drop");
   EXPECT_EQ(s.robots[0].where.line, 5);
   ASSERT_EQ(s.drivers.size(), 2u);
-  EXPECT_EQ(s.drivers[0].kind, DriverKind::kSim);
+  EXPECT_EQ(s.drivers[0].kind, models::DriverKind::kSim);
   ASSERT_TRUE(s.feed);
   EXPECT_EQ(s.feed->conveyor, "input");
   EXPECT_EQ(s.feed->workpieces, (std::vector<std::string>{"B", "C"}));
@@ -288,9 +288,9 @@ robots: {r1: puma, r2: melfa}
 bind: {B: belt_end}
 expect: {A: spot}
 )"));
-  const LocationSpec* end = s.cell.find_location("belt_end");
+  const models::LocationSpec* end = s.cell.find_location("belt_end");
   ASSERT_NE(end, nullptr);
-  const ConveyorSpec& out = *s.cell.find_conveyor("output");
+  const models::ConveyorSpec& out = *s.cell.find_conveyor("output");
   EXPECT_TRUE(end->pose.xyz.isApprox(out.belt_point(out.leave) + Eigen::Vector3d(-0.1, 0, 0)));
   EXPECT_NEAR(end->pose.rpy.z(), out.pose.rpy.z() + M_PI / 2, 1e-12);
   EXPECT_DOUBLE_EQ(end->approach_height, 0.05);
@@ -332,7 +332,7 @@ TEST_F(ScenarioFiles, ExchangeScenarioPassesPreflight) {
   EXPECT_THAT(needs,
               ::testing::ElementsAre("puma: workpiece 'A' at location 'input_pick'", "puma: the hand-over 'exchange'",
                                      "melfa: the hand-over 'exchange'", "melfa: location 'output_drop'"));
-  for (const ReachCheck& c : p.reach) EXPECT_TRUE(c.reachable) << c.robot << " " << c.target;
+  for (const models::ReachCheck& c : p.reach) EXPECT_TRUE(c.reachable) << c.robot << " " << c.target;
 }
 
 TEST_F(ScenarioFiles, MoveThePlanCannotMakeIsRefused) {

@@ -20,8 +20,8 @@ using namespace testing;  // NOLINT: the simulation test helpers
 
 // The paper's cell with a side table (a machine without process time) 30 cm downstream of the input conveyor's pick
 // point, at the belt's height, and a location on it.
-const CellDescription& cell_with_table() {
-  static const CellDescription cell = [] {
+const models::CellDescription& cell_with_table() {
+  static const models::CellDescription cell = [] {
     YAML::Node doc = YAML::LoadFile((kSource / "scenes/cell.yaml").string());
     YAML::Node table;
     table["name"] = "table";
@@ -39,7 +39,7 @@ const CellDescription& cell_with_table() {
     doc["locations"].push_back(place);
     YAML::Emitter out;
     out << doc;
-    return parse_cell(out.c_str(), kSource / "scenes/cell-with-table.yaml");
+    return models::parse_cell(out.c_str(), kSource / "scenes/cell-with-table.yaml");
   }();
   return cell;
 }
@@ -84,7 +84,7 @@ class PickPlaceTest : public cellwright::testing::MujocoTest {
   }
 
   Eigen::Isometry3d down(const Eigen::Vector3d& p, double yaw) const {
-    return grasp_pose(p, Approach::kDown, yaw, base_of(*world_, "puma"));
+    return models::grasp_pose(p, models::Approach::kDown, yaw, base_of(*world_, "puma"));
   }
 
   std::unique_ptr<World> world_;
@@ -101,7 +101,7 @@ struct Grasped {
 class PickPlaceRun : public PickPlaceTest {
  protected:
   Grasped pick_a() {
-    const LocationSpec& pick = *world_->scene().cell().find_location("input_pick");
+    const models::LocationSpec& pick = *world_->scene().cell().find_location("input_pick");
     const double height = world_->scene().cell().find_workpiece("A")->size.z();
     Grasped g;
     g.bottom = part("A").pose.translation() - Eigen::Vector3d(0, 0, height / 2);
@@ -183,7 +183,7 @@ TEST_F(PickPlaceRun, PicksAPartOffTheConveyorLiftsItMovesIt30CmAndPutsItDown) {
   const double yaw = world_->scene().cell().find_location("input_pick")->pose.rpy.z();
   lift(g, yaw);
   // 30 cm across to the side table, at the lifted height, in a straight line; then down onto the table.
-  const LocationSpec& table = *world_->scene().cell().find_location("table_top");
+  const models::LocationSpec& table = *world_->scene().cell().find_location("table_top");
   const Eigen::Vector3d lifted = g.grasp + Eigen::Vector3d(0, 0, 0.10);
   const Eigen::Vector3d across = lifted + Eigen::Vector3d(table.pose.xyz.x() - g.bottom.x(), 0, 0);
   EXPECT_NEAR((across - lifted).norm(), 0.30, 0.01);
@@ -205,7 +205,7 @@ TEST_F(PickPlaceRun, CarriesAPartRoundTheBaseIntoTheMachine) {
   const double yaw = world_->scene().cell().find_location("input_pick")->pose.rpy.z();
   lift(g, yaw);
   move_to(down(Eigen::Vector3d(0.45, -0.05, g.grasp.z() + 0.1), yaw), Path::joint, 0.5, [&] { carried(g); });
-  const LocationSpec& place = *world_->scene().cell().find_location("machine_fixture");
+  const models::LocationSpec& place = *world_->scene().cell().find_location("machine_fixture");
   put_down(g, place.pose.xyz, place.pose.rpy.z(), place.approach_height);
   RecordProperty("slip_mm", std::to_string(slip_ * 1000));
   // A held part creeps along the pads during long sweeps (see docs/simulation.md): it must stay in the hand and land
@@ -216,7 +216,7 @@ TEST_F(PickPlaceRun, CarriesAPartRoundTheBaseIntoTheMachine) {
 
 TEST_F(PickPlaceRun, AGraspBesideThePartClosesOnNothing) {
   wait_for_part_at_pick();
-  const LocationSpec& pick = *world_->scene().cell().find_location("input_pick");
+  const models::LocationSpec& pick = *world_->scene().cell().find_location("input_pick");
   const double height = world_->scene().cell().find_workpiece("A")->size.z();
   const Eigen::Vector3d bottom = part("A").pose.translation() - Eigen::Vector3d(0, 0, height / 2);
   // 9 cm beside the part, towards the robot (the open fingers reach 5 cm to each side): they close on air.

@@ -10,7 +10,7 @@
 #include <cmath>
 #include <thread>
 
-#include "cellwright/twin/runtime/event.hpp"
+#include "cellwright/runtime/event.hpp"
 #include "twin/mujoco_fixture.hpp"
 #include "twin/sim/sim_helpers.hpp"
 

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "cellwright/twin/cell.hpp"
+#include "cellwright/models/cell.hpp"
 #include "cellwright/twin/sim/world.hpp"
 
 namespace cellwright::twin::sim::testing {
@@ -21,8 +21,8 @@ using namespace std::chrono_literals;
 inline const std::filesystem::path kSource = CW_SOURCE_DIR;
 
 // The paper's cell, loaded once per test program.
-inline const CellDescription& paper_cell() {
-  static const CellDescription cell = load_cell(kSource / "scenes/cell.yaml");
+inline const models::CellDescription& paper_cell() {
+  static const models::CellDescription cell = models::load_cell(kSource / "scenes/cell.yaml");
   return cell;
 }
 
@@ -71,7 +71,7 @@ inline Eigen::Isometry3d base_of(const World& world, const std::string& robot) {
 // The tool pose (robot base frame) that grasps at world point `p` from above, fingers closing across `yaw`.
 inline Eigen::Isometry3d down_at(const World& world, const std::string& robot, const Eigen::Vector3d& p, double yaw) {
   const Eigen::Isometry3d base = base_of(world, robot);
-  return base.inverse() * grasp_pose(p, Approach::kDown, yaw, base);
+  return base.inverse() * models::grasp_pose(p, models::Approach::kDown, yaw, base);
 }
 
 inline drivers::MovePose pose_move(const Eigen::Isometry3d& pose, drivers::Path path, double speed = 0.5) {

@@ -63,7 +63,7 @@ TEST_F(WorldTest, TruthDescribesTheCellAsItStarts) {
   EXPECT_EQ(t.time, 0ns);
   ASSERT_EQ(t.robots.size(), 2u);
   for (const RobotTruth& r : t.robots) {
-    const RobotSpec& spec = *paper_cell().find_robot(r.name);
+    const models::RobotSpec& spec = *paper_cell().find_robot(r.name);
     ASSERT_EQ(r.joints.size(), spec.home.size());
     for (std::size_t j = 0; j < r.joints.size(); ++j) EXPECT_NEAR(r.joints[j], spec.home[j], 1e-9) << r.name;
     EXPECT_NEAR(r.finger_opening, 0.08, 1e-9) << r.name;
@@ -133,7 +133,7 @@ TEST_F(WorldTest, FeedsParkedPartsOntoTheConveyorEntry) {
   EXPECT_EQ(w.feed("A", "input").status, FeedStatus::not_parked);
   ASSERT_TRUE(w.feed("B", "input").ok());
   t = w.truth();
-  const ConveyorSpec& input = paper_cell().conveyors[0];
+  const models::ConveyorSpec& input = paper_cell().conveyors[0];
   const Eigen::Vector3d entry = input.belt_point(input.enter) + Eigen::Vector3d(0, 0, 0.03);
   EXPECT_LT((part(t, "B").pose.translation() - entry).norm(), 1e-9);
   EXPECT_EQ(part(t, "B").linear_velocity.norm(), 0.0);
@@ -180,8 +180,8 @@ TEST_F(WorldTest, ReportsTwoRobotsDrivenIntoEachOtherOnce) {
   const Eigen::Vector3d meet = paper_cell().handover->pose.xyz;
   const Eigen::Isometry3d melfa_base = base_of(w, "melfa");
   const drivers::Submitted a = puma.submit(pose_move(down_at(w, "puma", meet, 1.57), drivers::Path::joint));
-  const drivers::Submitted b = melfa.submit(
-      pose_move(melfa_base.inverse() * grasp_pose(meet, Approach::kSide, 0.0, melfa_base), drivers::Path::joint));
+  const drivers::Submitted b = melfa.submit(pose_move(
+      melfa_base.inverse() * models::grasp_pose(meet, models::Approach::kSide, 0.0, melfa_base), drivers::Path::joint));
   ASSERT_TRUE(a.accepted() && b.accepted());
   std::vector<Collision> seen;
   for (int i = 0; i < 400; ++i) {
@@ -218,7 +218,7 @@ TEST_F(WorldTest, ReportsARobotHittingTheConveyor) {
   SimDriver& puma = w.add_sim_driver("puma");
   bring_up(w, puma);
   // The fingers down into the input conveyor, upstream of the parts, 3 cm below its belt.
-  const ConveyorSpec& input = paper_cell().conveyors[0];
+  const models::ConveyorSpec& input = paper_cell().conveyors[0];
   const Eigen::Vector3d below = input.belt_point(input.leave - 0.25) - Eigen::Vector3d(0, 0, 0.03);
   ASSERT_EQ(
       execute(w, puma, pose_move(down_at(w, "puma", below + Eigen::Vector3d(0, 0, 0.15), 1.57), drivers::Path::joint))

@@ -22,14 +22,14 @@ Eigen::VectorXd vec(const std::vector<double>& v) {
 
 // When a part on a conveyor can first be picked: it rides the belt to the stop (or the end), from where it starts
 // or, when fed, from the entry point at its arrival time. nullopt for a part not on a conveyor.
-std::optional<double> pick_ready_time(const CellDescription& cell, const WorkpieceSpec& w,
+std::optional<double> pick_ready_time(const models::CellDescription& cell, const models::WorkpieceSpec& w,
                                       const std::optional<Feed>& feed, Eigen::Isometry3d& pick_pose) {
   std::optional<std::size_t> fed;
   if (feed) {
     auto it = std::find(feed->workpieces.begin(), feed->workpieces.end(), w.name);
     if (it != feed->workpieces.end()) fed = static_cast<std::size_t>(it - feed->workpieces.begin());
   }
-  const ConveyorSpec* c = cell.find_conveyor(fed ? feed->conveyor : w.on);
+  const models::ConveyorSpec* c = cell.find_conveyor(fed ? feed->conveyor : w.on);
   if (c == nullptr) return std::nullopt;
   const double start_time = fed ? feed->arrival(*fed) : 0.0;
   const double start_s = fed ? c->enter : (c->pose.transform().inverse() * w.pose.xyz).x() + c->length / 2;
@@ -87,7 +87,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   };
   std::vector<Arm> arms;
   for (const std::string& label : prog.robots) {
-    const RobotSpec& spec = *s.cell.find_robot(s.robot_of(label));
+    const models::RobotSpec& spec = *s.cell.find_robot(s.robot_of(label));
     arms.push_back(
         {spec.name, models::KinematicChain::from_urdf_file(spec.urdf, "base_link", "tcp"), spec.base.transform()});
   }
@@ -112,7 +112,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   // The environment model the plan follows: parts that ride a conveyor wait at its stop, at rest.
   runtime::EnvironmentModel model = runtime::make_environment_model(s.cell);
   std::map<std::string, double> ready_at;  // cell workpiece -> when it can be picked
-  for (const WorkpieceSpec& w : s.cell.workpieces) {
+  for (const models::WorkpieceSpec& w : s.cell.workpieces) {
     Eigen::Isometry3d pick = Eigen::Isometry3d::Identity();
     if (auto t = pick_ready_time(s.cell, w, s.feed, pick)) {
       runtime::WorkpieceState& ws = *model.find_workpiece(w.name);
@@ -213,7 +213,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
             // As robot control records it: held from above when the tool points down, else from the side.
             const bool down = tcp.linear().col(2).z() < -0.7;
             const double bottom = ws.pose.translation().z() - ws.size.z() / 2;
-            rs.hold = runtime::Hold{w, down ? Approach::kDown : Approach::kSide, tcp.translation().z() - bottom};
+            rs.hold = runtime::Hold{w, down ? models::Approach::kDown : models::Approach::kSide,
+                                    tcp.translation().z() - bottom};
           } else {
             held.erase(arm.cell);
             rs.hold.reset();

@@ -193,8 +193,8 @@ Timeline build_timeline(const std::vector<json>& events, const task::CompiledPro
   return tl;
 }
 
-std::vector<std::string> places_of(const CellDescription& cell, const WorkpieceSpec& spec, const FinalPose& final,
-                                   double tolerance) {
+std::vector<std::string> places_of(const models::CellDescription& cell, const models::WorkpieceSpec& spec,
+                                   const FinalPose& final, double tolerance) {
   std::vector<std::string> out;
   if (!final.present) {
     out.push_back("not in the cell");
@@ -215,7 +215,7 @@ std::vector<std::string> places_of(const CellDescription& cell, const WorkpieceS
     }
   }
   for (const auto& m : cell.machines) {
-    const Pose top = m.fixture_top();
+    const models::Pose top = m.fixture_top();
     const Eigen::Vector3d on_fixture = top.transform().inverse() * bottom;
     const Eigen::Vector3d on_body = m.pose.transform().inverse() * bottom;
     const bool fixture = std::abs(on_fixture.x()) <= m.fixture_size.x() / 2 + tolerance &&
@@ -302,7 +302,7 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
   }
 
   std::vector<double> picks, places;
-  for (const WorkpieceSpec& w : s.cell.workpieces) {
+  for (const models::WorkpieceSpec& w : s.cell.workpieces) {
     WorkpieceReport wr;
     wr.name = w.name;
     if (auto it = label_of.find(w.name); it != label_of.end()) wr.label = it->second;

@@ -11,11 +11,12 @@
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/render.hpp"
-#include "cellwright/twin/runtime/world_plant.hpp"
 #include "cellwright/twin/scenario/gantt.hpp"
 #include "cellwright/twin/scene.hpp"
-#include "cellwright/twin/vision/camera_model.hpp"
-#include "cellwright/twin/vision/detector.hpp"
+#include "cellwright/twin/sim/world_plant.hpp"
+#include "cellwright/vision/camera_model.hpp"
+#include "cellwright/vision/cell_detector.hpp"
+#include "cellwright/vision/detector.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -37,8 +38,8 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   // The world as it really is: perturbed parts stand elsewhere than the cell description says.
   const std::map<std::string, Eigen::Isometry3d> offsets =
       s.perturb ? draw_perturbation(*s.perturb, s.seed) : std::map<std::string, Eigen::Isometry3d>{};
-  CellDescription real = s.cell;
-  for (WorkpieceSpec& w : real.workpieces) {
+  models::CellDescription real = s.cell;
+  for (models::WorkpieceSpec& w : real.workpieces) {
     const auto it = offsets.find(w.name);
     if (it == offsets.end() || (s.feed && s.feed->feeds(w.name))) continue;
     const Eigen::Isometry3d moved = w.pose.transform() * it->second;
@@ -79,7 +80,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     estimate_options.robots[b.name] = timing;
   }
 
-  std::vector<runtime::FeedEvent> feed;
+  std::vector<sim::FeedEvent> feed;
   if (s.feed) {
     for (std::size_t i = 0; i < s.feed->workpieces.size(); ++i) {
       const auto it = offsets.find(s.feed->workpieces[i]);
@@ -87,7 +88,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
                       it == offsets.end() ? Eigen::Isometry3d::Identity() : it->second});
     }
   }
-  plant_ = std::make_unique<runtime::WorldPlant>(*world_, std::move(feed));
+  plant_ = std::make_unique<sim::WorldPlant>(*world_, std::move(feed));
   estimate_ = estimate_cycle_time(s, net, estimate_options);
 
   config.plant = plant_.get();
@@ -106,10 +107,11 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
       }
       v.camera = s.cell.cameras.front().name;
     }
-    const CameraSpec* camera = s.cell.find_camera(v.camera);
+    const models::CameraSpec* camera = s.cell.find_camera(v.camera);
     CW_CHECK(camera != nullptr, "the vision camera '{}' is not in the cell", v.camera);
     config.vision = runtime::VisionOptions{v.camera, seconds(v.period)};
-    config.detector = std::make_shared<const vision::Detector>(s.cell, vision::CameraModel(*camera));
+    config.detector = std::make_shared<const vision::CellDetector>(
+        std::make_shared<const vision::Detector>(s.cell, vision::CameraModel(*camera)));
     config.on_frame = std::move(options.on_frame);
   }
   config.on_progress = std::move(options.on_progress);

@@ -156,10 +156,10 @@ std::filesystem::path resolve(const std::filesystem::path& base_dir, const std::
   return path.lexically_normal();
 }
 
-std::optional<DriverKind> driver_kind(const std::string& s) {
-  if (s == "sim") return DriverKind::kSim;
-  if (s == "movemaster") return DriverKind::kMovemaster;
-  if (s == "val2") return DriverKind::kVal2;
+std::optional<models::DriverKind> driver_kind(const std::string& s) {
+  if (s == "sim") return models::DriverKind::kSim;
+  if (s == "movemaster") return models::DriverKind::kMovemaster;
+  if (s == "val2") return models::DriverKind::kVal2;
   return std::nullopt;
 }
 
@@ -183,7 +183,7 @@ struct LabelKind {
 };
 
 // Every name the cell already uses (all kinds share one namespace in the cell description).
-std::vector<std::string> cell_names(const CellDescription& c) {
+std::vector<std::string> cell_names(const models::CellDescription& c) {
   std::vector<std::string> out;
   for (const auto& x : c.robots) out.push_back(x.name);
   for (const auto& x : c.conveyors) out.push_back(x.name);
@@ -199,10 +199,10 @@ std::vector<std::string> cell_names(const CellDescription& c) {
 // A location of the scenario, in the cell description's format (docs/cell-description.md): `at` a conveyor's entry
 // or exit point or a machine's fixture plus a world `offset`, or an explicit `pose`; `yaw` in degrees; optional
 // grasp and approach heights. Which robots must reach it follows from the program (preflight).
-LocationSpec read_location(const Doc& doc, const CellDescription& cell, const YAML::Node& n) {
+models::LocationSpec read_location(const Doc& doc, const models::CellDescription& cell, const YAML::Node& n) {
   const Fields f(doc, n, "a location of the scenario",
                  {"name", "at", "offset", "pose", "yaw", "grasp_height", "approach_height"});
-  LocationSpec l;
+  models::LocationSpec l;
   l.where = doc.at(n);
   l.name = f.text("name");
   const std::vector<std::string> taken = cell_names(cell);
@@ -243,10 +243,11 @@ LocationSpec read_location(const Doc& doc, const CellDescription& cell, const YA
     const auto dot = ref.rfind('.');
     const std::string object = dot == std::string::npos ? ref : ref.substr(0, dot);
     const std::string point = dot == std::string::npos ? "" : ref.substr(dot + 1);
-    if (const ConveyorSpec* c = cell.find_conveyor(object); c != nullptr && (point == "enter" || point == "leave")) {
+    if (const models::ConveyorSpec* c = cell.find_conveyor(object);
+        c != nullptr && (point == "enter" || point == "leave")) {
       l.pose.xyz = c->belt_point(point == "enter" ? c->enter : c->leave);
       l.pose.rpy = Eigen::Vector3d(0, 0, c->pose.rpy.z() + yaw);
-    } else if (const MachineSpec* m = cell.find_machine(object); m != nullptr && point == "fixture") {
+    } else if (const models::MachineSpec* m = cell.find_machine(object); m != nullptr && point == "fixture") {
       l.pose = m->fixture_top();
       l.pose.rpy.z() += yaw;
     } else {
@@ -263,13 +264,13 @@ LocationSpec read_location(const Doc& doc, const CellDescription& cell, const YA
 
 }  // namespace
 
-const char* to_string(DriverKind kind) {
+const char* to_string(models::DriverKind kind) {
   switch (kind) {
-    case DriverKind::kSim:
+    case models::DriverKind::kSim:
       return "sim";
-    case DriverKind::kMovemaster:
+    case models::DriverKind::kMovemaster:
       return "movemaster";
-    case DriverKind::kVal2:
+    case models::DriverKind::kVal2:
       return "val2";
   }
   return "?";
@@ -339,7 +340,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   // The cell and the program: their own loaders report errors in their own files.
   s.cell_file = resolve(dir, f.text("cell"));
   s.cell = with_context(doc, f.node("cell"), fmt::format("field 'cell' names '{}'", f.text("cell")),
-                        [&] { return load_cell(s.cell_file); });
+                        [&] { return models::load_cell(s.cell_file); });
   s.program_file = resolve(dir, f.text("program"));
   s.program = with_context(doc, f.node("program"), fmt::format("field 'program' names '{}'", f.text("program")),
                            [&] { return task::compile_file(s.program_file); });
@@ -463,7 +464,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       d.where = doc.at(v);
     }
     const bool used = std::any_of(s.robots.begin(), s.robots.end(), [&](const Binding& b) { return b.name == r.name; });
-    if (used && d.kind != DriverKind::kSim) {
+    if (used && d.kind != models::DriverKind::kSim) {
       throw InputError(d.where, fmt::format("robot '{}' would run on the {} driver, which is not available yet; "
                                             "use `drivers: {{{}: sim}}`",
                                             r.name, to_string(d.kind), r.name));
@@ -593,9 +594,9 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     // A part riding a conveyor must stay on its belt however the draw falls: across the belt it may move at most
     // half the belt's width less half its own diagonal.
     for (const std::string& w : p.workpieces) {
-      const WorkpieceSpec& spec = *s.cell.find_workpiece(w);
+      const models::WorkpieceSpec& spec = *s.cell.find_workpiece(w);
       const bool fed = s.feed && s.feed->feeds(w);
-      const ConveyorSpec* belt = s.cell.find_conveyor(fed ? s.feed->conveyor : spec.on);
+      const models::ConveyorSpec* belt = s.cell.find_conveyor(fed ? s.feed->conveyor : spec.on);
       if (belt == nullptr) continue;
       const double room = belt->width / 2 - std::hypot(spec.size.x(), spec.size.y()) / 2;
       if (p.offset.y() > room) {
@@ -699,7 +700,7 @@ struct Spot {
   bool handover = false;  // at the hand-over (reach is checked with the hand-over grasps)
 };
 
-Spot location_spot(const LocationSpec& l) {
+Spot location_spot(const models::LocationSpec& l) {
   Spot s;
   s.text = fmt::format("location '{}'", l.name);
   s.point = l.pose.xyz;
@@ -711,7 +712,8 @@ Spot location_spot(const LocationSpec& l) {
 
 // Where a workpiece is picked first: a conveyor carries it to its stop bar (or its end); otherwise it stays where it
 // was put. A cell location at that point (within 1 cm) lends its name, yaw and heights.
-Spot initial_spot(const CellDescription& cell, const WorkpieceSpec& w, const std::optional<Feed>& feed) {
+Spot initial_spot(const models::CellDescription& cell, const models::WorkpieceSpec& w,
+                  const std::optional<Feed>& feed) {
   std::string conveyor = w.on;
   if (feed && std::find(feed->workpieces.begin(), feed->workpieces.end(), w.name) != feed->workpieces.end()) {
     conveyor = feed->conveyor;
@@ -719,7 +721,7 @@ Spot initial_spot(const CellDescription& cell, const WorkpieceSpec& w, const std
   Spot s;
   s.yaw = w.pose.rpy.z();
   s.grasp_height = w.size.z() / 2;
-  if (const ConveyorSpec* c = cell.find_conveyor(conveyor)) {
+  if (const models::ConveyorSpec* c = cell.find_conveyor(conveyor)) {
     s.point = c->belt_point(c->leave - (c->stop ? w.size.x() / 2 : 0.0));
     s.text = fmt::format("workpiece '{}' at the {} of conveyor '{}'", w.name, c->stop ? "stop" : "end", c->name);
   } else {
@@ -840,16 +842,16 @@ Preflight preflight(const Scenario& s) {
 
   // One check_reach call over a cell whose reach lists are exactly the needs. check_reach reports locations in order
   // (grasp, then approach, per robot) and then the hand-over grasps in order; `owner` maps each check to its need.
-  CellDescription probe = s.cell;
+  models::CellDescription probe = s.cell;
   probe.locations.clear();
-  const std::optional<HandoverSpec>& handover = s.cell.handover;
+  const std::optional<models::HandoverSpec>& handover = s.cell.handover;
   if (probe.handover) probe.handover->grasps.clear();
   std::vector<std::size_t> location_need, handover_need;
   for (std::size_t i = 0; i < needs.size(); ++i) {
     const auto& [n, spot] = needs[i];
     out.needs.push_back(n);
     if (spot.handover) {
-      const HandoverGrasp* g = nullptr;
+      const models::HandoverGrasp* g = nullptr;
       if (handover) {
         for (const auto& candidate : handover->grasps) {
           if (candidate.robot == n.robot) g = &candidate;
@@ -867,7 +869,7 @@ Preflight preflight(const Scenario& s) {
       handover_need.push_back(i);
       continue;
     }
-    LocationSpec l;
+    models::LocationSpec l;
     l.name = fmt::format("need{}", i);
     l.pose.xyz = spot.point;
     l.pose.rpy = Eigen::Vector3d(0, 0, spot.yaw);
@@ -879,11 +881,11 @@ Preflight preflight(const Scenario& s) {
     location_need.push_back(i);
   }
   if (probe.handover && probe.handover->grasps.empty()) probe.handover.reset();
-  out.reach = check_reach(probe);
+  out.reach = models::check_reach(probe);
   CW_CHECK(out.reach.size() == 2 * location_need.size() + handover_need.size(), "{} reach checks for {} + {} needs",
            out.reach.size(), location_need.size(), handover_need.size());
   for (std::size_t k = 0; k < out.reach.size(); ++k) {
-    ReachCheck& c = out.reach[k];
+    models::ReachCheck& c = out.reach[k];
     const bool at_location = k < 2 * location_need.size();
     const ReachNeed& n = out.needs[at_location ? location_need[k / 2] : handover_need[k - 2 * location_need.size()]];
     c.target = at_location ? fmt::format("{} ({})", n.target, k % 2 == 0 ? "grasp" : "approach") : n.target;

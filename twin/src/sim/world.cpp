@@ -89,7 +89,7 @@ World::World(Scene scene, WorldOptions options)
   // And out of sight of the cell's cameras (a parked part is not in the cell; vision must not find it): beyond the
   // floor a camera sees, bounded by its tilt plus its half diagonal field of view, measured from the point below it.
   // A camera whose view reaches within 5 degrees of the horizon sees the floor too far to hide the row from it.
-  for (const CameraSpec& c : scene_.cell().cameras) {
+  for (const models::CameraSpec& c : scene_.cell().cameras) {
     if (c.pose.xyz.z() <= 0) continue;
     const Eigen::Vector3d look = -c.pose.rotation().col(2);  // MuJoCo cameras look along their -z
     const double tilt = std::acos(std::clamp(-look.z(), -1.0, 1.0));
@@ -331,12 +331,12 @@ std::vector<std::string> World::drain_warnings() {
 FeedResult World::feed(std::string_view workpiece, std::string_view conveyor, const Eigen::Isometry3d& offset) {
   const std::size_t w = workpiece_index(workpiece);
   if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to feed", workpiece)};
-  const ConveyorSpec* c = scene_.cell().find_conveyor(conveyor);
+  const models::ConveyorSpec* c = scene_.cell().find_conveyor(conveyor);
   if (!c) return {FeedStatus::unknown_conveyor, fmt::format("no conveyor '{}' to feed '{}' onto", conveyor, workpiece)};
   if (!parked_[w]) {
     return {FeedStatus::not_parked, fmt::format("workpiece '{}' is in the cell already, not parked", workpiece)};
   }
-  const WorkpieceSpec& spec = scene_.cell().workpieces[w];
+  const models::WorkpieceSpec& spec = scene_.cell().workpieces[w];
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.linear() = c->pose.rotation();
   pose.translation() = c->belt_point(c->enter) + Eigen::Vector3d(0, 0, spec.size.z() / 2);
@@ -345,7 +345,7 @@ FeedResult World::feed(std::string_view workpiece, std::string_view conveyor, co
   const mjData* d = scene_.data();
   for (std::size_t o = 0; o < scene_.workpieces().size(); ++o) {
     if (o == w || parked_[o]) continue;
-    const WorkpieceSpec& other = scene_.cell().workpieces[o];
+    const models::WorkpieceSpec& other = scene_.cell().workpieces[o];
     const Eigen::Vector3d p = free_pose(d, scene_.workpieces()[o].qpos_adr).translation();
     const double gap =
         (p - pose.translation()).head<2>().norm() - radius - 0.5 * std::hypot(other.size.x(), other.size.y());
@@ -378,7 +378,7 @@ bool World::parked(std::string_view workpiece) const {
 WorldTruth World::truth() const {
   const mjModel* m = scene_.model();
   const mjData* d = scene_.data();
-  const CellDescription& cell = scene_.cell();
+  const models::CellDescription& cell = scene_.cell();
   WorldTruth t;
   t.time = now();
 
@@ -439,7 +439,7 @@ WorldTruth World::truth() const {
 
   for (std::size_t w = 0; w < nw; ++w) {
     const WorkpieceIds& ids = scene_.workpieces()[w];
-    const WorkpieceSpec& spec = cell.workpieces[w];
+    const models::WorkpieceSpec& spec = cell.workpieces[w];
     WorkpieceTruth p;
     p.name = ids.name;
     p.pose = free_pose(d, ids.qpos_adr);
@@ -504,7 +504,7 @@ WorldTruth World::truth() const {
       // The bottom centre of an upright part, against the locations' points.
       const Eigen::Vector3d bottom = p.pose.translation() - Eigen::Vector3d(0, 0, spec.size.z() / 2);
       double best = std::numeric_limits<double>::infinity();
-      for (const LocationSpec& l : cell.locations) {
+      for (const models::LocationSpec& l : cell.locations) {
         const Eigen::Vector3d diff = bottom - l.pose.xyz;
         const double horizontal = diff.head<2>().norm();
         if (horizontal <= options_.location_tolerance && std::abs(diff.z()) <= options_.location_height_tolerance &&

@@ -18,6 +18,8 @@
 #include <string_view>
 #include <thread>
 
+#include "cellwright/vision/camera_model.hpp"
+
 namespace cellwright::twin {
 
 class Scene;
@@ -68,6 +70,10 @@ inline constexpr std::string_view kOverviewCamera = "overview";
 // is made for the call. Throws InputError if the scene has no such camera (naming the cameras it has), or if width or
 // height is not within 1..4096; otherwise as Renderer.
 cv::Mat render_view(Scene& scene, std::string_view camera, int width, int height);
+
+// A camera as MuJoCo has it: pose from data->cam_xpos / cam_xmat (valid after mj_forward or mj_kinematics) and
+// model->cam_fovy, at width x height pixels. For a cell camera this agrees with vision::CameraModel(spec).
+vision::CameraModel camera_model(const mjModel* model, const mjData* data, int camera_id, int width, int height);
 
 // Writes an image as a PNG file atomically: to a temporary file in the same directory, then renamed over `path`, so
 // that readers never see half a file. Throws InputError naming the path if the directory does not exist or the file

@@ -28,7 +28,7 @@
 #include <string_view>
 #include <vector>
 
-#include "cellwright/twin/cell.hpp"
+#include "cellwright/models/cell.hpp"
 
 namespace cellwright::twin {
 
@@ -73,7 +73,7 @@ class Scene {
   const mjModel* model() const { return model_.get(); }
   mjData* data() { return data_.get(); }
   const mjData* data() const { return data_.get(); }
-  const CellDescription& cell() const { return cell_; }
+  const models::CellDescription& cell() const { return cell_; }
   const std::string& mjcf() const { return mjcf_; }
 
   const std::vector<RobotIds>& robots() const { return robots_; }
@@ -97,7 +97,7 @@ class Scene {
   void wrap_belts(mjData* data) const;
 
  private:
-  friend Scene build_scene(const CellDescription& cell);
+  friend Scene build_scene(const models::CellDescription& cell);
 
   // Writes MJCF text (e.g. Scene::mjcf(), for MuJoCo's viewer or for debugging) atomically: to a temporary file in
   // the same directory, then renamed over `path`. Throws InputError naming the path if it cannot be written.
@@ -111,7 +111,7 @@ class Scene {
     void operator()(mjData* d) const { mj_deleteData(d); }
   };
 
-  CellDescription cell_;
+  models::CellDescription cell_;
   std::string mjcf_;
   std::unique_ptr<mjModel, ModelDeleter> model_;
   std::unique_ptr<mjData, DataDeleter> data_;
@@ -124,12 +124,12 @@ class Scene {
 // The MJCF text of the whole cell. Reads each robot's URDF (primitive geometry only: box, cylinder, sphere).
 // Throws InputError naming the URDF when it cannot be read or lacks what the scene needs (links flange and tcp,
 // prismatic joints finger_left_joint and finger_right_joint, inertials on moving links, no mesh geometry).
-std::string scene_mjcf(const CellDescription& cell);
+std::string scene_mjcf(const models::CellDescription& cell);
 
 // Builds the MJCF, compiles it in memory (MuJoCo's virtual file system: nothing is written to disk) and returns
 // the scene, reset to its initial state. Throws InputError as scene_mjcf, or naming the cell file with MuJoCo's
 // message if MuJoCo rejects the model.
-Scene build_scene(const CellDescription& cell);
+Scene build_scene(const models::CellDescription& cell);
 
 // Writes MJCF text (e.g. Scene::mjcf(), for MuJoCo's viewer or for debugging) atomically: to a temporary file in
 // the same directory, then renamed over `path`. Throws InputError naming the path if it cannot be written.

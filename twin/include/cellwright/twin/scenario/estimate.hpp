@@ -28,8 +28,8 @@
 #include <vector>
 
 #include "cellwright/petri/net.hpp"
+#include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/task/compiled.hpp"
-#include "cellwright/twin/runtime/environment_model.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
 #include "cellwright/twin/scenario/timed_net.hpp"
 

@@ -18,8 +18,8 @@
 #include <string_view>
 #include <vector>
 
+#include "cellwright/models/cell.hpp"
 #include "cellwright/task/compiled.hpp"
-#include "cellwright/twin/cell.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
 
 namespace cellwright::twin::scenario {
@@ -86,8 +86,8 @@ struct FinalPose {
 // belt); the machine it rests on (its fixture or its top, likewise); "held by <robot>"; "floor" (bottom within
 // `tolerance` of z = 0); "not in the cell" when it is not present. Empty when it is none of these (in the air,
 // on another part, ...).
-std::vector<std::string> places_of(const CellDescription& cell, const WorkpieceSpec& spec, const FinalPose& final,
-                                   double tolerance);
+std::vector<std::string> places_of(const models::CellDescription& cell, const models::WorkpieceSpec& spec,
+                                   const FinalPose& final, double tolerance);
 
 // --- The report ------------------------------------------------------------------------------------------------------
 

@@ -29,7 +29,7 @@
 #include <vector>
 
 #include "cellwright/petri/net.hpp"
-#include "cellwright/twin/runtime/runtime.hpp"
+#include "cellwright/runtime/runtime.hpp"
 #include "cellwright/twin/scenario/estimate.hpp"
 #include "cellwright/twin/scenario/report.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"

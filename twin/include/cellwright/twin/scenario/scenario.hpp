@@ -22,11 +22,11 @@
 #include <vector>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/models/cell.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/net.hpp"
+#include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/task/compiled.hpp"
-#include "cellwright/twin/cell.hpp"
-#include "cellwright/twin/runtime/environment_model.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -41,7 +41,7 @@ struct Binding {
 // The driver of one cell robot.
 struct DriverChoice {
   std::string robot;  // cell robot name
-  DriverKind kind = DriverKind::kSim;
+  models::DriverKind kind = models::DriverKind::kSim;
   SourceLocation where;  // the `drivers` entry, or the robot in the cell file when the cell's choice is used
 };
 
@@ -111,7 +111,7 @@ struct Scenario {
   std::filesystem::path source;        // the scenario file (absolute)
   std::filesystem::path cell_file;     // absolute
   std::filesystem::path program_file;  // absolute
-  CellDescription cell;                // the cell description, with the scenario's own `locations` appended
+  models::CellDescription cell;        // the cell description, with the scenario's own `locations` appended
   task::CompiledProgram program;
   std::uint64_t seed = 1;
   std::vector<Binding> robots;        // one per program robot, in program order
@@ -158,9 +158,9 @@ struct ReachNeed {
 struct Preflight {
   petri::Net net;
   petri::AnalysisResult analysis;
-  std::vector<ReachNeed> needs;       // every (robot, target) pair the program needs, in the order a run meets them
-  std::vector<ReachCheck> reach;      // the checks run for them (check_reach on the needed targets)
-  std::vector<std::string> problems;  // one line per reason the run may not start, empty when it may
+  std::vector<ReachNeed> needs;           // every (robot, target) pair the program needs, in the order a run meets them
+  std::vector<models::ReachCheck> reach;  // the checks run for them (check_reach on the needed targets)
+  std::vector<std::string> problems;      // one line per reason the run may not start, empty when it may
 
   bool ok() const { return problems.empty(); }
 };
@@ -177,6 +177,6 @@ struct Preflight {
 Preflight preflight(const Scenario& scenario);
 
 // "sim", "movemaster", "val2".
-const char* to_string(DriverKind kind);
+const char* to_string(models::DriverKind kind);
 
 }  // namespace cellwright::twin::scenario

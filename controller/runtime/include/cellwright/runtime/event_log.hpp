@@ -1,0 +1,100 @@
+// The run's event log: JSON Lines, one object per line, written in the order events happen. The bytes are fixed by
+// the events alone (fixed key order, fixed number formatting, no wall-clock time, no addresses), so two lock-step runs
+// of the same scenario and seed give byte-identical logs, and tests and CI compare them with a plain diff.
+//
+// Every line starts with "t" (simulation time in seconds, exactly 4 decimals, e.g. 1.2300) and "type". The types and
+// their keys, in this order:
+//   run_start         program, cell, mode ("lockstep"|"realtime"), period (s, 4 decimals), robots [{robot, cell}]
+//   fire              transition (id), robot (label, "" for a transition of no robot), primitive (index, -1 none),
+//                     line, task, motion
+//   command_start     robot, primitive (index), command ("move at(A)"), task, motion, detail (what was sent to the
+//                     driver, drivers::describe(); "" when nothing was sent yet)
+//   command_end       robot, primitive, command, ok (true|false), reason ("" when ok)
+//   sensor            robot, primitive, condition ("gripped" | "closed_on_nothing" | "closed_on_wrong_part" |
+//                     "grip_not_sensed" | "released" | "position_reached" | "position_missed" | "waiting_for_part"),
+//                     workpiece ("" if none)
+//   collision         a, b, depth (m, 6 decimals)
+//   workpiece_arrived workpiece, where
+//   vision            frame (its sim time, 4 decimals), seen [{workpiece, x, y, z (m, 4 decimals), yaw (degrees, 2
+//                     decimals, null for a cylinder), confidence (3 decimals)}], not_seen [names], rejected (count),
+//                     problem ("" if none)
+//   run_end           outcome ("finished"|"failed"|"timeout"), reason, firings
+// Strings are JSON-escaped (nlohmann::json). Numbers other than "t", period, depth and the vision event's are
+// integers.
+//
+// Threads: every member may be called from any thread; each call appends one whole line under a mutex, so lines never
+// interleave. (Determinism of the order is the lock-step scheduler's job, not the log's.)
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cellwright/runtime/clock.hpp"
+
+namespace cellwright::runtime {
+
+// Simulation time as the log writes it: seconds with exactly 4 decimals, rounded half away from zero on the
+// nanosecond count (integer arithmetic, so the same time always gives the same text): 1234567890 ns -> "1.2346".
+std::string format_sim_time(SimDuration t);
+
+class EventLog {
+ public:
+  // Keeps every line in memory (lines(), text()) and, if `sink` is not null, also writes each line to it as it is
+  // logged (followed by '\n', flushed at run_end). The sink must outlive the log.
+  explicit EventLog(std::ostream* sink = nullptr);
+  EventLog(const EventLog&) = delete;
+  EventLog& operator=(const EventLog&) = delete;
+
+  struct RobotName {
+    std::string robot;  // program label
+    std::string cell;   // cell robot name
+  };
+  void run_start(SimDuration t, std::string_view program, std::string_view cell, std::string_view mode,
+                 SimDuration period, const std::vector<RobotName>& robots);
+  void fire(SimDuration t, std::string_view transition, std::string_view robot, int primitive, int line,
+            std::string_view task, std::string_view motion);
+  void command_start(SimDuration t, std::string_view robot, std::size_t primitive, std::string_view command,
+                     std::string_view task, std::string_view motion, std::string_view detail);
+  void command_end(SimDuration t, std::string_view robot, std::size_t primitive, std::string_view command, bool ok,
+                   std::string_view reason);
+  void sensor(SimDuration t, std::string_view robot, std::size_t primitive, std::string_view condition,
+              std::string_view workpiece);
+  void collision(SimDuration t, std::string_view a, std::string_view b, double depth);
+  void workpiece_arrived(SimDuration t, std::string_view workpiece, std::string_view where);
+  void run_end(SimDuration t, std::string_view outcome, std::string_view reason, std::uint64_t firings);
+
+  // One camera frame processed by the image-processing thread: taken at `frame_time`, what it saw (each part's
+  // centre, yaw when it has one, confidence), what it did not, how many blobs it rejected, and a problem that made
+  // the frame unusable ("" if none). Positions are written to 0.1 mm, angles to 0.01 degree.
+  struct Seen {
+    std::string workpiece;
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();
+    std::optional<double> yaw;  // radians
+    double confidence = 0;
+  };
+  void vision(SimDuration t, SimDuration frame_time, const std::vector<Seen>& seen,
+              const std::vector<std::string>& not_seen, std::size_t rejected, std::string_view problem);
+
+  // Every line so far, without the newline.
+  std::vector<std::string> lines() const;
+  // Every line so far, each followed by '\n' (the file's content).
+  std::string text() const;
+  std::size_t size() const;
+
+ private:
+  void append(std::string line, bool flush = false);
+
+  mutable std::mutex mutex_;
+  std::ostream* sink_;
+  std::vector<std::string> lines_;
+};
+
+}  // namespace cellwright::runtime

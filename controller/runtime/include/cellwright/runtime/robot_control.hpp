@@ -1,0 +1,158 @@
+// RobotControl: one robot-control thread's work (paper section 3.4). It takes motion-level commands from its inbox,
+// turns them into target motions with the environment model and the robot's kinematics, drives the robot through the
+// one driver interface, watches the sensor condition of the command's place, and reports done or failed.
+//
+// Bring-up: the Runtime calls connect() on the main thread before any thread starts (a configuration that cannot work
+// is refused there, as an InputError). In its first turns robot control homes the driver (if not homed yet) and
+// activates it; a refusal or failure there is reported as a RobotStatus with index kNoCommand.
+//
+// A command, turn by turn (step()):
+//  - move: resolve the target (environment_model.hpp resolve_target; the program's labels are first mapped to cell
+//    names through the binding). kWait (a part still moving or absent) keeps the command pending and re-resolves next
+//    turn (a `sensor` event "waiting_for_part" is logged once); kFail fails it. Poses are solved with the robot's
+//    inverse kinematics seeded from its current joints; the reachable solution closest to them wins; none reachable
+//    fails with the solver's reason. Submitted as MoveJoints at MotionOptions::speed (MovePose in the base frame if
+//    the driver has no joint control). home goes straight to the home joints.
+//  - open/close: Grip open/close (with the robot's grip force if the driver takes a force).
+//  - The command is then polled each turn. When the driver reports done, the place's sensor condition is checked:
+//      move:  position reached: every joint within position_tolerance of the goal (when the plant reports joints);
+//      close: the workpiece named by the primitive is between the fingers (when the plant can tell; a close that
+//             names no workpiece passes) -> the robot holds it (held_by/hold in the environment model); otherwise
+//             the command fails ("closed on nothing" / "closed on B, expected A");
+//      open:  the robot releases what it held.
+//    A condition that holds completes the command: command_end ok, status kDone. A driver failure, a refusal or a
+//    condition that does not hold fails it: command_end with the reason, status kFailed.
+//
+// Threads: a RobotControl is used by its own robot-control thread only (step()), except connect() (main thread,
+// before the threads start) and view() (another thread, only while this one is not running: in lock-step outside its
+// turn). It shares the environment model (Guarded), its inbox and the status queue.
+#pragma once
+
+#include <cstddef>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/drivers/robot_driver.hpp"
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/runtime/environment_model.hpp"
+#include "cellwright/runtime/event_log.hpp"
+#include "cellwright/runtime/message_queue.hpp"
+#include "cellwright/runtime/messages.hpp"
+#include "cellwright/task/compiled.hpp"
+
+namespace cellwright::runtime {
+
+struct MotionOptions {
+  double speed = 0.5;                // fraction of the robot's maximum speed for moves, (0, 1]
+  double position_tolerance = 0.01;  // rad: "position reached" when every joint is this close to the goal
+  double pose_tolerance = 0.005;     // m: the same for a MovePose (tool centre point distance to the goal)
+  TargetOptions targets;
+  models::IkOptions ik;
+  // Each step, move the part this robot holds with its hand in the environment model (Hold::in_hand): the runtime
+  // sets this when nothing else measures held parts (Perception other than kTruth).
+  bool track_held_parts = false;
+};
+
+// Program labels -> cell names, resolved and checked by the Runtime (runtime.hpp Binding).
+struct NameMap {
+  std::map<std::string, std::string> robots;   // program robot label -> cell robot
+  std::map<std::string, std::string> objects;  // program workpiece/location label -> cell workpiece/location
+};
+
+enum class RobotPhase {
+  kBringUp,    // homing/activating the driver
+  kReady,      // no command
+  kResolving,  // a move waiting for its target to be ready (a part still moving)
+  kExecuting,  // a command submitted, polling the driver
+  kFailed,     // bring-up or a command failed; no further commands are taken
+};
+
+// "bring_up", "ready", "resolving", "executing", "failed".
+const char* to_string(RobotPhase phase);
+
+struct RobotControlView {
+  std::string robot;  // program label
+  std::string cell;   // cell robot name
+  RobotPhase phase = RobotPhase::kBringUp;
+  std::optional<std::size_t> primitive;  // the command being executed
+  std::string command;                   // "move at(A)"
+  std::string detail;                    // the driver command sent, or why it waits
+  drivers::DriverState driver = drivers::DriverState::disconnected;
+};
+
+class RobotControl {
+ public:
+  // `index` is the robot's index in the program (its RobotStatus::robot); `label` its program label, `cell_name` its
+  // cell robot; `chain` its kinematics (base_link..tcp); `grip_force` the cell's grip force (N). The driver, queues,
+  // environment and log must outlive the RobotControl.
+  // `await_fresh_truth`: check a completed command's sensor condition only on an environment model updated after the
+  // completion was seen. Real-time mode needs it (the simulation thread may not have written the step's truth yet);
+  // in lock-step the simulation's turn always precedes the robot's, so the model is fresh and the check is immediate.
+  RobotControl(std::size_t index, std::string label, std::string cell_name, drivers::RobotDriver& driver,
+               models::KinematicChain chain, double grip_force, NameMap names, SharedEnvironment& environment,
+               MessageQueue<MotionCommand>& inbox, MessageQueue<RobotStatus>& status_out, EventLog& log,
+               MotionOptions options = {}, bool await_fresh_truth = false);
+
+  // Main thread, before the threads start: connects a disconnected driver. Throws InputError when the driver's
+  // configuration cannot work, InternalError if the driver refuses for another reason.
+  void connect();
+
+  // One turn at simulation time `now`: bring-up, take a command, advance the current one as far as it goes without
+  // waiting. Non-blocking. The robot-control thread only.
+  void step(SimDuration now);
+
+  // Halts the robot (driver stop()): called by the robot-control thread when the run ends.
+  void halt();
+
+  RobotPhase phase() const { return phase_; }
+  RobotControlView view() const;
+
+ private:
+  struct Current {
+    MotionCommand command;
+    drivers::CommandId id = 0;                   // 0 until submitted
+    std::vector<double> goal;                    // move: the joint goal (MoveJoints)
+    std::optional<Eigen::Isometry3d> goal_pose;  // move: the tool goal in the base frame (MovePose)
+    std::optional<SimDuration> done_seen;        // when the driver was first seen done
+    std::string detail;
+    bool start_logged = false;  // command_start written
+    bool wait_logged = false;   // the "waiting_for_part" sensor event written
+  };
+
+  void bring_up(SimDuration now);
+  // Writes the robot's tool pose into the model and, with `held_part`, moves the part it holds with it (see
+  // MotionOptions::track_held_parts).
+  void track_tool(bool held_part);
+  // The robot's tool centre point in the world, from its joints in the model.
+  Eigen::Isometry3d tool_in_world(const RobotState& r) const;
+  void start_next(SimDuration now);
+  // Resolves and submits the current command; false when it must wait for its target.
+  bool submit_current(SimDuration now);
+  void poll_current(SimDuration now);
+  void complete(SimDuration now);
+  void fail(SimDuration now, std::string reason);
+  void report(SimDuration now, CommandOutcome outcome, std::string reason);
+  void log_start(SimDuration now);
+  std::string bound(const std::string& label) const;
+
+  const std::size_t index_;
+  const std::string label_, cell_;
+  drivers::RobotDriver& driver_;
+  const models::KinematicChain chain_;
+  const double grip_force_;
+  const NameMap names_;
+  SharedEnvironment& env_;
+  MessageQueue<MotionCommand>& inbox_;
+  MessageQueue<RobotStatus>& status_out_;
+  EventLog& log_;
+  const MotionOptions options_;
+  const bool await_fresh_truth_;
+
+  RobotPhase phase_ = RobotPhase::kBringUp;
+  drivers::CommandId home_id_ = 0;
+  std::optional<Current> current_;
+};
+
+}  // namespace cellwright::runtime

@@ -1,0 +1,175 @@
+// Runtime: the paper's multithreaded control structure (Fig. 2) running one task program on one cell.
+//
+// Threads, started by run() (or the first step()):
+//   simulation     advances the Plant by one control period, writes the truth into the environment model (as much
+//                  as RunConfig::perception allows), logs collisions and arrivals, captures a camera frame every
+//                  vision period and queues it for image processing, decides the end of the run (program finished +
+//                  settle time, failure, sim time limit);
+//   image processing  with Perception::kVision only: ImageProcessing::step (image_processing.hpp), then wakes task
+//                  and robot control;
+//   task control   TaskControl::step (task_control.hpp);
+//   robot control  one per program robot, RobotControl::step (robot_control.hpp).
+// The main thread (the caller) builds everything, checks the input, starts and joins the threads.
+//
+// LOCK-STEP mode: the threads take turns through a LockstepScheduler in the fixed order simulation, image processing,
+// task control, robot 1..n, once per control period; each turn runs to quiescence without blocking. Simulation time is
+// a VirtualClock advanced by the simulation turn. Nothing depends on wall-clock time or the OS scheduler, so the event
+// log is byte-identical from run to run and on one core or many.
+// REAL-TIME mode: the same threads run freely. The simulation thread paces itself to the wall clock (RealtimePacer,
+// at `realtime_speed`); task control and robot control sleep on an Event until a message or a driver notification
+// arrives, or at most one control period (the period at which they watch sensor conditions).
+//
+// Input errors (InputError naming the scenario entry, or the program): a program robot with no binding, a binding to
+// a cell robot, workpiece or location that does not exist, a label bound twice to the same cell robot, a cell robot
+// without a driver, a move to a hand-over target in a cell without a hand-over or by a robot with no grasp there.
+// They are all found by the constructor, before any thread starts.
+//
+// Threads: a Runtime is used by one thread (the caller). run() and step() block until their answer is ready.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/drivers/robot_driver.hpp"
+#include "cellwright/models/cell.hpp"
+#include "cellwright/petri/net.hpp"
+#include "cellwright/runtime/environment_model.hpp"
+#include "cellwright/runtime/event_log.hpp"
+#include "cellwright/runtime/image_processing.hpp"
+#include "cellwright/runtime/plant.hpp"
+#include "cellwright/runtime/robot_control.hpp"
+#include "cellwright/runtime/task_control.hpp"
+#include "cellwright/task/compiled.hpp"
+
+namespace cellwright::runtime {
+
+// Program labels -> cell names, as the scenario gives them. `where` is the scenario entry, for error messages.
+struct Binding {
+  struct Entry {
+    std::string name;  // cell name
+    SourceLocation where;
+  };
+  std::map<std::string, Entry> robots;   // every program robot label -> a cell robot (required)
+  std::map<std::string, Entry> objects;  // workpiece/location label -> cell workpiece/location; absent: same name
+  SourceLocation where;                  // the scenario itself (for "robot r3 is not bound")
+};
+
+enum class Mode { kLockstep, kRealtime };
+
+// "lockstep", "realtime".
+const char* to_string(Mode mode);
+
+struct Limits {
+  SimDuration sim_time = std::chrono::seconds(120);  // the run stops with kTimeout at this simulation time
+  SimDuration settle{0};  // after the program finished, the simulation runs on this long (parts come to rest)
+};
+
+struct RunConfig {
+  task::CompiledProgram program;  // compiled and checked
+  petri::Net net;                 // task::to_net(program)
+  models::CellDescription cell;
+  Binding binding;
+  // The driver of each cell robot the program uses, by cell robot name. Not owned: the drivers (and the plant that
+  // advances them) must outlive the Runtime.
+  std::map<std::string, drivers::RobotDriver*> drivers;
+  Plant* plant = nullptr;  // not owned; required
+  // Where the model's knowledge of the workpieces comes from (environment_model.hpp). kVision needs `vision` and
+  // `detector`.
+  Perception perception = Perception::kTruth;
+  std::optional<VisionOptions> vision;
+  std::shared_ptr<const PartDetector> detector;  // for the vision camera
+  // Called on the image-processing thread after each frame (e.g. to save it). Must not call the Runtime.
+  std::function<void(const VisionFrame&)> on_frame;
+  Mode mode = Mode::kLockstep;
+  SimDuration period = std::chrono::milliseconds(10);  // control period: one lock-step round
+  double realtime_speed = 1.0;                         // real-time mode: simulation time per wall time
+  Limits limits;
+  MotionOptions motion;
+  std::ostream* log_stream = nullptr;  // the event log is also written here (JSONL), if set
+  // Called by the simulation thread every `progress_every` of simulation time with the time and the firings so far
+  // (for `twin run`'s progress line). Must be short and must not call the Runtime.
+  std::function<void(SimDuration, std::uint64_t)> on_progress;
+  SimDuration progress_every = std::chrono::seconds(1);
+};
+
+enum class Outcome { kFinished, kFailed, kTimeout };
+
+// "finished", "failed", "timeout".
+const char* to_string(Outcome outcome);
+
+struct RobotTime {
+  std::string robot;  // program label
+  std::string cell;   // cell robot name
+  ActivityTime time;  // adds up to RunResult::end_time
+};
+
+struct RunResult {
+  Outcome outcome = Outcome::kTimeout;
+  std::string reason;                      // kFailed/kTimeout: why; kFinished: ""
+  SimDuration end_time{0};                 // simulation time when the run stopped
+  std::optional<SimDuration> finished_at;  // when the program reached its final marking
+  petri::Marking final_marking;
+  std::uint64_t firings = 0;
+  std::vector<RobotTime> robots;      // program order
+  std::vector<Collision> collisions;  // every collision logged, in order
+  EnvironmentModel environment;       // the environment model at the end
+};
+
+// The state `twin step` shows after each step.
+struct StepState {
+  bool ended = false;  // the run is over (then `result` is set)
+  SimDuration time{0};
+  TaskView task;                         // marking, last firings, per-robot activity as task control sees it
+  std::vector<RobotControlView> robots;  // per robot: its command and phase as robot control sees it
+  std::optional<RunResult> result;
+};
+
+class Runtime {
+ public:
+  // Checks the configuration (see the top) and builds the threads' objects; starts nothing, calls no driver.
+  // Throws InputError for bad input, InternalError for an inconsistent config (no plant, net not of the program,
+  // period not positive).
+  explicit Runtime(RunConfig config);
+  // Stops and joins any threads still running.
+  ~Runtime();
+  Runtime(const Runtime&) = delete;
+  Runtime& operator=(const Runtime&) = delete;
+
+  // Connects the drivers (InputError when one cannot work), starts the threads if not started, runs to the end and
+  // joins them. After step(), runs on from where stepping stopped. Returns the result (also after a run has ended:
+  // the same result again).
+  RunResult run();
+
+  // Lock-step mode only (InternalError otherwise): runs until the next control period in which a transition fires,
+  // or to the end, then returns with the threads parked, so that state and plant can be inspected. The first call
+  // connects the drivers and starts the threads.
+  StepState step();
+
+  // The event log (complete once run() has returned).
+  const EventLog& log() const { return *log_; }
+  // The plant, for snapshots: only between steps or after the run (the simulation thread is parked or gone).
+  Plant& plant() { return *config_.plant; }
+  const RunConfig& config() const { return config_; }
+
+ private:
+  // Connects the drivers, logs run_start and starts the threads.
+  void start();
+  // Joins the threads and builds the result (once); rethrows an exception a thread died of.
+  RunResult finish();
+
+  struct Impl;
+  RunConfig config_;
+  std::unique_ptr<EventLog> log_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace cellwright::runtime

@@ -1,0 +1,537 @@
+#include "cellwright/runtime/runtime.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "cellwright/runtime/clock.hpp"
+#include "cellwright/runtime/event.hpp"
+#include "cellwright/runtime/message_queue.hpp"
+
+namespace cellwright::runtime {
+
+const char* to_string(Mode mode) {
+  return mode == Mode::kLockstep ? "lockstep" : "realtime";
+}
+
+const char* to_string(Outcome outcome) {
+  switch (outcome) {
+    case Outcome::kFinished:
+      return "finished";
+    case Outcome::kFailed:
+      return "failed";
+    case Outcome::kTimeout:
+      return "timeout";
+  }
+  return "?";
+}
+
+namespace {
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s.empty() ? std::string("none") : s;
+}
+
+template <typename Specs>
+std::vector<std::string> names_of(const Specs& specs) {
+  std::vector<std::string> out;
+  for (const auto& s : specs) out.push_back(s.name);
+  return out;
+}
+
+bool has_grasp(const models::CellDescription& cell, const std::string& robot) {
+  if (!cell.handover) return false;
+  return std::any_of(cell.handover->grasps.begin(), cell.handover->grasps.end(),
+                     [&](const models::HandoverGrasp& g) { return g.robot == robot; });
+}
+
+// Checks the binding against the program and the cell; returns the label -> cell name maps.
+NameMap check_binding(const RunConfig& c) {
+  NameMap names;
+  const Binding& b = c.binding;
+  std::map<std::string, std::string> used;  // cell robot -> label
+  for (const std::string& label : c.program.robots) {
+    auto it = b.robots.find(label);
+    if (it == b.robots.end()) {
+      throw InputError(b.where, fmt::format("program robot '{}' is not bound to a robot of the cell (cell robots: {})",
+                                            label, joined(names_of(c.cell.robots))));
+    }
+    const auto& [name, where] = it->second;
+    if (c.cell.find_robot(name) == nullptr) {
+      throw InputError(where, fmt::format("program robot '{}' is bound to '{}', which is not a robot of the cell "
+                                          "(cell robots: {})",
+                                          label, name, joined(names_of(c.cell.robots))));
+    }
+    if (auto [u, fresh] = used.emplace(name, label); !fresh) {
+      throw InputError(
+          where, fmt::format("program robots '{}' and '{}' are both bound to cell robot '{}'", u->second, label, name));
+    }
+    auto d = c.drivers.find(name);
+    if (d == c.drivers.end() || d->second == nullptr) {
+      throw InputError(where, fmt::format("cell robot '{}' (program robot '{}') has no driver", name, label));
+    }
+    names.robots[label] = name;
+  }
+  for (const auto& [label, entry] : b.robots) {
+    if (std::find(c.program.robots.begin(), c.program.robots.end(), label) == c.program.robots.end()) {
+      throw InputError(entry.where, fmt::format("'{}' is not a robot of the program (program robots: {})", label,
+                                                joined(c.program.robots)));
+    }
+  }
+  const auto object = [&](const std::string& label, bool workpiece) {
+    auto it = b.objects.find(label);
+    const std::string name = it == b.objects.end() ? label : it->second.name;
+    const SourceLocation where = it == b.objects.end() ? b.where : it->second.where;
+    const bool found = workpiece ? c.cell.find_workpiece(name) != nullptr : c.cell.find_location(name) != nullptr;
+    if (!found) {
+      const char* kind = workpiece ? "workpiece" : "location";
+      const std::vector<std::string> known = workpiece ? names_of(c.cell.workpieces) : names_of(c.cell.locations);
+      throw InputError(where, it == b.objects.end()
+                                  ? fmt::format("program {} '{}' is not a {} of the cell and is not bound to one "
+                                                "(cell {}s: {})",
+                                                kind, label, kind, kind, joined(known))
+                                  : fmt::format("program {} '{}' is bound to '{}', which is not a {} of the cell "
+                                                "(cell {}s: {})",
+                                                kind, label, name, kind, kind, joined(known)));
+    }
+    names.objects[label] = name;
+  };
+  for (const auto& w : c.program.workpieces) object(w, true);
+  for (const auto& l : c.program.locations) object(l, false);
+  for (const auto& [label, entry] : b.objects) {
+    if (names.objects.count(label) == 0) {
+      throw InputError(entry.where,
+                       fmt::format("'{}' is not a workpiece or location of the program (workpieces: {}; locations: {})",
+                                   label, joined(c.program.workpieces), joined(c.program.locations)));
+    }
+  }
+  // Hand-over targets need the cell's hand-over and a grasp there for the robots involved.
+  for (std::size_t r = 0; r < c.program.programs.size(); ++r) {
+    const std::string& label = c.program.robots[r];
+    for (const task::Primitive& p : c.program.programs[r].primitives) {
+      if (p.kind != task::PrimitiveKind::kMove) continue;
+      const task::TargetKind k = p.target.kind;
+      if (k != task::TargetKind::kHandover && k != task::TargetKind::kHandApproach &&
+          k != task::TargetKind::kHandGrasp) {
+        continue;
+      }
+      if (!c.cell.handover) {
+        throw InputError(p.where, fmt::format("robot {}: '{}' needs a hand-over, and cell '{}' has none", label,
+                                              task::to_string(p), c.cell.name));
+      }
+      for (const std::string& who : {label, p.target.object}) {
+        auto it = names.robots.find(who);
+        CW_CHECK(it != names.robots.end(), "target robot '{}' of '{}' is not a program robot", who, task::to_string(p));
+        if (!has_grasp(c.cell, it->second)) {
+          throw InputError(p.where, fmt::format("robot {}: '{}' needs a grasp for cell robot '{}' at hand-over '{}', "
+                                                "which has none",
+                                                label, task::to_string(p), it->second, c.cell.handover->name));
+        }
+      }
+    }
+  }
+  return names;
+}
+
+}  // namespace
+
+struct Runtime::Impl {
+  Impl(RunConfig& c, EventLog& l) : cfg(c), log(l), env(make_environment_model(c.cell)), statuses(64) {}
+
+  RunConfig& cfg;
+  EventLog& log;
+  NameMap names;
+  std::vector<std::string> cells;  // per program robot
+  SharedEnvironment env;
+  std::vector<std::unique_ptr<MessageQueue<MotionCommand>>> inboxes;
+  MessageQueue<RobotStatus> statuses;
+  std::unique_ptr<TaskControl> task;
+  std::vector<std::unique_ptr<RobotControl>> robots;
+  VirtualClock clock;
+  // Vision (Perception::kVision): frames from the simulation thread to the image-processing thread.
+  MessageQueue<Frame> frames{2};
+  std::unique_ptr<ImageProcessing> vision;
+  SimDuration next_frame{0};
+  std::unique_ptr<LockstepScheduler> scheduler;
+  std::vector<std::thread> threads;
+  bool started = false;
+
+  // Published by task control after each of its steps, read by the simulation thread (real-time: concurrently).
+  std::atomic<int> task_state{static_cast<int>(TaskControl::State::kRunning)};
+  std::atomic<std::int64_t> finished_at_ns{-1};
+  std::atomic<std::uint64_t> task_firings{0};
+
+  // Real-time mode.
+  std::atomic<bool> stopping{false};
+  Event task_wake{Event::Kind::auto_reset};
+  std::vector<std::unique_ptr<Event>> robot_wake;
+
+  // The end, as the simulation thread decided it.
+  Outcome outcome = Outcome::kTimeout;
+  std::string reason;
+  std::vector<Collision> collisions;
+  SimDuration next_progress{0};
+
+  // Stepping (lock-step): the simulation thread parks at the start of its turn after a period with firings.
+  std::mutex m;
+  std::condition_variable cv;
+  bool step_mode = false;
+  bool paused = false;
+  bool resume = false;
+  bool abort = false;
+  bool ended = false;
+  std::uint64_t firings_seen = 0;
+  std::exception_ptr error;
+
+  std::optional<RunResult> result;
+
+  void record_error() {
+    std::lock_guard lock(m);
+    if (!error) error = std::current_exception();
+  }
+  void end_all() {
+    stopping = true;
+    if (scheduler) scheduler->stop();
+    frames.close();
+    task_wake.set();
+    for (auto& e : robot_wake) e->set();
+    std::lock_guard lock(m);
+    abort = true;
+    ended = true;
+    cv.notify_all();
+  }
+  void announce_end() {
+    std::lock_guard lock(m);
+    ended = true;
+    cv.notify_all();
+  }
+
+  // Lock-step: parks after a period with firings when stepping. Returns false when the run is aborted.
+  bool maybe_pause() {
+    std::unique_lock lock(m);
+    if (!step_mode) return !abort;
+    const std::uint64_t f = task_firings.load();
+    if (f == firings_seen) return !abort;
+    firings_seen = f;
+    paused = true;
+    cv.notify_all();
+    cv.wait(lock, [&] { return resume || abort; });
+    resume = false;
+    paused = false;
+    return !abort;
+  }
+
+  // The simulation's turn: decide the end, else advance one period. Returns false when the run ends.
+  bool sim_turn() {
+    const SimDuration now = clock.now();
+    const auto state = static_cast<TaskControl::State>(task_state.load());
+    if (state == TaskControl::State::kFailed) {
+      outcome = Outcome::kFailed;
+      return false;
+    }
+    if (state == TaskControl::State::kFinished && now >= SimDuration(finished_at_ns.load()) + cfg.limits.settle) {
+      outcome = Outcome::kFinished;
+      return false;
+    }
+    if (now >= cfg.limits.sim_time) {
+      outcome = Outcome::kTimeout;
+      reason = fmt::format("the simulation time limit of {} s was reached before the program finished",
+                           format_sim_time(cfg.limits.sim_time));
+      return false;
+    }
+    cfg.plant->advance(cfg.period);
+    Truth truth = cfg.plant->truth();
+    const SimDuration t = now + cfg.period;
+    truth.time = t;
+    env.write([&](EnvironmentModel& e) { apply_truth(e, truth, cfg.perception); });
+    for (Collision& c : cfg.plant->new_collisions()) {
+      log.collision(t, c.a, c.b, c.depth);
+      collisions.push_back(std::move(c));
+    }
+    for (const Arrival& a : cfg.plant->new_arrivals()) log.workpiece_arrived(t, a.workpiece, a.where);
+    clock.advance(cfg.period);  // after the model is written, so a reader at time t sees t's truth (real-time)
+    if (vision && t >= next_frame) {
+      // Rendered here (after the clock has moved to t, so that the image thread never sees a frame from its future):
+      // the simulation thread owns the physics state the camera shows, and the rendering context.
+      Frame f;
+      f.time = t;
+      std::string why;
+      if (std::optional<Image> image = cfg.plant->capture(vision->options().camera, &why)) {
+        f.image = std::move(*image);
+      } else {
+        f.problem = why;
+      }
+      // Real-time: image processing may lag; a frame it has no room for is dropped (the next one is newer anyway).
+      (void)frames.try_push(std::move(f));
+      next_frame += vision->options().period;
+    }
+    if (cfg.on_progress && t >= next_progress) {
+      cfg.on_progress(t, task_firings.load());
+      next_progress = t + cfg.progress_every;
+    }
+    return true;
+  }
+
+  void task_step() {
+    const TaskControl::State s = task->step(clock.now());
+    task_firings = task->firings();
+    if (s == TaskControl::State::kFinished && finished_at_ns.load() < 0) {
+      finished_at_ns = task->finished_at()->count();
+    }
+    task_state = static_cast<int>(s);
+  }
+
+  void run_lockstep(std::size_t participant) {
+    LockstepScheduler::Seat seat(*scheduler, participant);
+    try {
+      while (seat.await_turn()) {
+        if (participant == 0) {
+          if (!maybe_pause() || !sim_turn()) {
+            scheduler->stop();
+            announce_end();
+            break;
+          }
+        } else if (participant == task_seat() - 1) {
+          vision->step(clock.now());
+        } else if (participant == task_seat()) {
+          task_step();
+        } else {
+          robots[participant - first_robot_seat()]->step(clock.now());
+        }
+        seat.yield();
+      }
+      if (participant == 0) cfg.plant->release_thread_resources();
+      if (participant >= first_robot_seat()) robots[participant - first_robot_seat()]->halt();
+    } catch (...) {
+      if (participant == 0) cfg.plant->release_thread_resources();
+      record_error();
+      end_all();
+    }
+  }
+
+  // Seats (lock-step turns, thread indices): simulation, image processing (with vision), task control, robots.
+  std::size_t task_seat() const { return vision ? 2 : 1; }
+  std::size_t first_robot_seat() const { return task_seat() + 1; }
+  std::size_t participants() const { return first_robot_seat() + robots.size(); }
+
+  std::chrono::steady_clock::duration wall_period() const {
+    return std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double, std::nano>(static_cast<double>(cfg.period.count()) / cfg.realtime_speed));
+  }
+
+  void run_realtime(std::size_t participant) {
+    try {
+      if (participant == 0) {
+        RealtimePacer pacer(cfg.realtime_speed);
+        pacer.anchor(clock.now());
+        while (!stopping) {
+          pacer.pace(clock.now() + cfg.period);
+          if (!sim_turn()) break;
+        }
+        cfg.plant->release_thread_resources();
+        end_all();
+      } else if (participant == task_seat() - 1) {
+        while (!stopping) {
+          Frame f;
+          if (frames.pop_for(f, wall_period() * 10) != QueueStatus::ok) continue;
+          vision->process(f, clock.now());
+          // The model changed: whoever waits for a part looks again now.
+          task_wake.set();
+          for (auto& e : robot_wake) e->set();
+        }
+      } else if (participant == task_seat()) {
+        while (!stopping) {
+          // Woken by a status; at least once a period, for the time accounting.
+          (void)task_wake.wait_for(wall_period());
+          if (stopping) break;
+          task_step();
+          for (std::size_t r = 0; r < robots.size(); ++r) {
+            if (inboxes[r]->size() > 0) robot_wake[r]->set();
+          }
+        }
+      } else {
+        const std::size_t r = participant - first_robot_seat();
+        while (!stopping) {
+          // Woken by a command or the driver's notifier; at least once a period, to watch sensor conditions.
+          (void)robot_wake[r]->wait_for(wall_period());
+          if (stopping) break;
+          robots[r]->step(clock.now());
+          if (statuses.size() > 0) task_wake.set();
+        }
+        robots[r]->halt();
+      }
+    } catch (...) {
+      if (participant == 0) cfg.plant->release_thread_resources();
+      record_error();
+      end_all();
+    }
+  }
+};
+
+Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_unique<EventLog>(config_.log_stream)) {
+  CW_CHECK(config_.plant != nullptr, "a run needs a plant");
+  CW_CHECK(config_.period.count() > 0, "the control period must be positive, got {} ns", config_.period.count());
+  CW_CHECK(config_.realtime_speed > 0.0, "real-time speed must be positive, got {}", config_.realtime_speed);
+  CW_CHECK(config_.net.robots() == config_.program.robots, "the net was not made from the program");
+  impl_ = std::make_unique<Impl>(config_, *log_);
+  Impl& im = *impl_;
+  im.names = check_binding(config_);
+
+  std::vector<MessageQueue<MotionCommand>*> inbox_ptrs;
+  for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
+    im.inboxes.push_back(std::make_unique<MessageQueue<MotionCommand>>(4));
+    inbox_ptrs.push_back(im.inboxes.back().get());
+    im.robot_wake.push_back(std::make_unique<Event>(Event::Kind::auto_reset));
+  }
+  if (config_.perception == Perception::kVision) {
+    CW_CHECK(config_.vision.has_value() && config_.detector != nullptr,
+             "vision perception needs a camera and a detector");
+    im.vision = std::make_unique<ImageProcessing>(*config_.detector, im.env, im.frames, *log_, *config_.vision,
+                                                  config_.on_frame);
+    // Until the camera has seen them, parts are not known to be in the cell (a fed part may not have arrived): their
+    // poses stay the cell description's, unconfirmed, nothing known of their motion.
+    im.env.write([](EnvironmentModel& m) {
+      for (WorkpieceState& w : m.workpieces) {
+        w.present = false;
+        w.confidence = 0;
+        w.motion_known = false;
+      }
+    });
+  }
+  config_.motion.track_held_parts = config_.perception != Perception::kTruth;
+  im.task = std::make_unique<TaskControl>(config_.net, config_.program, inbox_ptrs, im.statuses, *log_);
+  for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
+    const std::string& label = config_.program.robots[r];
+    const std::string& cell = im.names.robots.at(label);
+    const models::RobotSpec& spec = *config_.cell.find_robot(cell);
+    im.cells.push_back(cell);
+    im.robots.push_back(std::make_unique<RobotControl>(
+        r, label, cell, *config_.drivers.at(cell), models::KinematicChain::from_urdf_file(spec.urdf), spec.grip_force,
+        im.names, im.env, *im.inboxes[r], im.statuses, *log_, config_.motion, config_.mode == Mode::kRealtime));
+  }
+}
+
+Runtime::~Runtime() {
+  if (impl_ && impl_->started) {
+    impl_->end_all();
+    for (auto& t : impl_->threads) {
+      if (t.joinable()) t.join();
+    }
+  }
+}
+
+RunResult Runtime::run() {
+  Impl& im = *impl_;
+  if (im.result) return *im.result;
+  if (!im.started) {
+    start();
+  } else {
+    std::lock_guard lock(im.m);
+    im.step_mode = false;
+    im.resume = true;
+    im.paused = false;
+    im.cv.notify_all();
+  }
+  return finish();
+}
+
+StepState Runtime::step() {
+  Impl& im = *impl_;
+  CW_CHECK(config_.mode == Mode::kLockstep, "stepping needs lock-step mode");
+  StepState s;
+  if (!im.result) {
+    {
+      std::lock_guard lock(im.m);
+      im.step_mode = true;
+    }
+    if (!im.started) {
+      start();
+    } else {
+      std::lock_guard lock(im.m);
+      im.resume = true;
+      im.paused = false;  // cleared here, so the wait below waits for the next pause, not the one just ended
+      im.cv.notify_all();
+    }
+    {
+      std::unique_lock lock(im.m);
+      im.cv.wait(lock, [&] { return im.paused || im.ended; });
+    }
+    if (!im.paused) finish();
+  }
+  if (im.result) {
+    s.ended = true;
+    s.time = im.result->end_time;
+    s.task = im.task->view();
+    for (const auto& r : im.robots) s.robots.push_back(r->view());
+    s.result = im.result;
+    return s;
+  }
+  // Parked: the simulation thread holds the turn and waits, every other participant waits for its turn.
+  s.time = im.clock.now();
+  s.task = im.task->view();
+  for (const auto& r : im.robots) s.robots.push_back(r->view());
+  return s;
+}
+
+void Runtime::start() {
+  Impl& im = *impl_;
+  std::vector<EventLog::RobotName> names;
+  for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
+    names.push_back({config_.program.robots[r], im.cells[r]});
+  }
+  for (auto& r : im.robots) r->connect();  // InputError here: no thread has started
+  if (config_.mode == Mode::kRealtime) {
+    for (std::size_t r = 0; r < im.robots.size(); ++r) {
+      Event* wake = im.robot_wake[r].get();
+      config_.drivers.at(im.cells[r])->set_notifier([wake] { wake->set(); });
+    }
+  }
+  log_->run_start(im.clock.now(), config_.program.file, config_.cell.name, to_string(config_.mode), config_.period,
+                  names);
+  const std::size_t participants = im.participants();
+  im.started = true;
+  if (config_.mode == Mode::kLockstep) {
+    im.scheduler = std::make_unique<LockstepScheduler>(participants);
+    for (std::size_t p = 0; p < participants; ++p) im.threads.emplace_back([&im, p] { im.run_lockstep(p); });
+  } else {
+    for (std::size_t p = 0; p < participants; ++p) im.threads.emplace_back([&im, p] { im.run_realtime(p); });
+  }
+}
+
+RunResult Runtime::finish() {
+  Impl& im = *impl_;
+  for (auto& t : im.threads) {
+    if (t.joinable()) t.join();
+  }
+  if (im.error) std::rethrow_exception(im.error);
+  if (im.result) return *im.result;
+  if (config_.mode == Mode::kRealtime) {
+    for (const std::string& cell : im.cells) config_.drivers.at(cell)->set_notifier({});
+  }
+  RunResult r;
+  r.end_time = im.clock.now();
+  im.task->account_until(r.end_time);
+  r.outcome = im.outcome;
+  r.reason = im.outcome == Outcome::kFailed ? im.task->reason() : im.reason;
+  r.finished_at = im.task->finished_at();
+  r.final_marking = im.task->marking();
+  r.firings = im.task->firings();
+  for (std::size_t i = 0; i < im.robots.size(); ++i) {
+    r.robots.push_back({config_.program.robots[i], im.cells[i], im.task->activity_time()[i]});
+  }
+  r.collisions = im.collisions;
+  r.environment = im.env.snapshot();
+  log_->run_end(r.end_time, to_string(r.outcome), r.reason, r.firings);
+  im.result = r;
+  return r;
+}
+
+}  // namespace cellwright::runtime

@@ -1,0 +1,260 @@
+#include "cellwright/runtime/task_control.hpp"
+
+#include <fmt/format.h>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/task/to_net.hpp"
+
+namespace cellwright::runtime {
+
+std::string_view to_string(CommandOutcome outcome) {
+  return outcome == CommandOutcome::kDone ? "done" : "failed";
+}
+
+const char* to_string(RobotActivity activity) {
+  switch (activity) {
+    case RobotActivity::kIdle:
+      return "idle";
+    case RobotActivity::kBusy:
+      return "busy";
+    case RobotActivity::kWaiting:
+      return "waiting";
+    case RobotActivity::kBlocked:
+      return "blocked";
+  }
+  return "?";
+}
+
+namespace {
+
+bool net_only(task::PrimitiveKind k) {
+  return k == task::PrimitiveKind::kSignal || k == task::PrimitiveKind::kWait;
+}
+
+}  // namespace
+
+TaskControl::TaskControl(const petri::Net& net, const task::CompiledProgram& program,
+                         std::vector<MessageQueue<MotionCommand>*> robot_inboxes,
+                         MessageQueue<RobotStatus>& status_inbox, EventLog& log)
+    : net_(net),
+      program_(program),
+      inboxes_(std::move(robot_inboxes)),
+      statuses_(status_inbox),
+      log_(log),
+      marking_(net.initial_marking()),
+      arbiter_(petri::make_arbiter(net)),
+      places_(net.num_places()),
+      completed_(net.num_places(), false),
+      in_flight_(program.robots.size(), false),
+      activity_(program.robots.size(), RobotActivity::kIdle),
+      time_(program.robots.size()) {
+  CW_CHECK(net.robots() == program.robots, "the net's robots are not the program's ({} vs {})", net.robots().size(),
+           program.robots.size());
+  CW_CHECK(program.programs.size() == program.robots.size(), "{} programs for {} robots", program.programs.size(),
+           program.robots.size());
+  CW_CHECK(inboxes_.size() == program.robots.size(), "{} robot inboxes for {} robots", inboxes_.size(),
+           program.robots.size());
+  for (auto* q : inboxes_) CW_CHECK(q != nullptr, "a robot inbox is missing");
+  for (std::size_t r = 0; r < program.robots.size(); ++r) {
+    const std::string& label = program.robots[r];
+    const auto& prims = program.programs[r].primitives;
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      const auto p = net.find_place(task::place_id(label, k));
+      CW_CHECK(p.has_value(), "the net has no place for primitive {} of robot {}", k, label);
+      places_[*p] = {true, r, k};
+    }
+    CW_CHECK(net.find_place(task::start_place_id(label)) && net.find_place(task::done_place_id(label)),
+             "the net has no start or done place for robot {}", label);
+  }
+  for (const petri::Transition& t : net.transitions()) {
+    if (!t.starts_robot) continue;
+    CW_CHECK(*t.starts_robot < program.robots.size() && t.starts_primitive >= 0 &&
+                 static_cast<std::size_t>(t.starts_primitive) < program.programs[*t.starts_robot].primitives.size(),
+             "transition {} starts primitive {} of robot {}, which the program does not have", t.id, t.starts_primitive,
+             *t.starts_robot);
+  }
+}
+
+std::vector<bool> TaskControl::allowed() const {
+  std::vector<bool> ok(net_.num_transitions(), true);
+  for (petri::TransitionId t = 0; t < net_.num_transitions(); ++t) {
+    for (const petri::Arc& a : net_.transitions()[t].inputs) {
+      if (places_[a.place].command && !completed_[a.place]) {
+        ok[t] = false;
+        break;
+      }
+    }
+  }
+  return ok;
+}
+
+void TaskControl::drain_statuses(SimDuration now) {
+  RobotStatus s;
+  while (statuses_.try_pop(s) == QueueStatus::ok) {
+    CW_CHECK(s.robot < program_.robots.size(), "status from robot {} of {}", s.robot, program_.robots.size());
+    const std::string& label = program_.robots[s.robot];
+    if (s.index == RobotStatus::kNoCommand) {
+      CW_CHECK(s.outcome == CommandOutcome::kFailed, "robot {} reported success without a command", label);
+      if (state_ == State::kRunning) {
+        state_ = State::kFailed;
+        reason_ = fmt::format("robot {}: {}", label, s.reason);
+      }
+      continue;
+    }
+    CW_CHECK(in_flight_[s.robot], "robot {} reported primitive {} with no command in flight", label, s.index);
+    const auto place = net_.find_place(task::place_id(label, s.index));
+    CW_CHECK(place && marking_[*place] > 0, "robot {} reported primitive {}, which it is not executing", label,
+             s.index);
+    in_flight_[s.robot] = false;
+    if (s.outcome == CommandOutcome::kDone) {
+      completed_[*place] = true;
+    } else if (state_ == State::kRunning) {
+      const task::Primitive& p = program_.programs[s.robot].primitives[s.index];
+      state_ = State::kFailed;
+      reason_ = fmt::format("robot {}, primitive {} '{}' (line {}, {}): {}", label, s.index, task::to_string(p),
+                            p.where.line, p.task, s.reason);
+    }
+  }
+  (void)now;
+}
+
+void TaskControl::fire_until_quiescent(SimDuration now) {
+  for (;;) {
+    const std::vector<petri::TransitionId> chosen = petri::choose(net_, marking_, arbiter_, allowed());
+    if (chosen.empty()) return;
+    petri::fire_chosen(net_, marking_, arbiter_, chosen);
+    for (const petri::TransitionId id : chosen) {
+      const petri::Transition& t = net_.transitions()[id];
+      ++firings_;
+      last_fired_.push_back(t.id);
+      log_.fire(now, t.id, t.origin.robot, t.starts_primitive, t.origin.line, t.origin.task, t.origin.motion);
+      if (!t.starts_robot) continue;
+      const std::size_t r = *t.starts_robot;
+      const auto k = static_cast<std::size_t>(t.starts_primitive);
+      const task::Primitive& p = program_.programs[r].primitives[k];
+      const petri::PlaceId place = *net_.find_place(task::place_id(program_.robots[r], k));
+      if (net_only(p.kind)) {
+        completed_[place] = true;  // a signal is done as it fires; a wait is gated by its event place
+        continue;
+      }
+      completed_[place] = false;
+      CW_CHECK(!in_flight_[r], "robot {} was sent primitive {} with a command still in flight", program_.robots[r], k);
+      in_flight_[r] = true;
+      MotionCommand cmd{r, k, p, id, now};
+      const QueueStatus pushed = inboxes_[r]->try_push(std::move(cmd));
+      // Each robot has at most one command in flight, so its inbox always has room; closed means the run is over.
+      CW_CHECK(pushed == QueueStatus::ok || pushed == QueueStatus::closed, "robot {} inbox refused a command: {}",
+               program_.robots[r], to_string(pushed));
+    }
+  }
+}
+
+void TaskControl::detect_end(SimDuration now) {
+  if (state_ != State::kRunning) return;
+  if (net_.is_final(marking_)) {
+    state_ = State::kFinished;
+    finished_at_ = now;
+    return;
+  }
+  if (petri::is_dead(net_, marking_)) {
+    std::string marked;
+    for (petri::PlaceId p = 0; p < net_.num_places(); ++p) {
+      if (marking_[p] == 0) continue;
+      if (!marked.empty()) marked += ", ";
+      marked += marking_[p] == 1 ? net_.places()[p].name : fmt::format("{} x{}", net_.places()[p].name, marking_[p]);
+    }
+    state_ = State::kFailed;
+    reason_ = fmt::format("deadlock: no transition can fire; marked: {}", marked);
+  }
+}
+
+void TaskControl::classify(SimDuration now) {
+  (void)now;
+  for (std::size_t r = 0; r < program_.robots.size(); ++r) {
+    if (state_ != State::kRunning) {
+      activity_[r] = RobotActivity::kIdle;
+      continue;
+    }
+    const std::string& label = program_.robots[r];
+    if (marking_[*net_.find_place(task::done_place_id(label))] > 0) {
+      activity_[r] = RobotActivity::kIdle;
+    } else if (in_flight_[r]) {
+      activity_[r] = RobotActivity::kBusy;
+    } else {
+      activity_[r] = RobotActivity::kBlocked;
+      const auto& prims = program_.programs[r].primitives;
+      for (std::size_t k = 0; k < prims.size(); ++k) {
+        if (prims[k].kind == task::PrimitiveKind::kWait && marking_[*net_.find_place(task::place_id(label, k))] > 0) {
+          activity_[r] = RobotActivity::kWaiting;
+        }
+      }
+    }
+  }
+}
+
+void TaskControl::account_until(SimDuration now) {
+  if (now <= accounted_) return;
+  const SimDuration dt = now - accounted_;
+  for (std::size_t r = 0; r < time_.size(); ++r) {
+    switch (activity_[r]) {
+      case RobotActivity::kIdle:
+        time_[r].idle += dt;
+        break;
+      case RobotActivity::kBusy:
+        time_[r].busy += dt;
+        break;
+      case RobotActivity::kWaiting:
+        time_[r].waiting += dt;
+        break;
+      case RobotActivity::kBlocked:
+        time_[r].blocked += dt;
+        break;
+    }
+  }
+  accounted_ = now;
+}
+
+TaskControl::State TaskControl::step(SimDuration now) {
+  account_until(now);
+  last_step_ = now;
+  last_fired_.clear();
+  if (state_ == State::kRunning) {
+    drain_statuses(now);
+    if (state_ == State::kRunning) fire_until_quiescent(now);
+    detect_end(now);
+  }
+  classify(now);
+  return state_;
+}
+
+TaskView TaskControl::view() const {
+  TaskView v;
+  v.time = last_step_;
+  v.marking = marking_;
+  v.last_fired = last_fired_;
+  v.firings = firings_;
+  for (std::size_t r = 0; r < program_.robots.size(); ++r) {
+    RobotView rv;
+    rv.robot = program_.robots[r];
+    rv.activity = activity_[r];
+    const auto& prims = program_.programs[r].primitives;
+    auto marked = [&](const std::string& id) { return marking_[*net_.find_place(id)] > 0; };
+    if (marked(task::done_place_id(rv.robot))) {
+      rv.done = true;
+      rv.place = task::done_place_id(rv.robot);
+    } else if (marked(task::start_place_id(rv.robot))) {
+      rv.place = task::start_place_id(rv.robot);
+    }
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      if (marked(task::place_id(rv.robot, k))) {
+        rv.primitive = static_cast<int>(k);
+        rv.command = task::to_string(prims[k]);
+        rv.place = task::place_id(rv.robot, k);
+      }
+    }
+    v.robots.push_back(std::move(rv));
+  }
+  return v;
+}
+
+}  // namespace cellwright::runtime

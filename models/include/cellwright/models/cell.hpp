@@ -1,0 +1,206 @@
+// The cell description: what is in the workcell and where (paper section 2: two arms with grippers, an input and
+// an output conveyor, a process machine, workpieces, an overhead camera). It is read from a YAML file
+// (docs/cell-description.md documents every field), checked completely, and then never changes: the scene builder
+// (scene.hpp), the renderer (render.hpp) and robot control all read the same immutable CellDescription.
+//
+// Units: metres, kilograms, seconds. Angles are degrees in the YAML file and radians in these structures.
+// World frame: z up, the floor is the plane z = 0.
+//
+// Thread safety: the loaders are reentrant (no shared state); a CellDescription may be read from any thread.
+#pragma once
+
+#include <Eigen/Geometry>
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cellwright/common/error.hpp"
+
+namespace cellwright::models {
+
+// A rigid placement. Rotation is roll about x, then pitch about y, then yaw about z, all about the fixed parent
+// axes (R = Rz(yaw) * Ry(pitch) * Rx(roll)), the convention URDF uses.
+struct Pose {
+  Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rpy = Eigen::Vector3d::Zero();  // radians
+
+  Eigen::Isometry3d transform() const;
+  Eigen::Matrix3d rotation() const;
+};
+
+enum class DriverKind { kSim, kMovemaster, kVal2 };
+enum class Parity { kNone, kEven, kOdd };
+
+// RS-232 line settings of a real robot controller; kept for the drivers, unused by the simulator.
+struct SerialSettings {
+  std::string port;  // e.g. /dev/ttyS0
+  int baud = 9600;
+  int data_bits = 8;
+  Parity parity = Parity::kNone;
+  int stop_bits = 1;
+  bool rts_cts = false;
+  bool xon_xoff = false;
+};
+
+struct RobotSpec {
+  std::string name;
+  std::filesystem::path urdf;  // absolute; links base_link..tcp, joints joint1..joint6 and two finger joints
+  Pose base;                   // base_link in the world
+  std::vector<double> home;    // radians, one per arm joint from base_link to tcp, in chain order
+  double grip_force = 5.0;     // newtons: the most each finger's servo pushes with (so the grip on a part)
+  DriverKind driver = DriverKind::kSim;
+  std::optional<SerialSettings> serial;  // required for movemaster and val2
+  SourceLocation where;
+};
+
+// A belt conveyor. Its frame: origin at the centre of its footprint on the floor, x along the direction of travel.
+// The belt's top surface is `height` above the origin and spans x in [-length/2, length/2].
+struct ConveyorSpec {
+  std::string name;
+  Pose pose;
+  double length = 0, width = 0, height = 0;
+  double speed = 0;   // m/s along +x; the belt runs at this speed from the start of the simulation
+  double enter = 0;   // distance from the upstream end where parts are put on the belt
+  double leave = 0;   // distance from the upstream end where parts leave it (are picked, or fall off the end)
+  bool stop = false;  // a stop bar across the belt at `leave` holds parts there for picking
+  SourceLocation where;
+
+  // World position of the point on the belt's top surface at distance s from the upstream end, on the centre line.
+  Eigen::Vector3d belt_point(double s) const;
+};
+
+// A process machine: a box-shaped body with a fixture plate on top, centred, where a part is put to be processed.
+// Its frame: origin at the centre of its footprint on the floor.
+struct MachineSpec {
+  std::string name;
+  Pose pose;
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();          // body extents x, y, z
+  Eigen::Vector3d fixture_size = Eigen::Vector3d::Zero();  // fixture plate extents x, y, z
+  double process_time = 0;                                 // seconds a part spends in the machine
+  SourceLocation where;
+
+  // Pose of the centre of the fixture plate's top face (the machine's yaw).
+  Pose fixture_top() const;
+};
+
+// How a gripper approaches a target: from above (tool z axis pointing down) or from the side (tool z axis
+// horizontal, pointing from the robot's base towards the target).
+enum class Approach { kDown, kSide };
+
+// A named place where a part rests (its bottom centre) and robots must reach it with the gripper pointing down.
+struct LocationSpec {
+  std::string name;
+  Pose pose;                       // world; yaw is the part's (and the fingers') orientation about z
+  std::vector<std::string> reach;  // robots that must reach it
+  double grasp_height = 0.02;      // tool centre point above the location when grasping
+  double approach_height = 0.08;   // extra height of the approach point above the grasp point
+  SourceLocation where;
+};
+
+struct HandoverGrasp {
+  std::string robot;
+  Approach approach = Approach::kDown;
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // tool centre point relative to the hand-over pose (world axes)
+};
+
+// Where one arm hands a part to the other: the part's centre in the world, and how each arm holds it there.
+struct HandoverSpec {
+  std::string name;
+  Pose pose;
+  std::vector<HandoverGrasp> grasps;  // one per robot taking part, at least two
+  SourceLocation where;
+};
+
+enum class Shape { kBox, kCylinder };
+
+struct WorkpieceSpec {
+  std::string name;
+  Shape shape = Shape::kBox;
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();  // full extents x, y, z; a cylinder has x = y = its diameter
+  double mass = 0;
+  Eigen::Vector4d rgba = Eigen::Vector4d::Ones();  // 0..1
+  Pose pose;       // initial pose of the part's centre in the world (resolved from `on:` when given)
+  std::string on;  // the conveyor or location it was put on, empty if given by pose
+  SourceLocation where;
+};
+
+// A fixed camera. pose is MuJoCo's camera frame: it looks along its -z axis, image up is its +y axis.
+struct CameraSpec {
+  std::string name;
+  Pose pose;
+  int width = 640, height = 480;
+  double fovy = 0;  // vertical field of view, radians
+  SourceLocation where;
+};
+
+struct LightSpec {
+  std::string name;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d direction = -Eigen::Vector3d::UnitZ();  // unit vector
+  bool directional = false;
+  bool cast_shadow = true;
+  Eigen::Vector3d diffuse = Eigen::Vector3d::Constant(0.7);
+  SourceLocation where;
+};
+
+struct CellDescription {
+  std::string name;
+  std::filesystem::path source;  // the YAML file (absolute), or the name given to parse_cell
+  double timestep = 0.002;       // simulation step, seconds
+  std::vector<RobotSpec> robots;
+  std::vector<ConveyorSpec> conveyors;
+  std::vector<MachineSpec> machines;
+  std::optional<HandoverSpec> handover;
+  std::vector<WorkpieceSpec> workpieces;
+  std::vector<LocationSpec> locations;
+  std::vector<CameraSpec> cameras;
+  std::vector<LightSpec> lights;
+
+  // Lookups by name; nullptr when there is none.
+  const RobotSpec* find_robot(std::string_view name) const;
+  const ConveyorSpec* find_conveyor(std::string_view name) const;
+  const MachineSpec* find_machine(std::string_view name) const;
+  const WorkpieceSpec* find_workpiece(std::string_view name) const;
+  const LocationSpec* find_location(std::string_view name) const;
+  const CameraSpec* find_camera(std::string_view name) const;
+};
+
+// One reachability check: a robot's tool centre point at a target pose, solved with the robot's inverse kinematics.
+struct ReachCheck {
+  std::string target;  // "location 'input_pick' (grasp)", "location 'input_pick' (approach)", "hand-over 'handover'"
+  std::string robot;
+  Eigen::Isometry3d tcp_world = Eigen::Isometry3d::Identity();  // the pose asked for
+  bool reachable = false;
+  std::vector<double> q;  // a joint solution (radians) when reachable
+  double distance = 0;    // from the robot's base origin to the target point
+  double max_reach = 0;   // of the robot, from its kinematics
+  std::string reason;     // why not, when unreachable
+  SourceLocation where;   // the location or hand-over in the YAML file
+};
+
+// Reads, checks and resolves a cell description file. Relative URDF paths are relative to the file's directory.
+// Throws InputError naming the file, line, column and field when: the file is missing or is not YAML; a field is
+// missing, unknown, of the wrong type or out of range (negative sizes, colours outside 0..1, ...); a name is used
+// twice; a reference (a robot in `reach`, a conveyor or location in `on`, an `at` target) names nothing; a URDF is
+// missing or unusable; a home configuration does not fit the robot; or a location or the hand-over is out of reach
+// of a robot that must reach it (which location, which robot, the distance and the robot's maximum reach).
+CellDescription load_cell(const std::filesystem::path& yaml_file);
+
+// As load_cell, from YAML text; `source` names the text in errors and its parent directory resolves relative paths.
+CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::path& source);
+
+// Every reachability check the cell asks for: for each location and each robot in its `reach`, the grasp and the
+// approach pose (gripper pointing down; the fingers along the location's yaw or turned half a turn); for the
+// hand-over, each grasp's pose. Does not throw on unreachable targets: it reports them. Throws InputError when a
+// URDF cannot be read.
+std::vector<ReachCheck> check_reach(const CellDescription& cell);
+
+// The tool pose (world) a robot based at `robot_base` uses to grasp at `point` with the given approach; `yaw` is
+// the rotation of the fingers' closing direction about the world z axis (used for kDown).
+Eigen::Isometry3d grasp_pose(const Eigen::Vector3d& point, Approach approach, double yaw,
+                             const Eigen::Isometry3d& robot_base);
+
+}  // namespace cellwright::models

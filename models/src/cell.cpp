@@ -1,0 +1,978 @@
+// Reading and checking the cell description (cell.hpp; the format is documented in docs/cell-description.md).
+#include "cellwright/models/cell.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include "cellwright/models/kinematics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+namespace cellwright::models {
+
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+// --- Reading YAML with positions in every error ----------------------------------------------------------------
+
+class Doc {
+ public:
+  explicit Doc(std::string file) : file_(std::move(file)) {}
+
+  SourceLocation at(const YAML::Node& n) const {
+    const YAML::Mark m = n.Mark();
+    if (m.is_null()) return {file_, 0, 0};
+    return {file_, m.line + 1, m.column + 1};
+  }
+  [[noreturn]] void fail(const YAML::Node& n, std::string problem) const {
+    throw InputError(at(n), std::move(problem));
+  }
+  [[noreturn]] void fail(const SourceLocation& where, std::string problem) const {
+    throw InputError(where, std::move(problem));
+  }
+  const std::string& file() const { return file_; }
+
+ private:
+  std::string file_;
+};
+
+std::string describe(const YAML::Node& n) {
+  if (n.IsScalar()) return fmt::format("'{}'", n.Scalar());
+  if (n.IsSequence()) return "a list";
+  if (n.IsMap()) return "a mapping";
+  return "nothing";
+}
+
+// The fields of one YAML mapping: rejects keys given twice and keys not in the allowed set (typos must not be
+// silently ignored), and remembers where each field is so that errors can point at it.
+class Fields {
+ public:
+  // `what` names the mapping in errors ("the cell description"). A named object passes its kind ("workpiece")
+  // with named = true: errors then say "workpiece 'A'" once its name is known, "a workpiece" before.
+  Fields(const Doc& doc, const YAML::Node& map, std::string what, std::initializer_list<std::string_view> allowed,
+         bool named = false)
+      : doc_(doc), map_(map), what_(std::move(what)) {
+    if (named) {
+      const YAML::Node name = map.IsMap() ? map["name"] : YAML::Node();
+      what_ = name.IsDefined() && name.IsScalar() ? fmt::format("{} '{}'", what_, name.Scalar()) : "a " + what_;
+    }
+    if (!map.IsMap()) doc.fail(map, fmt::format("{} must be a mapping of fields, got {}", what_, describe(map)));
+    for (const auto& kv : map) {
+      if (!kv.first.IsScalar()) doc.fail(kv.first, fmt::format("{}: field names must be plain words", what_));
+      const std::string key = kv.first.Scalar();
+      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
+        std::string list;
+        for (auto a : allowed) list += fmt::format("{}{}", list.empty() ? "" : ", ", a);
+        doc.fail(kv.first, fmt::format("unknown field '{}' in {} (expected one of: {})", key, what_, list));
+      }
+      if (fields_.count(key) != 0) {
+        doc.fail(kv.first, fmt::format("field '{}' of {} is given twice (first on line {})", key, what_,
+                                       doc.at(fields_.at(key).first).line));
+      }
+      fields_.emplace(key, std::make_pair(kv.first, kv.second));
+    }
+  }
+
+  bool has(const std::string& key) const { return fields_.count(key) != 0; }
+  const YAML::Node& node(const std::string& key) const {
+    auto it = fields_.find(key);
+    if (it == fields_.end()) doc_.fail(map_, fmt::format("{} has no field '{}'", what_, key));
+    return it->second.second;
+  }
+  std::optional<YAML::Node> get(const std::string& key) const {
+    auto it = fields_.find(key);
+    if (it == fields_.end()) return std::nullopt;
+    return it->second.second;
+  }
+  const YAML::Node& map() const { return map_; }
+  const std::string& what() const { return what_; }
+  std::string field(const std::string& key) const { return fmt::format("field '{}' of {}", key, what_); }
+
+  double number(const std::string& key) const { return as_number(node(key), field(key)); }
+  double number_or(const std::string& key, double fallback) const { return has(key) ? number(key) : fallback; }
+  double positive(const std::string& key) const {
+    const double v = number(key);
+    if (!(v > 0)) doc_.fail(node(key), fmt::format("{} must be greater than 0, got {}", field(key), v));
+    return v;
+  }
+  double non_negative_or(const std::string& key, double fallback) const {
+    if (!has(key)) return fallback;
+    const double v = number(key);
+    if (v < 0) doc_.fail(node(key), fmt::format("{} must not be negative, got {}", field(key), v));
+    return v;
+  }
+  std::string text(const std::string& key) const { return as_text(node(key), field(key)); }
+  bool boolean_or(const std::string& key, bool fallback) const {
+    if (!has(key)) return fallback;
+    const YAML::Node& n = node(key);
+    bool v = false;
+    if (!n.IsScalar() || !YAML::convert<bool>::decode(n, v)) {
+      doc_.fail(n, fmt::format("{} must be true or false, got {}", field(key), describe(n)));
+    }
+    return v;
+  }
+  std::vector<double> numbers(const std::string& key) const {
+    const YAML::Node& n = node(key);
+    if (!n.IsSequence()) doc_.fail(n, fmt::format("{} must be a list of numbers, got {}", field(key), describe(n)));
+    std::vector<double> out;
+    for (const auto& e : n) out.push_back(as_number(e, field(key)));
+    return out;
+  }
+  std::vector<double> numbers(const std::string& key, std::size_t count) const {
+    auto v = numbers(key);
+    if (v.size() != count) {
+      doc_.fail(node(key), fmt::format("{} must have {} numbers, got {}", field(key), count, v.size()));
+    }
+    return v;
+  }
+  Eigen::Vector3d vec3(const std::string& key) const {
+    auto v = numbers(key, 3);
+    return {v[0], v[1], v[2]};
+  }
+
+  double as_number(const YAML::Node& n, const std::string& field_name) const {
+    double v = 0;
+    if (!n.IsScalar() || !YAML::convert<double>::decode(n, v)) {
+      doc_.fail(n, fmt::format("{} must be a number, got {}", field_name, describe(n)));
+    }
+    if (!std::isfinite(v)) doc_.fail(n, fmt::format("{} must be a finite number, got {}", field_name, n.Scalar()));
+    return v;
+  }
+  std::string as_text(const YAML::Node& n, const std::string& field_name) const {
+    if (!n.IsScalar()) doc_.fail(n, fmt::format("{} must be a word, got {}", field_name, describe(n)));
+    return n.Scalar();
+  }
+
+ private:
+  const Doc& doc_;
+  YAML::Node map_;
+  std::string what_;
+  std::map<std::string, std::pair<YAML::Node, YAML::Node>> fields_;
+};
+
+// Names become MuJoCo names and references: letters, digits, '_' and '-', starting with a letter or '_'.
+bool valid_name(const std::string& s) {
+  if (s.empty() || s.size() > 64) return false;
+  if (!(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
+  return std::all_of(s.begin(), s.end(),
+                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-'; });
+}
+
+// Every object in the cell has a name unique in the whole cell, so that `on:`/`at:` references are unambiguous.
+class Names {
+ public:
+  explicit Names(const Doc& doc) : doc_(doc) {}
+  std::string take(const Fields& f, const std::string& kind) {
+    const YAML::Node& n = f.node("name");
+    const std::string name = f.as_text(n, fmt::format("field 'name' of a {}", kind));
+    if (!valid_name(name)) {
+      doc_.fail(n, fmt::format("{} name '{}' is not valid: use letters, digits, '_' and '-', starting with a letter "
+                               "or '_', at most 64 characters",
+                               kind, name));
+    }
+    auto it = seen_.find(name);
+    if (it != seen_.end()) {
+      doc_.fail(n, fmt::format("duplicate name '{}': already used for the {} on line {}", name, it->second.first,
+                               it->second.second));
+    }
+    seen_.emplace(name, std::make_pair(kind, doc_.at(n).line));
+    return name;
+  }
+
+ private:
+  const Doc& doc_;
+  std::map<std::string, std::pair<std::string, int>> seen_;
+};
+
+// A pose: {xyz: [x, y, z], rpy: [roll, pitch, yaw]} or {xyz: [...], yaw: deg}; angles in degrees.
+Pose read_pose(const Doc& doc, const YAML::Node& n, const std::string& what) {
+  Fields f(doc, n, what, {"xyz", "rpy", "yaw"});
+  Pose p;
+  p.xyz = f.vec3("xyz");
+  if (f.has("rpy") && f.has("yaw"))
+    doc.fail(f.node("yaw"), fmt::format("{}: give either 'rpy' or 'yaw', not both", what));
+  if (f.has("rpy")) p.rpy = f.vec3("rpy") * kDeg;
+  if (f.has("yaw")) p.rpy = Eigen::Vector3d(0, 0, f.number("yaw") * kDeg);
+  return p;
+}
+
+std::vector<YAML::Node> list_of(const Doc& doc, const Fields& top, const std::string& key) {
+  std::vector<YAML::Node> out;
+  auto n = top.get(key);
+  if (!n || n->IsNull()) return out;
+  if (!n->IsSequence()) doc.fail(*n, fmt::format("'{}' must be a list, got {}", key, describe(*n)));
+  for (const auto& e : *n) out.push_back(e);
+  return out;
+}
+
+// --- Sections ----------------------------------------------------------------------------------------------------
+
+SerialSettings read_serial(const Doc& doc, const YAML::Node& n, const std::string& robot, DriverKind driver) {
+  Fields f(doc, n, fmt::format("the serial settings of robot '{}'", robot),
+           {"port", "baud", "data_bits", "parity", "stop_bits", "handshake"});
+  SerialSettings s;
+  // Movemaster EX defaults are the documented line settings (facts.md: 9600 baud, 7E2, RTS and XON/XOFF). No
+  // source documents VAL II's line, so there every setting must be given.
+  if (driver == DriverKind::kMovemaster) {
+    s = SerialSettings{"", 9600, 7, Parity::kEven, 2, true, true};
+  } else if (driver == DriverKind::kVal2) {
+    for (const char* key : {"baud", "data_bits", "parity", "stop_bits"}) {
+      if (!f.has(key)) {
+        doc.fail(n, fmt::format("{} lack '{}': no default is documented for VAL II controllers", f.what(), key));
+      }
+    }
+  }
+  s.port = f.text("port");
+  if (s.port.empty()) doc.fail(f.node("port"), fmt::format("{} must name a serial device", f.field("port")));
+  if (f.has("baud")) {
+    const double b = f.number("baud");
+    static const std::set<int> kRates = {300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200};
+    if (b != std::floor(b) || kRates.count(static_cast<int>(b)) == 0) {
+      doc.fail(f.node("baud"), fmt::format("{} must be one of 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, "
+                                           "57600, 115200, got {}",
+                                           f.field("baud"), f.node("baud").Scalar()));
+    }
+    s.baud = static_cast<int>(b);
+  }
+  if (f.has("data_bits")) {
+    const double d = f.number("data_bits");
+    if (d != std::floor(d) || d < 5 || d > 8) {
+      doc.fail(f.node("data_bits"), fmt::format("{} must be 5, 6, 7 or 8, got {}", f.field("data_bits"), d));
+    }
+    s.data_bits = static_cast<int>(d);
+  }
+  if (f.has("parity")) {
+    const std::string p = f.text("parity");
+    if (p == "none") {
+      s.parity = Parity::kNone;
+    } else if (p == "even") {
+      s.parity = Parity::kEven;
+    } else if (p == "odd") {
+      s.parity = Parity::kOdd;
+    } else {
+      doc.fail(f.node("parity"), fmt::format("{} must be none, even or odd, got '{}'", f.field("parity"), p));
+    }
+  }
+  if (f.has("stop_bits")) {
+    const double sb = f.number("stop_bits");
+    if (sb != 1 && sb != 2) {
+      doc.fail(f.node("stop_bits"), fmt::format("{} must be 1 or 2, got {}", f.field("stop_bits"), sb));
+    }
+    s.stop_bits = static_cast<int>(sb);
+  }
+  if (f.has("handshake")) {
+    const YAML::Node& h = f.node("handshake");
+    std::vector<YAML::Node> items;
+    if (h.IsSequence()) {
+      for (const auto& e : h) items.push_back(e);
+    } else {
+      items.push_back(h);
+    }
+    s.rts_cts = false;
+    s.xon_xoff = false;
+    for (const auto& e : items) {
+      const std::string v = f.as_text(e, f.field("handshake"));
+      if (v == "rtscts") {
+        s.rts_cts = true;
+      } else if (v == "xonxoff") {
+        s.xon_xoff = true;
+      } else if (v != "none") {
+        doc.fail(e,
+                 fmt::format("{} must be none, rtscts, xonxoff or a list of them, got '{}'", f.field("handshake"), v));
+      }
+    }
+  }
+  return s;
+}
+
+RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const std::filesystem::path& base_dir) {
+  Fields f(doc, n, "robot", {"name", "urdf", "base", "home", "grip_force", "driver", "serial"}, true);
+  RobotSpec r;
+  r.where = doc.at(n);
+  r.name = names.take(f, "robot");
+  const std::string urdf = f.text("urdf");
+  r.urdf = std::filesystem::path(urdf).is_absolute() ? std::filesystem::path(urdf) : base_dir / urdf;
+  r.urdf = r.urdf.lexically_normal();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(r.urdf, ec)) {
+    doc.fail(f.node("urdf"),
+             fmt::format("unknown robot model for robot '{}': URDF file '{}' not found", r.name, r.urdf.string()));
+  }
+  r.base = read_pose(doc, f.node("base"), f.field("base"));
+  for (double deg : f.numbers("home")) r.home.push_back(deg * kDeg);
+  if (f.has("grip_force")) {
+    r.grip_force = f.positive("grip_force");
+    if (r.grip_force > 200) {
+      doc.fail(f.node("grip_force"),
+               fmt::format("{} must be at most 200 N, got {}", f.field("grip_force"), r.grip_force));
+    }
+  }
+  const std::string driver = f.has("driver") ? f.text("driver") : "sim";
+  if (driver == "sim") {
+    r.driver = DriverKind::kSim;
+  } else if (driver == "movemaster") {
+    r.driver = DriverKind::kMovemaster;
+  } else if (driver == "val2") {
+    r.driver = DriverKind::kVal2;
+  } else {
+    doc.fail(f.node("driver"), fmt::format("{} must be sim, movemaster or val2, got '{}'", f.field("driver"), driver));
+  }
+  if (f.has("serial")) {
+    r.serial = read_serial(doc, f.node("serial"), r.name, r.driver);
+  } else if (r.driver != DriverKind::kSim) {
+    doc.fail(
+        n, fmt::format("robot '{}' uses the {} driver and needs 'serial' settings (at least 'port')", r.name, driver));
+  }
+  return r;
+}
+
+ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
+  Fields f(doc, n, "conveyor", {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop"}, true);
+  ConveyorSpec c;
+  c.where = doc.at(n);
+  c.name = names.take(f, "conveyor");
+  c.pose = read_pose(doc, f.node("pose"), f.field("pose"));
+  c.length = f.positive("length");
+  c.width = f.positive("width");
+  c.height = f.positive("height");
+  c.speed = f.number("speed");
+  // The belt runs along +x of the conveyor's pose; a conveyor running the other way is turned by its yaw.
+  if (c.speed < 0 || c.speed > 2.0) {
+    doc.fail(f.node("speed"), fmt::format("{} must be within 0..2 m/s (the belt runs along the pose's +x axis; turn "
+                                          "the pose to reverse it), got {}",
+                                          f.field("speed"), c.speed));
+  }
+  c.enter = f.non_negative_or("enter", 0.1 * c.length);
+  c.leave = f.non_negative_or("leave", 0.9 * c.length);
+  for (const char* key : {"enter", "leave"}) {
+    const double v = key == std::string("enter") ? c.enter : c.leave;
+    if (v > c.length) {
+      doc.fail(f.has(key) ? f.node(key) : n,
+               fmt::format("{} must lie on the belt (0..{} m), got {}", f.field(key), c.length, v));
+    }
+  }
+  if (c.leave <= c.enter) {
+    doc.fail(f.has("leave") ? f.node("leave") : n,
+             fmt::format("conveyor '{}': parts enter at {} m and must leave downstream of that, but leave at {} m",
+                         c.name, c.enter, c.leave));
+  }
+  c.stop = f.boolean_or("stop", false);
+  return c;
+}
+
+MachineSpec read_machine(const Doc& doc, Names& names, const YAML::Node& n) {
+  Fields f(doc, n, "machine", {"name", "pose", "size", "fixture", "process_time"}, true);
+  MachineSpec m;
+  m.where = doc.at(n);
+  m.name = names.take(f, "machine");
+  m.pose = read_pose(doc, f.node("pose"), f.field("pose"));
+  m.size = f.vec3("size");
+  if ((m.size.array() <= 0).any()) {
+    doc.fail(f.node("size"), fmt::format("{} must be three sizes greater than 0", f.field("size")));
+  }
+  Fields fx(doc, f.node("fixture"), fmt::format("the fixture of machine '{}'", m.name), {"size"});
+  m.fixture_size = fx.vec3("size");
+  if ((m.fixture_size.array() <= 0).any()) {
+    doc.fail(fx.node("size"), fmt::format("{} must be three sizes greater than 0", fx.field("size")));
+  }
+  if (m.fixture_size.x() > m.size.x() || m.fixture_size.y() > m.size.y()) {
+    doc.fail(fx.node("size"), fmt::format("the fixture of machine '{}' ({} x {} m) must fit on the machine's top "
+                                          "({} x {} m)",
+                                          m.name, m.fixture_size.x(), m.fixture_size.y(), m.size.x(), m.size.y()));
+  }
+  m.process_time = f.non_negative_or("process_time", 0);
+  if (!f.has("process_time")) doc.fail(n, fmt::format("machine '{}' has no field 'process_time'", m.name));
+  return m;
+}
+
+std::vector<std::string> read_names(const Doc& doc, const Fields& f, const std::string& key) {
+  const YAML::Node& n = f.node(key);
+  if (!n.IsSequence()) doc.fail(n, fmt::format("{} must be a list of names, got {}", f.field(key), describe(n)));
+  std::vector<std::string> out;
+  for (const auto& e : n) out.push_back(f.as_text(e, f.field(key)));
+  return out;
+}
+
+// The node a reference came from, so that "unknown reference" errors point at it.
+struct Ref {
+  std::string name;
+  YAML::Node node;
+};
+
+struct PendingLocation {
+  LocationSpec spec;
+  std::optional<Ref> at;  // "<conveyor>.enter", "<conveyor>.leave" or "<machine>.fixture"
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  std::vector<YAML::Node> reach_nodes;
+};
+
+PendingLocation read_location(const Doc& doc, Names& names, const YAML::Node& n) {
+  Fields f(doc, n, "location", {"name", "pose", "at", "offset", "yaw", "reach", "grasp_height", "approach_height"},
+           true);
+  PendingLocation p;
+  p.spec.where = doc.at(n);
+  p.spec.name = names.take(f, "location");
+  if (f.has("pose") == f.has("at")) {
+    doc.fail(n, fmt::format("location '{}' needs exactly one of 'pose' (world) or 'at' (e.g. input.leave, "
+                            "machine.fixture)",
+                            p.spec.name));
+  }
+  if (f.has("pose")) {
+    if (f.has("offset") || f.has("yaw")) {
+      doc.fail(f.has("offset") ? f.node("offset") : f.node("yaw"),
+               fmt::format("location '{}': 'offset' and 'yaw' go with 'at', not with 'pose'", p.spec.name));
+    }
+    p.spec.pose = read_pose(doc, f.node("pose"), f.field("pose"));
+  } else {
+    p.at = Ref{f.text("at"), f.node("at")};
+    if (f.has("offset")) p.offset = f.vec3("offset");
+    if (f.has("yaw")) p.spec.pose.rpy.z() = f.number("yaw") * kDeg;
+  }
+  if (f.has("reach")) {
+    p.spec.reach = read_names(doc, f, "reach");
+    for (const auto& e : f.node("reach")) p.reach_nodes.push_back(e);
+  }
+  p.spec.grasp_height = f.non_negative_or("grasp_height", p.spec.grasp_height);
+  p.spec.approach_height = f.non_negative_or("approach_height", p.spec.approach_height);
+  return p;
+}
+
+struct PendingWorkpiece {
+  WorkpieceSpec spec;
+  std::optional<Ref> on;
+};
+
+PendingWorkpiece read_workpiece(const Doc& doc, Names& names, const YAML::Node& n) {
+  Fields f(doc, n, "workpiece", {"name", "shape", "size", "mass", "colour", "pose", "on"}, true);
+  PendingWorkpiece p;
+  WorkpieceSpec& w = p.spec;
+  w.where = doc.at(n);
+  w.name = names.take(f, "workpiece");
+  const std::string shape = f.text("shape");
+  if (shape == "box") {
+    w.shape = Shape::kBox;
+    w.size = f.vec3("size");
+  } else if (shape == "cylinder") {
+    w.shape = Shape::kCylinder;
+    auto v = f.numbers("size");
+    if (v.size() != 2) {
+      doc.fail(f.node("size"),
+               fmt::format("{} of a cylinder must be [diameter, height], got {} numbers", f.field("size"), v.size()));
+    }
+    w.size = {v[0], v[0], v[1]};
+  } else {
+    doc.fail(f.node("shape"), fmt::format("{} must be box or cylinder, got '{}'", f.field("shape"), shape));
+  }
+  if ((w.size.array() <= 0).any()) {
+    doc.fail(f.node("size"), fmt::format("{} must be greater than 0 in every dimension", f.field("size")));
+  }
+  w.mass = f.positive("mass");
+  const auto rgba = f.numbers("colour");
+  if (rgba.size() != 3 && rgba.size() != 4) {
+    doc.fail(f.node("colour"), fmt::format("{} must be [r, g, b] or [r, g, b, a] with values 0..1, got {} numbers",
+                                           f.field("colour"), rgba.size()));
+  }
+  for (double c : rgba) {
+    if (c < 0 || c > 1) {
+      doc.fail(f.node("colour"), fmt::format("{} must have values 0..1, got {}", f.field("colour"), c));
+    }
+  }
+  w.rgba = {rgba[0], rgba[1], rgba[2], rgba.size() == 4 ? rgba[3] : 1.0};
+  if (f.has("pose") == f.has("on")) {
+    doc.fail(n, fmt::format("workpiece '{}' needs exactly one of 'pose' (its centre in the world) or 'on' (a "
+                            "conveyor or location)",
+                            w.name));
+  }
+  if (f.has("pose")) {
+    w.pose = read_pose(doc, f.node("pose"), f.field("pose"));
+    if (w.pose.xyz.z() <= 0) {
+      doc.fail(f.node("pose"), fmt::format("workpiece '{}' is below the floor (z = {})", w.name, w.pose.xyz.z()));
+    }
+  } else {
+    p.on = Ref{f.text("on"), f.node("on")};
+  }
+  return p;
+}
+
+// Rotation whose -z axis looks from `from` to `to` and whose +y axis (image up) is as close to `up` as possible.
+// Looking straight along `up`, image up is the world +y axis instead.
+Eigen::Vector3d look_at_rpy(const Eigen::Vector3d& from, const Eigen::Vector3d& to, Eigen::Vector3d up) {
+  const Eigen::Vector3d z = (from - to).normalized();
+  if (up.cross(z).norm() < 1e-6) up = Eigen::Vector3d::UnitY();
+  if (up.cross(z).norm() < 1e-6) up = Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d x = up.cross(z).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d r;
+  r.col(0) = x;
+  r.col(1) = y;
+  r.col(2) = z;
+  // rpy from R = Rz*Ry*Rx.
+  const double pitch = std::asin(std::clamp(-r(2, 0), -1.0, 1.0));
+  double roll = 0, yaw = 0;
+  if (std::abs(std::cos(pitch)) > 1e-9) {
+    roll = std::atan2(r(2, 1), r(2, 2));
+    yaw = std::atan2(r(1, 0), r(0, 0));
+  } else {
+    yaw = std::atan2(-r(0, 1), r(1, 1));
+  }
+  return {roll, pitch, yaw};
+}
+
+CameraSpec read_camera(const Doc& doc, Names& names, const YAML::Node& n) {
+  Fields f(doc, n, "camera", {"name", "pose", "position", "look_at", "up", "resolution", "fovy"}, true);
+  CameraSpec c;
+  c.where = doc.at(n);
+  c.name = names.take(f, "camera");
+  if (f.has("pose") == f.has("position")) {
+    doc.fail(n, fmt::format("camera '{}' needs exactly one of 'pose' or 'position' with 'look_at'", c.name));
+  }
+  if (f.has("pose")) {
+    if (f.has("look_at"))
+      doc.fail(f.node("look_at"), fmt::format("camera '{}': 'look_at' goes with 'position'", c.name));
+    c.pose = read_pose(doc, f.node("pose"), f.field("pose"));
+  } else {
+    if (!f.has("look_at")) doc.fail(n, fmt::format("camera '{}' has 'position' but no 'look_at'", c.name));
+    c.pose.xyz = f.vec3("position");
+    const Eigen::Vector3d target = f.vec3("look_at");
+    if ((target - c.pose.xyz).norm() < 1e-6) {
+      doc.fail(f.node("look_at"), fmt::format("camera '{}' looks at its own position", c.name));
+    }
+    Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    if (f.has("up")) {
+      up = f.vec3("up");
+      if (up.norm() < 1e-9) doc.fail(f.node("up"), fmt::format("{} must not be zero", f.field("up")));
+      up.normalize();
+    }
+    c.pose.rpy = look_at_rpy(c.pose.xyz, target, up);
+  }
+  const auto res = f.numbers("resolution", 2);
+  for (double v : res) {
+    if (v != std::floor(v) || v < 16 || v > 4096) {
+      doc.fail(f.node("resolution"),
+               fmt::format("{} must be two whole numbers of pixels 16..4096, got {}", f.field("resolution"), v));
+    }
+  }
+  c.width = static_cast<int>(res[0]);
+  c.height = static_cast<int>(res[1]);
+  const double fovy = f.number("fovy");
+  if (!(fovy > 0 && fovy < 180)) {
+    doc.fail(f.node("fovy"), fmt::format("{} must be between 0 and 180 degrees, got {}", f.field("fovy"), fovy));
+  }
+  c.fovy = fovy * kDeg;
+  return c;
+}
+
+LightSpec read_light(const Doc& doc, Names& names, const YAML::Node& n) {
+  Fields f(doc, n, "light", {"name", "position", "direction", "look_at", "directional", "cast_shadow", "diffuse"},
+           true);
+  LightSpec l;
+  l.where = doc.at(n);
+  l.name = names.take(f, "light");
+  l.position = f.vec3("position");
+  if (f.has("direction") && f.has("look_at")) {
+    doc.fail(f.node("look_at"), fmt::format("light '{}': give 'direction' or 'look_at', not both", l.name));
+  }
+  if (f.has("direction")) l.direction = f.vec3("direction");
+  if (f.has("look_at")) l.direction = f.vec3("look_at") - l.position;
+  if (l.direction.norm() < 1e-9) {
+    doc.fail(f.has("direction") ? f.node("direction") : f.node("look_at"),
+             fmt::format("light '{}' has no direction (zero vector)", l.name));
+  }
+  l.direction.normalize();
+  l.directional = f.boolean_or("directional", false);
+  l.cast_shadow = f.boolean_or("cast_shadow", true);
+  if (f.has("diffuse")) {
+    l.diffuse = f.vec3("diffuse");
+    if ((l.diffuse.array() < 0).any() || (l.diffuse.array() > 1).any()) {
+      doc.fail(f.node("diffuse"), fmt::format("{} must have values 0..1", f.field("diffuse")));
+    }
+  }
+  return l;
+}
+
+HandoverSpec read_handover(const Doc& doc, Names& names, const YAML::Node& n, std::vector<YAML::Node>& robot_nodes) {
+  Fields f(doc, n, "the hand-over", {"name", "pose", "grasps"});
+  HandoverSpec h;
+  h.where = doc.at(n);
+  if (f.has("name")) {
+    h.name = names.take(f, "hand-over");
+  } else {
+    h.name = "handover";
+  }
+  h.pose = read_pose(doc, f.node("pose"), f.field("pose"));
+  const YAML::Node& g = f.node("grasps");
+  if (!g.IsSequence() || g.size() < 2) {
+    doc.fail(g, fmt::format("{} must list at least two robots' grasps, e.g. - {{robot: puma, approach: down}}",
+                            f.field("grasps")));
+  }
+  for (const auto& e : g) {
+    Fields gf(doc, e, "a hand-over grasp", {"robot", "approach", "offset"});
+    HandoverGrasp grasp;
+    grasp.robot = gf.text("robot");
+    robot_nodes.push_back(gf.node("robot"));
+    const std::string approach = gf.has("approach") ? gf.text("approach") : "down";
+    if (approach == "down") {
+      grasp.approach = Approach::kDown;
+    } else if (approach == "side") {
+      grasp.approach = Approach::kSide;
+    } else {
+      doc.fail(gf.node("approach"), fmt::format("{} must be down or side, got '{}'", gf.field("approach"), approach));
+    }
+    if (gf.has("offset")) grasp.offset = gf.vec3("offset");
+    for (const auto& other : h.grasps) {
+      if (other.robot == grasp.robot) {
+        doc.fail(gf.node("robot"), fmt::format("robot '{}' is listed twice in the hand-over", grasp.robot));
+      }
+    }
+    h.grasps.push_back(grasp);
+  }
+  return h;
+}
+
+}  // namespace
+
+// --- Public -------------------------------------------------------------------------------------------------------
+
+Eigen::Matrix3d Pose::rotation() const {
+  return (Eigen::AngleAxisd(rpy.z(), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy.y(), Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(rpy.x(), Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+Eigen::Isometry3d Pose::transform() const {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = rotation();
+  t.translation() = xyz;
+  return t;
+}
+
+Eigen::Vector3d ConveyorSpec::belt_point(double s) const {
+  return pose.transform() * Eigen::Vector3d(s - length / 2, 0, height);
+}
+
+Pose MachineSpec::fixture_top() const {
+  Pose p;
+  p.xyz = pose.transform() * Eigen::Vector3d(0, 0, size.z() + fixture_size.z());
+  p.rpy = Eigen::Vector3d(0, 0, pose.rpy.z());
+  return p;
+}
+
+namespace {
+template <typename T>
+const T* find_named(const std::vector<T>& v, std::string_view name) {
+  for (const auto& e : v) {
+    if (e.name == name) return &e;
+  }
+  return nullptr;
+}
+}  // namespace
+
+const RobotSpec* CellDescription::find_robot(std::string_view n) const {
+  return find_named(robots, n);
+}
+const ConveyorSpec* CellDescription::find_conveyor(std::string_view n) const {
+  return find_named(conveyors, n);
+}
+const MachineSpec* CellDescription::find_machine(std::string_view n) const {
+  return find_named(machines, n);
+}
+const WorkpieceSpec* CellDescription::find_workpiece(std::string_view n) const {
+  return find_named(workpieces, n);
+}
+const LocationSpec* CellDescription::find_location(std::string_view n) const {
+  return find_named(locations, n);
+}
+const CameraSpec* CellDescription::find_camera(std::string_view n) const {
+  return find_named(cameras, n);
+}
+
+CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::path& source) {
+  const Doc doc(source.string());
+  YAML::Node root;
+  try {
+    root = YAML::Load(std::string(yaml_text));
+  } catch (const YAML::ParserException& e) {
+    throw InputError({source.string(), e.mark.line + 1, e.mark.column + 1}, "not valid YAML: " + e.msg);
+  }
+  if (!root.IsDefined() || root.IsNull()) throw InputError({source.string(), 0, 0}, "the cell description is empty");
+  Fields top(doc, root, "the cell description",
+             {"name", "timestep", "robots", "conveyors", "machines", "handover", "workpieces", "locations", "cameras",
+              "lights"});
+  CellDescription cell;
+  cell.source = source;
+  cell.name = top.has("name") ? top.text("name") : source.stem().string();
+  cell.timestep = top.number_or("timestep", cell.timestep);
+  if (!(cell.timestep >= 1e-4 && cell.timestep <= 0.01)) {
+    doc.fail(top.node("timestep"), fmt::format("'timestep' must be within 0.0001..0.01 s, got {}", cell.timestep));
+  }
+  Names names(doc);
+  const std::filesystem::path base_dir = source.parent_path();
+
+  for (const auto& n : list_of(doc, top, "robots")) cell.robots.push_back(read_robot(doc, names, n, base_dir));
+  if (cell.robots.empty()) doc.fail(root, "the cell has no robots: 'robots' must list at least one");
+  for (const auto& n : list_of(doc, top, "conveyors")) cell.conveyors.push_back(read_conveyor(doc, names, n));
+  for (const auto& n : list_of(doc, top, "machines")) cell.machines.push_back(read_machine(doc, names, n));
+
+  auto check_robot_ref = [&](const std::string& robot, const YAML::Node& node, const std::string& user) {
+    if (cell.find_robot(robot) == nullptr) {
+      std::string known;
+      for (const auto& r : cell.robots) known += fmt::format("{}{}", known.empty() ? "" : ", ", r.name);
+      doc.fail(node, fmt::format("unknown robot '{}' in {} (robots: {})", robot, user, known));
+    }
+  };
+
+  if (auto h = top.get("handover")) {
+    std::vector<YAML::Node> robot_nodes;
+    cell.handover = read_handover(doc, names, *h, robot_nodes);
+    for (std::size_t i = 0; i < cell.handover->grasps.size(); ++i) {
+      check_robot_ref(cell.handover->grasps[i].robot, robot_nodes[i], "the hand-over");
+    }
+  }
+
+  // Locations first: workpieces may rest on them.
+  for (const auto& n : list_of(doc, top, "locations")) {
+    PendingLocation p = read_location(doc, names, n);
+    for (std::size_t i = 0; i < p.spec.reach.size(); ++i) {
+      check_robot_ref(p.spec.reach[i], p.reach_nodes[i], fmt::format("the 'reach' of location '{}'", p.spec.name));
+    }
+    if (p.at) {
+      const std::string& ref = p.at->name;
+      const auto dot = ref.rfind('.');
+      const std::string object = dot == std::string::npos ? ref : ref.substr(0, dot);
+      const std::string point = dot == std::string::npos ? "" : ref.substr(dot + 1);
+      const double yaw = p.spec.pose.rpy.z();
+      if (const ConveyorSpec* c = cell.find_conveyor(object)) {
+        if (point != "enter" && point != "leave") {
+          doc.fail(p.at->node, fmt::format("location '{}': a conveyor point is '{}.enter' or '{}.leave', got '{}'",
+                                           p.spec.name, object, object, ref));
+        }
+        p.spec.pose.xyz = c->belt_point(point == "enter" ? c->enter : c->leave);
+        p.spec.pose.rpy = Eigen::Vector3d(0, 0, c->pose.rpy.z() + yaw);
+      } else if (const MachineSpec* m = cell.find_machine(object)) {
+        if (point != "fixture") {
+          doc.fail(p.at->node,
+                   fmt::format("location '{}': a machine point is '{}.fixture', got '{}'", p.spec.name, object, ref));
+        }
+        p.spec.pose = m->fixture_top();
+        p.spec.pose.rpy.z() += yaw;
+      } else {
+        doc.fail(p.at->node, fmt::format("unknown reference '{}' in location '{}': expected <conveyor>.enter, "
+                                         "<conveyor>.leave or <machine>.fixture",
+                                         ref, p.spec.name));
+      }
+      p.spec.pose.xyz += p.offset;
+    }
+    cell.locations.push_back(p.spec);
+  }
+
+  // Parts put on a conveyor stand in a row from its entry point downstream, 2 cm apart, in reverse order of listing:
+  // the first listed is furthest along and reaches the end of the belt (and the robot) first.
+  std::map<std::string, std::vector<std::pair<std::size_t, YAML::Node>>> rows;  // conveyor -> (part, `on` node)
+  for (const auto& n : list_of(doc, top, "workpieces")) {
+    PendingWorkpiece p = read_workpiece(doc, names, n);
+    WorkpieceSpec& w = p.spec;
+    if (p.on) {
+      w.on = p.on->name;
+      if (const ConveyorSpec* c = cell.find_conveyor(w.on)) {
+        rows[c->name].emplace_back(cell.workpieces.size(), p.on->node);
+        w.pose.rpy = Eigen::Vector3d(0, 0, c->pose.rpy.z());
+      } else if (const LocationSpec* l = cell.find_location(w.on)) {
+        w.pose.xyz = l->pose.xyz + Eigen::Vector3d(0, 0, w.size.z() / 2);
+        w.pose.rpy = Eigen::Vector3d(0, 0, l->pose.rpy.z());
+      } else {
+        doc.fail(p.on->node, fmt::format("unknown reference '{}' in workpiece '{}': 'on' names a conveyor or a "
+                                         "location",
+                                         w.on, w.name));
+      }
+    }
+    cell.workpieces.push_back(w);
+  }
+  constexpr double kRowGap = 0.02;
+  for (const auto& [conveyor, row] : rows) {
+    const ConveyorSpec& c = *cell.find_conveyor(conveyor);
+    const double limit = c.stop ? c.leave : c.length;
+    double s = c.enter;  // centre of the next part, walking downstream from the last listed
+    for (auto it = row.rbegin(); it != row.rend(); ++it) {
+      WorkpieceSpec& w = cell.workpieces[it->first];
+      if (it != row.rbegin()) s += w.size.x() / 2;
+      if (s + w.size.x() / 2 > limit + 1e-9) {
+        doc.fail(row.back().second,
+                 fmt::format("the {} parts put on conveyor '{}' do not fit on it: standing in a row from its entry "
+                             "point ({} m) they reach past {} m, where {}",
+                             row.size(), c.name, c.enter, limit, c.stop ? "its stop is" : "the belt ends"));
+      }
+      w.pose.xyz = c.belt_point(s) + Eigen::Vector3d(0, 0, w.size.z() / 2);
+      s += w.size.x() / 2 + kRowGap;
+    }
+  }
+  for (const auto& n : list_of(doc, top, "cameras")) cell.cameras.push_back(read_camera(doc, names, n));
+  for (const auto& n : list_of(doc, top, "lights")) cell.lights.push_back(read_light(doc, names, n));
+
+  // The robots' models: home configurations must fit them, and every location and the hand-over must be reachable.
+  for (std::size_t i = 0; i < cell.robots.size(); ++i) {
+    const RobotSpec& r = cell.robots[i];
+    const YAML::Node robot_node = list_of(doc, top, "robots")[i];
+    std::optional<models::KinematicChain> loaded;
+    try {
+      loaded = models::KinematicChain::from_urdf_file(r.urdf, "base_link", "tcp");
+    } catch (const InputError& e) {
+      // Point at the robot's `urdf` field, and keep the URDF's own file and line in the message.
+      doc.fail(robot_node["urdf"], fmt::format("robot '{}': its URDF cannot be used: {}", r.name, e.what()));
+    }
+    const models::KinematicChain& chain = *loaded;
+    const YAML::Node home = robot_node["home"];
+    if (r.home.size() != chain.dof()) {
+      doc.fail(home, fmt::format("robot '{}': 'home' has {} angles but {} has {} joints from base_link to tcp ({})",
+                                 r.name, r.home.size(), r.urdf.filename().string(), chain.dof(),
+                                 fmt::join(chain.joint_names(), ", ")));
+    }
+    for (std::size_t j = 0; j < r.home.size(); ++j) {
+      const models::JointLimit lim = chain.limits()[j];
+      if (r.home[j] < lim.lower - 1e-9 || r.home[j] > lim.upper + 1e-9) {
+        doc.fail(home[j],
+                 fmt::format("robot '{}': home angle of {} is {:.2f} deg, outside its limits {:.2f}..{:.2f} "
+                             "deg",
+                             r.name, chain.joint_names()[j], r.home[j] / kDeg, lim.lower / kDeg, lim.upper / kDeg));
+      }
+    }
+  }
+  for (const ReachCheck& c : check_reach(cell)) {
+    if (c.reachable) continue;
+    std::string why;
+    if (c.distance > c.max_reach) {
+      why = fmt::format("it is {:.3f} m from the robot's first joint, beyond its maximum reach of {:.3f} m", c.distance,
+                        c.max_reach);
+    } else {
+      why = fmt::format(
+          "it is {:.3f} m from the robot's first joint (maximum reach {:.3f} m) but no joint "
+          "configuration within the limits puts the gripper there ({})",
+          c.distance, c.max_reach, c.reason);
+    }
+    doc.fail(c.where,
+             fmt::format("{} is out of reach of robot '{}' at its base ({:.3f}, {:.3f}, {:.3f}): {}; "
+                         "target ({:.3f}, {:.3f}, {:.3f})",
+                         c.target, c.robot, cell.find_robot(c.robot)->base.xyz.x(),
+                         cell.find_robot(c.robot)->base.xyz.y(), cell.find_robot(c.robot)->base.xyz.z(), why,
+                         c.tcp_world.translation().x(), c.tcp_world.translation().y(), c.tcp_world.translation().z()));
+  }
+  return cell;
+}
+
+CellDescription load_cell(const std::filesystem::path& yaml_file) {
+  std::error_code ec;
+  const std::filesystem::path abs = std::filesystem::absolute(yaml_file, ec).lexically_normal();
+  std::ifstream in(abs, std::ios::binary);
+  if (!in || std::filesystem::is_directory(abs, ec)) {
+    throw InputError({yaml_file.string(), 0, 0}, "cannot read the cell description: file not found or unreadable");
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_cell(text.str(), abs);
+}
+
+namespace {
+
+// One robot's reach test: the IK from home, and if that fails from the other solutions the solver's restarts find.
+// A parallel gripper is symmetric under half a turn about its approach axis, so both finger orientations count.
+ReachCheck reach_one(const models::KinematicChain& chain, const RobotSpec& robot, std::string target,
+                     const std::vector<Eigen::Isometry3d>& candidates, SourceLocation where) {
+  ReachCheck c;
+  c.target = std::move(target);
+  c.robot = robot.name;
+  c.where = std::move(where);
+  c.max_reach = chain.max_reach();
+  const Eigen::Isometry3d base = robot.base.transform();
+  const Eigen::VectorXd seed =
+      Eigen::Map<const Eigen::VectorXd>(robot.home.data(), static_cast<Eigen::Index>(robot.home.size()));
+  for (const Eigen::Isometry3d& world : candidates) {
+    const Eigen::Isometry3d local = base.inverse() * world;
+    const models::IkResult ik = chain.inverse(local, seed);
+    if (c.reason.empty() || ik.status == models::IkStatus::kOk) {
+      c.tcp_world = world;
+      c.distance = (local.translation() - chain.first_joint_origin()).norm();
+      c.reason = ik.reason;
+    }
+    if (ik.status == models::IkStatus::kOk) {
+      c.reachable = true;
+      c.q.assign(ik.q.data(), ik.q.data() + ik.q.size());
+      c.reason.clear();
+      return c;
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+std::vector<ReachCheck> check_reach(const CellDescription& cell) {
+  std::map<std::string, models::KinematicChain> chains;
+  for (const auto& r : cell.robots) {
+    chains.emplace(r.name, models::KinematicChain::from_urdf_file(r.urdf, "base_link", "tcp"));
+  }
+  std::vector<ReachCheck> out;
+  for (const auto& l : cell.locations) {
+    for (const auto& name : l.reach) {
+      const RobotSpec& r = *cell.find_robot(name);
+      const Eigen::Isometry3d base = r.base.transform();
+      for (const bool approach : {false, true}) {
+        const Eigen::Vector3d point =
+            l.pose.xyz + Eigen::Vector3d(0, 0, l.grasp_height + (approach ? l.approach_height : 0.0));
+        const double yaw = l.pose.rpy.z();
+        out.push_back(reach_one(chains.at(name), r,
+                                fmt::format("location '{}' ({})", l.name, approach ? "approach" : "grasp"),
+                                {grasp_pose(point, Approach::kDown, yaw, base),
+                                 grasp_pose(point, Approach::kDown, yaw + std::numbers::pi, base)},
+                                l.where));
+      }
+    }
+  }
+  if (cell.handover) {
+    const HandoverSpec& h = *cell.handover;
+    for (const auto& g : h.grasps) {
+      const RobotSpec& r = *cell.find_robot(g.robot);
+      const Eigen::Isometry3d base = r.base.transform();
+      const Eigen::Vector3d point = h.pose.xyz + g.offset;
+      const double yaw = h.pose.rpy.z();
+      Eigen::Isometry3d turned = grasp_pose(point, g.approach, yaw, base);
+      turned.linear() = turned.linear() * Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitZ());
+      out.push_back(reach_one(chains.at(g.robot), r, fmt::format("the hand-over '{}'", h.name),
+                              {grasp_pose(point, g.approach, yaw, base), turned}, h.where));
+    }
+  }
+  return out;
+}
+
+Eigen::Isometry3d grasp_pose(const Eigen::Vector3d& point, Approach approach, double yaw,
+                             const Eigen::Isometry3d& robot_base) {
+  Eigen::Matrix3d r;
+  if (approach == Approach::kDown) {
+    const Eigen::Vector3d z(0, 0, -1);
+    const Eigen::Vector3d y(std::cos(yaw), std::sin(yaw), 0);
+    r.col(0) = y.cross(z);
+    r.col(1) = y;
+    r.col(2) = z;
+  } else {
+    Eigen::Vector3d d = point - robot_base.translation();
+    d.z() = 0;
+    if (d.norm() < 1e-6) d = robot_base.linear().col(0);
+    d.z() = 0;
+    d.normalize();
+    const Eigen::Vector3d z = d;
+    const Eigen::Vector3d y(-d.y(), d.x(), 0);
+    r.col(0) = y.cross(z);
+    r.col(1) = y;
+    r.col(2) = z;
+  }
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = r;
+  t.translation() = point;
+  return t;
+}
+
+}  // namespace cellwright::models

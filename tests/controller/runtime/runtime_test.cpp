@@ -1,0 +1,323 @@
+// The Runtime end to end without MuJoCo: the paper's Table 1 program on scripted arms and a kinematic plant, in
+// lock-step (byte-identical logs) and real-time mode, with failures, bad input and stepping.
+#include "cellwright/runtime/runtime.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "controller/runtime/scripted_cell.hpp"
+
+namespace cellwright::runtime {
+namespace {
+
+using cellwright::testing::ScriptedCell;
+using cellwright::testing::ScriptedTiming;
+using ::testing::HasSubstr;
+
+std::vector<nlohmann::json> parse(const EventLog& log) {
+  std::vector<nlohmann::json> out;
+  for (const auto& l : log.lines()) out.push_back(nlohmann::json::parse(l));
+  return out;
+}
+
+// Index of the first event with these key values, or -1.
+long find(const std::vector<nlohmann::json>& events, const nlohmann::json& match) {
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    bool all = true;
+    for (const auto& [k, v] : match.items()) all = all && events[i].contains(k) && events[i][k] == v;
+    if (all) return static_cast<long>(i);
+  }
+  return -1;
+}
+
+// Per robot label, the primitives in the order their commands started.
+std::map<std::string, std::vector<int>> starts(const std::vector<nlohmann::json>& events) {
+  std::map<std::string, std::vector<int>> out;
+  for (const auto& e : events) {
+    if (e["type"] == "command_start") out[e["robot"]].push_back(e["primitive"]);
+  }
+  return out;
+}
+
+TEST(RuntimeRun, ExchangeProgramRunsToCompletionAndMovesThePart) {
+  ScriptedCell cell;
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  ASSERT_EQ(r.outcome, Outcome::kFinished) << r.reason << "\n" << rt.log().text();
+  EXPECT_TRUE(cell.config.net.is_final(r.final_marking));
+  ASSERT_TRUE(r.finished_at.has_value());
+  EXPECT_LE(*r.finished_at, r.end_time);
+  // Part A was carried from the input conveyor to the output drop location and rests there, held by nobody.
+  const models::LocationSpec& drop = *cell.config.cell.find_location("output_drop");
+  const Eigen::Vector3d a = cell.plant->workpiece_pose("A").translation();
+  const double half = cell.config.cell.find_workpiece("A")->size.z() / 2;
+  EXPECT_LT((a.head<2>() - drop.pose.xyz.head<2>()).norm(), 0.005) << a.transpose();
+  EXPECT_NEAR(a.z() - half, drop.pose.xyz.z(), 0.005);
+  EXPECT_EQ(r.environment.find_workpiece("A")->held_by, "");
+  EXPECT_FALSE(r.environment.find_robot("melfa")->hold.has_value());
+  // The log tells the same story: it starts and ends, the grips were sensed on A.
+  const auto events = parse(rt.log());
+  EXPECT_EQ(events.front()["type"], "run_start");
+  EXPECT_EQ(events.back()["type"], "run_end");
+  EXPECT_EQ(events.back()["outcome"], "finished");
+  EXPECT_NE(find(events, {{"type", "sensor"}, {"robot", "r1"}, {"condition", "gripped"}, {"workpiece", "A"}}), -1);
+  EXPECT_NE(find(events, {{"type", "sensor"}, {"robot", "r2"}, {"condition", "gripped"}, {"workpiece", "A"}}), -1);
+  EXPECT_EQ(r.firings, cell.config.net.num_transitions());  // every transition of the two chains fired once
+}
+
+TEST(RuntimeRun, CommandStartsRespectTheNet) {
+  ScriptedCell cell;
+  Runtime rt(cell.config);
+  ASSERT_EQ(rt.run().outcome, Outcome::kFinished);
+  const auto events = parse(rt.log());
+  // r2 moves its fingers around the part (primitive 5, hand_grasp) only after r1 signalled ready (r1.t8 fired).
+  const long ready = find(events, {{"type", "fire"}, {"transition", "r1.t8"}});
+  const long grasp = find(events, {{"type", "command_start"}, {"robot", "r2"}, {"primitive", 5}});
+  ASSERT_NE(ready, -1);
+  ASSERT_NE(grasp, -1);
+  EXPECT_LT(ready, grasp);
+  // r1 opens (10) only after r2 reported its close (6) done; r2 departs (9) only after r1's open ended.
+  EXPECT_LT(find(events, {{"type", "command_end"}, {"robot", "r2"}, {"primitive", 6}, {"ok", true}}),
+            find(events, {{"type", "command_start"}, {"robot", "r1"}, {"primitive", 10}}));
+  EXPECT_LT(find(events, {{"type", "command_end"}, {"robot", "r1"}, {"primitive", 10}, {"ok", true}}),
+            find(events, {{"type", "command_start"}, {"robot", "r2"}, {"primitive", 9}}));
+  // Each command starts after the firing that began it, and ends ok once.
+  for (const auto& [robot, prims] : starts(events)) {
+    for (int k : prims) {
+      const std::string t = robot + ".t" + std::to_string(k);
+      EXPECT_LT(find(events, {{"type", "fire"}, {"transition", t}}),
+                find(events, {{"type", "command_start"}, {"robot", robot}, {"primitive", k}}));
+      EXPECT_NE(find(events, {{"type", "command_end"}, {"robot", robot}, {"primitive", k}, {"ok", true}}), -1);
+    }
+  }
+  EXPECT_THAT(starts(events)["r1"], ::testing::ElementsAre(0, 1, 2, 3, 4, 7, 10));
+  EXPECT_THAT(starts(events)["r2"], ::testing::ElementsAre(2, 3, 5, 6, 9, 12, 13, 14, 15));
+}
+
+TEST(RuntimeRun, PerRobotTimeAddsUpToTheRunTime) {
+  ScriptedCell cell;
+  cell.config.limits.settle = std::chrono::milliseconds(200);
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  ASSERT_EQ(r.outcome, Outcome::kFinished);
+  EXPECT_EQ(r.end_time, *r.finished_at + std::chrono::milliseconds(200));
+  ASSERT_EQ(r.robots.size(), 2u);
+  for (const RobotTime& t : r.robots) {
+    EXPECT_EQ(t.time.total(), r.end_time) << t.robot;
+    EXPECT_GT(t.time.busy.count(), 0) << t.robot;
+    EXPECT_GE(t.time.idle, std::chrono::milliseconds(200)) << t.robot;  // at least the settle time
+  }
+  EXPECT_EQ(r.robots[0].cell, "puma");
+  EXPECT_EQ(r.robots[1].cell, "melfa");
+  // r2 waits while r1 picks; r1 waits while r2 grips.
+  EXPECT_GT(r.robots[1].time.waiting, r.robots[0].time.busy / 4);
+  EXPECT_GT(r.robots[0].time.waiting.count(), 0);
+}
+
+TEST(RuntimeRun, AFailedCommandStopsTheRunWithTheReason) {
+  ScriptedCell cell;
+  // Puma's commands: 1 home, 2 open, 3 move above(A), 4 move at(A).
+  cell.driver("puma").fail_command(4, drivers::ErrorCode::unreachable, "joint 2 at its limit");
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  ASSERT_EQ(r.outcome, Outcome::kFailed);
+  EXPECT_THAT(r.reason, HasSubstr("robot r1, primitive 2 'move at(A)'"));
+  EXPECT_THAT(r.reason, HasSubstr("joint 2 at its limit"));
+  const auto events = parse(rt.log());
+  EXPECT_NE(find(events, {{"type", "command_end"}, {"robot", "r1"}, {"primitive", 2}, {"ok", false}}), -1);
+  EXPECT_EQ(events.back()["outcome"], "failed");
+  EXPECT_EQ(find(events, {{"type", "command_start"}, {"robot", "r1"}, {"primitive", 3}}), -1);
+  EXPECT_FALSE(cell.config.net.is_final(r.final_marking));
+  EXPECT_LT(r.end_time, std::chrono::seconds(5));  // stopped at once, not at the time limit
+}
+
+TEST(RuntimeRun, AGripOnNothingFailsTheClose) {
+  ScriptedCell cell;
+  std::map<std::string, drivers::ScriptedDriver*> raw;
+  for (auto& [name, d] : cell.drivers) raw[name] = d.get();
+  // Fingers that never find the part: the plant attaches nothing on close.
+  ScriptedPlant blind(cell.config.cell, raw, std::chrono::milliseconds(1), 0.0);
+  cell.config.plant = &blind;
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  ASSERT_EQ(r.outcome, Outcome::kFailed);
+  EXPECT_THAT(r.reason, HasSubstr("'close A'"));
+  EXPECT_THAT(r.reason, HasSubstr("closed on nothing (expected A)"));
+  EXPECT_NE(find(parse(rt.log()), {{"type", "sensor"}, {"robot", "r1"}, {"condition", "closed_on_nothing"}}), -1);
+}
+
+TEST(RuntimeRun, TheSimTimeLimitEndsARunThatDoesNotFinish) {
+  ScriptedCell cell;
+  cell.config.limits.sim_time = std::chrono::milliseconds(500);
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  EXPECT_EQ(r.outcome, Outcome::kTimeout);
+  EXPECT_EQ(r.end_time, std::chrono::milliseconds(500));
+  EXPECT_THAT(r.reason, HasSubstr("0.5000 s"));
+}
+
+TEST(RuntimeRun, LockstepLogsAreByteIdenticalOverTwentyRuns) {
+  std::string first;
+  for (int i = 0; i < 20; ++i) {
+    ScriptedCell cell;
+    Runtime rt(cell.config);
+    ASSERT_EQ(rt.run().outcome, Outcome::kFinished);
+    if (i == 0) {
+      first = rt.log().text();
+      ASSERT_GT(rt.log().size(), 50u);
+    } else {
+      ASSERT_EQ(rt.log().text(), first) << "run " << i;
+    }
+  }
+}
+
+TEST(RuntimeRun, TheLogShowsWhenTwoRobotsDurationsAreSwapped) {
+  // The byte comparison above would catch an order change: swapping the arms' speeds changes when events happen.
+  ScriptedCell a("exchange.task", {{"puma", ScriptedTiming{120, 40}}, {"melfa", ScriptedTiming{80, 40}}});
+  ScriptedCell b("exchange.task", {{"puma", ScriptedTiming{80, 40}}, {"melfa", ScriptedTiming{120, 40}}});
+  Runtime ra(a.config), rb(b.config);
+  ASSERT_EQ(ra.run().outcome, Outcome::kFinished);
+  ASSERT_EQ(rb.run().outcome, Outcome::kFinished);
+  EXPECT_NE(ra.log().text(), rb.log().text());
+  // ... while the order of each robot's own commands is the program's in both.
+  EXPECT_EQ(starts(parse(ra.log())), starts(parse(rb.log())));
+}
+
+TEST(RuntimeRun, SteppingStopsAtEachFiringAndGivesTheSameLogAsARun) {
+  ScriptedCell plain;
+  Runtime reference(plain.config);
+  ASSERT_EQ(reference.run().outcome, Outcome::kFinished);
+
+  ScriptedCell cell;
+  Runtime rt(cell.config);
+  int steps = 0;
+  std::uint64_t firings = 0;
+  StepState s;
+  do {
+    s = rt.step();
+    ++steps;
+    if (s.ended) break;
+    EXPECT_FALSE(s.task.last_fired.empty()) << "step " << steps;
+    EXPECT_GT(s.task.firings, firings);
+    firings = s.task.firings;
+    ASSERT_EQ(s.robots.size(), 2u);
+    EXPECT_EQ(s.task.marking.size(), cell.config.net.num_places());
+  } while (steps < 200);
+  ASSERT_TRUE(s.ended);
+  ASSERT_TRUE(s.result.has_value());
+  EXPECT_EQ(s.result->outcome, Outcome::kFinished);
+  EXPECT_GT(steps, 10);
+  EXPECT_EQ(rt.log().text(), reference.log().text());
+}
+
+TEST(RuntimeRun, AStepShowsEachRobotsCommandAndState) {
+  ScriptedCell cell;
+  Runtime rt(cell.config);
+  const StepState s = rt.step();
+  ASSERT_FALSE(s.ended);
+  // The first firings: r1 begins `open`, r2 signals and waits at the step-1 barrier.
+  EXPECT_THAT(s.task.last_fired, ::testing::ElementsAre("r1.t0", "r2.t0", "r2.t1"));
+  EXPECT_EQ(s.task.robots[0].activity, RobotActivity::kBusy);
+  EXPECT_EQ(s.task.robots[0].command, "open");
+  EXPECT_EQ(s.task.robots[1].activity, RobotActivity::kWaiting);
+  EXPECT_EQ(s.robots[0].cell, "puma");
+  EXPECT_EQ(s.robots[1].phase, RobotPhase::kBringUp);  // homing takes 30 ms, the first step ends at 10 ms
+  EXPECT_EQ(s.robots[1].driver, drivers::DriverState::connected);
+  // Stepping on after run(): the rest runs to the end.
+  const RunResult r = rt.run();
+  EXPECT_EQ(r.outcome, Outcome::kFinished);
+  EXPECT_TRUE(rt.step().ended);
+}
+
+TEST(RuntimeRun, RealtimeModeRunsTheSameProgram) {
+  ScriptedCell lockstep;
+  Runtime reference(lockstep.config);
+  ASSERT_EQ(reference.run().outcome, Outcome::kFinished);
+
+  ScriptedCell cell("exchange.task", {}, Mode::kRealtime);
+  cell.config.realtime_speed = 20.0;
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  ASSERT_EQ(r.outcome, Outcome::kFinished) << r.reason << "\n" << rt.log().text();
+  EXPECT_EQ(starts(parse(rt.log())), starts(parse(reference.log())));
+  const Eigen::Vector3d a = cell.plant->workpiece_pose("A").translation();
+  EXPECT_LT((a.head<2>() - cell.config.cell.find_location("output_drop")->pose.xyz.head<2>()).norm(), 0.005);
+  for (const RobotTime& t : r.robots) EXPECT_EQ(t.time.total(), r.end_time);
+}
+
+// ---- Bad input is refused before any thread starts ----
+
+void expect_refused(ScriptedCell& cell, const std::string& where, const std::string& what) {
+  try {
+    Runtime rt(cell.config);
+    ADD_FAILURE() << "accepted; expected: " << what;
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(where));
+    EXPECT_THAT(e.what(), HasSubstr(what));
+  }
+  for (auto& [name, d] : cell.drivers) EXPECT_EQ(d->calls().connect, 0) << name;
+}
+
+TEST(RuntimeRun, ARobotBoundToNothingInTheCellIsRefused) {
+  ScriptedCell cell;
+  cell.config.binding.robots["r2"].name = "kuka";
+  expect_refused(cell, "scenario.yaml:5:24", "program robot 'r2' is bound to 'kuka', which is not a robot of the cell");
+}
+
+TEST(RuntimeRun, AnUnboundRobotIsRefused) {
+  ScriptedCell cell;
+  cell.config.binding.robots.erase("r2");
+  expect_refused(cell, "scenario.yaml:1:1", "program robot 'r2' is not bound to a robot of the cell");
+}
+
+TEST(RuntimeRun, TwoRobotsOnOneArmAreRefused) {
+  ScriptedCell cell;
+  cell.config.binding.robots["r2"].name = "puma";
+  expect_refused(cell, "scenario.yaml:5:24", "both bound to cell robot 'puma'");
+}
+
+TEST(RuntimeRun, AMissingLocationOrWorkpieceIsRefused) {
+  ScriptedCell cell;
+  cell.config.binding.objects["B"].name = "output";  // a conveyor, not a location
+  expect_refused(cell, "scenario.yaml:6:10", "program location 'B' is bound to 'output', which is not a location");
+  ScriptedCell cell2;
+  cell2.config.binding.objects["A"] = {"Z", {"scenario.yaml", 7, 3}};
+  expect_refused(cell2, "scenario.yaml:7:3", "program workpiece 'A' is bound to 'Z'");
+  ScriptedCell cell3;
+  cell3.config.binding.objects["Q"] = {"A", {"scenario.yaml", 8, 3}};
+  expect_refused(cell3, "scenario.yaml:8:3", "'Q' is not a workpiece or location of the program");
+}
+
+TEST(RuntimeRun, ARobotWithoutADriverIsRefused) {
+  ScriptedCell cell;
+  cell.config.drivers.erase("melfa");
+  expect_refused(cell, "scenario.yaml:5:24", "cell robot 'melfa' (program robot 'r2') has no driver");
+}
+
+TEST(RuntimeRun, AHandOverInACellWithoutOneIsRefused) {
+  ScriptedCell cell;
+  cell.config.cell.handover.reset();
+  expect_refused(cell, "exchange.task:9:3", "needs a hand-over");
+}
+
+TEST(RuntimeRun, ADriverThatCannotConnectIsRefusedBeforeTheThreadsStart) {
+  ScriptedCell cell;
+  cell.driver("melfa").refuse_connect("serial port /dev/ttyS9 does not exist");
+  Runtime rt(cell.config);
+  EXPECT_THROW(
+      {
+        try {
+          rt.run();
+        } catch (const InputError& e) {
+          EXPECT_THAT(e.what(), HasSubstr("/dev/ttyS9"));
+          throw;
+        }
+      },
+      InputError);
+  EXPECT_EQ(rt.log().size(), 0u);  // not even run_start: nothing ran
+}
+
+}  // namespace
+}  // namespace cellwright::runtime

@@ -1,0 +1,432 @@
+// The cell description: the paper's cell loads as described, every place the robots must reach is reachable, and
+// each kind of bad input is reported with its file, line and problem.
+#include "cellwright/models/cell.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <string>
+
+#include "cellwright/models/kinematics.hpp"
+
+namespace cellwright::twin {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+const std::filesystem::path kSource = CW_SOURCE_DIR;
+
+std::string urdf(const char* file) {
+  return (kSource / "models/urdf" / file).string();
+}
+
+// A small valid cell; each error case below changes one thing in it.
+std::string base_yaml() {
+  return fmt::format(R"(name: test-cell
+robots:
+  - name: puma
+    urdf: {}
+    base: {{xyz: [0, 0, 0], yaw: 0}}
+    home: [0, 84, -192, 0, -72, 90]
+  - name: melfa
+    urdf: {}
+    base: {{xyz: [0.95, 0, 0.25], yaw: 180}}
+    home: [0, 30, 60, 0, 60, 0]
+conveyors:
+  - name: belt
+    pose: {{xyz: [-0.5, -0.55, 0], yaw: 0}}
+    length: 1.2
+    width: 0.2
+    height: 0.5
+    speed: 0.05
+machines:
+  - name: mill
+    pose: {{xyz: [0.05, 0.6, 0], yaw: 0}}
+    size: [0.4, 0.35, 0.4]
+    fixture: {{size: [0.12, 0.12, 0.03]}}
+    process_time: 5
+handover:
+  pose: {{xyz: [0.5, 0, 0.55], yaw: 90}}
+  grasps:
+    - {{robot: puma, approach: down, offset: [0, 0, 0.02]}}
+    - {{robot: melfa, approach: side, offset: [0, 0, -0.02]}}
+locations:
+  - name: pick
+    at: belt.leave
+    reach: [puma]
+workpieces:
+  - name: A
+    shape: box
+    size: [0.04, 0.04, 0.06]
+    mass: 0.1
+    colour: [0.9, 0.1, 0.1]
+    on: belt
+cameras:
+  - name: top
+    position: [0, 0, 2.5]
+    look_at: [0, 0, 0]
+    resolution: [320, 240]
+    fovy: 60
+)",
+                     urdf("puma560.urdf"), urdf("melfa_rve2.urdf"));
+}
+
+// The text with `from` (which must occur) replaced by `to`.
+std::string with(std::string text, const std::string& from, const std::string& to) {
+  const auto pos = text.find(from);
+  EXPECT_NE(pos, std::string::npos) << "the base cell has no '" << from << "'";
+  if (pos != std::string::npos) text.replace(pos, from.size(), to);
+  return text;
+}
+
+// 1-based line of the first line containing `needle`.
+int line_of(const std::string& text, const std::string& needle) {
+  const auto pos = text.find(needle);
+  EXPECT_NE(pos, std::string::npos) << needle;
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(pos), '\n'));
+}
+
+models::CellDescription parse(const std::string& text) {
+  return models::parse_cell(text, "case.yaml");
+}
+
+// The InputError `text` gives; fails the test if it is accepted.
+InputError error_of(const std::string& text) {
+  try {
+    parse(text);
+  } catch (const InputError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "accepted:\n" << text;
+  return InputError({}, "");
+}
+
+void expect_error(const std::string& text, const std::string& fragment, int line) {
+  const InputError e = error_of(text);
+  EXPECT_THAT(e.what(), HasSubstr(fragment));
+  EXPECT_EQ(e.where().file, "case.yaml") << e.what();
+  EXPECT_EQ(e.where().line, line) << e.what();
+  EXPECT_GT(e.where().column, 0) << e.what();
+}
+
+TEST(Cell, PaperCellLoadsAsDescribed) {
+  const models::CellDescription cell = models::load_cell(kSource / "scenes/cell.yaml");
+  EXPECT_EQ(cell.name, "yasuda-cell");
+  EXPECT_TRUE(cell.source.is_absolute());
+  ASSERT_EQ(cell.robots.size(), 2u);
+  const models::RobotSpec& puma = *cell.find_robot("puma");
+  EXPECT_EQ(puma.urdf, (kSource / "models/urdf/puma560.urdf").lexically_normal());
+  ASSERT_EQ(puma.home.size(), 6u);
+  EXPECT_NEAR(puma.home[2], -192 * kDeg, 1e-12);
+  EXPECT_EQ(puma.driver, models::DriverKind::kSim);
+  const models::RobotSpec& melfa = *cell.find_robot("melfa");
+  EXPECT_NEAR(melfa.base.rpy.z(), std::numbers::pi, 1e-12);
+  EXPECT_NEAR(melfa.base.xyz.z(), 0.25, 1e-12);
+
+  const models::ConveyorSpec& input = *cell.find_conveyor("input");
+  EXPECT_TRUE(input.stop);
+  EXPECT_TRUE(input.belt_point(0).isApprox(Eigen::Vector3d(-1.1, -0.55, 0.5)));
+  const models::ConveyorSpec& output = *cell.find_conveyor("output");
+  EXPECT_TRUE(output.stop);
+  EXPECT_DOUBLE_EQ(output.speed, 0.05);
+
+  // Locations resolved from the objects they are at.
+  EXPECT_TRUE(cell.find_location("input_pick")->pose.xyz.isApprox(Eigen::Vector3d(0.03, -0.55, 0.5)));
+  EXPECT_NEAR(cell.find_location("input_pick")->pose.rpy.z(), 90 * kDeg, 1e-12);
+  EXPECT_TRUE(cell.find_location("machine_fixture")->pose.xyz.isApprox(Eigen::Vector3d(0.05, 0.6, 0.43)));
+  EXPECT_TRUE(cell.find_location("output_drop")->pose.xyz.isApprox(Eigen::Vector3d(0.95, 0.405, 0.35)));
+
+  // Parts put on the input conveyor stand in a row from its entry point, 2 cm apart, resting on the belt, the first
+  // listed furthest along.
+  ASSERT_EQ(cell.workpieces.size(), 4u);
+  EXPECT_TRUE(cell.find_workpiece("C")->pose.xyz.isApprox(Eigen::Vector3d(-1.0, -0.55, 0.53)));
+  EXPECT_TRUE(cell.find_workpiece("B")->pose.xyz.isApprox(Eigen::Vector3d(-0.94, -0.55, 0.53)));
+  EXPECT_TRUE(cell.find_workpiece("A")->pose.xyz.isApprox(Eigen::Vector3d(-0.88, -0.55, 0.53)));
+  EXPECT_EQ(cell.find_workpiece("A")->on, "input");
+  // D waits in the machine, on its fixture.
+  EXPECT_EQ(cell.find_workpiece("D")->shape, models::Shape::kCylinder);
+  EXPECT_TRUE(cell.find_workpiece("D")->pose.xyz.isApprox(Eigen::Vector3d(0.05, 0.6, 0.46)));
+  EXPECT_DOUBLE_EQ(cell.find_workpiece("A")->rgba[3], 1.0);
+
+  // The overhead camera looks straight down with image up along the world's +y axis.
+  const models::CameraSpec& cam = *cell.find_camera("overhead");
+  EXPECT_TRUE(cam.pose.rotation().col(2).isApprox(Eigen::Vector3d::UnitZ(), 1e-9));
+  EXPECT_TRUE(cam.pose.rotation().col(1).isApprox(Eigen::Vector3d::UnitY(), 1e-9));
+  EXPECT_EQ(cam.width, 640);
+  EXPECT_NEAR(cam.fovy, 60 * kDeg, 1e-12);
+
+  ASSERT_TRUE(cell.handover.has_value());
+  EXPECT_EQ(cell.handover->name, "exchange");
+  ASSERT_EQ(cell.handover->grasps.size(), 2u);
+  EXPECT_EQ(cell.handover->grasps[1].approach, models::Approach::kSide);
+  EXPECT_EQ(cell.lights.size(), 2u);
+}
+
+// Every location is reachable, gripper down, by the robots that must reach it, and the hand-over by both arms: the
+// joint solutions are checked with forward kinematics, independently of the solver.
+TEST(Cell, EveryLocationAndTheHandoverAreReachable) {
+  const models::CellDescription cell = models::load_cell(kSource / "scenes/cell.yaml");
+  const std::vector<models::ReachCheck> checks = models::check_reach(cell);
+  // Three locations, grasp and approach each, one robot each; the hand-over for two robots.
+  ASSERT_EQ(checks.size(), 8u);
+  int handover_checks = 0;
+  for (const models::ReachCheck& c : checks) {
+    SCOPED_TRACE(c.target + " by " + c.robot);
+    ASSERT_TRUE(c.reachable) << c.reason;
+    const models::RobotSpec& robot = *cell.find_robot(c.robot);
+    const auto chain = models::KinematicChain::from_urdf_file(robot.urdf);
+    const Eigen::VectorXd q = Eigen::Map<const Eigen::VectorXd>(c.q.data(), static_cast<Eigen::Index>(c.q.size()));
+    EXPECT_TRUE(chain.within_limits(q));
+    const Eigen::Isometry3d reached = robot.base.transform() * chain.forward(q);
+    EXPECT_LT((reached.translation() - c.tcp_world.translation()).norm(), 1e-4);
+    EXPECT_LT(Eigen::AngleAxisd(reached.linear().transpose() * c.tcp_world.linear()).angle(), 1e-3);
+    if (c.target.find("hand-over") != std::string::npos) {
+      ++handover_checks;
+    } else {
+      // Locations are reached with the gripper pointing down.
+      EXPECT_TRUE(reached.linear().col(2).isApprox(-Eigen::Vector3d::UnitZ(), 1e-3));
+    }
+  }
+  EXPECT_EQ(handover_checks, 2);
+}
+
+TEST(Cell, GraspPoses) {
+  const Eigen::Isometry3d base(Eigen::Translation3d(1, 0, 0));
+  const Eigen::Isometry3d down = models::grasp_pose({0.5, 0.2, 0.3}, models::Approach::kDown, 90 * kDeg, base);
+  EXPECT_TRUE(down.linear().col(2).isApprox(-Eigen::Vector3d::UnitZ()));
+  EXPECT_TRUE(down.linear().col(1).isApprox(Eigen::Vector3d::UnitY()));
+  EXPECT_NEAR(down.linear().determinant(), 1.0, 1e-12);
+  // From the side: the approach axis points horizontally from the robot's base to the point.
+  const Eigen::Isometry3d side = models::grasp_pose({0.5, 0, 0.3}, models::Approach::kSide, 0, base);
+  EXPECT_TRUE(side.linear().col(2).isApprox(-Eigen::Vector3d::UnitX()));
+  EXPECT_NEAR(side.linear().col(1).z(), 0.0, 1e-12);
+  EXPECT_NEAR(side.linear().determinant(), 1.0, 1e-12);
+  EXPECT_TRUE(side.translation().isApprox(Eigen::Vector3d(0.5, 0, 0.3)));
+}
+
+TEST(Cell, BaseCaseIsValid) {
+  const models::CellDescription cell = parse(base_yaml());
+  EXPECT_EQ(cell.robots.size(), 2u);
+  EXPECT_EQ(cell.handover->name, "handover");
+  // Defaults: parts enter at a tenth of the belt and leave at nine tenths.
+  EXPECT_NEAR(cell.find_conveyor("belt")->enter, 0.12, 1e-12);
+  EXPECT_NEAR(cell.find_conveyor("belt")->leave, 1.08, 1e-12);
+  EXPECT_DOUBLE_EQ(cell.timestep, 0.002);
+  EXPECT_DOUBLE_EQ(cell.robots[0].grip_force, 5.0);
+}
+
+TEST(Cell, SerialSettingsAreKept) {
+  const std::string movemaster = with(base_yaml(), "    home: [0, 30, 60, 0, 60, 0]\n",
+                                      "    home: [0, 30, 60, 0, 60, 0]\n    driver: movemaster\n"
+                                      "    serial: {port: /dev/ttyS1}\n");
+  const models::CellDescription mcell = parse(movemaster);
+  const models::RobotSpec& m = *mcell.find_robot("melfa");
+  EXPECT_EQ(m.driver, models::DriverKind::kMovemaster);
+  ASSERT_TRUE(m.serial.has_value());
+  // The Movemaster's documented line: 9600 baud, 7 data bits, even parity, 2 stop bits, RTS and XON/XOFF.
+  EXPECT_EQ(m.serial->port, "/dev/ttyS1");
+  EXPECT_EQ(m.serial->baud, 9600);
+  EXPECT_EQ(m.serial->data_bits, 7);
+  EXPECT_EQ(m.serial->parity, models::Parity::kEven);
+  EXPECT_EQ(m.serial->stop_bits, 2);
+  EXPECT_TRUE(m.serial->rts_cts);
+  EXPECT_TRUE(m.serial->xon_xoff);
+
+  const std::string val2 = with(
+      base_yaml(), "    home: [0, 84, -192, 0, -72, 90]\n",
+      "    home: [0, 84, -192, 0, -72, 90]\n    driver: val2\n"
+      "    serial: {port: /dev/ttyS0, baud: 19200, data_bits: 8, parity: none, stop_bits: 1, handshake: rtscts}\n");
+  const models::CellDescription pcell = parse(val2);
+  const models::RobotSpec& p = *pcell.find_robot("puma");
+  EXPECT_EQ(p.driver, models::DriverKind::kVal2);
+  EXPECT_EQ(p.serial->baud, 19200);
+  EXPECT_EQ(p.serial->parity, models::Parity::kNone);
+  EXPECT_TRUE(p.serial->rts_cts);
+  EXPECT_FALSE(p.serial->xon_xoff);
+}
+
+TEST(CellErrors, MissingFile) {
+  try {
+    models::load_cell("/nonexistent/cell.yaml");
+    FAIL() << "accepted a missing file";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, "/nonexistent/cell.yaml");
+    EXPECT_THAT(e.what(), HasSubstr("file not found"));
+  }
+}
+
+TEST(CellErrors, NotYaml) {
+  const std::string text = with(base_yaml(), "    length: 1.2\n", "    length: [1.2\n");
+  const InputError e = error_of(text);
+  EXPECT_THAT(e.what(), HasSubstr("not valid YAML"));
+  EXPECT_GE(e.where().line, line_of(text, "length: [1.2"));
+}
+
+TEST(CellErrors, UnknownRobotModel) {
+  const std::string text = with(base_yaml(), "melfa_rve2.urdf", "melfa_rv99.urdf");
+  expect_error(text, "unknown robot model for robot 'melfa': URDF file", line_of(text, "melfa_rv99"));
+}
+
+TEST(CellErrors, UnusableUrdf) {
+  // A URDF without the `tcp` link: the error points at the robot's `urdf` field and repeats the URDF's problem.
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellwright_cell_test";
+  std::filesystem::create_directories(dir);
+  std::ifstream in(urdf("melfa_rve2.urdf"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (auto pos = text.find("\"tcp\""); pos != std::string::npos; pos = text.find("\"tcp\"", pos)) {
+    text.replace(pos, 5, "\"tool\"");
+  }
+  std::ofstream(dir / "no_tcp.urdf") << text;
+  const std::string yaml = with(base_yaml(), urdf("melfa_rve2.urdf"), (dir / "no_tcp.urdf").string());
+  expect_error(yaml, "robot 'melfa': its URDF cannot be used: " + (dir / "no_tcp.urdf").string(),
+               line_of(yaml, "no_tcp.urdf"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(CellErrors, WrongType) {
+  const std::string text = with(base_yaml(), "length: 1.2", "length: long");
+  expect_error(text, "field 'length' of conveyor 'belt' must be a number, got 'long'", line_of(text, "length: long"));
+}
+
+TEST(CellErrors, NegativeSize) {
+  const std::string text = with(base_yaml(), "size: [0.04, 0.04, 0.06]", "size: [0.04, -0.04, 0.06]");
+  expect_error(text, "field 'size' of workpiece 'A' must be greater than 0", line_of(text, "size: [0.04, -0.04"));
+}
+
+TEST(CellErrors, BadColour) {
+  const std::string text = with(base_yaml(), "colour: [0.9, 0.1, 0.1]", "colour: [1.5, 0.1, 0.1]");
+  expect_error(text, "field 'colour' of workpiece 'A' must have values 0..1, got 1.5", line_of(text, "colour: [1.5"));
+  const std::string two = with(base_yaml(), "colour: [0.9, 0.1, 0.1]", "colour: [0.9, 0.1]");
+  expect_error(two, "must be [r, g, b] or [r, g, b, a]", line_of(two, "colour: [0.9, 0.1]"));
+}
+
+TEST(CellErrors, UnknownField) {
+  const std::string text = with(base_yaml(), "colour:", "color:");
+  expect_error(text, "unknown field 'color' in workpiece 'A' (expected one of:", line_of(text, "color:"));
+}
+
+TEST(CellErrors, MissingField) {
+  const std::string text = with(base_yaml(), "    speed: 0.05\n", "");
+  expect_error(text, "conveyor 'belt' has no field 'speed'", line_of(text, "- name: belt"));
+}
+
+TEST(CellErrors, FieldGivenTwice) {
+  const std::string text = with(base_yaml(), "    mass: 0.1\n", "    mass: 0.1\n    mass: 0.2\n");
+  expect_error(text, "field 'mass' of workpiece 'A' is given twice", line_of(text, "mass: 0.2"));
+}
+
+TEST(CellErrors, UnknownReferences) {
+  const std::string on = with(base_yaml(), "on: belt", "on: tray");
+  expect_error(on, "unknown reference 'tray' in workpiece 'A'", line_of(on, "on: tray"));
+  const std::string at = with(base_yaml(), "at: belt.leave", "at: lathe.fixture");
+  expect_error(at, "unknown reference 'lathe.fixture' in location 'pick'", line_of(at, "at: lathe"));
+  const std::string point = with(base_yaml(), "at: belt.leave", "at: belt.middle");
+  expect_error(point, "a conveyor point is 'belt.enter' or 'belt.leave'", line_of(point, "at: belt.middle"));
+  const std::string reach = with(base_yaml(), "reach: [puma]", "reach: [puma, kuka]");
+  expect_error(reach, "unknown robot 'kuka' in the 'reach' of location 'pick' (robots: puma, melfa)",
+               line_of(reach, "reach: [puma, kuka]"));
+  const std::string grasp = with(base_yaml(), "{robot: melfa,", "{robot: kuka,");
+  expect_error(grasp, "unknown robot 'kuka' in the hand-over", line_of(grasp, "{robot: kuka"));
+}
+
+TEST(CellErrors, DuplicateName) {
+  const std::string text = with(base_yaml(), "  - name: pick\n", "  - name: A\n");
+  expect_error(text,
+               fmt::format("duplicate name 'A': already used for the location on line {}",
+                           line_of(text, "  - name: A\n    at:")),
+               line_of(text, "  - name: A\n    shape:"));
+}
+
+TEST(CellErrors, LocationOutOfReach) {
+  // The PUMA moved 3 m away from the belt end it must reach.
+  const std::string text = with(base_yaml(), "base: {xyz: [0, 0, 0], yaw: 0}", "base: {xyz: [3, 0, 0], yaw: 0}");
+  const InputError e = error_of(text);
+  EXPECT_THAT(e.what(), HasSubstr("location 'pick' (grasp) is out of reach of robot 'puma'"));
+  EXPECT_THAT(e.what(), HasSubstr("beyond its maximum reach of 1.161 m"));
+  EXPECT_EQ(e.where().line, line_of(text, "- name: pick"));
+}
+
+TEST(CellErrors, LocationWithinReachButNotWithTheGripperDown) {
+  // Half a metre straight above the MELFA's shoulder: within its reach, but not with the gripper pointing down.
+  const std::string text = with(
+      base_yaml(), "workpieces:", "  - name: high\n    pose: {xyz: [0.95, 0, 1.0]}\n    reach: [melfa]\nworkpieces:");
+  const InputError e = error_of(text);
+  EXPECT_THAT(e.what(), HasSubstr("location 'high' (grasp) is out of reach of robot 'melfa'"));
+  EXPECT_THAT(e.what(), HasSubstr("but no joint configuration within the limits puts the gripper there"));
+  EXPECT_EQ(e.where().line, line_of(text, "- name: high"));
+}
+
+TEST(CellErrors, HandoverOutOfReach) {
+  // Raised to 0.9 m: the PUMA still reaches it from above, the MELFA cannot hold it from the side.
+  const std::string text =
+      with(base_yaml(), "pose: {xyz: [0.5, 0, 0.55], yaw: 90}", "pose: {xyz: [0.5, 0, 0.9], yaw: 90}");
+  const InputError e = error_of(text);
+  EXPECT_THAT(e.what(), HasSubstr("the hand-over 'handover' is out of reach of robot 'melfa'"));
+  EXPECT_THAT(e.what(), HasSubstr("maximum reach 0.572 m"));
+  EXPECT_EQ(e.where().line, line_of(text, "pose: {xyz: [0.5, 0, 0.9]"));
+}
+
+TEST(CellErrors, HomeDoesNotFitTheRobot) {
+  const std::string count = with(base_yaml(), "home: [0, 30, 60, 0, 60, 0]", "home: [0, 30, 60, 0, 60]");
+  expect_error(count, "robot 'melfa': 'home' has 5 angles but melfa_rve2.urdf has 6 joints",
+               line_of(count, "home: [0, 30, 60, 0, 60]"));
+  const std::string limit = with(base_yaml(), "home: [0, 30, 60, 0, 60, 0]", "home: [0, 30, 60, 0, 60, 250]");
+  expect_error(limit, "home angle of joint6 is 250.00 deg, outside its limits -200.00..200.00 deg",
+               line_of(limit, "home: [0, 30, 60, 0, 60, 250]"));
+}
+
+TEST(CellErrors, DriversNeedTheirSettings) {
+  const std::string none = with(base_yaml(), "    home: [0, 30, 60, 0, 60, 0]\n",
+                                "    home: [0, 30, 60, 0, 60, 0]\n    driver: movemaster\n");
+  expect_error(none, "robot 'melfa' uses the movemaster driver and needs 'serial' settings",
+               line_of(none, "- name: melfa"));
+  const std::string val2 = with(base_yaml(), "    home: [0, 84, -192, 0, -72, 90]\n",
+                                "    home: [0, 84, -192, 0, -72, 90]\n    driver: val2\n"
+                                "    serial: {port: /dev/ttyS0}\n");
+  expect_error(val2, "lack 'baud': no default is documented for VAL II controllers", line_of(val2, "serial: {port"));
+  const std::string parity = with(base_yaml(), "    home: [0, 30, 60, 0, 60, 0]\n",
+                                  "    home: [0, 30, 60, 0, 60, 0]\n    driver: movemaster\n"
+                                  "    serial: {port: /dev/ttyS1, parity: mark}\n");
+  expect_error(parity, "must be none, even or odd, got 'mark'", line_of(parity, "serial: {port"));
+  const std::string kind =
+      with(base_yaml(), "    home: [0, 30, 60, 0, 60, 0]\n", "    home: [0, 30, 60, 0, 60, 0]\n    driver: kuka\n");
+  expect_error(kind, "must be sim, movemaster or val2, got 'kuka'", line_of(kind, "driver: kuka"));
+}
+
+TEST(CellErrors, PartsThatDoNotFitOnTheBelt) {
+  std::string text = base_yaml();
+  for (int i = 0; i < 20; ++i) {
+    text += fmt::format(
+        "  - {{name: P{}, shape: box, size: [0.04, 0.04, 0.04], mass: 0.1, colour: [0, 1, 0], on: "
+        "belt}}\n",
+        i);
+  }
+  text = with(text,
+              "cameras:\n  - name: top\n    position: [0, 0, 2.5]\n    look_at: [0, 0, 0]\n"
+              "    resolution: [320, 240]\n    fovy: 60\n",
+              "");
+  text += "cameras: []\n";
+  expect_error(text, "the 21 parts put on conveyor 'belt' do not fit on it", line_of(text, "name: P19,"));
+}
+
+TEST(CellErrors, OutOfRangeValues) {
+  const std::string speed = with(base_yaml(), "speed: 0.05", "speed: -0.05");
+  expect_error(speed, "field 'speed' of conveyor 'belt' must be within 0..2 m/s", line_of(speed, "speed: -0.05"));
+  const std::string fovy = with(base_yaml(), "fovy: 60", "fovy: 200");
+  expect_error(fovy, "between 0 and 180 degrees", line_of(fovy, "fovy: 200"));
+  const std::string res = with(base_yaml(), "resolution: [320, 240]", "resolution: [320.5, 240]");
+  expect_error(res, "whole numbers of pixels", line_of(res, "resolution: [320.5"));
+  const std::string leave = with(base_yaml(), "    speed: 0.05\n", "    speed: 0.05\n    enter: 0.5\n    leave: 0.4\n");
+  expect_error(leave, "must leave downstream of that", line_of(leave, "leave: 0.4"));
+  const std::string shape = with(base_yaml(), "shape: box", "shape: sphere");
+  expect_error(shape, "must be box or cylinder, got 'sphere'", line_of(shape, "shape: sphere"));
+  const std::string name = with(base_yaml(), "- name: A\n", "- name: 'A B'\n");
+  expect_error(name, "workpiece name 'A B' is not valid", line_of(name, "'A B'"));
+}
+
+}  // namespace
+}  // namespace cellwright::twin

@@ -66,7 +66,7 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
       options_(std::move(options)),
       name_(ids_.name),
       chain_(models::KinematicChain::from_urdf_file(scene.cell().robots.at(robot).urdf)) {
-  const models::RobotSpec& spec = scene.cell().robots.at(robot);
+  const auto& spec = scene.cell().robots.at(robot);
   const std::size_t n = ids_.joints.size();
   auto fail = [&](const std::string& problem) {
     return InputError(options_.where, fmt::format("simulated robot '{}': {}", name_, problem));

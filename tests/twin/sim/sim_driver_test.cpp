@@ -210,6 +210,54 @@ TEST_F(SimDriverTest, PositionReadingsAreStampedWithSimulationTime) {
   EXPECT_TRUE(world_tool.linear().isApprox(tcp.linear(), 1e-3));
 }
 
+// A simulation can read its joints at any step (reads_while_moving): a request made during a motion is answered at the
+// next step, with the joints where the moving arm is, while the motion goes on.
+TEST_F(SimDriverTest, PositionRequestsAreAnsweredWhileTheArmMoves) {
+  SimDriver& d = world().add_sim_driver("puma");
+  EXPECT_TRUE(d.capabilities().reads_while_moving);
+  bring_up(world(), d);
+  const Eigen::VectorXd start = joints_now("puma");
+  Eigen::VectorXd goal = start;
+  goal[0] += 0.8;
+  const drivers::Submitted move = d.submit(drivers::MoveJoints{{goal.data(), goal.data() + 6}, 0.5});
+  ASSERT_TRUE(move.accepted());
+  world().advance(300ms);
+  const drivers::Submitted r = d.request_position();
+  ASSERT_TRUE(r.accepted());
+  EXPECT_GT(r.id, move.id);
+  const auto before = world().now();
+  world().advance(kPeriod);
+  ASSERT_EQ(d.poll(r.id).phase, CommandPhase::done);
+  EXPECT_EQ(d.poll(move.id).phase, CommandPhase::running);
+  const auto reading = d.last_position();
+  ASSERT_TRUE(reading);
+  EXPECT_EQ(reading->request, r.id);
+  EXPECT_EQ(reading->stamp, before);
+  // Part of the way: moved from the start, not yet at the goal.
+  EXPECT_GT(reading->joints[0], start[0] + 0.01);
+  EXPECT_LT(reading->joints[0], goal[0] - 0.01);
+  EXPECT_EQ(run_until_finished(world(), d, move.id).phase, CommandPhase::done);
+}
+
+// Given the runtime's clock, the driver stamps readings with it (called on the simulation thread, at the step).
+TEST_F(SimDriverTest, PositionReadingsAreStampedOnTheClockGivenToTheDriver) {
+  SimDriver& d = world().add_sim_driver("puma");
+  bring_up(world(), d);
+  std::chrono::nanoseconds runtime_now = 42s;
+  d.set_clock([&] { return runtime_now; });
+  const drivers::Submitted r = d.request_position();
+  runtime_now = 43s;
+  world().advance(kPeriod);
+  ASSERT_EQ(d.poll(r.id).phase, CommandPhase::done);
+  EXPECT_EQ(d.last_position()->stamp, 43s);
+  d.set_clock({});
+  const drivers::Submitted own = d.request_position();
+  const auto before = world().now();
+  world().advance(kPeriod);
+  ASSERT_EQ(d.poll(own.id).phase, CommandPhase::done);
+  EXPECT_EQ(d.last_position()->stamp, before);
+}
+
 TEST_F(SimDriverTest, MovePoseReachesThePose) {
   SimDriver& d = world().add_sim_driver("puma");
   bring_up(world(), d);

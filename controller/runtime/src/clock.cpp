@@ -1,4 +1,4 @@
-#include "cellwright/twin/runtime/clock.hpp"
+#include "cellwright/runtime/clock.hpp"
 
 #include <cmath>
 #include <thread>
@@ -6,7 +6,7 @@
 
 #include "cellwright/common/error.hpp"
 
-namespace cellwright::twin::runtime {
+namespace cellwright::runtime {
 
 SimDuration VirtualClock::advance(SimDuration dt) {
   CW_CHECK(dt.count() >= 0, "virtual time cannot run backwards (advance by {} ns)", dt.count());
@@ -126,4 +126,4 @@ RealtimePacer::WallClock::duration RealtimePacer::pace(SimDuration sim_time) {
   return WallClock::duration::zero();
 }
 
-}  // namespace cellwright::twin::runtime
+}  // namespace cellwright::runtime

@@ -4,6 +4,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/yaml_fields.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -19,142 +20,10 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-// --- Reading YAML with positions in every error ----------------------------------------------------------------
-
-class Doc {
- public:
-  explicit Doc(std::string file) : file_(std::move(file)) {}
-
-  SourceLocation at(const YAML::Node& n) const {
-    const YAML::Mark m = n.Mark();
-    if (m.is_null()) return {file_, 0, 0};
-    return {file_, m.line + 1, m.column + 1};
-  }
-  [[noreturn]] void fail(const YAML::Node& n, std::string problem) const {
-    throw InputError(at(n), std::move(problem));
-  }
-  [[noreturn]] void fail(const SourceLocation& where, std::string problem) const {
-    throw InputError(where, std::move(problem));
-  }
-  const std::string& file() const { return file_; }
-
- private:
-  std::string file_;
-};
-
-std::string describe(const YAML::Node& n) {
-  if (n.IsScalar()) return fmt::format("'{}'", n.Scalar());
-  if (n.IsSequence()) return "a list";
-  if (n.IsMap()) return "a mapping";
-  return "nothing";
-}
-
-// The fields of one YAML mapping: rejects keys given twice and keys not in the allowed set (typos must not be
-// silently ignored), and remembers where each field is so that errors can point at it.
-class Fields {
- public:
-  // `what` names the mapping in errors ("the cell description"). A named object passes its kind ("workpiece")
-  // with named = true: errors then say "workpiece 'A'" once its name is known, "a workpiece" before.
-  Fields(const Doc& doc, const YAML::Node& map, std::string what, std::initializer_list<std::string_view> allowed,
-         bool named = false)
-      : doc_(doc), map_(map), what_(std::move(what)) {
-    if (named) {
-      const YAML::Node name = map.IsMap() ? map["name"] : YAML::Node();
-      what_ = name.IsDefined() && name.IsScalar() ? fmt::format("{} '{}'", what_, name.Scalar()) : "a " + what_;
-    }
-    if (!map.IsMap()) doc.fail(map, fmt::format("{} must be a mapping of fields, got {}", what_, describe(map)));
-    for (const auto& kv : map) {
-      if (!kv.first.IsScalar()) doc.fail(kv.first, fmt::format("{}: field names must be plain words", what_));
-      const std::string key = kv.first.Scalar();
-      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
-        std::string list;
-        for (auto a : allowed) list += fmt::format("{}{}", list.empty() ? "" : ", ", a);
-        doc.fail(kv.first, fmt::format("unknown field '{}' in {} (expected one of: {})", key, what_, list));
-      }
-      if (fields_.count(key) != 0) {
-        doc.fail(kv.first, fmt::format("field '{}' of {} is given twice (first on line {})", key, what_,
-                                       doc.at(fields_.at(key).first).line));
-      }
-      fields_.emplace(key, std::make_pair(kv.first, kv.second));
-    }
-  }
-
-  bool has(const std::string& key) const { return fields_.count(key) != 0; }
-  const YAML::Node& node(const std::string& key) const {
-    auto it = fields_.find(key);
-    if (it == fields_.end()) doc_.fail(map_, fmt::format("{} has no field '{}'", what_, key));
-    return it->second.second;
-  }
-  std::optional<YAML::Node> get(const std::string& key) const {
-    auto it = fields_.find(key);
-    if (it == fields_.end()) return std::nullopt;
-    return it->second.second;
-  }
-  const YAML::Node& map() const { return map_; }
-  const std::string& what() const { return what_; }
-  std::string field(const std::string& key) const { return fmt::format("field '{}' of {}", key, what_); }
-
-  double number(const std::string& key) const { return as_number(node(key), field(key)); }
-  double number_or(const std::string& key, double fallback) const { return has(key) ? number(key) : fallback; }
-  double positive(const std::string& key) const {
-    const double v = number(key);
-    if (!(v > 0)) doc_.fail(node(key), fmt::format("{} must be greater than 0, got {}", field(key), v));
-    return v;
-  }
-  double non_negative_or(const std::string& key, double fallback) const {
-    if (!has(key)) return fallback;
-    const double v = number(key);
-    if (v < 0) doc_.fail(node(key), fmt::format("{} must not be negative, got {}", field(key), v));
-    return v;
-  }
-  std::string text(const std::string& key) const { return as_text(node(key), field(key)); }
-  bool boolean_or(const std::string& key, bool fallback) const {
-    if (!has(key)) return fallback;
-    const YAML::Node& n = node(key);
-    bool v = false;
-    if (!n.IsScalar() || !YAML::convert<bool>::decode(n, v)) {
-      doc_.fail(n, fmt::format("{} must be true or false, got {}", field(key), describe(n)));
-    }
-    return v;
-  }
-  std::vector<double> numbers(const std::string& key) const {
-    const YAML::Node& n = node(key);
-    if (!n.IsSequence()) doc_.fail(n, fmt::format("{} must be a list of numbers, got {}", field(key), describe(n)));
-    std::vector<double> out;
-    for (const auto& e : n) out.push_back(as_number(e, field(key)));
-    return out;
-  }
-  std::vector<double> numbers(const std::string& key, std::size_t count) const {
-    auto v = numbers(key);
-    if (v.size() != count) {
-      doc_.fail(node(key), fmt::format("{} must have {} numbers, got {}", field(key), count, v.size()));
-    }
-    return v;
-  }
-  Eigen::Vector3d vec3(const std::string& key) const {
-    auto v = numbers(key, 3);
-    return {v[0], v[1], v[2]};
-  }
-
-  double as_number(const YAML::Node& n, const std::string& field_name) const {
-    double v = 0;
-    if (!n.IsScalar() || !YAML::convert<double>::decode(n, v)) {
-      doc_.fail(n, fmt::format("{} must be a number, got {}", field_name, describe(n)));
-    }
-    if (!std::isfinite(v)) doc_.fail(n, fmt::format("{} must be a finite number, got {}", field_name, n.Scalar()));
-    return v;
-  }
-  std::string as_text(const YAML::Node& n, const std::string& field_name) const {
-    if (!n.IsScalar()) doc_.fail(n, fmt::format("{} must be a word, got {}", field_name, describe(n)));
-    return n.Scalar();
-  }
-
- private:
-  const Doc& doc_;
-  YAML::Node map_;
-  std::string what_;
-  std::map<std::string, std::pair<YAML::Node, YAML::Node>> fields_;
-};
+// Reading YAML with positions in every error: the project's one field reader (yaml_fields.hpp).
+using yaml::describe;
+using yaml::Doc;
+using yaml::Fields;
 
 // Names become MuJoCo names and references: letters, digits, '_' and '-', starting with a letter or '_'.
 bool valid_name(const std::string& s) {
@@ -170,7 +39,7 @@ class Names {
   explicit Names(const Doc& doc) : doc_(doc) {}
   std::string take(const Fields& f, const std::string& kind) {
     const YAML::Node& n = f.node("name");
-    const std::string name = f.as_text(n, fmt::format("field 'name' of a {}", kind));
+    const std::string name = f.text_of(n, fmt::format("field 'name' of a {}", kind));
     if (!valid_name(name)) {
       doc_.fail(n, fmt::format("{} name '{}' is not valid: use letters, digits, '_' and '-', starting with a letter "
                                "or '_', at most 64 characters",
@@ -277,7 +146,7 @@ SerialSettings read_serial(const Doc& doc, const YAML::Node& n, const std::strin
     s.rts_cts = false;
     s.xon_xoff = false;
     for (const auto& e : items) {
-      const std::string v = f.as_text(e, f.field("handshake"));
+      const std::string v = f.text_of(e, f.field("handshake"));
       if (v == "rtscts") {
         s.rts_cts = true;
       } else if (v == "xonxoff") {
@@ -395,7 +264,7 @@ std::vector<std::string> read_names(const Doc& doc, const Fields& f, const std::
   const YAML::Node& n = f.node(key);
   if (!n.IsSequence()) doc.fail(n, fmt::format("{} must be a list of names, got {}", f.field(key), describe(n)));
   std::vector<std::string> out;
-  for (const auto& e : n) out.push_back(f.as_text(e, f.field(key)));
+  for (const auto& e : n) out.push_back(f.text_of(e, f.field(key)));
   return out;
 }
 
@@ -694,12 +563,7 @@ const CameraSpec* CellDescription::find_camera(std::string_view n) const {
 
 CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::path& source) {
   const Doc doc(source.string());
-  YAML::Node root;
-  try {
-    root = YAML::Load(std::string(yaml_text));
-  } catch (const YAML::ParserException& e) {
-    throw InputError({source.string(), e.mark.line + 1, e.mark.column + 1}, "not valid YAML: " + e.msg);
-  }
+  const YAML::Node root = yaml::load(yaml_text, doc, "not valid YAML");
   if (!root.IsDefined() || root.IsNull()) throw InputError({source.string(), 0, 0}, "the cell description is empty");
   Fields top(doc, root, "the cell description",
              {"name", "timestep", "robots", "conveyors", "machines", "handover", "workpieces", "locations", "cameras",

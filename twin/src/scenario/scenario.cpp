@@ -11,6 +11,7 @@
 #include <set>
 
 #include "cellwright/common/files.hpp"
+#include "cellwright/models/yaml_fields.hpp"
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/task/compile.hpp"
 #include "cellwright/task/to_net.hpp"
@@ -20,121 +21,10 @@ namespace cellwright::twin::scenario {
 
 namespace {
 
-// --- YAML with positions in every error ---------------------------------------------------------------------------
-
-class Doc {
- public:
-  explicit Doc(std::string file) : file_(std::move(file)) {}
-  SourceLocation at(const YAML::Node& n) const {
-    const YAML::Mark m = n.Mark();
-    if (m.is_null()) return {file_, 0, 0};
-    return {file_, m.line + 1, m.column + 1};
-  }
-  [[noreturn]] void fail(const YAML::Node& n, std::string problem) const {
-    throw InputError(at(n), std::move(problem));
-  }
-  const std::string& file() const { return file_; }
-
- private:
-  std::string file_;
-};
-
-std::string describe(const YAML::Node& n) {
-  if (n.IsScalar()) return fmt::format("'{}'", n.Scalar());
-  if (n.IsSequence()) return "a list";
-  if (n.IsMap()) return "a mapping";
-  return "nothing";
-}
-
-// The fields of one mapping: unknown and repeated keys are errors (a typo must not be silently ignored).
-class Fields {
- public:
-  Fields(const Doc& doc, const YAML::Node& map, std::string what, std::initializer_list<std::string_view> allowed)
-      : doc_(doc), map_(map), what_(std::move(what)) {
-    if (!map.IsMap()) doc.fail(map, fmt::format("{} must be a mapping of fields, got {}", what_, describe(map)));
-    for (const auto& kv : map) {
-      if (!kv.first.IsScalar()) doc.fail(kv.first, fmt::format("{}: field names must be plain words", what_));
-      const std::string key = kv.first.Scalar();
-      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
-        std::string list;
-        for (auto a : allowed) list += fmt::format("{}{}", list.empty() ? "" : ", ", a);
-        doc.fail(kv.first, fmt::format("unknown field '{}' in {} (expected one of: {})", key, what_, list));
-      }
-      if (fields_.count(key) != 0) {
-        doc.fail(kv.first, fmt::format("field '{}' of {} is given twice (first on line {})", key, what_,
-                                       doc.at(fields_.at(key).first).line));
-      }
-      fields_.emplace(key, std::make_pair(kv.first, kv.second));
-    }
-  }
-
-  bool has(const std::string& key) const { return fields_.count(key) != 0; }
-  const YAML::Node& node(const std::string& key) const {
-    auto it = fields_.find(key);
-    if (it == fields_.end()) doc_.fail(map_, fmt::format("{} has no field '{}' (it is required)", what_, key));
-    return it->second.second;
-  }
-  const YAML::Node& key_node(const std::string& key) const { return fields_.at(key).first; }
-  std::string field(const std::string& key) const { return fmt::format("field '{}' of {}", key, what_); }
-
-  double number(const std::string& key) const {
-    const YAML::Node& n = node(key);
-    double v = 0;
-    if (!n.IsScalar() || !YAML::convert<double>::decode(n, v)) {
-      doc_.fail(n, fmt::format("{} must be a number, got {}", field(key), describe(n)));
-    }
-    if (!std::isfinite(v)) doc_.fail(n, fmt::format("{} must be a finite number, got {}", field(key), n.Scalar()));
-    return v;
-  }
-  double positive_or(const std::string& key, double fallback) const {
-    if (!has(key)) return fallback;
-    const double v = number(key);
-    if (!(v > 0)) doc_.fail(node(key), fmt::format("{} must be greater than 0, got {}", field(key), v));
-    return v;
-  }
-  double non_negative_or(const std::string& key, double fallback) const {
-    if (!has(key)) return fallback;
-    const double v = number(key);
-    if (v < 0) doc_.fail(node(key), fmt::format("{} must not be negative, got {}", field(key), v));
-    return v;
-  }
-  std::string text(const std::string& key) const { return text_of(node(key), field(key)); }
-  std::string text_of(const YAML::Node& n, const std::string& what) const {
-    if (!n.IsScalar() || n.Scalar().empty()) doc_.fail(n, fmt::format("{} must be a word, got {}", what, describe(n)));
-    return n.Scalar();
-  }
-  bool boolean_or(const std::string& key, bool fallback) const {
-    if (!has(key)) return fallback;
-    const YAML::Node& n = node(key);
-    bool v = false;
-    if (!n.IsScalar() || !YAML::convert<bool>::decode(n, v)) {
-      doc_.fail(n, fmt::format("{} must be true or false, got {}", field(key), describe(n)));
-    }
-    return v;
-  }
-  // A mapping of word -> word, in file order, with the position of each key; keys given twice are errors.
-  std::vector<std::pair<std::string, std::pair<YAML::Node, YAML::Node>>> word_map(const std::string& key) const {
-    const YAML::Node& n = node(key);
-    if (!n.IsMap()) doc_.fail(n, fmt::format("{} must be a mapping of names, got {}", field(key), describe(n)));
-    std::vector<std::pair<std::string, std::pair<YAML::Node, YAML::Node>>> out;
-    std::map<std::string, int> seen;
-    for (const auto& kv : n) {
-      const std::string k = text_of(kv.first, fmt::format("a name in {}", field(key)));
-      if (auto it = seen.find(k); it != seen.end()) {
-        doc_.fail(kv.first, fmt::format("'{}' is given twice in {} (first on line {})", k, field(key), it->second));
-      }
-      seen.emplace(k, doc_.at(kv.first).line);
-      out.push_back({k, {kv.first, kv.second}});
-    }
-    return out;
-  }
-
- private:
-  const Doc& doc_;
-  YAML::Node map_;
-  std::string what_;
-  std::map<std::string, std::pair<YAML::Node, YAML::Node>> fields_;
-};
+// YAML with positions in every error: the project's one field reader (yaml_fields.hpp).
+using models::yaml::describe;
+using models::yaml::Doc;
+using models::yaml::Fields;
 
 std::string list_names(const std::vector<std::string>& names) {
   if (names.empty()) return "none";
@@ -204,7 +94,7 @@ models::LocationSpec read_location(const Doc& doc, const models::CellDescription
                  {"name", "at", "offset", "pose", "yaw", "grasp_height", "approach_height"});
   models::LocationSpec l;
   l.where = doc.at(n);
-  l.name = f.text("name");
+  l.name = f.word("name");
   const std::vector<std::string> taken = cell_names(cell);
   const bool valid = (std::isalpha(static_cast<unsigned char>(l.name[0])) || l.name[0] == '_') &&
                      std::all_of(l.name.begin(), l.name.end(), [](char c) {
@@ -239,7 +129,7 @@ models::LocationSpec read_location(const Doc& doc, const models::CellDescription
     l.pose.xyz = vec3(pf.node("xyz"), pf.field("xyz"));
     l.pose.rpy = Eigen::Vector3d(0, 0, yaw);
   } else {
-    const std::string ref = f.text("at");
+    const std::string ref = f.word("at");
     const auto dot = ref.rfind('.');
     const std::string object = dot == std::string::npos ? ref : ref.substr(0, dot);
     const std::string point = dot == std::string::npos ? "" : ref.substr(dot + 1);
@@ -320,14 +210,8 @@ std::map<std::string, Eigen::Isometry3d> draw_perturbation(const Perturbation& p
 }
 
 Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path& source) {
-  const Doc doc(source.string());
-  YAML::Node root;
-  try {
-    root = YAML::Load(std::string(yaml_text));
-  } catch (const YAML::Exception& e) {
-    throw InputError({doc.file(), e.mark.is_null() ? 0 : e.mark.line + 1, e.mark.is_null() ? 0 : e.mark.column + 1},
-                     fmt::format("not a valid YAML file: {}", e.msg));
-  }
+  const Doc doc(source.string(), models::yaml::MissingField::kSayRequired);
+  const YAML::Node root = models::yaml::load(yaml_text, doc, "not a valid YAML file");
   if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
   const Fields f(doc, root, "the scenario",
                  {"cell", "program", "seed", "locations", "drivers", "robots", "bind", "feed", "limits", "expect",
@@ -338,11 +222,11 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   s.source = source;
 
   // The cell and the program: their own loaders report errors in their own files.
-  s.cell_file = resolve(dir, f.text("cell"));
-  s.cell = with_context(doc, f.node("cell"), fmt::format("field 'cell' names '{}'", f.text("cell")),
+  s.cell_file = resolve(dir, f.word("cell"));
+  s.cell = with_context(doc, f.node("cell"), fmt::format("field 'cell' names '{}'", f.word("cell")),
                         [&] { return models::load_cell(s.cell_file); });
-  s.program_file = resolve(dir, f.text("program"));
-  s.program = with_context(doc, f.node("program"), fmt::format("field 'program' names '{}'", f.text("program")),
+  s.program_file = resolve(dir, f.word("program"));
+  s.program = with_context(doc, f.node("program"), fmt::format("field 'program' names '{}'", f.word("program")),
                            [&] { return task::compile_file(s.program_file); });
 
   if (f.has("seed")) {
@@ -375,7 +259,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       auto it = std::find_if(given.begin(), given.end(), [&](const auto& g) { return g.first == label; });
       if (it != given.end()) {
         const YAML::Node& v = it->second.second;
-        b.name = f.text_of(v, fmt::format("the cell {} bound to {} '{}'", cell_noun, noun, label));
+        b.name = f.word_of(v, fmt::format("the cell {} bound to {} '{}'", cell_noun, noun, label));
         b.where = doc.at(it->second.first);
         if (std::find(cell_names.begin(), cell_names.end(), b.name) == cell_names.end()) {
           doc.fail(v,
@@ -456,7 +340,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     d.where = r.where;
     if (auto it = driver_given.find(r.name); it != driver_given.end()) {
       const YAML::Node& v = it->second.second;
-      const std::string text = f.text_of(v, fmt::format("the driver of robot '{}'", r.name));
+      const std::string text = f.word_of(v, fmt::format("the driver of robot '{}'", r.name));
       const auto kind = driver_kind(text);
       if (!kind)
         doc.fail(v, fmt::format("the driver of robot '{}' must be sim, movemaster or val2, got '{}'", r.name, text));
@@ -477,7 +361,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     const Fields ff(doc, f.node("feed"), "field 'feed'", {"conveyor", "workpieces", "start", "period"});
     Feed feed;
     feed.where = doc.at(f.key_node("feed"));
-    feed.conveyor = ff.text("conveyor");
+    feed.conveyor = ff.word("conveyor");
     if (s.cell.find_conveyor(feed.conveyor) == nullptr) {
       doc.fail(ff.node("conveyor"),
                fmt::format("the feed's conveyor '{}' is not a conveyor of the cell (conveyors: {})", feed.conveyor,
@@ -490,7 +374,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     }
     std::map<std::string, int> seen;
     for (const auto& e : list) {
-      const std::string w = ff.text_of(e, fmt::format("an entry of {}", ff.field("workpieces")));
+      const std::string w = ff.word_of(e, fmt::format("an entry of {}", ff.field("workpieces")));
       if (s.cell.find_workpiece(w) == nullptr) {
         doc.fail(e, fmt::format("the feed names workpiece '{}', which is not in the cell (workpieces: {})", w,
                                 list_names(names_of(s.cell.workpieces))));
@@ -514,7 +398,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
 
   // --- perception ---
   if (f.has("perception")) {
-    const std::string p = f.text("perception");
+    const std::string p = f.word("perception");
     if (p == "truth") {
       s.perception = runtime::Perception::kTruth;
     } else if (p == "vision") {
@@ -534,7 +418,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     v.where = doc.at(f.has("vision") ? f.key_node("vision") : f.key_node("perception"));
     if (f.has("vision")) {
       const Fields vf(doc, f.node("vision"), "field 'vision'", {"camera", "period"});
-      if (vf.has("camera")) v.camera = vf.text("camera");
+      if (vf.has("camera")) v.camera = vf.word("camera");
       v.period = vf.positive_or("period", v.period);
       if (!v.camera.empty() && s.cell.find_camera(v.camera) == nullptr) {
         doc.fail(vf.node("camera"), fmt::format("the vision camera '{}' is not a camera of the cell (cameras: {})",
@@ -559,7 +443,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
                                  describe(list)));
     }
     for (const auto& e : list) {
-      const std::string w = pf.text_of(e, fmt::format("an entry of {}", pf.field("workpieces")));
+      const std::string w = pf.word_of(e, fmt::format("an entry of {}", pf.field("workpieces")));
       if (s.cell.find_workpiece(w) == nullptr) {
         doc.fail(e, fmt::format("{} names workpiece '{}', which is not in the cell (workpieces: {})",
                                 pf.field("workpieces"), w, list_names(names_of(s.cell.workpieces))));
@@ -662,7 +546,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
         place_node = ef.node("at");
         e.tolerance = ef.positive_or("tolerance", tolerance);
       }
-      e.place = f.text_of(place_node, fmt::format("where workpiece '{}' must end up", workpiece));
+      e.place = f.word_of(place_node, fmt::format("where workpiece '{}' must end up", workpiece));
       if (std::find(places.begin(), places.end(), e.place) == places.end()) {
         doc.fail(place_node, fmt::format("workpiece '{}' is expected at '{}', which is not a location, conveyor or "
                                          "machine of the cell (they are: {})",

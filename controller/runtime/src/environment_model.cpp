@@ -193,7 +193,6 @@ void apply_truth(EnvironmentModel& model, const Truth& truth, Perception percept
   for (const RobotTruth& r : truth.robots) {
     RobotState* s = model.find_robot(r.name);
     if (s == nullptr) continue;
-    if (!r.joints.empty()) s->joints = r.joints;
     s->between_fingers = r.between_fingers;
   }
 }

@@ -37,6 +37,17 @@ Eigen::VectorXd to_eigen(const std::vector<double>& v) {
   return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
 }
 
+// Whether a move to `next` right after one to `previous` is a straight approach, grasp or lift: between the point
+// above something and the point at it, or between the hand-over approach and grasp, of the same object.
+bool straight_from(const std::optional<task::Target>& previous, const task::Target& next) {
+  if (!previous || previous->object != next.object) return false;
+  using K = task::TargetKind;
+  const auto pair = [&](K a, K b) {
+    return (previous->kind == a && next.kind == b) || (previous->kind == b && next.kind == a);
+  };
+  return pair(K::kAbove, K::kAt) || pair(K::kHandApproach, K::kHandGrasp);
+}
+
 }  // namespace
 
 RobotControl::RobotControl(std::size_t index, std::string label, std::string cell_name, drivers::RobotDriver& driver,
@@ -205,17 +216,24 @@ bool RobotControl::submit_current(SimDuration now) {
     } else {
       pose_in_base = chain_.forward(to_eigen(goal));
     }
-    if (caps.joint_control) {
+    const bool pose_command = caps.cartesian_control && (caps.prefers_pose || !caps.joint_control);
+    if (pose_command) {
+      // The driver solves its own IK and may pick another configuration: check the tool, not the joints.
+      const drivers::Path path =
+          caps.linear_motion && straight_from(last_target_, target) ? drivers::Path::linear : drivers::Path::joint;
+      cmd = drivers::MovePose{pose_in_base, path, options_.speed};
+      current_->goal_pose = pose_in_base;
+      current_->goal = std::move(goal);
+      current_->pose_command = true;
+    } else if (caps.joint_control) {
       cmd = drivers::MoveJoints{goal, options_.speed};
       current_->goal = std::move(goal);
-    } else if (caps.cartesian_control) {
-      // The driver solves its own IK and may pick another configuration: check the tool, not the joints.
-      cmd = drivers::MovePose{pose_in_base, drivers::Path::joint, options_.speed};
       current_->goal_pose = pose_in_base;
     } else {
       fail(now, fmt::format("the driver of {} takes neither joint nor pose motions", cell_));
       return false;
     }
+    current_->target = target;
   } else {
     drivers::Grip grip;
     grip.action = p.kind == task::PrimitiveKind::kClose ? drivers::Grip::Action::close : drivers::Grip::Action::open;
@@ -224,6 +242,11 @@ bool RobotControl::submit_current(SimDuration now) {
   }
   const drivers::Submitted s = driver_.submit(cmd);
   current_->detail = drivers::describe(cmd);
+  if (s.error == drivers::ErrorCode::busy) {
+    current_->goal.clear();
+    current_->goal_pose.reset();
+    return false;  // its queue is full (a position read, say): ask again next turn
+  }
   if (!s.accepted()) {
     fail(now, fmt::format("the driver refused '{}': {}: {}", current_->detail, drivers::to_string(s.error), s.message));
     return false;
@@ -238,36 +261,13 @@ void RobotControl::complete(SimDuration now) {
   const task::Primitive& p = current_->command.primitive;
   const std::size_t index = current_->command.index;
   if (!current_->done_seen) current_->done_seen = now;
-  if (await_fresh_truth_ && env_.read([](const EnvironmentModel& m) { return m.time; }) <= *current_->done_seen) {
-    return;  // the truth of the step that completed the command is not in the model yet: check next turn
+  if (p.kind != task::PrimitiveKind::kMove && await_fresh_truth_ &&
+      env_.read([](const EnvironmentModel& m) { return m.time; }) <= *current_->done_seen) {
+    return;  // the grip sensors of the step that completed the command are not in the model yet: check next turn
   }
   if (p.kind == task::PrimitiveKind::kMove) {
-    const std::vector<double> joints =
-        env_.read([&](const EnvironmentModel& m) { return m.find_robot(cell_)->joints; });
-    if (current_->goal_pose && joints.size() == chain_.dof()) {
-      const double err = (chain_.forward(to_eigen(joints)).translation() - current_->goal_pose->translation()).norm();
-      if (err > options_.pose_tolerance) {
-        log_.sensor(now, label_, index, "position_missed", "");
-        return fail(now, fmt::format("position not reached: the tool is {:.4f} m from its goal (tolerance {:.4f})", err,
-                                     options_.pose_tolerance));
-      }
-    } else if (joints.size() == current_->goal.size()) {
-      std::size_t worst = 0;
-      double err = 0;
-      for (std::size_t j = 0; j < joints.size(); ++j) {
-        const double e = std::abs(joints[j] - current_->goal[j]);
-        if (e > err) {
-          err = e;
-          worst = j;
-        }
-      }
-      if (err > options_.position_tolerance) {
-        log_.sensor(now, label_, index, "position_missed", "");
-        return fail(now, fmt::format("position not reached: joint {} is {:.4f} rad from its goal (tolerance {:.4f})",
-                                     worst + 1, err, options_.position_tolerance));
-      }
-    }
-    log_.sensor(now, label_, index, "position_reached", "");
+    if (!check_position(now)) return;  // waiting for the read-back, or failed
+    if (current_->target) last_target_ = current_->target;
   } else if (p.kind == task::PrimitiveKind::kClose) {
     const std::string expected = p.workpiece.empty() ? std::string() : bound(p.workpiece);
     const std::optional<std::string> between =
@@ -321,6 +321,100 @@ void RobotControl::complete(SimDuration now) {
   phase_ = RobotPhase::kReady;
 }
 
+bool RobotControl::check_position(SimDuration now) {
+  const std::size_t index = current_->command.index;
+  const drivers::Capabilities& caps = driver_.capabilities();
+  if (!caps.reads_joints && !caps.reads_pose) {
+    log_.sensor(now, label_, index, "position_not_sensed", "");
+    return true;
+  }
+  if (!reading_ || reading_sent_ < *current_->done_seen) {
+    // Only a read asked for once the driver said done shows where the arm stopped.
+    if (position_request_ == 0) request_position(now);
+    return false;
+  }
+  const drivers::PositionReading& r = *reading_;
+  const auto missed = [&](std::string why) {
+    log_.sensor(now, label_, index, "position_missed", "");
+    fail(now, fmt::format("position not reached: {}", why));
+    return false;
+  };
+  if (!current_->pose_command && r.joints.size() == current_->goal.size()) {
+    std::size_t worst = 0;
+    double err = 0;
+    for (std::size_t j = 0; j < r.joints.size(); ++j) {
+      const double e = std::abs(r.joints[j] - current_->goal[j]);
+      if (e > err) {
+        err = e;
+        worst = j;
+      }
+    }
+    if (err > options_.position_tolerance) {
+      return missed(fmt::format("joint {} is {:.4f} rad from its goal (tolerance {:.4f})", worst + 1, err,
+                                options_.position_tolerance));
+    }
+  } else {
+    // A pose-commanded robot may reach the pose in another configuration: its tool tells, not its joints.
+    std::optional<Eigen::Isometry3d> tool = r.tool_pose;
+    if (!tool && r.joints.size() == chain_.dof()) tool = chain_.forward(to_eigen(r.joints));
+    if (!tool || !current_->goal_pose) {
+      log_.sensor(now, label_, index, "position_not_sensed", "");
+      return true;
+    }
+    const double err = (tool->translation() - current_->goal_pose->translation()).norm();
+    if (err > options_.pose_tolerance) {
+      return missed(fmt::format("the tool is {:.4f} m from its goal (tolerance {:.4f})", err, options_.pose_tolerance));
+    }
+    if (r.joints.empty() && current_->goal.size() == chain_.dof()) {
+      // No joint read-back: the joints the goal was solved with are the best estimate (they seed the next IK).
+      env_.write([&](EnvironmentModel& m) {
+        if (RobotState* robot = m.find_robot(cell_)) robot->joints = current_->goal;
+      });
+    }
+  }
+  log_.sensor(now, label_, index, "position_reached", "");
+  return true;
+}
+
+bool RobotControl::request_position(SimDuration now) {
+  if (position_request_ != 0) return true;
+  const drivers::DriverState st = driver_.state();
+  if (st != drivers::DriverState::homed && st != drivers::DriverState::active && st != drivers::DriverState::stopped) {
+    return false;
+  }
+  const drivers::Submitted s = driver_.request_position();
+  if (!s.accepted()) return false;  // busy: its queue is full; next turn
+  position_request_ = s.id;
+  last_request_ = now;
+  return true;
+}
+
+void RobotControl::read_position(SimDuration now) {
+  if (position_request_ != 0) {
+    const drivers::CommandStatus st = driver_.poll(position_request_);
+    if (st.phase == drivers::CommandPhase::pending || st.phase == drivers::CommandPhase::running) return;
+    position_request_ = 0;
+    if (st.phase == drivers::CommandPhase::done) {
+      std::optional<drivers::PositionReading> r = driver_.last_position();
+      if (r && (!reading_ || r->request > reading_->request)) {
+        reading_ = std::move(r);
+        reading_sent_ = *last_request_;
+        env_.write([&](EnvironmentModel& m) {
+          RobotState* robot = m.find_robot(cell_);
+          if (robot == nullptr) return;
+          if (reading_->joints.size() == chain_.dof()) {
+            robot->joints = reading_->joints;
+            robot->tcp = robot->base * chain_.forward(to_eigen(robot->joints));
+          } else if (reading_->tool_pose) {
+            robot->tcp = robot->base * *reading_->tool_pose;
+          }
+        });
+      }
+    }
+  }
+  if (!last_request_ || now - *last_request_ >= options_.position_period) request_position(now);
+}
+
 void RobotControl::poll_current(SimDuration now) {
   const drivers::CommandStatus st = driver_.poll(current_->id);
   switch (st.phase) {
@@ -346,7 +440,8 @@ void RobotControl::start_next(SimDuration now) {
 
 void RobotControl::step(SimDuration now) {
   if (phase_ == RobotPhase::kFailed) return;
-  track_tool(options_.track_held_parts);
+  read_position(now);
+  track_held_part();
   if (phase_ == RobotPhase::kBringUp) {
     bring_up(now);
     if (phase_ != RobotPhase::kReady) return;
@@ -363,15 +458,15 @@ void RobotControl::step(SimDuration now) {
 }
 
 Eigen::Isometry3d RobotControl::tool_in_world(const RobotState& r) const {
+  if (r.tcp) return *r.tcp;
   return r.base * chain_.forward(to_eigen(r.joints));
 }
 
-void RobotControl::track_tool(bool held_part) {
+void RobotControl::track_held_part() {
+  if (!options_.track_held_parts) return;
   env_.write([&](EnvironmentModel& m) {
     RobotState* r = m.find_robot(cell_);
-    if (r == nullptr || r->joints.size() != chain_.dof()) return;
-    r->tcp = tool_in_world(*r);
-    if (!held_part || !r->hold) return;
+    if (r == nullptr || !r->tcp || !r->hold) return;
     WorkpieceState* w = m.find_workpiece(r->hold->workpiece);
     if (w == nullptr) return;
     w->pose = *r->tcp * r->hold->in_hand;

@@ -247,17 +247,23 @@ struct Runtime::Impl {
                            format_sim_time(cfg.limits.sim_time));
       return false;
     }
-    cfg.plant->advance(cfg.period);
-    Truth truth = cfg.plant->truth();
     const SimDuration t = now + cfg.period;
-    truth.time = t;
-    env.write([&](EnvironmentModel& e) { apply_truth(e, truth, cfg.perception); });
-    for (Collision& c : cfg.plant->new_collisions()) {
-      log.collision(t, c.a, c.b, c.depth);
-      collisions.push_back(std::move(c));
+    if (cfg.plant == nullptr) {
+      // No simulation: the robots' drivers run on their own; this thread only keeps the clock.
+      env.write([&](EnvironmentModel& e) { e.time = t; });
+      clock.advance(cfg.period);
+    } else {
+      cfg.plant->advance(cfg.period);
+      Truth truth = cfg.plant->truth();
+      truth.time = t;
+      env.write([&](EnvironmentModel& e) { apply_truth(e, truth, cfg.perception); });
+      for (Collision& c : cfg.plant->new_collisions()) {
+        log.collision(t, c.a, c.b, c.depth);
+        collisions.push_back(std::move(c));
+      }
+      for (const Arrival& a : cfg.plant->new_arrivals()) log.workpiece_arrived(t, a.workpiece, a.where);
+      clock.advance(cfg.period);  // after the model is written, so a reader at time t sees t's truth (real-time)
     }
-    for (const Arrival& a : cfg.plant->new_arrivals()) log.workpiece_arrived(t, a.workpiece, a.where);
-    clock.advance(cfg.period);  // after the model is written, so a reader at time t sees t's truth (real-time)
     if (vision && t >= next_frame) {
       // Rendered here (after the clock has moved to t, so that the image thread never sees a frame from its future):
       // the simulation thread owns the physics state the camera shows, and the rendering context.
@@ -308,10 +314,10 @@ struct Runtime::Impl {
         }
         seat.yield();
       }
-      if (participant == 0) cfg.plant->release_thread_resources();
+      if (participant == 0) release_plant();
       if (participant >= first_robot_seat()) robots[participant - first_robot_seat()]->halt();
     } catch (...) {
-      if (participant == 0) cfg.plant->release_thread_resources();
+      if (participant == 0) release_plant();
       record_error();
       end_all();
     }
@@ -336,7 +342,7 @@ struct Runtime::Impl {
           pacer.pace(clock.now() + cfg.period);
           if (!sim_turn()) break;
         }
-        cfg.plant->release_thread_resources();
+        release_plant();
         end_all();
       } else if (participant == task_seat() - 1) {
         while (!stopping) {
@@ -369,15 +375,27 @@ struct Runtime::Impl {
         robots[r]->halt();
       }
     } catch (...) {
-      if (participant == 0) cfg.plant->release_thread_resources();
+      if (participant == 0) release_plant();
       record_error();
       end_all();
     }
   }
+
+  // The drivers outlive the run: they must not call into it any more.
+  void detach_drivers() {
+    for (const std::string& cell : cells) {
+      drivers::RobotDriver* d = cfg.drivers.at(cell);
+      d->set_notifier({});
+      d->set_clock({});
+    }
+  }
+
+  void release_plant() {
+    if (cfg.plant != nullptr) cfg.plant->release_thread_resources();
+  }
 };
 
 Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_unique<EventLog>(config_.log_stream)) {
-  CW_CHECK(config_.plant != nullptr, "a run needs a plant");
   CW_CHECK(config_.period.count() > 0, "the control period must be positive, got {} ns", config_.period.count());
   CW_CHECK(config_.realtime_speed > 0.0, "real-time speed must be positive, got {}", config_.realtime_speed);
   CW_CHECK(config_.net.robots() == config_.program.robots, "the net was not made from the program");
@@ -392,8 +410,8 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     im.robot_wake.push_back(std::make_unique<Event>(Event::Kind::auto_reset));
   }
   if (config_.perception == Perception::kVision) {
-    CW_CHECK(config_.vision.has_value() && config_.detector != nullptr,
-             "vision perception needs a camera and a detector");
+    CW_CHECK(config_.vision.has_value() && config_.detector != nullptr && config_.plant != nullptr,
+             "vision perception needs a camera, a detector and a plant that renders the camera");
     im.vision = std::make_unique<ImageProcessing>(*config_.detector, im.env, im.frames, *log_, *config_.vision,
                                                   config_.on_frame);
     // Until the camera has seen them, parts are not known to be in the cell (a fed part may not have arrived): their
@@ -425,6 +443,7 @@ Runtime::~Runtime() {
     for (auto& t : impl_->threads) {
       if (t.joinable()) t.join();
     }
+    impl_->detach_drivers();
   }
 }
 
@@ -488,6 +507,10 @@ void Runtime::start() {
     names.push_back({config_.program.robots[r], im.cells[r]});
   }
   for (auto& r : im.robots) r->connect();  // InputError here: no thread has started
+  // Position read-backs are stamped on the runtime's clock.
+  for (const std::string& cell : im.cells) {
+    config_.drivers.at(cell)->set_clock([&clock = im.clock] { return clock.now(); });
+  }
   if (config_.mode == Mode::kRealtime) {
     for (std::size_t r = 0; r < im.robots.size(); ++r) {
       Event* wake = im.robot_wake[r].get();
@@ -513,9 +536,7 @@ RunResult Runtime::finish() {
   }
   if (im.error) std::rethrow_exception(im.error);
   if (im.result) return *im.result;
-  if (config_.mode == Mode::kRealtime) {
-    for (const std::string& cell : im.cells) config_.drivers.at(cell)->set_notifier({});
-  }
+  im.detach_drivers();
   RunResult r;
   r.end_time = im.clock.now();
   im.task->account_until(r.end_time);

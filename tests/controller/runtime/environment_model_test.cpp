@@ -40,7 +40,7 @@ TEST(RuntimeEnvironment, IsPreCodedFromTheCellDescription) {
   EXPECT_EQ(m.find_robot("kuka"), nullptr);
 }
 
-TEST(RuntimeEnvironment, TruthUpdatesPosesJointsAndFingersButNotWhoHolds) {
+TEST(RuntimeEnvironment, TruthUpdatesPosesAndFingersButNeitherJointsNorWhoHolds) {
   EnvironmentModel m = make_environment_model(paper_cell());
   m.find_workpiece("A")->held_by = "puma";
   Truth t;
@@ -59,9 +59,10 @@ TEST(RuntimeEnvironment, TruthUpdatesPosesJointsAndFingersButNotWhoHolds) {
   EXPECT_EQ(m.find_workpiece("A")->held_by, "puma");
   EXPECT_EQ(m.find_workpiece("A")->stamp, milliseconds(1230));
   EXPECT_FALSE(m.find_workpiece("B")->present);
-  EXPECT_EQ(m.find_robot("puma")->joints, (std::vector<double>{1, 2, 3, 4, 5, 6}));
-  EXPECT_EQ(m.find_robot("puma")->between_fingers, std::optional<std::string>("A"));
-  EXPECT_EQ(m.find_robot("melfa")->joints, paper_cell().find_robot("melfa")->home);  // empty joints: unknown, kept
+  // Where a robot is comes from its driver, never from the simulation: the truth's joints are not taken.
+  EXPECT_EQ(m.find_robot("puma")->joints, paper_cell().find_robot("puma")->home);
+  EXPECT_EQ(m.find_robot("puma")->between_fingers, std::optional<std::string>("A"));  // the grip sensor is
+  EXPECT_EQ(m.find_robot("melfa")->joints, paper_cell().find_robot("melfa")->home);
   EXPECT_FALSE(m.find_robot("melfa")->between_fingers.has_value());
 }
 
@@ -200,7 +201,8 @@ TEST(RuntimeEnvironment, WithoutACameraTheModelPutsARestingPartAtItsLocationsNom
   t.robots.push_back({"puma", {1, 2, 3, 4, 5, 6}, std::string("")});
   apply_truth(v, t, Perception::kVision);
   EXPECT_TRUE(v.find_workpiece("A")->pose.isApprox(a_before));
-  EXPECT_EQ(v.find_robot("puma")->joints, (std::vector<double>{1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(v.find_robot("puma")->joints, paper_cell().find_robot("puma")->home);
+  EXPECT_EQ(v.find_robot("puma")->between_fingers, std::optional<std::string>(""));
   EXPECT_EQ(v.time, milliseconds(500));
 }
 

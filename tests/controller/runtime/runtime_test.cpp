@@ -6,19 +6,32 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <sstream>
 
+#include "cellwright/drivers/faulty_driver.hpp"
 #include "controller/runtime/scripted_cell.hpp"
+#include "controller/runtime/self_running_driver.hpp"
 
 namespace cellwright::runtime {
 namespace {
 
 using cellwright::testing::ScriptedCell;
 using cellwright::testing::ScriptedTiming;
+using cellwright::testing::SelfRunningDriver;
 using ::testing::HasSubstr;
 
 std::vector<nlohmann::json> parse(const EventLog& log) {
   std::vector<nlohmann::json> out;
   for (const auto& l : log.lines()) out.push_back(nlohmann::json::parse(l));
+  return out;
+}
+
+std::vector<nlohmann::json> parse_text(const std::string& jsonl) {
+  std::vector<nlohmann::json> out;
+  std::istringstream in(jsonl);
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty()) out.push_back(nlohmann::json::parse(line));
+  }
   return out;
 }
 
@@ -67,11 +80,9 @@ TEST(RuntimeRun, ExchangeProgramRunsToCompletionAndMovesThePart) {
   EXPECT_EQ(r.firings, cell.config.net.num_transitions());  // every transition of the two chains fired once
 }
 
-TEST(RuntimeRun, CommandStartsRespectTheNet) {
-  ScriptedCell cell;
-  Runtime rt(cell.config);
-  ASSERT_EQ(rt.run().outcome, Outcome::kFinished);
-  const auto events = parse(rt.log());
+// The exchange program's order, as the net makes it: the hand-over handshake, and each robot's commands in program
+// order, each started after its firing and ended ok.
+void expect_exchange_order(const std::vector<nlohmann::json>& events) {
   // r2 moves its fingers around the part (primitive 5, hand_grasp) only after r1 signalled ready (r1.t8 fired).
   const long ready = find(events, {{"type", "fire"}, {"transition", "r1.t8"}});
   const long grasp = find(events, {{"type", "command_start"}, {"robot", "r2"}, {"primitive", 5}});
@@ -96,6 +107,49 @@ TEST(RuntimeRun, CommandStartsRespectTheNet) {
   EXPECT_THAT(starts(events)["r2"], ::testing::ElementsAre(2, 3, 5, 6, 9, 12, 13, 14, 15));
 }
 
+TEST(RuntimeRun, CommandStartsRespectTheNet) {
+  ScriptedCell cell;
+  Runtime rt(cell.config);
+  ASSERT_EQ(rt.run().outcome, Outcome::kFinished);
+  expect_exchange_order(parse(rt.log()));
+}
+
+// A cell with no simulation at all: both arms are controllers that run by themselves on the runtime's clock and say
+// where they are only when asked. Nothing steps a plant and nothing senses the grips (a close is taken as done); the
+// parts are known from the cell description and move with the hands that hold them.
+TEST(RuntimeWithoutSimulation, TheExchangeRunsOnSelfRunningControllersInTheNetsOrder) {
+  const auto run = [] {
+    ScriptedCell cell;
+    std::map<std::string, std::unique_ptr<SelfRunningDriver>> own;
+    for (auto& [name, d] : cell.drivers) {
+      own[name] = std::make_unique<SelfRunningDriver>(*d, std::chrono::milliseconds(1));
+      cell.config.drivers[name] = own[name].get();
+    }
+    cell.config.plant = nullptr;
+    cell.config.perception = Perception::kCad;
+    Runtime rt(cell.config);
+    const RunResult r = rt.run();
+    EXPECT_EQ(r.outcome, Outcome::kFinished) << r.reason << "\n" << rt.log().text();
+    for (const auto& [name, d] : cell.drivers) {
+      // Asked where it is many times (every period while it worked), and run on the runtime's clock to the end.
+      EXPECT_GT(d->calls().request_position, 50u) << name;
+      EXPECT_EQ(std::chrono::milliseconds(own[name]->ticks()), r.end_time) << name;
+    }
+    // Part A ends where the MELFA put it down, as the model knows it.
+    const models::LocationSpec& drop = *cell.config.cell.find_location("output_drop");
+    const Eigen::Vector3d a = r.environment.find_workpiece("A")->pose.translation();
+    EXPECT_LT((a.head<2>() - drop.pose.xyz.head<2>()).norm(), 0.005) << a.transpose();
+    return rt.log().text();
+  };
+  const std::string log = run();
+  const auto events = parse_text(log);
+  expect_exchange_order(events);
+  EXPECT_NE(find(events, {{"type", "sensor"}, {"robot", "r1"}, {"condition", "grip_not_sensed"}, {"workpiece", "A"}}),
+            -1);
+  EXPECT_EQ(find(events, {{"type", "workpiece_arrived"}}), -1);
+  EXPECT_EQ(run(), log);  // lock-step without a simulation is deterministic too
+}
+
 TEST(RuntimeRun, PerRobotTimeAddsUpToTheRunTime) {
   ScriptedCell cell;
   cell.config.limits.settle = std::chrono::milliseconds(200);
@@ -118,8 +172,12 @@ TEST(RuntimeRun, PerRobotTimeAddsUpToTheRunTime) {
 
 TEST(RuntimeRun, AFailedCommandStopsTheRunWithTheReason) {
   ScriptedCell cell;
-  // Puma's commands: 1 home, 2 open, 3 move above(A), 4 move at(A).
-  cell.driver("puma").fail_command(4, drivers::ErrorCode::unreachable, "joint 2 at its limit");
+  // Puma's moves: above(A), then at(A): the second fails.
+  drivers::FaultPlan plan;
+  plan.rules.push_back(
+      {drivers::CommandKind::move_joints, 2, {drivers::ErrorCode::unreachable, false, "joint 2 at its limit"}});
+  drivers::FaultyDriver faulty(cell.driver("puma"), plan);
+  cell.config.drivers["puma"] = &faulty;
   Runtime rt(cell.config);
   const RunResult r = rt.run();
   ASSERT_EQ(r.outcome, Outcome::kFailed);

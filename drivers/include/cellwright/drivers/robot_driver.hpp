@@ -180,6 +180,10 @@ struct Capabilities {
   bool reads_joints = false;            // request_position() reports joint positions
   bool reads_pose = false;              // request_position() reports the tool pose (Movemaster `WH`: pose only)
   bool reads_while_moving = false;      // request_position() is answered at the next tick, not behind the motions
+  // The controller's native command space: true for a Cartesian controller (Movemaster `MP`/`MS`, VAL II locations),
+  // which should be sent tool poses (MovePose) rather than joint targets it would have to emulate; false for one
+  // that takes joint targets directly (the simulation's servos).
+  bool prefers_pose = false;
 };
 
 // The answer to home(), submit() or request_position().

@@ -83,14 +83,18 @@ struct RobotState {
   std::string name;
   Eigen::Isometry3d base = Eigen::Isometry3d::Identity();  // base_link in the world
   std::vector<double> home;                                // radians
-  std::vector<double> joints;  // current arm joints (truth); the home joints until the first update
-  std::optional<Hold> hold;    // what it holds, if anything
-  // The tool centre point (world) from `joints`, written by its robot control each step; nullopt before.
+  // Current arm joints, from the robot's driver (robot control writes each position read-back); the home joints
+  // until the first one.
+  std::vector<double> joints;
+  std::optional<Hold> hold;  // what it holds, if anything
+  // The tool centre point (world), from the last position read-back (joints, or the tool pose a Cartesian controller
+  // reports); nullopt before the first.
   std::optional<Eigen::Isometry3d> tcp;
   // The tool pose (world) where it last opened its hand on a part; cleared when it closes again. Departing from a
   // put-down lifts the open hand straight up from there (see above(X) at the top).
   std::optional<Eigen::Isometry3d> released_tcp;
-  // From the plant's truth: the workpiece between the finger pads ("" none), nullopt if the plant cannot tell.
+  // The grip sensor: the workpiece between the finger pads ("" none), nullopt when nothing senses it. Written from
+  // the plant's sensors (the twin's finger pad touch sensors) every period.
   std::optional<std::string> between_fingers;
 };
 
@@ -146,7 +150,8 @@ EnvironmentModel make_environment_model(const models::CellDescription& cell);
 //           light barrier at each conveyor entry and location, the belts' encoders) tell whether a part is there and
 //           whether it moves, never where exactly: a part at rest within kCadSensorRadius of a location is taken to
 //           stand at that location's nominal pose. While held it moves with the hand.
-// The robots' joints and finger contacts always come from the truth (the robots' own encoders and gripper sensors).
+// The robots' joints never come from the plant: robot control reads them from the drivers. The grip sensors
+// (between_fingers) do.
 enum class Perception { kTruth, kVision, kCad };
 
 // "truth", "vision", "cad".
@@ -155,11 +160,11 @@ const char* to_string(Perception perception);
 inline constexpr double kCadSensorRadius = 0.1;  // m
 inline constexpr double kCadRestSpeed = 0.005;   // m/s: slower, a part is at rest for the presence sensors
 
-// Writes the plant's truth into the model, as `perception` allows (see Perception): time, robot joints and finger
-// contacts always; workpiece poses, velocities and presence for kTruth (a part held by a robot keeps its held_by;
-// confidence becomes 1 and the stamp the truth's time); presence, velocity and the nominal pose of the location a
-// resting part stands at for kCad; nothing of the workpieces for kVision. Entries naming nothing in the model are
-// ignored (a plant may know more bodies than the model).
+// Writes the plant's truth into the model, as `perception` allows (see Perception): time and grip sensors
+// (RobotTruth::between_fingers) always; workpiece poses, velocities and presence for kTruth (a part held by a robot
+// keeps its held_by; confidence becomes 1 and the stamp the truth's time); presence, velocity and the nominal pose of
+// the location a resting part stands at for kCad; nothing of the workpieces for kVision. Entries naming nothing in the
+// model are ignored (a plant may know more bodies than the model).
 void apply_truth(EnvironmentModel& model, const Truth& truth, Perception perception = Perception::kTruth);
 
 // Vision's entry point (issue 5): the workpiece was seen at `pose` (its centre, world) with `confidence` in [0, 1],

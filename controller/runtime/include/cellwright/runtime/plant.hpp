@@ -35,7 +35,8 @@ struct WorkpieceTruth {
 // One robot as the physics has it.
 struct RobotTruth {
   std::string name;            // the cell's robot name
-  std::vector<double> joints;  // arm joints, base to tip (radians); empty if the plant cannot tell
+  std::vector<double> joints;  // arm joints, base to tip (radians); empty if the plant cannot tell. For reports
+                               // only: the controller learns where a robot is from its driver
   // The workpiece between the finger pads, touching both, when the plant can tell: a name, or "" for none.
   // nullopt when the plant has no way to know (then a close cannot be checked and is taken as done).
   std::optional<std::string> between_fingers;

@@ -2,6 +2,13 @@
 // turns them into target motions with the environment model and the robot's kinematics, drives the robot through the
 // one driver interface, watches the sensor condition of the command's place, and reports done or failed.
 //
+// WHERE THE ROBOT IS comes from its driver, never from a simulation: every MotionOptions::position_period (and once
+// after every completed move) robot control asks request_position(), and when the answer arrives writes it into the
+// environment model (RobotState::joints from a joint read-back; RobotState::tcp from a tool-pose read-back, the
+// joints then being the last commanded ones). A simulation driver answers at its next step; a serial controller
+// answers when its turn in the queue comes. Grip success comes from the grip sensors (RobotState::between_fingers,
+// written by whoever has them: the twin's finger pad sensors through the plant); without one a close is taken as done.
+//
 // Bring-up: the Runtime calls connect() on the main thread before any thread starts (a configuration that cannot work
 // is refused there, as an InputError). In its first turns robot control homes the driver (if not homed yet) and
 // activates it; a refusal or failure there is reported as a RobotStatus with index kNoCommand.
@@ -11,13 +18,18 @@
 //    names through the binding). kWait (a part still moving or absent) keeps the command pending and re-resolves next
 //    turn (a `sensor` event "waiting_for_part" is logged once); kFail fails it. Poses are solved with the robot's
 //    inverse kinematics seeded from its current joints; the reachable solution closest to them wins; none reachable
-//    fails with the solver's reason. Submitted as MoveJoints at MotionOptions::speed (MovePose in the base frame if
-//    the driver has no joint control). home goes straight to the home joints.
+//    fails with the solver's reason. The command fits the robot: MoveJoints at MotionOptions::speed to a driver that
+//    prefers joint targets (Capabilities::prefers_pose false and joint_control), else MovePose in the base frame, with
+//    Path::linear for a straight approach, grasp or lift (at(X) right after above(X) or the reverse, hand_grasp right
+//    after hand_approach or the reverse) when the driver moves linearly. home goes straight to the home joints.
 //  - open/close: Grip open/close (with the robot's grip force if the driver takes a force).
+//  - A driver that is busy (its queue full, e.g. with a position read) is asked again next turn.
 //  - The command is then polled each turn. When the driver reports done, the place's sensor condition is checked:
-//      move:  position reached: every joint within position_tolerance of the goal (when the plant reports joints);
-//      close: the workpiece named by the primitive is between the fingers (when the plant can tell; a close that
-//             names no workpiece passes) -> the robot holds it (held_by/hold in the environment model); otherwise
+//      move:  position reached, on a position read-back requested after the driver said done: every joint within
+//             position_tolerance of the goal (joint read-back), or the tool within pose_tolerance (tool-pose
+//             read-back); a driver that reads back neither cannot tell ("position_not_sensed", taken as reached);
+//      close: the workpiece named by the primitive is between the fingers (when the grip sensor can tell; a close
+//             that names no workpiece passes) -> the robot holds it (held_by/hold in the environment model); otherwise
 //             the command fails ("closed on nothing" / "closed on B, expected A");
 //      open:  the robot releases what it held.
 //    A condition that holds completes the command: command_end ok, status kDone. A driver failure, a refusal or a
@@ -47,7 +59,9 @@ namespace cellwright::runtime {
 struct MotionOptions {
   double speed = 0.5;                // fraction of the robot's maximum speed for moves, (0, 1]
   double position_tolerance = 0.01;  // rad: "position reached" when every joint is this close to the goal
-  double pose_tolerance = 0.005;     // m: the same for a MovePose (tool centre point distance to the goal)
+  double pose_tolerance = 0.005;     // m: the same for a tool-pose read-back (tool centre point distance to the goal)
+  // How often robot control asks its driver where the arm is (a read already in flight is waited for first).
+  SimDuration position_period = std::chrono::milliseconds(10);
   TargetOptions targets;
   models::IkOptions ik;
   // Each step, move the part this robot holds with its hand in the environment model (Hold::in_hand): the runtime
@@ -113,19 +127,26 @@ class RobotControl {
   struct Current {
     MotionCommand command;
     drivers::CommandId id = 0;                   // 0 until submitted
-    std::vector<double> goal;                    // move: the joint goal (MoveJoints)
-    std::optional<Eigen::Isometry3d> goal_pose;  // move: the tool goal in the base frame (MovePose)
+    std::vector<double> goal;                    // move: the joint goal
+    std::optional<Eigen::Isometry3d> goal_pose;  // move: the tool goal in the base frame
     std::optional<SimDuration> done_seen;        // when the driver was first seen done
+    bool pose_command = false;                   // move: sent as MovePose (the driver chose the configuration)
+    std::optional<task::Target> target;          // move: its target, bound to cell names
     std::string detail;
     bool start_logged = false;  // command_start written
     bool wait_logged = false;   // the "waiting_for_part" sensor event written
   };
 
   void bring_up(SimDuration now);
-  // Writes the robot's tool pose into the model and, with `held_part`, moves the part it holds with it (see
-  // MotionOptions::track_held_parts).
-  void track_tool(bool held_part);
-  // The robot's tool centre point in the world, from its joints in the model.
+  // Asks the driver where the arm is when one is due, and writes an answer that arrived into the model.
+  void read_position(SimDuration now);
+  // Asks the driver for a position now (if none is in flight and the driver takes one); true when one is in flight.
+  bool request_position(SimDuration now);
+  // Checks a completed move against the read-back; false (the command failed) when the position was missed.
+  bool check_position(SimDuration now);
+  // With MotionOptions::track_held_parts, moves the part the robot holds with its tool in the model.
+  void track_held_part();
+  // The robot's tool centre point in the world: the model's (from the last read-back), else from its joints.
   Eigen::Isometry3d tool_in_world(const RobotState& r) const;
   void start_next(SimDuration now);
   // Resolves and submits the current command; false when it must wait for its target.
@@ -153,6 +174,14 @@ class RobotControl {
   RobotPhase phase_ = RobotPhase::kBringUp;
   drivers::CommandId home_id_ = 0;
   std::optional<Current> current_;
+  // Position read-backs: the request in flight (0: none), when the last one was asked, the newest answer and when
+  // it was asked.
+  drivers::CommandId position_request_ = 0;
+  std::optional<SimDuration> last_request_;
+  std::optional<drivers::PositionReading> reading_;
+  SimDuration reading_sent_{0};
+  // The target of this robot's previous move (a straight approach follows from it).
+  std::optional<task::Target> last_target_;
 };
 
 }  // namespace cellwright::runtime

@@ -2,9 +2,10 @@
 //
 // Threads, started by run() (or the first step()):
 //   simulation     advances the Plant by one control period, writes the truth into the environment model (as much
-//                  as RunConfig::perception allows), logs collisions and arrivals, captures a camera frame every
-//                  vision period and queues it for image processing, decides the end of the run (program finished +
-//                  settle time, failure, sim time limit);
+//                  as RunConfig::perception allows; never the robots' positions, which robot control reads from the
+//                  drivers), logs collisions and arrivals, captures a camera frame every vision period and queues it
+//                  for image processing, decides the end of the run (program finished + settle time, failure, sim
+//                  time limit). With no plant (no simulation) it only keeps the clock and decides the end;
 //   image processing  with Perception::kVision only: ImageProcessing::step (image_processing.hpp), then wakes task
 //                  and robot control;
 //   task control   TaskControl::step (task_control.hpp);
@@ -81,7 +82,9 @@ struct RunConfig {
   // The driver of each cell robot the program uses, by cell robot name. Not owned: the drivers (and the plant that
   // advances them) must outlive the Runtime.
   std::map<std::string, drivers::RobotDriver*> drivers;
-  Plant* plant = nullptr;  // not owned; required
+  // The simulation the simulation thread steps; not owned. nullptr for a cell with no simulation (every robot on a
+  // driver that runs by itself, e.g. a serial controller): the first thread then only keeps the clock.
+  Plant* plant = nullptr;
   // Where the model's knowledge of the workpieces comes from (environment_model.hpp). kVision needs `vision` and
   // `detector`.
   Perception perception = Perception::kTruth;
@@ -157,7 +160,11 @@ class Runtime {
   // The event log (complete once run() has returned).
   const EventLog& log() const { return *log_; }
   // The plant, for snapshots: only between steps or after the run (the simulation thread is parked or gone).
-  Plant& plant() { return *config_.plant; }
+  // InternalError for a run without one.
+  Plant& plant() {
+    CW_CHECK(config_.plant != nullptr, "this run has no plant");
+    return *config_.plant;
+  }
   const RunConfig& config() const { return config_; }
 
  private:

@@ -174,6 +174,9 @@ struct Runtime::Impl {
   Event task_wake{Event::Kind::auto_reset};
   std::vector<std::unique_ptr<Event>> robot_wake;
 
+  // When the run started on the wall clock, moved on by the time parked between steps (simulation thread).
+  std::chrono::steady_clock::time_point wall_start;
+
   // The end, as the simulation thread decided it.
   Outcome outcome = Outcome::kTimeout;
   std::string reason;
@@ -222,8 +225,10 @@ struct Runtime::Impl {
     if (f == firings_seen) return !abort;
     firings_seen = f;
     paused = true;
+    const auto parked = std::chrono::steady_clock::now();
     cv.notify_all();
     cv.wait(lock, [&] { return resume || abort; });
+    wall_start += std::chrono::steady_clock::now() - parked;  // parked time is not run time
     resume = false;
     paused = false;
     return !abort;
@@ -245,6 +250,14 @@ struct Runtime::Impl {
       outcome = Outcome::kTimeout;
       reason = fmt::format("the simulation time limit of {} s was reached before the program finished",
                            format_sim_time(cfg.limits.sim_time));
+      return false;
+    }
+    if (cfg.limits.wall_time.count() > 0 && std::chrono::steady_clock::now() - wall_start >= cfg.limits.wall_time) {
+      outcome = Outcome::kTimeout;
+      reason = fmt::format(
+          "the wall time limit of {:g} s was reached at simulation time {} s, before the program "
+          "finished",
+          std::chrono::duration<double>(cfg.limits.wall_time).count(), format_sim_time(now));
       return false;
     }
     const SimDuration t = now + cfg.period;
@@ -521,6 +534,7 @@ void Runtime::start() {
                   names);
   const std::size_t participants = im.participants();
   im.started = true;
+  im.wall_start = std::chrono::steady_clock::now();
   if (config_.mode == Mode::kLockstep) {
     im.scheduler = std::make_unique<LockstepScheduler>(participants);
     for (std::size_t p = 0; p < participants; ++p) im.threads.emplace_back([&im, p] { im.run_lockstep(p); });

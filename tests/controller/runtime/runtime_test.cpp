@@ -150,6 +150,22 @@ TEST(RuntimeWithoutSimulation, TheExchangeRunsOnSelfRunningControllersInTheNetsO
   EXPECT_EQ(run(), log);  // lock-step without a simulation is deterministic too
 }
 
+TEST(RuntimeRun, TheWallTimeLimitEndsARunThatTakesTooLong) {
+  ScriptedCell cell;
+  cell.config.limits.wall_time = std::chrono::nanoseconds(1);  // over at the first period
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  EXPECT_EQ(r.outcome, Outcome::kTimeout);
+  EXPECT_THAT(r.reason, HasSubstr("wall time limit of 1e-09 s was reached at simulation time"));
+  const auto events = parse(rt.log());
+  EXPECT_EQ(events.back()["outcome"], "timeout");
+  EXPECT_THAT(events.back()["reason"].get<std::string>(), HasSubstr("wall time limit"));
+
+  ScriptedCell roomy;  // a limit the run stays well within changes nothing
+  roomy.config.limits.wall_time = std::chrono::hours(1);
+  EXPECT_EQ(Runtime(roomy.config).run().outcome, Outcome::kFinished);
+}
+
 TEST(RuntimeRun, PerRobotTimeAddsUpToTheRunTime) {
   ScriptedCell cell;
   cell.config.limits.settle = std::chrono::milliseconds(200);

@@ -96,6 +96,8 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   config.period = seconds(s.options.control_period);
   config.limits.sim_time = seconds(s.limits.sim_time);
   config.limits.settle = seconds(s.options.settle_time);
+  config.limits.wall_time = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(s.limits.wall_time));
   config.motion.targets.handover_clearance = s.options.handover_clearance;
   config.perception = perception_;
   if (perception_ == runtime::Perception::kVision) {

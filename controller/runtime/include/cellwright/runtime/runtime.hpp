@@ -72,6 +72,10 @@ const char* to_string(Mode mode);
 struct Limits {
   SimDuration sim_time = std::chrono::seconds(120);  // the run stops with kTimeout at this simulation time
   SimDuration settle{0};  // after the program finished, the simulation runs on this long (parts come to rest)
+  // The run stops with kTimeout once it has run this long on the wall clock (0: no limit), checked every control
+  // period; time parked between steps (Runtime::step) does not count. A guard for runs that take too long, so it
+  // is the one limit that depends on the machine: a run it ends is not repeatable.
+  std::chrono::steady_clock::duration wall_time{0};
 };
 
 struct RunConfig {

@@ -1,0 +1,698 @@
+// One robot-control thread's unit (RobotControl) driven directly, turn by turn, as the lock-step runtime would: the
+// simulation's turn (the scripted controller runs one tick, the model's clock moves on), then robot control's step().
+// The PUMA of the paper's cell sits behind a ScriptedDriver (through ReadbackDriver, which can misreport read-backs);
+// what is checked is what a user sees: the RobotStatus, the `sensor` and `command_*` events, and the driver commands.
+#include "cellwright/runtime/robot_control.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "controller/runtime/readback_driver.hpp"
+#include "controller/runtime/scripted_cell.hpp"
+
+namespace cellwright::runtime {
+namespace {
+
+using cellwright::testing::paper_cell;
+using cellwright::testing::ReadbackDriver;
+using cellwright::testing::scripted_arm;
+using std::chrono::milliseconds;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+using K = task::TargetKind;
+
+constexpr std::uint64_t kMoveTicks = 120;
+constexpr std::uint64_t kGripTicks = 40;
+
+task::Primitive move(K kind, std::string object = "") {
+  task::Primitive p;
+  p.kind = task::PrimitiveKind::kMove;
+  p.target = {kind, std::move(object)};
+  return p;
+}
+
+task::Primitive close_on(std::string workpiece) {
+  task::Primitive p;
+  p.kind = task::PrimitiveKind::kClose;
+  p.workpiece = std::move(workpiece);
+  return p;
+}
+
+task::Primitive open_from(std::string workpiece) {
+  task::Primitive p;
+  p.kind = task::PrimitiveKind::kOpen;
+  p.workpiece = std::move(workpiece);
+  return p;
+}
+
+Eigen::VectorXd to_eigen(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+class RobotControlTest : public ::testing::Test {
+ protected:
+  RobotControlTest()
+      : spec_(*paper_cell().find_robot("puma")),
+        chain_(models::KinematicChain::from_urdf_file(spec_.urdf)),
+        env_(make_environment_model(paper_cell())),
+        inbox_(4),
+        statuses_(8) {}
+
+  // The PUMA's scripted controller as the runtime's tests have it: joint moves, a gripper with a force, joint
+  // read-backs queued behind the motions.
+  drivers::ScriptedDriverConfig joint_arm() const { return scripted_arm(spec_, {kMoveTicks, kGripTicks}); }
+
+  // A Cartesian controller (as a Movemaster): tool poses only, straight-line moves, the tool pose read back.
+  drivers::ScriptedDriverConfig pose_arm() const {
+    drivers::ScriptedDriverConfig c = joint_arm();
+    c.capabilities.joint_control = false;
+    c.capabilities.cartesian_control = true;
+    c.capabilities.linear_motion = true;
+    c.capabilities.full_orientation = true;
+    c.capabilities.reads_joints = false;
+    c.capabilities.reads_pose = true;
+    c.home_pose = chain_.forward(to_eigen(spec_.home));
+    return c;
+  }
+
+  // Robot control of program robot r1 (the PUMA) over `config`'s scripted controller; connected unless told not to.
+  void make(drivers::ScriptedDriverConfig config, MotionOptions options = {}, bool connect = true) {
+    scripted_ = std::make_unique<drivers::ScriptedDriver>(std::move(config));
+    driver_ = std::make_unique<ReadbackDriver>(*scripted_);
+    NameMap names;
+    names.robots = {{"r1", "puma"}, {"r2", "melfa"}};
+    names.objects = {{"A", "A"}, {"B", "output_drop"}};
+    control_ = std::make_unique<RobotControl>(0, "r1", "puma", *driver_, chain_, spec_.grip_force, names, env_, inbox_,
+                                              statuses_, log_, options);
+    if (connect) control_->connect();
+  }
+
+  // One lock-step period of 1 ms.
+  void turn() {
+    scripted_->advance(1);
+    now_ += milliseconds(1);
+    env_.write([&](EnvironmentModel& m) { m.time = now_; });
+    control_->step(now_);
+  }
+
+  template <typename Pred>
+  bool turn_until(Pred pred, int max_turns = 3000) {
+    for (int i = 0; i < max_turns; ++i) {
+      if (pred()) return true;
+      turn();
+    }
+    return pred();
+  }
+
+  void bring_up() {
+    ASSERT_TRUE(turn_until([&] { return control_->phase() == RobotPhase::kReady; }));
+  }
+
+  void send(std::size_t index, task::Primitive p) {
+    MotionCommand c;
+    c.robot = 0;
+    c.index = index;
+    c.primitive = std::move(p);
+    c.sent = now_;
+    ASSERT_EQ(inbox_.try_push(std::move(c)), QueueStatus::ok);
+  }
+
+  std::optional<RobotStatus> status() {
+    RobotStatus s;
+    if (statuses_.try_pop(s) != QueueStatus::ok) return std::nullopt;
+    return s;
+  }
+
+  // Turns until robot control reports a status; fails the test when none comes.
+  RobotStatus next_status(int max_turns = 3000) {
+    std::optional<RobotStatus> s;
+    for (int i = 0; i < max_turns && !s; ++i) {
+      turn();
+      s = status();
+    }
+    EXPECT_TRUE(s.has_value()) << "no status after " << max_turns << " turns";
+    return s.value_or(RobotStatus{});
+  }
+
+  // Sends `p` as primitive `index` and runs it to its status.
+  RobotStatus run(std::size_t index, task::Primitive p) {
+    send(index, std::move(p));
+    return next_status();
+  }
+
+  std::vector<nlohmann::json> events(const std::string& type) const {
+    std::vector<nlohmann::json> out;
+    for (const std::string& line : log_.lines()) {
+      nlohmann::json j = nlohmann::json::parse(line);
+      if (j["type"] == type) out.push_back(std::move(j));
+    }
+    return out;
+  }
+  std::vector<std::string> sensor_conditions() const {
+    std::vector<std::string> out;
+    for (const auto& e : events("sensor")) out.push_back(e["condition"]);
+    return out;
+  }
+
+  RobotState robot() const {
+    return env_.read([](const EnvironmentModel& m) { return *m.find_robot("puma"); });
+  }
+  WorkpieceState part(const std::string& name) const {
+    return env_.read([&](const EnvironmentModel& m) { return *m.find_workpiece(name); });
+  }
+  void set_fingers(std::optional<std::string> between) {
+    env_.write([&](EnvironmentModel& m) { m.find_robot("puma")->between_fingers = std::move(between); });
+  }
+
+  // The driver commands the scripted controller accepted, in order.
+  std::vector<drivers::Command> sent() const {
+    std::vector<drivers::Command> out;
+    for (auto& [id, c] : scripted_->accepted()) out.push_back(c);
+    return out;
+  }
+
+  const models::RobotSpec& spec_;
+  const models::KinematicChain chain_;
+  SharedEnvironment env_;
+  MessageQueue<MotionCommand> inbox_;
+  MessageQueue<RobotStatus> statuses_;
+  EventLog log_;
+  SimDuration now_{0};
+  std::unique_ptr<drivers::ScriptedDriver> scripted_;
+  std::unique_ptr<ReadbackDriver> driver_;
+  std::unique_ptr<RobotControl> control_;  // last: it refers to everything above
+};
+
+// ---- Bring-up ----
+
+TEST_F(RobotControlTest, BringUpHomesAndActivatesTheDriverAndReportsNothing) {
+  make(joint_arm());
+  bring_up();
+  EXPECT_EQ(scripted_->state(), drivers::DriverState::active);
+  EXPECT_EQ(scripted_->calls().home, 1);
+  EXPECT_EQ(scripted_->calls().activate, 1);
+  EXPECT_FALSE(status().has_value());
+  EXPECT_EQ(control_->view().driver, drivers::DriverState::active);
+}
+
+TEST_F(RobotControlTest, HomingThatFailsIsReportedWithoutACommand) {
+  make(joint_arm());
+  scripted_->fail_command(1, drivers::ErrorCode::timeout, "no reference mark found");  // home() is command 1
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.index, RobotStatus::kNoCommand);
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_EQ(s.reason, "driver of puma could not be brought up: homing failed: timeout: no reference mark found");
+  EXPECT_EQ(control_->phase(), RobotPhase::kFailed);
+  // A failed robot takes no further commands.
+  send(0, move(K::kHome));
+  for (int i = 0; i < 50; ++i) turn();
+  EXPECT_EQ(scripted_->calls().submit, 0);
+  EXPECT_FALSE(status().has_value());
+}
+
+TEST_F(RobotControlTest, ADriverInFaultIsReportedWithoutACommand) {
+  make(joint_arm());
+  scripted_->drop_connection();
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.index, RobotStatus::kNoCommand);
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_EQ(s.reason, "driver of puma could not be brought up: the driver is fault");
+  EXPECT_EQ(scripted_->calls().home, 0);
+}
+
+TEST_F(RobotControlTest, ADriverNeverConnectedIsReportedWithoutACommand) {
+  make(joint_arm(), {}, /*connect=*/false);
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.index, RobotStatus::kNoCommand);
+  EXPECT_EQ(s.reason, "driver of puma could not be brought up: the driver is disconnected");
+}
+
+// ---- Moves and the position check ----
+
+TEST_F(RobotControlTest, AMoveIsSentAsJointsAndEndsWhenTheReadBackReachesTheGoal) {
+  make(joint_arm());
+  bring_up();
+  const RobotStatus s = run(0, move(K::kAbove, "A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_EQ(s.index, 0u);
+  ASSERT_EQ(sent().size(), 1u);
+  ASSERT_TRUE(std::holds_alternative<drivers::MoveJoints>(sent()[0]));
+  const drivers::MoveJoints mj = std::get<drivers::MoveJoints>(sent()[0]);
+  EXPECT_DOUBLE_EQ(mj.speed, MotionOptions{}.speed);
+  // The tool goes above A, gripper down.
+  const RobotState r = robot();
+  const Eigen::Isometry3d tool = r.base * chain_.forward(to_eigen(mj.positions));
+  const Eigen::Vector3d a = part("A").pose.translation();
+  EXPECT_NEAR(tool.translation().x(), a.x(), 1e-3);
+  EXPECT_NEAR(tool.translation().y(), a.y(), 1e-3);
+  EXPECT_GT(tool.translation().z(), a.z());
+  EXPECT_LT(tool.linear().col(2).z(), -0.99);
+  // The model has the read-back joints.
+  EXPECT_EQ(r.joints, mj.positions);
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"position_reached"});
+  const auto starts = events("command_start");
+  ASSERT_EQ(starts.size(), 1u);
+  EXPECT_EQ(starts[0]["command"], "move above(A)");
+  EXPECT_EQ(starts[0]["detail"], drivers::describe(sent()[0]));
+  const auto ends = events("command_end");
+  ASSERT_EQ(ends.size(), 1u);
+  EXPECT_EQ(ends[0]["ok"], true);
+  EXPECT_EQ(control_->phase(), RobotPhase::kReady);
+}
+
+TEST_F(RobotControlTest, AJointThatStopsShortFailsTheMoveNamingTheJoint) {
+  make(joint_arm());
+  bring_up();
+  driver_->misread_joint(1, 0.05);  // joint 2 reads 0.05 rad from where it was sent
+  const RobotStatus s = run(3, move(K::kAbove, "A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_EQ(s.index, 3u);
+  EXPECT_EQ(s.reason, "position not reached: joint 2 is 0.0500 rad from its goal (tolerance 0.0100)");
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"position_missed"});
+  const auto ends = events("command_end");
+  ASSERT_EQ(ends.size(), 1u);
+  EXPECT_EQ(ends[0]["ok"], false);
+  EXPECT_EQ(ends[0]["reason"], s.reason);
+  EXPECT_EQ(control_->phase(), RobotPhase::kFailed);
+}
+
+TEST_F(RobotControlTest, AJointWithinTheToleranceReachesThePosition) {
+  make(joint_arm());
+  bring_up();
+  driver_->misread_joint(1, 0.8 * MotionOptions{}.position_tolerance);
+  const RobotStatus s = run(0, move(K::kAbove, "A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"position_reached"});
+}
+
+TEST_F(RobotControlTest, AToolThatStopsShortFailsAPoseMove) {
+  make(pose_arm());
+  bring_up();
+  driver_->misread_tool(Eigen::Vector3d(0, 0, 0.02));
+  const RobotStatus s = run(0, move(K::kAbove, "A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_EQ(s.reason, "position not reached: the tool is 0.0200 m from its goal (tolerance 0.0050)");
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"position_missed"});
+  ASSERT_EQ(sent().size(), 1u);
+  EXPECT_TRUE(std::holds_alternative<drivers::MovePose>(sent()[0]));
+}
+
+TEST_F(RobotControlTest, ADriverThatReadsNothingBackCannotTellThePosition) {
+  drivers::ScriptedDriverConfig c = joint_arm();
+  c.capabilities.reads_joints = false;
+  make(c);
+  bring_up();
+  const RobotStatus s = run(0, move(K::kAbove, "A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"position_not_sensed"});
+}
+
+TEST_F(RobotControlTest, TheMoveIsCheckedOnlyOnAReadAskedForAfterTheDriverSaidDone) {
+  make(joint_arm());
+  bring_up();
+  // Each answer gives the arm where it was when asked: a read asked during the move shows it at its start, far from
+  // the goal. Robot control must not take it for the end position.
+  driver_->latch_on_request(true);
+  send(0, move(K::kAbove, "A"));
+  turn();
+  ASSERT_EQ(sent().size(), 1u);
+  const drivers::CommandId move_id = scripted_->accepted()[0].first;
+  const std::uint64_t submitted = scripted_->now_ticks();
+  ASSERT_TRUE(turn_until([&] { return scripted_->poll(move_id).phase == drivers::CommandPhase::done; }));
+  const std::uint64_t done = scripted_->now_ticks();
+  const int requests_at_done = scripted_->calls().request_position;
+  // A read was asked during the move (periodically) and is answered only after it.
+  const auto& requests = driver_->requests();
+  ASSERT_FALSE(requests.empty());
+  EXPECT_GE(requests.back().tick, submitted);
+  EXPECT_LT(requests.back().tick, done);
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"position_reached"});
+  // It asked again once the driver said done, and ended on that answer.
+  EXPECT_GT(scripted_->calls().request_position, requests_at_done);
+  EXPECT_GE(driver_->requests().back().tick, done);
+  ASSERT_TRUE(scripted_->last_position().has_value());
+  EXPECT_EQ(scripted_->last_position()->request, driver_->requests().back().id);
+}
+
+// ---- Grip sensors ----
+
+TEST_F(RobotControlTest, ACloseSendsTheGripWithTheCellsForce) {
+  make(joint_arm());
+  bring_up();
+  set_fingers("A");
+  const RobotStatus s = run(2, close_on("A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  ASSERT_EQ(sent().size(), 1u);
+  ASSERT_TRUE(std::holds_alternative<drivers::Grip>(sent()[0]));
+  const drivers::Grip g = std::get<drivers::Grip>(sent()[0]);
+  EXPECT_EQ(g.action, drivers::Grip::Action::close);
+  ASSERT_TRUE(g.force.has_value());
+  EXPECT_DOUBLE_EQ(*g.force, spec_.grip_force);
+  EXPECT_TRUE(scripted_->gripper_closed());
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"gripped"});
+  EXPECT_EQ(robot().hold->workpiece, "A");
+  EXPECT_EQ(part("A").held_by, "puma");
+}
+
+TEST_F(RobotControlTest, ClosingOnTheWrongPartFailsNamingBoth) {
+  make(joint_arm());
+  bring_up();
+  set_fingers("B");
+  const RobotStatus s = run(2, close_on("A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_EQ(s.reason, "the gripper closed on B, expected A");
+  const auto sensors = events("sensor");
+  ASSERT_EQ(sensors.size(), 1u);
+  EXPECT_EQ(sensors[0]["condition"], "closed_on_wrong_part");
+  EXPECT_EQ(sensors[0]["workpiece"], "B");
+  EXPECT_EQ(events("command_end").at(0)["reason"], s.reason);
+  EXPECT_FALSE(robot().hold.has_value());
+  EXPECT_EQ(part("A").held_by, "");
+  EXPECT_EQ(part("B").held_by, "");
+}
+
+TEST_F(RobotControlTest, ClosingOnNothingFails) {
+  make(joint_arm());
+  bring_up();
+  set_fingers("");
+  const RobotStatus s = run(2, close_on("A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_EQ(s.reason, "the gripper closed on nothing (expected A)");
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"closed_on_nothing"});
+  EXPECT_FALSE(robot().hold.has_value());
+}
+
+TEST_F(RobotControlTest, AGripNobodySensesIsTakenAsDoneAndTheRobotHoldsThePart) {
+  make(joint_arm());
+  bring_up();
+  set_fingers(std::nullopt);
+  const RobotStatus s = run(2, close_on("A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  const auto sensors = events("sensor");
+  ASSERT_EQ(sensors.size(), 1u);
+  EXPECT_EQ(sensors[0]["condition"], "grip_not_sensed");
+  EXPECT_EQ(sensors[0]["workpiece"], "A");
+  ASSERT_TRUE(robot().hold.has_value());
+  EXPECT_EQ(robot().hold->workpiece, "A");
+  EXPECT_EQ(part("A").held_by, "puma");
+}
+
+TEST_F(RobotControlTest, AnOpenReleasesWhatTheRobotHeld) {
+  make(joint_arm());
+  bring_up();
+  set_fingers("A");
+  ASSERT_EQ(run(0, close_on("A")).outcome, CommandOutcome::kDone);
+  const RobotStatus s = run(1, open_from("A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_EQ(sensor_conditions(), (std::vector<std::string>{"gripped", "released"}));
+  EXPECT_EQ(events("sensor").back()["workpiece"], "A");
+  EXPECT_FALSE(robot().hold.has_value());
+  EXPECT_TRUE(robot().released_tcp.has_value());
+  EXPECT_EQ(part("A").held_by, "");
+  EXPECT_FALSE(scripted_->gripper_closed());
+}
+
+// ---- Waiting for a part ----
+
+TEST_F(RobotControlTest, AMoveToAnAbsentPartWaitsForItThenProceeds) {
+  make(joint_arm());
+  bring_up();
+  env_.write([](EnvironmentModel& m) { m.find_workpiece("A")->present = false; });
+  send(0, move(K::kAbove, "A"));
+  for (int i = 0; i < 200; ++i) turn();
+  EXPECT_EQ(control_->phase(), RobotPhase::kResolving);
+  EXPECT_FALSE(control_->view().detail.empty());
+  EXPECT_FALSE(status().has_value());
+  EXPECT_EQ(scripted_->calls().submit, 0);
+  const auto sensors = events("sensor");
+  ASSERT_EQ(sensors.size(), 1u);  // once, not every turn
+  EXPECT_EQ(sensors[0]["condition"], "waiting_for_part");
+  EXPECT_EQ(sensors[0]["workpiece"], "A");
+  EXPECT_EQ(events("command_start").size(), 1u);
+  EXPECT_EQ(events("command_start")[0]["detail"], control_->view().detail);
+
+  env_.write([](EnvironmentModel& m) { m.find_workpiece("A")->present = true; });
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  ASSERT_EQ(sent().size(), 1u);
+  EXPECT_TRUE(std::holds_alternative<drivers::MoveJoints>(sent()[0]));
+  EXPECT_EQ(sensor_conditions(), (std::vector<std::string>{"waiting_for_part", "position_reached"}));
+  EXPECT_EQ(events("command_start").size(), 1u);  // the command started once
+}
+
+TEST_F(RobotControlTest, AMoveToAMovingPartWaitsUntilItRests) {
+  MotionOptions options;
+  make(joint_arm(), options);
+  bring_up();
+  const double speed = 10 * options.targets.part_at_rest_speed;
+  env_.write([&](EnvironmentModel& m) { m.find_workpiece("A")->velocity = Eigen::Vector3d(speed, 0, 0); });
+  send(0, move(K::kAt, "A"));
+  for (int i = 0; i < 100; ++i) turn();
+  EXPECT_EQ(control_->phase(), RobotPhase::kResolving);
+  EXPECT_EQ(scripted_->calls().submit, 0);
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"waiting_for_part"});
+
+  env_.write([](EnvironmentModel& m) { m.find_workpiece("A")->velocity.setZero(); });
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_EQ(sent().size(), 1u);
+}
+
+// ---- Inverse kinematics at run time ----
+
+TEST_F(RobotControlTest, ATargetOutOfReachFailsWithoutAnyDriverCommand) {
+  make(joint_arm());
+  bring_up();
+  env_.write([](EnvironmentModel& m) { m.find_workpiece("A")->pose.translation() = Eigen::Vector3d(3.0, 0, 0.5); });
+  const RobotStatus s = run(0, move(K::kAbove, "A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_THAT(s.reason, StartsWith("above(A): tool at (3.000, 0.000, "));
+  EXPECT_THAT(s.reason, HasSubstr(" is unreachable for puma: "));
+  EXPECT_EQ(scripted_->calls().submit, 0);
+  EXPECT_TRUE(sent().empty());
+  const auto ends = events("command_end");
+  ASSERT_EQ(ends.size(), 1u);
+  EXPECT_EQ(ends[0]["ok"], false);
+  EXPECT_EQ(events("command_start").at(0)["detail"], "");  // nothing was sent
+}
+
+// ---- Refusals and a busy driver ----
+
+TEST_F(RobotControlTest, ACloseOnADriverWithoutGripperIsRefused) {
+  drivers::ScriptedDriverConfig c = joint_arm();
+  c.capabilities.gripper = false;
+  c.capabilities.gripper_force = false;
+  make(c);
+  bring_up();
+  const RobotStatus s = run(2, close_on("A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_THAT(s.reason, StartsWith("the driver refused 'grip close"));
+  EXPECT_THAT(s.reason, HasSubstr("': unsupported: this robot has no gripper"));
+  EXPECT_TRUE(sent().empty());
+  EXPECT_EQ(events("command_end").at(0)["reason"], s.reason);
+}
+
+TEST_F(RobotControlTest, ADriverThatFailsTheCommandFailsIt) {
+  make(joint_arm());
+  bring_up();
+  // The next accepted command is the move (no read is in flight right after bring-up's read is answered).
+  send(0, move(K::kAbove, "A"));
+  turn();
+  ASSERT_EQ(sent().size(), 1u);
+  scripted_->fail_command(scripted_->accepted()[0].first, drivers::ErrorCode::unreachable, "ER 2");
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_EQ(s.reason, "the driver failed '" + drivers::describe(sent()[0]) + "': unreachable: ER 2");
+  EXPECT_TRUE(sensor_conditions().empty());
+}
+
+TEST_F(RobotControlTest, ABusyDriverIsAskedAgainNextTurn) {
+  drivers::ScriptedDriverConfig c = joint_arm();
+  c.capabilities.queue_depth = 1;
+  c.position_ticks = 5;
+  make(c);
+  bring_up();
+  // Wait for a periodic read to be asked: it fills the one-deep queue for five ticks.
+  const std::size_t reads = driver_->requests().size();
+  ASSERT_TRUE(turn_until([&] { return driver_->requests().size() > reads; }));
+  send(0, move(K::kAbove, "A"));
+  turn();
+  EXPECT_EQ(scripted_->calls().submit, 1);
+  EXPECT_TRUE(sent().empty());  // refused busy
+  EXPECT_FALSE(status().has_value());
+  EXPECT_NE(control_->phase(), RobotPhase::kFailed);
+  ASSERT_TRUE(turn_until([&] { return !sent().empty(); }, 20));
+  EXPECT_GT(scripted_->calls().submit, 1);
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_EQ(sent().size(), 1u);
+  EXPECT_EQ(events("command_start").size(), 1u);
+}
+
+// ---- Commands that fit the robot ----
+
+TEST_F(RobotControlTest, APoseOnlyDriverGetsPosesWithStraightApproachAndLift) {
+  make(pose_arm());
+  bring_up();
+  set_fingers(std::nullopt);
+  std::vector<task::Primitive> program = {move(K::kAbove, "A"), move(K::kAt, "A"), close_on("A"), move(K::kAbove, "A"),
+                                          move(K::kHome)};
+  for (std::size_t i = 0; i < program.size(); ++i) {
+    const RobotStatus s = run(i, program[i]);
+    ASSERT_EQ(s.outcome, CommandOutcome::kDone) << program[i].target.object << ": " << s.reason;
+    ASSERT_EQ(s.index, i);
+    if (program[i].kind == task::PrimitiveKind::kMove) {
+      // The tool pose was checked, and the model's joints are those the pose was solved with.
+      const Eigen::Isometry3d pose = std::get<drivers::MovePose>(sent().back()).pose;
+      EXPECT_TRUE(chain_.forward(to_eigen(robot().joints)).isApprox(pose, 1e-6)) << task::to_string(program[i]);
+      ASSERT_TRUE(robot().tcp.has_value());
+      EXPECT_TRUE(robot().tcp->isApprox(robot().base * pose, 1e-9));
+    }
+  }
+  const std::vector<drivers::Command> cmds = sent();
+  ASSERT_EQ(cmds.size(), 5u);
+  const auto path = [&](std::size_t i) { return std::get<drivers::MovePose>(cmds.at(i)).path; };
+  ASSERT_TRUE(std::holds_alternative<drivers::MovePose>(cmds[0]));
+  EXPECT_EQ(path(0), drivers::Path::joint);   // above(A): from home
+  EXPECT_EQ(path(1), drivers::Path::linear);  // at(A) after above(A): straight down
+  EXPECT_TRUE(std::holds_alternative<drivers::Grip>(cmds[2]));
+  EXPECT_EQ(path(3), drivers::Path::linear);  // above(A) after at(A): straight up
+  EXPECT_EQ(path(4), drivers::Path::joint);   // home
+  EXPECT_TRUE(std::get<drivers::MovePose>(cmds[4]).pose.isApprox(chain_.forward(to_eigen(spec_.home)), 1e-9));
+  EXPECT_EQ(sensor_conditions(), (std::vector<std::string>{"position_reached", "position_reached", "grip_not_sensed",
+                                                           "position_reached", "position_reached"}));
+  EXPECT_EQ(scripted_->calls().submit, 5);
+}
+
+TEST_F(RobotControlTest, APoseOnlyDriverWithoutStraightMovesGetsJointPathsOnly) {
+  drivers::ScriptedDriverConfig c = pose_arm();
+  c.capabilities.linear_motion = false;
+  make(c);
+  bring_up();
+  ASSERT_EQ(run(0, move(K::kAbove, "A")).outcome, CommandOutcome::kDone);
+  ASSERT_EQ(run(1, move(K::kAt, "A")).outcome, CommandOutcome::kDone);
+  ASSERT_EQ(sent().size(), 2u);
+  EXPECT_EQ(std::get<drivers::MovePose>(sent()[1]).path, drivers::Path::joint);
+}
+
+TEST_F(RobotControlTest, ADriverThatPrefersPosesGetsPosesEvenWithJointControl) {
+  drivers::ScriptedDriverConfig c = joint_arm();
+  c.capabilities.cartesian_control = true;
+  c.capabilities.prefers_pose = true;
+  c.capabilities.reads_pose = true;
+  c.home_pose = chain_.forward(to_eigen(spec_.home));
+  make(c);
+  bring_up();
+  const RobotStatus s = run(0, move(K::kAbove, "A"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  ASSERT_EQ(sent().size(), 1u);
+  EXPECT_TRUE(std::holds_alternative<drivers::MovePose>(sent()[0]));
+}
+
+TEST_F(RobotControlTest, ADriverWithBothThatPrefersJointsGetsJoints) {
+  drivers::ScriptedDriverConfig c = joint_arm();
+  c.capabilities.cartesian_control = true;
+  c.capabilities.linear_motion = true;
+  c.capabilities.prefers_pose = false;
+  make(c);
+  bring_up();
+  ASSERT_EQ(run(0, move(K::kAbove, "A")).outcome, CommandOutcome::kDone);
+  ASSERT_EQ(run(1, move(K::kAt, "A")).outcome, CommandOutcome::kDone);
+  ASSERT_EQ(sent().size(), 2u);
+  EXPECT_TRUE(std::holds_alternative<drivers::MoveJoints>(sent()[0]));
+  EXPECT_TRUE(std::holds_alternative<drivers::MoveJoints>(sent()[1]));
+}
+
+TEST_F(RobotControlTest, HomeGoesStraightToTheHomeJoints) {
+  make(joint_arm());
+  bring_up();
+  ASSERT_EQ(run(0, move(K::kAbove, "A")).outcome, CommandOutcome::kDone);
+  ASSERT_EQ(run(1, move(K::kHome)).outcome, CommandOutcome::kDone);
+  ASSERT_EQ(sent().size(), 2u);
+  EXPECT_EQ(std::get<drivers::MoveJoints>(sent()[1]).positions, spec_.home);
+}
+
+// ---- Position reads ----
+
+TEST_F(RobotControlTest, WhileIdleThePositionIsReadEveryPeriod) {
+  MotionOptions options;
+  options.position_period = milliseconds(10);
+  drivers::ScriptedDriverConfig c = joint_arm();
+  make(c, options);
+  bring_up();
+  const std::size_t before = driver_->requests().size();
+  for (int i = 0; i < 200; ++i) turn();
+  const auto& r = driver_->requests();
+  ASSERT_GE(r.size() - before, 2u);
+  const auto period_ticks = static_cast<std::uint64_t>(options.position_period / c.tick);
+  for (std::size_t i = before + 1; i < r.size(); ++i) {
+    const std::uint64_t gap = r[i].tick - r[i - 1].tick;
+    EXPECT_GE(gap, period_ticks) << "read " << i;
+    EXPECT_LE(gap, period_ticks + c.position_ticks) << "read " << i;
+  }
+  EXPECT_GE(r.size() - before, 200 / (period_ticks + c.position_ticks));
+}
+
+TEST_F(RobotControlTest, AJointReadBackIsWrittenIntoTheModel) {
+  make(joint_arm());
+  bring_up();
+  driver_->misread_joint(0, 0.1);  // as if the arm had been pushed
+  const std::size_t before = driver_->requests().size();
+  ASSERT_TRUE(turn_until([&] { return driver_->requests().size() > before + 1; }));  // one asked and answered since
+  const RobotState r = robot();
+  std::vector<double> expected = spec_.home;
+  expected[0] += 0.1;
+  ASSERT_EQ(r.joints.size(), expected.size());
+  for (std::size_t j = 0; j < expected.size(); ++j) EXPECT_NEAR(r.joints[j], expected[j], 1e-12) << j;
+  ASSERT_TRUE(r.tcp.has_value());
+  EXPECT_TRUE(r.tcp->isApprox(r.base * chain_.forward(to_eigen(expected)), 1e-9));
+}
+
+TEST_F(RobotControlTest, AToolPoseReadBackIsWrittenIntoTheModel) {
+  make(pose_arm());
+  bring_up();
+  driver_->misread_tool(Eigen::Vector3d(0.03, 0, 0));
+  const std::size_t before = driver_->requests().size();
+  ASSERT_TRUE(turn_until([&] { return driver_->requests().size() > before + 1; }));
+  const RobotState r = robot();
+  Eigen::Isometry3d expected = chain_.forward(to_eigen(spec_.home));
+  expected.translation().x() += 0.03;
+  ASSERT_TRUE(r.tcp.has_value());
+  EXPECT_TRUE(r.tcp->isApprox(r.base * expected, 1e-9));
+  EXPECT_EQ(r.joints, spec_.home);  // no joint read-back: the joints are the last known
+}
+
+TEST_F(RobotControlTest, AReadThatFailsDoesNotFailTheCommand) {
+  drivers::ScriptedDriverConfig c = joint_arm();
+  c.capabilities.reads_while_moving = true;  // reads are behind nothing: a failed read cancels no command
+  make(c);
+  bring_up();
+  send(0, move(K::kAbove, "A"));
+  turn();
+  ASSERT_EQ(sent().size(), 1u);
+  // Fail the next read asked during the move.
+  const std::size_t before = driver_->requests().size();
+  ASSERT_TRUE(turn_until([&] { return driver_->requests().size() > before; }));
+  const drivers::CommandId read = driver_->requests().back().id;
+  scripted_->fail_command(read, drivers::ErrorCode::timeout, "no answer to WH");
+  turn();
+  ASSERT_EQ(scripted_->poll(read).phase, drivers::CommandPhase::failed);
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_EQ(sensor_conditions(), std::vector<std::string>{"position_reached"});
+  EXPECT_GT(driver_->requests().back().id, read);  // it asked again
+}
+
+}  // namespace
+}  // namespace cellwright::runtime

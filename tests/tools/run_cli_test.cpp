@@ -124,6 +124,32 @@ TEST(RunCli, ExchangeMovesThePartToTheOutputConveyorAndRepeatsExactly) {
   EXPECT_EQ(slurp(a / "report.json"), slurp(b / "report.json"));
 }
 
+// The pipelined cell, with both arms and with one: three parts fed onto the input conveyor all end where the scenario
+// expects them, without a collision.
+class PipelinedScenario : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(PipelinedScenario, DeliversEveryFedPartWithoutACollision) {
+  TwinCli cli("cw-run-pipeline");
+  const fs::path out = cli.dir() / "out";
+  const Outcome r = cli.run("run " + shell_quote(source_path(std::string("scenes/") + GetParam())) + " --quiet -o " +
+                            shell_quote(out.string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(report["result"], "ok");
+  EXPECT_EQ(report["parts_completed"], 3);
+  EXPECT_GT(report["throughput_parts_per_min"].get<double>(), 0.0);
+  EXPECT_TRUE(report["collisions"].empty()) << report["collisions"].dump();
+  int expected = 0;
+  for (const auto& w : report["workpieces"]) {
+    if (!w.contains("expected") || w["expected"].is_null()) continue;
+    ++expected;
+    EXPECT_EQ(w["ok"], true) << w.dump();
+  }
+  EXPECT_EQ(expected, 3);
+}
+
+INSTANTIATE_TEST_SUITE_P(RunCli, PipelinedScenario, ::testing::Values("pipeline.yaml", "pipeline_single.yaml"));
+
 TEST(RunCli, WrongExpectedOutcomeExitsOneNamingIt) {
   TwinCli cli("cw-run-cli-wrong");
   const fs::path scenario = exchange_copy(cli.dir(), {{"  A: output", "  A: machine_fixture"}});

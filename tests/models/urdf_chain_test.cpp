@@ -8,6 +8,7 @@
 #include <string>
 
 #include "cellwright/models/kinematics.hpp"
+#include "models/input_error.hpp"
 
 namespace cellwright::models {
 namespace {
@@ -42,18 +43,6 @@ std::string arm(std::string type = "prismatic", std::string axis = "1 0 0", std:
   s.replace(s.find("AXIS"), 4, axis);
   s.replace(s.find("LOWER"), 5, lower);
   return s;
-}
-
-// Runs f, expects an InputError, returns it.
-template <typename F>
-InputError input_error(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e;
-  }
-  ADD_FAILURE() << "no InputError thrown";
-  return InputError({}, "none");
 }
 
 TEST(UrdfChain, BuildsAChainOfRevoluteAndPrismaticJointsFoldingFixedOnes) {

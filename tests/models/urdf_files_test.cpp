@@ -1,30 +1,38 @@
-// The two robot URDF files as the scene builder reads them (urdfdom): naming convention, physically valid inertias,
-// and the shared gripper.
+// The two robot URDF files as every reader gets them (the URDF loader): naming convention, physically valid
+// inertias, and the shared gripper.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <urdf_parser/urdf_parser.h>
 
 #include <Eigen/Eigenvalues>
 
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <string>
 
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/urdf.hpp"
 
 namespace cellwright::models {
 namespace {
 
-urdf::ModelInterfaceSharedPtr load(const std::string& name) {
-  const auto path = std::filesystem::path(models_dir()) / "urdf" / name;
-  auto model = urdf::parseURDFFile(path.string());
-  if (!model) ADD_FAILURE() << "urdfdom cannot load " << path;
-  return model;
+// The file as every reader gets it, from the one URDF loader; null (and a failure) if it cannot be loaded. The models
+// are immutable, so one load serves every test.
+const urdf::ModelInterface* load(const std::string& name) {
+  static std::map<std::string, UrdfModel> loaded;
+  if (auto it = loaded.find(name); it != loaded.end()) return &it->second.robot();
+  try {
+    return &loaded.emplace(name, load_urdf_file(std::filesystem::path(models_dir()) / "urdf" / name))
+                .first->second.robot();
+  } catch (const InputError& e) {
+    ADD_FAILURE() << e.what();
+    return nullptr;
+  }
 }
 
 class UrdfFile : public ::testing::TestWithParam<std::string> {
  protected:
-  urdf::ModelInterfaceSharedPtr model = load(GetParam());
+  const urdf::ModelInterface* model = load(GetParam());
 };
 
 TEST_P(UrdfFile, FollowsTheCellNamingConvention) {

@@ -1,9 +1,8 @@
 // The MuJoCo scene of a cell (scene.hpp). MuJoCo 2.2.2 has no model-editing API (mjSpec, attach) and compiles one
-// URDF at a time, so the whole cell is written here as one MJCF text: robots from their URDFs (read with urdfdom),
-// conveyors, machines, workpieces, cameras and lights; then compiled from memory through MuJoCo's virtual file system.
+// URDF at a time, so the whole cell is written here as one MJCF text: robots from their URDFs (read with the one URDF
+// loader, models/urdf.hpp), conveyors, machines, workpieces, cameras and lights; then compiled from memory through
+// MuJoCo's virtual file system.
 #include "cellwright/twin/scene.hpp"
-
-#include <urdf_parser/urdf_parser.h>
 
 #include <unistd.h>
 
@@ -11,10 +10,12 @@
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <mutex>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <sstream>
+
+#include "cellwright/models/urdf.hpp"
 
 namespace cellwright::twin {
 
@@ -169,16 +170,11 @@ bool movable(const urdf::Joint& j) {
   return j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::CONTINUOUS || j.type == urdf::Joint::PRISMATIC;
 }
 
-// urdfdom reports through a process-wide logger; parses in this file take turns.
-std::mutex& urdf_mutex() {
-  static std::mutex m;
-  return m;
-}
-
 struct RobotModel {
   const models::RobotSpec* spec = nullptr;
-  urdf::ModelInterfaceSharedPtr urdf;
-  std::vector<std::string> arm_joints;  // movable joints from base_link to tcp
+  std::optional<models::UrdfModel> loaded;     // read by the one URDF loader
+  const urdf::ModelInterface* urdf = nullptr;  // loaded->robot()
+  std::vector<std::string> arm_joints;         // movable joints from base_link to tcp
   std::set<std::string> finger_links;
 };
 
@@ -186,14 +182,15 @@ RobotModel read_robot_model(const models::RobotSpec& spec) {
   RobotModel r;
   r.spec = &spec;
   const std::string file = spec.urdf.string();
-  {
-    std::lock_guard<std::mutex> lock(urdf_mutex());
-    r.urdf = urdf::parseURDFFile(file);
-  }
   auto fail = [&](const std::string& problem) -> InputError {
     return InputError({file, 0, 0}, fmt::format("robot '{}': {}", spec.name, problem));
   };
-  if (!r.urdf) throw fail("not a valid URDF file");
+  try {
+    r.loaded = models::load_urdf_file(spec.urdf);
+  } catch (const InputError& e) {
+    throw InputError(e.where(), fmt::format("robot '{}': not a valid URDF file: {}", spec.name, e.problem()));
+  }
+  r.urdf = &r.loaded->robot();
   if (!r.urdf->getRoot() || r.urdf->getRoot()->name != "base_link") {
     throw fail("the URDF's root link must be 'base_link'");
   }

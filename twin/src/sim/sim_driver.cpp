@@ -1,7 +1,6 @@
 #include "cellwright/twin/sim/sim_driver.hpp"
 
 #include <fmt/format.h>
-#include <tinyxml2.h>
 
 #include <algorithm>
 #include <cmath>
@@ -28,26 +27,6 @@ double seconds(std::chrono::nanoseconds d) {
 
 std::chrono::nanoseconds nanos(double s) {
   return std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(s * 1e9)));
-}
-
-// The velocity limits of the named joints in a URDF file (0 where a joint gives none). The URDF was read by the
-// scene builder already, so a failure here is unexpected; it is still reported as the user's file.
-std::vector<double> urdf_velocity_limits(const std::filesystem::path& urdf, const std::vector<std::string>& joints) {
-  tinyxml2::XMLDocument doc;
-  if (doc.LoadFile(urdf.c_str()) != tinyxml2::XML_SUCCESS) {
-    throw InputError({urdf.string(), doc.ErrorLineNum(), 0}, fmt::format("cannot read the URDF: {}", doc.ErrorStr()));
-  }
-  std::vector<double> out(joints.size(), 0.0);
-  const tinyxml2::XMLElement* robot = doc.FirstChildElement("robot");
-  for (const auto* j = robot ? robot->FirstChildElement("joint") : nullptr; j; j = j->NextSiblingElement("joint")) {
-    const char* name = j->Attribute("name");
-    const auto it = name ? std::find(joints.begin(), joints.end(), name) : joints.end();
-    if (it == joints.end()) continue;
-    if (const auto* limit = j->FirstChildElement("limit")) {
-      out[static_cast<std::size_t>(it - joints.begin())] = limit->DoubleAttribute("velocity", 0.0);
-    }
-  }
-  return out;
 }
 
 std::string joint_list(const Eigen::VectorXd& v, const char* unit) {
@@ -78,7 +57,8 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
   }
   std::vector<double> speeds = options_.max_joint_speed;
   if (speeds.empty()) {
-    speeds = urdf_velocity_limits(spec.urdf, chain_.joint_names());
+    // The URDF's <limit velocity>, read with the chain by the one URDF loader (models/urdf.hpp).
+    for (const models::JointLimit& limit : chain_.limits()) speeds.push_back(limit.velocity);
     for (std::size_t j = 0; j < n; ++j) {
       if (!(speeds[j] > 0.0)) {
         throw InputError({spec.urdf.string(), 0, 0},

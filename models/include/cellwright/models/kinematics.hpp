@@ -24,9 +24,13 @@ constexpr const char* models_dir() {
 }
 
 // A joint's travel: radians (revolute) or metres (prismatic). A continuous joint has lower = -inf, upper = +inf.
+// velocity is the URDF's <limit velocity> (rad/s or m/s), 0 where the joint gives none.
 struct JointLimit {
   double lower, upper;
+  double velocity = 0;
 };
+
+class UrdfModel;  // urdf.hpp
 
 // How hard inverse() tries. Tolerances are the largest errors of an answer it accepts: position in metres, orientation
 // as the angle of the rotation between the reached and the wanted orientation, in radians.
@@ -54,17 +58,20 @@ struct IkResult {
 
 class KinematicChain {
  public:
-  // Reads a URDF file and builds the chain from link `base` to link `tip`.
+  // Reads a URDF file with the URDF loader (urdf.hpp) and builds the chain from link `base` to link `tip`.
   // Throws InputError naming the file (and the line where one applies) if the file cannot be read, is not well-formed
-  // XML, is not a valid URDF, lacks either link, `base` is not an ancestor of `tip`, the chain holds a joint type other
-  // than fixed/revolute/continuous/prismatic or a mimic joint, has no movable joint, or has invalid numbers (a zero
-  // axis, a non-finite origin, lower limit > upper limit). Parses are serialized internally (urdfdom's logger is
-  // global); any thread may call it.
+  // XML, is not a valid URDF (as load_urdf_file), lacks either link, `base` is not an ancestor of `tip`, the chain
+  // holds a joint type other than fixed/revolute/continuous/prismatic or a mimic joint, has no movable joint, or has
+  // invalid numbers (a zero axis, a non-finite origin, lower limit > upper limit). Parses are serialized internally
+  // (urdfdom's logger is global); any thread may call it.
   static KinematicChain from_urdf_file(const std::filesystem::path& urdf, const std::string& base = "base_link",
                                        const std::string& tip = "tcp");
   // As from_urdf_file, for URDF text already in memory; errors name `file_label` as the file.
   static KinematicChain from_urdf_string(const std::string& xml, const std::string& file_label,
                                          const std::string& base = "base_link", const std::string& tip = "tcp");
+  // As from_urdf_file, for a robot the URDF loader (urdf.hpp) has read already; errors name its file.
+  static KinematicChain from_urdf(const UrdfModel& robot, const std::string& base = "base_link",
+                                  const std::string& tip = "tcp");
 
   // Number of revolute, continuous and prismatic joints between base and tip.
   std::size_t dof() const { return joints_.size(); }

@@ -1,0 +1,50 @@
+// The one URDF loader: every reader of a robot's URDF (the kinematic chain, the MuJoCo scene, the simulated driver)
+// gets the robot from here, parsed once with urdfdom, with the line of each <link> and <joint> for its own errors.
+//
+// Thread safety: a UrdfModel is immutable after loading and may be shared between threads. Loads are serialized
+// internally (urdfdom reports through console_bridge's process-wide logger, which is captured during a parse); any
+// thread may call the functions.
+#pragma once
+
+#include <urdf_model/model.h>
+
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "cellwright/common/error.hpp"
+
+namespace cellwright::models {
+
+class UrdfModel {
+ public:
+  // The file name that errors name.
+  const std::string& file() const { return file_; }
+  // The robot as urdfdom reads it.
+  const urdf::ModelInterface& robot() const { return *robot_; }
+  // Where the <link> or <joint> element with this name starts: {file(), line}; line 0 if there is none.
+  SourceLocation link_at(const std::string& name) const;
+  SourceLocation joint_at(const std::string& name) const;
+
+ private:
+  friend UrdfModel parse_urdf(const std::string& xml, const std::string& file_label);
+  UrdfModel() = default;
+
+  std::string file_;
+  std::shared_ptr<const urdf::ModelInterface> robot_;
+  std::map<std::string, int> link_lines_, joint_lines_;
+};
+
+// Reads and parses a URDF file (see parse_urdf). Throws InputError({file}, "cannot open the URDF file (missing or
+// unreadable)") or ({file}, "cannot read the URDF file") if the file cannot be read.
+UrdfModel load_urdf_file(const std::filesystem::path& file);
+
+// Parses URDF text; errors name `file_label` as the file. Throws InputError:
+//  - at the line tinyxml2 reports: "malformed XML: <what is broken>[ in <element>]" ("the file is empty" if so);
+//  - at the root element: "the root element is <name>, a URDF needs <robot>";
+//  - at the first link or joint urdfdom's message names (line 0 if none): "invalid URDF: <urdfdom's message>".
+// urdfdom's log messages never reach stderr: they go into the error.
+UrdfModel parse_urdf(const std::string& xml, const std::string& file_label);
+
+}  // namespace cellwright::models

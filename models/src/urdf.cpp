@@ -1,0 +1,161 @@
+// The one URDF loader (urdf.hpp): urdfdom interprets the robot, tinyxml2 supplies the line numbers urdfdom does not
+// report.
+#include "cellwright/models/urdf.hpp"
+
+#include <console_bridge/console.h>
+#include <tinyxml2.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <fstream>
+#include <mutex>
+#include <sstream>
+#include <vector>
+
+namespace cellwright::models {
+namespace {
+
+// Collects urdfdom's log messages while a parse runs, so they can go into the InputError instead of stderr.
+class CapturingHandler : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char* /*filename*/, int /*line*/) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_WARN) messages.push_back(text);
+  }
+  std::vector<std::string> messages;
+};
+
+// urdfdom logs through console_bridge's process-wide handler, so parses take turns.
+std::mutex& parse_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+// The line of each <link> and <joint> element by its name attribute.
+void index_lines(const tinyxml2::XMLElement* robot, std::map<std::string, int>& links,
+                 std::map<std::string, int>& joints) {
+  for (const tinyxml2::XMLElement* e = robot->FirstChildElement(); e != nullptr; e = e->NextSiblingElement()) {
+    const char* name = e->Attribute("name");
+    if (name == nullptr) continue;
+    if (std::string(e->Name()) == "link") links.emplace(name, e->GetLineNum());
+    if (std::string(e->Name()) == "joint") joints.emplace(name, e->GetLineNum());
+  }
+}
+
+// Best guess at the line an urdfdom message is about: the first link or joint it names.
+int line_of_message(const std::string& message, const std::map<std::string, int>& links,
+                    const std::map<std::string, int>& joints) {
+  int best_pos = -1, best_line = 0;
+  auto consider = [&](const std::map<std::string, int>& names) {
+    for (const auto& [name, line] : names) {
+      for (const std::string& quoted : {"[" + name + "]", "'" + name + "'", "\"" + name + "\""}) {
+        auto pos = message.find(quoted);
+        if (pos != std::string::npos && (best_pos < 0 || static_cast<int>(pos) < best_pos)) {
+          best_pos = static_cast<int>(pos);
+          best_line = line;
+        }
+      }
+    }
+  };
+  consider(joints);
+  consider(links);
+  return best_line;
+}
+
+// tinyxml2's error in words, with the element it was reading when it knows it.
+std::string describe_xml_error(const tinyxml2::XMLDocument& doc) {
+  std::string what;
+  switch (doc.ErrorID()) {
+    case tinyxml2::XML_ERROR_EMPTY_DOCUMENT:
+      return "the file is empty";
+    case tinyxml2::XML_ERROR_PARSING_ELEMENT:
+      what = "an element cannot be parsed (unclosed or broken tag?)";
+      break;
+    case tinyxml2::XML_ERROR_PARSING_ATTRIBUTE:
+      what = "an attribute cannot be parsed (missing quote or '='?)";
+      break;
+    case tinyxml2::XML_ERROR_MISMATCHED_ELEMENT:
+      what = "a closing tag does not match the open element";
+      break;
+    case tinyxml2::XML_ERROR_PARSING_COMMENT:
+      what = "a comment is not closed";
+      break;
+    default:
+      what = doc.ErrorName();
+  }
+  // ErrorStr() ends in "...: XMLElement name=<name>" when the element is known.
+  const std::string full = doc.ErrorStr() != nullptr ? doc.ErrorStr() : "";
+  const std::string key = "XMLElement name=";
+  if (auto pos = full.find(key); pos != std::string::npos)
+    what += fmt::format(" in <{}>", full.substr(pos + key.size()));
+  return what;
+}
+
+int line_in(const std::map<std::string, int>& lines, const std::string& name) {
+  auto it = lines.find(name);
+  return it == lines.end() ? 0 : it->second;
+}
+
+}  // namespace
+
+SourceLocation UrdfModel::link_at(const std::string& name) const {
+  return {file_, line_in(link_lines_, name)};
+}
+
+SourceLocation UrdfModel::joint_at(const std::string& name) const {
+  return {file_, line_in(joint_lines_, name)};
+}
+
+UrdfModel load_urdf_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError({file.string()}, "cannot open the URDF file (missing or unreadable)");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw InputError({file.string()}, "cannot read the URDF file");
+  return parse_urdf(text.str(), file.string());
+}
+
+UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {
+  UrdfModel out;
+  out.file_ = file_label;
+  // Well-formedness first: tinyxml2 knows the line of a syntax error, urdfdom does not.
+  tinyxml2::XMLDocument doc;
+  if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS) {
+    throw InputError({file_label, doc.ErrorLineNum()}, fmt::format("malformed XML: {}", describe_xml_error(doc)));
+  }
+  const tinyxml2::XMLElement* root = doc.RootElement();
+  if (root == nullptr || std::string(root->Name()) != "robot") {
+    throw InputError({file_label, root != nullptr ? root->GetLineNum() : 0},
+                     fmt::format("the root element is <{}>, a URDF needs <robot>", root ? root->Name() : ""));
+  }
+  index_lines(root, out.link_lines_, out.joint_lines_);
+
+  urdf::ModelInterfaceSharedPtr model;
+  std::vector<std::string> messages;
+  {
+    std::lock_guard lock(parse_mutex());
+    CapturingHandler handler;
+    console_bridge::useOutputHandler(&handler);
+    try {
+      model = urdf::parseURDF(xml);
+    } catch (const std::exception& e) {
+      handler.messages.push_back(e.what());
+      model.reset();
+    }
+    console_bridge::restorePreviousOutputHandler();
+    messages = std::move(handler.messages);
+  }
+  if (!model) {
+    std::string problem = messages.empty() ? std::string("urdfdom rejected the file") : messages.back();
+    int line = 0;
+    for (const std::string& m : messages) {
+      if ((line = line_of_message(m, out.link_lines_, out.joint_lines_)) != 0) {
+        problem = m;
+        break;
+      }
+    }
+    throw InputError({file_label, line}, fmt::format("invalid URDF: {}", problem));
+  }
+  out.robot_ = std::move(model);
+  return out;
+}
+
+}  // namespace cellwright::models

@@ -1,0 +1,101 @@
+// The one URDF loader: it parses a robot once, knows where each link and joint is, and reports broken files at their
+// line with urdfdom's own words, never on stderr.
+#include "cellwright/models/urdf.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "cellwright/models/kinematics.hpp"
+#include "models/input_error.hpp"
+
+namespace cellwright::models {
+namespace {
+
+using ::testing::HasSubstr;
+
+// joint "j1" starts on line 4, link "l1" on line 8.
+constexpr const char* kToy = R"(<?xml version="1.0"?>
+<robot name="toy">
+  <link name="base_link"/>
+  <joint name="j1" type="revolute">
+    <parent link="base_link"/> <child link="l1"/>
+    <axis xyz="0 0 1"/> <limit lower="-1" upper="1" effort="1" velocity="VELOCITY"/>
+  </joint>
+  <link name="l1"/>
+  <joint name="j2" type="continuous">
+    <parent link="l1"/> <child link="tcp"/> <axis xyz="1 0 0"/>
+  </joint>
+  <link name="tcp"/>
+</robot>
+)";
+
+std::string toy(const std::string& velocity = "1.5") {
+  std::string s = kToy;
+  s.replace(s.find("VELOCITY"), 8, velocity);
+  return s;
+}
+
+TEST(Urdf, KnowsWhereEachLinkAndJointIs) {
+  const UrdfModel m = parse_urdf(toy(), "toy.urdf");
+  EXPECT_EQ(m.file(), "toy.urdf");
+  EXPECT_EQ(m.robot().getName(), "toy");
+  EXPECT_EQ(m.joint_at("j1").str(), "toy.urdf:4");
+  EXPECT_EQ(m.link_at("l1").str(), "toy.urdf:8");
+  EXPECT_EQ(m.link_at("nowhere").line, 0);
+}
+
+TEST(Urdf, TheChainTakesItsVelocityLimitsFromTheLoadedRobot) {
+  const KinematicChain c = KinematicChain::from_urdf(parse_urdf(toy(), "toy.urdf"), "base_link", "tcp");
+  ASSERT_EQ(c.limits().size(), 2u);
+  EXPECT_EQ(c.limits()[0].velocity, 1.5);
+  EXPECT_EQ(c.limits()[1].velocity, 0.0);  // a continuous joint without <limit>
+}
+
+TEST(Urdf, BothArmsLoadWithAVelocityLimitOnEveryArmJoint) {
+  for (const char* file : {"puma560.urdf", "melfa_rve2.urdf"}) {
+    const UrdfModel m = load_urdf_file(std::filesystem::path(models_dir()) / "urdf" / file);
+    const KinematicChain c = KinematicChain::from_urdf(m);
+    ASSERT_EQ(c.dof(), 6u) << file;
+    for (std::size_t j = 0; j < c.dof(); ++j) {
+      EXPECT_GT(c.limits()[j].velocity, 0.0) << file << " " << c.joint_names()[j];
+      EXPECT_EQ(c.limits()[j].velocity, m.robot().getJoint(c.joint_names()[j])->limits->velocity);
+    }
+  }
+}
+
+TEST(Urdf, InvalidUrdfIsReportedAtTheJointInUrdfdomsWordsNotOnStderr) {
+  ::testing::internal::CaptureStderr();
+  const InputError e = input_error([] { (void)parse_urdf(toy("fast"), "toy.urdf"); });
+  const std::string stderr_text = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(e.where().file, "toy.urdf");
+  EXPECT_EQ(e.where().line, 4);
+  EXPECT_THAT(e.problem(), HasSubstr("invalid URDF: "));
+  EXPECT_THAT(e.problem(), HasSubstr("j1"));
+  EXPECT_EQ(stderr_text, "");
+}
+
+TEST(Urdf, MalformedXmlAndWrongRootAreReportedAtTheirLine) {
+  std::string broken = toy();
+  broken.replace(broken.find("<link name=\"l1\"/>"), 17, "<link name=\"l1\">");
+  const InputError e = input_error([&] { (void)parse_urdf(broken, "toy.urdf"); });
+  EXPECT_GT(e.where().line, 0);
+  EXPECT_THAT(e.problem(), HasSubstr("malformed XML: "));
+
+  const InputError root = input_error([] { (void)parse_urdf("<?xml version=\"1.0\"?>\n<sdf/>\n", "x.urdf"); });
+  EXPECT_EQ(root.where().str(), "x.urdf:2");
+  EXPECT_EQ(root.problem(), "the root element is <sdf>, a URDF needs <robot>");
+
+  EXPECT_EQ(input_error([] { (void)parse_urdf("", "e.urdf"); }).problem(), "malformed XML: the file is empty");
+}
+
+TEST(Urdf, MissingFileNamesIt) {
+  const InputError e = input_error([] { (void)load_urdf_file("/nonexistent/arm.urdf"); });
+  EXPECT_EQ(e.where().file, "/nonexistent/arm.urdf");
+  EXPECT_EQ(e.problem(), "cannot open the URDF file (missing or unreadable)");
+}
+
+}  // namespace
+}  // namespace cellwright::models

@@ -170,7 +170,7 @@ bool RobotControl::submit_current(SimDuration now) {
     });
     if (seen.target.resolution == MotionTarget::Resolution::kWait) {
       phase_ = RobotPhase::kResolving;
-      current_->detail = seen.target.reason;
+      current_->waiting_for = seen.target.reason;
       log_start(now);
       if (!current_->wait_logged) {
         log_.sensor(
@@ -260,7 +260,10 @@ bool RobotControl::submit_current(SimDuration now) {
 void RobotControl::complete(SimDuration now) {
   const task::Primitive& p = current_->command.primitive;
   const std::size_t index = current_->command.index;
-  if (!current_->done_seen) current_->done_seen = now;
+  if (!current_->done_seen) {
+    current_->done_seen = now;
+    current_->reads_at_done = reads_asked_;
+  }
   if (p.kind != task::PrimitiveKind::kMove && await_fresh_truth_ &&
       env_.read([](const EnvironmentModel& m) { return m.time; }) <= *current_->done_seen) {
     return;  // the grip sensors of the step that completed the command are not in the model yet: check next turn
@@ -328,7 +331,7 @@ bool RobotControl::check_position(SimDuration now) {
     log_.sensor(now, label_, index, "position_not_sensed", "");
     return true;
   }
-  if (!reading_ || reading_sent_ < *current_->done_seen) {
+  if (!reading_ || reading_number_ <= current_->reads_at_done) {
     // Only a read asked for once the driver said done shows where the arm stopped.
     if (position_request_ == 0) request_position(now);
     return false;
@@ -386,10 +389,11 @@ bool RobotControl::request_position(SimDuration now) {
   if (!s.accepted()) return false;  // busy: its queue is full; next turn
   position_request_ = s.id;
   last_request_ = now;
+  ++reads_asked_;
   return true;
 }
 
-void RobotControl::read_position(SimDuration now) {
+void RobotControl::collect_position() {
   if (position_request_ != 0) {
     const drivers::CommandStatus st = driver_.poll(position_request_);
     if (st.phase == drivers::CommandPhase::pending || st.phase == drivers::CommandPhase::running) return;
@@ -398,7 +402,7 @@ void RobotControl::read_position(SimDuration now) {
       std::optional<drivers::PositionReading> r = driver_.last_position();
       if (r && (!reading_ || r->request > reading_->request)) {
         reading_ = std::move(r);
-        reading_sent_ = *last_request_;
+        reading_number_ = reads_asked_;
         env_.write([&](EnvironmentModel& m) {
           RobotState* robot = m.find_robot(cell_);
           if (robot == nullptr) return;
@@ -412,7 +416,6 @@ void RobotControl::read_position(SimDuration now) {
       }
     }
   }
-  if (!last_request_ || now - *last_request_ >= options_.position_period) request_position(now);
 }
 
 void RobotControl::poll_current(SimDuration now) {
@@ -440,8 +443,17 @@ void RobotControl::start_next(SimDuration now) {
 
 void RobotControl::step(SimDuration now) {
   if (phase_ == RobotPhase::kFailed) return;
-  read_position(now);
+  collect_position();
   track_held_part();
+  run_commands(now);
+  // The periodic read goes last, so that a read asked for after a completion seen in this turn is the one that
+  // checks it.
+  if (phase_ != RobotPhase::kFailed && (!last_request_ || now - *last_request_ >= options_.position_period)) {
+    request_position(now);
+  }
+}
+
+void RobotControl::run_commands(SimDuration now) {
   if (phase_ == RobotPhase::kBringUp) {
     bring_up(now);
     if (phase_ != RobotPhase::kReady) return;
@@ -488,7 +500,7 @@ RobotControlView RobotControl::view() const {
   if (current_) {
     v.primitive = current_->command.index;
     v.command = task::to_string(current_->command.primitive);
-    v.detail = current_->detail;
+    v.detail = current_->id == 0 && !current_->waiting_for.empty() ? current_->waiting_for : current_->detail;
   }
   v.driver = driver_.state();
   return v;

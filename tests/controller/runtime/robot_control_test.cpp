@@ -783,8 +783,6 @@ TEST_F(RobotControlTest, R1sPickOnAPoseOnlyArmGoesStraightDownAndUp) {
 // ---- More of the rules ----
 
 TEST_F(RobotControlTest, WhileWaitingNothingIsSentAndTheLogSaysSo) {
-  GTEST_SKIP() << "bug: a waiting command's command_start carries the wait reason as `detail`, which event_log.hpp "
-                  "says is what was sent to the driver (\"\" when nothing was sent yet)";
   make(joint_arm());
   bring_up();
   env_.write([](EnvironmentModel& m) { m.find_workpiece("A")->present = false; });

@@ -41,6 +41,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -130,16 +131,20 @@ class RobotControl {
     std::vector<double> goal;                    // move: the joint goal
     std::optional<Eigen::Isometry3d> goal_pose;  // move: the tool goal in the base frame
     std::optional<SimDuration> done_seen;        // when the driver was first seen done
+    std::uint64_t reads_at_done = 0;             // position reads asked for by then
     bool pose_command = false;                   // move: sent as MovePose (the driver chose the configuration)
     std::optional<task::Target> target;          // move: its target, bound to cell names
     std::string detail;
     bool start_logged = false;  // command_start written
     bool wait_logged = false;   // the "waiting_for_part" sensor event written
+    std::string waiting_for;    // why the target is not ready yet (for view(); the log's detail is the driver's)
   };
 
   void bring_up(SimDuration now);
-  // Asks the driver where the arm is when one is due, and writes an answer that arrived into the model.
-  void read_position(SimDuration now);
+  // Writes a position read-back that arrived into the model.
+  void collect_position();
+  // Bring-up, then the commands: take, submit, poll, check.
+  void run_commands(SimDuration now);
   // Asks the driver for a position now (if none is in flight and the driver takes one); true when one is in flight.
   bool request_position(SimDuration now);
   // Checks a completed move against the read-back; false (the command failed) when the position was missed.
@@ -174,12 +179,12 @@ class RobotControl {
   RobotPhase phase_ = RobotPhase::kBringUp;
   drivers::CommandId home_id_ = 0;
   std::optional<Current> current_;
-  // Position read-backs: the request in flight (0: none), when the last one was asked, the newest answer and when
-  // it was asked.
+  // Position read-backs: the request in flight (0: none), when the last one was asked, the newest answer.
   drivers::CommandId position_request_ = 0;
   std::optional<SimDuration> last_request_;
   std::optional<drivers::PositionReading> reading_;
-  SimDuration reading_sent_{0};
+  std::uint64_t reads_asked_ = 0;     // position reads asked for so far
+  std::uint64_t reading_number_ = 0;  // which of them reading_ answers (1 = the first)
   // The target of this robot's previous move (a straight approach follows from it).
   std::optional<task::Target> last_target_;
 };

@@ -15,6 +15,7 @@
 #include <set>
 #include <sstream>
 
+#include "cellwright/common/xml.hpp"
 #include "cellwright/models/urdf.hpp"
 
 namespace cellwright::twin {
@@ -57,30 +58,7 @@ const char* const kPadFriction = "1 0.005 0.0001";  // sliding, torsional, rolli
 const char* const kGripSolref = "0.01 1";
 const char* const kGripSolimp = "0.95 0.99 0.001";
 
-// --- XML writing -------------------------------------------------------------------------------------------------
-
-std::string escape(std::string_view s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
+// --- Numbers in MJCF ----------------------------------------------------------------------------------------------
 
 std::string num(double v) {
   if (std::abs(v) < 1e-12) v = 0;  // no "-0" or 1e-17 noise in the file
@@ -104,52 +82,7 @@ std::string rgba(const Eigen::Vector4d& c) {
   return nums({c[0], c[1], c[2], c[3]});
 }
 
-using Attrs = std::vector<std::pair<std::string, std::string>>;
-
-class Xml {
- public:
-  void open(const std::string& tag, const Attrs& attrs = {}) {
-    start(tag, attrs);
-    out_ += ">\n";
-    stack_.push_back(tag);
-  }
-  void leaf(const std::string& tag, const Attrs& attrs = {}) {
-    start(tag, attrs);
-    out_ += "/>\n";
-  }
-  void close() {
-    CW_CHECK(!stack_.empty(), "closing an element that was not opened");
-    indent(stack_.size() - 1);
-    out_ += "</" + stack_.back() + ">\n";
-    stack_.pop_back();
-  }
-  // Appends already written elements, indented to the current depth.
-  void raw(const std::string& text) {
-    std::istringstream in(text);
-    for (std::string line; std::getline(in, line);) {
-      indent(stack_.size());
-      out_ += line + "\n";
-    }
-  }
-  void comment(const std::string& text) {
-    indent(stack_.size());
-    out_ += "<!-- " + text + " -->\n";
-  }
-  std::string str() const {
-    CW_CHECK(stack_.empty(), "unclosed element <{}>", stack_.empty() ? "" : stack_.back());
-    return out_;
-  }
-
- private:
-  void indent(std::size_t depth) { out_.append(2 * depth, ' '); }
-  void start(const std::string& tag, const Attrs& attrs) {
-    indent(stack_.size());
-    out_ += "<" + tag;
-    for (const auto& [k, v] : attrs) out_ += " " + k + "=\"" + escape(v) + "\"";
-  }
-  std::string out_;
-  std::vector<std::string> stack_;
-};
+using Attrs = xml::Attributes;
 
 // --- URDF ------------------------------------------------------------------------------------------------------
 
@@ -260,26 +193,22 @@ void accumulate_load(const urdf::Link& link, double reach, bool prismatic, LoadB
 // --- The cell's MJCF -------------------------------------------------------------------------------------------
 
 struct Builder {
+  explicit Builder(const models::CellDescription& c) : cell(c) {}
+
   const models::CellDescription& cell;
-  Xml x;
+  xml::Writer x{2};          // the project's one XML writer (common/xml.hpp), two spaces per level
   std::vector<double> qpos;  // initial qpos in MuJoCo's order (joints in document order)
   std::vector<double> ctrl;  // initial actuator targets, in the order actuators are written
-  std::string actuators;     // <actuator> children, written after the worldbody
-  std::string sensors;
+  std::vector<std::pair<std::string, Attrs>> actuators;  // <actuator> children, written after the worldbody
+  std::vector<std::pair<std::string, Attrs>> sensors;
   std::vector<std::pair<std::string, std::string>> excludes;
   std::vector<std::pair<std::string, std::string>> couplings;  // joints that move together (joint1 = joint2)
 
   void actuator(const std::string& tag, const Attrs& attrs, double initial) {
-    Xml a;
-    a.leaf(tag, attrs);
-    actuators += a.str();
+    actuators.emplace_back(tag, attrs);
     ctrl.push_back(initial);
   }
-  void sensor(const std::string& tag, const Attrs& attrs) {
-    Xml s;
-    s.leaf(tag, attrs);
-    sensors += s.str();
-  }
+  void sensor(const std::string& tag, const Attrs& attrs) { sensors.emplace_back(tag, attrs); }
 
   // --- Robots ---
 
@@ -762,10 +691,10 @@ struct Builder {
     x.close();
     // Actuators and sensors were collected while the bodies were written.
     x.open("actuator");
-    x.raw(actuators);
+    for (const auto& [tag, attrs] : actuators) x.leaf(tag, attrs);
     x.close();
     x.open("sensor");
-    x.raw(sensors);
+    for (const auto& [tag, attrs] : sensors) x.leaf(tag, attrs);
     x.close();
     // The initial state, so that the saved MJCF opens in MuJoCo's viewer as the cell starts.
     x.open("keyframe");
@@ -805,7 +734,7 @@ struct VfsDeleter {
 
 std::string scene_mjcf(const models::CellDescription& cell) {
   const std::vector<RobotModel> robots = read_robot_models(cell);
-  Builder b{cell, {}, {}, {}, {}, {}, {}, {}};
+  Builder b{cell};
   return b.build(robots);
 }
 

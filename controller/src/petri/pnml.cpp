@@ -20,6 +20,7 @@
 #include <utility>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/common/xml.hpp"
 
 namespace cellwright::petri {
 namespace {
@@ -577,73 +578,6 @@ class Reader {
 // ---------------------------------------------------------------------------------------------------------------
 // Export.
 
-// tinyxml2's printer, with our own escaping for attribute values and text. Its own escaping leaves tabs, newlines
-// and carriage returns raw, which XML readers normalise (CR to LF; in attributes, all three to spaces) and which
-// disappear entirely from text that is only white space; as character references they survive any reader.
-class Printer : public tinyxml2::XMLPrinter {
- public:
-  // Call right after OpenElement, like PushAttribute.
-  void attribute(const char* name, std::string_view value) {
-    Putc(' ');
-    Write(name);
-    Write("=\"");
-    write_escaped(value, Space::kAttribute);
-    Putc('"');
-  }
-
-  void text(std::string_view value) {
-    PushText("");  // marks the element as holding text, so that no indentation is added inside it
-    write_escaped(value, trim(value).empty() ? Space::kAll : Space::kRaw);
-  }
-
- private:
-  // kRaw: white space as is (text with other content keeps it); kAttribute: tabs and newlines as references;
-  // kAll: every white space character as a reference (text that is only white space).
-  enum class Space { kRaw, kAttribute, kAll };
-
-  void write_escaped(std::string_view value, Space space) {
-    std::string out;
-    out.reserve(value.size());
-    for (char c : value) {
-      switch (c) {
-        case '&':
-          out += "&amp;";
-          break;
-        case '<':
-          out += "&lt;";
-          break;
-        case '>':
-          out += "&gt;";
-          break;
-        case '"':
-          out += "&quot;";
-          break;
-        case '\r':
-          out += "&#13;";
-          break;
-        case '\t':
-        case '\n':
-          if (space != Space::kRaw) {
-            out += fmt::format("&#{};", static_cast<int>(c));
-          } else {
-            out += c;
-          }
-          break;
-        default:
-          if (static_cast<unsigned char>(c) < 0x20) {
-            out += fmt::format("&#{};", static_cast<int>(c));
-          } else if (c == ' ' && space == Space::kAll) {
-            out += "&#32;";
-          } else {
-            out += c;
-          }
-          break;
-      }
-    }
-    Write(out.data(), out.size());
-  }
-};
-
 class Writer {
  public:
   explicit Writer(const Net& net) : net_(net) {
@@ -652,15 +586,15 @@ class Writer {
   }
 
   std::string write() {
-    out_.PushDeclaration("xml version=\"1.0\" encoding=\"UTF-8\"");
-    out_.OpenElement("pnml");
+    out_.declaration("xml version=\"1.0\" encoding=\"UTF-8\"");
+    out_.open("pnml");
     out_.attribute("xmlns", kPnmlNamespace);
-    out_.OpenElement("net");
+    out_.open("net");
     out_.attribute("id", fresh("net"));
     out_.attribute("type", kPtNetType);
     name(net_.name());
     net_block();
-    out_.OpenElement("page");
+    out_.open("page");
     out_.attribute("id", fresh("page0"));
     for (const Place& p : net_.places()) place(p);
     for (const Transition& t : net_.transitions()) transition(t);
@@ -669,10 +603,10 @@ class Writer {
       for (const Arc& a : t.inputs) arc(net_.places().at(a.place).id, t.id, a.weight);
       for (const Arc& a : t.outputs) arc(t.id, net_.places().at(a.place).id, a.weight);
     }
-    out_.CloseElement();  // page
-    out_.CloseElement();  // net
-    out_.CloseElement();  // pnml
-    return std::string(out_.CStr(), static_cast<std::size_t>(out_.CStrSize() - 1));
+    out_.close();  // page
+    out_.close();  // net
+    out_.close();  // pnml
+    return out_.str();
   }
 
  private:
@@ -684,20 +618,14 @@ class Writer {
     return id;
   }
 
-  void text_element(const char* tag, const std::string& text) {
-    out_.OpenElement(tag);
-    out_.text(text);
-    out_.CloseElement(true);
-  }
-
   void name(const std::string& n) {
-    out_.OpenElement("name");
-    text_element("text", n);
-    out_.CloseElement();
+    out_.open("name");
+    out_.text_element("text", n);
+    out_.close();
   }
 
   void open_tool() {
-    out_.OpenElement("toolspecific");
+    out_.open("toolspecific");
     out_.attribute("tool", kTool);
     out_.attribute("version", kToolVersion);
   }
@@ -707,95 +635,95 @@ class Writer {
   }
 
   void origin(const Origin& o) {
-    out_.OpenElement("origin");
-    if (o.line != 0) out_.PushAttribute("line", o.line);
-    if (o.column != 0) out_.PushAttribute("column", o.column);
-    if (o.primitive != -1) out_.PushAttribute("primitive", o.primitive);
-    if (!o.robot.empty()) text_element("robot", o.robot);
-    if (!o.task.empty()) text_element("task", o.task);
-    if (!o.motion.empty()) text_element("motion", o.motion);
-    out_.CloseElement();
+    out_.open("origin");
+    if (o.line != 0) out_.attribute("line", o.line);
+    if (o.column != 0) out_.attribute("column", o.column);
+    if (o.primitive != -1) out_.attribute("primitive", o.primitive);
+    if (!o.robot.empty()) out_.text_element("robot", o.robot);
+    if (!o.task.empty()) out_.text_element("task", o.task);
+    if (!o.motion.empty()) out_.text_element("motion", o.motion);
+    out_.close();
   }
 
   void net_block() {
     if (net_.robots().empty() && net_.regions().empty() && net_.final_places().empty()) return;
     open_tool();
     for (const std::string& r : net_.robots()) {
-      out_.OpenElement("robot");
+      out_.open("robot");
       out_.attribute("name", r);
-      out_.CloseElement();
+      out_.close();
     }
     for (const Region& r : net_.regions()) {
-      out_.OpenElement("region");
+      out_.open("region");
       out_.attribute("name", r.name);
-      out_.PushAttribute("capacity", r.capacity);
+      out_.attribute("capacity", r.capacity);
       for (PlaceId p : r.inside) {
-        out_.OpenElement("inside");
+        out_.open("inside");
         out_.attribute("place", net_.places().at(p).id);
-        out_.CloseElement();
+        out_.close();
       }
-      out_.CloseElement();
+      out_.close();
     }
     for (const Arc& f : net_.final_places()) {
-      out_.OpenElement("final");
+      out_.open("final");
       out_.attribute("place", net_.places().at(f.place).id);
-      out_.PushAttribute("tokens", f.weight);
-      out_.CloseElement();
+      out_.attribute("tokens", f.weight);
+      out_.close();
     }
-    out_.CloseElement();
+    out_.close();
   }
 
   void place(const Place& p) {
-    out_.OpenElement("place");
+    out_.open("place");
     out_.attribute("id", p.id);
     name(p.name);
     if (p.initial != 0) {
-      out_.OpenElement("initialMarking");
-      text_element("text", std::to_string(p.initial));
-      out_.CloseElement();
+      out_.open("initialMarking");
+      out_.text_element("text", std::to_string(p.initial));
+      out_.close();
     }
     if (p.kind != PlaceKind::kPlain || !empty(p.origin)) {
       open_tool();
-      if (p.kind != PlaceKind::kPlain) text_element("kind", kind_name(p.kind));
+      if (p.kind != PlaceKind::kPlain) out_.text_element("kind", kind_name(p.kind));
       if (!empty(p.origin)) origin(p.origin);
-      out_.CloseElement();
+      out_.close();
     }
-    out_.CloseElement();
+    out_.close();
   }
 
   void transition(const Transition& t) {
-    out_.OpenElement("transition");
+    out_.open("transition");
     out_.attribute("id", t.id);
     name(t.name);
     if (!empty(t.origin) || t.starts_robot.has_value() || t.starts_primitive != -1) {
       open_tool();
       if (!empty(t.origin)) origin(t.origin);
       if (t.starts_robot.has_value() || t.starts_primitive != -1) {
-        out_.OpenElement("starts");
-        if (t.starts_robot.has_value()) out_.PushAttribute("robot", *t.starts_robot);
-        if (t.starts_primitive != -1) out_.PushAttribute("primitive", t.starts_primitive);
-        out_.CloseElement();
+        out_.open("starts");
+        if (t.starts_robot.has_value()) out_.attribute("robot", *t.starts_robot);
+        if (t.starts_primitive != -1) out_.attribute("primitive", t.starts_primitive);
+        out_.close();
       }
-      out_.CloseElement();
+      out_.close();
     }
-    out_.CloseElement();
+    out_.close();
   }
 
   void arc(const std::string& source, const std::string& target, Tokens weight) {
-    out_.OpenElement("arc");
+    out_.open("arc");
     out_.attribute("id", fresh(fmt::format("a{}", arc_count_++)));
     out_.attribute("source", source);
     out_.attribute("target", target);
     if (weight != 1) {
-      out_.OpenElement("inscription");
-      text_element("text", std::to_string(weight));
-      out_.CloseElement();
+      out_.open("inscription");
+      out_.text_element("text", std::to_string(weight));
+      out_.close();
     }
-    out_.CloseElement();
+    out_.close();
   }
 
   const Net& net_;
-  Printer out_;
+  xml::Writer out_;
   std::set<std::string> used_;
   std::size_t arc_count_ = 0;
 };

@@ -1,13 +1,10 @@
 // `twin analyze <net.pnml>`: read a Petri net from PNML (written by Cellwright or by TINA, PIPE, LoLA/MCC, ePNK) and
 // analyse its reachability graph: deadlocks, boundedness, dead transitions, mutual exclusion of critical regions.
-#include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <iostream>
 #include <memory>
 #include <string>
 
-#include "cellwright/common/error.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/dot.hpp"
 #include "cellwright/petri/pnml.hpp"
@@ -46,25 +43,11 @@ void add_analyze(CLI::App& app, Command* run) {
         std::fprintf(stderr, "%s: note: the file holds %zu nets (%s); analysing the first (choose with --net-id)\n",
                      args->net.c_str(), doc.net_ids.size(), ids.c_str());
       }
-      const petri::Net& net = doc.net;
-      if (!args->dot.empty()) {
-        std::FILE* f = std::fopen(args->dot.c_str(), "wb");
-        if (f == nullptr) throw InputError({args->dot, 0, 0}, std::string("cannot write: ") + std::strerror(errno));
-        const std::string text = petri::to_dot(net);
-        const bool written = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-        if (std::fclose(f) != 0 || !written) {
-          throw InputError({args->dot, 0, 0}, std::string("cannot write: ") + std::strerror(errno));
-        }
-      }
-      petri::AnalysisOptions options;
-      options.max_states = args->max_states;
-      const petri::AnalysisResult result = petri::analyze(net, options);
-      if (args->json) {
-        std::cout << petri::to_json(net, result).dump(2) << "\n";
-      } else {
-        std::cout << args->net << ": " << petri::format_report(net, result);
-      }
-      return result.ok() ? 0 : 1;
+      if (!args->dot.empty()) petri::write_dot(doc.net, args->dot);
+      petri::CheckOptions options;
+      options.analysis.max_states = args->max_states;
+      options.json = args->json;
+      return petri::check_and_report(doc.net, args->net, options, std::cout);
     };
   });
 }

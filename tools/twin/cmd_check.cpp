@@ -1,5 +1,4 @@
 // `twin check <program>`: compile a task-level program, build its Petri net and analyse it before anything runs.
-#include <cstdio>
 #include <iostream>
 #include <string>
 
@@ -26,17 +25,11 @@ void add_check(CLI::App& app, Command* run) {
       ->check(CLI::PositiveNumber);
   cmd->callback([run, args] {
     *run = [args] {
-      const task::CompiledProgram program = task::compile_file(args->program);
-      const petri::Net net = task::to_net(program);
-      petri::AnalysisOptions options;
-      options.max_states = args->max_states;
-      const petri::AnalysisResult result = petri::analyze(net, options);
-      if (args->json) {
-        std::cout << petri::to_json(net, result).dump(2) << "\n";
-      } else {
-        std::cout << args->program << ": " << petri::format_report(net, result);
-      }
-      return result.ok() ? 0 : 1;
+      petri::CheckOptions options;
+      options.analysis.max_states = args->max_states;
+      options.json = args->json;
+      return petri::check_and_report(task::to_net(task::compile_file(args->program)), args->program, options,
+                                     std::cout);
     };
   });
 }

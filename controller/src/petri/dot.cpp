@@ -3,7 +3,10 @@
 
 #include <fmt/format.h>
 
+#include <cerrno>
 #include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <map>
 #include <vector>
 
@@ -157,6 +160,16 @@ std::string to_dot(const Net& net, const DotOptions& options) {
   }
   out += "}\n";
   return out;
+}
+
+void write_dot(const Net& net, const std::string& path, const DotOptions& options) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr) throw InputError({path, 0, 0}, std::string("cannot write: ") + std::strerror(errno));
+  const std::string text = to_dot(net, options);
+  const bool written = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  if (std::fclose(f) != 0 || !written) {
+    throw InputError({path, 0, 0}, std::string("cannot write: ") + std::strerror(errno));
+  }
 }
 
 }  // namespace cellwright::petri

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -282,6 +283,16 @@ nlohmann::json to_json(const Net& net, const AnalysisResult& r) {
   }
   j["deadlock_examples"] = examples;
   return j;
+}
+
+int check_and_report(const Net& net, std::string_view source, const CheckOptions& options, std::ostream& out) {
+  const AnalysisResult result = analyze(net, options.analysis);
+  if (options.json) {
+    out << to_json(net, result).dump(2) << "\n";
+  } else {
+    out << source << ": " << format_report(net, result);
+  }
+  return result.ok() ? 0 : 1;
 }
 
 }  // namespace cellwright::petri

@@ -15,8 +15,10 @@
 #pragma once
 
 #include <cstdint>
+#include <iosfwd>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -91,5 +93,16 @@ std::string format_report(const Net& net, const AnalysisResult& r);
 // deadlock_description (describe_marking), deadlock_examples ([{path, marking}]). A path is a list of {transition
 // (id), name, robot, line, task, motion} ("" and 0 where the net has no origin); absent paths and markings are null.
 nlohmann::json to_json(const Net& net, const AnalysisResult& r);
+
+// What a checking command (`twin check`, `twin analyze`) does once it has a net.
+struct CheckOptions {
+  AnalysisOptions analysis;
+  bool json = false;  // print to_json instead of format_report
+};
+
+// Analyses `net` and prints the outcome to `out`: with options.json the JSON report (to_json) indented by 2 and a
+// newline, else "<source>: " and the human report (format_report). Returns the checking commands' exit status: 0 if
+// the result is ok(), 1 if not. Throws as analyze() does.
+int check_and_report(const Net& net, std::string_view source, const CheckOptions& options, std::ostream& out);
 
 }  // namespace cellwright::petri

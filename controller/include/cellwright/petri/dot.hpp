@@ -30,4 +30,8 @@ struct DotOptions {
 // is not one of TB, LR, BT, RL.
 std::string to_dot(const Net& net, const DotOptions& options = {});
 
+// Writes to_dot(net, options) to `path`. Throws InputError({path}, "cannot write: <the system's reason>") if the file
+// cannot be created or written.
+void write_dot(const Net& net, const std::string& path, const DotOptions& options = {});
+
 }  // namespace cellwright::petri

@@ -107,38 +107,41 @@ const WorkpieceState* EnvironmentModel::find_workpiece(std::string_view name) co
 WorkpieceState* EnvironmentModel::find_workpiece(std::string_view name) {
   return find_named(workpieces, name);
 }
-const LocationState* EnvironmentModel::find_location(std::string_view name) const {
+const CellLocation* CellGeometry::find_location(std::string_view name) const {
   return find_named(locations, name);
 }
 
 EnvironmentModel make_environment_model(const models::CellDescription& cell) {
+  auto g = std::make_shared<CellGeometry>();
+  for (const models::RobotSpec& r : cell.robots) g->robots.push_back({r.name, r.base.transform(), r.home});
+  for (const models::WorkpieceSpec& w : cell.workpieces) g->workpieces.push_back({w.name, w.shape, w.size});
+  for (const models::LocationSpec& l : cell.locations) {
+    g->locations.push_back({l.name, l.pose.transform(), l.grasp_height, l.approach_height});
+  }
+  for (const models::ConveyorSpec& c : cell.conveyors) {
+    g->conveyors.push_back({c.name, c.pose.transform(), c.length, c.width, c.height, c.speed});
+  }
+  for (const models::MachineSpec& mc : cell.machines) {
+    g->machines.push_back({mc.name, mc.pose.transform(), mc.fixture_top().transform()});
+  }
+  g->handover = cell.handover;
+
   EnvironmentModel m;
-  for (const models::RobotSpec& r : cell.robots) {
+  m.geometry = g;  // from here on only read: the state below points into it
+  for (const CellRobot& r : g->robots) {
     RobotState s;
     s.name = r.name;
-    s.base = r.base.transform();
-    s.home = r.home;
+    s.fixed = &r;
     s.joints = r.home;
     m.robots.push_back(std::move(s));
   }
-  for (const models::WorkpieceSpec& w : cell.workpieces) {
+  for (std::size_t i = 0; i < g->workpieces.size(); ++i) {
     WorkpieceState s;
-    s.name = w.name;
-    s.shape = w.shape;
-    s.size = w.size;
-    s.pose = w.pose.transform();
+    s.name = g->workpieces[i].name;
+    s.fixed = &g->workpieces[i];
+    s.pose = cell.workpieces[i].pose.transform();
     m.workpieces.push_back(std::move(s));
   }
-  for (const models::LocationSpec& l : cell.locations) {
-    m.locations.push_back({l.name, l.pose.transform(), l.grasp_height, l.approach_height});
-  }
-  for (const models::ConveyorSpec& c : cell.conveyors) {
-    m.conveyors.push_back({c.name, c.pose.transform(), c.length, c.width, c.height, c.speed});
-  }
-  for (const models::MachineSpec& mc : cell.machines) {
-    m.machines.push_back({mc.name, mc.pose.transform(), mc.fixture_top().transform()});
-  }
-  m.handover = cell.handover;
   return m;
 }
 
@@ -171,10 +174,10 @@ void apply_truth(EnvironmentModel& model, const Truth& truth, Perception percept
     }
     // kCad: a resting part near a location stands at its nominal pose there; otherwise the model keeps its pose.
     if (!s->held_by.empty() || !w.present || w.velocity.norm() > kCadRestSpeed) continue;
-    const Eigen::Vector3d bottom = w.pose.translation() - Eigen::Vector3d(0, 0, s->size.z() / 2);
-    const LocationState* at = nullptr;
+    const Eigen::Vector3d bottom = w.pose.translation() - Eigen::Vector3d(0, 0, s->size().z() / 2);
+    const CellLocation* at = nullptr;
     double nearest = kCadSensorRadius;
-    for (const LocationState& l : model.locations) {
+    for (const CellLocation& l : model.geometry->locations) {
       const double d = (bottom - l.pose.translation()).norm();
       if (d <= nearest) {
         nearest = d;
@@ -183,7 +186,7 @@ void apply_truth(EnvironmentModel& model, const Truth& truth, Perception percept
     }
     if (at == nullptr) continue;
     Eigen::Isometry3d nominal = at->pose;
-    nominal.translation().z() += s->size.z() / 2;
+    nominal.translation().z() += s->size().z() / 2;
     if (!s->pose.isApprox(nominal)) {
       s->pose = nominal;
       s->confidence = 1.0;
@@ -222,7 +225,7 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
     case task::TargetKind::kHome: {
       MotionTarget t;
       t.resolution = MotionTarget::Resolution::kOk;
-      t.joints = r->home;
+      t.joints = r->home();
       t.description = "home";
       return t;
     }
@@ -242,12 +245,12 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
         if (!mine && speed > options.part_at_rest_speed) {
           return wait(fmt::format("workpiece {} is still moving ({:.4f} m/s)", w->name, speed));
         }
-        const Eigen::Vector3d bottom = w->pose.translation() - Eigen::Vector3d(0, 0, w->size.z() / 2);
-        LocationState heights;  // the models::LocationSpec defaults, unless the part rests at a location
+        const Eigen::Vector3d bottom = w->pose.translation() - Eigen::Vector3d(0, 0, w->size().z() / 2);
+        CellLocation heights;  // the models::LocationSpec defaults, unless the part rests at a location
         double yaw = yaw_of(w->pose.linear());
-        const LocationState* near = nullptr;
+        const CellLocation* near = nullptr;
         double nearest = options.at_location_tolerance;
-        for (const LocationState& l : model.locations) {
+        for (const CellLocation& l : model.geometry->locations) {
           const double d = (bottom - l.pose.translation()).norm();
           if (d <= nearest) {
             nearest = d;
@@ -259,7 +262,7 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
           // The cell says how fingers close there (e.g. clear of a stop bar): of the directions that close on the
           // part's faces, the one nearest the location's.
           const double want = yaw_of(near->pose.linear());
-          if (w->shape == models::Shape::kCylinder) {
+          if (w->shape() == models::Shape::kCylinder) {
             yaw = want;
           } else {
             // Any of the four: an aligned part is taken exactly as the location says, whatever its footprint.
@@ -270,9 +273,9 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
         const double grasp = mine ? r->hold->tcp_above_bottom : heights.grasp_height;
         const Eigen::Vector3d point = bottom + Eigen::Vector3d(0, 0, grasp + (above ? heights.approach_height : 0.0));
         const models::Approach approach = mine ? r->hold->approach : models::Approach::kDown;
-        return ok(both_ways(point, approach, yaw, r->base), what);
+        return ok(both_ways(point, approach, yaw, r->base()), what);
       }
-      if (const LocationState* l = model.find_location(target.object)) {
+      if (const CellLocation* l = model.find_location(target.object)) {
         // Only while the hand is still where it let go (the depart right after the put-down).
         const bool just_released =
             r->released_tcp && r->tcp && (r->tcp->translation() - r->released_tcp->translation()).norm() < 0.02;
@@ -291,20 +294,20 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
         if (approach == models::Approach::kSide) {
           std::vector<Eigen::Isometry3d> poses;
           std::vector<int> rank;
-          side_poses(point, r->base, poses, rank);
+          side_poses(point, r->base(), poses, rank);
           MotionTarget t = ok(std::move(poses), what);
           t.rank = std::move(rank);
           return t;
         }
-        return ok(both_ways(point, approach, yaw_of(l->pose.linear()), r->base), what);
+        return ok(both_ways(point, approach, yaw_of(l->pose.linear()), r->base()), what);
       }
       return fail(fmt::format("{}: '{}' is neither a workpiece nor a location of the cell", what, target.object));
     }
     case task::TargetKind::kHandover:
     case task::TargetKind::kHandApproach:
     case task::TargetKind::kHandGrasp: {
-      if (!model.handover) return fail(fmt::format("{}: the cell has no hand-over", what));
-      const models::HandoverSpec& h = *model.handover;
+      if (!model.geometry->handover) return fail(fmt::format("{}: the cell has no hand-over", what));
+      const models::HandoverSpec& h = *model.geometry->handover;
       const models::HandoverGrasp* g = grasp_of(h, robot);
       if (g == nullptr) return fail(fmt::format("{}: robot {} has no grasp at hand-over '{}'", what, robot, h.name));
       const double yaw = h.pose.rpy.z();
@@ -317,7 +320,7 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
           if (const WorkpieceState* w = model.find_workpiece(giver->hold->workpiece)) centre = w->pose.translation();
         }
       }
-      const std::vector<Eigen::Isometry3d> at = both_ways(centre + g->offset, g->approach, yaw, r->base);
+      const std::vector<Eigen::Isometry3d> at = both_ways(centre + g->offset, g->approach, yaw, r->base());
       if (target.kind != task::TargetKind::kHandApproach) return ok(at, what);
       // Back off along the approach axis; failing that, from below; failing that, half as far.
       const double c = options.handover_clearance;

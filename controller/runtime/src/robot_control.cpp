@@ -166,7 +166,7 @@ bool RobotControl::submit_current(SimDuration now) {
     const Seen seen = env_.read([&](const EnvironmentModel& m) {
       const RobotState* r = m.find_robot(cell_);
       return Seen{resolve_target(m, cell_, target, options_.targets), r ? r->joints : std::vector<double>{},
-                  r ? r->base : Eigen::Isometry3d::Identity()};
+                  r ? r->base() : Eigen::Isometry3d::Identity()};
     });
     if (seen.target.resolution == MotionTarget::Resolution::kWait) {
       phase_ = RobotPhase::kResolving;
@@ -299,7 +299,7 @@ void RobotControl::complete(SimDuration now) {
         hold.workpiece = held;
         // Tool axis pointing mostly down: a grasp from above; otherwise from the side.
         hold.approach = tcp.linear().col(2).z() < -0.7 ? models::Approach::kDown : models::Approach::kSide;
-        hold.tcp_above_bottom = tcp.translation().z() - (w->pose.translation().z() - w->size.z() / 2);
+        hold.tcp_above_bottom = tcp.translation().z() - (w->pose.translation().z() - w->size().z() / 2);
         hold.in_hand = tcp.inverse() * w->pose;
         r->hold = hold;
         r->released_tcp.reset();
@@ -408,9 +408,9 @@ void RobotControl::collect_position() {
           if (robot == nullptr) return;
           if (reading_->joints.size() == chain_.dof()) {
             robot->joints = reading_->joints;
-            robot->tcp = robot->base * chain_.forward(to_eigen(robot->joints));
+            robot->tcp = robot->base() * chain_.forward(to_eigen(robot->joints));
           } else if (reading_->tool_pose) {
-            robot->tcp = robot->base * *reading_->tool_pose;
+            robot->tcp = robot->base() * *reading_->tool_pose;
           }
         });
       }
@@ -471,7 +471,7 @@ void RobotControl::run_commands(SimDuration now) {
 
 Eigen::Isometry3d RobotControl::tool_in_world(const RobotState& r) const {
   if (r.tcp) return *r.tcp;
-  return r.base * chain_.forward(to_eigen(r.joints));
+  return r.base() * chain_.forward(to_eigen(r.joints));
 }
 
 void RobotControl::track_held_part() {

@@ -25,19 +25,26 @@ TEST(RuntimeEnvironment, IsPreCodedFromTheCellDescription) {
   const EnvironmentModel m = make_environment_model(cell);
   ASSERT_EQ(m.robots.size(), cell.robots.size());
   EXPECT_EQ(m.find_robot("melfa")->joints, cell.find_robot("melfa")->home);
-  EXPECT_TRUE(m.find_robot("melfa")->base.isApprox(cell.find_robot("melfa")->base.transform()));
+  EXPECT_TRUE(m.find_robot("melfa")->base().isApprox(cell.find_robot("melfa")->base.transform()));
   ASSERT_EQ(m.workpieces.size(), cell.workpieces.size());
   const WorkpieceState& a = *m.find_workpiece("A");
   EXPECT_TRUE(a.pose.isApprox(cell.find_workpiece("A")->pose.transform()));
   EXPECT_TRUE(a.present);
   EXPECT_EQ(a.held_by, "");
   EXPECT_EQ(a.confidence, 1.0);
-  EXPECT_EQ(m.locations.size(), cell.locations.size());
-  EXPECT_EQ(m.conveyors.size(), 2u);
-  EXPECT_EQ(m.machines.size(), 1u);
-  ASSERT_TRUE(m.handover.has_value());
-  EXPECT_EQ(m.handover->name, "exchange");
+  EXPECT_EQ(a.size(), cell.find_workpiece("A")->size);
+  EXPECT_EQ(m.geometry->locations.size(), cell.locations.size());
+  EXPECT_EQ(m.geometry->conveyors.size(), 2u);
+  EXPECT_EQ(m.geometry->machines.size(), 1u);
+  ASSERT_TRUE(m.geometry->handover.has_value());
+  EXPECT_EQ(m.geometry->handover->name, "exchange");
   EXPECT_EQ(m.find_robot("kuka"), nullptr);
+  // The fixed geometry is shared, not copied, by a copy of the model; the copy's state is its own.
+  EnvironmentModel copy = m;
+  EXPECT_EQ(copy.geometry.get(), m.geometry.get());
+  EXPECT_EQ(copy.find_workpiece("A")->fixed, m.find_workpiece("A")->fixed);
+  copy.find_workpiece("A")->pose.translation().x() += 0.1;
+  EXPECT_TRUE(m.find_workpiece("A")->pose.isApprox(cell.find_workpiece("A")->pose.transform()));
 }
 
 TEST(RuntimeEnvironment, TruthUpdatesPosesAndFingersButNeitherJointsNorWhoHolds) {
@@ -87,7 +94,7 @@ TEST(RuntimeEnvironment, VisionCorrectsFreePartsOnly) {
 
 TEST(RuntimeEnvironment, AboveAndAtAPartAtALocationUseThatLocationsHeights) {
   const EnvironmentModel m = make_environment_model(paper_cell());  // A rests at input_pick
-  const LocationState& pick = *m.find_location("input_pick");
+  const CellLocation& pick = *m.find_location("input_pick");
   const MotionTarget at = resolve_target(m, "puma", target(task::TargetKind::kAt, "A"));
   const MotionTarget above = resolve_target(m, "puma", target(task::TargetKind::kAbove, "A"));
   ASSERT_EQ(at.resolution, MotionTarget::Resolution::kOk) << at.reason;
@@ -123,7 +130,7 @@ TEST(RuntimeEnvironment, APartThatIsMovingAbsentOrHeldElsewhereIsWaitedFor) {
 
 TEST(RuntimeEnvironment, PuttingDownKeepsTheHoldSoThePartsBottomLandsOnTheLocation) {
   EnvironmentModel m = make_environment_model(paper_cell());
-  const LocationState& drop = *m.find_location("output_drop");
+  const CellLocation& drop = *m.find_location("output_drop");
   RobotState& melfa = *m.find_robot("melfa");
   melfa.hold = Hold{"A", models::Approach::kSide, 0.01};
   const MotionTarget at = resolve_target(m, "melfa", target(task::TargetKind::kAt, "output_drop"));
@@ -143,7 +150,7 @@ TEST(RuntimeEnvironment, PuttingDownKeepsTheHoldSoThePartsBottomLandsOnTheLocati
 
 TEST(RuntimeEnvironment, DepartingAfterAPutDownLiftsTheOpenHandStraightUp) {
   EnvironmentModel m = make_environment_model(paper_cell());
-  const LocationState& drop = *m.find_location("output_drop");
+  const CellLocation& drop = *m.find_location("output_drop");
   RobotState& melfa = *m.find_robot("melfa");
   // It opened its hand holding the part from the side, tool pointing along +y, 1 cm off the drop point.
   Eigen::Isometry3d released = Eigen::Isometry3d::Identity();
@@ -174,8 +181,8 @@ TEST(RuntimeEnvironment, DepartingAfterAPutDownLiftsTheOpenHandStraightUp) {
 
 TEST(RuntimeEnvironment, WithoutACameraTheModelPutsARestingPartAtItsLocationsNominalPose) {
   EnvironmentModel m = make_environment_model(paper_cell());
-  const LocationState& pick = *m.find_location("input_pick");
-  const double half = m.find_workpiece("A")->size.z() / 2;
+  const CellLocation& pick = *m.find_location("input_pick");
+  const double half = m.find_workpiece("A")->size().z() / 2;
   // The real part stands 5 cm to the side of the pick location, turned: the presence sensor there only says "a part".
   Truth t;
   t.time = milliseconds(500);
@@ -220,12 +227,12 @@ TEST(RuntimeEnvironment, APartSeenOnceIsNotGraspedUntilItsMotionIsKnown) {
 
 TEST(RuntimeEnvironment, APartNearItsPickLocationIsTakenWithTheLocationsFingerDirection) {
   EnvironmentModel m = make_environment_model(paper_cell());
-  const LocationState& pick = *m.find_location("input_pick");
+  const CellLocation& pick = *m.find_location("input_pick");
   WorkpieceState& a = *m.find_workpiece("A");
   // 4 cm to the side of the pick point and turned by 80 degrees: a square box, so its faces are also at -10 degrees
   // and 170, and the location's direction (90 degrees) is nearest to 80.
   a.pose = pick.pose;
-  a.pose.translation() += Eigen::Vector3d(0, 0.04, a.size.z() / 2);
+  a.pose.translation() += Eigen::Vector3d(0, 0.04, a.size().z() / 2);
   a.pose.linear() = Eigen::AngleAxisd(80 * std::numbers::pi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   a.velocity.setZero();
   const MotionTarget t = resolve_target(m, "puma", target(task::TargetKind::kAt, "A"));
@@ -243,7 +250,7 @@ TEST(RuntimeEnvironment, APartNearItsPickLocationIsTakenWithTheLocationsFingerDi
 
 TEST(RuntimeEnvironment, HandOverTargetsFollowTheCellsHandOverSpec) {
   EnvironmentModel m = make_environment_model(paper_cell());
-  const models::HandoverSpec& h = *m.handover;
+  const models::HandoverSpec& h = *m.geometry->handover;
   const MotionTarget give = resolve_target(m, "puma", target(task::TargetKind::kHandover, "melfa"));
   ASSERT_EQ(give.resolution, MotionTarget::Resolution::kOk);
   EXPECT_TRUE(give.poses[0].translation().isApprox(h.pose.xyz + h.grasps[0].offset, 1e-9));
@@ -275,7 +282,9 @@ TEST(RuntimeEnvironment, TargetsNamingNothingFailWithTheName) {
   EXPECT_THAT(t.reason, HasSubstr("'nowhere' is neither a workpiece nor a location"));
   t = resolve_target(m, "kuka", target(task::TargetKind::kHome, ""));
   EXPECT_EQ(t.resolution, MotionTarget::Resolution::kFail);
-  m.handover.reset();
+  models::CellDescription no_handover = paper_cell();
+  no_handover.handover.reset();
+  m = make_environment_model(no_handover);
   t = resolve_target(m, "puma", target(task::TargetKind::kHandover, "melfa"));
   EXPECT_EQ(t.resolution, MotionTarget::Resolution::kFail);
   EXPECT_THAT(t.reason, HasSubstr("the cell has no hand-over"));

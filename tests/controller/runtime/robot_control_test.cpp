@@ -278,7 +278,7 @@ TEST_F(RobotControlTest, AMoveIsSentAsJointsAndEndsWhenTheReadBackReachesTheGoal
   EXPECT_DOUBLE_EQ(mj.speed, MotionOptions{}.speed);
   // The tool goes above A, gripper down.
   const RobotState r = robot();
-  const Eigen::Isometry3d tool = r.base * chain_.forward(to_eigen(mj.positions));
+  const Eigen::Isometry3d tool = r.base() * chain_.forward(to_eigen(mj.positions));
   const Eigen::Vector3d a = part("A").pose.translation();
   EXPECT_NEAR(tool.translation().x(), a.x(), 1e-3);
   EXPECT_NEAR(tool.translation().y(), a.y(), 1e-3);
@@ -584,7 +584,7 @@ TEST_F(RobotControlTest, APoseOnlyDriverGetsPosesWithStraightApproachAndLift) {
       const Eigen::Isometry3d pose = std::get<drivers::MovePose>(sent().back()).pose;
       EXPECT_TRUE(chain_.forward(to_eigen(robot().joints)).isApprox(pose, 1e-6)) << task::to_string(program[i]);
       ASSERT_TRUE(robot().tcp.has_value());
-      EXPECT_TRUE(robot().tcp->isApprox(robot().base * pose, 1e-9));
+      EXPECT_TRUE(robot().tcp->isApprox(robot().base() * pose, 1e-9));
     }
   }
   const std::vector<drivers::Command> cmds = sent();
@@ -683,7 +683,7 @@ TEST_F(RobotControlTest, AJointReadBackIsWrittenIntoTheModel) {
   ASSERT_EQ(r.joints.size(), expected.size());
   for (std::size_t j = 0; j < expected.size(); ++j) EXPECT_NEAR(r.joints[j], expected[j], 1e-12) << j;
   ASSERT_TRUE(r.tcp.has_value());
-  EXPECT_TRUE(r.tcp->isApprox(r.base * chain_.forward(to_eigen(expected)), 1e-9));
+  EXPECT_TRUE(r.tcp->isApprox(r.base() * chain_.forward(to_eigen(expected)), 1e-9));
 }
 
 TEST_F(RobotControlTest, AToolPoseReadBackIsWrittenIntoTheModel) {
@@ -696,7 +696,7 @@ TEST_F(RobotControlTest, AToolPoseReadBackIsWrittenIntoTheModel) {
   Eigen::Isometry3d expected = chain_.forward(to_eigen(spec_.home));
   expected.translation().x() += 0.03;
   ASSERT_TRUE(r.tcp.has_value());
-  EXPECT_TRUE(r.tcp->isApprox(r.base * expected, 1e-9));
+  EXPECT_TRUE(r.tcp->isApprox(r.base() * expected, 1e-9));
   EXPECT_EQ(r.joints, spec_.home);  // no joint read-back: the joints are the last known
 }
 

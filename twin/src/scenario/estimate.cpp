@@ -212,7 +212,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
             ws.held_by = arm.cell;
             // As robot control records it: held from above when the tool points down, else from the side.
             const bool down = tcp.linear().col(2).z() < -0.7;
-            const double bottom = ws.pose.translation().z() - ws.size.z() / 2;
+            const double bottom = ws.pose.translation().z() - ws.size().z() / 2;
             rs.hold = runtime::Hold{w, down ? models::Approach::kDown : models::Approach::kSide,
                                     tcp.translation().z() - bottom};
           } else {

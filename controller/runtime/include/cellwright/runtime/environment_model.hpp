@@ -41,6 +41,7 @@
 
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -54,10 +55,59 @@
 
 namespace cellwright::runtime {
 
-struct WorkpieceState {
+// ---- The cell's fixed geometry: made once from the cell description, never changed, shared by every copy ----
+
+struct CellRobot {
+  std::string name;
+  Eigen::Isometry3d base = Eigen::Isometry3d::Identity();  // base_link in the world
+  std::vector<double> home;                                // radians
+};
+
+struct CellWorkpiece {
   std::string name;
   models::Shape shape = models::Shape::kBox;
-  Eigen::Vector3d size = Eigen::Vector3d::Zero();          // full extents (cell description)
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();  // full extents
+};
+
+struct CellLocation {
+  std::string name;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // the part's bottom centre when it rests there
+  double grasp_height = 0.02;
+  double approach_height = 0.08;
+};
+
+struct CellConveyor {
+  std::string name;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // footprint centre on the floor
+  double length = 0, width = 0, height = 0, speed = 0;
+};
+
+struct CellMachine {
+  std::string name;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // footprint centre on the floor
+  Eigen::Isometry3d fixture_top = Eigen::Isometry3d::Identity();
+};
+
+// What of the cell never changes during a run: the robots' bases and homes, the workpieces' shapes and sizes, the
+// locations with their grasp heights, the conveyors, the machines and the hand-over with its grasps. Immutable once
+// made (make_environment_model makes it), held by shared pointer: copying a model copies only its changing state.
+struct CellGeometry {
+  std::vector<CellRobot> robots;
+  std::vector<CellWorkpiece> workpieces;
+  std::vector<CellLocation> locations;
+  std::vector<CellConveyor> conveyors;
+  std::vector<CellMachine> machines;
+  std::optional<models::HandoverSpec> handover;
+
+  // Lookups by cell name; nullptr when there is none.
+  const CellLocation* find_location(std::string_view name) const;
+};
+
+// ---- What changes: poses, motion, presence, holds, confidences (guarded by the runtime) ----
+
+struct WorkpieceState {
+  std::string name;
+  const CellWorkpiece* fixed = nullptr;  // its geometry, in the model's CellGeometry (shared, lives as long as it)
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // centre, world
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();      // m/s, world
   // Whether `velocity` is known: false for a part vision has seen once only (it may be riding a belt); such a part
@@ -67,6 +117,9 @@ struct WorkpieceState {
   std::string held_by;    // cell robot holding it, empty if none (set by robot control on close/open)
   double confidence = 1;  // 1 for the CAD data and the simulation's truth; vision's confidence after correct()
   SimDuration stamp{0};   // simulation time the pose was measured at
+
+  models::Shape shape() const { return fixed->shape; }
+  const Eigen::Vector3d& size() const { return fixed->size; }  // full extents (cell description)
 };
 
 // How a robot holds the part it has grasped: recorded by robot control when a close succeeds.
@@ -81,8 +134,7 @@ struct Hold {
 
 struct RobotState {
   std::string name;
-  Eigen::Isometry3d base = Eigen::Isometry3d::Identity();  // base_link in the world
-  std::vector<double> home;                                // radians
+  const CellRobot* fixed = nullptr;  // its base and home, in the model's CellGeometry
   // Current arm joints, from the robot's driver (robot control writes each position read-back); the home joints
   // until the first one.
   std::vector<double> joints;
@@ -96,42 +148,23 @@ struct RobotState {
   // The grip sensor: the workpiece between the finger pads ("" none), nullopt when nothing senses it. Written from
   // the plant's sensors (the twin's finger pad touch sensors) every period.
   std::optional<std::string> between_fingers;
-};
 
-struct LocationState {
-  std::string name;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // the part's bottom centre when it rests there
-  double grasp_height = 0.02;
-  double approach_height = 0.08;
-};
-
-struct ConveyorState {
-  std::string name;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // footprint centre on the floor
-  double length = 0, width = 0, height = 0, speed = 0;
-};
-
-struct MachineState {
-  std::string name;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // footprint centre on the floor
-  Eigen::Isometry3d fixture_top = Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d& base() const { return fixed->base; }  // base_link in the world
+  const std::vector<double>& home() const { return fixed->home; }
 };
 
 struct EnvironmentModel {
-  SimDuration time{0};  // simulation time of the last update from truth
+  std::shared_ptr<const CellGeometry> geometry;  // fixed, shared by every copy of this model
+  SimDuration time{0};                           // simulation time of the last update from truth
   std::vector<RobotState> robots;
   std::vector<WorkpieceState> workpieces;
-  std::vector<LocationState> locations;
-  std::vector<ConveyorState> conveyors;
-  std::vector<MachineState> machines;
-  std::optional<models::HandoverSpec> handover;
 
   // Lookups by cell name; nullptr when there is none.
   const RobotState* find_robot(std::string_view name) const;
   RobotState* find_robot(std::string_view name);
   const WorkpieceState* find_workpiece(std::string_view name) const;
   WorkpieceState* find_workpiece(std::string_view name);
-  const LocationState* find_location(std::string_view name) const;
+  const CellLocation* find_location(std::string_view name) const { return geometry->find_location(name); }
 };
 
 using SharedEnvironment = Guarded<EnvironmentModel>;

@@ -1,13 +1,13 @@
 #include "cellwright/runtime/scripted_plant.hpp"
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/runtime/grip_sensor.hpp"
 
 namespace cellwright::runtime {
 
 ScriptedPlant::ScriptedPlant(const models::CellDescription& cell,
-                             std::map<std::string, drivers::ScriptedDriver*> drivers, SimDuration tick,
-                             double grasp_radius)
-    : tick_(tick), grasp_radius_(grasp_radius) {
+                             std::map<std::string, drivers::ScriptedDriver*> drivers, SimDuration tick)
+    : tick_(tick) {
   CW_CHECK(tick.count() > 0, "scripted plant tick {} ns must be positive", tick.count());
   for (const auto& [name, driver] : drivers) {
     const models::RobotSpec* spec = cell.find_robot(name);
@@ -18,6 +18,7 @@ ScriptedPlant::ScriptedPlant(const models::CellDescription& cell,
   }
   for (const models::WorkpieceSpec& w : cell.workpieces) {
     names_.push_back(w.name);
+    sizes_.push_back(w.size);
     poses_.push_back(w.pose.transform());
   }
   follows_.resize(names_.size());
@@ -40,15 +41,13 @@ void ScriptedPlant::advance(SimDuration dt) {
     Robot& r = robots_[i];
     const bool closed = r.driver->gripper_closed();
     if (closed && !r.closed) {
-      // Closing: take the nearest part within reach of the fingers.
+      // Closing: the pads close on the part the grip sensor's rule names.
       const Eigen::Isometry3d tcp = tool_pose(r);
-      double best = grasp_radius_;
-      for (std::size_t w = 0; w < poses_.size(); ++w) {
-        const double d = (poses_[w].translation() - tcp.translation()).norm();
-        if (d <= best) {
-          best = d;
-          r.held = w;
-        }
+      std::vector<PartBox> boxes;
+      for (std::size_t w = 0; w < poses_.size(); ++w) boxes.push_back({names_[w], poses_[w], sizes_[w]});
+      const std::string name = part_between_fingers(true, true, tcp.translation(), boxes);
+      for (std::size_t w = 0; w < names_.size(); ++w) {
+        if (!name.empty() && names_[w] == name) r.held = w;
       }
       if (r.held) {
         r.held_offset = tcp.inverse() * poses_[*r.held];

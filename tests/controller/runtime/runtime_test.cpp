@@ -211,9 +211,15 @@ TEST(RuntimeRun, AGripOnNothingFailsTheClose) {
   ScriptedCell cell;
   std::map<std::string, drivers::ScriptedDriver*> raw;
   for (auto& [name, d] : cell.drivers) raw[name] = d.get();
-  // Fingers that never find the part: the plant attaches nothing on close.
-  ScriptedPlant blind(cell.config.cell, raw, std::chrono::milliseconds(1), 0.0);
-  cell.config.plant = &blind;
+  // Part A lies 5 cm beside where the cell description has it, and only the presence sensors tell the controller
+  // (perception cad): the fingers close beside it, and the grip sensor feels nothing between them.
+  models::CellDescription moved = cell.config.cell;
+  for (auto& w : moved.workpieces) {
+    if (w.name == "A") w.pose.xyz.y() += 0.05;
+  }
+  ScriptedPlant plant(moved, raw);
+  cell.config.plant = &plant;
+  cell.config.perception = Perception::kCad;
   Runtime rt(cell.config);
   const RunResult r = rt.run();
   ASSERT_EQ(r.outcome, Outcome::kFailed);

@@ -3,18 +3,13 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <limits>
 #include <stdexcept>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/runtime/grip_sensor.hpp"
 #include "cellwright/vision/cell_detector.hpp"
 
 namespace cellwright::twin::sim {
-
-namespace {
-// How far outside a part's box the tool centre point may be and still count as inside it (m).
-constexpr double kInside = 0.01;
-}  // namespace
 
 WorldPlant::WorldPlant(World& world, std::vector<FeedEvent> feed) : world_(world), feed_(std::move(feed)) {
   std::stable_sort(feed_.begin(), feed_.end(), [](const FeedEvent& a, const FeedEvent& b) { return a.time < b.time; });
@@ -38,8 +33,11 @@ runtime::Truth WorldPlant::truth() const {
   const WorldTruth w = world_.truth();
   runtime::Truth t;
   t.time = w.time;
+  std::vector<runtime::PartBox> boxes;  // what a gripper may hold: the parts in the cell
   for (const WorkpieceTruth& p : w.workpieces) {
     t.workpieces.push_back({p.name, p.pose, p.linear_velocity, !p.parked});
+    const models::WorkpieceSpec* spec = world_.scene().cell().find_workpiece(p.name);
+    if (!p.parked && spec != nullptr) boxes.push_back({p.name, p.pose, spec->size});
   }
   for (std::size_t r = 0; r < w.robots.size(); ++r) {
     runtime::RobotTruth rt;
@@ -47,23 +45,9 @@ runtime::Truth WorldPlant::truth() const {
     rt.joints = w.robots[r].joints;
     // The World names one holder per part, but during a hand-over two hands hold it. So, as a real gripper would tell:
     // both pad touch sensors read a force, and the part is the one the tool centre point is inside of.
-    std::string held;
     const RobotTruth& robot = w.robots[r];
-    if (robot.finger_contact[0] && robot.finger_contact[1]) {
-      double best = std::numeric_limits<double>::infinity();
-      for (const WorkpieceTruth& p : w.workpieces) {
-        if (p.parked) continue;
-        const Eigen::Vector3d local = p.pose.inverse() * robot.tcp.translation();
-        const models::WorkpieceSpec* spec = world_.scene().cell().find_workpiece(p.name);
-        if (spec == nullptr) continue;
-        const Eigen::Vector3d half = spec->size / 2;
-        const double d = (robot.tcp.translation() - p.pose.translation()).norm();
-        if ((local.cwiseAbs() - half).maxCoeff() <= kInside && d < best) {
-          best = d;
-          held = p.name;
-        }
-      }
-    }
+    const std::string held =
+        runtime::part_between_fingers(robot.finger_contact[0], robot.finger_contact[1], robot.tcp.translation(), boxes);
     rt.between_fingers = held;
     t.robots.push_back(std::move(rt));
   }

@@ -1,8 +1,9 @@
 // ScriptedPlant: a Plant without physics, for tests, benchmarks and dry runs without MuJoCo. It advances
 // ScriptedDrivers (drivers/scripted_driver.hpp) tick by tick and keeps a kinematic world: each robot's tool pose is
-// the forward kinematics of its scripted joints; when a gripper closes, the part whose centre is within
-// `grasp_radius` of the tool centre point is attached to the tool (it is then "between the fingers") and follows it;
-// when the gripper opens the part stays where it was let go. There is no gravity, no contact and no collision.
+// the forward kinematics of its scripted joints; a closed gripper's pads touch whatever is there, and the part
+// between the fingers is the one the twin's grip sensor would name (grip_sensor.hpp): it is attached to the tool and
+// follows it; when the gripper opens the part stays where it was let go. There is no gravity, no contact and no
+// collision.
 //
 // Threads: as Plant (plant.hpp). The drivers are advanced from advance() only.
 #pragma once
@@ -27,7 +28,7 @@ class ScriptedPlant final : public Plant {
   // drivers, so their home_joints should be the cell's home. Throws InternalError for a name that is not a cell
   // robot or a tick that is not positive; InputError when a robot's URDF cannot be read.
   ScriptedPlant(const models::CellDescription& cell, std::map<std::string, drivers::ScriptedDriver*> drivers,
-                SimDuration tick = std::chrono::milliseconds(1), double grasp_radius = 0.03);
+                SimDuration tick = std::chrono::milliseconds(1));
 
   void advance(SimDuration dt) override;
   Truth truth() const override;
@@ -51,10 +52,10 @@ class ScriptedPlant final : public Plant {
   Eigen::Isometry3d tool_pose(const Robot& r) const;
 
   SimDuration tick_;
-  double grasp_radius_;
   SimDuration time_{0};
   std::vector<Robot> robots_;
   std::vector<std::string> names_;
+  std::vector<Eigen::Vector3d> sizes_;
   std::vector<Eigen::Isometry3d> poses_;
   std::vector<std::optional<std::size_t>> follows_;  // per workpiece: robot index
 };

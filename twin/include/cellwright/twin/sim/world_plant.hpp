@@ -3,9 +3,9 @@
 //  - advance(dt) feeds the parts that are due (each FeedEvent at its time; a feed the World refuses because the
 //    conveyor's entry is still occupied is retried every period until it succeeds), then steps the World by dt.
 //  - truth() converts the World's truth: workpiece poses and linear velocities, present unless parked; robot joints;
-//    between_fingers: when both finger pads' touch sensors read a force, the part whose box (grown by 1 cm) holds
-//    the tool centre point (the nearest, if several), else "". (The World's held_by names one holder per part, but
-//    during a hand-over both hands hold it.)
+//    between_fingers by the grip sensor's rule (runtime/grip_sensor.hpp) on the two finger pads' touch sensors: the
+//    part whose box (grown by 1 cm) holds the tool centre point (the nearest, if several), else "". (The World's
+//    held_by names one holder per part, but during a hand-over both hands hold it.)
 //  - new_collisions() names the two bodies and the depth of the deepest contact; new_arrivals() lists the parts fed
 //    since the last call, where = the conveyor.
 //  - MuJoCo warnings are drained every advance and kept (warnings()): a run that raised any is suspect, and tests

@@ -216,23 +216,22 @@ bool RobotControl::submit_current(SimDuration now) {
     } else {
       pose_in_base = chain_.forward(to_eigen(goal));
     }
+    // The driver solves its own IK for a pose and may pick another configuration: such a move is checked on the tool.
     const bool pose_command = caps.cartesian_control && (caps.prefers_pose || !caps.joint_control);
-    if (pose_command) {
-      // The driver solves its own IK and may pick another configuration: check the tool, not the joints.
-      const drivers::Path path =
-          caps.linear_motion && straight_from(last_target_, target) ? drivers::Path::linear : drivers::Path::joint;
-      cmd = drivers::MovePose{pose_in_base, path, options_.speed};
-      current_->goal_pose = pose_in_base;
-      current_->goal = std::move(goal);
-      current_->pose_command = true;
-    } else if (caps.joint_control) {
-      cmd = drivers::MoveJoints{goal, options_.speed};
-      current_->goal = std::move(goal);
-      current_->goal_pose = pose_in_base;
-    } else {
+    if (!pose_command && !caps.joint_control) {
       fail(now, fmt::format("the driver of {} takes neither joint nor pose motions", cell_));
       return false;
     }
+    if (pose_command) {
+      const drivers::Path path =
+          caps.linear_motion && straight_from(last_target_, target) ? drivers::Path::linear : drivers::Path::joint;
+      cmd = drivers::MovePose{pose_in_base, path, options_.speed};
+    } else {
+      cmd = drivers::MoveJoints{goal, options_.speed};
+    }
+    current_->goal = std::move(goal);
+    current_->goal_pose = pose_in_base;
+    current_->pose_command = pose_command;
     current_->target = target;
   } else {
     drivers::Grip grip;
@@ -242,11 +241,7 @@ bool RobotControl::submit_current(SimDuration now) {
   }
   const drivers::Submitted s = driver_.submit(cmd);
   current_->detail = drivers::describe(cmd);
-  if (s.error == drivers::ErrorCode::busy) {
-    current_->goal.clear();
-    current_->goal_pose.reset();
-    return false;  // its queue is full (a position read, say): ask again next turn
-  }
+  if (s.error == drivers::ErrorCode::busy) return false;  // its queue is full (a position read, say): next turn
   if (!s.accepted()) {
     fail(now, fmt::format("the driver refused '{}': {}: {}", current_->detail, drivers::to_string(s.error), s.message));
     return false;

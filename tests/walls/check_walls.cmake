@@ -7,6 +7,8 @@
 #   drivers                            no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, runtime
 #   common                             nothing of ours but common; no MuJoCo, OpenGL/OSMesa, OpenCV
 #   vision (twin/vision)               OpenCV yes; no MuJoCo, OpenGL/OSMesa; nothing of twin
+#   emulate (twin/emulate)             no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, runtime; none of the
+#                                      drivers' protocol code (drivers/serial, movemaster, val2): each checks the other
 #   twin                               OpenCV only in rendering and reports (render, scenario/gantt, scenario/run)
 #   every library                      nothing of tools/
 # Each suite of tests links what its library may link (plus GoogleTest).
@@ -58,6 +60,8 @@ check_includes(drivers "${heavy}|cellwright/(twin|vision|runtime)/|${tools_reach
 check_includes(common "${heavy}|cellwright/(twin|vision|drivers|runtime|models|petri|task)/|${tools_reach}"
                "common/*")
 check_includes(vision "mujoco/|GL/|osmesa|cellwright/twin/|${tools_reach}" "twin/vision/*")
+check_includes(emulate "${heavy}|cellwright/(twin|vision|runtime)/|cellwright/drivers/(serial|movemaster|val2)/|${tools_reach}"
+               "twin/emulate/*")
 check_includes(twin "opencv2/" "twin/include/*" "twin/src/*"
                EXCEPT "^twin/(include/cellwright/twin|src)/(render\\.|scenario/gantt\\.|scenario/run\\.)")
 check_includes(twin "${tools_reach}" "twin/include/*" "twin/src/*")
@@ -74,7 +78,9 @@ set(link_rules
     "cellwright_drivers|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
     "drivers_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
     "cellwright_common|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime|drivers|models|controller)"
-    "cellwright_vision|mujoco|OSMESA|osmesa|cellwright_twin")
+    "cellwright_vision|mujoco|OSMESA|osmesa|cellwright_twin"
+    "cellwright_emulate|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
+    "emulate_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)")
 file(STRINGS ${LINKS} closures)
 foreach(rule ${link_rules})
   string(REPLACE "|" ";" parts "${rule}")

@@ -1,0 +1,218 @@
+// SerialPort (serial_port.hpp): termios configuration, poll()-bounded reads and writes.
+#include "cellwright/drivers/serial/serial_port.hpp"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/eventfd.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace cellwright::drivers {
+
+namespace {
+
+speed_t baud_constant(int baud) {
+  switch (baud) {
+    case 300:
+      return B300;
+    case 600:
+      return B600;
+    case 1200:
+      return B1200;
+    case 2400:
+      return B2400;
+    case 4800:
+      return B4800;
+    case 9600:
+      return B9600;
+    case 19200:
+      return B19200;
+    case 38400:
+      return B38400;
+    case 57600:
+      return B57600;
+    case 115200:
+      return B115200;
+    default:
+      return B0;
+  }
+}
+
+tcflag_t size_flag(int bits) {
+  switch (bits) {
+    case 5:
+      return CS5;
+    case 6:
+      return CS6;
+    case 7:
+      return CS7;
+    case 8:
+      return CS8;
+    default:
+      return 0;
+  }
+}
+
+// Milliseconds until `deadline` for poll(), rounded up, at least 0.
+int poll_timeout(SerialPort::Clock::time_point deadline) {
+  const auto left = deadline - SerialPort::Clock::now();
+  if (left <= SerialPort::Clock::duration::zero()) return 0;
+  return static_cast<int>(std::chrono::ceil<std::chrono::milliseconds>(left).count());
+}
+
+}  // namespace
+
+std::chrono::nanoseconds SerialLine::wire_time(std::size_t characters) const {
+  const double seconds = static_cast<double>(characters) * bits_per_character() / static_cast<double>(baud);
+  return std::chrono::nanoseconds(static_cast<std::int64_t>(seconds * 1e9));
+}
+
+SerialPort::SerialPort(const SerialLine& line, const SourceLocation& where) : line_(line) {
+  const speed_t speed = baud_constant(line.baud);
+  const tcflag_t size = size_flag(line.data_bits);
+  if (speed == B0)
+    throw InputError(where, fmt::format("serial port {}: unsupported baud rate {}", line.port, line.baud));
+  if (size == 0)
+    throw InputError(where, fmt::format("serial port {}: {} data bits (5 to 8)", line.port, line.data_bits));
+  if (line.stop_bits != 1 && line.stop_bits != 2) {
+    throw InputError(where, fmt::format("serial port {}: {} stop bits (1 or 2)", line.port, line.stop_bits));
+  }
+  if (line.port.empty()) throw InputError(where, "no serial port given");
+  fd_ = ::open(line.port.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+  if (fd_ < 0) {
+    throw InputError(where, fmt::format("cannot open serial port {}: {}", line.port, std::strerror(errno)));
+  }
+  termios t{};
+  if (tcgetattr(fd_, &t) != 0) {
+    const int e = errno;
+    ::close(fd_);
+    throw InputError(
+        where, fmt::format("serial port {} cannot be configured (is it a terminal?): {}", line.port, std::strerror(e)));
+  }
+  cfmakeraw(&t);
+  t.c_cflag &= ~static_cast<tcflag_t>(CSIZE | PARENB | PARODD | CSTOPB | CRTSCTS);
+  t.c_cflag |= size | CLOCAL | CREAD;
+  if (line.parity != Parity::none) t.c_cflag |= PARENB;
+  if (line.parity == Parity::odd) t.c_cflag |= PARODD;
+  if (line.stop_bits == 2) t.c_cflag |= CSTOPB;
+  if (line.rts_cts) t.c_cflag |= CRTSCTS;
+  t.c_iflag &= ~static_cast<tcflag_t>(IXON | IXOFF | IXANY);
+  if (line.xon_xoff) t.c_iflag |= IXON | IXOFF;
+  t.c_cc[VMIN] = 0;
+  t.c_cc[VTIME] = 0;
+  if (cfsetispeed(&t, speed) != 0 || cfsetospeed(&t, speed) != 0 || tcsetattr(fd_, TCSANOW, &t) != 0) {
+    const int e = errno;
+    ::close(fd_);
+    throw InputError(where, fmt::format("serial port {} cannot be configured: {}", line.port, std::strerror(e)));
+  }
+  interrupt_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+  if (interrupt_fd_ < 0) {
+    const int e = errno;
+    ::close(fd_);
+    throw InputError(where,
+                     fmt::format("serial port {}: cannot make an event descriptor: {}", line.port, std::strerror(e)));
+  }
+  discard_input();
+}
+
+SerialPort::~SerialPort() {
+  if (fd_ >= 0) ::close(fd_);
+  if (interrupt_fd_ >= 0) ::close(interrupt_fd_);
+}
+
+void SerialPort::interrupt() {
+  const std::uint64_t one = 1;
+  [[maybe_unused]] const ssize_t n = ::write(interrupt_fd_, &one, sizeof one);
+}
+
+IoStatus SerialPort::write(std::string_view bytes, Clock::time_point deadline, std::string* message) {
+  std::size_t sent = 0;
+  while (sent < bytes.size()) {
+    const ssize_t n = ::write(fd_, bytes.data() + sent, bytes.size() - sent);
+    if (n > 0) {
+      sent += static_cast<std::size_t>(n);
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && errno != EAGAIN) {
+      *message = std::strerror(errno);
+      return errno == EIO ? IoStatus::closed : IoStatus::error;
+    }
+    pollfd fds[2] = {{fd_, POLLOUT, 0}, {interrupt_fd_, POLLIN, 0}};
+    pollfd& p = fds[0];
+    const auto before = Clock::now();
+    const int r = ::poll(fds, 2, poll_timeout(deadline));
+    waited_ += Clock::now() - before;
+    if (r > 0 && (fds[1].revents & POLLIN) != 0) {
+      *message = "interrupted: the driver is closing the port";
+      return IoStatus::closed;
+    }
+    if (r == 0) {
+      *message = fmt::format("{} of {} bytes written before the deadline", sent, bytes.size());
+      return IoStatus::timeout;
+    }
+    if (r < 0 && errno != EINTR) {
+      *message = std::strerror(errno);
+      return IoStatus::error;
+    }
+    if (r > 0 && (p.revents & (POLLHUP | POLLERR)) != 0) {
+      *message = "the other end hung up";
+      return IoStatus::closed;
+    }
+  }
+  return IoStatus::ok;
+}
+
+IoStatus SerialPort::read_some(std::string* buffer, Clock::time_point deadline, std::string* message) {
+  for (;;) {
+    char chunk[256];
+    const ssize_t n = ::read(fd_, chunk, sizeof chunk);
+    if (n > 0) {
+      buffer->append(chunk, static_cast<std::size_t>(n));
+      return IoStatus::ok;
+    }
+    if (n == 0) {
+      *message = "end of file: the other end hung up";
+      return IoStatus::closed;
+    }
+    if (errno == EINTR) continue;
+    if (errno == EIO) {
+      *message = "input/output error: the other end hung up";
+      return IoStatus::closed;
+    }
+    if (errno != EAGAIN) {
+      *message = std::strerror(errno);
+      return IoStatus::error;
+    }
+    pollfd fds[2] = {{fd_, POLLIN, 0}, {interrupt_fd_, POLLIN, 0}};
+    pollfd& p = fds[0];
+    const auto before = Clock::now();
+    const int r = ::poll(fds, 2, poll_timeout(deadline));
+    waited_ += Clock::now() - before;
+    if (r > 0 && (fds[1].revents & POLLIN) != 0) {
+      *message = "interrupted: the driver is closing the port";
+      return IoStatus::closed;
+    }
+    if (r == 0) {
+      *message = "no bytes before the deadline";
+      return IoStatus::timeout;
+    }
+    if (r < 0 && errno != EINTR) {
+      *message = std::strerror(errno);
+      return IoStatus::error;
+    }
+    if (r > 0 && (p.revents & POLLIN) == 0 && (p.revents & (POLLHUP | POLLERR)) != 0) {
+      *message = "the other end hung up";
+      return IoStatus::closed;
+    }
+  }
+}
+
+void SerialPort::discard_input() {
+  tcflush(fd_, TCIFLUSH);
+}
+
+}  // namespace cellwright::drivers

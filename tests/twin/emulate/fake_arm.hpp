@@ -55,9 +55,13 @@ class FakeArm : public EmulatedArm {
     }
   };
 
-  // Starts at home (or at `start`), gripper open.
+  // The MELFA, at home (or at `start`), gripper open.
   FakeArm() : FakeArm(melfa_home()) {}
-  explicit FakeArm(std::vector<double> start) : chain_(melfa_chain()), home_(melfa_home()), joints_(std::move(start)) {
+  explicit FakeArm(std::vector<double> start) : FakeArm(melfa_chain(), melfa_home(), std::move(start)) {}
+  // Any arm: `chain` (which must outlive the FakeArm), its `home`, standing at `start`; gripper open. The top speeds
+  // are the URDF's velocity limits (1 where it gives none).
+  FakeArm(const models::KinematicChain& chain, std::vector<double> home, std::vector<double> start)
+      : chain_(chain), home_(std::move(home)), joints_(std::move(start)) {
     for (const models::JointLimit& l : chain_.limits()) max_speed_.push_back(l.velocity > 0 ? l.velocity : 1.0);
   }
 

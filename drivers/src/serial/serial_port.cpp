@@ -101,7 +101,9 @@ SerialPort::SerialPort(const SerialLine& line, const SourceLocation& where) : li
   if (line.rts_cts) t.c_cflag |= CRTSCTS;
   t.c_iflag &= ~static_cast<tcflag_t>(IXON | IXOFF | IXANY);
   if (line.xon_xoff) t.c_iflag |= IXON | IXOFF;
-  t.c_cc[VMIN] = 0;
+  // VMIN 1: with O_NONBLOCK an empty input queue reads as EAGAIN. With VMIN 0 and VTIME 0 the tty driver returns 0
+  // instead, which read_some() would take for the end of file (a hang-up).
+  t.c_cc[VMIN] = 1;
   t.c_cc[VTIME] = 0;
   if (cfsetispeed(&t, speed) != 0 || cfsetospeed(&t, speed) != 0 || tcsetattr(fd_, TCSANOW, &t) != 0) {
     const int e = errno;

@@ -4,6 +4,8 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <sys/eventfd.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -56,6 +58,27 @@ tcflag_t size_flag(int bits) {
   }
 }
 
+// tcsetattr(TCSANOW). A pseudo-terminal keeps 8 bits and no parity whatever it is asked; glibc reports EINVAL when a
+// request changed nothing the kernel kept (the second open of a pseudo-terminal set to 7E2: a reconnect to an
+// emulator), so there the result is checked instead: everything but the character format must have taken.
+bool set_attributes(int fd, const termios& want) {
+  if (tcsetattr(fd, TCSANOW, &want) == 0) return true;
+  struct stat st {};
+  termios got{};
+  const bool pty_slave = errno == EINVAL && fstat(fd, &st) == 0 && S_ISCHR(st.st_mode) && major(st.st_rdev) >= 136 &&
+                         major(st.st_rdev) <= 143;  // UNIX98 pseudo-terminal slaves
+  if (!pty_slave || tcgetattr(fd, &got) != 0) {
+    errno = EINVAL;
+    return false;
+  }
+  const tcflag_t format = CSIZE | PARENB | PARODD;
+  const bool took = (got.c_cflag & ~format) == (want.c_cflag & ~format) && got.c_iflag == want.c_iflag &&
+                    got.c_oflag == want.c_oflag && got.c_lflag == want.c_lflag && got.c_cc[VMIN] == want.c_cc[VMIN] &&
+                    got.c_cc[VTIME] == want.c_cc[VTIME];
+  if (!took) errno = EINVAL;
+  return took;
+}
+
 // Milliseconds until `deadline` for poll(), rounded up, at least 0.
 int poll_timeout(SerialPort::Clock::time_point deadline) {
   const auto left = deadline - SerialPort::Clock::now();
@@ -105,7 +128,7 @@ SerialPort::SerialPort(const SerialLine& line, const SourceLocation& where) : li
   // instead, which read_some() would take for the end of file (a hang-up).
   t.c_cc[VMIN] = 1;
   t.c_cc[VTIME] = 0;
-  if (cfsetispeed(&t, speed) != 0 || cfsetospeed(&t, speed) != 0 || tcsetattr(fd_, TCSANOW, &t) != 0) {
+  if (cfsetispeed(&t, speed) != 0 || cfsetospeed(&t, speed) != 0 || !set_attributes(fd_, t)) {
     const int e = errno;
     ::close(fd_);
     throw InputError(where, fmt::format("serial port {} cannot be configured: {}", line.port, std::strerror(e)));

@@ -699,6 +699,11 @@ TEST_F(Val2EmulatorTest, StopBeforeServeReturnsAtOnce) {
   EXPECT_FALSE(std::filesystem::exists(std::filesystem::symlink_status(link_)));
 }
 
+TEST_F(Val2EmulatorTest, ServeThrowsWhenThePathCannotBePublished) {
+  Val2Emulator emulator(arm_, {});
+  EXPECT_THROW(emulator.serve(dir_ / "missing" / "puma"), InputError);
+}
+
 TEST(Val2EmulatorOptionsTest, RefusesASpeedOutsideOneToHundred) {
   PumaFakeArm arm;
   Val2EmulatorOptions options;

@@ -1,5 +1,6 @@
-// `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]`: run
-// a scenario's task program on the simulated cell, headless, and judge the outcome. Exit 0 when the run finished and
+// `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]
+// [--driver ROBOT=KIND[:PORT]]...`: run a scenario's task program on the simulated cell (or with some robots real,
+// mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and
 // every expected outcome holds, 1 when not, 2 on bad input (refused before any thread starts, nothing written).
 #include <unistd.h>
 #include <any>
@@ -94,6 +95,7 @@ void add_run(CLI::App& app, Command* run) {
     bool quiet = false;
     std::string perception;
     std::string frames;
+    std::vector<std::string> drivers;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("scenario", args->scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
@@ -104,12 +106,16 @@ void add_run(CLI::App& app, Command* run) {
                   "where the controller learns where the parts are, instead of the scenario's choice: truth (the "
                   "simulation), vision (the camera) or cad (the cell description only: vision off)")
       ->check(CLI::IsMember({"truth", "vision", "cad"}));
+  cmd->add_option("--driver", args->drivers,
+                  "put a robot on another driver, the rest of the scenario unchanged: ROBOT=sim, "
+                  "ROBOT=movemaster:PORT or ROBOT=val2:PORT (repeatable; real drivers need --realtime)");
   cmd->add_option("--save-frames", args->frames,
                   "with vision: write each camera frame, detections drawn on it, as DIR/frame_<ms>.png");
   cmd->callback([run, args] {
     *run = [args] {
       using namespace cellwright::twin::scenario;
-      const Scenario s = load_scenario(args->scenario);
+      Scenario s = load_scenario(args->scenario);
+      for (const std::string& d : args->drivers) set_driver(s, d, {"--driver", 0, 0});
       const Preflight pre = preflight(s);
       if (!pre.ok()) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", args->scenario.c_str());
@@ -180,6 +186,13 @@ void add_run(CLI::App& app, Command* run) {
         write_outputs(args->out, s, report, sr.runtime().log().text(), sr.snapshot(800, 600));
       }
       std::printf("%s", format_summary(report).c_str());
+      for (const auto& m : sr.mirrors()) {
+        const twin::sim::MirroredDriver::Counts c = m->counts();
+        std::printf(
+            "  %s (real, mirrored in the twin): %d commands mirrored, %d corrections from read-backs, %d "
+            "missed\n",
+            m->robot().c_str(), c.mirrored, c.corrections, c.misses);
+      }
       if (!args->out.empty()) std::printf("outputs in %s\n", args->out.c_str());
       return report.ok() ? 0 : 1;
     };

@@ -21,5 +21,6 @@ void add_analyze(CLI::App& app, Command* run);
 void add_snapshot(CLI::App& app, Command* run);
 void add_run(CLI::App& app, Command* run);
 void add_step(CLI::App& app, Command* run);
+void add_emulate(CLI::App& app, Command* run);
 
 }  // namespace cellwright::tools

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   cellwright::tools::add_snapshot(app, &run);
   cellwright::tools::add_run(app, &run);
   cellwright::tools::add_step(app, &run);
+  cellwright::tools::add_emulate(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -236,6 +236,10 @@ void SerialDriver::run() {
       link_->begin(&exchange);
       Outcome o = execute(*link_, *job);
       link_->begin(nullptr);
+      // Recorded before the outcome is reported, so that timing() includes every job poll() says has ended.
+      exchange.elapsed = SteadyClock::now() - start;
+      exchange.processing = exchange.elapsed - exchange.waiting;
+      record(std::move(exchange));
       {
         Controller c = controller();
         if (o.error == ErrorCode::none && job->kind == JobKind::position) {
@@ -250,9 +254,6 @@ void SerialDriver::run() {
           c.fail(job->id, o.error, std::move(o.message));
         }
       }
-      exchange.elapsed = SteadyClock::now() - start;
-      exchange.processing = exchange.elapsed - exchange.waiting;
-      record(std::move(exchange));
       continue;
     }
     std::unique_lock lock(wake_mutex_);

@@ -194,14 +194,74 @@ TEST_F(ScenarioFiles, TwoLabelsOnOneRobot) {
   expect_error(scenario("robots:\n  r1: puma\n  r2: puma\n"), 5, "are both bound to the cell robot 'puma'");
 }
 
-TEST_F(ScenarioFiles, DriverNotAvailableYet) {
+TEST_F(ScenarioFiles, RealDriverWithoutAPortIsRefused) {
   expect_error(scenario("drivers:\n  melfa: movemaster\nrobots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"), 4,
-               "robot 'melfa' would run on the movemaster driver, which is not available yet");
+               "robot 'melfa' on the movemaster driver needs a serial port");
+  expect_error(scenario("drivers:\n  melfa: 'movemaster:'\nrobots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"),
+               4, "robot 'melfa': no port after 'movemaster:'");
+  expect_error(scenario("drivers:\n  melfa: 'sim:/dev/ttyS0'\nrobots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"),
+               4, "the sim driver takes no port");
+}
+
+TEST_F(ScenarioFiles, RealDriverWithAPortTakesTheProtocolsLineSettings) {
+  const Scenario s = load_scenario(scenario(
+      "drivers:\n  melfa: movemaster:/tmp/melfa\n  puma: val2:/tmp/puma\nrobots: {r1: puma, r2: melfa}\n"
+      "bind: {B: output_drop}\n"));
+  ASSERT_EQ(s.drivers.size(), 2u);
+  EXPECT_TRUE(uses_real_drivers(s));
+  for (const DriverChoice& d : s.drivers) {
+    ASSERT_TRUE(d.serial.has_value()) << d.robot;
+    if (d.robot == "melfa") {
+      EXPECT_EQ(d.kind, models::DriverKind::kMovemaster);
+      EXPECT_EQ(d.serial->port, "/tmp/melfa");
+      EXPECT_EQ(d.serial->data_bits, 7);
+      EXPECT_EQ(d.serial->parity, models::Parity::kEven);
+      EXPECT_EQ(d.serial->stop_bits, 2);
+    } else {
+      EXPECT_EQ(d.kind, models::DriverKind::kVal2);
+      EXPECT_EQ(d.serial->port, "/tmp/puma");
+      EXPECT_EQ(d.serial->data_bits, 8);
+      EXPECT_EQ(d.serial->parity, models::Parity::kNone);
+    }
+  }
+}
+
+TEST_F(ScenarioFiles, CommandLineDriverReplacesTheScenariosChoiceAndNothingElse) {
+  Scenario s = load_scenario(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"));
+  EXPECT_FALSE(uses_real_drivers(s));
+  const std::size_t bindings = s.robots.size();
+  set_driver(s, "melfa=movemaster:/dev/ttyUSB0", {"--driver", 0, 0});
+  EXPECT_TRUE(uses_real_drivers(s));
+  EXPECT_EQ(s.robots.size(), bindings);
+  for (const DriverChoice& d : s.drivers) {
+    if (d.robot == "melfa") {
+      EXPECT_EQ(d.kind, models::DriverKind::kMovemaster);
+      ASSERT_TRUE(d.serial.has_value());
+      EXPECT_EQ(d.serial->port, "/dev/ttyUSB0");
+    } else {
+      EXPECT_EQ(d.kind, models::DriverKind::kSim);
+    }
+  }
+  set_driver(s, "melfa=sim", {"--driver", 0, 0});
+  EXPECT_FALSE(uses_real_drivers(s));
+  const auto refused = [&](const std::string& spec, const std::string& text) {
+    try {
+      set_driver(s, spec, {"--driver", 0, 0});
+      ADD_FAILURE() << spec << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("--driver"), std::string::npos) << e.what();
+    }
+  };
+  refused("melfa", "write ROBOT=sim");
+  refused("kuka=sim", "'kuka', which is not a robot of the cell");
+  refused("melfa=fanuc:/dev/x", "must be sim, movemaster or val2");
+  refused("melfa=movemaster", "needs a serial port");
 }
 
 TEST_F(ScenarioFiles, DriverUnknown) {
   expect_error(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\ndrivers: {melfa: mujoco}\n"), 5,
-               "must be sim, movemaster or val2, got 'mujoco'");
+               "must be sim, movemaster or val2 (with a port after ':' for the last two), got 'mujoco'");
   expect_error(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\ndrivers: {kuka: sim}\n"), 5,
                "'kuka', which is not a robot of the cell");
 }

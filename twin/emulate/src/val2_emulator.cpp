@@ -2,12 +2,15 @@
 // misbehaviour plan; parsing and carrying out are val2/instruction.hpp and val2/executor.hpp.
 #include "cellwright/emulate/val2_emulator.hpp"
 
+#include <fmt/format.h>
+
 #include <poll.h>
 #include <sys/eventfd.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
+#include <condition_variable>
 #include <cstring>
 #include <mutex>
 #include <optional>
@@ -55,6 +58,7 @@ struct Val2Emulator::Impl {
   std::atomic<bool> served{false};
 
   mutable std::mutex stats_mutex;
+  std::condition_variable stats_changed;  // wait_published() waits on it
   Stats stats;
 
   // The connection being served.
@@ -68,8 +72,11 @@ struct Val2Emulator::Impl {
 
   template <typename F>
   void update(F&& f) {
-    std::lock_guard lock(stats_mutex);
-    f(stats);
+    {
+      std::lock_guard lock(stats_mutex);
+      f(stats);
+    }
+    stats_changed.notify_all();
   }
 
   // Waits `d` unless stop() comes; false when stopping.
@@ -148,6 +155,7 @@ struct Val2Emulator::Impl {
 
 Next Val2Emulator::Impl::handle(const ReceivedLine& line) {
   const std::optional<Misbehaviour> m = plan.next_line();
+  if (options.log) options.log(fmt::format("< {}{}", line.text, m ? fmt::format("  ({})", to_string(*m)) : ""));
   update([&](Stats& s) {
     ++s.lines;
     if (m) ++s.misbehaviours;
@@ -182,7 +190,10 @@ Next Val2Emulator::Impl::handle(const ReceivedLine& line) {
   if (m && m->kind == MisbehaviourKind::garbage) {
     answer += garbage();
   } else {
-    for (const std::string& l : lines) answer += l + "\r\n";
+    for (const std::string& l : lines) {
+      answer += l + "\r\n";
+      if (options.log) options.log(fmt::format("> {}", l));
+    }
     answer += ".";
     update([&](Stats& s) {
       for (const std::string& l : lines) {
@@ -258,10 +269,21 @@ void Val2Emulator::serve(const std::filesystem::path& link) {
 }
 
 void Val2Emulator::stop() {
-  impl_->stopping = true;
+  {
+    std::lock_guard lock(impl_->stats_mutex);
+    impl_->stopping = true;
+  }
+  impl_->stats_changed.notify_all();
   const std::uint64_t one = 1;
   [[maybe_unused]] const ssize_t n = ::write(impl_->wake, &one, sizeof one);
   impl_->arm.interrupt();
+}
+
+bool Val2Emulator::wait_published(std::uint64_t count, std::chrono::nanoseconds timeout) const {
+  std::unique_lock lock(impl_->stats_mutex);
+  return impl_->stats_changed.wait_for(lock, timeout, [&] {
+    return impl_->stats.connections >= count || impl_->stopping;
+  }) && impl_->stats.connections >= count;
 }
 
 Val2Emulator::Stats Val2Emulator::stats() const {

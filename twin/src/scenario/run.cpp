@@ -12,6 +12,7 @@
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/gantt.hpp"
+#include "cellwright/twin/scenario/real_drivers.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
 #include "cellwright/vision/camera_model.hpp"
@@ -28,10 +29,7 @@ runtime::SimDuration seconds(double s) {
 
 }  // namespace
 
-ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions options)
-    : scenario_(s),
-      realtime_(options.realtime.value_or(s.options.realtime)),
-      perception_(options.perception.value_or(s.perception)) {
+CellWorld make_cell_world(const Scenario& s) {
   sim::WorldOptions world_options;
   world_options.where = {s.source.string(), 0, 0};
   if (s.feed) world_options.parked = s.feed->workpieces;
@@ -46,7 +44,33 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     w.pose.xyz = moved.translation();
     w.pose.rpy.z() += std::atan2(it->second.linear()(1, 0), it->second.linear()(0, 0));
   }
-  world_ = std::make_unique<sim::World>(build_scene(real), world_options);
+  CellWorld out;
+  out.world = std::make_unique<sim::World>(build_scene(real), world_options);
+  if (s.feed) {
+    for (std::size_t i = 0; i < s.feed->workpieces.size(); ++i) {
+      const auto it = offsets.find(s.feed->workpieces[i]);
+      out.feed.push_back({seconds(s.feed->arrival(i)), s.feed->workpieces[i], s.feed->conveyor,
+                          it == offsets.end() ? Eigen::Isometry3d::Identity() : it->second});
+    }
+  }
+  return out;
+}
+
+ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions options)
+    : scenario_(s),
+      realtime_(options.realtime.value_or(s.options.realtime)),
+      perception_(options.perception.value_or(s.perception)) {
+  if (uses_real_drivers(s) && !realtime_) {
+    for (const DriverChoice& d : s.drivers) {
+      if (!d.real()) continue;
+      throw InputError(d.where, fmt::format("robot '{}' is on the real {} driver, and lock-step is refused with a "
+                                            "real driver: a real arm moves on the wall clock and cannot wait for the "
+                                            "simulation's steps; run with --realtime",
+                                            d.robot, to_string(d.kind)));
+    }
+  }
+  CellWorld cell = make_cell_world(s);
+  world_ = std::move(cell.world);
 
   runtime::RunConfig config;
   config.program = s.program;
@@ -70,6 +94,16 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     }
     sim::SimDriver& driver = world_->add_sim_driver(b.name, driver_options);
     config.drivers[b.name] = &driver;
+    const DriverChoice* choice = nullptr;
+    for (const DriverChoice& d : s.drivers) {
+      if (d.robot == b.name) choice = &d;
+    }
+    if (choice != nullptr && choice->real()) {
+      std::unique_ptr<drivers::SerialDriver> real = make_real_driver(*choice, *s.cell.find_robot(b.name));
+      connect_real_driver(*real, *choice);
+      mirrors_.push_back(std::make_unique<sim::MirroredDriver>(b.name, std::move(real), driver, driver.kinematics()));
+      config.drivers[b.name] = mirrors_.back().get();
+    }
     RobotTiming timing;
     timing.max_joint_speed = driver.capabilities().max_joint_speed;
     timing.speed = config.motion.speed;
@@ -80,15 +114,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     estimate_options.robots[b.name] = timing;
   }
 
-  std::vector<sim::FeedEvent> feed;
-  if (s.feed) {
-    for (std::size_t i = 0; i < s.feed->workpieces.size(); ++i) {
-      const auto it = offsets.find(s.feed->workpieces[i]);
-      feed.push_back({seconds(s.feed->arrival(i)), s.feed->workpieces[i], s.feed->conveyor,
-                      it == offsets.end() ? Eigen::Isometry3d::Identity() : it->second});
-    }
-  }
-  plant_ = std::make_unique<sim::WorldPlant>(*world_, std::move(feed));
+  plant_ = std::make_unique<sim::WorldPlant>(*world_, std::move(cell.feed));
   estimate_ = estimate_cycle_time(s, net, estimate_options);
 
   config.plant = plant_.get();
@@ -125,18 +151,22 @@ ScenarioRun::~ScenarioRun() {
   runtime_.reset();  // joins the threads before the plant and the World they use go
 }
 
-std::vector<FinalPose> ScenarioRun::final_poses() const {
+std::vector<FinalPose> final_poses_of(const sim::World& world) {
   std::vector<FinalPose> out;
-  const sim::WorldTruth truth = world_->truth();
+  const sim::WorldTruth truth = world.truth();
   for (const sim::WorkpieceTruth& w : truth.workpieces) {
     FinalPose f;
     f.name = w.name;
     f.pose = w.pose;
     f.present = !w.parked;
-    if (w.held_by) f.held_by = world_->scene().robots().at(*w.held_by).name;
+    if (w.held_by) f.held_by = world.scene().robots().at(*w.held_by).name;
     out.push_back(std::move(f));
   }
   return out;
+}
+
+std::vector<FinalPose> ScenarioRun::final_poses() const {
+  return final_poses_of(*world_);
 }
 
 Report ScenarioRun::report() const {

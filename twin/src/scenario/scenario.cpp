@@ -53,6 +53,50 @@ std::optional<models::DriverKind> driver_kind(const std::string& s) {
   return std::nullopt;
 }
 
+// The driver `text` ("sim", "movemaster", "val2:/dev/ttyS1") chooses for cell robot `robot`. The port replaces the
+// cell's; the cell's other line settings stay, or the driver's defaults when the cell has none.
+DriverChoice choose_driver(const models::RobotSpec& robot, const std::string& text, const SourceLocation& where) {
+  const std::size_t colon = text.find(':');
+  const std::string name = text.substr(0, colon);
+  const auto kind = driver_kind(name);
+  if (!kind) {
+    throw InputError(where, fmt::format("the driver of robot '{}' must be sim, movemaster or val2 (with a port after "
+                                        "':' for the last two), got '{}'",
+                                        robot.name, text));
+  }
+  DriverChoice d;
+  d.robot = robot.name;
+  d.kind = *kind;
+  d.where = where;
+  if (colon != std::string::npos) {
+    const std::string port = text.substr(colon + 1);
+    if (*kind == models::DriverKind::kSim) {
+      throw InputError(where, fmt::format("robot '{}': the sim driver takes no port, got '{}'", robot.name, text));
+    }
+    if (port.empty()) throw InputError(where, fmt::format("robot '{}': no port after '{}:'", robot.name, name));
+    if (robot.serial && robot.driver == *kind) {
+      d.serial = robot.serial;
+    } else if (*kind == models::DriverKind::kMovemaster) {
+      d.serial = models::SerialSettings{"", 9600, 7, models::Parity::kEven, 2, true, true};
+    } else {
+      d.serial = models::SerialSettings{"", 9600, 8, models::Parity::kNone, 1, false, false};
+    }
+    d.serial->port = port;
+  } else if (*kind != models::DriverKind::kSim && robot.serial && robot.driver == *kind) {
+    d.serial = robot.serial;
+  }
+  return d;
+}
+
+// A real driver must know its port.
+void check_driver(const DriverChoice& d) {
+  if (d.real() && !d.serial) {
+    throw InputError(d.where, fmt::format("robot '{}' on the {} driver needs a serial port: give it with the driver "
+                                          "({}:/dev/ttyUSB0) or in the cell (`serial: {{port: ...}}`)",
+                                          d.robot, to_string(d.kind), to_string(d.kind)));
+  }
+}
+
 // Reads an error of another file (the cell, the program) and says that the scenario led there, keeping the other
 // file's position: that is where the user must look.
 template <typename F>
@@ -153,6 +197,35 @@ models::LocationSpec read_location(const Doc& doc, const models::CellDescription
 }
 
 }  // namespace
+
+void set_driver(Scenario& scenario, const std::string& spec, const SourceLocation& where) {
+  const std::size_t eq = spec.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw InputError(where, fmt::format("'{}': write ROBOT=sim, ROBOT=movemaster:PORT or ROBOT=val2:PORT", spec));
+  }
+  const std::string robot = spec.substr(0, eq);
+  const models::RobotSpec* r = scenario.cell.find_robot(robot);
+  if (r == nullptr) {
+    throw InputError(where,
+                     fmt::format("'{}' names '{}', which is not a robot of the cell {} (robots: {})", spec, robot,
+                                 scenario.cell_file.filename().string(), list_names(names_of(scenario.cell.robots))));
+  }
+  DriverChoice d = choose_driver(*r, spec.substr(eq + 1), where);
+  check_driver(d);
+  for (DriverChoice& c : scenario.drivers) {
+    if (c.robot == robot) c = std::move(d);
+  }
+}
+
+bool uses_real_drivers(const Scenario& scenario) {
+  for (const DriverChoice& d : scenario.drivers) {
+    if (!d.real()) continue;
+    for (const Binding& b : scenario.robots) {
+      if (b.name == d.robot) return true;
+    }
+  }
+  return false;
+}
 
 const char* to_string(models::DriverKind kind) {
   switch (kind) {
@@ -338,21 +411,17 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     d.robot = r.name;
     d.kind = r.driver;
     d.where = r.where;
+    d.serial = r.serial;
     if (auto it = driver_given.find(r.name); it != driver_given.end()) {
       const YAML::Node& v = it->second.second;
       const std::string text = f.word_of(v, fmt::format("the driver of robot '{}'", r.name));
-      const auto kind = driver_kind(text);
-      if (!kind)
-        doc.fail(v, fmt::format("the driver of robot '{}' must be sim, movemaster or val2, got '{}'", r.name, text));
-      d.kind = *kind;
-      d.where = doc.at(v);
+      try {
+        d = choose_driver(r, text, doc.at(v));
+      } catch (const InputError& e) {
+        doc.fail(v, e.problem());
+      }
     }
-    const bool used = std::any_of(s.robots.begin(), s.robots.end(), [&](const Binding& b) { return b.name == r.name; });
-    if (used && d.kind != models::DriverKind::kSim) {
-      throw InputError(d.where, fmt::format("robot '{}' would run on the {} driver, which is not available yet; "
-                                            "use `drivers: {{{}: sim}}`",
-                                            r.name, to_string(d.kind), r.name));
-    }
+    check_driver(d);
     s.drivers.push_back(std::move(d));
   }
 

@@ -113,7 +113,8 @@ inline constexpr std::size_t kStatusRetention = 1024;
 // Digital channels are numbered from 1, as on the controllers.
 
 // Joint-interpolated move to joint positions, in the robot's joint order (the order of its URDF). Joint-level
-// control: Movemaster `MJ` (the driver turns absolute targets into its relative moves), VAL II `DRIVE`.
+// control: VAL II `MOVE #PPOINT(...)`. The Movemaster driver has none (its `MJ` is relative and `WH` reports no
+// joints: docs/real-robots.md).
 struct MoveJoints {
   std::vector<double> positions;
   double speed = 1.0;  // fraction of the robot's maximum speed, in (0, 1]

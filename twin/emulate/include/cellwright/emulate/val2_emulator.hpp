@@ -71,6 +71,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -86,6 +87,9 @@ struct Val2EmulatorOptions {
   bool echo = true;                         // echo each received line (`--no-echo` turns it off)
   std::chrono::nanoseconds reconnect_delay{std::chrono::milliseconds(200)};  // after a drop, before republishing
   double speed = 100;  // the monitor speed (percent, [1, 100]) before any SPEED
+  // Called on the serving thread with each line received ("< ...") and each answer line ("> ..."), e.g. for
+  // `twin emulate --verbose`. May be empty.
+  std::function<void(std::string_view)> log;
 };
 
 class Val2Emulator {
@@ -118,6 +122,10 @@ class Val2Emulator {
   };
   // A copy of the counters now. Any thread.
   Stats stats() const;
+  // Waits until at least `count` pseudo-terminals have been published (the first by serve(), then one after each
+  // drop), at most `timeout`, or until stop(); true if they have. The path is ready for a host when this returns
+  // true. Any thread.
+  bool wait_published(std::uint64_t count, std::chrono::nanoseconds timeout) const;
 
  private:
   struct Impl;

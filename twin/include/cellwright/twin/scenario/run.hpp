@@ -33,7 +33,9 @@
 #include "cellwright/twin/scenario/estimate.hpp"
 #include "cellwright/twin/scenario/report.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/twin/sim/mirrored_driver.hpp"
 #include "cellwright/twin/sim/world.hpp"
+#include "cellwright/twin/sim/world_plant.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -50,11 +52,27 @@ struct RunOptions {
   std::function<void(const runtime::VisionFrame&)> on_frame;
 };
 
+// The scenario's cell as it really is: the World (perturbed parts moved by the scenario's seed, fed parts parked) and
+// the feed events that bring the parked parts in. Throws InputError if MuJoCo rejects the cell.
+struct CellWorld {
+  std::unique_ptr<sim::World> world;
+  std::vector<sim::FeedEvent> feed;
+};
+CellWorld make_cell_world(const Scenario& scenario);
+
+// The cell's workpieces as `world` has them now (ground truth: parked parts are not present, a part both finger pads
+// of a robot touch is held by it). Only while nothing steps the world.
+std::vector<FinalPose> final_poses_of(const sim::World& world);
+
 class ScenarioRun {
  public:
   // Builds the scene and World (feed workpieces parked), a simulation driver per program robot, the plant that feeds
   // workpieces at their times, the estimate and the Runtime. `net` is preflight's net of the scenario's program.
-  // Throws InputError if MuJoCo rejects the cell or a driver's configuration cannot work; nothing runs yet.
+  // A robot on a real driver (DriverChoice::real) is driven through it, its simulation driver being the copy that
+  // follows it in the twin (sim::MirroredDriver); its driver is connected here, so that a port that cannot be opened
+  // or a controller that does not answer is an error before anything runs. Real drivers need real time.
+  // Throws InputError if MuJoCo rejects the cell, a driver's configuration cannot work, a real driver cannot connect,
+  // or a real driver would run lock-step; nothing runs yet.
   ScenarioRun(const Scenario& scenario, const petri::Net& net, RunOptions options = {});
   ~ScenarioRun();
   ScenarioRun(const ScenarioRun&) = delete;
@@ -64,6 +82,8 @@ class ScenarioRun {
   const Estimate& estimate() const { return estimate_; }
   runtime::Runtime& runtime() { return *runtime_; }
   sim::World& world() { return *world_; }
+  // The robots on real drivers, with their copies in the twin (empty when all are simulated).
+  const std::vector<std::unique_ptr<sim::MirroredDriver>>& mirrors() const { return mirrors_; }
   bool realtime() const { return realtime_; }
   runtime::Perception perception() const { return perception_; }
 
@@ -83,6 +103,7 @@ class ScenarioRun {
   bool realtime_ = false;
   runtime::Perception perception_ = runtime::Perception::kTruth;
   std::unique_ptr<sim::World> world_;
+  std::vector<std::unique_ptr<sim::MirroredDriver>> mirrors_;  // real robots, with their copies in world_
   std::unique_ptr<runtime::Plant> plant_;
   Estimate estimate_;
   std::unique_ptr<runtime::Runtime> runtime_;

@@ -39,10 +39,15 @@ struct Binding {
 };
 
 // The driver of one cell robot.
+// A real driver (movemaster, val2) talks over `serial`: the cell's line settings for the robot, with the port given
+// in the scenario (`drivers: {melfa: movemaster:/dev/ttyUSB0}`) or on the command line (`--driver`) taking the place
+// of the cell's; without settings in the cell, the driver's defaults (docs/real-robots.md).
 struct DriverChoice {
   std::string robot;  // cell robot name
   models::DriverKind kind = models::DriverKind::kSim;
   SourceLocation where;  // the `drivers` entry, or the robot in the cell file when the cell's choice is used
+  std::optional<models::SerialSettings> serial;  // set for a real driver whose port is known
+  bool real() const { return kind != models::DriverKind::kSim; }
 };
 
 // Workpieces put on a conveyor during the run, one every `period` seconds from `start` on, in the listed order. They
@@ -141,8 +146,9 @@ struct Scenario {
 // names a label the program does not declare, or a cell object that does not exist or is of the wrong kind; a
 // program robot, workpiece or location is bound to nothing in the cell (no explicit binding and no cell object of the
 // same name); two labels are bound to one cell object; a driver is named for a robot that is not in the cell, is not
-// one of sim/movemaster/val2, or is not available yet (only sim is); the feed names an unknown conveyor or workpiece,
-// a workpiece twice, or lacks a period for several workpieces; an expectation names an unknown workpiece or place.
+// one of sim/movemaster/val2, or is a real driver (movemaster, val2) whose serial port is not known; the feed names an
+// unknown conveyor or workpiece, a workpiece twice, or lacks a period for several workpieces; an expectation names an
+// unknown workpiece or place.
 Scenario load_scenario(const std::filesystem::path& yaml_file);
 
 // As load_scenario, from YAML text; `source` names the text in errors and its directory resolves relative paths.
@@ -178,5 +184,13 @@ Preflight preflight(const Scenario& scenario);
 
 // "sim", "movemaster", "val2".
 const char* to_string(models::DriverKind kind);
+
+// Puts robot ROBOT on a driver as `spec` says: "ROBOT=sim", "ROBOT=movemaster[:PORT]" or "ROBOT=val2[:PORT]" (the
+// command line's `--driver`), replacing the scenario's choice; nothing else of the scenario changes. Throws
+// InputError naming `where` and the text when the spec is malformed, names no robot of the cell, or leaves a real
+// driver without a port.
+void set_driver(Scenario& scenario, const std::string& spec, const SourceLocation& where);
+// True when some robot the program uses runs on a real driver.
+bool uses_real_drivers(const Scenario& scenario);
 
 }  // namespace cellwright::twin::scenario

@@ -1,0 +1,210 @@
+// `twin emulate movemaster|val2 --link PATH [...]`: a robot controller emulator on a pseudo-terminal, with the
+// project's kinematics behind it; `twin emulate --scenario SCENARIO --robot ROBOT=LANGUAGE:LINK ...`: the controllers
+// of a cell, each driving the twin's MuJoCo arm (virtual commissioning). Runs until SIGINT or SIGTERM; exit 0 then,
+// 2 on bad input. docs/real-robots.md says what each emulator speaks and how it can be told to misbehave.
+#include <fmt/format.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/emulate/kinematic_arm.hpp"
+#include "cellwright/emulate/misbehaviour.hpp"
+#include "cellwright/emulate/movemaster_emulator.hpp"
+#include "cellwright/emulate/val2_emulator.hpp"
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/twin/scenario/emulated_cell.hpp"
+#include "cellwright/twin/scenario/scenario.hpp"
+#include "commands.hpp"
+
+namespace cellwright::tools {
+
+namespace {
+
+// Runs `work` on a thread of its own until it returns or SIGINT/SIGTERM arrives, then `stop` and joins it. The
+// signals are blocked on every thread and taken with sigwait here, so no handler runs. Rethrows what `work` threw.
+void run_until_signal(const std::function<void()>& work, const std::function<void()>& stop) {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGUSR1);  // the worker's "I am done"
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  std::exception_ptr error;
+  std::thread worker([&] {
+    try {
+      work();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    kill(getpid(), SIGUSR1);
+  });
+  int sig = 0;
+  sigwait(&set, &sig);
+  if (sig != SIGUSR1) {
+    stop();
+  }
+  worker.join();
+  if (error) std::rethrow_exception(error);
+}
+
+// Joins a thread however the scope is left.
+struct Joined {
+  std::thread thread;
+  ~Joined() {
+    if (thread.joinable()) thread.join();
+  }
+};
+
+std::vector<double> degrees_to_radians(const std::vector<double>& deg) {
+  std::vector<double> out;
+  for (const double d : deg) out.push_back(d * M_PI / 180.0);
+  return out;
+}
+
+}  // namespace
+
+void add_emulate(CLI::App& app, Command* run) {
+  auto* cmd = app.add_subcommand(
+      "emulate",
+      "Emulate robot controllers on pseudo-terminals: one controller with the project's kinematics "
+      "(`emulate movemaster|val2 --link PATH`), or a cell's controllers driving the twin's arms (`emulate --scenario "
+      "SCENARIO --robot ROBOT=movemaster:LINK ...`). Runs until Ctrl-C or SIGTERM; exit 0, or 2 on bad input.");
+  struct Args {
+    std::string language;
+    std::string link;
+    std::string urdf;
+    std::vector<double> home_deg;
+    double time_scale = 1.0;
+    std::string scenario;
+    std::vector<std::string> robots;
+    std::uint64_t seed = 1;
+    std::vector<std::string> misbehave;
+    bool no_echo = false;
+    bool verbose = false;
+  };
+  auto args = std::make_shared<Args>();
+  cmd->add_option("language", args->language, "the controller to emulate alone: movemaster or val2")
+      ->check(CLI::IsMember({"movemaster", "val2"}));
+  cmd->add_option("--link", args->link, "where to publish the pseudo-terminal (a symbolic link), e.g. /tmp/melfa");
+  cmd->add_option("--urdf", args->urdf,
+                  "the arm (default: models/urdf/melfa_rve2.urdf for movemaster, puma560.urdf for val2)");
+  cmd->add_option("--home", args->home_deg, "home joints in degrees (default: zero, within the limits)")
+      ->delimiter(',');
+  cmd->add_option("--time-scale", args->time_scale, "motions take this times their time (default 1)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--scenario", args->scenario, "emulate the controllers of this scenario's cell, on the twin's arms");
+  cmd->add_option("--robot", args->robots, "with --scenario: ROBOT=movemaster:LINK or ROBOT=val2:LINK (repeatable)");
+  cmd->add_option("--seed", args->seed, "seed of the random misbehaviours");
+  cmd->add_option("--misbehave", args->misbehave,
+                  "KIND@LINE or KIND~PROBABILITY (late: late@LINE:SECONDS); with --scenario ROBOT:KIND@LINE; "
+                  "KIND: error (er1), unreachable (er2), garbage, silent, drop, late (repeatable)");
+  cmd->add_flag("--no-echo", args->no_echo, "VAL II: do not echo what is received");
+  cmd->add_flag("--verbose", args->verbose, "print every line received and answered");
+  cmd->callback([run, args] {
+    *run = [args] {
+      const SourceLocation cli{"twin emulate", 0, 0};
+      std::mutex print_mutex;
+      const auto print = [&print_mutex](std::string_view line) {
+        std::lock_guard lock(print_mutex);
+        std::fprintf(stdout, "%.*s\n", static_cast<int>(line.size()), line.data());
+        std::fflush(stdout);
+      };
+      if (!args->scenario.empty()) {
+        if (!args->language.empty() || !args->link.empty()) {
+          throw InputError(cli,
+                           "--scenario emulates the cell's controllers given by --robot; a language and --link "
+                           "are for one controller alone");
+        }
+        if (args->robots.empty()) throw InputError(cli, "--scenario needs at least one --robot ROBOT=LANGUAGE:LINK");
+        const twin::scenario::Scenario s = twin::scenario::load_scenario(args->scenario);
+        std::vector<twin::scenario::EmulatedController> controllers;
+        for (const std::string& r : args->robots) {
+          controllers.push_back(twin::scenario::parse_emulated_controller(r, {"--robot", 0, 0}));
+        }
+        for (const std::string& m : args->misbehave) {
+          const std::size_t colon = m.find(':');
+          bool placed = false;
+          for (auto& c : controllers) {
+            if (colon != std::string::npos && m.substr(0, colon) == c.robot) {
+              c.misbehaviours.push_back(emulate::parse_misbehaviour(m.substr(colon + 1)));
+              placed = true;
+            }
+          }
+          if (!placed) {
+            throw InputError({"--misbehave", 0, 0}, fmt::format("'{}': with --scenario, write ROBOT:KIND@LINE for "
+                                                                "one of the emulated robots",
+                                                                m));
+          }
+        }
+        twin::scenario::EmulatedCellOptions options;
+        options.seed = args->seed;
+        options.echo = !args->no_echo;
+        if (args->verbose) options.log = print;
+        std::string names;
+        for (const auto& c : controllers) {
+          names += fmt::format("{}{} ({}) at {}", names.empty() ? "" : ", ", c.robot,
+                               twin::scenario::to_string(c.language), c.link.string());
+        }
+        options.on_ready = [&] { print(fmt::format("emulating {}; Ctrl-C to stop", names)); };
+        twin::scenario::EmulatedCell cell(s, std::move(controllers), std::move(options), cli);
+        run_until_signal([&] { cell.run(); }, [&] { cell.stop(); });
+        for (const twin::scenario::FinalPose& p : cell.final_poses()) {
+          if (!p.present) continue;
+          const Eigen::Vector3d x = p.pose.translation();
+          print(fmt::format("{} at ({:.3f}, {:.3f}, {:.3f}){}", p.name, x.x(), x.y(), x.z(),
+                            p.held_by.empty() ? "" : fmt::format(", held by {}", p.held_by)));
+        }
+        return 0;
+      }
+
+      if (args->language.empty()) throw InputError(cli, "say which controller: movemaster or val2 (or --scenario)");
+      if (args->link.empty()) throw InputError(cli, "--link PATH is needed: where to publish the pseudo-terminal");
+      const bool movemaster = args->language == "movemaster";
+      const std::string urdf = args->urdf.empty() ? std::string(models::models_dir()) +
+                                                        (movemaster ? "/urdf/melfa_rve2.urdf" : "/urdf/puma560.urdf")
+                                                  : args->urdf;
+      emulate::KinematicArmOptions arm_options;
+      arm_options.home = degrees_to_radians(args->home_deg);
+      arm_options.time_scale = args->time_scale;
+      emulate::KinematicArm arm(models::KinematicChain::from_urdf_file(urdf), arm_options);
+      std::vector<emulate::Misbehaviour> misbehaviours;
+      for (const std::string& m : args->misbehave) misbehaviours.push_back(emulate::parse_misbehaviour(m));
+      const std::string ready = fmt::format("emulating a {} controller at {} ({}); Ctrl-C to stop",
+                                            movemaster ? "Movemaster EX" : "VAL II", args->link, urdf);
+      if (movemaster) {
+        emulate::MovemasterEmulatorOptions o;
+        o.seed = args->seed;
+        o.misbehaviours = std::move(misbehaviours);
+        if (args->verbose) o.log = print;
+        emulate::MovemasterEmulator e(arm, std::move(o));
+        Joined announce{std::thread([&] {
+          if (e.wait_published(1, std::chrono::seconds(10))) print(ready);
+        })};
+        run_until_signal([&] { e.serve(args->link); }, [&] { e.stop(); });
+      } else {
+        emulate::Val2EmulatorOptions o;
+        o.seed = args->seed;
+        o.misbehaviours = std::move(misbehaviours);
+        o.echo = !args->no_echo;
+        if (args->verbose) o.log = print;
+        emulate::Val2Emulator e(arm, std::move(o));
+        Joined announce{std::thread([&] {
+          if (e.wait_published(1, std::chrono::seconds(10))) print(ready);
+        })};
+        run_until_signal([&] { e.serve(args->link); }, [&] { e.stop(); });
+      }
+      return 0;
+    };
+  });
+}
+
+}  // namespace cellwright::tools

@@ -1,8 +1,13 @@
 // Runs the built `twin` executable as a user would, for the end-to-end CLI tests.
 #pragma once
 
+#include <poll.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+#include <chrono>
+#include <vector>
 
 #include <cstdlib>
 #include <filesystem>
@@ -65,6 +70,75 @@ class TwinCli {
 
  private:
   std::filesystem::path dir_;
+};
+
+// `twin <args...>` started in the background (e.g. `twin emulate`), its standard output read through a pipe. The
+// destructor stops it (SIGTERM) and reaps it.
+class BackgroundTwin {
+ public:
+  explicit BackgroundTwin(const std::vector<std::string>& args) {
+    int fds[2];
+    if (::pipe(fds) != 0) return;
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::dup2(fds[1], STDOUT_FILENO);
+      ::dup2(fds[1], STDERR_FILENO);
+      ::close(fds[0]);
+      ::close(fds[1]);
+      std::vector<char*> argv;
+      std::string exe = CW_TWIN_EXE;
+      argv.push_back(exe.data());
+      std::vector<std::string> copy = args;
+      for (std::string& a : copy) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      ::execv(exe.c_str(), argv.data());
+      ::_exit(127);
+    }
+    ::close(fds[1]);
+    out_ = fds[0];
+  }
+  ~BackgroundTwin() {
+    stop();
+    if (out_ >= 0) ::close(out_);
+  }
+  BackgroundTwin(const BackgroundTwin&) = delete;
+  BackgroundTwin& operator=(const BackgroundTwin&) = delete;
+
+  // Reads its output until `text` appears or `timeout` passes; true if it appeared.
+  bool wait_for(const std::string& text, std::chrono::milliseconds timeout) {
+    const auto until = std::chrono::steady_clock::now() + timeout;
+    while (output_.find(text) == std::string::npos) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - std::chrono::steady_clock::now());
+      if (left.count() <= 0 || out_ < 0) return false;
+      pollfd p{out_, POLLIN, 0};
+      if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
+      char buf[4096];
+      const ssize_t n = ::read(out_, buf, sizeof buf);
+      if (n <= 0) return output_.find(text) != std::string::npos;
+      output_.append(buf, static_cast<std::size_t>(n));
+    }
+    return true;
+  }
+  // Sends SIGTERM, waits for the exit and reads the rest of the output; the exit status (-1 if killed by a signal).
+  int stop() {
+    if (pid_ <= 0) return status_;
+    ::kill(pid_, SIGTERM);
+    char buf[4096];
+    ssize_t n;
+    while (out_ >= 0 && (n = ::read(out_, buf, sizeof buf)) > 0) output_.append(buf, static_cast<std::size_t>(n));
+    int raw = 0;
+    ::waitpid(pid_, &raw, 0);
+    pid_ = -1;
+    status_ = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+    return status_;
+  }
+  const std::string& output() const { return output_; }
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+  int status_ = -1;
+  std::string output_;
 };
 
 inline std::string source_path(const std::string& relative) { return std::string(CW_SOURCE_DIR) + "/" + relative; }

@@ -1,0 +1,120 @@
+// The live switch as a user runs it: `twin run SCENARIO --realtime --driver ROBOT=movemaster|val2:PORT` against the
+// controllers of the cell emulated by `twin emulate --scenario` on the twin's arms (virtual commissioning), over real
+// pseudo-terminals and the real protocols. The paper's exchange finishes with A on the output conveyor with both arms
+// real, and with one arm swapped; a controller that reports a hardware error mid-run stops the run safely with the
+// reason; lock-step with a real driver and a port that does not exist are refused before anything moves.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "tools/twin_cli.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using cellwright::testing::BackgroundTwin;
+using cellwright::testing::shell_quote;
+using cellwright::testing::source_path;
+using cellwright::testing::TwinCli;
+using ::testing::HasSubstr;
+
+const std::string kExchange = source_path("scenes/exchange.yaml");
+
+// The controllers of the exchange cell emulated on the twin's arms, at links in `dir`.
+struct EmulatedExchange {
+  EmulatedExchange(const fs::path& dir, const std::vector<std::string>& robots,
+                   const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> args = {"emulate", "--scenario", kExchange};
+    for (const std::string& r : robots) {
+      args.push_back("--robot");
+      args.push_back(r + ":" + (dir / r.substr(0, r.find('='))).string());
+    }
+    args.insert(args.end(), extra.begin(), extra.end());
+    process = std::make_unique<BackgroundTwin>(args);
+  }
+  std::unique_ptr<BackgroundTwin> process;
+};
+
+std::string drivers(const fs::path& dir, const std::vector<std::string>& robots) {
+  std::string s;
+  for (const std::string& r : robots) {
+    s += " --driver " + shell_quote(r + ":" + (dir / r.substr(0, r.find('='))).string());
+  }
+  return s;
+}
+
+TEST(RealRobotsCli, LockStepWithARealDriverIsRefusedBeforeAnythingRuns) {
+  TwinCli cli("real-lockstep");
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --driver melfa=movemaster:/dev/ttyS0");
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("lock-step is refused with a real driver"));
+  EXPECT_THAT(r.err, HasSubstr("--realtime"));
+}
+
+TEST(RealRobotsCli, APortThatDoesNotExistIsNamed) {
+  TwinCli cli("real-noport");
+  const auto r = cli.run("run " + shell_quote(kExchange) +
+                         " --quiet --realtime --driver melfa=movemaster:/nonexistent/ttyUSB9");
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("cannot open serial port /nonexistent/ttyUSB9"));
+  EXPECT_THAT(r.err, HasSubstr("--driver"));
+}
+
+TEST(RealRobotsCli, MalformedDriverIsRefused) {
+  TwinCli cli("real-bad");
+  for (const std::string spec : {"melfa", "kuka=sim", "melfa=fanuc:/dev/ttyS0", "melfa=movemaster"}) {
+    const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --driver " + shell_quote(spec));
+    EXPECT_EQ(r.status, 2) << spec << ": " << r.out << r.err;
+    EXPECT_THAT(r.err, HasSubstr("--driver")) << spec;
+  }
+}
+
+TEST(RealRobotsCli, ExchangeOnTwoEmulatedControllersFinishesWithAOnTheOutput) {
+  TwinCli cli("real-both");
+  const std::vector<std::string> robots = {"melfa=movemaster", "puma=val2"};
+  EmulatedExchange cell(cli.dir(), robots);
+  ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) +
+                         " -o " + shell_quote((cli.dir() / "out").string()));
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
+  EXPECT_THAT(r.out, HasSubstr("melfa (real, mirrored in the twin)"));
+  EXPECT_THAT(r.out, HasSubstr("puma (real, mirrored in the twin)"));
+  EXPECT_EQ(cell.process->stop(), 0) << cell.process->output();
+  // In the emulated cell too, the part was handed over and let go.
+  EXPECT_THAT(cell.process->output(), HasSubstr("A at ("));
+  EXPECT_THAT(cell.process->output(), ::testing::Not(HasSubstr("held by")));
+}
+
+TEST(RealRobotsCli, ExchangeWithOneArmSwappedFinishes) {
+  TwinCli cli("real-mixed");
+  const std::vector<std::string> robots = {"melfa=movemaster"};
+  EmulatedExchange cell(cli.dir(), robots);
+  ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots));
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
+}
+
+TEST(RealRobotsCli, AHardwareErrorMidRunStopsTheRunWithTheReason) {
+  TwinCli cli("real-er1");
+  const std::vector<std::string> robots = {"melfa=movemaster", "puma=val2"};
+  // The MELFA's controller reports a hardware error on its 200th line: while it waits for the PUMA's part, its
+  // read-backs go on; the error shows at the `ER` after its next command.
+  EmulatedExchange cell(cli.dir(), robots, {"--misbehave", "melfa:er1@200"});
+  ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) +
+                         " -o " + shell_quote((cli.dir() / "out").string()));
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("hardware"));
+  EXPECT_THAT(r.out, HasSubstr("robot r2"));
+  const std::string events = cellwright::testing::slurp(cli.dir() / "out" / "events.jsonl");
+  EXPECT_THAT(events, HasSubstr("\"outcome\":\"failed\""));
+  EXPECT_EQ(cell.process->stop(), 0) << cell.process->output();
+}
+
+}  // namespace

@@ -1,17 +1,65 @@
 // `twin compile <program> [--json] [--dot] [--pnml FILE]`: compile a task-level program and print the primitive
 // programs per robot (or their JSON form, or the Petri net as Graphviz DOT), optionally writing the net as PNML.
-// Exit 0 on success, 2 on bad input (the message names file, line and column).
+// `twin compile <program> --scenario SCENARIO --robot-language -o DIR [--driver ROBOT=movemaster|val2]...`: write
+// each robot's program in its controller's language (twin/programs/robot_programs.hpp), once the net passed the
+// preflight. Exit 0 on success, 2 on bad input (the message names file, line and column).
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
+#include <fmt/format.h>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/dot.hpp"
 #include "cellwright/petri/pnml.hpp"
 #include "cellwright/task/compile.hpp"
 #include "cellwright/task/to_net.hpp"
+#include "cellwright/twin/programs/robot_programs.hpp"
+#include "cellwright/twin/scenario/scenario.hpp"
 #include "commands.hpp"
 
 namespace cellwright::tools {
+
+namespace {
+
+// --robot-language: the scenario's robots in their controllers' languages, written into the output directory.
+template <typename Options>
+int write_robot_programs(const Options& o) {
+  using namespace twin::scenario;
+  Scenario s = load_scenario(o.scenario);
+  std::error_code ec;
+  if (!std::filesystem::equivalent(o.program, s.program_file, ec)) {
+    throw InputError({o.scenario, 0, 0},
+                     fmt::format("the scenario runs {}, not {}", s.program_file.string(), o.program));
+  }
+  for (const std::string& d : o.drivers) twin::programs::set_language(s, d, {"--driver", 0, 0});
+  const Preflight pre = preflight(s);
+  if (!pre.ok()) {
+    std::fprintf(stderr, "%s: refused, no robot program was written:\n", o.scenario.c_str());
+    for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+    if (!pre.analysis.ok()) {
+      std::fprintf(stderr, "%s: %s", s.program_file.string().c_str(),
+                   petri::format_report(pre.net, pre.analysis).c_str());
+    }
+    return 2;
+  }
+  const twin::programs::RobotPrograms programs = twin::programs::generate_robot_programs(s, pre);
+  twin::programs::write_robot_programs(programs, o.out);
+  std::printf("net: %s\n", programs.check.c_str());
+  for (const twin::programs::RobotProgram& p : programs.robots) {
+    std::printf("%s (%s): %s/%s\n", p.cell_robot.c_str(), p.robot.c_str(), o.out.c_str(), p.file_name.c_str());
+  }
+  for (const twin::programs::IoChannel& c : programs.channels) {
+    std::printf("I/O %d: %s, %s -> %s\n", c.channel, c.event.c_str(), s.robot_of(c.from).c_str(),
+                s.robot_of(c.to).c_str());
+  }
+  return std::fflush(stdout) == 0 ? 0 : 2;
+}
+
+}  // namespace
 
 void add_compile(CLI::App& app, Command* run) {
   struct Options {
@@ -19,6 +67,10 @@ void add_compile(CLI::App& app, Command* run) {
     bool json = false;
     bool dot = false;
     std::string pnml;
+    std::string scenario;
+    bool robot_language = false;
+    std::string out;
+    std::vector<std::string> drivers;
   };
   auto opts = std::make_shared<Options>();
   CLI::App* sub = app.add_subcommand("compile", "Compile a task-level program to primitive robot programs");
@@ -26,9 +78,22 @@ void add_compile(CLI::App& app, Command* run) {
   sub->add_flag("--json", opts->json, "print the compiled program as JSON instead of the listing");
   sub->add_flag("--dot", opts->dot, "print the program's Petri net as Graphviz DOT (e.g. | dot -Tsvg > net.svg)");
   sub->add_option("--pnml", opts->pnml, "also write the Petri net to this PNML file (ISO/IEC 15909-2 P/T net)");
+  sub->add_option("--scenario", opts->scenario, "the scenario that runs the program (cell, bindings, drivers)");
+  sub->add_flag("--robot-language", opts->robot_language,
+                "write each robot's program in its controller's language (Movemaster EX, VAL II) into -o DIR");
+  sub->add_option("-o,--out", opts->out, "directory for the robot programs (created if needed)");
+  sub->add_option("--driver", opts->drivers,
+                  "write a robot's program in another language than the scenario's: ROBOT=movemaster or ROBOT=val2 "
+                  "(repeatable; a :PORT after it is ignored)");
   sub->get_option("--dot")->excludes("--json");
+  for (const char* o : {"--json", "--dot", "--pnml"}) sub->get_option("--robot-language")->excludes(o);
+  sub->get_option("--robot-language")->needs("--scenario")->needs("--out");
+  sub->get_option("--scenario")->needs("--robot-language");
+  sub->get_option("--out")->needs("--robot-language");
+  sub->get_option("--driver")->needs("--robot-language");
   sub->callback([run, opts] {
     *run = [opts] {
+      if (opts->robot_language) return write_robot_programs(*opts);
       const task::CompiledProgram compiled = task::compile_file(opts->program);
       std::string text;
       if (opts->dot || !opts->pnml.empty()) {

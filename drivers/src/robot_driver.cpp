@@ -1,5 +1,9 @@
 #include "cellwright/drivers/robot_driver.hpp"
 
+#include <limits>
+
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -150,6 +154,17 @@ Refusal check_command(const Command& command, const Capabilities& capabilities) 
 
 std::string describe(const Command& command) {
   return std::visit([](const auto& c) { return describe_one(c); }, command);
+}
+
+double out_of_arm_plane(const Eigen::Isometry3d& pose) {
+  const Eigen::Vector3d p = pose.translation();
+  const double radial = std::hypot(p.x(), p.y());
+  if (radial < 1e-6) return std::numeric_limits<double>::infinity();
+  // The plane's normal is horizontal and tangential; the approach axis's angle to the plane is asin of its component
+  // along that normal.
+  const Eigen::Vector3d normal(-p.y() / radial, p.x() / radial, 0.0);
+  const double along = pose.linear().col(2).dot(normal);
+  return std::abs(std::asin(std::clamp(along, -1.0, 1.0)));
 }
 
 std::string_view to_string(DriverState state) {

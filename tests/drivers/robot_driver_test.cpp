@@ -139,5 +139,29 @@ TEST(DriverNames, EveryValueHasItsOwnName) {
   EXPECT_EQ(to_string(ErrorCode::connection_lost), "connection_lost");
 }
 
+TEST(ArmPlane, ATool5AxisArmsCanPointIsInThePlaneAndOneTurnedAboutTheVerticalIsNot) {
+  // Tool point at azimuth 30 degrees; a tool pointing straight down is in every vertical plane.
+  Eigen::Isometry3d down = Eigen::Isometry3d::Identity();
+  down.translation() = Eigen::Vector3d(0.3 * std::cos(M_PI / 6), 0.3 * std::sin(M_PI / 6), 0.2);
+  down.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  EXPECT_NEAR(out_of_arm_plane(down), 0.0, 1e-12);
+  // Horizontal and radial (pointing outward along the azimuth): in the plane, whatever the roll about it.
+  Eigen::Isometry3d radial = down;
+  radial.linear() =
+      (Eigen::AngleAxisd(M_PI / 6, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()))
+          .toRotationMatrix();
+  EXPECT_NEAR(radial.linear().col(2).z(), 0.0, 1e-12);
+  EXPECT_NEAR(out_of_arm_plane(radial), 0.0, 1e-12);
+  // The same horizontal tool turned 20 degrees about the vertical leaves the plane by 20 degrees.
+  Eigen::Isometry3d turned = radial;
+  turned.linear() = Eigen::AngleAxisd(20 * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix() * radial.linear();
+  EXPECT_NEAR(out_of_arm_plane(turned), 20 * M_PI / 180, 1e-9);
+  // On the base's axis there is no plane.
+  Eigen::Isometry3d on_axis = down;
+  on_axis.translation() = Eigen::Vector3d(0, 0, 0.5);
+  EXPECT_TRUE(std::isinf(out_of_arm_plane(on_axis)));
+}
+
 }  // namespace
 }  // namespace cellwright::drivers

@@ -57,8 +57,8 @@ TEST(RealRobotsCli, LockStepWithARealDriverIsRefusedBeforeAnythingRuns) {
 
 TEST(RealRobotsCli, APortThatDoesNotExistIsNamed) {
   TwinCli cli("real-noport");
-  const auto r = cli.run("run " + shell_quote(kExchange) +
-                         " --quiet --realtime --driver melfa=movemaster:/nonexistent/ttyUSB9");
+  const auto r =
+      cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --driver melfa=movemaster:/nonexistent/ttyUSB9");
   EXPECT_EQ(r.status, 2) << r.out << r.err;
   EXPECT_THAT(r.err, HasSubstr("cannot open serial port /nonexistent/ttyUSB9"));
   EXPECT_THAT(r.err, HasSubstr("--driver"));
@@ -78,8 +78,8 @@ TEST(RealRobotsCli, ExchangeOnTwoEmulatedControllersFinishesWithAOnTheOutput) {
   const std::vector<std::string> robots = {"melfa=movemaster", "puma=val2"};
   EmulatedExchange cell(cli.dir(), robots);
   ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
-  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) +
-                         " -o " + shell_quote((cli.dir() / "out").string()));
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) + " -o " +
+                         shell_quote((cli.dir() / "out").string()));
   EXPECT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
   EXPECT_THAT(r.out, HasSubstr("melfa (real, mirrored in the twin)"));
@@ -107,14 +107,43 @@ TEST(RealRobotsCli, AHardwareErrorMidRunStopsTheRunWithTheReason) {
   // read-backs go on; the error shows at the `ER` after its next command.
   EmulatedExchange cell(cli.dir(), robots, {"--misbehave", "melfa:er1@200"});
   ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
-  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) +
-                         " -o " + shell_quote((cli.dir() / "out").string()));
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) + " -o " +
+                         shell_quote((cli.dir() / "out").string()));
   EXPECT_EQ(r.status, 1) << r.out << r.err;
   EXPECT_THAT(r.out, HasSubstr("hardware"));
   EXPECT_THAT(r.out, HasSubstr("robot r2"));
   const std::string events = cellwright::testing::slurp(cli.dir() / "out" / "events.jsonl");
   EXPECT_THAT(events, HasSubstr("\"outcome\":\"failed\""));
   EXPECT_EQ(cell.process->stop(), 0) << cell.process->output();
+}
+
+TEST(RealRobotsCli, DryRunHomesReadsAndChecksEveryTargetMovingNothingElse) {
+  TwinCli cli("real-dry");
+  const fs::path link = cli.dir() / "melfa";
+  BackgroundTwin emulator({"emulate", "movemaster", "--link", link.string(), "--time-scale", "0.05", "--verbose"});
+  ASSERT_TRUE(emulator.wait_for("Ctrl-C to stop", std::chrono::seconds(20))) << emulator.output();
+  const auto r =
+      cli.run("run " + shell_quote(kExchange) + " --dry --driver " + shell_quote("melfa=movemaster:" + link.string()));
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("r2 (melfa) on movemaster"));
+  EXPECT_THAT(r.out, HasSubstr("homed: yes"));
+  EXPECT_THAT(r.out, HasSubstr("ok   move hand_grasp(r1)"));
+  EXPECT_THAT(r.out, HasSubstr("ok   move at(B)"));
+  EXPECT_THAT(r.out, HasSubstr("dry run: every target can be reached and expressed"));
+  EXPECT_EQ(emulator.stop(), 0);
+  // The controller was asked to home and where it is, and told to move nowhere.
+  EXPECT_THAT(emulator.output(), HasSubstr("< NT"));
+  EXPECT_THAT(emulator.output(), HasSubstr("< WH"));
+  for (const std::string motion : {"< MP", "< MS", "< GO", "< GC", "< PD"}) {
+    EXPECT_THAT(emulator.output(), ::testing::Not(HasSubstr(motion))) << motion;
+  }
+}
+
+TEST(RealRobotsCli, DryRunWithEveryRobotSimulatedIsRefused) {
+  TwinCli cli("real-dry-sim");
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --dry");
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("a dry run is for real drivers"));
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 // `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]
-// [--driver ROBOT=KIND[:PORT]]...`: run a scenario's task program on the simulated cell (or with some robots real,
-// mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and
-// every expected outcome holds, 1 when not, 2 on bad input (refused before any thread starts, nothing written).
+// [--driver ROBOT=KIND[:PORT]]... [--dry]`: run a scenario's task program on the simulated cell (or with some robots
+// real, mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and every expected outcome
+// holds, 1 when not, 2 on bad input (refused before any thread starts, nothing written).
 #include <unistd.h>
 #include <any>
 
@@ -16,6 +16,7 @@
 #include "cellwright/common/error.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/twin/render.hpp"
+#include "cellwright/twin/scenario/dry_run.hpp"
 #include "cellwright/twin/scenario/run.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
 #include "cellwright/vision/cell_detector.hpp"
@@ -96,6 +97,7 @@ void add_run(CLI::App& app, Command* run) {
     std::string perception;
     std::string frames;
     std::vector<std::string> drivers;
+    bool dry = false;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("scenario", args->scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
@@ -109,6 +111,9 @@ void add_run(CLI::App& app, Command* run) {
   cmd->add_option("--driver", args->drivers,
                   "put a robot on another driver, the rest of the scenario unchanged: ROBOT=sim, "
                   "ROBOT=movemaster:PORT or ROBOT=val2:PORT (repeatable; real drivers need --realtime)");
+  cmd->add_flag("--dry", args->dry,
+                "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
+                "program; nothing else moves. Exit 0 when all is well, 1 when not");
   cmd->add_option("--save-frames", args->frames,
                   "with vision: write each camera frame, detections drawn on it, as DIR/frame_<ms>.png");
   cmd->callback([run, args] {
@@ -125,6 +130,17 @@ void add_run(CLI::App& app, Command* run) {
                        petri::format_report(pre.net, pre.analysis).c_str());
         }
         return 2;
+      }
+
+      if (args->dry) {
+        if (!uses_real_drivers(s)) {
+          throw InputError({"--dry", 0, 0},
+                           "a dry run is for real drivers, and every robot of the program is "
+                           "simulated: give one with --driver ROBOT=movemaster:PORT or val2:PORT");
+        }
+        const DryRunReport dry = dry_run(s, pre.net);
+        std::printf("%s", format_dry_run(dry).c_str());
+        return dry.ok() ? 0 : 1;
       }
 
       auto progress = std::make_shared<Progress>(args->quiet);

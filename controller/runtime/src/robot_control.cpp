@@ -197,6 +197,16 @@ bool RobotControl::submit_current(SimDuration now) {
         const int rank = i < seen.target.rank.size() ? seen.target.rank[i] : 0;
         if (best && rank > best_rank) continue;  // a better-ranked pose is already reachable
         const Eigen::Isometry3d in_base = seen.base.inverse() * seen.target.poses[i];
+        if (!caps.full_orientation && drivers::out_of_arm_plane(in_base) > options_.arm_plane_tolerance) {
+          // A 5-axis arm's yaw follows its position: its controller could not be told this orientation.
+          if (why.empty()) {
+            why = fmt::format(
+                "the tool's approach axis is {:.1f} deg out of the arm's vertical plane, and {} cannot "
+                "turn it there (5 axes)",
+                drivers::out_of_arm_plane(in_base) * 180 / M_PI, cell_);
+          }
+          continue;
+        }
         models::IkResult ik = chain_.inverse(in_base, seed, options_.ik);
         if (ik.status != models::IkStatus::kOk) {
           if (why.empty()) why = ik.reason;

@@ -7,8 +7,10 @@
 #include <cmath>
 #include <limits>
 
+#include "cellwright/drivers/robot_driver.hpp"
 #include "cellwright/models/kinematics.hpp"
 #include "cellwright/petri/firing.hpp"
+#include "cellwright/runtime/robot_control.hpp"
 #include "cellwright/task/to_net.hpp"
 #include "cellwright/twin/sim/trajectory.hpp"
 
@@ -84,12 +86,17 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
     std::string cell;
     models::KinematicChain chain;
     Eigen::Isometry3d base;
+    bool five_axis = false;  // on a Movemaster EX controller: its yaw follows its position
   };
   std::vector<Arm> arms;
   for (const std::string& label : prog.robots) {
     const models::RobotSpec& spec = *s.cell.find_robot(s.robot_of(label));
-    arms.push_back(
-        {spec.name, models::KinematicChain::from_urdf_file(spec.urdf, "base_link", "tcp"), spec.base.transform()});
+    bool five_axis = false;
+    for (const DriverChoice& d : s.drivers) {
+      if (d.robot == spec.name) five_axis = d.kind == models::DriverKind::kMovemaster;
+    }
+    arms.push_back({spec.name, models::KinematicChain::from_urdf_file(spec.urdf, "base_link", "tcp"),
+                    spec.base.transform(), five_axis});
   }
 
   MotionPlan plan;
@@ -176,10 +183,22 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           if (!mt.joints.empty()) {
             goal = vec(mt.joints);
           } else {
-            for (const Eigen::Isometry3d& pose : mt.poses) {
-              const models::IkResult ik = arm.chain.inverse(arm.base.inverse() * pose, from);
-              if (ik.status == models::IkStatus::kOk && (!goal || (ik.q - from).norm() < (*goal - from).norm())) {
+            // As robot control chooses: the best-ranked pose the arm reaches, the nearest of those; for an arm on a
+            // 5-axis controller, only poses it can be told (drivers::out_of_arm_plane).
+            int best_rank = 0;
+            for (std::size_t i = 0; i < mt.poses.size(); ++i) {
+              const int rank = i < mt.rank.size() ? mt.rank[i] : 0;
+              if (goal && rank > best_rank) continue;
+              const Eigen::Isometry3d in_base = arm.base.inverse() * mt.poses[i];
+              if (arm.five_axis && drivers::out_of_arm_plane(in_base) > runtime::MotionOptions{}.arm_plane_tolerance) {
+                if (why.empty()) why = "no pose with the approach axis in the 5-axis arm's vertical plane";
+                continue;
+              }
+              const models::IkResult ik = arm.chain.inverse(in_base, from);
+              if (ik.status == models::IkStatus::kOk &&
+                  (!goal || rank < best_rank || (ik.q - from).norm() < (*goal - from).norm())) {
                 goal = ik.q;
+                best_rank = rank;
               }
               if (ik.status != models::IkStatus::kOk && why.empty()) why = ik.reason;
             }

@@ -281,6 +281,12 @@ struct Refusal {
 // message names the field and the value). Returns a Refusal that is false when the command is acceptable.
 Refusal check_command(const Command& command, const Capabilities& capabilities);
 
+// The 5-axis rule of a robot without full orientation (Capabilities::full_orientation false): its yaw follows its
+// position, so the tool's approach axis (its z axis) must lie in the vertical plane through the base's z axis and the
+// tool point. How far (radians) `pose` (base frame) leaves that plane; infinity for a tool point on the base's z axis
+// (it has no plane). A caller choosing among poses for such a robot keeps those within its driver's tolerance.
+double out_of_arm_plane(const Eigen::Isometry3d& pose);
+
 // Names for logs and messages: "active", "unreachable", "running", ...
 std::string_view to_string(DriverState state);
 std::string_view to_string(ErrorCode error);

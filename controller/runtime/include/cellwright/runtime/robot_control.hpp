@@ -61,6 +61,9 @@ struct MotionOptions {
   double speed = 0.5;                // fraction of the robot's maximum speed for moves, (0, 1]
   double position_tolerance = 0.01;  // rad: "position reached" when every joint is this close to the goal
   double pose_tolerance = 0.005;     // m: the same for a tool-pose read-back (tool centre point distance to the goal)
+  // rad: for a robot without full orientation (a 5-axis arm, Capabilities::full_orientation false), only target poses
+  // whose approach axis is this close to the arm's vertical plane are chosen (drivers::out_of_arm_plane).
+  double arm_plane_tolerance = 0.004;
   // How often robot control asks its driver where the arm is (a read already in flight is waited for first).
   SimDuration position_period = std::chrono::milliseconds(10);
   TargetOptions targets;

@@ -73,12 +73,20 @@ class MovemasterDriver::Exchange {
 
   // Sends `ER` and reads its digit: none for 0; for 1 and 2 `RS` goes out (when `reset` is set) and the outcome is
   // hardware or unreachable; anything else is protocol.
-  Outcome er(Steady::time_point deadline, bool reset = true) {
+  // With `settle` (at connect), the answer is the last line before `settle` of quiet: see greet().
+  Outcome er(Steady::time_point deadline, bool reset = true, std::chrono::nanoseconds settle = {}) {
     const std::string what = since_er_.empty() ? std::string("at connect") : fmt::format("after '{}'", last_sent());
     since_er_.clear();
     if (Outcome o = send("ER"); o.error != ErrorCode::none) return o;
     std::string line;
     if (Outcome o = read("ER", deadline, &line); o.error != ErrorCode::none) return o;
+    while (settle.count() > 0) {
+      std::string later, message;
+      const IoStatus s = link_.read_line(Link::in(settle), &later, &message);
+      if (s == IoStatus::timeout) break;
+      if (s != IoStatus::ok) return failed(ErrorCode::connection_lost, fmt::format("the line dropped: {}", message));
+      line = std::move(later);
+    }
     const std::optional<int> answer = mm::parse_er(line);
     if (!answer) {
       return failed(ErrorCode::protocol, fmt::format("the answer to 'ER' {} is '{}', not 0, 1 or 2 (received for this "
@@ -185,6 +193,7 @@ MovemasterDriver::MovemasterDriver(MovemasterOptions options) : SerialDriver(opt
   positive(o.longest_motion, "longest_motion");
   positive(o.home_time, "home_time");
   positive(o.serial.reply_timeout, "reply_timeout");
+  check_option(o.resync_quiet.count() >= 0, o, fmt::format("resync_quiet {} ms is negative", ms(o.resync_quiet)));
   check_option(o.grip_time.count() >= 0, o, fmt::format("grip_time {} ms is negative", ms(o.grip_time)));
   check_option(o.serial.processing_time.count() >= 0, o,
                fmt::format("processing_time {} ms is negative", ms(o.serial.processing_time)));
@@ -224,7 +233,9 @@ SerialDriver::Outcome MovemasterDriver::greet(Link& link) {
   forget();
   Exchange ex(link, options_);
   const auto reply = options_.serial.reply_timeout;
-  if (Outcome o = ex.er(Link::in(reply)); o.error != ErrorCode::none) return o;
+  // An answer to a question asked before the link was given up (silence, then a reconnect) may still come; the
+  // controller answers in order, so it comes before this ER's: the last line before resync_quiet of quiet is ours.
+  if (Outcome o = ex.er(Link::in(reply), true, options_.resync_quiet); o.error != ErrorCode::none) return o;
   if (options_.tool_length_mm) {
     if (Outcome o = ex.send(mm::format_tl(*options_.tool_length_mm)); o.error != ErrorCode::none) return o;
     if (Outcome o = ex.er(Link::in(reply)); o.error != ErrorCode::none) return o;

@@ -4,7 +4,9 @@
 //
 // WHAT EACH CALL SENDS (every line ended by MovemasterOptions::line_end; the pacing of serial_driver.hpp between
 // any two lines; "ER" below means: send `ER`, wait for its one-digit answer, see ANSWERS)
-//   connect()           `ER` (the controller must answer 0); then, when tool_length_mm is set, `TL l` and `ER`.
+//   connect()           `ER` (the controller must answer 0; its answer is the last line received before
+//                       resync_quiet of quiet: a late answer to a question asked before the link was given up comes
+//                       first and is dropped); then, when tool_length_mm is set, `TL l` and `ER`.
 //   home()              `NT`, `ER`. The driver forgets where the arm is (the nest is not a pose it knows).
 //   MovePose joint      `SP n` when the speed level differs from the one last sent (always after connect or an
 //                       error), then `MP x,y,z,p,r`, then ER.
@@ -107,6 +109,8 @@ struct MovemasterOptions {
   std::chrono::nanoseconds longest_motion = std::chrono::seconds(5);  // the longest motion at speed level 9
   std::chrono::nanoseconds home_time = std::chrono::seconds(30);      // the longest `NT`
   std::chrono::nanoseconds grip_time = std::chrono::seconds(1);       // the longest `GO`/`GC` (plus GP's t)
+  // At connect: the quiet after the `ER` answer that makes it the answer to that `ER` (0: none, the first line is).
+  std::chrono::nanoseconds resync_quiet = std::chrono::milliseconds(100);
 };
 
 class MovemasterDriver final : public SerialDriver {

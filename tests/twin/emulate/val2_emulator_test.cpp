@@ -417,7 +417,7 @@ TEST_F(Val2EmulatorTest, EachErrorIsOneStarLineBeforeThePromptAndNothingMoves) {
       {"FLY", "*Unknown instruction*"},
       {"DO MOV TRANS(400,150,500,30,20,-15)", "*Unknown instruction*"},  // MOVE, MOVES or MOVET
       {"DO OPEN", "*Unknown instruction*"},                              // a VAL II instruction not emulated
-      {"EXECUTE pick", "*Unknown instruction*"},
+      {"EXECUTE pick", "*Undefined program*"},  // no program of that name was loaded
       {"S 50", "*Unknown instruction*"},  // SPEED or STORE
       {"DO", "*Invalid argument*"},
       {"DO MOVE TRANS(1,2,3,4,5)", "*Invalid argument*"},

@@ -10,6 +10,7 @@
 #include "cellwright/common/error.hpp"
 #include "movemaster/command.hpp"
 #include "movemaster/executor.hpp"
+#include "movemaster/program.hpp"
 
 namespace cellwright::emulate {
 
@@ -51,6 +52,7 @@ MovemasterEmulator::MovemasterEmulator(EmulatedArm& arm, MovemasterEmulatorOptio
   }
   if (options_.reconnect_delay.count() < 0) throw InputError(where, "the reconnect delay is negative");
   executor_ = std::make_unique<movemaster::Executor>(arm_, options_.nominal_tool_length_mm, options_.speed_level);
+  program_ = std::make_unique<movemaster::Program>();
 }
 
 MovemasterEmulator::~MovemasterEmulator() = default;
@@ -87,6 +89,8 @@ bool MovemasterEmulator::serve_line(const ReceivedLine& line, const std::filesys
   }
   if (m && kind == MisbehaviourKind::silent) return true;
 
+  if (!line.overlong && movemaster::Program::is_program_line(line.text)) return store_line(line.text, m);
+
   const movemaster::Parsed parsed =
       line.overlong ? movemaster::Parsed{std::nullopt, fmt::format("longer than {} bytes", kMaxLine)}
                     : movemaster::parse_command(line.text);
@@ -100,7 +104,9 @@ bool MovemasterEmulator::serve_line(const ReceivedLine& line, const std::filesys
     tally([](Stats& s) { ++s.format_errors; });
     log(fmt::format("format error: {}", parsed.error));
   } else if (!refused || Executor::is_query(parsed.command->op)) {
-    done = executor_->execute(*parsed.command);
+    done = movemaster::Program::handles(parsed.command->op)
+               ? program_->direct(*parsed.command, *executor_, arm_, options_.on_program_line)
+               : executor_->execute(*parsed.command);
     if (done.interrupted) return false;
     const bool er = parsed.command->op == movemaster::Op::ER;
     tally([&](Stats& s) {
@@ -118,6 +124,20 @@ bool MovemasterEmulator::serve_line(const ReceivedLine& line, const std::filesys
     return answer(std::move(*done.reply), garbled);
   }
   if (garble) garble_next_answer_ = true;
+  return true;
+}
+
+bool MovemasterEmulator::store_line(std::string_view text, const std::optional<Misbehaviour>& m) {
+  const MisbehaviourKind kind = m ? m->kind : MisbehaviourKind::error;
+  if (m && (kind == MisbehaviourKind::error || kind == MisbehaviourKind::unreachable)) {
+    executor_->raise(kind == MisbehaviourKind::error ? movemaster::kHardwareError : movemaster::kPositionError);
+  } else if (const std::optional<std::string> why = program_->store(text)) {
+    executor_->raise(movemaster::kPositionError);
+    tally([](Stats& s) { ++s.format_errors; });
+    log(fmt::format("format error: {}", *why));
+  }
+  if (m && kind == MisbehaviourKind::late && !port_.wait(m->delay)) return false;
+  if (m && kind == MisbehaviourKind::garbage) garble_next_answer_ = true;
   return true;
 }
 

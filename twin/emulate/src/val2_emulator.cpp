@@ -20,6 +20,7 @@
 #include "cellwright/common/pty.hpp"
 #include "val2/executor.hpp"
 #include "val2/instruction.hpp"
+#include "val2/program.hpp"
 
 namespace cellwright::emulate {
 
@@ -51,6 +52,7 @@ struct Val2Emulator::Impl {
   const Val2EmulatorOptions options;
   MisbehaviourPlan plan;
   val2::Executor executor;
+  val2::Programs programs;  // stored programs and locations (.PROGRAM, .LOCATIONS, EXECUTE)
   std::mt19937_64 garbage_random;
 
   int wake = -1;  // an eventfd, readable once stop() was called
@@ -170,6 +172,11 @@ Next Val2Emulator::Impl::handle(const ReceivedLine& line) {
     lines.emplace_back(val2::kArmPowerOff);
   } else if (m && m->kind == MisbehaviourKind::unreachable) {
     lines.emplace_back(val2::kLocationOutOfRange);
+  } else if (std::optional<val2::Outcome> program =
+                 line.overlong ? std::nullopt : programs.take(line.text, executor, options.on_program_step)) {
+    if (program->interrupted) return Next::stop;
+    lines = std::move(program->lines);
+    failure = std::move(program->failure);
   } else {
     const val2::Parsed parsed =
         line.overlong ? val2::Parsed{{}, std::string(val2::kSyntaxError)} : val2::parse_monitor_line(line.text);

@@ -19,8 +19,9 @@ struct Mnemonic {
 };
 
 constexpr Mnemonic kMnemonics[] = {
-    {"NT", Op::NT}, {"MP", Op::MP}, {"PD", Op::PD}, {"MS", Op::MS}, {"GO", Op::GO}, {"GC", Op::GC},
-    {"GP", Op::GP}, {"SP", Op::SP}, {"TL", Op::TL}, {"WH", Op::WH}, {"ER", Op::ER}, {"RS", Op::RS},
+    {"NT", Op::NT}, {"MP", Op::MP}, {"PD", Op::PD}, {"MS", Op::MS}, {"GO", Op::GO}, {"GC", Op::GC}, {"GP", Op::GP},
+    {"SP", Op::SP}, {"TL", Op::TL}, {"WH", Op::WH}, {"ER", Op::ER}, {"RS", Op::RS}, {"MO", Op::MO}, {"OB", Op::OB},
+    {"TB", Op::TB}, {"GT", Op::GT}, {"ED", Op::ED}, {"RN", Op::RN}, {"NW", Op::NW},
 };
 
 bool is_space(char c) {
@@ -82,6 +83,13 @@ char letter(std::string_view field, const char* what, std::string_view allowed) 
   throw Failure{fmt::format("{} '{}' is not one of the letters {}", what, field, allowed)};
 }
 
+// OB's and TB's bit: ±1–16; a bit without a sign is +.
+int bit(std::string_view field) {
+  const int v = whole(field, "bit", -kLastBit, kLastBit);
+  if (v == 0) throw Failure{fmt::format("bit '{}' is not from 1 to {}, signed", field, kLastBit)};
+  return v;
+}
+
 Pose5 pose(const std::vector<std::string_view>& f, std::size_t first) {
   return {number(f[first], "x"), number(f[first + 1], "y"), number(f[first + 2], "z"), number(f[first + 3], "pitch"),
           number(f[first + 4], "roll")};
@@ -132,7 +140,31 @@ Parsed parse_command(std::string_view line) {
       case Op::WH:
       case Op::ER:
       case Op::RS:
+      case Op::ED:
+      case Op::NW:
         count(0, 0);
+        break;
+      case Op::MO:
+        count(1, 2);
+        c.position = whole(f[0], "position", kFirstPosition, kLastPosition);
+        if (f.size() == 2) c.open = letter(f[1], "gripper", "OC") == 'O';
+        break;
+      case Op::OB:
+        count(1, 1);
+        c.bit = bit(f[0]);
+        break;
+      case Op::TB:
+        count(2, 2);
+        c.bit = bit(f[0]);
+        c.line = whole(f[1], "line", kFirstLine, kLastLine);
+        break;
+      case Op::GT:
+        count(1, 1);
+        c.line = whole(f[0], "line", kFirstLine, kLastLine);
+        break;
+      case Op::RN:
+        count(0, 1);
+        if (f.size() == 1) c.line = whole(f[0], "line", kFirstLine, kLastLine);
         break;
       case Op::MP:
         count(5, 5);

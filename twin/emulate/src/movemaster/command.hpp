@@ -16,7 +16,8 @@
 
 namespace cellwright::emulate::movemaster {
 
-enum class Op : std::uint8_t { NT, MP, PD, MS, GO, GC, GP, SP, TL, WH, ER, RS };
+// MO, OB, TB, GT, ED, RN, NW are the program commands (docs/real-robots.md, "Robot programs"; movemaster/program.hpp).
+enum class Op : std::uint8_t { NT, MP, PD, MS, GO, GC, GP, SP, TL, WH, ER, RS, MO, OB, TB, GT, ED, RN, NW };
 
 // A pose in the controller's terms: the tool point in mm, pitch and roll in degrees (the 5-axis rule, pose.hpp).
 struct Pose5 {
@@ -25,13 +26,18 @@ struct Pose5 {
 
 inline constexpr int kFirstPosition = 1;
 inline constexpr int kLastPosition = 629;
+inline constexpr int kFirstLine = 1;  // program line numbers
+inline constexpr int kLastLine = 2048;
+inline constexpr int kLastBit = 16;  // I/O bits 1–16 (assumed)
 
 struct Command {
   Op op = Op::NT;
   Pose5 pose;                 // MP, PD
-  int position = 0;           // PD, MS: 1–629
+  int position = 0;           // PD, MS, MO: 1–629
   int points = 0;             // MS: intermediate points, 0–99
-  std::optional<bool> open;   // MS: the gripper letter (O open, C closed); none given: the gripper stays
+  std::optional<bool> open;   // MS, MO: the gripper letter (O open, C closed); none given: the gripper stays
+  int bit = 0;                // OB, TB: ±1–16, the sign says on (+) or off (−)
+  int line = 0;               // TB, GT: the line to jump to; RN: the first line to run (0: the program's first)
   int level = 0;              // SP: 0–9
   std::optional<bool> high;   // SP: H (true) or L (false), if given
   std::array<int, 3> grip{};  // GP: starting force 0–15, retained force 0–15, starting time 0–99 (x 0.1 s)

@@ -50,7 +50,8 @@ Executed Executor::execute(const Command& c) {
     case Op::PD:
       positions_[c.position] = c.pose;
       return out;
-    case Op::MS: {
+    case Op::MS:
+    case Op::MO: {
       if (!positions_[c.position]) {
         raise(kPositionError);
         out.error = fmt::format("position {} is not defined", c.position);
@@ -66,7 +67,7 @@ Executed Executor::execute(const Command& c) {
         Executed g = grip(!*c.open);
         if (!g.error.empty() || g.interrupted) return g;
       }
-      return move(*q, true);
+      return move(*q, c.op == Op::MS);
     }
     case Op::GO:
       return grip(false);
@@ -91,6 +92,15 @@ Executed Executor::execute(const Command& c) {
     case Op::RS:
       error_ = kNoError;
       return out;
+    case Op::OB:
+      arm_.set_output(std::abs(c.bit), c.bit > 0);
+      return out;
+    case Op::TB:
+    case Op::GT:
+    case Op::ED:
+    case Op::RN:
+    case Op::NW:
+      return out;  // the program's (movemaster/program.hpp)
   }
   return out;
 }

@@ -22,6 +22,15 @@
 //   WH                 answers x,y,z,p,r of the tool point now: each number signed, one decimal (+250.0,-0.5,...)
 //   ER                 answers the error register: 0 none, 1 hardware error, 2 position or format error
 //   RS                 clears the error register
+// and the program commands (docs/real-robots.md, "Robot programs"; assumed syntax):
+//   n COMMAND          (n 1–2048) stores program line n, not executed; a line that does not parse is error 2
+//   MO n[,O|C]         joint-interpolated move to position n (the letter as MS's)
+//   OB ±n              output bit n (1–16) on (+) or off (−)
+//   TB ±n,L / GT L     in a program: jump to line L if input bit n is on (+) / off (−); jump to line L
+//   ED                 in a program: its end
+//   RN [a]             runs the stored program from its first line (or line a), like a motion: the next line is
+//                      read when it has ended; a failing line sets the register and ends the run
+//   NW                 deletes the stored program
 // Answers (WH, ER only) end with options.reply_line_end (CR LF). An unknown command, a wrong number of fields, a
 // field that is not a number or letter of its kind, or a value out of its range is a format error: error 2, nothing
 // done. An unreachable pose (no azimuth, outside the joint limits, out of reach) is error 2, nothing moves. An arm
@@ -52,6 +61,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -64,7 +74,8 @@ namespace cellwright::emulate {
 
 namespace movemaster {
 class Executor;
-}
+class Program;
+}  // namespace movemaster
 
 struct MovemasterEmulatorOptions {
   std::uint64_t seed = 1;
@@ -80,6 +91,9 @@ struct MovemasterEmulatorOptions {
   // Called on the serving thread with one line of text per event (a line received, an answer, why the register was
   // set, a misbehaviour, a new pseudo-terminal), e.g. for `twin emulate --verbose`. May be empty.
   std::function<void(std::string_view)> log;
+  // Called on the serving thread with each stored program line's number just before `RN` runs it (docs/real-robots.md,
+  // "Robot programs"). May be empty.
+  std::function<void(int)> on_program_line;
 };
 
 class MovemasterEmulator {
@@ -123,6 +137,8 @@ class MovemasterEmulator {
  private:
   // Counts one line and serves it; false when serving must end (stop()).
   bool serve_line(const ReceivedLine& line, const std::filesystem::path& link);
+  // Stores a numbered program line under misbehaviour `m` (if any); false on stop().
+  bool store_line(std::string_view text, const std::optional<Misbehaviour>& m);
   // Writes an answer line (or the garbage in its place); false on stop().
   bool answer(std::string text, bool garble);
   void log(std::string_view text) const;
@@ -136,6 +152,7 @@ class MovemasterEmulator {
   const MovemasterEmulatorOptions options_;
   MisbehaviourPlan plan_;
   std::unique_ptr<movemaster::Executor> executor_;
+  std::unique_ptr<movemaster::Program> program_;  // the stored program (numbered lines, RN, NW)
   LinePort port_;
   bool garble_next_answer_ = false;  // a garbage line had no answer of its own
 

@@ -36,6 +36,10 @@
 //    `DO OPENI` work; `DO MOV` (MOVE, MOVES, MOVET), `S` and `DO OPEN` (a VAL II instruction not emulated) answer
 //    `*Unknown instruction*`, like any word that is not known or not emulated. Function names (TRANS, #PPOINT, SIG)
 //    are written in full.
+//  - PROGRAMS (docs/real-robots.md, "Robot programs"; val2/program.hpp): `.PROGRAM name` ... `.END` stores a
+//    program (each line answered with the prompt), `.LOCATIONS` ... `.END` named locations (`name x y z o a t`),
+//    `EXECUTE name` (or EX, EXE, ...) runs it; the prompt comes when it has ended, after `Program completed` or the
+//    failing step's error line and `Program stopped at step n`. Steps may `MOVE`/`MOVES` to a named location.
 //
 // ERRORS, each a line before the prompt; the command is not carried out:
 //   `*Unknown instruction*`   the first word (or the word after DO) is unknown, ambiguous or not emulated
@@ -90,6 +94,9 @@ struct Val2EmulatorOptions {
   // Called on the serving thread with each line received ("< ...") and each answer line ("> ..."), e.g. for
   // `twin emulate --verbose`. May be empty.
   std::function<void(std::string_view)> log;
+  // Called on the serving thread with each step's number (from 1) just before `EXECUTE` runs it (docs/real-robots.md,
+  // "Robot programs"). May be empty.
+  std::function<void(int)> on_program_step;
 };
 
 class Val2Emulator {

@@ -137,11 +137,16 @@ EmulatedCell::EmulatedCell(const Scenario& scenario, std::vector<EmulatedControl
     };
     r.arm = std::make_unique<emulate::DriverArm>(*r.driver, r.driver->kinematics(), arm_options);
     const std::uint64_t seed = m.options.seed + index++;
+    std::function<void(int)> on_line;
+    if (m.options.on_program_line) {
+      on_line = [f = m.options.on_program_line, robot = c.robot](int line) { f(robot, line); };
+    }
     if (c.language == models::DriverKind::kMovemaster) {
       emulate::MovemasterEmulatorOptions o;
       o.seed = seed;
       o.misbehaviours = c.misbehaviours;
       o.log = m.options.log;
+      o.on_program_line = on_line;
       r.movemaster = std::make_unique<emulate::MovemasterEmulator>(*r.arm, std::move(o));
     } else {
       emulate::Val2EmulatorOptions o;
@@ -149,6 +154,7 @@ EmulatedCell::EmulatedCell(const Scenario& scenario, std::vector<EmulatedControl
       o.misbehaviours = c.misbehaviours;
       o.echo = m.options.echo;
       o.log = m.options.log;
+      o.on_program_step = on_line;
       r.val2 = std::make_unique<emulate::Val2Emulator>(*r.arm, std::move(o));
     }
     r.controller = std::move(c);

@@ -40,6 +40,9 @@ struct EmulatedCellOptions {
   // emulators (any thread). Either may be empty.
   std::function<void()> on_ready;
   std::function<void(std::string_view)> log;
+  // Called (on the robot's emulator thread) with the cell robot and the stored program's line (Movemaster) or step
+  // (VAL II) just before the controller runs it (docs/real-robots.md, "Robot programs"). May be empty.
+  std::function<void(std::string_view, int)> on_program_line;
 };
 
 class EmulatedCell {

@@ -153,6 +153,29 @@ void SerialPort::interrupt() {
   [[maybe_unused]] const ssize_t n = ::write(interrupt_fd_, &one, sizeof one);
 }
 
+IoStatus SerialPort::wait_until_ready(short events, Clock::time_point deadline, std::string* message) {
+  pollfd fds[2] = {{fd_, events, 0}, {interrupt_fd_, POLLIN, 0}};
+  const auto before = Clock::now();
+  const int r = ::poll(fds, 2, poll_timeout(deadline));
+  waited_ += Clock::now() - before;
+  if (r > 0 && (fds[1].revents & POLLIN) != 0) {
+    *message = "interrupted: the driver is closing the port";
+    return IoStatus::closed;
+  }
+  if (r == 0) return IoStatus::timeout;
+  if (r < 0) {
+    if (errno == EINTR) return IoStatus::ok;  // try again
+    *message = std::strerror(errno);
+    return IoStatus::error;
+  }
+  // A hang-up with bytes still to read is read first; the read then sees the end.
+  if ((fds[0].revents & events) == 0 && (fds[0].revents & (POLLHUP | POLLERR)) != 0) {
+    *message = "the other end hung up";
+    return IoStatus::closed;
+  }
+  return IoStatus::ok;
+}
+
 IoStatus SerialPort::write(std::string_view bytes, Clock::time_point deadline, std::string* message) {
   std::size_t sent = 0;
   while (sent < bytes.size()) {
@@ -166,26 +189,10 @@ IoStatus SerialPort::write(std::string_view bytes, Clock::time_point deadline, s
       *message = std::strerror(errno);
       return errno == EIO ? IoStatus::closed : IoStatus::error;
     }
-    pollfd fds[2] = {{fd_, POLLOUT, 0}, {interrupt_fd_, POLLIN, 0}};
-    pollfd& p = fds[0];
-    const auto before = Clock::now();
-    const int r = ::poll(fds, 2, poll_timeout(deadline));
-    waited_ += Clock::now() - before;
-    if (r > 0 && (fds[1].revents & POLLIN) != 0) {
-      *message = "interrupted: the driver is closing the port";
-      return IoStatus::closed;
-    }
-    if (r == 0) {
-      *message = fmt::format("{} of {} bytes written before the deadline", sent, bytes.size());
-      return IoStatus::timeout;
-    }
-    if (r < 0 && errno != EINTR) {
-      *message = std::strerror(errno);
-      return IoStatus::error;
-    }
-    if (r > 0 && (p.revents & (POLLHUP | POLLERR)) != 0) {
-      *message = "the other end hung up";
-      return IoStatus::closed;
+    if (const IoStatus s = wait_until_ready(POLLOUT, deadline, message); s != IoStatus::ok) {
+      if (s == IoStatus::timeout)
+        *message = fmt::format("{} of {} bytes written before the deadline", sent, bytes.size());
+      return s;
     }
   }
   return IoStatus::ok;
@@ -212,26 +219,9 @@ IoStatus SerialPort::read_some(std::string* buffer, Clock::time_point deadline, 
       *message = std::strerror(errno);
       return IoStatus::error;
     }
-    pollfd fds[2] = {{fd_, POLLIN, 0}, {interrupt_fd_, POLLIN, 0}};
-    pollfd& p = fds[0];
-    const auto before = Clock::now();
-    const int r = ::poll(fds, 2, poll_timeout(deadline));
-    waited_ += Clock::now() - before;
-    if (r > 0 && (fds[1].revents & POLLIN) != 0) {
-      *message = "interrupted: the driver is closing the port";
-      return IoStatus::closed;
-    }
-    if (r == 0) {
-      *message = "no bytes before the deadline";
-      return IoStatus::timeout;
-    }
-    if (r < 0 && errno != EINTR) {
-      *message = std::strerror(errno);
-      return IoStatus::error;
-    }
-    if (r > 0 && (p.revents & POLLIN) == 0 && (p.revents & (POLLHUP | POLLERR)) != 0) {
-      *message = "the other end hung up";
-      return IoStatus::closed;
+    if (const IoStatus s = wait_until_ready(POLLIN, deadline, message); s != IoStatus::ok) {
+      if (s == IoStatus::timeout) *message = "no bytes before the deadline";
+      return s;
     }
   }
 }

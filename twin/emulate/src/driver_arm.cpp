@@ -107,15 +107,12 @@ std::vector<double> DriverArm::joints() const {
 }
 
 ArmResult DriverArm::move(const std::vector<double>& target, double speed, bool linear) {
-  if (target.size() != chain_.dof()) {
-    return {ArmStatus::unreachable, fmt::format("{} joints for an arm of {}", target.size(), chain_.dof())};
-  }
-  Eigen::VectorXd q(static_cast<Eigen::Index>(target.size()));
-  for (std::size_t i = 0; i < target.size(); ++i) q[static_cast<Eigen::Index>(i)] = target[i];
-  if (!chain_.within_limits(q)) return {ArmStatus::unreachable, "outside the joint limits"};
+  if (ArmResult bad = check_target(chain_, target); !bad.ok()) return bad;
   speed = std::clamp(speed, 1e-3, 1.0);
   if (linear && driver_.capabilities().linear_motion)
-    return run(drivers::MovePose{chain_.forward(q), drivers::Path::linear, speed});
+    return run(drivers::MovePose{
+        chain_.forward(Eigen::Map<const Eigen::VectorXd>(target.data(), static_cast<Eigen::Index>(target.size()))),
+        drivers::Path::linear, speed});
   return run(drivers::MoveJoints{target, speed});
 }
 

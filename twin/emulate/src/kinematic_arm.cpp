@@ -74,12 +74,7 @@ bool KinematicArm::wait_until(std::unique_lock<std::mutex>& lock, Clock::time_po
 }
 
 ArmResult KinematicArm::move(const std::vector<double>& target, double speed, bool /*linear*/) {
-  if (target.size() != chain_.dof()) {
-    return {ArmStatus::unreachable, fmt::format("{} joints for an arm of {}", target.size(), chain_.dof())};
-  }
-  Eigen::VectorXd q(static_cast<Eigen::Index>(target.size()));
-  for (std::size_t i = 0; i < target.size(); ++i) q[static_cast<Eigen::Index>(i)] = target[i];
-  if (!chain_.within_limits(q)) return {ArmStatus::unreachable, "outside the joint limits"};
+  if (ArmResult bad = check_target(chain_, target); !bad.ok()) return bad;
   speed = std::clamp(speed, 1e-3, 1.0);
   const std::vector<double> from = joints();
   std::unique_lock lock(mutex_);

@@ -73,6 +73,10 @@ class SerialPort {
   std::chrono::nanoseconds waited() const { return waited_; }
 
  private:
+  // Waits in poll() until the port is ready for `events` (POLLIN or POLLOUT), the deadline passes (timeout, no
+  // message), interrupt() is called or the other end hangs up (closed), or poll fails (error).
+  IoStatus wait_until_ready(short events, Clock::time_point deadline, std::string* message);
+
   SerialLine line_;
   int fd_ = -1;
   int interrupt_fd_ = -1;  // an eventfd, readable once interrupt() was called

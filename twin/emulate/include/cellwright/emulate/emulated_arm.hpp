@@ -42,6 +42,10 @@ struct ArmResult {
   bool ok() const { return status == ArmStatus::ok; }
 };
 
+// The check every arm makes of a move's target before anything moves: ok, or unreachable when `target` has the wrong
+// number of joints for `chain` or breaks its limits (the message says which).
+ArmResult check_target(const models::KinematicChain& chain, const std::vector<double>& target);
+
 class EmulatedArm {
  public:
   virtual ~EmulatedArm() = default;

@@ -47,13 +47,17 @@ DriverState MirroredDriver::state() const {
 
 void MirroredDriver::bring_up_copy() const {
   const DriverState s = copy_.state();
+  // A homing that failed or was cancelled is over: it must not keep the copy down.
+  const bool homing = copy_home_ != 0 && !finished(copy_.poll(copy_home_).phase);
   if (s == DriverState::disconnected) {
-    copy_.connect();
+    // disconnect() took both down: the copy waits for the real robot's connect().
+    if (real_->state() != DriverState::disconnected) copy_.connect();
   } else if (s == DriverState::fault) {
     copy_.reset();
-  } else if ((s == DriverState::connected || s == DriverState::stopped) && copy_home_ == 0) {
+  } else if (s == DriverState::connected && !homing) {
     copy_home_ = copy_.home().id;
-  } else if (s == DriverState::homed) {
+  } else if ((s == DriverState::homed || s == DriverState::stopped) && !homing) {
+    // A stopped copy resumes where it stands, as the real robot does after stop() (home() homes it itself).
     copy_.activate();
     copy_home_ = 0;
   }
@@ -63,6 +67,8 @@ void MirroredDriver::release_all() const {
   pending_.clear();
   held_.clear();
   copy_running_ = copy_running_real_ = 0;
+  // Halted, homed or reset, the copy may stand elsewhere than it last read: read it again before comparing.
+  copy_joints_.clear();
 }
 
 ErrorCode MirroredDriver::connect() {
@@ -84,7 +90,8 @@ drivers::Submitted MirroredDriver::home() {
     // The copy goes home too (where the real robot's homing takes it: the cell's home), whatever it was doing.
     if (copy_.state() == DriverState::active) copy_.stop();
     release_all();
-    copy_home_ = 0;
+    // Refused while the copy is not up (disconnected, fault): it is homed as it comes up.
+    if (const drivers::Submitted h = copy_.home(); h.accepted()) copy_home_ = h.id;
   }
   follow();
   return s;

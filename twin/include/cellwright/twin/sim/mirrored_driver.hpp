@@ -16,7 +16,9 @@
 // real robot: the real command is released, the miss is counted (counts()), and the next reading corrects the copy.
 //
 // LIFECYCLE: connect(), home(), activate(), stop(), reset(), disconnect() go to the real driver and then to the copy
-// (the copy is activated as soon as it is homed). The real driver's answer is the answer.
+// (the copy is activated as soon as it is homed). The real driver's answer is the answer. A stopped copy stays where
+// it stands (as the real robot does) and is activated again; only home() sends it home; after disconnect() it stays
+// down until connect().
 //
 // THREADS: the owner (one robot-control thread) calls everything, and so is the copy's owner too. The copy is
 // stepped by the simulation thread as every SimDriver. counts() may be called from any thread.

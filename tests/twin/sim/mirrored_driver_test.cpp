@@ -348,6 +348,27 @@ TEST(MirroredDriverFollows, MotionsAndGripsReachTheCopyAtOnce) {
   EXPECT_EQ(rig.mirror.counts().mirrored, 3);
 }
 
+TEST(MirroredDriverFollows, ACopyStillHomingDoesWhatTheRealRobotWasToldOnceItIsUp) {
+  // The real robot homes in 10 ticks, its copy in 200: the first motion comes while the copy still homes.
+  ScriptedDriverConfig slow = copy_config();
+  slow.home_ticks = 200;
+  Rig rig(val_config(), slow);
+  ASSERT_EQ(rig.mirror.connect(), ErrorCode::none);
+  const Submitted h = rig.mirror.home();
+  ASSERT_EQ(rig.run(h.id).phase, CommandPhase::done);
+  ASSERT_EQ(rig.mirror.activate(), ErrorCode::none);
+  ASSERT_NE(rig.copy.state(), DriverState::active);
+  const Submitted move = rig.mirror.submit(MoveJoints{kA, 0.5});
+  // Not held back by a copy that is not up.
+  ASSERT_EQ(rig.run(move.id).phase, CommandPhase::done);
+  ASSERT_NE(rig.copy.state(), DriverState::active);
+  // Once up, the copy makes the move it missed.
+  rig.cycles(400);
+  EXPECT_EQ(rig.copy.state(), DriverState::active);
+  expect_joints(rig.copy.joints(), kA);
+  EXPECT_EQ(rig.mirror.counts().mirrored, 1);
+}
+
 TEST(MirroredDriverFollows, APoseMoveReachesTheCopyAsTheJointsNearestItsOwn) {
   Rig rig(movemaster_config());
   bring_up(rig);

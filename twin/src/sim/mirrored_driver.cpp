@@ -195,9 +195,11 @@ void MirroredDriver::follow() const {
   if (copy_.state() != DriverState::active) {
     bring_up_copy();
     if (copy_.state() != DriverState::active) {
-      // A copy not yet up holds nothing back.
+      // A copy not yet up (still homing, say, when the real robot homed faster) holds nothing back; it does what the
+      // real robot was told meanwhile once it is up, so that it catches up (the newest kMaxBehind commands at most:
+      // beyond that, the read-backs will correct it).
       held_.clear();
-      pending_.clear();
+      while (pending_.size() > kMaxBehind) pending_.pop_front();
       return;
     }
   }

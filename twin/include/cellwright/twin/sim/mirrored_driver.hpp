@@ -47,6 +47,8 @@ class MirroredDriver final : public drivers::RobotDriver {
   // How far the copy may stand from the real robot's read-back before it is corrected.
   static constexpr double kJointTolerance = 0.01;  // rad
   static constexpr double kToolTolerance = 0.002;  // m
+  // The most commands a copy that is not up yet keeps to do once it is.
+  static constexpr std::size_t kMaxBehind = 16;
 
   // `real` is owned; `copy` is the World's SimDriver of the same robot; `chain` its kinematics (for pose readings).
   MirroredDriver(std::string robot, std::unique_ptr<drivers::RobotDriver> real, drivers::RobotDriver& copy,

@@ -202,7 +202,8 @@ RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const st
 }
 
 ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "conveyor", {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop"}, true);
+  Fields f(doc, n, "conveyor",
+           {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop", "sensor"}, true);
   ConveyorSpec c;
   c.where = doc.at(n);
   c.name = names.take(f, "conveyor");
@@ -232,6 +233,21 @@ ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
                          c.name, c.enter, c.leave));
   }
   c.stop = f.boolean_or("stop", false);
+  if (f.has("sensor")) {
+    // The part-present photo-eye sits at the stop bar: without one no part ever rests at a fixed point.
+    if (!c.stop) {
+      doc.fail(f.node("sensor"),
+               fmt::format("conveyor '{}': a part-present sensor sits at the stop bar; set 'stop: true'", c.name));
+    }
+    Fields sf(doc, f.node("sensor"), fmt::format("the sensor of conveyor '{}'", c.name), {"signal"});
+    const double v = sf.number("signal");
+    if (v != std::floor(v) || v < 1 || v > kCellSignals) {
+      doc.fail(sf.node("signal"), fmt::format("{} must be a whole number 1..{} (the cell's digital signals), got {}",
+                                              sf.field("signal"), kCellSignals, v));
+    }
+    c.sensor = static_cast<int>(v);
+    c.sensor_where = doc.at(sf.node("signal"));
+  }
   return c;
 }
 
@@ -580,7 +596,18 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
 
   for (const auto& n : list_of(doc, top, "robots")) cell.robots.push_back(read_robot(doc, names, n, base_dir));
   if (cell.robots.empty()) doc.fail(root, "the cell has no robots: 'robots' must list at least one");
-  for (const auto& n : list_of(doc, top, "conveyors")) cell.conveyors.push_back(read_conveyor(doc, names, n));
+  for (const auto& n : list_of(doc, top, "conveyors")) {
+    cell.conveyors.push_back(read_conveyor(doc, names, n));
+    const ConveyorSpec& c = cell.conveyors.back();
+    for (std::size_t i = 0; c.sensor != 0 && i + 1 < cell.conveyors.size(); ++i) {
+      if (cell.conveyors[i].sensor == c.sensor) {
+        doc.fail(c.sensor_where,
+                 fmt::format("conveyor '{}': signal {} is already the sensor of conveyor '{}' "
+                             "(line {}); each sensor needs its own input",
+                             c.name, c.sensor, cell.conveyors[i].name, cell.conveyors[i].sensor_where.line));
+      }
+    }
+  }
   for (const auto& n : list_of(doc, top, "machines")) cell.machines.push_back(read_machine(doc, names, n));
 
   auto check_robot_ref = [&](const std::string& robot, const YAML::Node& node, const std::string& user) {

@@ -130,9 +130,11 @@ TEST(Cell, PaperCellLoadsAsDescribed) {
   const models::ConveyorSpec& input = *cell.find_conveyor("input");
   EXPECT_TRUE(input.stop);
   EXPECT_TRUE(input.belt_point(0).isApprox(Eigen::Vector3d(-1.1, -0.55, 0.5)));
+  EXPECT_EQ(input.sensor, 16);  // the photo-eye at its stop
   const models::ConveyorSpec& output = *cell.find_conveyor("output");
   EXPECT_TRUE(output.stop);
   EXPECT_DOUBLE_EQ(output.speed, 0.05);
+  EXPECT_EQ(output.sensor, 0);
 
   // Locations resolved from the objects they are at.
   EXPECT_TRUE(cell.find_location("input_pick")->pose.xyz.isApprox(Eigen::Vector3d(0.03, -0.55, 0.5)));
@@ -290,6 +292,32 @@ TEST(CellErrors, UnusableUrdf) {
 TEST(CellErrors, WrongType) {
   const std::string text = with(base_yaml(), "length: 1.2", "length: long");
   expect_error(text, "field 'length' of conveyor 'belt' must be a number, got 'long'", line_of(text, "length: long"));
+}
+
+// A part-present sensor: at a stop bar, on one of the cell's 16 signals, each conveyor its own.
+TEST(CellErrors, SensorWiring) {
+  const std::string stop = with(base_yaml(), "    speed: 0.05\n", "    speed: 0.05\n    stop: true\n");
+  const std::string good = with(stop, "    stop: true\n", "    stop: true\n    sensor: {signal: 9}\n");
+  EXPECT_EQ(parse(good).find_conveyor("belt")->sensor, 9);
+  EXPECT_EQ(parse(stop).find_conveyor("belt")->sensor, 0);
+
+  const std::string no_stop = with(base_yaml(), "    speed: 0.05\n", "    speed: 0.05\n    sensor: {signal: 9}\n");
+  expect_error(no_stop, "conveyor 'belt': a part-present sensor sits at the stop bar; set 'stop: true'",
+               line_of(no_stop, "sensor:"));
+  for (const char* bad : {"17", "0", "2.5", "x"}) {
+    const std::string text = with(good, "signal: 9", fmt::format("signal: {}", bad));
+    expect_error(text, "of the sensor of conveyor 'belt'", line_of(text, "sensor:"));
+  }
+  const std::string range = with(good, "signal: 9", "signal: 17");
+  expect_error(range, "must be a whole number 1..16 (the cell's digital signals), got 17", line_of(range, "sensor:"));
+  const std::string field = with(good, "signal: 9", "channel: 9");
+  expect_error(field, "unknown field 'channel' in the sensor of conveyor 'belt'", line_of(field, "sensor:"));
+  const std::string shared = with(good, "machines:\n",
+                                  "  - name: belt2\n    pose: {xyz: [-0.5, 0.55, 0], yaw: 0}\n    length: 1.2\n"
+                                  "    width: 0.2\n    height: 0.5\n    speed: 0.05\n    stop: true\n"
+                                  "    sensor: {signal: 9}\nmachines:\n");
+  expect_error(shared, "conveyor 'belt2': signal 9 is already the sensor of conveyor 'belt' (line",
+               line_of(shared, "sensor: {signal: 9}\nmachines"));
 }
 
 TEST(CellErrors, NegativeSize) {

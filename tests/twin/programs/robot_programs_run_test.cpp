@@ -1,8 +1,9 @@
 // The proof that generated robot programs do what `twin run` does: the exchange scenario's programs (the PUMA in
 // VAL II, the MELFA in Movemaster EX) are loaded over the pseudo-terminals into the controllers emulated on the twin's
-// arms (EmulatedCell), started with EXECUTE and RN, and their run gives the same outcome (A on the output conveyor) and
-// the same order as the runtime's firings: each robot its primitives in program order, and every event signalled
-// before the step after its wait starts, in the same order of events across the cell.
+// arms (EmulatedCell), started together with EXECUTE and RN as soon as the cell is up (the PUMA's program waits for the
+// part-present sensor at the input conveyor's stop until A is there), and their run gives the same outcome (A on the
+// output conveyor) and the same order as the runtime's firings: each robot its primitives in program order, and every
+// event signalled before the step after its wait starts, in the same order of events across the cell.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -14,12 +15,10 @@
 #include <map>
 #include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "cellwright/twin/programs/robot_programs.hpp"
 #include "cellwright/twin/scenario/emulated_cell.hpp"
-#include "cellwright/twin/scenario/estimate.hpp"
 #include "cellwright/twin/scenario/report.hpp"
 #include "cellwright/twin/scenario/run.hpp"
 #include "twin/emulate/program_host.hpp"
@@ -126,16 +125,6 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
     controllers.push_back({p.cell_robot, p.language, dir / p.cell_robot, {}});
   }
   scenario::EmulatedCell cell(s, controllers, options, {"test", 0, 0});
-  // The cell has no part-present sensor yet: the programs cannot wait for A to ride the input conveyor to its stop,
-  // as the runtime's arrival gate makes robot control wait. They start once the plan says A is there (plus 2 s to
-  // settle), on the wall clock the emulated cell's world runs on.
-  runtime::TargetOptions targets;
-  targets.handover_clearance = s.options.handover_clearance;
-  double arrival = 0;
-  for (const scenario::ArrivalGate& g : scenario::plan_motions(s, pre.net, targets).gates) {
-    arrival = std::max(arrival, g.ready);
-  }
-  const auto start_programs = std::chrono::steady_clock::now() + std::chrono::duration<double>(arrival + 2.0);
   auto running = std::async(std::launch::async, [&] { cell.run(); });
   {
     std::unique_lock lock(mutex);
@@ -155,8 +144,10 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
       }
       hosts.push_back(std::move(host));
     }
-    std::this_thread::sleep_until(start_programs);
-    // Both started, each host waiting on its own thread for its program's end.
+    // Both started at once, each host waiting on its own thread for its program's end. A rides the input conveyor
+    // for about 20 s: the PUMA's program waits for the part-present sensor at its stop before its first move to A, as
+    // twin run's robot control waits until it sees A there.
+    EXPECT_THAT(programs.robots[0].text, ::testing::HasSubstr("WAIT SIG(1016)"));
     for (std::size_t i = 0; i < hosts.size(); ++i) {
       emulate::testing::ProgramHost* host = hosts[i].get();
       const RobotProgram& p = programs.robots[i];

@@ -39,14 +39,15 @@ class RobotProgramsTest : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  // A scenario on the repository's cell running `program` (written as prog.task), r1 the PUMA on VAL II and r2 the
-  // MELFA on the Movemaster.
-  Scenario load(const std::string& program, const std::string& extra = "") {
+  // A scenario on the repository's cell (or `cell`) running `program` (written as prog.task), r1 the PUMA on VAL II
+  // and r2 the MELFA on the Movemaster.
+  Scenario load(const std::string& program, const std::string& extra = "",
+                const std::string& cell = kScenes + "/cell.yaml") {
     std::ofstream(dir_ / "prog.task") << program;
     std::ofstream(dir_ / "s.yaml") << fmt::format(
-        "cell: {}/cell.yaml\nprogram: prog.task\nrobots: {{r1: puma, r2: "
+        "cell: {}\nprogram: prog.task\nrobots: {{r1: puma, r2: "
         "melfa}}\n{}",
-        kScenes, extra);
+        cell, extra);
     Scenario s = scenario::load_scenario(dir_ / "s.yaml");
     set_language(s, "puma=val2", {"test", 0, 0});
     set_language(s, "melfa=movemaster", {"test", 0, 0});
@@ -101,10 +102,12 @@ TEST_F(RobotProgramsTest, SmallProgramExactText) {
 ; net: {}
 ; poses: the tool in the robot's base frame, mm and degrees (TRANS x,y,z,o,a,t)
 ; I/O 1: SIGNAL 1 = go to melfa (r2)
+; I/O 16: WAIT SIG(1016) = a part at the stop of conveyor input (its sensor)
   SPEED 50
   SIGNAL -1
 ; prog.task:5:3 Pick A
   OPENI
+  WAIT SIG(1016)
   MOVE above.A
   MOVE at.A
   CLOSEI
@@ -119,10 +122,11 @@ at.A 30 -550 550 0 0 0
 .END
 )",
                                    p.check));
-  // Steps count from 1 after .PROGRAM: 7 header comments, SPEED, SIGNAL -1, a comment, then the Pick.
-  EXPECT_THAT(puma.primitive_line, ::testing::ElementsAre(11, 12, 13, 14, 15, 17));
+  // Steps count from 1 after .PROGRAM: 8 header comments, SPEED, SIGNAL -1, a comment, then the Pick, whose first
+  // move waits for A to rest at the input conveyor's stop (its sensor, the cell's input 16).
+  EXPECT_THAT(puma.primitive_line, ::testing::ElementsAre(12, 14, 15, 16, 17, 19));
   EXPECT_EQ(puma.host_lines.front(), ".PROGRAM puma");
-  EXPECT_EQ(puma.host_lines.size(), 24u);  // every line of the file
+  EXPECT_EQ(puma.host_lines.size(), 26u);  // every line of the file
 
   const RobotProgram& melfa = p.robots[1];
   EXPECT_EQ(melfa.file_name, "melfa.movemaster");
@@ -255,6 +259,42 @@ TEST_F(RobotProgramsTest, PosesReadBackToThePlan) {
 TEST_F(RobotProgramsTest, RefusesARobotOnTheSimDriver) {
   const Scenario s = scenario::load_scenario(kScenes + "/exchange.yaml");  // drivers: {puma: sim, melfa: sim}
   expect_refused(s, "exchange.yaml", 8, "robot 'puma' (r1) runs on the sim driver");
+}
+
+// The cell's cell.yaml, copied into the test's directory with `from` replaced by `to`.
+std::string cell_with(const fs::path& dir, const std::string& from, const std::string& to) {
+  std::string text = read_file(kScenes + "/cell.yaml");
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  const std::string urdf = "../models/urdf/";
+  for (std::size_t p = text.find(urdf); p != std::string::npos; p = text.find(urdf, p)) {
+    text.replace(p, 3, std::string(CW_SOURCE_DIR) + "/");
+  }
+  std::ofstream(dir / "cell.yaml") << text;
+  return text;
+}
+
+int line_of(const std::string& text, const std::string& needle) {
+  return 1 + static_cast<int>(
+                 std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(text.find(needle)), '\n'));
+}
+
+TEST_F(RobotProgramsTest, RefusesAPartComingOnAConveyorWithoutSensor) {
+  const std::string cell = cell_with(dir_, "    sensor: {signal: 16}\n", "");
+  const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());
+  expect_refused(s, "cell.yaml", line_of(cell, "- name: input"),
+                 "robot 'puma' (r1) goes to workpiece 'A' (prog.task:5:3 'Pick A') before it has ridden conveyor "
+                 "'input' to its stop");
+  expect_refused(s, "cell.yaml", line_of(cell, "- name: input"), "the conveyor has no part-present sensor");
+}
+
+TEST_F(RobotProgramsTest, RefusesASensorOnAnEventWire) {
+  const std::string cell = cell_with(dir_, "sensor: {signal: 16}", "sensor: {signal: 1}");
+  const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());
+  expect_refused(s, "cell.yaml", line_of(cell, "sensor: {signal: 1}"),
+                 "input 1 is the part-present sensor of conveyor 'input', but the program's events need the wires "
+                 "1..1");
 }
 
 TEST_F(RobotProgramsTest, RefusesARegionSharedByTwoControllers) {

@@ -277,9 +277,41 @@ RobotPrograms generate_robot_programs(const Scenario& s, const scenario::Preflig
   }
   result.check = check_text(pre.analysis, !prog.regions.empty());
 
+  // The sensors' inputs are wired to every controller: no event wire may use one's number.
+  for (const models::ConveyorSpec& c : s.cell.conveyors) {
+    if (c.sensor != 0 && c.sensor <= highest) {
+      throw InputError(c.sensor_where,
+                       fmt::format("input {} is the part-present sensor of conveyor '{}', but the program's events "
+                                   "need the wires 1..{}; wire the sensor to a higher input",
+                                   c.sensor, c.name, highest));
+    }
+  }
+
   runtime::TargetOptions targets;
   targets.handover_clearance = s.options.handover_clearance;
   const scenario::MotionPlan plan = scenario::plan_motions(s, pre.net, targets);
+
+  // A part that comes later on a conveyor (fed, or riding to the stop): the first move to it waits for the
+  // conveyor's part-present sensor, as robot control waits until it sees the part there.
+  std::map<std::pair<std::size_t, std::size_t>, const models::ConveyorSpec*> sensor_waits;  // (robot, primitive)
+  for (const scenario::ArrivalGate& g : plan.gates) {
+    const petri::Transition& t = pre.net.transitions()[g.transition];
+    CW_CHECK(t.starts_robot.has_value(), "arrival gate of {} on a transition that starts no primitive", g.workpiece);
+    const std::size_t r = *t.starts_robot;
+    const auto k = static_cast<std::size_t>(t.starts_primitive);
+    const models::ConveyorSpec& c = *s.cell.find_conveyor(g.conveyor);
+    if (c.sensor == 0) {
+      const task::Primitive& p = prog.programs[r].primitives[k];
+      throw InputError(c.where,
+                       fmt::format("robot '{}' ({}) goes to workpiece '{}' ({} '{}') before it has ridden conveyor "
+                                   "'{}' to its stop (at {:.1f} s by the plan): its controller must wait for the part, "
+                                   "but the conveyor has no part-present sensor; give it one ('sensor: {{signal: n}}', "
+                                   "docs/cell-description.md)",
+                                   s.robot_of(prog.robots[r]), prog.robots[r], g.workpiece, where_text(p.where), p.task,
+                                   c.name, g.ready));
+    }
+    sensor_waits.emplace(std::make_pair(r, k), &c);
+  }
 
   for (std::size_t r = 0; r < prog.robots.size(); ++r) {
     const std::string& label = prog.robots[r];
@@ -312,6 +344,10 @@ RobotPrograms generate_robot_programs(const Scenario& s, const scenario::Preflig
       const std::string task_line = fmt::format("; {} {}", where_text(p.where), p.task);
       if (!w.movemaster() && task_line != last_task) w.add(task_line);
       last_task = task_line;
+      if (const auto it = sensor_waits.find({r, k}); it != sensor_waits.end()) {
+        const int n = it->second->sensor;
+        w.add(w.movemaster() ? fmt::format("TB -{},{{}}", n) : fmt::format("WAIT SIG({})", 1000 + n));
+      }
       w.out.primitive_line.push_back(w.primitive(p, plan.commands[r][k], chain));
     }
     w.add(w.movemaster() ? "ED" : "; end");
@@ -338,6 +374,14 @@ RobotPrograms generate_robot_programs(const Scenario& s, const scenario::Preflig
               : (out_here ? fmt::format("SIGNAL {}", ch.channel) : fmt::format("WAIT SIG({})", 1000 + ch.channel));
       header.push_back(fmt::format("{} I/O {}: {} = {} {} {} ({})", c, ch.channel, io, ch.event,
                                    out_here ? "to" : "from", other, out_here ? ch.to : ch.from));
+    }
+    std::set<const models::ConveyorSpec*> sensors_here;
+    for (const auto& [at, conveyor] : sensor_waits) {
+      if (at.first != r || !sensors_here.insert(conveyor).second) continue;
+      const int n = conveyor->sensor;
+      header.push_back(fmt::format("{} I/O {}: {} = a part at the stop of conveyor {} (its sensor)", c, n,
+                                   w.movemaster() ? fmt::format("TB -{}", n) : fmt::format("WAIT SIG({})", 1000 + n),
+                                   conveyor->name));
     }
     if (!local_regions.empty()) {
       std::string names;

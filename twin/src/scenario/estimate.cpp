@@ -23,9 +23,11 @@ Eigen::VectorXd vec(const std::vector<double>& v) {
 }
 
 // When a part on a conveyor can first be picked: it rides the belt to the stop (or the end), from where it starts
-// or, when fed, from the entry point at its arrival time. nullopt for a part not on a conveyor.
+// or, when fed, from the entry point at its arrival time. nullopt for a part not on a conveyor. `conveyor` is set to
+// the conveyor it rides.
 std::optional<double> pick_ready_time(const models::CellDescription& cell, const models::WorkpieceSpec& w,
-                                      const std::optional<Feed>& feed, Eigen::Isometry3d& pick_pose) {
+                                      const std::optional<Feed>& feed, Eigen::Isometry3d& pick_pose,
+                                      std::string& conveyor) {
   std::optional<std::size_t> fed;
   if (feed) {
     auto it = std::find(feed->workpieces.begin(), feed->workpieces.end(), w.name);
@@ -33,6 +35,7 @@ std::optional<double> pick_ready_time(const models::CellDescription& cell, const
   }
   const models::ConveyorSpec* c = cell.find_conveyor(fed ? feed->conveyor : w.on);
   if (c == nullptr) return std::nullopt;
+  conveyor = c->name;
   const double start_time = fed ? feed->arrival(*fed) : 0.0;
   const double start_s = fed ? c->enter : (c->pose.transform().inverse() * w.pose.xyz).x() + c->length / 2;
   const double stop_s = c->stop ? c->leave - w.size.x() / 2 : c->leave;
@@ -118,10 +121,11 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
 
   // The environment model the plan follows: parts that ride a conveyor wait at its stop, at rest.
   runtime::EnvironmentModel model = runtime::make_environment_model(s.cell);
-  std::map<std::string, double> ready_at;  // cell workpiece -> when it can be picked
+  std::map<std::string, double> ready_at;         // cell workpiece -> when it can be picked
+  std::map<std::string, std::string> arrives_on;  // cell workpiece -> the conveyor it rides to its stop
   for (const models::WorkpieceSpec& w : s.cell.workpieces) {
     Eigen::Isometry3d pick = Eigen::Isometry3d::Identity();
-    if (auto t = pick_ready_time(s.cell, w, s.feed, pick)) {
+    if (auto t = pick_ready_time(s.cell, w, s.feed, pick, arrives_on[w.name])) {
       runtime::WorkpieceState& ws = *model.find_workpiece(w.name);
       ws.pose = pick;
       ws.present = true;
@@ -166,7 +170,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           // A part still to come holds back the first move to it.
           if (target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt) {
             if (auto it = ready_at.find(target.object); it != ready_at.end()) {
-              if (it->second > 0) plan.gates.push_back({t, target.object, it->second});
+              if (it->second > 0) plan.gates.push_back({t, target.object, it->second, arrives_on[target.object]});
               ready_at.erase(it);
             }
           }

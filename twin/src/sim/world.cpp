@@ -1,5 +1,7 @@
 #include "cellwright/twin/sim/world.hpp"
 
+#include "cellwright/runtime/environment_model.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -18,6 +20,14 @@ constexpr double kUprightCos = 0.98480775;  // cos(10 degrees)
 constexpr double kSupportNormal = 0.5;      // a contact supports a part when its normal is this close to vertical
 constexpr std::chrono::nanoseconds kCollisionQuiet = std::chrono::milliseconds(100);  // see check_contacts()
 constexpr double kRestGap = 0.002;  // m: a part this close above a surface rests on it (chatter, see truth())
+// The part-present sensors (world.hpp): how close a part's front face is to the stop bar, and its bottom to the belt.
+constexpr double kSensorReach = 0.005;
+constexpr double kSensorHeight = 0.005;
+// A part moving faster is passing, not resting: the runtime's rule for a part ready to be grasped.
+const double kSensorRestSpeed = runtime::TargetOptions{}.part_at_rest_speed;
+// Its speed is averaged (a first-order filter with this time constant): a part pressed against the stop by the belt
+// chatters at a few cm/s for a few tens of micrometres, which must not flicker the sensor.
+constexpr double kSensorSpeedTime = 0.1;  // s
 
 const char* warning_text(int i) {
   switch (i) {
@@ -108,6 +118,17 @@ World::World(Scene scene, WorldOptions options)
     place_at_rest(w, parking_pose(w));
     parked_[w] = true;
   }
+  for (const models::ConveyorSpec& c : scene_.cell().conveyors) {
+    if (c.sensor == 0) continue;
+    if (static_cast<std::size_t>(c.sensor) > signals_.size()) {
+      throw InputError(c.sensor_where, fmt::format("conveyor '{}': its sensor's signal {} is not one of the cell's {} "
+                                                   "digital signals",
+                                                   c.name, c.sensor, signals_.size()));
+    }
+    sensors_.push_back({&c, c.pose.transform().inverse()});
+  }
+  sensed_velocity_.assign(scene_.workpieces().size(), Eigen::Vector3d::Zero());
+  update_sensors();
   for (int i = 0; i < mjNWARNING; ++i) warning_counts_[static_cast<std::size_t>(i)] = d->warning[i].number;
 }
 
@@ -217,6 +238,44 @@ void World::step(std::int64_t n) {
     ++steps_;
     check_contacts();
     check_warnings();
+    if (!sensors_.empty()) {
+      // The parts' averaged velocities, for the sensors' rest test.
+      const double a = std::min(1.0, std::chrono::duration<double>(timestep_).count() / kSensorSpeedTime);
+      for (std::size_t w = 0; w < sensed_velocity_.size(); ++w) {
+        const Eigen::Vector3d v = Eigen::Map<const Eigen::Vector3d>(d->qvel + scene_.workpieces()[w].dof_adr);
+        sensed_velocity_[w] =
+            parked_[w] ? Eigen::Vector3d::Zero() : Eigen::Vector3d(sensed_velocity_[w] + a * (v - sensed_velocity_[w]));
+      }
+    }
+    update_sensors();
+  }
+}
+
+void World::update_sensors() {
+  const mjData* d = scene_.data();
+  const models::CellDescription& cell = scene_.cell();
+  for (const Sensor& sensor : sensors_) {
+    const models::ConveyorSpec& c = *sensor.conveyor;
+    bool present = false;
+    for (std::size_t w = 0; w < cell.workpieces.size() && !present; ++w) {
+      if (parked_[w]) continue;
+      const WorkpieceIds& ids = scene_.workpieces()[w];
+      const Eigen::Vector3d& size = cell.workpieces[w].size;
+      // The part in the conveyor's frame: x along the belt from its centre, z up from the floor.
+      const Eigen::Isometry3d pose = sensor.world_to_conveyor * free_pose(d, ids.qpos_adr);
+      const Eigen::Matrix3d& r = pose.linear();
+      // Half its extent along the belt and upwards, however it is turned.
+      const double half_x =
+          0.5 * (std::abs(r(0, 0)) * size.x() + std::abs(r(0, 1)) * size.y() + std::abs(r(0, 2)) * size.z());
+      const double half_z =
+          0.5 * (std::abs(r(2, 0)) * size.x() + std::abs(r(2, 1)) * size.y() + std::abs(r(2, 2)) * size.z());
+      const Eigen::Vector3d& p = pose.translation();
+      const double front = p.x() + c.length / 2 + half_x;  // distance from the belt's upstream end
+      const double speed = sensed_velocity_[w].norm();
+      present = std::abs(front - c.leave) <= kSensorReach && std::abs(p.y()) <= c.width / 2 &&
+                std::abs(p.z() - half_z - c.height) <= kSensorHeight && speed < kSensorRestSpeed;
+    }
+    signals_.set(c.sensor, present);
   }
 }
 
@@ -366,6 +425,7 @@ FeedResult World::park(std::string_view workpiece) {
   if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to park", workpiece)};
   place_at_rest(w, parking_pose(w));
   parked_[w] = true;
+  update_sensors();
   return {};
 }
 

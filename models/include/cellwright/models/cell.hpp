@@ -56,6 +56,10 @@ struct RobotSpec {
   SourceLocation where;
 };
 
+// The cell's digital signals, 1..kCellSignals: the wires between the controllers and the sensors' inputs (the
+// twin's SignalTable has this many; the Movemaster's bits are assumed to be 1..16).
+inline constexpr int kCellSignals = 16;
+
 // A belt conveyor. Its frame: origin at the centre of its footprint on the floor, x along the direction of travel.
 // The belt's top surface is `height` above the origin and spans x in [-length/2, length/2].
 struct ConveyorSpec {
@@ -66,7 +70,11 @@ struct ConveyorSpec {
   double enter = 0;   // distance from the upstream end where parts are put on the belt
   double leave = 0;   // distance from the upstream end where parts leave it (are picked, or fall off the end)
   bool stop = false;  // a stop bar across the belt at `leave` holds parts there for picking
+  // The part-present sensor at the stop (a photo-eye wired to every controller's input `sensor`, 1..16), 0: none. On
+  // while a part rests against the stop bar (twin/sim/world.hpp says exactly when).
+  int sensor = 0;
   SourceLocation where;
+  SourceLocation sensor_where;  // of the `signal` value, for errors about the wiring
 
   // World position of the point on the belt's top surface at distance s from the upstream end, on the centre line.
   Eigen::Vector3d belt_point(double s) const;

@@ -19,6 +19,11 @@
 // by more than one robot on each side, an event with an initial count, a critical region shared by two controllers.
 // A critical region used by one robot only needs no wire (its wait and signal are left out).
 //
+// Parts that come later: before a robot's first move to a part that rides a conveyor to its stop after the start
+// (scenario::MotionPlan::gates: fed parts, parts starting away from the stop), its program waits for that conveyor's
+// part-present sensor, input n = models::ConveyorSpec::sensor (VAL II `WAIT SIG(1000+n)`, Movemaster `L TB -n,L`), as
+// robot control waits until it sees the part. Event wires count up from 1; a sensor's input must lie above them.
+//
 // Output is deterministic: the same inputs give the same bytes (no date, file names without directories).
 //
 // Thread safety: pure functions of their arguments; any thread may call them.
@@ -86,6 +91,8 @@ void set_language(scenario::Scenario& scenario, const std::string& spec, const S
 //  - a program robot runs on the `sim` driver (the scenario's `drivers:` or the cell decide the language);
 //  - an event cannot be a wire (see the top), a critical region is used by two robots, more channels are needed than
 //    a controller has;
+//  - a robot must wait for a part that comes later on a conveyor without a part-present sensor (naming the
+//    conveyor's line in the cell), or a sensor's input is one of the event wires' channels (naming the sensor's line);
 //  - a Movemaster move needs a tool pose the 5-axis rule cannot express (its approach axis out of the arm's vertical
 //    plane by more than 0.5°, or the tool point on the base's z axis).
 RobotPrograms generate_robot_programs(const scenario::Scenario& scenario, const scenario::Preflight& preflight);

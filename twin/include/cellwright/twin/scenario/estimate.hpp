@@ -55,6 +55,7 @@ struct ArrivalGate {
   petri::TransitionId transition = 0;
   std::string workpiece;  // cell name
   double ready = 0;       // s: when it is at the stop, at rest
+  std::string conveyor;   // the conveyor it rides to its stop (or end)
 };
 
 struct MotionPlan {

@@ -13,6 +13,13 @@
 //    downward cameras' view (chosen with WorldOptions::parked); feed() puts the next one on a conveyor's entry
 //    point, at rest, as a scenario event. It is
 //    the only way a part moves without contacts: robots carry parts by friction only.
+//  - Part-present sensors: for each conveyor with a sensor (models::ConveyorSpec::sensor, the cell's `sensor:
+//    {signal: n}`), signal n of signals() is set after every step (and at construction, and by park()): on while a
+//    workpiece that is not parked rests against the stop bar (its front face, along the belt, within 5 mm of `leave`;
+//    its centre over the belt; its bottom within 5 mm of the belt's top) and moves slower than the runtime's
+//    part-at-rest speed (runtime::TargetOptions::part_at_rest_speed), its velocity averaged over about 0.1 s (a
+//    part pressed against the stop chatters), else off. Like a photo-eye at the stop, it says
+//    that a part is there, not which one. The sensor owns its signal: anything else setting it is overwritten.
 //
 // THREADS. One thread (the simulation thread) calls every other member, const or not (now(), truth(), ...);
 // scene() and the ids it holds never change and may be read from any thread. The SimDrivers it
@@ -220,6 +227,7 @@ class World {
   Eigen::Isometry3d parking_pose(std::size_t workpiece) const;
   void check_contacts();
   void check_warnings();
+  void update_sensors();  // sets each part-present sensor's signal from the workpieces' poses and speeds
   std::size_t workpiece_index(std::string_view name) const;  // npos when unknown
 
   Scene scene_;
@@ -236,6 +244,12 @@ class World {
   std::vector<Collision> collisions_;                       // not yet reported
   std::array<int, mjNWARNING> warning_counts_{};            // MuJoCo's counters at the last check
   std::vector<std::string> warnings_;                       // not yet drained
+  struct Sensor {
+    const models::ConveyorSpec* conveyor = nullptr;  // in scene_.cell(), which the World owns
+    Eigen::Isometry3d world_to_conveyor = Eigen::Isometry3d::Identity();
+  };
+  std::vector<Sensor> sensors_;                   // the conveyors with a part-present sensor, in the cell's order
+  std::vector<Eigen::Vector3d> sensed_velocity_;  // by workpiece: its averaged velocity (update_sensors())
 };
 
 // Names for logs: "gripper", "conveyor", ...; "ok", "occupied", ...

@@ -62,7 +62,7 @@ std::string format_number(double value) {
   std::string s = fmt::format("{:.3f}", value);  // fmt ignores the locale unless asked
   while (s.back() == '0') s.pop_back();
   if (s.back() == '.') s.pop_back();
-  if (s == "-0") s = "0";
+  if (s == "-0") return std::string("0");  // (returned, not assigned: GCC 12 warns falsely on the assignment)
   return s;
 }
 

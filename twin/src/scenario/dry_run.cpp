@@ -30,7 +30,7 @@ drivers::CommandStatus wait_for(drivers::RobotDriver& driver, drivers::CommandId
     cv.notify_all();
   });
   const auto until = std::chrono::steady_clock::now() + timeout;
-  drivers::CommandStatus st = driver.poll(id);
+  drivers::CommandStatus st;
   for (;;) {
     std::uint64_t seen = 0;
     {

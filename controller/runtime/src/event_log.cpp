@@ -89,6 +89,63 @@ void EventLog::workpiece_arrived(SimDuration t, std::string_view workpiece, std:
   append(fmt::format("{},\"workpiece\":{},\"where\":{}}}", head(t, "workpiece_arrived"), q(workpiece), q(where)));
 }
 
+void EventLog::fault_injected(SimDuration t, std::string_view kind, std::string_view robot,
+                              std::string_view workpiece, std::string_view detail) {
+  append(fmt::format("{},\"kind\":{},\"robot\":{},\"workpiece\":{},\"detail\":{}}}", head(t, "fault_injected"),
+                     q(kind), q(robot), q(workpiece), q(detail)));
+}
+
+void EventLog::fault_detected(SimDuration t, std::string_view robot, int primitive, std::string_view symptom,
+                              std::string_view detail) {
+  append(fmt::format("{},\"robot\":{},\"primitive\":{},\"symptom\":{},\"detail\":{}}}", head(t, "fault_detected"),
+                     q(robot), primitive, q(symptom), q(detail)));
+}
+
+void EventLog::diagnosis(SimDuration t, std::string_view robot, std::string_view symptom, std::string_view cause,
+                         std::string_view action, std::string_view path) {
+  append(fmt::format("{},\"robot\":{},\"symptom\":{},\"cause\":{},\"action\":{},\"path\":{}}}",
+                     head(t, "diagnosis"), q(robot), q(symptom), q(cause), q(action), q(path)));
+}
+
+void EventLog::recovery_end(SimDuration t, std::string_view robot, std::string_view cause, std::string_view action,
+                            bool ok, std::string_view detail, SimDuration duration) {
+  append(fmt::format("{},\"robot\":{},\"cause\":{},\"action\":{},\"ok\":{},\"detail\":{},\"duration\":{}}}",
+                     head(t, "recovery_end"), q(robot), q(cause), q(action), ok ? "true" : "false", q(detail),
+                     format_sim_time(duration)));
+}
+
+void EventLog::protective_stop(SimDuration t, std::string_view robot, std::string_view reason) {
+  append(fmt::format("{},\"robot\":{},\"reason\":{}}}", head(t, "protective_stop"), q(robot), q(reason)));
+}
+
+void EventLog::protective_release(SimDuration t, std::string_view robot) {
+  append(fmt::format("{},\"robot\":{}}}", head(t, "protective_release"), q(robot)));
+}
+
+void EventLog::workpiece_lost(SimDuration t, std::string_view workpiece, std::string_view reason,
+                              const std::optional<Eigen::Vector3d>& last_seen) {
+  const auto fixed = [](double v) {
+    std::string s = fmt::format("{:.4f}", v);
+    if (s.find_first_not_of("-0.") == std::string::npos && s.front() == '-') s.erase(0, 1);
+    return s;
+  };
+  const std::string x = last_seen ? fixed(last_seen->x()) : std::string("null");
+  const std::string y = last_seen ? fixed(last_seen->y()) : std::string("null");
+  const std::string z = last_seen ? fixed(last_seen->z()) : std::string("null");
+  append(fmt::format("{},\"workpiece\":{},\"reason\":{},\"x\":{},\"y\":{},\"z\":{}}}", head(t, "workpiece_lost"),
+                     q(workpiece), q(reason), x, y, z));
+}
+
+void EventLog::skipped(SimDuration t, std::string_view robot, std::size_t primitive, std::string_view command,
+                       std::string_view reason) {
+  append(fmt::format("{},\"robot\":{},\"primitive\":{},\"command\":{},\"reason\":{}}}", head(t, "skipped"),
+                     q(robot), primitive, q(command), q(reason)));
+}
+
+void EventLog::cell_stopped(SimDuration t, std::string_view reason) {
+  append(fmt::format("{},\"reason\":{}}}", head(t, "cell_stopped"), q(reason)));
+}
+
 void EventLog::run_end(SimDuration t, std::string_view outcome, std::string_view reason, std::uint64_t firings) {
   append(fmt::format("{},\"outcome\":{},\"reason\":{},\"firings\":{}}}", head(t, "run_end"), q(outcome), q(reason),
                      firings),

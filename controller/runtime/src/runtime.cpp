@@ -275,6 +275,9 @@ struct Runtime::Impl {
         collisions.push_back(std::move(c));
       }
       for (const Arrival& a : cfg.plant->new_arrivals()) log.workpiece_arrived(t, a.workpiece, a.where);
+      for (const InjectedFault& f : cfg.plant->new_faults()) {
+        log.fault_injected(t, f.kind, f.robot, f.workpiece, f.detail);
+      }
       clock.advance(cfg.period);  // after the model is written, so a reader at time t sees t's truth (real-time)
     }
     if (vision && t >= next_frame) {

@@ -18,7 +18,18 @@
 //   vision            frame (its sim time, 4 decimals), seen [{workpiece, x, y, z (m, 4 decimals), yaw (degrees, 2
 //                     decimals, null for a cylinder), confidence (3 decimals)}], not_seen [names], rejected (count),
 //                     problem ("" if none)
-//   run_end           outcome ("finished"|"failed"|"timeout"), reason, firings
+//   fault_injected    kind, robot (cell name, "" none), workpiece ("" none), detail: a fault the plant or the runtime
+//                     injected on purpose (docs/faults.md); for the campaign's accounting, never read by the controller
+//   fault_detected    robot (label, "" for the cell), primitive (-1 none), symptom, detail: something the controller
+//                     sensed went wrong
+//   diagnosis         robot, symptom, cause, action, path (the decision tree's answers, "part_seen=yes part_at_rest=no")
+//   recovery_end      robot, cause, action, ok (true|false), detail, duration (s, 4 decimals, since fault_detected)
+//   protective_stop   robot, reason: the safety layer stopped the robot
+//   protective_release robot: ... and released it
+//   workpiece_lost    workpiece, reason, x, y, z (m, 4 decimals: where it was last seen; null when never seen)
+//   skipped           robot, primitive, command, reason: a command not carried out (its workpiece is lost)
+//   cell_stopped      reason: nothing else applied; every robot was stopped
+//   run_end           outcome ("finished"|"failed"|"timeout"|"stopped"), reason, firings
 // Strings are JSON-escaped (nlohmann::json). Numbers other than "t", period, depth and the vision event's are
 // integers.
 //
@@ -69,6 +80,21 @@ class EventLog {
               std::string_view workpiece);
   void collision(SimDuration t, std::string_view a, std::string_view b, double depth);
   void workpiece_arrived(SimDuration t, std::string_view workpiece, std::string_view where);
+  void fault_injected(SimDuration t, std::string_view kind, std::string_view robot, std::string_view workpiece,
+                      std::string_view detail);
+  void fault_detected(SimDuration t, std::string_view robot, int primitive, std::string_view symptom,
+                      std::string_view detail);
+  void diagnosis(SimDuration t, std::string_view robot, std::string_view symptom, std::string_view cause,
+                 std::string_view action, std::string_view path);
+  void recovery_end(SimDuration t, std::string_view robot, std::string_view cause, std::string_view action, bool ok,
+                    std::string_view detail, SimDuration duration);
+  void protective_stop(SimDuration t, std::string_view robot, std::string_view reason);
+  void protective_release(SimDuration t, std::string_view robot);
+  void workpiece_lost(SimDuration t, std::string_view workpiece, std::string_view reason,
+                      const std::optional<Eigen::Vector3d>& last_seen);
+  void skipped(SimDuration t, std::string_view robot, std::size_t primitive, std::string_view command,
+               std::string_view reason);
+  void cell_stopped(SimDuration t, std::string_view reason);
   void run_end(SimDuration t, std::string_view outcome, std::string_view reason, std::uint64_t firings);
 
   // One camera frame processed by the image-processing thread: taken at `frame_time`, what it saw (each part's

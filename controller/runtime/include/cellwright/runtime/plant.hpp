@@ -40,6 +40,27 @@ struct RobotTruth {
   // The workpiece between the finger pads, touching both, when the plant can tell: a name, or "" for none.
   // nullopt when the plant has no way to know (then a close cannot be checked and is taken as done).
   std::optional<std::string> between_fingers;
+  // The wrist force sensor: the force on the flange (N, world frame, the weight of the gripper and of what it holds
+  // included), nullopt when the plant has none. The safety layer's force limit watches it (safety.hpp).
+  std::optional<Eigen::Vector3d> wrist_force;
+};
+
+// An object in the cell that is not in the cell description (a tool left behind, a person's hand, a fallen box), as
+// the cell's safety sensor (a 3D camera or laser scanner watching the working space) reports it: an axis-aligned box.
+// Workpieces and robots are not obstacles.
+struct Obstacle {
+  std::string name;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // world, m
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();    // full extents, m
+};
+
+// A fault the plant injected on purpose (docs/faults.md), for the event log and the fault campaign only: the
+// controller never reads it (it must find faults by what it senses).
+struct InjectedFault {
+  std::string kind;       // "drop", "slip", "misplace", "obstacle", "missing", "timeout", ... (docs/faults.md)
+  std::string robot;      // cell robot it concerns, "" if none
+  std::string workpiece;  // cell workpiece it concerns, "" if none
+  std::string detail;     // what exactly was done, with the values
 };
 
 // The physics' state at one instant.
@@ -47,6 +68,7 @@ struct Truth {
   SimDuration time{0};
   std::vector<WorkpieceTruth> workpieces;
   std::vector<RobotTruth> robots;
+  std::vector<Obstacle> obstacles;  // what the safety sensor sees now
 };
 
 // A camera picture: 8-bit BGR (blue, green, red per pixel), rows top first, no padding. A plain value, so that the
@@ -87,6 +109,10 @@ class Plant {
 
   // Arrivals since the previous call, in a fixed order.
   virtual std::vector<Arrival> new_arrivals() = 0;
+
+  // Faults injected since the previous call, in the order they were made (deterministic for a given run). The
+  // default plant injects none.
+  virtual std::vector<InjectedFault> new_faults() { return {}; }
 
   // An image of the plant now from its camera `camera` at that camera's resolution; nullopt when the plant has no such
   // camera or cannot render (the problem is in *why). Made on the calling thread, which is the simulation thread: a

@@ -106,6 +106,9 @@ struct RunConfig {
   // (for `twin run`'s progress line). Must be short and must not call the Runtime.
   std::function<void(SimDuration, std::uint64_t)> on_progress;
   SimDuration progress_every = std::chrono::seconds(1);
+  // Program faults injected on purpose (docs/faults.md, kind lost_signal): the n-th signal task control fires (counting
+  // from 1, over all robots) loses its event, so that the wait for it is never signalled. Logged as fault_injected.
+  std::vector<std::uint64_t> lost_signals;
 };
 
 enum class Outcome { kFinished, kFailed, kTimeout };

@@ -288,7 +288,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
   const Fields f(doc, root, "the scenario",
                  {"cell", "program", "seed", "locations", "drivers", "robots", "bind", "feed", "limits", "expect",
-                  "tolerance", "options", "perception", "vision", "perturb"});
+                  "tolerance", "options", "perception", "vision", "perturb", "faults"});
   const std::filesystem::path dir = source.parent_path();
 
   Scenario s;
@@ -616,12 +616,29 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
         e.tolerance = ef.positive_or("tolerance", tolerance);
       }
       e.place = f.word_of(place_node, fmt::format("where workpiece '{}' must end up", workpiece));
-      if (std::find(places.begin(), places.end(), e.place) == places.end()) {
+      if (!e.lost() && std::find(places.begin(), places.end(), e.place) == places.end()) {
         doc.fail(place_node, fmt::format("workpiece '{}' is expected at '{}', which is not a location, conveyor or "
-                                         "machine of the cell (they are: {})",
+                                         "machine of the cell, nor 'lost' (they are: {})",
                                          workpiece, e.place, list_names(places)));
       }
       s.expect.push_back(std::move(e));
+    }
+  }
+
+  // --- faults to inject (docs/faults.md) ---
+  if (f.has("faults")) {
+    const YAML::Node& list = f.node("faults");
+    if (!list.IsSequence()) {
+      doc.fail(list, fmt::format("{} must be a list of faults, got {}", f.field("faults"), describe(list)));
+    }
+    for (const YAML::Node& n : list) {
+      FaultSpec fault = parse_fault(doc, n, s.cell);
+      if (needs_vision(fault.kind) && s.perception != runtime::Perception::kVision) {
+        doc.fail(n["kind"], fmt::format("a {} fault needs perception vision (the camera), and the scenario's "
+                                        "perception is {}",
+                                        to_string(fault.kind), runtime::to_string(s.perception)));
+      }
+      s.faults.push_back(std::move(fault));
     }
   }
   return s;

@@ -27,6 +27,7 @@
 #include "cellwright/petri/net.hpp"
 #include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/task/compiled.hpp"
+#include "cellwright/twin/scenario/faults.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -68,12 +69,20 @@ struct Feed {
   }
 };
 
-// Where a workpiece must end up: a cell location, conveyor or machine (its fixture or top), within `tolerance`.
+// The place of an expectation that the scenario expects the controller to lose the part (`expect: {A: lost}`, e.g.
+// with an unreachable or missing fault): the run is judged by whether the controller declared it lost.
+inline constexpr std::string_view kLostPlace = "lost";
+
+// Where a workpiece must end up: a cell location, conveyor or machine (its fixture or top), within `tolerance`; or
+// place == kLostPlace: the controller must declare the part lost (docs/faults.md section 5).
 struct Expectation {
   std::string workpiece;  // cell workpiece name
-  std::string place;      // cell location, conveyor or machine name
-  double tolerance = 0;   // m
+  std::string place;      // cell location, conveyor or machine name, or "lost"
+  double tolerance = 0;   // m (not used for "lost")
   SourceLocation where;
+
+  // The scenario expects the part to be lost (place "lost").
+  bool lost() const { return place == kLostPlace; }
 };
 
 struct Limits {
@@ -130,6 +139,8 @@ struct Scenario {
   runtime::Perception perception = runtime::Perception::kTruth;  // `perception:` truth (default), vision or cad
   std::optional<VisionSettings> vision;                          // set when perception is vision
   std::optional<Perturbation> perturb;
+  // Faults to inject on purpose (`faults:`, and `twin run --fault`), in file order (docs/faults.md).
+  std::vector<FaultSpec> faults;
 
   // The cell object bound to a program label of that kind; throws InternalError for an unknown label (the loader
   // binds every label, so that is a bug).
@@ -148,7 +159,8 @@ struct Scenario {
 // same name); two labels are bound to one cell object; a driver is named for a robot that is not in the cell, is not
 // one of sim/movemaster/val2, or is a real driver (movemaster, val2) whose serial port is not known; the feed names an
 // unknown conveyor or workpiece, a workpiece twice, or lacks a period for several workpieces; an expectation names an
-// unknown workpiece or place.
+// unknown workpiece or place (`lost` is always a place); a fault is wrong (faults.hpp: parse_fault), or needs
+// perception vision (frame_lost, detection_noise) and the scenario's perception is not vision.
 Scenario load_scenario(const std::filesystem::path& yaml_file);
 
 // As load_scenario, from YAML text; `source` names the text in errors and its directory resolves relative paths.

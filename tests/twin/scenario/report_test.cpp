@@ -47,6 +47,8 @@ class LogWriter {
   void collision(double t, const std::string& a, const std::string& b) {
     add(t, "collision", fmt::format(R"("a":"{}","b":"{}","depth":0.001000)", a, b));
   }
+  // Any event: `rest` is its keys after "t" and "type", without braces.
+  void event(double t, const std::string& type, const std::string& rest) { add(t, type, rest); }
   void end(double t, const std::string& outcome, const std::string& reason, int firings) {
     add(t, "run_end", fmt::format(R"("outcome":"{}","reason":"{}","firings":{})", outcome, reason, firings));
   }
@@ -292,6 +294,278 @@ TEST(Report, LogWithoutRunEndIsUnfinished) {
   const Report r = make_report(s, parse_event_log(log, "e"), {on_output(s, 0.1)}, std::nullopt);
   EXPECT_EQ(r.outcome, "unfinished");
   EXPECT_FALSE(r.ok());
+}
+
+// --- The account and the faults (docs/faults.md section 5) -------------------------------------------------------
+
+// The exchange log up to A's drop at t = 5.5 s (r1 carrying it to the hand-over), then the controller's detection,
+// diagnosis, and either a pick_again that recovers (ok) or a set_aside that declares A lost; the run ends as `outcome`.
+std::string drop_log(const std::string& how, const std::string& outcome = "finished") {
+  LogWriter w;
+  w.start();
+  w.fire(0, "r1", 0);
+  w.command(0, 1, "r1", 0, "open", "Pick A");
+  w.event(5.5, "fault_injected", R"("kind":"drop","robot":"puma","workpiece":"","detail":"carry 1 after 0.5 s")");
+  if (how != "none") {
+    w.event(5.53, "fault_detected",
+            R"("robot":"r1","primitive":7,"symptom":"grip_lost","detail":"A left the fingers")");
+  }
+  if (how == "recover") {
+    w.event(5.53, "diagnosis",
+            R"("robot":"r1","symptom":"grip_lost","cause":"dropped","action":"pick_again","path":"part_seen=yes")");
+    w.event(8.25, "recovery_end",
+            R"("robot":"r1","cause":"dropped","action":"pick_again","ok":true,"detail":"","duration":2.7200)");
+  } else if (how == "lose") {
+    w.event(5.53, "diagnosis",
+            R"("robot":"r1","symptom":"grip_lost","cause":"dropped_out_of_reach","action":"set_aside","path":"")");
+    w.event(5.6, "workpiece_lost", R"("workpiece":"A","reason":"dropped out of reach","x":0.5,"y":-0.25,"z":0.03)");
+    w.event(5.6, "recovery_end",
+            R"("robot":"r1","cause":"dropped_out_of_reach","action":"set_aside","ok":true,"detail":"",)"
+            R"("duration":0.0700)");
+  } else if (how == "stop") {
+    w.event(5.53, "diagnosis",
+            R"("robot":"r1","symptom":"grip_lost","cause":"unknown","action":"stop_cell","path":"")");
+    w.event(5.54, "cell_stopped", R"("reason":"grip_lost on r1: nothing else applied")");
+    w.event(5.54, "recovery_end",
+            R"("robot":"r1","cause":"unknown","action":"stop_cell","ok":true,"detail":"","duration":0.0100)");
+  }
+  w.end(outcome == "stopped" ? 5.6 : 20, outcome, outcome == "stopped" ? "grip_lost on r1" : "", 12);
+  return w.text();
+}
+
+FinalPose on_floor(const std::string& name) {
+  FinalPose f;
+  f.name = name;
+  f.pose.translation() = Eigen::Vector3d(0.5, -0.25, 0.03);
+  return f;
+}
+
+const WorkpieceReport& part(const Report& r, const std::string& name) {
+  for (const WorkpieceReport& w : r.workpieces) {
+    if (w.name == name) return w;
+  }
+  throw std::runtime_error("no workpiece " + name);
+}
+
+TEST(Account, EachStatusFromTheFinalPosesAndTheEvents) {
+  Scenario s = exchange_scenario();
+  // A in place; B held by the MELFA; C never fed (a fed part that did not arrive); D where it started (no
+  // expectation: elsewhere, where it is).
+  s.feed = Feed{"input", {"C"}, 0, 0, {}};
+  FinalPose b;
+  b.name = "B";
+  b.held_by = "melfa";
+  b.pose.translation() = Eigen::Vector3d(0.3, 0.2, 0.5);
+  FinalPose c;
+  c.name = "C";
+  c.present = false;
+  FinalPose d;
+  d.name = "D";
+  const models::LocationSpec& fixture = *s.cell.find_location("machine_fixture");
+  d.pose.translation() = fixture.pose.xyz + Eigen::Vector3d(0, 0, s.cell.find_workpiece("D")->size.z() / 2);
+  const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1), b, c, d}, 14.0);
+  EXPECT_TRUE(r.ok()) << (r.failures.empty() ? "" : r.failures.front());
+  EXPECT_EQ(part(r, "A").status, PartStatus::kInPlace);
+  EXPECT_EQ(part(r, "A").where, "output");
+  EXPECT_EQ(part(r, "B").status, PartStatus::kHeld);
+  EXPECT_EQ(part(r, "B").where, "melfa");
+  EXPECT_EQ(part(r, "C").status, PartStatus::kNotArrived);
+  EXPECT_EQ(part(r, "C").where, "not in the cell");
+  EXPECT_EQ(part(r, "D").status, PartStatus::kElsewhere);
+  EXPECT_EQ(part(r, "D").where, "machine_fixture");
+  EXPECT_EQ(r.unaccounted(), 0u);
+  EXPECT_EQ(std::string(to_string(PartStatus::kScrapped)), "scrapped");
+
+  const nlohmann::json j = to_json(s, r);
+  ASSERT_EQ(j["account"].size(), 4u);
+  EXPECT_EQ(j["account"][0]["status"], "in_place");
+  EXPECT_EQ(j["account"][1]["status"], "held");
+  EXPECT_EQ(j["account"][2]["status"], "not_arrived");
+  EXPECT_EQ(j["account"][3]["status"], "elsewhere");
+  EXPECT_TRUE(j["account"][0]["lost"].is_null());
+  EXPECT_EQ(j["unaccounted"], 0);
+  EXPECT_EQ(j["faults"].size(), 0u);
+  EXPECT_EQ(j["false_alarms"], 0);
+  // The summary lists the parts not in place, but not an unexpected part resting where it started.
+  const std::string text = format_summary(r);
+  EXPECT_THAT(text, HasSubstr("part B: held (melfa)"));
+  EXPECT_THAT(text, HasSubstr("part C: not_arrived"));
+  EXPECT_THAT(text, ::testing::Not(HasSubstr("part D")));
+}
+
+TEST(Account, PartNotWhereItShouldBeAndNotDeclaredLostIsUnaccounted) {
+  const Scenario s = exchange_scenario();
+  const Report r = make_report(s, parse_event_log(drop_log("none"), "e"), {on_floor("A")}, std::nullopt);
+  EXPECT_FALSE(r.ok());
+  const WorkpieceReport& a = part(r, "A");
+  EXPECT_EQ(a.status, PartStatus::kElsewhere);
+  EXPECT_EQ(a.where, "floor");
+  EXPECT_TRUE(a.unaccounted);
+  EXPECT_EQ(r.unaccounted(), 1u);
+  EXPECT_EQ(to_json(s, r)["unaccounted"], 1);
+  EXPECT_EQ(to_json(s, r)["account"][0]["unaccounted"], true);
+  EXPECT_THAT(format_summary(r), HasSubstr("part A: elsewhere (floor): UNACCOUNTED"));
+  // The fault was injected and never detected.
+  ASSERT_EQ(r.faults.size(), 1u);
+  EXPECT_FALSE(r.faults[0].detected);
+  EXPECT_FALSE(r.faults[0].recovered);
+  EXPECT_THAT(format_summary(r), HasSubstr("drop at t = 5.50 s on puma: not detected"));
+}
+
+TEST(Account, PartDeclaredLostIsAFailureButAccountedFor) {
+  const Scenario s = exchange_scenario();
+  const Report r = make_report(s, parse_event_log(drop_log("lose"), "e"), {on_floor("A")}, std::nullopt);
+  const WorkpieceReport& a = part(r, "A");
+  EXPECT_EQ(a.status, PartStatus::kLost);
+  ASSERT_TRUE(a.lost);
+  EXPECT_DOUBLE_EQ(a.lost->t, 5.6);
+  EXPECT_EQ(a.lost->reason, "dropped out of reach");
+  ASSERT_TRUE(a.lost->last_seen);
+  EXPECT_DOUBLE_EQ(a.lost->last_seen->y(), -0.25);
+  EXPECT_FALSE(a.unaccounted);
+  EXPECT_FALSE(r.ok());
+  ASSERT_EQ(r.failures.size(), 1u);  // one line for A, not one for the expectation and one for the loss
+  EXPECT_THAT(r.failures[0], HasSubstr("workpiece A (expected at output) was declared lost at t = 5.60 s"));
+  EXPECT_THAT(r.failures[0], HasSubstr("last seen at (0.500, -0.250, 0.030)"));
+  const nlohmann::json j = to_json(s, r);
+  EXPECT_EQ(j["account"][0]["status"], "lost");
+  EXPECT_EQ(j["account"][0]["lost"]["reason"], "dropped out of reach");
+  EXPECT_EQ(j["account"][0]["lost"]["last_seen"][1], -0.25);
+  // The fault: detected, diagnosed, and its recovery (set_aside) ended well.
+  ASSERT_EQ(r.faults.size(), 1u);
+  EXPECT_TRUE(r.faults[0].detected);
+  EXPECT_EQ(r.faults[0].action, "set_aside");
+  EXPECT_TRUE(r.faults[0].recovered);
+}
+
+TEST(Account, PartExpectedLostAndLostIsOk) {
+  Scenario s = exchange_scenario();
+  s.expect[0].place = kExpectLost;
+  const Report lost = make_report(s, parse_event_log(drop_log("lose"), "e"), {on_floor("A")}, std::nullopt);
+  EXPECT_TRUE(lost.ok()) << (lost.failures.empty() ? "" : lost.failures.front());
+  EXPECT_EQ(part(lost, "A").status, PartStatus::kLost);
+  EXPECT_EQ(part(lost, "A").ok, true);
+  EXPECT_FALSE(part(lost, "A").unaccounted);
+  // Expected lost but delivered: the expectation fails, and the part is not unaccounted (the scenario expected it
+  // gone, and it is in sight).
+  const Report delivered = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1)}, std::nullopt);
+  EXPECT_FALSE(delivered.ok());
+  EXPECT_THAT(delivered.failures[0], HasSubstr("workpiece A is expected to be lost"));
+  EXPECT_THAT(delivered.failures[0], HasSubstr("at output"));
+  EXPECT_FALSE(part(delivered, "A").unaccounted);
+}
+
+TEST(Account, LostPartThatNeverArrivedIsNotArrivedAndAccounted) {
+  Scenario s = exchange_scenario();
+  s.feed = Feed{"input", {"A"}, 0, 0, {}};
+  LogWriter w;
+  w.start();
+  w.event(0, "fault_injected", R"("kind":"missing","robot":"","workpiece":"A","detail":"")");
+  w.event(30, "fault_detected", R"("robot":"r1","primitive":1,"symptom":"part_not_arrived","detail":"")");
+  w.event(30, "diagnosis", R"("robot":"r1","symptom":"part_not_arrived","cause":"missing","action":"set_aside","path":"")");
+  w.event(30, "workpiece_lost", R"("workpiece":"A","reason":"never arrived","x":null,"y":null,"z":null)");
+  w.event(30, "recovery_end", R"("robot":"r1","cause":"missing","action":"set_aside","ok":true,"detail":"","duration":0.0)");
+  w.end(31, "finished", "", 20);
+  FinalPose a;
+  a.name = "A";
+  a.present = false;
+  const Report r = make_report(s, parse_event_log(w.text(), "e"), {a}, std::nullopt);
+  const WorkpieceReport& pa = part(r, "A");
+  EXPECT_EQ(pa.status, PartStatus::kNotArrived);
+  ASSERT_TRUE(pa.lost);
+  EXPECT_FALSE(pa.lost->last_seen);
+  EXPECT_FALSE(pa.unaccounted);
+  EXPECT_FALSE(r.ok());  // lost all the same: the scenario expected it on the output
+  EXPECT_THAT(r.failures[0], HasSubstr("last seen nowhere"));
+  EXPECT_TRUE(to_json(s, r)["account"][0]["lost"]["last_seen"].is_null());
+  ASSERT_EQ(r.faults.size(), 1u);
+  EXPECT_EQ(r.faults[0].workpiece, "A");
+  EXPECT_EQ(r.faults[0].symptom, "part_not_arrived");  // a fault of no robot matches any robot's detection
+  EXPECT_DOUBLE_EQ(*r.faults[0].recovery_time, 30.0);
+}
+
+TEST(Faults, InjectionMatchedToDetectionDiagnosisAndRecovery) {
+  const Scenario s = exchange_scenario();
+  const Report r = make_report(s, parse_event_log(drop_log("recover"), "e"), {on_output(s, 0.1)}, std::nullopt);
+  EXPECT_TRUE(r.ok()) << (r.failures.empty() ? "" : r.failures.front());
+  ASSERT_EQ(r.faults.size(), 1u);
+  const FaultReport& f = r.faults[0];
+  EXPECT_EQ(f.kind, "drop");
+  EXPECT_DOUBLE_EQ(f.t, 5.5);
+  EXPECT_EQ(f.robot, "puma");
+  EXPECT_TRUE(f.detected);
+  EXPECT_DOUBLE_EQ(*f.detected_at, 5.53);
+  EXPECT_EQ(f.detected_by, "r1");
+  EXPECT_EQ(f.symptom, "grip_lost");
+  EXPECT_EQ(f.cause, "dropped");
+  EXPECT_EQ(f.action, "pick_again");
+  EXPECT_TRUE(f.recovered);
+  EXPECT_NEAR(*f.recovery_time, 2.75, 1e-9);
+  EXPECT_FALSE(f.stopped_safely);
+  EXPECT_TRUE(r.false_alarms.empty());
+  const nlohmann::json j = to_json(s, r);
+  ASSERT_EQ(j["faults"].size(), 1u);
+  EXPECT_EQ(j["faults"][0]["kind"], "drop");
+  EXPECT_EQ(j["faults"][0]["detected"], true);
+  EXPECT_EQ(j["faults"][0]["detected_at"], 5.53);
+  EXPECT_EQ(j["faults"][0]["symptom"], "grip_lost");
+  EXPECT_EQ(j["faults"][0]["recovery_time"], 2.75);
+  EXPECT_EQ(j["faults"][0]["stopped_safely"], false);
+  EXPECT_THAT(format_summary(r),
+              HasSubstr("drop at t = 5.50 s on puma: detected at t = 5.53 s (grip_lost by r1), cause dropped, "
+                        "action pick_again, recovered in 2.75 s"));
+}
+
+TEST(Faults, StoppedRunIsAKnownOutcomeAndTheFaultWasStoppedSafely) {
+  const Scenario s = exchange_scenario();
+  const Report r = make_report(s, parse_event_log(drop_log("stop", "stopped"), "e"), {on_floor("A")}, std::nullopt);
+  EXPECT_EQ(r.outcome, "stopped");
+  EXPECT_FALSE(r.ok());
+  EXPECT_THAT(r.failures[0], HasSubstr("the cell was stopped: grip_lost on r1"));
+  ASSERT_TRUE(r.stopped_at);
+  EXPECT_DOUBLE_EQ(*r.stopped_at, 5.54);
+  ASSERT_EQ(r.faults.size(), 1u);
+  EXPECT_TRUE(r.faults[0].detected);
+  EXPECT_EQ(r.faults[0].action, "stop_cell");
+  EXPECT_TRUE(r.faults[0].stopped_safely);
+  EXPECT_FALSE(r.faults[0].recovered);  // the cell was stopped before the recovery's end
+  EXPECT_TRUE(part(r, "A").unaccounted);  // on the floor, never declared lost
+  EXPECT_EQ(to_json(s, r)["stopped_at"], 5.54);
+  EXPECT_THAT(format_summary(r), HasSubstr("cell stopped safely"));
+}
+
+TEST(Faults, DetectionsBeforeAnyInjectionAreFalseAlarms) {
+  const Scenario s = exchange_scenario();
+  LogWriter w;
+  w.start();
+  w.event(1.0, "fault_detected", R"("robot":"r2","primitive":3,"symptom":"driver_timeout","detail":"no answer")");
+  w.event(2.0, "fault_injected", R"("kind":"timeout","robot":"melfa","workpiece":"","detail":"move 2")");
+  // A detection on the other robot does not match the MELFA's fault; the next one of r2 does.
+  w.event(2.5, "fault_detected", R"("robot":"r1","primitive":3,"symptom":"wait_timeout","detail":"")");
+  w.event(3.0, "fault_detected", R"("robot":"r2","primitive":4,"symptom":"driver_timeout","detail":"")");
+  w.event(3.0, "diagnosis", R"("robot":"r1","symptom":"wait_timeout","cause":"x","action":"resignal","path":"")");
+  w.event(3.0, "diagnosis", R"("robot":"r2","symptom":"driver_timeout","cause":"no_answer","action":"reset_rehome","path":"")");
+  w.event(4.0, "recovery_end", R"("robot":"r2","cause":"no_answer","action":"reset_rehome","ok":false,"detail":"x","duration":1.0)");
+  // A second injection of the same kind, never detected (the earlier detections are taken).
+  w.event(5.0, "fault_injected", R"("kind":"timeout","robot":"melfa","workpiece":"","detail":"grip 1")");
+  w.end(10, "failed", "r2: driver_timeout", 10);
+  const Report r = make_report(s, parse_event_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
+  ASSERT_EQ(r.false_alarms.size(), 1u);
+  EXPECT_DOUBLE_EQ(r.false_alarms[0].t, 1.0);
+  EXPECT_EQ(r.false_alarms[0].robot, "r2");
+  EXPECT_EQ(r.false_alarms[0].primitive, 3);
+  EXPECT_EQ(r.false_alarms[0].symptom, "driver_timeout");
+  ASSERT_EQ(r.faults.size(), 2u);
+  EXPECT_TRUE(r.faults[0].detected);
+  EXPECT_DOUBLE_EQ(*r.faults[0].detected_at, 3.0);
+  EXPECT_EQ(r.faults[0].cause, "no_answer");
+  EXPECT_FALSE(r.faults[0].recovered);  // its recovery failed
+  EXPECT_FALSE(r.faults[0].recovery_time);
+  EXPECT_FALSE(r.faults[1].detected);
+  const nlohmann::json j = to_json(s, r);
+  EXPECT_EQ(j["false_alarms"], 1);
+  EXPECT_EQ(j["false_alarm_detections"][0]["symptom"], "driver_timeout");
+  EXPECT_THAT(format_summary(r), HasSubstr("false alarm at t = 1.00 s: driver_timeout by r2"));
 }
 
 TEST(Gantt, TickStepsAreOneTwoOrFiveTimesAPowerOfTen) {

@@ -231,6 +231,133 @@ std::vector<std::string> places_of(const models::CellDescription& cell, const mo
   return out;
 }
 
+const char* to_string(PartStatus st) {
+  switch (st) {
+    case PartStatus::kInPlace:
+      return "in_place";
+    case PartStatus::kElsewhere:
+      return "elsewhere";
+    case PartStatus::kHeld:
+      return "held";
+    case PartStatus::kLost:
+      return "lost";
+    case PartStatus::kNotArrived:
+      return "not_arrived";
+    case PartStatus::kScrapped:
+      return "scrapped";
+  }
+  return "?";
+}
+
+std::size_t Report::unaccounted() const {
+  return static_cast<std::size_t>(
+      std::count_if(workpieces.begin(), workpieces.end(), [](const WorkpieceReport& w) { return w.unaccounted; }));
+}
+
+namespace {
+
+// The cell robot a name in the log stands for: a program label's binding, else the name itself (a cell name). For
+// fault_injected, which names cell robots, a cell robot name comes first.
+std::string cell_robot(const Scenario& s, const std::string& name, bool cell_first) {
+  if (name.empty()) return name;
+  if (cell_first && s.cell.find_robot(name) != nullptr) return name;
+  for (const Binding& b : s.robots) {
+    if (b.label == name) return b.name;
+  }
+  return name;
+}
+
+// Likewise for workpieces: a cell workpiece name first, else a program label's binding.
+std::string cell_workpiece(const Scenario& s, const std::string& name) {
+  if (name.empty() || s.cell.find_workpiece(name) != nullptr) return name;
+  for (const Binding& b : s.workpieces) {
+    if (b.label == name) return b.name;
+  }
+  return name;
+}
+
+std::string format_position(const Eigen::Vector3d& p) {
+  return fmt::format("({:.3f}, {:.3f}, {:.3f})", p.x(), p.y(), p.z());
+}
+
+// The faults (fault_injected matched to fault_detected, diagnosis, recovery_end) and false alarms of a run.
+void match_faults(const Scenario& s, const std::vector<json>& events, const std::string& file, Report& r) {
+  // The index of the event that stopped the cell if the run ended "stopped", else events.size() (a plain index:
+  // GCC 12 warns falsely about an optional one).
+  const std::size_t none = events.size();
+  std::size_t stop = none;
+  for (std::size_t i = 0; i < events.size() && r.outcome == "stopped" && stop == none; ++i) {
+    const std::string type = events[i]["type"].get<std::string>();
+    if (type == "cell_stopped" || (type == "run_end" && events[i].value("outcome", std::string()) == "stopped")) {
+      stop = i;
+    }
+  }
+  if (stop != none) r.stopped_at = events[stop]["t"].get<double>();
+
+  std::vector<bool> matched(events.size(), false);
+  bool injected_before = false;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const json& e = events[i];
+    const std::string type = e["type"].get<std::string>();
+    if (type == "fault_detected" && !injected_before) {
+      r.false_alarms.push_back({e["t"].get<double>(), field<std::string>(e, "robot", file),
+                                static_cast<int>(e.value("primitive", std::int64_t{-1})),
+                                field<std::string>(e, "symptom", file), e.value("detail", std::string())});
+      continue;
+    }
+    if (type != "fault_injected") continue;
+    injected_before = true;
+    FaultReport f;
+    f.kind = field<std::string>(e, "kind", file);
+    f.t = e["t"].get<double>();
+    f.robot = cell_robot(s, e.value("robot", std::string()), true);
+    f.workpiece = cell_workpiece(s, e.value("workpiece", std::string()));
+    f.detail = e.value("detail", std::string());
+    f.stopped_safely = stop != none && stop > i;
+
+    std::size_t detection = events.size();
+    for (std::size_t k = i + 1; k < events.size(); ++k) {
+      if (matched[k] || events[k]["type"] != "fault_detected") continue;
+      const std::string by = field<std::string>(events[k], "robot", file);
+      if (!f.robot.empty() && !by.empty() && cell_robot(s, by, false) != f.robot) continue;
+      detection = k;
+      break;
+    }
+    if (detection < events.size()) {
+      matched[detection] = true;
+      const json& d = events[detection];
+      f.detected = true;
+      f.detected_at = d["t"].get<double>();
+      f.detected_by = field<std::string>(d, "robot", file);
+      f.symptom = field<std::string>(d, "symptom", file);
+      std::size_t after = detection;
+      for (std::size_t k = detection + 1; k < events.size(); ++k) {
+        if (events[k]["type"] == "diagnosis" && field<std::string>(events[k], "robot", file) == f.detected_by) {
+          f.cause = field<std::string>(events[k], "cause", file);
+          f.action = field<std::string>(events[k], "action", file);
+          after = k;
+          break;
+        }
+      }
+      for (std::size_t k = after + 1; k < events.size(); ++k) {
+        if (events[k]["type"] != "recovery_end" || field<std::string>(events[k], "robot", file) != f.detected_by) {
+          continue;
+        }
+        if (f.cause.empty()) f.cause = events[k].value("cause", std::string());
+        if (f.action.empty()) f.action = events[k].value("action", std::string());
+        if (field<bool>(events[k], "ok", file) && !(stop != none && stop < k)) {
+          f.recovered = true;
+          f.recovery_time = events[k]["t"].get<double>() - f.t;
+        }
+        break;
+      }
+    }
+    r.faults.push_back(std::move(f));
+  }
+}
+
+}  // namespace
+
 Report make_report(const Scenario& s, const std::vector<json>& events, const std::vector<FinalPose>& finals,
                    std::optional<double> estimated_cycle_time, const std::string& file) {
   Report r;
@@ -258,9 +385,32 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
     r.reason = "the event log has no run_end: the run was cut short";
   }
   if (r.outcome == "finished") r.finished_at = last_fire;
-  if (r.outcome != "finished") {
+  if (r.outcome == "stopped") {
+    r.failures.push_back(
+        fmt::format("the run did not finish: the cell was stopped{}", r.reason.empty() ? "" : ": " + r.reason));
+  } else if (r.outcome != "finished") {
     r.failures.push_back(
         fmt::format("the run did not finish: {}{}", r.outcome, r.reason.empty() ? "" : ": " + r.reason));
+  }
+  match_faults(s, events, file, r);
+
+  // Parts the controller declared lost (the first declaration of each), and parts that arrived on the feed.
+  std::map<std::string, LostPart> lost;  // by cell workpiece
+  std::map<std::string, bool> arrived;
+  for (const json& e : events) {
+    const std::string type = e["type"].get<std::string>();
+    if (type == "workpiece_arrived") {
+      arrived[cell_workpiece(s, field<std::string>(e, "workpiece", file))] = true;
+    } else if (type == "workpiece_lost") {
+      LostPart l;
+      l.t = e["t"].get<double>();
+      l.reason = field<std::string>(e, "reason", file);
+      if (e.contains("x") && e["x"].is_number() && e.contains("y") && e["y"].is_number() && e.contains("z") &&
+          e["z"].is_number()) {
+        l.last_seen = Eigen::Vector3d(e["x"].get<double>(), e["y"].get<double>(), e["z"].get<double>());
+      }
+      lost.try_emplace(cell_workpiece(s, field<std::string>(e, "workpiece", file)), std::move(l));
+    }
   }
 
   // Cycle times: a workpiece (program label W) is picked when the first command of a "Pick W" starts, and done when
@@ -319,10 +469,30 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
     } else {
       wr.final_location = "unknown";
     }
-    if (expect != nullptr) {
+    if (auto it = lost.find(w.name); it != lost.end()) wr.lost = it->second;
+    wr.arrived = arrived.count(w.name) > 0;
+    const bool expect_lost = expect != nullptr && expect->place == kExpectLost;
+    if (wr.lost && !expect_lost) {
+      r.failures.push_back(fmt::format(
+          "workpiece {}{} was declared lost at t = {:.2f} s{}; last seen {}", w.name,
+          expect != nullptr ? fmt::format(" (expected at {})", expect->place) : std::string(), wr.lost->t,
+          wr.lost->reason.empty() ? std::string() : " (" + wr.lost->reason + ")",
+          wr.lost->last_seen ? "at " + format_position(*wr.lost->last_seen) : std::string("nowhere: it was never seen")));
+    }
+    if (expect_lost) {
+      wr.expected = expect->place;
+      wr.ok = wr.lost.has_value();
+      if (!*wr.ok) {
+        r.failures.push_back(fmt::format("workpiece {} is expected to be lost, but the controller did not declare it "
+                                         "lost; it is {}",
+                                         w.name,
+                                         wr.at.empty() ? wr.final_location
+                                                       : "at " + fmt::format("{}", fmt::join(wr.at, ", "))));
+      }
+    } else if (expect != nullptr) {
       wr.expected = expect->place;
       wr.ok = std::find(wr.at.begin(), wr.at.end(), expect->place) != wr.at.end();
-      if (!*wr.ok) {
+      if (!*wr.ok && !wr.lost) {
         r.failures.push_back(
             fp == finals.end()
                 ? fmt::format("workpiece {} must end at {}, but its final pose is unknown", w.name, expect->place)
@@ -333,6 +503,26 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
                       wr.position.x(), wr.position.y(), wr.position.z()));
       }
     }
+    // The account.
+    const bool present = fp != finals.end() && fp->present;
+    const bool never_present = fp != finals.end() && !fp->present && !wr.arrived;
+    if (wr.lost && !never_present) {
+      wr.status = PartStatus::kLost;
+      wr.where = wr.final_location;
+    } else if (never_present) {
+      wr.status = PartStatus::kNotArrived;
+      wr.where = wr.final_location;
+    } else if (present && !fp->held_by.empty()) {
+      wr.status = PartStatus::kHeld;
+      wr.where = fp->held_by;
+    } else if (expect != nullptr && !expect_lost && *wr.ok) {
+      wr.status = PartStatus::kInPlace;
+      wr.where = expect->place;
+    } else {
+      wr.status = PartStatus::kElsewhere;
+      wr.where = wr.final_location;
+    }
+    wr.unaccounted = expect != nullptr && !expect_lost && !*wr.ok && !wr.lost;
     if (!wr.label.empty()) {
       if (auto it = pick_start.find(wr.label); it != pick_start.end()) wr.pick_start = it->second;
       if (auto it = place_end.find(wr.label); it != place_end.end()) wr.place_end = it->second;
@@ -408,6 +598,60 @@ json to_json(const Scenario& s, const Report& r) {
     collisions.push_back({{"t", round4(c.t)}, {"a", c.a}, {"b", c.b}, {"depth", c.depth}});
   }
   j["collisions"] = std::move(collisions);
+
+  json account = json::array();
+  for (const WorkpieceReport& w : r.workpieces) {
+    json a;
+    a["workpiece"] = w.name;
+    a["status"] = to_string(w.status);
+    a["where"] = w.where;
+    a["expected"] = w.expected ? json(*w.expected) : json();
+    a["unaccounted"] = w.unaccounted;
+    if (w.lost) {
+      a["lost"] = {{"t", round4(w.lost->t)},
+                   {"reason", w.lost->reason},
+                   {"last_seen", w.lost->last_seen ? json::array({round4(w.lost->last_seen->x()),
+                                                                  round4(w.lost->last_seen->y()),
+                                                                  round4(w.lost->last_seen->z())})
+                                                   : json()}};
+    } else {
+      a["lost"] = json();
+    }
+    account.push_back(std::move(a));
+  }
+  j["account"] = std::move(account);
+  j["unaccounted"] = r.unaccounted();
+  j["stopped_at"] = opt(r.stopped_at);
+  json faults = json::array();
+  for (const FaultReport& f : r.faults) {
+    json fj;
+    fj["kind"] = f.kind;
+    fj["t"] = round4(f.t);
+    fj["robot"] = f.robot;
+    fj["workpiece"] = f.workpiece;
+    fj["detail"] = f.detail;
+    fj["detected"] = f.detected;
+    fj["detected_at"] = opt(f.detected_at);
+    fj["detected_by"] = f.detected_by;
+    fj["symptom"] = f.symptom;
+    fj["cause"] = f.cause;
+    fj["action"] = f.action;
+    fj["recovered"] = f.recovered;
+    fj["recovery_time"] = opt(f.recovery_time);
+    fj["stopped_safely"] = f.stopped_safely;
+    faults.push_back(std::move(fj));
+  }
+  j["faults"] = std::move(faults);
+  j["false_alarms"] = r.false_alarms.size();
+  json alarms = json::array();
+  for (const Detection& d : r.false_alarms) {
+    alarms.push_back({{"t", round4(d.t)},
+                      {"robot", d.robot},
+                      {"primitive", d.primitive},
+                      {"symptom", d.symptom},
+                      {"detail", d.detail}});
+  }
+  j["false_alarm_detections"] = std::move(alarms);
   return j;
 }
 
@@ -432,8 +676,46 @@ std::string format_summary(const Report& r) {
         fmt::format("  {} {}: expected {}, is {}{}\n", *w.ok ? "ok  " : "FAIL", w.name, *w.expected, w.final_location,
                     w.cycle_time ? fmt::format(" (cycle {:.2f} s)", *w.cycle_time) : std::string());
   }
+  // The account of the parts that are not simply in place, or that are unaccounted.
+  for (const WorkpieceReport& w : r.workpieces) {
+    if (w.status == PartStatus::kInPlace || (!w.expected && w.status == PartStatus::kElsewhere && !w.unaccounted)) {
+      continue;
+    }
+    std::string line = fmt::format("  part {}: {}", w.name, to_string(w.status));
+    if (w.lost) {
+      line += fmt::format(" at t = {:.2f} s{}, last seen {}", w.lost->t,
+                          w.lost->reason.empty() ? std::string() : " (" + w.lost->reason + ")",
+                          w.lost->last_seen ? "at " + format_position(*w.lost->last_seen) : std::string("nowhere"));
+    } else if (!w.where.empty()) {
+      line += fmt::format(" ({})", w.where);
+    }
+    if (w.unaccounted) line += ": UNACCOUNTED";
+    out += line + "\n";
+  }
   out += fmt::format("collisions: {}\n", r.collisions.size());
   for (const auto& c : r.collisions) out += fmt::format("  t = {:.3f} s: {} - {} ({:.4f} m)\n", c.t, c.a, c.b, c.depth);
+  if (!r.faults.empty() || !r.false_alarms.empty()) {
+    out += fmt::format("faults injected: {}, false alarms: {}\n", r.faults.size(), r.false_alarms.size());
+  }
+  for (const FaultReport& f : r.faults) {
+    std::string line = fmt::format("  {} at t = {:.2f} s", f.kind, f.t);
+    if (!f.robot.empty()) line += " on " + f.robot;
+    if (!f.workpiece.empty()) line += " of " + f.workpiece;
+    if (!f.detected) {
+      line += ": not detected";
+    } else {
+      line += fmt::format(": detected at t = {:.2f} s ({}{})", *f.detected_at, f.symptom,
+                          f.detected_by.empty() ? std::string() : " by " + f.detected_by);
+      if (!f.cause.empty() || !f.action.empty()) line += fmt::format(", cause {}, action {}", f.cause, f.action);
+      if (f.recovered) line += fmt::format(", recovered in {:.2f} s", *f.recovery_time);
+    }
+    if (f.stopped_safely) line += ", cell stopped safely";
+    out += line + "\n";
+  }
+  for (const Detection& d : r.false_alarms) {
+    out += fmt::format("  false alarm at t = {:.2f} s: {}{}\n", d.t, d.symptom,
+                       d.robot.empty() ? std::string() : " by " + d.robot);
+  }
   for (const std::string& f : r.failures) out += fmt::format("  failure: {}\n", f);
   return out;
 }

@@ -1,7 +1,9 @@
 // What a run did, told from its event log (runtime/event_log.hpp) and the workpieces' final poses: the robots'
 // timelines (what the Gantt chart draws), per-robot busy/waiting/blocked/idle time, each workpiece's cycle time and
-// final location against the expected outcome, throughput, collisions, and the verdict `twin run` exits with.
-// docs/scenarios.md describes report.json field by field.
+// final location against the expected outcome, throughput, collisions, the account of every workpiece (in place,
+// elsewhere, held, lost, not arrived), each injected fault matched to its detection, diagnosis and recovery, and the
+// verdict `twin run` exits with. docs/scenarios.md describes report.json field by field; docs/faults.md sections 5-6
+// the account and the faults.
 //
 // Everything here is computed from values (the log's lines, the poses), so a report can be rebuilt from a saved
 // events.jsonl, and tests feed it synthetic logs.
@@ -91,6 +93,29 @@ std::vector<std::string> places_of(const models::CellDescription& cell, const mo
 
 // --- The report ------------------------------------------------------------------------------------------------------
 
+// What became of a workpiece (docs/faults.md section 5).
+enum class PartStatus {
+  kInPlace,     // where the scenario expects it
+  kElsewhere,   // present, not where expected (or nothing is expected of it): where it is
+  kHeld,        // held by a robot at the end
+  kLost,        // declared lost by the controller (a workpiece_lost event names it)
+  kNotArrived,  // never present in the cell: a fed part never fed, a part taken out before the start
+  kScrapped,    // reserved: nothing sets it yet
+};
+
+// "in_place", "elsewhere", "held", "lost", "not_arrived", "scrapped".
+const char* to_string(PartStatus s);
+
+// The expectation place that means "the scenario expects this part to be lost" (`expect: {A: lost}`).
+inline constexpr const char* kExpectLost = "lost";
+
+// A workpiece_lost event: when the controller declared the part lost, why, and where it was last seen.
+struct LostPart {
+  double t = 0;
+  std::string reason;
+  std::optional<Eigen::Vector3d> last_seen;  // world, m; nullopt when it was never seen
+};
+
 struct WorkpieceReport {
   std::string name;                                    // cell workpiece
   std::string label;                                   // program label bound to it, "" if the program does not use it
@@ -103,10 +128,51 @@ struct WorkpieceReport {
   std::optional<double> pick_start;                    // the first command_start of a Pick of it
   std::optional<double> place_end;   // the end of the last Place that released it (its depart included)
   std::optional<double> cycle_time;  // place_end - pick_start
+  // The account (docs/faults.md section 5).
+  PartStatus status = PartStatus::kElsewhere;
+  std::string where;             // in_place: the expected place; held: the robot (cell name); otherwise
+                                 // final_location ("not in the cell" when not present)
+  std::optional<LostPart> lost;  // set when a workpiece_lost event names it (the first such event)
+  bool arrived = false;          // a workpiece_arrived event names it
+  // Not where it should be (it has an expectation that does not hold) and not declared lost or not arrived by the
+  // controller (no workpiece_lost event names it), unless the scenario expects it lost.
+  bool unaccounted = false;
+};
+
+// One injected fault (a fault_injected event) and what the controller made of it (docs/faults.md section 5).
+struct FaultReport {
+  std::string kind;       // "drop", "timeout", ...
+  double t = 0;           // s: when it was injected
+  std::string robot;      // cell robot, "" none
+  std::string workpiece;  // cell workpiece, "" none
+  std::string detail;
+  // The first fault_detected at or after the injection not matched to an earlier fault, of the same robot when both
+  // name one.
+  bool detected = false;
+  std::optional<double> detected_at;
+  std::string detected_by;  // the detection's robot (program label, "" for the cell)
+  std::string symptom;
+  // The first diagnosis of that robot after the detection, and the first recovery_end after the diagnosis.
+  std::string cause, action;
+  // A recovery_end with ok true followed, and the cell was not stopped before it.
+  bool recovered = false;
+  std::optional<double> recovery_time;  // s: that recovery_end's t minus the injection's t
+  // The run ended "stopped" (cell_stopped) after the injection.
+  bool stopped_safely = false;
+};
+
+// A fault_detected event.
+struct Detection {
+  double t = 0;
+  std::string robot;  // program label, "" for the cell
+  int primitive = -1;
+  std::string symptom;
+  std::string detail;
 };
 
 struct Report {
-  std::string outcome = "timeout";             // run_end's outcome: "finished", "failed", "timeout"
+  std::string outcome = "timeout";  // run_end's outcome: "finished", "failed", "timeout", "stopped"; "unfinished"
+                                    // when the log has no run_end
   std::string reason;                          // run_end's reason
   double end_time = 0;                         // s
   std::optional<double> finished_at;           // s: when the program reached its final marking (the last firing)
@@ -122,16 +188,32 @@ struct Report {
     double depth = 0;
   };
   std::vector<CollisionEntry> collisions;
-  std::vector<std::string> failures;  // why the run is not ok, one line each; empty when ok
+  std::optional<double> stopped_at;  // s: the cell_stopped event (else run_end) of a run that ended "stopped"
+  std::vector<FaultReport> faults;    // one per fault_injected event, in log order
+  std::vector<Detection> false_alarms;  // fault_detected events with no fault_injected before them in the log
+  std::vector<std::string> failures;    // why the run is not ok, one line each; empty when ok
 
-  // The run finished and every expected outcome holds.
+  // The run finished and every expected outcome holds (a lost part counts against it unless expected lost).
   bool ok() const { return failures.empty(); }
+  // How many workpieces are unaccounted.
+  std::size_t unaccounted() const;
 };
 
 // Builds the report of a run of `scenario` from its event log, the final poses of the cell's workpieces and the
-// estimate made before the run (if any). Failures: the run did not finish (outcome and reason), an expected
-// workpiece is not where it should be (where it is instead), an expected workpiece has no final pose. Collisions are
-// reported, not counted as failures (an expectation decides what matters). Throws InputError as build_timeline.
+// estimate made before the run (if any). Failures: the run did not finish (outcome and reason; "stopped": the cell
+// was stopped), an expected workpiece is not where it should be (where it is instead), an expected workpiece has no
+// final pose, a workpiece was declared lost that the scenario does not expect lost, a workpiece expected lost was
+// not. Collisions and faults are reported, not counted as failures (an expectation decides what matters).
+//
+// The account: a part named by a workpiece_lost event is lost, unless it was never present (not_arrived); else one
+// that is not present is not_arrived when no workpiece_arrived event names it (else elsewhere, "not in the cell"); one
+// held by a robot is held; one whose expectation holds is in_place; the rest are elsewhere. Workpieces and robots in
+// the events may be named by their cell name or their program label.
+//
+// Faults: each fault_injected event, in log order, is matched to the first fault_detected after it in the log not yet
+// matched (same robot when both name one, else any); then the first diagnosis of the detecting robot after the
+// detection, and the first recovery_end of that robot after the diagnosis. Detections with no fault_injected before
+// them are false alarms. Throws InputError as build_timeline, or when a fault event lacks a field.
 Report make_report(const Scenario& scenario, const std::vector<nlohmann::json>& events,
                    const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time,
                    const std::string& file = "events.jsonl");
@@ -140,7 +222,8 @@ Report make_report(const Scenario& scenario, const std::vector<nlohmann::json>& 
 nlohmann::json to_json(const Scenario& scenario, const Report& report);
 
 // The summary printed at the end of `twin run`: the verdict, estimated vs measured cycle time, throughput, each
-// expectation that failed and why, collisions. Ends with a newline.
+// expectation that failed and why, the account of the parts that are not in place, collisions, the injected faults
+// and what became of them, false alarms. Ends with a newline.
 std::string format_summary(const Report& report);
 
 }  // namespace cellwright::twin::scenario

@@ -22,5 +22,6 @@ void add_snapshot(CLI::App& app, Command* run);
 void add_run(CLI::App& app, Command* run);
 void add_step(CLI::App& app, Command* run);
 void add_emulate(CLI::App& app, Command* run);
+void add_campaign(CLI::App& app, Command* run);
 
 }  // namespace cellwright::tools

@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   cellwright::tools::add_run(app, &run);
   cellwright::tools::add_step(app, &run);
   cellwright::tools::add_emulate(app, &run);
+  cellwright::tools::add_campaign(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

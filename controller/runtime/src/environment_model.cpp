@@ -159,6 +159,8 @@ const char* to_string(Perception perception) {
 
 void apply_truth(EnvironmentModel& model, const Truth& truth, Perception perception) {
   model.time = truth.time;
+  model.obstacles.clear();
+  for (const Obstacle& o : truth.obstacles) model.obstacles.push_back({o.name, o.centre, o.size});
   for (const WorkpieceTruth& w : truth.workpieces) {
     if (perception == Perception::kVision) break;
     WorkpieceState* s = model.find_workpiece(w.name);
@@ -197,6 +199,7 @@ void apply_truth(EnvironmentModel& model, const Truth& truth, Perception percept
     RobotState* s = model.find_robot(r.name);
     if (s == nullptr) continue;
     s->between_fingers = r.between_fingers;
+    s->wrist_force = r.wrist_force;
   }
 }
 

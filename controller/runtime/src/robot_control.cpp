@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/runtime/safety.hpp"
 
 namespace cellwright::runtime {
 
@@ -144,6 +145,7 @@ void RobotControl::log_start(SimDuration now) {
 }
 
 void RobotControl::fail(SimDuration now, std::string reason) {
+  if (recovery_) end_recovery(now, false, reason);
   log_start(now);
   log_.command_end(now, label_, current_->command.index, task::to_string(current_->command.primitive), false, reason);
   report(now, CommandOutcome::kFailed, std::move(reason));
@@ -151,8 +153,57 @@ void RobotControl::fail(SimDuration now, std::string reason) {
   phase_ = RobotPhase::kFailed;
 }
 
+std::optional<RobotControl::Goal> RobotControl::choose_goal(const MotionTarget& target,
+                                                            const std::vector<double>& joints,
+                                                            const Eigen::Isometry3d& base, std::string* why) const {
+  const drivers::Capabilities& caps = driver_.capabilities();
+  Goal goal;
+  if (!target.joints.empty()) {
+    goal.joints = target.joints;
+    goal.pose_in_base = chain_.forward(to_eigen(goal.joints));
+    return goal;
+  }
+  CW_CHECK(joints.size() == chain_.dof(), "robot {}: {} joints in the model, {} in the kinematics", cell_,
+           joints.size(), chain_.dof());
+  const Eigen::VectorXd seed = to_eigen(joints);
+  std::optional<models::IkResult> best;
+  int best_rank = 0;
+  std::string reason;
+  for (std::size_t i = 0; i < target.poses.size(); ++i) {
+    const int rank = i < target.rank.size() ? target.rank[i] : 0;
+    if (best && rank > best_rank) continue;  // a better-ranked pose is already reachable
+    const Eigen::Isometry3d in_base = base.inverse() * target.poses[i];
+    if (!caps.full_orientation && drivers::out_of_arm_plane(in_base) > options_.arm_plane_tolerance) {
+      // A 5-axis arm's yaw follows its position: its controller could not be told this orientation.
+      if (reason.empty()) {
+        reason = fmt::format(
+            "the tool's approach axis is {:.1f} deg out of the arm's vertical plane, and {} cannot "
+            "turn it there (5 axes)",
+            drivers::out_of_arm_plane(in_base) * 180 / M_PI, cell_);
+      }
+      continue;
+    }
+    models::IkResult ik = chain_.inverse(in_base, seed, options_.ik);
+    if (ik.status != models::IkStatus::kOk) {
+      if (reason.empty()) reason = ik.reason;
+      continue;
+    }
+    if (!best || rank < best_rank || (ik.q - seed).norm() < (best->q - seed).norm()) {
+      best = std::move(ik);
+      best_rank = rank;
+      goal.pose_in_base = in_base;
+    }
+  }
+  if (!best) {
+    if (why != nullptr) *why = reason;
+    return std::nullopt;
+  }
+  goal.joints = to_std(best->q);
+  return goal;
+}
+
 bool RobotControl::submit_current(SimDuration now) {
-  const task::Primitive& p = current_->command.primitive;
+  const task::Primitive& p = active();
   const drivers::Capabilities& caps = driver_.capabilities();
   drivers::Command cmd;
   if (p.kind == task::PrimitiveKind::kMove) {
@@ -178,53 +229,40 @@ bool RobotControl::submit_current(SimDuration now) {
             target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt ? target.object : "");
         current_->wait_logged = true;
       }
+      if (!current_->waiting_since) current_->waiting_since = now;
+      const bool part_target = target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt;
+      if (options_.recovery.enabled && part_target && now - *current_->waiting_since >= options_.recovery.part_wait) {
+        const bool is_part = env_.read([&](const EnvironmentModel& m) { return m.find_workpiece(target.object) != nullptr; });
+        if (is_part) {
+          symptom(now, Symptom::part_not_arrived,
+                  fmt::format("waited {} s for {}: {}", format_sim_time(now - *current_->waiting_since), target.object,
+                              seen.target.reason),
+                  target.object);
+        }
+      }
       return false;
     }
+    current_->waiting_since.reset();
     if (seen.target.resolution == MotionTarget::Resolution::kFail) {
       fail(now, seen.target.reason);
       return false;
     }
-    std::vector<double> goal = seen.target.joints;
-    Eigen::Isometry3d pose_in_base = Eigen::Isometry3d::Identity();
-    if (goal.empty()) {
-      CW_CHECK(seen.joints.size() == chain_.dof(), "robot {}: {} joints in the model, {} in the kinematics", cell_,
-               seen.joints.size(), chain_.dof());
-      const Eigen::VectorXd seed = to_eigen(seen.joints);
-      std::optional<models::IkResult> best;
-      int best_rank = 0;
-      std::string why;
-      for (std::size_t i = 0; i < seen.target.poses.size(); ++i) {
-        const int rank = i < seen.target.rank.size() ? seen.target.rank[i] : 0;
-        if (best && rank > best_rank) continue;  // a better-ranked pose is already reachable
-        const Eigen::Isometry3d in_base = seen.base.inverse() * seen.target.poses[i];
-        if (!caps.full_orientation && drivers::out_of_arm_plane(in_base) > options_.arm_plane_tolerance) {
-          // A 5-axis arm's yaw follows its position: its controller could not be told this orientation.
-          if (why.empty()) {
-            why = fmt::format(
-                "the tool's approach axis is {:.1f} deg out of the arm's vertical plane, and {} cannot "
-                "turn it there (5 axes)",
-                drivers::out_of_arm_plane(in_base) * 180 / M_PI, cell_);
-          }
-          continue;
-        }
-        models::IkResult ik = chain_.inverse(in_base, seed, options_.ik);
-        if (ik.status != models::IkStatus::kOk) {
-          if (why.empty()) why = ik.reason;
-          continue;
-        }
-        if (!best || rank < best_rank || (ik.q - seed).norm() < (best->q - seed).norm()) {
-          best = std::move(ik);
-          best_rank = rank;
-          pose_in_base = in_base;
-        }
+    if (options_.recovery.enabled) {
+      const std::uint64_t before = symptoms_;
+      check_misplaced(now, target);
+      if (!current_ || (symptoms_ != before && recovery_)) return false;  // the check started a recovery
+    }
+    std::string why;
+    const std::optional<Goal> goal = choose_goal(seen.target, seen.joints, seen.base, &why);
+    if (!goal) {
+      const std::string reason = fmt::format("{} is unreachable for {}: {}", seen.target.description, cell_, why);
+      const bool is_part = env_.read([&](const EnvironmentModel& m) { return m.find_workpiece(target.object) != nullptr; });
+      if (options_.recovery.enabled) {
+        symptom(now, Symptom::target_unreachable, reason, is_part ? target.object : std::string());
+      } else {
+        fail(now, reason);
       }
-      if (!best) {
-        fail(now, fmt::format("{} is unreachable for {}: {}", seen.target.description, cell_, why));
-        return false;
-      }
-      goal = to_std(best->q);
-    } else {
-      pose_in_base = chain_.forward(to_eigen(goal));
+      return false;
     }
     // The driver solves its own IK for a pose and may pick another configuration: such a move is checked on the tool.
     const bool pose_command = caps.cartesian_control && (caps.prefers_pose || !caps.joint_control);
@@ -235,12 +273,12 @@ bool RobotControl::submit_current(SimDuration now) {
     if (pose_command) {
       const drivers::Path path =
           caps.linear_motion && straight_from(last_target_, target) ? drivers::Path::linear : drivers::Path::joint;
-      cmd = drivers::MovePose{pose_in_base, path, options_.speed};
+      cmd = drivers::MovePose{goal->pose_in_base, path, options_.speed};
     } else {
-      cmd = drivers::MoveJoints{goal, options_.speed};
+      cmd = drivers::MoveJoints{goal->joints, options_.speed};
     }
-    current_->goal = std::move(goal);
-    current_->goal_pose = pose_in_base;
+    current_->goal = goal->joints;
+    current_->goal_pose = goal->pose_in_base;
     current_->pose_command = pose_command;
     current_->target = target;
   } else {
@@ -253,7 +291,13 @@ bool RobotControl::submit_current(SimDuration now) {
   current_->detail = drivers::describe(cmd);
   if (s.error == drivers::ErrorCode::busy) return false;  // its queue is full (a position read, say): next turn
   if (!s.accepted()) {
-    fail(now, fmt::format("the driver refused '{}': {}: {}", current_->detail, drivers::to_string(s.error), s.message));
+    const std::string reason =
+        fmt::format("the driver refused '{}': {}: {}", current_->detail, drivers::to_string(s.error), s.message);
+    if (options_.recovery.enabled && driver_.state() == drivers::DriverState::fault) {
+      symptom(now, Symptom::driver_fault, reason, std::string());
+    } else {
+      fail(now, reason);
+    }
     return false;
   }
   current_->id = s.id;
@@ -263,7 +307,7 @@ bool RobotControl::submit_current(SimDuration now) {
 }
 
 void RobotControl::complete(SimDuration now) {
-  const task::Primitive& p = current_->command.primitive;
+  const task::Primitive& p = active();
   const std::size_t index = current_->command.index;
   if (!current_->done_seen) {
     current_->done_seen = now;
@@ -276,6 +320,7 @@ void RobotControl::complete(SimDuration now) {
   if (p.kind == task::PrimitiveKind::kMove) {
     if (!check_position(now)) return;  // waiting for the read-back, or failed
     if (current_->target) last_target_ = current_->target;
+    if (options_.recovery.enabled) check_shift(now);
   } else if (p.kind == task::PrimitiveKind::kClose) {
     const std::string expected = p.workpiece.empty() ? std::string() : bound(p.workpiece);
     const std::optional<std::string> between =
@@ -286,10 +331,16 @@ void RobotControl::complete(SimDuration now) {
       held = expected;
     } else if (between->empty()) {
       log_.sensor(now, label_, index, "closed_on_nothing", "");
-      if (!expected.empty()) return fail(now, fmt::format("the gripper closed on nothing (expected {})", expected));
+      if (!expected.empty()) {
+        const std::string why = fmt::format("the gripper closed on nothing (expected {})", expected);
+        if (options_.recovery.enabled) return symptom(now, Symptom::closed_on_nothing, why, expected);
+        return fail(now, why);
+      }
     } else if (!expected.empty() && *between != expected) {
       log_.sensor(now, label_, index, "closed_on_wrong_part", *between);
-      return fail(now, fmt::format("the gripper closed on {}, expected {}", *between, expected));
+      const std::string why = fmt::format("the gripper closed on {}, expected {}", *between, expected);
+      if (options_.recovery.enabled) return symptom(now, Symptom::closed_on_wrong_part, why, expected);
+      return fail(now, why);
     } else {
       log_.sensor(now, label_, index, "gripped", *between);
       held = *between;
@@ -310,6 +361,8 @@ void RobotControl::complete(SimDuration now) {
         r->released_tcp.reset();
         w->held_by = cell_;
       });
+      grip_missing_ = 0;
+      shift_reported_ = false;
     }
   } else if (p.kind == task::PrimitiveKind::kOpen) {
     const std::string released = env_.write([&](EnvironmentModel& m) {
@@ -323,9 +376,18 @@ void RobotControl::complete(SimDuration now) {
     });
     log_.sensor(now, label_, index, "released", released);
   }
+  if (current_->step) {
+    // A recovery step is done: the next one, or the command again (or skipped).
+    current_->step.reset();
+    reset_submission();
+    phase_ = RobotPhase::kReady;
+    return;
+  }
+  if (recovery_) end_recovery(now, true, "");
   log_.command_end(now, label_, index, task::to_string(p), true, "");
   report(now, CommandOutcome::kDone, "");
   current_.reset();
+  protective_stops_ = 0;
   phase_ = RobotPhase::kReady;
 }
 
@@ -344,7 +406,12 @@ bool RobotControl::check_position(SimDuration now) {
   const drivers::PositionReading& r = *reading_;
   const auto missed = [&](std::string why) {
     log_.sensor(now, label_, index, "position_missed", "");
-    fail(now, fmt::format("position not reached: {}", why));
+    const std::string reason = fmt::format("position not reached: {}", why);
+    if (options_.recovery.enabled) {
+      symptom(now, Symptom::position_missed, reason, std::string());
+    } else {
+      fail(now, reason);
+    }
     return false;
   };
   if (!current_->pose_command && r.joints.size() == current_->goal.size()) {
@@ -429,9 +496,31 @@ void RobotControl::poll_current(SimDuration now) {
     case drivers::CommandPhase::pending:
     case drivers::CommandPhase::running:
       return;
-    case drivers::CommandPhase::failed:
-      return fail(now, fmt::format("the driver failed '{}': {}: {}", current_->detail, drivers::to_string(st.error),
-                                   st.message));
+    case drivers::CommandPhase::failed: {
+      const std::string reason = fmt::format("the driver failed '{}': {}: {}", current_->detail,
+                                             drivers::to_string(st.error), st.message);
+      if (!options_.recovery.enabled || halted_) return fail(now, reason);
+      if (protective_ || (recovery_ && recovery_->settle)) {
+        reset_submission();  // stopped on purpose: done again once released
+        return;
+      }
+      Symptom sy = Symptom::driver_fault;
+      switch (st.error) {
+        case drivers::ErrorCode::timeout:
+          sy = Symptom::driver_timeout;
+          break;
+        case drivers::ErrorCode::connection_lost:
+          sy = Symptom::link_lost;
+          break;
+        case drivers::ErrorCode::unreachable:
+          sy = Symptom::position_refused;
+          break;
+        default:
+          sy = Symptom::driver_fault;
+          break;
+      }
+      return symptom(now, sy, reason, std::string());
+    }
     case drivers::CommandPhase::done:
       return complete(now);
   }
@@ -450,6 +539,11 @@ void RobotControl::step(SimDuration now) {
   if (phase_ == RobotPhase::kFailed) return;
   collect_position();
   track_held_part();
+  if (options_.recovery.enabled && phase_ != RobotPhase::kBringUp) {
+    watch_safety(now);
+    if (phase_ != RobotPhase::kFailed) watch_grip(now);
+    if (phase_ == RobotPhase::kFailed) return;
+  }
   run_commands(now);
   // The periodic read goes last, so that a read asked for after a completion seen in this turn is the one that
   // checks it.
@@ -468,9 +562,571 @@ void RobotControl::run_commands(SimDuration now) {
       start_next(now);
       if (!current_) return;
     }
-    if (current_->id == 0 && !submit_current(now)) return;  // waiting for its target, or failed
+    if (current_->id == 0 && !current_->step && !recovery_ && about_lost_part()) {
+      skip_current(now, "its workpiece is lost");
+      continue;
+    }
+    if (recovery_ && !advance_recovery(now)) return;
+    if (!current_) continue;  // skipped
+    if (phase_ == RobotPhase::kFailed) return;
+    if (protective_) return;  // the safety layer holds the robot
+    if (current_->id == 0 && driver_.state() == drivers::DriverState::stopped) {
+      if (driver_.activate() != drivers::ErrorCode::none) return;
+    }
+    if (current_->id == 0 && !submit_current(now)) return;  // waiting for its target, recovering, or failed
     poll_current(now);
-    if (current_ || phase_ == RobotPhase::kFailed) return;  // still running, or failed
+    if (phase_ == RobotPhase::kFailed) return;
+    if (current_ && (current_->id != 0 || recovery_)) return;  // still running, or recovering: next turn
+  }
+}
+
+// ---- Faults ----
+
+const task::Primitive& RobotControl::active() const {
+  return current_->step ? *current_->step : current_->command.primitive;
+}
+
+void RobotControl::reset_submission() {
+  current_->id = 0;
+  current_->goal.clear();
+  current_->goal_pose.reset();
+  current_->done_seen.reset();
+  current_->reads_at_done = 0;
+  current_->pose_command = false;
+  current_->target.reset();
+  current_->waiting_since.reset();
+}
+
+void RobotControl::symptom(SimDuration now, Symptom s, std::string detail, std::string workpiece) {
+  if (!options_.recovery.enabled) return fail(now, std::move(detail));
+  const int primitive = current_ ? static_cast<int>(current_->command.index) : -1;
+  ++symptoms_;
+  log_.fault_detected(now, label_, primitive, to_string(s), detail);
+  if (current_) {
+    log_start(now);
+    ++current_->attempts;
+    current_->step.reset();
+    reset_submission();
+  }
+  const SimDuration detected = recovery_ ? recovery_->detected : now;
+  recovery_.emplace();
+  recovery_->diagnosis.symptom = s;
+  recovery_->detected = detected;
+  recovery_->workpiece = std::move(workpiece);
+  recovery_->detail = std::move(detail);
+  if (s == Symptom::grip_lost) {
+    // Stop carrying and let the part come to rest before asking where it is.
+    driver_.stop();
+    env_.write([&](EnvironmentModel& m) {
+      RobotState* r = m.find_robot(cell_);
+      if (r != nullptr) r->hold.reset();
+      WorkpieceState* w = m.find_workpiece(recovery_->workpiece);
+      if (w != nullptr && w->held_by == cell_) w->held_by.clear();
+    });
+    recovery_->settle = true;
+    return;
+  }
+  diagnose_and_act(now);
+}
+
+bool RobotControl::answer(Question q) const {
+  const std::string& part = recovery_->workpiece;
+  switch (q) {
+    case Question::part_seen:
+      return env_.read([&](const EnvironmentModel& m) {
+        const WorkpieceState* w = m.find_workpiece(part);
+        return w != nullptr && w->present && !w->lost;
+      });
+    case Question::part_at_rest:
+      return env_.read([&](const EnvironmentModel& m) {
+        const WorkpieceState* w = m.find_workpiece(part);
+        return w != nullptr && w->motion_known && w->velocity.norm() <= options_.targets.part_at_rest_speed;
+      });
+    case Question::part_upright:
+      return env_.read([&](const EnvironmentModel& m) {
+        const WorkpieceState* w = m.find_workpiece(part);
+        return w != nullptr && w->pose.linear().col(2).z() > std::cos(15.0 * M_PI / 180.0);
+      });
+    case Question::part_reachable: {
+      if (part.empty()) return false;
+      const bool upright = env_.read([&](const EnvironmentModel& m) {
+        const WorkpieceState* w = m.find_workpiece(part);
+        return w != nullptr && w->pose.linear().col(2).z() > std::cos(15.0 * M_PI / 180.0);
+      });
+      if (!upright) return false;  // a grasp from above fits only a part standing up
+      task::Target above{task::TargetKind::kAbove, part};
+      task::Target at{task::TargetKind::kAt, part};
+      return reachable(above) && reachable(at);
+    }
+    case Question::part_in_hand:
+      return env_.read([&](const EnvironmentModel& m) {
+        const RobotState* r = m.find_robot(cell_);
+        return r != nullptr && r->between_fingers && *r->between_fingers == part;
+      });
+    case Question::driver_in_fault:
+      return driver_.state() == drivers::DriverState::fault;
+    case Question::retries_left:
+      return !current_ || current_->attempts <= options_.recovery.max_attempts;
+    case Question::obstacle_near:
+      return env_.read([&](const EnvironmentModel& m) {
+        const RobotState* r = m.find_robot(cell_);
+        if (r == nullptr || !r->tcp) return !m.obstacles.empty();
+        for (const ObstacleState& o : m.obstacles) {
+          if (distance_to_box(r->tcp->translation(), o.centre, o.size) < 1.0) return true;
+        }
+        return false;
+      });
+    case Question::signal_fired:
+      return false;  // task control's question
+  }
+  return false;
+}
+
+bool RobotControl::reachable(const task::Target& target) const {
+  struct Seen {
+    MotionTarget target;
+    std::vector<double> joints;
+    Eigen::Isometry3d base;
+  };
+  TargetOptions targets = options_.targets;
+  const Seen seen = env_.read([&](const EnvironmentModel& m) {
+    const RobotState* r = m.find_robot(cell_);
+    // Asked as if the hand were empty: the part is to be picked.
+    EnvironmentModel copy = m;
+    if (RobotState* rc = copy.find_robot(cell_)) {
+      rc->hold.reset();
+      rc->released_tcp.reset();
+    }
+    if (WorkpieceState* w = copy.find_workpiece(target.object)) {
+      w->held_by.clear();
+      w->velocity.setZero();
+    }
+    return Seen{resolve_target(copy, cell_, target, targets), r ? r->joints : std::vector<double>{},
+                r ? r->base() : Eigen::Isometry3d::Identity()};
+  });
+  if (seen.target.resolution != MotionTarget::Resolution::kOk) return false;
+  return choose_goal(seen.target, seen.joints, seen.base, nullptr).has_value();
+}
+
+void RobotControl::diagnose_and_act(SimDuration now) {
+  Recovery& r = *recovery_;
+  const DecisionTree& tree = options_.recovery.tree ? *options_.recovery.tree : DecisionTree::standard();
+  const Diagnosis d = tree.diagnose(r.diagnosis.symptom, [&](Question q) { return answer(q); });
+  r.diagnosis = d;
+  log_.diagnosis(now, label_, to_string(d.symptom), d.cause, to_string(d.action), d.path);
+  const std::string& part = r.workpiece;
+  using K = task::PrimitiveKind;
+  const auto primitive = [&](K kind, task::TargetKind target = task::TargetKind::kAbove) {
+    task::Primitive p;
+    p.kind = kind;
+    if (kind == K::kMove) p.target = task::Target{target, part};
+    if (kind == K::kClose) p.workpiece = part;
+    if (current_) {
+      p.where = current_->command.primitive.where;
+      p.task = current_->command.primitive.task;
+    }
+    p.motion = "recovery";
+    return p;
+  };
+  switch (d.action) {
+    case Action::retry:
+      return;  // the command is submitted again (reset_submission was done)
+    case Action::reset_rehome:
+      r.rehome = true;
+      return;
+    case Action::wait_clear:
+      r.wait_clear = true;
+      return;
+    case Action::pick_again: {
+      r.steps.push_back(primitive(K::kOpen));
+      r.steps.push_back(primitive(K::kMove, task::TargetKind::kAbove));
+      r.steps.push_back(primitive(K::kMove, task::TargetKind::kAt));
+      const bool closing = current_ && current_->command.primitive.kind == K::kClose;
+      if (!closing) {
+        // Carrying it was interrupted: grasp it again and lift it, then go on with the move.
+        r.steps.push_back(primitive(K::kClose));
+        r.steps.push_back(primitive(K::kMove, task::TargetKind::kAbove));
+      }
+      return;
+    }
+    case Action::adopt_hold: {
+      env_.write([&](EnvironmentModel& m) {
+        RobotState* rs = m.find_robot(cell_);
+        const WorkpieceState* w = m.find_workpiece(part);
+        if (rs == nullptr || w == nullptr || !rs->hold || !rs->tcp) return;
+        rs->hold->in_hand = rs->tcp->inverse() * w->pose;
+        rs->hold->tcp_above_bottom = rs->tcp->translation().z() - (w->pose.translation().z() - w->size().z() / 2);
+      });
+      recovery_.reset();
+      log_.recovery_end(now, label_, d.cause, to_string(d.action), true, "the hold follows the part", now - r.detected);
+      return;
+    }
+    case Action::go_on:
+    case Action::resignal: {
+      const SimDuration took = now - r.detected;
+      const std::string cause = d.cause;
+      const std::string action(to_string(d.action));
+      recovery_.reset();
+      log_.recovery_end(now, label_, cause, action, true, "", took);
+      return;
+    }
+    case Action::set_aside:
+      set_aside(now, part, d.cause);
+      r.skip = true;
+      if (current_) {
+        r.steps.clear();
+      }
+      return;
+    case Action::stop_cell:
+      return stop_cell(now, fmt::format("{}: {}", d.cause, r.detail));
+  }
+}
+
+bool RobotControl::advance_recovery(SimDuration now) {
+  Recovery& r = *recovery_;
+  if (r.settle) {
+    const bool rest = env_.read([&](const EnvironmentModel& m) {
+      const WorkpieceState* w = m.find_workpiece(r.workpiece);
+      return w == nullptr || !w->present || (w->motion_known && w->velocity.norm() <= options_.targets.part_at_rest_speed);
+    });
+    if (!rest && now - r.detected < std::chrono::seconds(3)) return false;
+    r.settle = false;
+    diagnose_and_act(now);
+    return false;
+  }
+  if (r.wait_clear) {
+    if (protective_) return false;
+    r.wait_clear = false;
+  }
+  if (r.rehome) {
+    switch (driver_.state()) {
+      case drivers::DriverState::fault:
+        if (driver_.reset() != drivers::ErrorCode::none) {
+          stop_cell(now, fmt::format("the driver of {} could not be reset", cell_));
+        }
+        return false;
+      case drivers::DriverState::disconnected: {
+        drivers::ErrorCode e = drivers::ErrorCode::none;
+        std::string why;
+        try {
+          e = driver_.connect();
+        } catch (const std::exception& ex) {
+          why = ex.what();
+          e = drivers::ErrorCode::connection_lost;
+        }
+        if (e != drivers::ErrorCode::none) {
+          stop_cell(now, fmt::format("the driver of {} could not connect again: {} {}", cell_, drivers::to_string(e), why));
+        }
+        return false;
+      }
+      case drivers::DriverState::connected:
+      case drivers::DriverState::stopped:
+        if (r.home_id == 0) {
+          const drivers::Submitted s = driver_.home();
+          if (!s.accepted()) {
+            stop_cell(now, fmt::format("{} could not be homed again: {}", cell_, drivers::to_string(s.error)));
+            return false;
+          }
+          r.home_id = s.id;
+        }
+        [[fallthrough]];
+      case drivers::DriverState::homed: {
+        if (r.home_id != 0) {
+          const drivers::CommandStatus st = driver_.poll(r.home_id);
+          if (st.phase == drivers::CommandPhase::failed) {
+            stop_cell(now, fmt::format("{} could not be homed again: {}", cell_, st.message));
+            return false;
+          }
+          if (st.phase != drivers::CommandPhase::done) return false;
+        }
+        if (driver_.state() == drivers::DriverState::homed && driver_.activate() != drivers::ErrorCode::none) {
+          stop_cell(now, fmt::format("{} could not be activated again", cell_));
+        }
+        return false;
+      }
+      case drivers::DriverState::active:
+        r.rehome = false;
+        break;
+    }
+  }
+  if (!current_) return false;  // the recovery waits for the next command
+  if (!current_->step && current_->id == 0) {
+    if (!r.steps.empty()) {
+      current_->step = r.steps.front();
+      r.steps.pop_front();
+    } else if (r.skip) {
+      skip_current(now, fmt::format("its workpiece is lost ({})", r.diagnosis.cause));
+      return false;
+    }
+  }
+  return true;
+}
+
+void RobotControl::end_recovery(SimDuration now, bool ok, const std::string& detail) {
+  if (!recovery_) return;
+  const Recovery r = std::move(*recovery_);
+  recovery_.reset();
+  log_.recovery_end(now, label_, r.diagnosis.cause, to_string(r.diagnosis.action), ok, detail, now - r.detected);
+}
+
+void RobotControl::set_aside(SimDuration now, const std::string& workpiece, const std::string& reason) {
+  if (workpiece.empty()) return;
+  const std::optional<Eigen::Vector3d> last = env_.write([&](EnvironmentModel& m) -> std::optional<Eigen::Vector3d> {
+    WorkpieceState* w = m.find_workpiece(workpiece);
+    if (w == nullptr || w->lost) return std::nullopt;
+    w->lost = true;
+    w->lost_reason = reason;
+    if (w->held_by == cell_) w->held_by.clear();
+    RobotState* r = m.find_robot(cell_);
+    if (r != nullptr && r->hold && r->hold->workpiece == workpiece) r->hold.reset();
+    if (!w->present) return std::nullopt;
+    return w->pose.translation();
+  });
+  const bool lost_now = env_.read([&](const EnvironmentModel& m) {
+    const WorkpieceState* w = m.find_workpiece(workpiece);
+    return w != nullptr && w->lost_reason == reason;
+  });
+  if (lost_now) log_.workpiece_lost(now, workpiece, reason, last);
+  carrying_lost_ = workpiece;
+}
+
+bool RobotControl::about_lost_part() const {
+  const task::Primitive& p = current_->command.primitive;
+  std::string part;
+  if (p.kind == task::PrimitiveKind::kMove) {
+    part = bound(p.target.object);
+  } else {
+    part = p.workpiece.empty() ? std::string() : bound(p.workpiece);
+  }
+  if (!carrying_lost_.empty()) return true;
+  if (part.empty()) return false;
+  return env_.read([&](const EnvironmentModel& m) {
+    const WorkpieceState* w = m.find_workpiece(part);
+    return w != nullptr && w->lost;
+  });
+}
+
+void RobotControl::skip_current(SimDuration now, const std::string& reason) {
+  const task::Primitive& p = current_->command.primitive;
+  const std::size_t index = current_->command.index;
+  if (p.kind == task::PrimitiveKind::kClose && !p.workpiece.empty() && carrying_lost_.empty()) {
+    carrying_lost_ = bound(p.workpiece);  // it would carry it: skip until it releases it
+  } else if (p.kind == task::PrimitiveKind::kOpen) {
+    carrying_lost_.clear();
+  }
+  if (recovery_) {
+    const Recovery r = std::move(*recovery_);
+    recovery_.reset();
+    log_.recovery_end(now, label_, r.diagnosis.cause, to_string(r.diagnosis.action), true,
+                      fmt::format("set aside: {}", r.workpiece), now - r.detected);
+    if (driver_.state() == drivers::DriverState::active && p.kind != task::PrimitiveKind::kOpen) {
+      // An empty hand goes on; nothing to open.
+    }
+  }
+  log_.skipped(now, label_, index, task::to_string(p), reason);
+  log_start(now);
+  log_.command_end(now, label_, index, task::to_string(p), true, "");
+  report(now, CommandOutcome::kDone, "");
+  current_.reset();
+  phase_ = RobotPhase::kReady;
+}
+
+void RobotControl::stop_cell(SimDuration now, const std::string& reason) {
+  driver_.stop();
+  if (recovery_) {
+    const Recovery r = std::move(*recovery_);
+    recovery_.reset();
+    log_.recovery_end(now, label_, r.diagnosis.cause, to_string(r.diagnosis.action), false, reason,
+                      now - r.detected);
+  }
+  RobotStatus s;
+  s.robot = index_;
+  s.index = current_ ? current_->command.index : RobotStatus::kNoCommand;
+  s.outcome = CommandOutcome::kFailed;
+  s.reason = reason;
+  s.time = now;
+  s.stop_cell = true;
+  if (current_) {
+    log_start(now);
+    log_.command_end(now, label_, current_->command.index, task::to_string(current_->command.primitive), false,
+                     reason);
+  }
+  const QueueStatus pushed = status_out_.try_push(std::move(s));
+  CW_CHECK(pushed == QueueStatus::ok || pushed == QueueStatus::closed, "robot {}: status queue refused: {}", label_,
+           to_string(pushed));
+  current_.reset();
+  phase_ = RobotPhase::kFailed;
+}
+
+void RobotControl::watch_grip(SimDuration now) {
+  if (!current_ || current_->step || current_->id == 0 || recovery_) return;
+  if (active().kind != task::PrimitiveKind::kMove) return;  // a grip changes what is between the fingers
+  struct Seen {
+    std::optional<Hold> hold;
+    std::optional<std::string> between;
+    std::optional<Eigen::Isometry3d> tcp;
+    std::optional<Eigen::Isometry3d> part;
+    bool measured = false;
+  };
+  const Seen seen = env_.read([&](const EnvironmentModel& m) {
+    Seen s;
+    const RobotState* r = m.find_robot(cell_);
+    if (r == nullptr) return s;
+    s.hold = r->hold;
+    s.between = r->between_fingers;
+    s.tcp = r->tcp;
+    if (r->hold) {
+      const WorkpieceState* w = m.find_workpiece(r->hold->workpiece);
+      if (w != nullptr) {
+        s.part = w->pose;
+        s.measured = w->stamp >= m.time && !options_.track_held_parts;
+      }
+    }
+    return s;
+  });
+  if (!seen.hold || !seen.between) {
+    grip_missing_ = 0;
+    return;
+  }
+  if (*seen.between != seen.hold->workpiece) {
+    if (++grip_missing_ >= options_.recovery.grip_lost_periods) {
+      grip_missing_ = 0;
+      symptom(now, Symptom::grip_lost,
+              fmt::format("the grip sensor lost {} while carrying it ({})", seen.hold->workpiece,
+                          seen.between->empty() ? std::string("nothing between the fingers") : *seen.between),
+              seen.hold->workpiece);
+    }
+    return;
+  }
+  grip_missing_ = 0;
+}
+
+void RobotControl::check_shift(SimDuration now) {
+  if (shift_reported_ || options_.track_held_parts) return;
+  struct Seen {
+    std::optional<Hold> hold;
+    std::optional<Eigen::Isometry3d> tcp, part;
+    bool fresh = false;
+  };
+  const Seen seen = env_.read([&](const EnvironmentModel& m) {
+    Seen s;
+    const RobotState* r = m.find_robot(cell_);
+    if (r == nullptr || !r->hold) return s;
+    s.hold = r->hold;
+    s.tcp = r->tcp;
+    const WorkpieceState* w = m.find_workpiece(r->hold->workpiece);
+    if (w != nullptr) {
+      s.part = w->pose;
+      s.fresh = w->stamp >= m.time;  // measured this period (truth), not carried along by the model
+    }
+    return s;
+  });
+  if (!seen.hold || !seen.tcp || !seen.part || !seen.fresh) return;
+  const Eigen::Vector3d expected = (*seen.tcp * seen.hold->in_hand).translation();
+  const double off = (seen.part->translation() - expected).norm();
+  if (off <= options_.recovery.shift_tolerance) return;
+  shift_reported_ = true;
+  const int primitive = static_cast<int>(current_->command.index);
+  log_.fault_detected(now, label_, primitive, to_string(Symptom::part_shifted),
+                      fmt::format("{} is {:.4f} m from where the hold puts it (tolerance {:.4f})", seen.hold->workpiece,
+                                  off, options_.recovery.shift_tolerance));
+  // Diagnosed without interrupting the command: adopt_hold and go_on act at once; anything else is taken up as the
+  // recovery of the next command.
+  const std::optional<Recovery> saved = std::move(recovery_);
+  recovery_.emplace();
+  recovery_->diagnosis.symptom = Symptom::part_shifted;
+  recovery_->detected = now;
+  recovery_->workpiece = seen.hold->workpiece;
+  recovery_->detail = "shifted in the hand";
+  diagnose_and_act(now);
+  if (!recovery_) recovery_ = saved;
+}
+
+void RobotControl::watch_safety(SimDuration now) {
+  if (!options_.safety.enabled) return;
+  const bool moving = current_ && current_->id != 0 && active().kind == task::PrimitiveKind::kMove;
+  if (!moving && !protective_) return;
+  const std::vector<double> goal = moving ? current_->goal : std::vector<double>{};
+  const SafetyVerdict v = env_.read([&](const EnvironmentModel& m) {
+    const RobotState* r = m.find_robot(cell_);
+    if (r == nullptr) return SafetyVerdict{};
+    const std::vector<double>& to = protective_ && current_ && !current_->goal.empty() ? current_->goal : goal;
+    return check_safety(m, cell_, chain_, r->joints, to, options_.safety);
+  });
+  if (v.stop && !protective_) {
+    protective_ = true;
+    protective_since_ = now;
+    clear_since_.reset();
+    protective_reason_ = v.reason;
+    driver_.stop();
+    log_.protective_stop(now, label_, v.reason);
+    ++protective_stops_;
+    if (current_) {
+      symptom(now, Symptom::protective_stop, v.reason, std::string());
+    }
+    return;
+  }
+  if (!protective_) return;
+  if (v.stop) {
+    clear_since_.reset();
+    if (now - protective_since_ >= options_.recovery.clear_wait) {
+      protective_ = false;
+      stop_cell(now, fmt::format("the way of {} stayed blocked for {} s: {}", cell_,
+                                 format_sim_time(now - protective_since_), v.reason));
+    }
+    return;
+  }
+  if (!clear_since_) clear_since_ = now;
+  if (now - *clear_since_ < options_.safety.clear_time) return;
+  protective_ = false;
+  log_.protective_release(now, label_);
+  if (driver_.state() == drivers::DriverState::stopped) (void)driver_.activate();
+}
+
+void RobotControl::check_misplaced(SimDuration now, const task::Target& target) {
+  if (target.kind != task::TargetKind::kAbove && target.kind != task::TargetKind::kAt) return;
+  if (std::find(misplace_checked_.begin(), misplace_checked_.end(), target.object) != misplace_checked_.end()) return;
+  struct Seen {
+    bool part = false;
+    double offset = 0, yaw = 0;
+    std::string location;
+  };
+  const Seen seen = env_.read([&](const EnvironmentModel& m) {
+    Seen s;
+    const WorkpieceState* w = m.find_workpiece(target.object);
+    if (w == nullptr || !w->held_by.empty() || !w->present || w->lost) return s;
+    const Eigen::Vector3d bottom = w->pose.translation() - Eigen::Vector3d(0, 0, w->size().z() / 2);
+    const CellLocation* at = nullptr;
+    double nearest = options_.targets.at_location_tolerance;
+    for (const CellLocation& l : m.geometry->locations) {
+      const double d = (bottom - l.pose.translation()).norm();
+      if (d <= nearest) {
+        nearest = d;
+        at = &l;
+      }
+    }
+    if (at == nullptr) return s;
+    s.part = true;
+    s.location = at->name;
+    s.offset = (bottom - at->pose.translation()).head<2>().norm();
+    if (w->shape() == models::Shape::kBox) {
+      const Eigen::Vector3d xp = w->pose.linear().col(0);
+      const Eigen::Vector3d xl = at->pose.linear().col(0);
+      double a = std::atan2(xp.y(), xp.x()) - std::atan2(xl.y(), xl.x());
+      const double quarter = M_PI / 2;
+      a = std::fmod(std::fmod(a, quarter) + quarter, quarter);
+      s.yaw = std::min(a, quarter - a);
+    }
+    return s;
+  });
+  if (!seen.part) return;
+  misplace_checked_.push_back(target.object);
+  if (seen.offset > options_.recovery.misplace_offset || seen.yaw > options_.recovery.misplace_yaw) {
+    symptom(now, Symptom::part_misplaced,
+            fmt::format("{} rests {:.3f} m and {:.1f} deg off its place at {} (tolerance {:.3f} m, {:.1f} deg)",
+                        target.object, seen.offset, seen.yaw * 180 / M_PI, seen.location,
+                        options_.recovery.misplace_offset, options_.recovery.misplace_yaw * 180 / M_PI),
+            target.object);
   }
 }
 
@@ -494,6 +1150,7 @@ void RobotControl::track_held_part() {
 }
 
 void RobotControl::halt() {
+  halted_ = true;
   driver_.stop();
 }
 

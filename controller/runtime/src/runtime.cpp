@@ -26,6 +26,8 @@ const char* to_string(Outcome outcome) {
       return "finished";
     case Outcome::kFailed:
       return "failed";
+    case Outcome::kStopped:
+      return "stopped";
     case Outcome::kTimeout:
       return "timeout";
   }
@@ -242,6 +244,10 @@ struct Runtime::Impl {
       outcome = Outcome::kFailed;
       return false;
     }
+    if (state == TaskControl::State::kStopped) {
+      outcome = Outcome::kStopped;
+      return false;
+    }
     if (state == TaskControl::State::kFinished && now >= SimDuration(finished_at_ns.load()) + cfg.limits.settle) {
       outcome = Outcome::kFinished;
       return false;
@@ -441,7 +447,8 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     });
   }
   config_.motion.track_held_parts = config_.perception != Perception::kTruth;
-  im.task = std::make_unique<TaskControl>(config_.net, config_.program, inbox_ptrs, im.statuses, *log_);
+  im.task = std::make_unique<TaskControl>(config_.net, config_.program, inbox_ptrs, im.statuses, *log_,
+                                          config_.motion.recovery, config_.lost_signals);
   for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
     const std::string& label = config_.program.robots[r];
     const std::string& cell = im.names.robots.at(label);
@@ -558,7 +565,7 @@ RunResult Runtime::finish() {
   r.end_time = im.clock.now();
   im.task->account_until(r.end_time);
   r.outcome = im.outcome;
-  r.reason = im.outcome == Outcome::kFailed ? im.task->reason() : im.reason;
+  r.reason = im.outcome == Outcome::kFailed || im.outcome == Outcome::kStopped ? im.task->reason() : im.reason;
   r.finished_at = im.task->finished_at();
   r.final_marking = im.task->marking();
   r.firings = im.task->firings();
@@ -567,6 +574,7 @@ RunResult Runtime::finish() {
   }
   r.collisions = im.collisions;
   r.environment = im.env.snapshot();
+  if (r.outcome == Outcome::kStopped) log_->cell_stopped(r.end_time, r.reason);
   log_->run_end(r.end_time, to_string(r.outcome), r.reason, r.firings);
   im.result = r;
   return r;

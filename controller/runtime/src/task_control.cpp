@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "cellwright/common/error.hpp"
 #include "cellwright/task/to_net.hpp"
 
@@ -35,7 +37,8 @@ bool net_only(task::PrimitiveKind k) {
 
 TaskControl::TaskControl(const petri::Net& net, const task::CompiledProgram& program,
                          std::vector<MessageQueue<MotionCommand>*> robot_inboxes,
-                         MessageQueue<RobotStatus>& status_inbox, EventLog& log)
+                         MessageQueue<RobotStatus>& status_inbox, EventLog& log, RecoveryOptions recovery,
+                         std::vector<std::uint64_t> lost_signals)
     : net_(net),
       program_(program),
       inboxes_(std::move(robot_inboxes)),
@@ -47,7 +50,11 @@ TaskControl::TaskControl(const petri::Net& net, const task::CompiledProgram& pro
       completed_(net.num_places(), false),
       in_flight_(program.robots.size(), false),
       activity_(program.robots.size(), RobotActivity::kIdle),
-      time_(program.robots.size()) {
+      time_(program.robots.size()),
+      recovery_(std::move(recovery)),
+      lost_signals_(std::move(lost_signals)),
+      wait_since_(program.robots.size()) {
+  for (petri::PlaceId p = 0; p < net.num_places(); ++p) expected_tokens_.push_back(marking_[p]);
   CW_CHECK(net.robots() == program.robots, "the net's robots are not the program's ({} vs {})", net.robots().size(),
            program.robots.size());
   CW_CHECK(program.programs.size() == program.robots.size(), "{} programs for {} robots", program.programs.size(),
@@ -96,7 +103,7 @@ void TaskControl::drain_statuses(SimDuration now) {
     if (s.index == RobotStatus::kNoCommand) {
       CW_CHECK(s.outcome == CommandOutcome::kFailed, "robot {} reported success without a command", label);
       if (state_ == State::kRunning) {
-        state_ = State::kFailed;
+        state_ = s.stop_cell ? State::kStopped : State::kFailed;
         reason_ = fmt::format("robot {}: {}", label, s.reason);
       }
       continue;
@@ -108,6 +115,9 @@ void TaskControl::drain_statuses(SimDuration now) {
     in_flight_[s.robot] = false;
     if (s.outcome == CommandOutcome::kDone) {
       completed_[*place] = true;
+    } else if (state_ == State::kRunning && s.stop_cell) {
+      state_ = State::kStopped;
+      reason_ = fmt::format("robot {}: {}", label, s.reason);
     } else if (state_ == State::kRunning) {
       const task::Primitive& p = program_.programs[s.robot].primitives[s.index];
       state_ = State::kFailed;
@@ -125,6 +135,8 @@ void TaskControl::fire_until_quiescent(SimDuration now) {
     petri::fire_chosen(net_, marking_, arbiter_, chosen);
     for (const petri::TransitionId id : chosen) {
       const petri::Transition& t = net_.transitions()[id];
+      for (const petri::Arc& a : t.inputs) expected_tokens_[a.place] -= a.weight;
+      for (const petri::Arc& a : t.outputs) expected_tokens_[a.place] += a.weight;
       ++firings_;
       last_fired_.push_back(t.id);
       log_.fire(now, t.id, t.origin.robot, t.starts_primitive, t.origin.line, t.origin.task, t.origin.motion);
@@ -135,6 +147,19 @@ void TaskControl::fire_until_quiescent(SimDuration now) {
       const petri::PlaceId place = *net_.find_place(task::place_id(program_.robots[r], k));
       if (net_only(p.kind)) {
         completed_[place] = true;  // a signal is done as it fires; a wait is gated by its event place
+        if (p.kind == task::PrimitiveKind::kSignal) {
+          ++signals_fired_;
+          if (std::find(lost_signals_.begin(), lost_signals_.end(), signals_fired_) != lost_signals_.end()) {
+            // Injected: the event never reaches its place.
+            const auto ev = net_.find_place(task::event_place_id(p.event));
+            if (ev && marking_[*ev] > 0) {
+              marking_[*ev] -= 1;
+              log_.fault_injected(now, "lost_signal", "", "",
+                                  fmt::format("signal {} of {} (the {}th signal fired) is lost", p.event,
+                                              program_.robots[r], signals_fired_));
+            }
+          }
+        }
         continue;
       }
       completed_[place] = false;
@@ -224,7 +249,57 @@ TaskControl::State TaskControl::step(SimDuration now) {
     detect_end(now);
   }
   classify(now);
+  if (state_ == State::kRunning && recovery_.enabled) watch_waits(now);
   return state_;
+}
+
+void TaskControl::watch_waits(SimDuration now) {
+  for (std::size_t r = 0; r < program_.robots.size(); ++r) {
+    if (activity_[r] != RobotActivity::kWaiting) {
+      wait_since_[r].reset();
+      continue;
+    }
+    if (!wait_since_[r]) wait_since_[r] = now;
+    if (now - *wait_since_[r] < recovery_.wait_timeout) continue;
+    const std::string& label = program_.robots[r];
+    const auto& prims = program_.programs[r].primitives;
+    std::size_t k = 0;
+    for (; k < prims.size(); ++k) {
+      if (prims[k].kind == task::PrimitiveKind::kWait && marking_[*net_.find_place(task::place_id(label, k))] > 0) break;
+    }
+    if (k == prims.size()) continue;
+    const auto ev = net_.find_place(task::event_place_id(prims[k].event));
+    if (!ev) continue;
+    log_.fault_detected(now, label, static_cast<int>(k), "wait_timeout",
+                        fmt::format("{} waited {} s for event {}", label, format_sim_time(now - *wait_since_[r]),
+                                    prims[k].event));
+    const bool fired = expected_tokens_[*ev] > static_cast<std::int64_t>(marking_[*ev]);
+    const DecisionTree& tree = recovery_.tree ? *recovery_.tree : DecisionTree::standard();
+    const Diagnosis d = tree.diagnose(Symptom::wait_timeout, [&](Question q) {
+      return q == Question::signal_fired ? fired : q == Question::retries_left;
+    });
+    log_.diagnosis(now, label, "wait_timeout", d.cause, to_string(d.action), d.path);
+    if (d.action == Action::resignal && fired) {
+      marking_[*ev] = static_cast<petri::Tokens>(expected_tokens_[*ev]);
+      log_.recovery_end(now, label, d.cause, to_string(d.action), true,
+                        fmt::format("event {} delivered again", prims[k].event), now - *wait_since_[r]);
+      wait_since_[r].reset();
+      fire_until_quiescent(now);
+      detect_end(now);
+      classify(now);
+      return;
+    }
+    if (d.action == Action::go_on || d.action == Action::retry || d.action == Action::wait_clear) {
+      wait_since_[r] = now;  // look again after another timeout
+      continue;
+    }
+    log_.recovery_end(now, label, d.cause, to_string(d.action), false, "the cell is stopped", now - *wait_since_[r]);
+    state_ = State::kStopped;
+    reason_ = fmt::format("robot {}: waited {} s for event {}: {}", label, format_sim_time(now - *wait_since_[r]),
+                          prims[k].event, d.cause);
+    classify(now);
+    return;
+  }
 }
 
 TaskView TaskControl::view() const {

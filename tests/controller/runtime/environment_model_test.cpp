@@ -57,8 +57,8 @@ TEST(RuntimeEnvironment, TruthUpdatesPosesAndFingersButNeitherJointsNorWhoHolds)
   t.workpieces.push_back({"A", p, {0.05, 0, 0}, true});
   t.workpieces.push_back({"B", p, {0, 0, 0}, false});
   t.workpieces.push_back({"no-such-part", p, {0, 0, 0}, true});
-  t.robots.push_back({"puma", {1, 2, 3, 4, 5, 6}, std::string("A")});
-  t.robots.push_back({"melfa", {}, std::nullopt});
+  t.robots.push_back({"puma", {1, 2, 3, 4, 5, 6}, std::string("A"), std::nullopt});
+  t.robots.push_back({"melfa", {}, std::nullopt, std::nullopt});
   apply_truth(m, t);
   EXPECT_EQ(m.time, milliseconds(1230));
   EXPECT_TRUE(m.find_workpiece("A")->pose.isApprox(p));
@@ -205,7 +205,7 @@ TEST(RuntimeEnvironment, WithoutACameraTheModelPutsARestingPartAtItsLocationsNom
   // With a camera, the truth says nothing of the parts: only vision does.
   EnvironmentModel v = make_environment_model(paper_cell());
   const Eigen::Isometry3d a_before = v.find_workpiece("A")->pose;
-  t.robots.push_back({"puma", {1, 2, 3, 4, 5, 6}, std::string("")});
+  t.robots.push_back({"puma", {1, 2, 3, 4, 5, 6}, std::string(""), std::nullopt});
   apply_truth(v, t, Perception::kVision);
   EXPECT_TRUE(v.find_workpiece("A")->pose.isApprox(a_before));
   EXPECT_EQ(v.find_robot("puma")->joints, paper_cell().find_robot("puma")->home);

@@ -104,8 +104,11 @@ class RobotControlTest : public ::testing::Test {
   }
 
   // Robot control of program robot r1 (the PUMA) over `config`'s scripted controller (behind a FaultyDriver when
-  // faults_ is set); connected unless told not to.
+  // faults_ is set); connected unless told not to. Without recovery unless recovery_ is set: these tests check the
+  // contract of one command (robot_recovery_test.cpp checks what recovery does instead of failing).
+  bool recovery_ = false;
   void make(drivers::ScriptedDriverConfig config, MotionOptions options = {}, bool connect = true) {
+    options.recovery.enabled = recovery_;
     scripted_ = std::make_unique<drivers::ScriptedDriver>(std::move(config));
     driver_ = std::make_unique<ReadbackDriver>(*scripted_);
     drivers::RobotDriver* owner = driver_.get();

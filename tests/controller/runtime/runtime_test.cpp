@@ -67,7 +67,7 @@ TEST(RuntimeRun, ExchangeProgramRunsToCompletionAndMovesThePart) {
   const Eigen::Vector3d a = cell.plant->workpiece_pose("A").translation();
   const double half = cell.config.cell.find_workpiece("A")->size.z() / 2;
   EXPECT_LT((a.head<2>() - drop.pose.xyz.head<2>()).norm(), 0.005) << a.transpose();
-  EXPECT_NEAR(a.z() - half, drop.pose.xyz.z(), 0.005);
+  EXPECT_NEAR(a.z() - half, drop.pose.xyz.z(), 0.005) << rt.log().text();
   EXPECT_EQ(r.environment.find_workpiece("A")->held_by, "");
   EXPECT_FALSE(r.environment.find_robot("melfa")->hold.has_value());
   // The log tells the same story: it starts and ends, the grips were sensed on A.
@@ -194,6 +194,7 @@ TEST(RuntimeRun, AFailedCommandStopsTheRunWithTheReason) {
       {drivers::CommandKind::move_joints, 2, {drivers::ErrorCode::unreachable, false, "joint 2 at its limit"}});
   drivers::FaultyDriver faulty(cell.driver("puma"), plan);
   cell.config.drivers["puma"] = &faulty;
+  cell.config.motion.recovery.enabled = false;  // the first failure ends the run (runtime_recovery_test: recovery)
   Runtime rt(cell.config);
   const RunResult r = rt.run();
   ASSERT_EQ(r.outcome, Outcome::kFailed);
@@ -220,12 +221,47 @@ TEST(RuntimeRun, AGripOnNothingFailsTheClose) {
   ScriptedPlant plant(moved, raw);
   cell.config.plant = &plant;
   cell.config.perception = Perception::kCad;
+  cell.config.motion.recovery.enabled = false;
   Runtime rt(cell.config);
   const RunResult r = rt.run();
   ASSERT_EQ(r.outcome, Outcome::kFailed);
   EXPECT_THAT(r.reason, HasSubstr("'close A'"));
   EXPECT_THAT(r.reason, HasSubstr("closed on nothing (expected A)"));
   EXPECT_NE(find(parse(rt.log()), {{"type", "sensor"}, {"robot", "r1"}, {"condition", "closed_on_nothing"}}), -1);
+}
+
+TEST(RuntimeRun, WithRecoveryAGripOnNothingIsTriedAgainThenThePartIsSetAsideAndTheProgramGoesOn) {
+  ScriptedCell cell;
+  std::map<std::string, drivers::ScriptedDriver*> raw;
+  for (auto& [name, d] : cell.drivers) raw[name] = d.get();
+  // As above: the controller (perception cad) believes A is 5 cm from where it is, so every grasp closes beside it.
+  models::CellDescription moved = cell.config.cell;
+  for (auto& w : moved.workpieces) {
+    if (w.name == "A") w.pose.xyz.y() += 0.05;
+  }
+  ScriptedPlant plant(moved, raw);
+  cell.config.plant = &plant;
+  cell.config.perception = Perception::kCad;
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  ASSERT_EQ(r.outcome, Outcome::kFinished) << r.reason << "\n" << rt.log().text();
+  const auto events = parse(rt.log());
+  // Sensed, diagnosed as a part not where expected, picked again where the model has it: max_attempts times.
+  const long first = find(events, {{"type", "fault_detected"}, {"robot", "r1"}, {"symptom", "closed_on_nothing"}});
+  ASSERT_NE(first, -1);
+  int picks = 0, asides = 0;
+  for (const auto& e : events) {
+    if (e["type"] == "diagnosis" && e["action"] == "pick_again") ++picks;
+    if (e["type"] == "diagnosis" && e["action"] == "set_aside") ++asides;
+  }
+  EXPECT_EQ(picks, RecoveryOptions{}.max_attempts);
+  EXPECT_EQ(asides, 1);
+  // Then A is lost, where it was last believed to be, and everything about it is skipped by both robots.
+  EXPECT_NE(find(events, {{"type", "workpiece_lost"}, {"workpiece", "A"}}), -1);
+  EXPECT_NE(find(events, {{"type", "skipped"}, {"robot", "r2"}}), -1);
+  EXPECT_NE(find(events, {{"type", "recovery_end"}, {"robot", "r1"}, {"action", "set_aside"}, {"ok", true}}), -1);
+  EXPECT_TRUE(r.environment.find_workpiece("A")->lost);
+  EXPECT_TRUE(cell.config.net.is_final(r.final_marking));
 }
 
 TEST(RuntimeRun, TheSimTimeLimitEndsARunThatDoesNotFinish) {

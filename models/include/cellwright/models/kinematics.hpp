@@ -86,6 +86,9 @@ class KinematicChain {
 
   // The tip's pose in the base frame at joint vector q. q.size() must equal dof() (else InternalError); limits are
   // not enforced here.
+  // The moving frame of joint `count` (1-based, after its motion) in the base frame: the product of the first `count`
+  // joint transforms. The safety layer watches the wrist through it.
+  Eigen::Isometry3d joint_frame(const Eigen::VectorXd& q, std::size_t count) const { return partial_forward(q, count); }
   Eigen::Isometry3d forward(const Eigen::VectorXd& q) const;
   // The geometric Jacobian of the tip at q, in the base frame: rows 0-2 map joint velocities to the tip origin's
   // linear velocity, rows 3-5 to its angular velocity. q.size() must equal dof() (else InternalError).

@@ -117,6 +117,10 @@ struct WorkpieceState {
   std::string held_by;    // cell robot holding it, empty if none (set by robot control on close/open)
   double confidence = 1;  // 1 for the CAD data and the simulation's truth; vision's confidence after correct()
   SimDuration stamp{0};   // simulation time the pose was measured at
+  // Declared lost by robot control's recovery (set_aside, docs/faults.md): every command about it is skipped from
+  // then on. `pose` is where it was last seen; `lost_reason` says why.
+  bool lost = false;
+  std::string lost_reason;
 
   models::Shape shape() const { return fixed->shape; }
   const Eigen::Vector3d& size() const { return fixed->size; }  // full extents (cell description)
@@ -148,9 +152,18 @@ struct RobotState {
   // The grip sensor: the workpiece between the finger pads ("" none), nullopt when nothing senses it. Written from
   // the plant's sensors (the twin's finger pad touch sensors) every period.
   std::optional<std::string> between_fingers;
+  // The wrist force sensor (N, world frame), from the plant every period; nullopt when there is none.
+  std::optional<Eigen::Vector3d> wrist_force;
 
   const Eigen::Isometry3d& base() const { return fixed->base; }  // base_link in the world
   const std::vector<double>& home() const { return fixed->home; }
+};
+
+// An object the safety sensor sees that is not in the cell model (runtime::Obstacle), as of the last period.
+struct ObstacleState {
+  std::string name;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();
 };
 
 struct EnvironmentModel {
@@ -158,6 +171,7 @@ struct EnvironmentModel {
   SimDuration time{0};                           // simulation time of the last update from truth
   std::vector<RobotState> robots;
   std::vector<WorkpieceState> workpieces;
+  std::vector<ObstacleState> obstacles;  // from the safety sensor every period (every perception)
 
   // Lookups by cell name; nullptr when there is none.
   const RobotState* find_robot(std::string_view name) const;
@@ -193,8 +207,8 @@ const char* to_string(Perception perception);
 inline constexpr double kCadSensorRadius = 0.1;  // m
 inline constexpr double kCadRestSpeed = 0.005;   // m/s: slower, a part is at rest for the presence sensors
 
-// Writes the plant's truth into the model, as `perception` allows (see Perception): time and grip sensors
-// (RobotTruth::between_fingers) always; workpiece poses, velocities and presence for kTruth (a part held by a robot
+// Writes the plant's truth into the model, as `perception` allows (see Perception): time, grip sensors
+// (RobotTruth::between_fingers), wrist forces and the safety sensor's obstacles always; workpiece poses, velocities and presence for kTruth (a part held by a robot
 // keeps its held_by; confidence becomes 1 and the stamp the truth's time); presence, velocity and the nominal pose of
 // the location a resting part stands at for kCad; nothing of the workpieces for kVision. Entries naming nothing in the
 // model are ignored (a plant may know more bodies than the model).

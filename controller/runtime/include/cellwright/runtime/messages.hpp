@@ -36,6 +36,7 @@ struct RobotStatus {
   std::size_t index = kNoCommand;  // the primitive the status is about
   CommandOutcome outcome = CommandOutcome::kDone;
   std::string reason;   // kFailed: why, naming the values involved
+  bool stop_cell = false;  // kFailed by recovery's stop_cell: the cell is stopped safely (outcome "stopped")
   SimDuration time{0};  // simulation time it ended
 };
 

@@ -35,6 +35,18 @@
 //    A condition that holds completes the command: command_end ok, status kDone. A driver failure, a refusal or a
 //    condition that does not hold fails it: command_end with the reason, status kFailed.
 //
+// WHEN THINGS GO WRONG (docs/faults.md). With MotionOptions::recovery.enabled, a symptom (a driver failure, a close on
+// nothing, a held part lost from the fingers or shifted in them, a part misplaced, a part that does not arrive, an
+// unreachable target, a missed position, a protective stop) does not fail the command: it is logged
+// (fault_detected), diagnosed with the decision tree (diagnosis: cause and action, recovery.hpp) and the action is
+// taken while the command's place stays marked: retry it; reset, re-home and retry; pick the part again where it is
+// seen (recovery steps: open, above, at, close, above — synthetic primitives executed and checked like the program's)
+// and retry; adopt the shifted hold; wait for the safety layer's release and retry; set the part aside as lost
+// (workpiece_lost; every command about it is then skipped, logged as `skipped`, and reported done); or stop the cell
+// (reported as a failure with RobotStatus::stop_cell). recovery_end closes each recovery when the command is done.
+// The safety layer (safety.hpp) is asked every period before any command is sent: while it says stop, the driver is
+// stopped (protective_stop) and nothing is sent; the command is done again once it releases.
+//
 // Threads: a RobotControl is used by its own robot-control thread only (step()), except connect() (main thread,
 // before the threads start) and view() (another thread, only while this one is not running: in lock-step outside its
 // turn). It shares the environment model (Guarded), its inbox and the status queue.
@@ -42,6 +54,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <optional>
 #include <string>
@@ -53,6 +66,7 @@
 #include "cellwright/runtime/event_log.hpp"
 #include "cellwright/runtime/message_queue.hpp"
 #include "cellwright/runtime/messages.hpp"
+#include "cellwright/runtime/recovery.hpp"
 #include "cellwright/task/compiled.hpp"
 
 namespace cellwright::runtime {
@@ -71,6 +85,8 @@ struct MotionOptions {
   // Each step, move the part this robot holds with its hand in the environment model (Hold::in_hand): the runtime
   // sets this when nothing else measures held parts (Perception other than kTruth).
   bool track_held_parts = false;
+  RecoveryOptions recovery;  // fault detection and recovery (recovery.hpp, docs/faults.md)
+  SafetyOptions safety;      // the safety layer (safety.hpp)
 };
 
 // Program labels -> cell names, resolved and checked by the Runtime (runtime.hpp Binding).
@@ -130,6 +146,7 @@ class RobotControl {
  private:
   struct Current {
     MotionCommand command;
+    std::optional<task::Primitive> step;  // a recovery step being executed instead of the command
     drivers::CommandId id = 0;                   // 0 until submitted
     std::vector<double> goal;                    // move: the joint goal
     std::optional<Eigen::Isometry3d> goal_pose;  // move: the tool goal in the base frame
@@ -141,6 +158,21 @@ class RobotControl {
     bool start_logged = false;  // command_start written
     bool wait_logged = false;   // the "waiting_for_part" sensor event written
     std::string waiting_for;    // why the target is not ready yet (for view(); the log's detail is the driver's)
+    std::optional<SimDuration> waiting_since;  // when the wait for its target began
+    int attempts = 0;                          // recoveries of this command so far
+  };
+  // A recovery under way for the current command (docs/faults.md).
+  struct Recovery {
+    Diagnosis diagnosis;
+    SimDuration detected{0};
+    std::string workpiece;                // the part concerned ("" none)
+    std::deque<task::Primitive> steps;    // to execute before the command is done again
+    bool rehome = false;                  // reset (connect), home and activate first
+    bool wait_clear = false;              // wait for the safety layer's release first
+    bool skip = false;                    // after the steps, the command completes as skipped
+    bool settle = false;                  // the diagnosis waits for the part to come to rest (a drop)
+    std::string detail;                   // the symptom's detail (for a deferred diagnosis)
+    drivers::CommandId home_id = 0;       // re-homing: the home command
   };
 
   void bring_up(SimDuration now);
@@ -166,6 +198,44 @@ class RobotControl {
   void log_start(SimDuration now);
   std::string bound(const std::string& label) const;
 
+  // ---- Faults (docs/faults.md) ----
+  // The primitive being executed: a recovery step, else the command's.
+  const task::Primitive& active() const;
+  // Forgets what was sent for the active primitive, so that it is resolved and submitted again.
+  void reset_submission();
+  // A symptom was sensed: logs it, diagnoses it (or defers that until the part concerned is at rest) and starts the
+  // action; without recovery, fails the command.
+  void symptom(SimDuration now, Symptom s, std::string detail, std::string workpiece);
+  void diagnose_and_act(SimDuration now);
+  bool answer(Question q) const;
+  // Advances a recovery under way (re-homing, waiting for the release, a deferred diagnosis); false while it holds
+  // the command back.
+  bool advance_recovery(SimDuration now);
+  // The command is done after its recovery: logs recovery_end.
+  void end_recovery(SimDuration now, bool ok, const std::string& detail);
+  // Marks a workpiece lost in the model and logs it.
+  void set_aside(SimDuration now, const std::string& workpiece, const std::string& reason);
+  // Whether the current command is about a lost part (or comes while carrying one): it is then skipped.
+  bool about_lost_part() const;
+  void skip_current(SimDuration now, const std::string& reason);
+  void stop_cell(SimDuration now, const std::string& reason);
+  // The watches run every period: grip (a held part lost or shifted) and the safety layer.
+  void watch_grip(SimDuration now);
+  void watch_safety(SimDuration now);
+  // After a move, with the robot standing still: a held part far from where the hold puts it is part_shifted.
+  void check_shift(SimDuration now);
+  // A part to be picked resting off its place: part_misplaced (once per part).
+  void check_misplaced(SimDuration now, const task::Target& target);
+  // Whether some pose of `target` is reachable (IK, the 5-axis rule), from the model now.
+  bool reachable(const task::Target& target) const;
+  // The best IK solution among a resolved target's poses; nullopt with *why when none is reachable.
+  struct Goal {
+    std::vector<double> joints;
+    Eigen::Isometry3d pose_in_base = Eigen::Isometry3d::Identity();
+  };
+  std::optional<Goal> choose_goal(const MotionTarget& target, const std::vector<double>& joints,
+                                  const Eigen::Isometry3d& base, std::string* why) const;
+
   const std::size_t index_;
   const std::string label_, cell_;
   drivers::RobotDriver& driver_;
@@ -190,6 +260,19 @@ class RobotControl {
   std::uint64_t reading_number_ = 0;  // which of them reading_ answers (1 = the first)
   // The target of this robot's previous move (a straight approach follows from it).
   std::optional<task::Target> last_target_;
+
+  std::optional<Recovery> recovery_;
+  std::string carrying_lost_;  // the lost part this robot would be carrying: skip until the open that releases it
+  int grip_missing_ = 0;       // periods the grip sensor has missed the held part
+  bool shift_reported_ = false;  // part_shifted logged for the current hold
+  std::vector<std::string> misplace_checked_;  // parts checked for misplacement
+  bool protective_ = false;    // the safety layer holds the robot
+  std::optional<SimDuration> clear_since_;
+  SimDuration protective_since_{0};
+  std::string protective_reason_;
+  int protective_stops_ = 0;  // of the current command
+  bool halted_ = false;
+  std::uint64_t symptoms_ = 0;  // symptoms sensed so far       // halt() was called: the run is over, failures are final
 };
 
 }  // namespace cellwright::runtime

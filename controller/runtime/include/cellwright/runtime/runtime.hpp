@@ -111,9 +111,9 @@ struct RunConfig {
   std::vector<std::uint64_t> lost_signals;
 };
 
-enum class Outcome { kFinished, kFailed, kTimeout };
+enum class Outcome { kFinished, kFailed, kTimeout, kStopped };
 
-// "finished", "failed", "timeout".
+// "finished", "failed", "timeout", "stopped" (the cell was stopped safely: recovery found nothing else to do).
 const char* to_string(Outcome outcome);
 
 struct RobotTime {

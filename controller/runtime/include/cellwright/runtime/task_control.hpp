@@ -12,7 +12,12 @@
 //      that robot's queue (try_push: the queue has room, each robot has at most one command in flight);
 //   3. detect the end: the final marking (every robot done) -> kFinished; a dead marking that is not final -> kFailed
 //      with "deadlock" and the marked places (the net was checked, so this should not happen, but it never hangs);
-//   4. account time: the time since the previous step is added to each robot's activity as classified at the end of
+//   4. watch the waits (with recovery enabled): a robot waiting longer than RecoveryOptions::wait_timeout for an
+//      event is a symptom (wait_timeout); task control knows from its own firings whether the event was signalled
+//      (tokens put on its place minus tokens taken exceed the tokens there): then the event was lost on the way and
+//      is delivered again (resignal, by the decision tree), else the cell is stopped;
+//   5. a robot that reports stop_cell (RobotStatus::stop_cell) stops the run as kStopped;
+//   6. account time: the time since the previous step is added to each robot's activity as classified at the end of
 //      the previous step (busy / waiting / blocked / idle, see RobotActivity).
 //
 // Threads: TaskControl is used by the one task-control thread only (step(), and the accessors between steps). The
@@ -33,6 +38,7 @@
 #include "cellwright/runtime/event_log.hpp"
 #include "cellwright/runtime/message_queue.hpp"
 #include "cellwright/runtime/messages.hpp"
+#include "cellwright/runtime/recovery.hpp"
 #include "cellwright/task/compiled.hpp"
 
 namespace cellwright::runtime {
@@ -74,14 +80,14 @@ struct TaskView {
 
 class TaskControl {
  public:
-  enum class State { kRunning, kFinished, kFailed };
+  enum class State { kRunning, kFinished, kFailed, kStopped };
 
   // `net` must be to_net(program) (same robots, transitions starting primitives of the program): checked here,
   // InternalError otherwise. robot_inboxes[r] is robot r's command queue, `status_inbox` the queue robots report
   // into; `log` records the firings. All must outlive the TaskControl.
   TaskControl(const petri::Net& net, const task::CompiledProgram& program,
               std::vector<MessageQueue<MotionCommand>*> robot_inboxes, MessageQueue<RobotStatus>& status_inbox,
-              EventLog& log);
+              EventLog& log, RecoveryOptions recovery = {}, std::vector<std::uint64_t> lost_signals = {});
 
   // One turn at simulation time `now` (see the top). Non-blocking. Returns the state after the turn; once not
   // kRunning it stays so and further steps only account time (all activities idle).
@@ -91,7 +97,7 @@ class TaskControl {
   void account_until(SimDuration now);
 
   State state() const { return state_; }
-  // kFailed: why. kFinished: "".
+  // kFailed, kStopped: why. kFinished: "".
   const std::string& reason() const { return reason_; }
   // When the final marking was reached (kFinished only).
   std::optional<SimDuration> finished_at() const { return finished_at_; }
@@ -108,6 +114,7 @@ class TaskControl {
   void fire_until_quiescent(SimDuration now);
   void detect_end(SimDuration now);
   void classify(SimDuration now);
+  void watch_waits(SimDuration now);
   std::vector<bool> allowed() const;
 
   const petri::Net& net_;
@@ -136,6 +143,12 @@ class TaskControl {
   std::vector<ActivityTime> time_;
   SimDuration last_step_{0};
   SimDuration accounted_{0};
+
+  const RecoveryOptions recovery_;
+  std::vector<std::uint64_t> lost_signals_;  // the n-th signals whose event is lost (injected)
+  std::uint64_t signals_fired_ = 0;
+  std::vector<std::int64_t> expected_tokens_;            // per place: initial + put by firings - taken by firings
+  std::vector<std::optional<SimDuration>> wait_since_;   // per robot: since when it waits (kWaiting)
 };
 
 }  // namespace cellwright::runtime

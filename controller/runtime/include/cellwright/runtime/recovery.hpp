@@ -1,0 +1,151 @@
+// Fault diagnosis and recovery (paper section 3.4: "Once the cause of the error has been determined by searching a
+// decision tree, the appropriate remedial action is taken"). docs/faults.md is the user's page: the symptoms, the
+// questions, the actions and the file format.
+//
+// A DecisionTree is data: for each symptom the controller can sense, a tree whose inner nodes ask a question the
+// controller can answer from what it senses, and whose leaves name the cause and the remedial action. It is read from
+// a YAML file (scenes/recovery.yaml is the default, which a scenario may replace with `recovery: FILE`):
+//
+//     grip_lost:                      # symptom
+//       ask: part_seen                # question
+//       yes:
+//         ask: part_reachable
+//         yes: {cause: dropped, action: pick_again}
+//         no: {cause: dropped_out_of_reach, action: set_aside}
+//       no: {cause: dropped_unseen, action: set_aside}
+//
+// diagnose() walks the tree of a symptom, asking each question of a callback, and returns the leaf with the path of
+// answers. A symptom the file does not list gets {cause: unknown, action: stop_cell}.
+//
+// RecoveryOptions and SafetyOptions are the tunables of recovery and of the safety layer (safety.hpp); robot control
+// and task control read them from MotionOptions.
+//
+// Threads: a DecisionTree is immutable once loaded and may be shared by every thread.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cellwright/runtime/clock.hpp"
+
+namespace cellwright::runtime {
+
+// What the controller can sense going wrong (docs/faults.md section 2).
+enum class Symptom : std::uint8_t {
+  grip_lost,             // a held part left the fingers during a move or a wait
+  closed_on_nothing,     // a close that should grip a part gripped nothing
+  closed_on_wrong_part,  // ... gripped another part
+  part_shifted,          // a held part moved in the fingers
+  part_misplaced,        // a part to be picked rests off its place
+  part_not_arrived,      // waited too long for a part to arrive
+  target_unreachable,    // no grasp of the target is reachable
+  driver_timeout,        // the controller did not answer a command in time
+  driver_fault,          // the controller reported a hardware or protocol error: the driver is in fault
+  link_lost,             // the link to the controller was lost
+  position_refused,      // the controller refused a position (unreachable for it)
+  position_missed,       // the arm did not arrive where it was sent
+  protective_stop,       // the safety layer stopped the robot
+  wait_timeout,          // a robot waited too long for an event
+  frame_lost,            // the camera delivered no frame
+};
+inline constexpr std::size_t kSymptoms = 15;
+std::string_view to_string(Symptom s);
+std::optional<Symptom> symptom_from(std::string_view name);
+
+// The questions a tree may ask (docs/faults.md section 3).
+enum class Question : std::uint8_t {
+  part_seen,        // the model knows where the part is (present, not lost)
+  part_at_rest,     // it is not moving
+  part_upright,     // it stands upright (a grasp from above fits it)
+  part_reachable,   // the robot reaches a grasp of it
+  part_in_hand,     // the grip sensor has it between the fingers
+  driver_in_fault,  // the driver is in fault
+  retries_left,     // the command has been recovered fewer than max_attempts times
+  obstacle_near,    // the safety sensor sees an object near the robot
+  signal_fired,     // the event waited for was signalled (and so was lost on the way)
+};
+std::string_view to_string(Question q);
+std::optional<Question> question_from(std::string_view name);
+
+// The remedial actions (docs/faults.md section 3).
+enum class Action : std::uint8_t {
+  retry,         // do the interrupted command again
+  reset_rehome,  // reset the driver (connect again if the link was lost), home, activate, then retry
+  pick_again,    // open, pick the part where it is seen, then do the interrupted command again
+  adopt_hold,    // take the part's seen place in the hand as the new hold
+  go_on,         // nothing to do
+  wait_clear,    // stay stopped until the safety layer releases, then retry
+  set_aside,     // the part is lost: skip every command about it
+  resignal,      // deliver the lost event again
+  stop_cell,     // stop every robot; the run ends as stopped
+};
+std::string_view to_string(Action a);
+std::optional<Action> action_from(std::string_view name);
+
+struct Diagnosis {
+  Symptom symptom = Symptom::driver_fault;
+  std::string cause;
+  Action action = Action::stop_cell;
+  std::string path;  // the answers on the way: "part_seen=yes part_reachable=no"
+};
+
+class DecisionTree {
+ public:
+  struct Node {
+    std::optional<Question> ask;  // set: an inner node
+    int yes = -1, no = -1;        // children (indices into nodes), inner nodes only
+    std::string cause;            // a leaf
+    Action action = Action::stop_cell;
+  };
+
+  // Reads a tree from YAML text; `source` names it in errors. Throws InputError naming the file, line, column and
+  // field: not YAML, not a mapping, an unknown symptom, question or action, a node that is neither {ask, yes, no} nor
+  // {cause, action}, a field missing or unknown.
+  static DecisionTree parse(std::string_view yaml_text, const std::string& source);
+  static DecisionTree load(const std::filesystem::path& file);
+  // The built-in tree (the same as scenes/recovery.yaml; a test keeps them equal).
+  static const DecisionTree& standard();
+  static std::string_view standard_text();
+
+  // Walks the symptom's tree; `answer` answers each question asked. A symptom with no tree: cause "unknown",
+  // stop_cell.
+  Diagnosis diagnose(Symptom symptom, const std::function<bool(Question)>& answer) const;
+
+  bool has(Symptom s) const { return roots_.count(s) != 0; }
+
+ private:
+  std::vector<Node> nodes_;
+  std::map<Symptom, int> roots_;
+};
+
+struct RecoveryOptions {
+  bool enabled = true;  // false: the first fault fails the run (the behaviour before recovery existed)
+  std::shared_ptr<const DecisionTree> tree;  // nullptr: DecisionTree::standard()
+  int max_attempts = 3;                      // recoveries of one command before retries_left says no
+  SimDuration part_wait = std::chrono::seconds(30);     // part_not_arrived after waiting this long for a part
+  SimDuration wait_timeout = std::chrono::seconds(30);  // wait_timeout after waiting this long for an event
+  SimDuration clear_wait = std::chrono::seconds(20);    // wait_clear gives up (stop_cell) after this long
+  int grip_lost_periods = 3;       // grip_lost when the grip sensor misses the part this many periods running
+  double shift_tolerance = 0.008;  // m: part_shifted when a held part is this far from where the hold puts it
+  double misplace_offset = 0.02;   // m: part_misplaced when a part rests this far from its place ...
+  double misplace_yaw = 0.1745;    // rad: ... or turned this much (10 degrees; a box's quarter turns are alike)
+};
+
+struct SafetyOptions {
+  bool enabled = true;
+  double obstacle_distance = 0.05;  // m: a tool or wrist this close to an obstacle along its motion stops the robot
+  double robot_distance = 0.10;     // m: ... this close to another robot's tool or wrist, outside a hand-over
+  double handover_zone = 0.30;      // m: both tools this close to the hand-over pose are in a hand-over
+  double force_limit = 250.0;       // N: wrist force beyond this stops the robot
+  SimDuration clear_time = std::chrono::milliseconds(200);  // clear this long before the stop is released
+};
+
+}  // namespace cellwright::runtime

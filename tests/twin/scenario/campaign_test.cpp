@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/twin/scenario/faults.hpp"
 
 namespace cellwright::twin::scenario {
 namespace {
@@ -98,6 +99,15 @@ TEST(CampaignTargets, TheExchangeOffersTwoCarryingSimRobotsOneWorkpieceAndSignal
   EXPECT_EQ(command_bound(t.robots[0], "signal"), 0);
 }
 
+TEST(CampaignTargets, TheKindsAreTheFaultSpecsKinds) {
+  ASSERT_EQ(fault_kinds().size(), kFaultKinds);
+  for (std::size_t i = 0; i < kFaultKinds; ++i) {
+    const auto kind = fault_kind(fault_kinds()[i]);
+    ASSERT_TRUE(kind) << fault_kinds()[i];
+    EXPECT_EQ(static_cast<std::size_t>(*kind), i);
+  }
+}
+
 TEST(CampaignTargets, KindsApplyByWhatTheScenarioHas) {
   EXPECT_THAT(applicable_kinds(exchange_targets()),
               ElementsAre("drop", "slip", "misplace", "unreachable", "missing", "obstacle", "timeout", "garbage",
@@ -168,6 +178,7 @@ TEST(CampaignVariants, RunIIsTheSameWhateverElseIsDrawn) {
 
 TEST(CampaignVariants, OnlyRequestedKindsWithValidWhereAndWhen) {
   const CampaignTargets t = exchange_targets();
+  const models::CellDescription cell = load_scenario(kScenes + "/exchange.yaml").cell;
   const std::vector<std::string> kinds = applicable_kinds(t);
   std::map<std::string, int> seen;
   int doubles = 0;
@@ -178,6 +189,8 @@ TEST(CampaignVariants, OnlyRequestedKindsWithValidWhereAndWhen) {
     if (v.faults.size() == 2) ++doubles;
     EXPECT_GE(v.seed, 1u);
     for (const DrawnFault& f : v.faults) {
+      // The fault's own parser takes it, as `twin run --fault` will.
+      EXPECT_NO_THROW(parse_fault_text(f.spec, cell)) << f.spec;
       const Spec s = parse_spec(f.spec);
       EXPECT_EQ(s.kind, f.kind);
       ++seen[s.kind];
@@ -197,10 +210,11 @@ TEST(CampaignVariants, OnlyRequestedKindsWithValidWhereAndWhen) {
         const auto slash = offset.find('/');
         ASSERT_NE(slash, std::string::npos) << f.spec;
         for (const std::string& part : {offset.substr(0, slash), offset.substr(slash + 1)}) {
-          EXPECT_GE(std::abs(std::stod(part)), 0.02 - 1e-9) << f.spec;
-          EXPECT_LE(std::abs(std::stod(part)), 0.05) << f.spec;
+          EXPECT_GE(std::stod(part), 0.02 - 1e-9) << f.spec;
+          EXPECT_LE(std::stod(part), 0.05) << f.spec;
         }
-        EXPECT_LE(std::abs(num("yaw")), 40.0);
+        EXPECT_GE(num("yaw"), 5.0);
+        EXPECT_LE(num("yaw"), 40.0);
       } else if (s.kind == "unreachable" || s.kind == "missing") {
         EXPECT_EQ(s.fields.size(), 1u);
         EXPECT_EQ(s.fields.at("workpiece"), "A");
@@ -234,9 +248,12 @@ TEST(CampaignVariants, OnlyRequestedKindsWithValidWhereAndWhen) {
 }
 
 TEST(CampaignVariants, CameraFaultsComeAtAMomentWithinTheCycle) {
-  const CampaignTargets t = campaign_targets(load_scenario(kScenes + "/vision.yaml"), 10.0);
+  const Scenario vision = load_scenario(kScenes + "/vision.yaml");
+  const CampaignTargets t = campaign_targets(vision, 10.0);
   for (std::size_t i = 0; i < 30; ++i) {
-    const Spec s = parse_spec(draw_variant(t, {"frame_lost", "detection_noise"}, 5, i).faults[0].spec);
+    const std::string spec = draw_variant(t, {"frame_lost", "detection_noise"}, 5, i).faults[0].spec;
+    EXPECT_NO_THROW(parse_fault_text(spec, vision.cell)) << spec;
+    const Spec s = parse_spec(spec);
     EXPECT_GE(std::stod(s.fields.at("time")), 0.5 - 1e-9);
     EXPECT_LE(std::stod(s.fields.at("time")), 8.5);
     if (s.kind == "frame_lost") {

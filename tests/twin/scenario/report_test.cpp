@@ -347,7 +347,7 @@ const WorkpieceReport& part(const Report& r, const std::string& name) {
   throw std::runtime_error("no workpiece " + name);
 }
 
-TEST(Account, EachStatusFromTheFinalPosesAndTheEvents) {
+TEST(ReportAccount, EachStatusFromTheFinalPosesAndTheEvents) {
   Scenario s = exchange_scenario();
   // A in place; B held by the MELFA; C never fed (a fed part that did not arrive); D where it started (no
   // expectation: elsewhere, where it is).
@@ -393,7 +393,7 @@ TEST(Account, EachStatusFromTheFinalPosesAndTheEvents) {
   EXPECT_THAT(text, ::testing::Not(HasSubstr("part D")));
 }
 
-TEST(Account, PartNotWhereItShouldBeAndNotDeclaredLostIsUnaccounted) {
+TEST(ReportAccount, PartNotWhereItShouldBeAndNotDeclaredLostIsUnaccounted) {
   const Scenario s = exchange_scenario();
   const Report r = make_report(s, parse_event_log(drop_log("none"), "e"), {on_floor("A")}, std::nullopt);
   EXPECT_FALSE(r.ok());
@@ -412,7 +412,7 @@ TEST(Account, PartNotWhereItShouldBeAndNotDeclaredLostIsUnaccounted) {
   EXPECT_THAT(format_summary(r), HasSubstr("drop at t = 5.50 s on puma: not detected"));
 }
 
-TEST(Account, PartDeclaredLostIsAFailureButAccountedFor) {
+TEST(ReportAccount, PartDeclaredLostIsAFailureButAccountedFor) {
   const Scenario s = exchange_scenario();
   const Report r = make_report(s, parse_event_log(drop_log("lose"), "e"), {on_floor("A")}, std::nullopt);
   const WorkpieceReport& a = part(r, "A");
@@ -438,9 +438,9 @@ TEST(Account, PartDeclaredLostIsAFailureButAccountedFor) {
   EXPECT_TRUE(r.faults[0].recovered);
 }
 
-TEST(Account, PartExpectedLostAndLostIsOk) {
+TEST(ReportAccount, PartExpectedLostAndLostIsOk) {
   Scenario s = exchange_scenario();
-  s.expect[0].place = kExpectLost;
+  s.expect[0].place = std::string(kLostPlace);
   const Report lost = make_report(s, parse_event_log(drop_log("lose"), "e"), {on_floor("A")}, std::nullopt);
   EXPECT_TRUE(lost.ok()) << (lost.failures.empty() ? "" : lost.failures.front());
   EXPECT_EQ(part(lost, "A").status, PartStatus::kLost);
@@ -455,7 +455,7 @@ TEST(Account, PartExpectedLostAndLostIsOk) {
   EXPECT_FALSE(part(delivered, "A").unaccounted);
 }
 
-TEST(Account, LostPartThatNeverArrivedIsNotArrivedAndAccounted) {
+TEST(ReportAccount, LostPartThatNeverArrivedIsNotArrivedAndAccounted) {
   Scenario s = exchange_scenario();
   s.feed = Feed{"input", {"A"}, 0, 0, {}};
   LogWriter w;
@@ -484,7 +484,7 @@ TEST(Account, LostPartThatNeverArrivedIsNotArrivedAndAccounted) {
   EXPECT_DOUBLE_EQ(*r.faults[0].recovery_time, 30.0);
 }
 
-TEST(Faults, InjectionMatchedToDetectionDiagnosisAndRecovery) {
+TEST(ReportFaults, InjectionMatchedToDetectionDiagnosisAndRecovery) {
   const Scenario s = exchange_scenario();
   const Report r = make_report(s, parse_event_log(drop_log("recover"), "e"), {on_output(s, 0.1)}, std::nullopt);
   EXPECT_TRUE(r.ok()) << (r.failures.empty() ? "" : r.failures.front());
@@ -516,7 +516,7 @@ TEST(Faults, InjectionMatchedToDetectionDiagnosisAndRecovery) {
                         "action pick_again, recovered in 2.75 s"));
 }
 
-TEST(Faults, StoppedRunIsAKnownOutcomeAndTheFaultWasStoppedSafely) {
+TEST(ReportFaults, StoppedRunIsAKnownOutcomeAndTheFaultWasStoppedSafely) {
   const Scenario s = exchange_scenario();
   const Report r = make_report(s, parse_event_log(drop_log("stop", "stopped"), "e"), {on_floor("A")}, std::nullopt);
   EXPECT_EQ(r.outcome, "stopped");
@@ -534,7 +534,7 @@ TEST(Faults, StoppedRunIsAKnownOutcomeAndTheFaultWasStoppedSafely) {
   EXPECT_THAT(format_summary(r), HasSubstr("cell stopped safely"));
 }
 
-TEST(Faults, DetectionsBeforeAnyInjectionAreFalseAlarms) {
+TEST(ReportFaults, DetectionsBeforeAnyInjectionAreFalseAlarms) {
   const Scenario s = exchange_scenario();
   LogWriter w;
   w.start();

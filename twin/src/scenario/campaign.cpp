@@ -162,7 +162,6 @@ class Draw {
   double uniform(double lo, double hi) {
     return lo + (hi - lo) * static_cast<double>(rng_() >> 11) * 0x1.0p-53;
   }
-  double sign() { return below(2) == 0 ? 1.0 : -1.0; }
   template <typename T>
   const T& pick(const std::vector<T>& v) {
     return v[below(v.size())];
@@ -202,8 +201,9 @@ DrawnFault draw_fault(Draw& d, const CampaignTargets& t, const std::string& kind
                          num(d.uniform(0.1, 0.6), 2));
   } else if (kind == "misplace") {
     const std::string& w = d.pick(t.workpieces);
-    const double x = d.sign() * d.uniform(0.02, 0.05), y = d.sign() * d.uniform(0.02, 0.05);
-    const double yaw = d.sign() * d.uniform(5, 40);
+    // Amounts only: the injection draws the sides from the run's seed.
+    const double x = d.uniform(0.02, 0.05), y = d.uniform(0.02, 0.05);
+    const double yaw = d.uniform(5, 40);
     f.spec = fmt::format("misplace:workpiece={},offset={}/{},yaw={}", w, num(x, 3), num(y, 3), num(yaw, 1));
   } else if (kind == "unreachable" || kind == "missing") {
     f.spec = fmt::format("{}:workpiece={}", kind, d.pick(t.workpieces));

@@ -471,7 +471,7 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
     }
     if (auto it = lost.find(w.name); it != lost.end()) wr.lost = it->second;
     wr.arrived = arrived.count(w.name) > 0;
-    const bool expect_lost = expect != nullptr && expect->place == kExpectLost;
+    const bool expect_lost = expect != nullptr && expect->lost();
     if (wr.lost && !expect_lost) {
       r.failures.push_back(fmt::format(
           "workpiece {}{} was declared lost at t = {:.2f} s{}; last seen {}", w.name,

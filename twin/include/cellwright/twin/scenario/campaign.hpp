@@ -89,7 +89,7 @@ struct Variant {
 // Run `index`'s faults and seed, drawn with std::mt19937_64 seeded from (seed, index) only. `kinds` must be
 // non-empty and applicable (check_kinds). Where and when:
 //   drop, slip: a robot that carries, carry 1..its carries, after 0.1..0.6 s;
-//   misplace: a workpiece, offset 0.02..0.05 m either way along x and y, yaw 5..40 degrees either way;
+//   misplace: a workpiece, offset 0.02..0.05 m along x and y, yaw 5..40 degrees (the injection draws the sides);
 //   unreachable, missing: a workpiece;
 //   obstacle: a robot, time 5..85 % of the estimated cycle (1..10 s when unknown);
 //   timeout, garbage, hardware, position, link_lost: a robot on the simulation driver, command move or grip, n 1..

@@ -106,9 +106,6 @@ enum class PartStatus {
 // "in_place", "elsewhere", "held", "lost", "not_arrived", "scrapped".
 const char* to_string(PartStatus s);
 
-// The expectation place that means "the scenario expects this part to be lost" (`expect: {A: lost}`).
-inline constexpr const char* kExpectLost = "lost";
-
 // A workpiece_lost event: when the controller declared the part lost, why, and where it was last seen.
 struct LostPart {
   double t = 0;

@@ -193,9 +193,10 @@ void accumulate_load(const urdf::Link& link, double reach, bool prismatic, LoadB
 // --- The cell's MJCF -------------------------------------------------------------------------------------------
 
 struct Builder {
-  explicit Builder(const models::CellDescription& c) : cell(c) {}
+  Builder(const models::CellDescription& c, const SceneOptions& o) : cell(c), options(o) {}
 
   const models::CellDescription& cell;
+  const SceneOptions& options;
   xml::Writer x{2};          // the project's one XML writer (common/xml.hpp), two spaces per level
   std::vector<double> qpos;  // initial qpos in MuJoCo's order (joints in document order)
   std::vector<double> ctrl;  // initial actuator targets, in the order actuators are written
@@ -681,6 +682,15 @@ struct Builder {
     for (const auto& c : cell.conveyors) conveyor(c);
     for (const auto& m : cell.machines) machine(m);
     for (const auto& w : cell.workpieces) workpiece(w);
+    for (std::size_t i = 0; i < options.obstacles.size(); ++i) {
+      const double side = options.obstacles[i];
+      x.open("body", {{"name", fmt::format("obstacle/{}", i + 1)}, {"mocap", "true"}, {"pos", "0 0 -1"}});
+      x.leaf("geom", {{"name", fmt::format("obstacle/{}", i + 1)},
+                      {"type", "box"},
+                      {"size", nums({side / 2, side / 2, side / 2})},
+                      {"rgba", "0.2 0.2 0.22 1"}});
+      x.close();
+    }
     x.close();
 
     x.open("contact");
@@ -732,9 +742,9 @@ struct VfsDeleter {
 
 }  // namespace
 
-std::string scene_mjcf(const models::CellDescription& cell) {
+std::string scene_mjcf(const models::CellDescription& cell, const SceneOptions& options) {
   const std::vector<RobotModel> robots = read_robot_models(cell);
-  Builder b{cell};
+  Builder b{cell, options};
   return b.build(robots);
 }
 
@@ -742,10 +752,10 @@ Scene::Scene(Scene&&) noexcept = default;
 Scene& Scene::operator=(Scene&&) noexcept = default;
 Scene::~Scene() = default;
 
-Scene build_scene(const models::CellDescription& cell) {
+Scene build_scene(const models::CellDescription& cell, const SceneOptions& options) {
   Scene s;
   s.cell_ = cell;
-  s.mjcf_ = scene_mjcf(cell);
+  s.mjcf_ = scene_mjcf(cell, options);
 
   std::unique_ptr<mjVFS, VfsDeleter> vfs(new mjVFS);
   mj_defaultVFS(vfs.get());
@@ -835,6 +845,15 @@ Scene build_scene(const models::CellDescription& cell) {
     ids.dof_adr = m->jnt_dofadr[ids.joint];
     ids.geom = id_of(m, mjOBJ_GEOM, "workpiece/" + w.name);
     s.workpieces_.push_back(ids);
+  }
+  for (std::size_t i = 0; i < options.obstacles.size(); ++i) {
+    ObstacleIds ids;
+    ids.name = fmt::format("obstacle/{}", i + 1);
+    ids.body = id_of(m, mjOBJ_BODY, ids.name);
+    ids.mocap = m->body_mocapid[ids.body];
+    ids.geom = id_of(m, mjOBJ_GEOM, ids.name);
+    ids.size = options.obstacles[i];
+    s.obstacles_.push_back(ids);
   }
   s.reset();
   return s;

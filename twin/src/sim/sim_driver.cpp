@@ -533,6 +533,10 @@ void SimDriver::write_targets(std::chrono::nanoseconds now, const mjModel* model
     const double force = damping * t.velocity[i] + data->qfrc_bias[dof] + inertia * t.acceleration[i];
     data->ctrl[act] = t.position[i] + force / kp;
   }
+  if (now < released_until_) {  // an injected loss of grip force: both fingers driven open
+    for (std::size_t side = 0; side < 2; ++side) data->ctrl[ids_.finger_actuator[side]] = finger_open_;
+    return;
+  }
   double v = 0;
   const double ramp = finger_ramp(now, &v);
   const bool closing = finger_closing_;
@@ -582,6 +586,11 @@ void SimDriver::step(std::chrono::nanoseconds now, const mjModel* model, mjData*
     if (!check_head(c, now, model, data)) break;
   }
   write_targets(now, model, data);
+}
+
+void SimDriver::release_grip(std::chrono::nanoseconds until) {
+  Controller c = controller();
+  released_until_ = until;
 }
 
 void SimDriver::fault(const std::string& message, std::chrono::nanoseconds now, const mjData* data) {

@@ -93,6 +93,7 @@ World::World(Scene scene, WorldOptions options)
   for (int g = 0; g < m->ngeom; ++g) {
     if (m->geom_type[g] == mjGEOM_PLANE) continue;
     if (bodies_[static_cast<std::size_t>(m->geom_bodyid[g])].workpiece >= 0) continue;
+    if (m->body_mocapid[m->geom_bodyid[g]] >= 0) continue;  // an obstacle, waiting under the floor
     max_x = std::max(max_x, d->geom_xpos[3 * g] + m->geom_rbound[g]);
     min_y = std::min(min_y, d->geom_xpos[3 * g + 1] - m->geom_rbound[g]);
   }
@@ -427,6 +428,46 @@ FeedResult World::park(std::string_view workpiece) {
   parked_[w] = true;
   update_sensors();
   return {};
+}
+
+FeedResult World::place(std::string_view workpiece, const Eigen::Isometry3d& pose) {
+  const std::size_t w = workpiece_index(workpiece);
+  if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to place", workpiece)};
+  place_at_rest(w, pose);
+  parked_[w] = false;
+  update_sensors();
+  return {};
+}
+
+void World::shift(std::string_view workpiece, const Eigen::Vector3d& delta) {
+  const std::size_t w = workpiece_index(workpiece);
+  CW_CHECK(w != npos, "no workpiece '{}'", workpiece);
+  mjtNum* qpos = scene_.data()->qpos + scene_.workpieces()[w].qpos_adr;
+  for (int i = 0; i < 3; ++i) qpos[i] += delta[i];
+  mj_forward(scene_.model(), scene_.data());
+}
+
+double World::clearance_below(std::string_view workpiece) const {
+  const std::size_t w = workpiece_index(workpiece);
+  CW_CHECK(w != npos, "no workpiece '{}'", workpiece);
+  const WorkpieceIds& ids = scene_.workpieces()[w];
+  const Eigen::Vector3d c = free_pose(scene_.data(), ids.qpos_adr).translation();
+  const mjtNum from[3] = {c.x(), c.y(), c.z()};
+  const mjtNum down[3] = {0, 0, -1};
+  int hit = -1;
+  const mjtNum d = mj_ray(scene_.model(), scene_.data(), from, down, nullptr, 1, ids.body, &hit);
+  if (hit < 0 || d < 0) return std::numeric_limits<double>::infinity();
+  return d - scene_.cell().workpieces[w].size.z() / 2;
+}
+
+void World::place_obstacle(std::size_t index, const std::optional<Eigen::Vector3d>& centre) {
+  CW_CHECK(index < scene_.obstacles().size(), "no obstacle {} (the scene has {})", index,
+           scene_.obstacles().size());
+  mjData* d = scene_.data();
+  const Eigen::Vector3d p = centre.value_or(Eigen::Vector3d(0, 0, -1));
+  mjtNum* pos = d->mocap_pos + 3 * scene_.obstacles()[index].mocap;
+  for (int i = 0; i < 3; ++i) pos[i] = p[i];
+  mj_forward(scene_.model(), d);
 }
 
 bool World::parked(std::string_view workpiece) const {

@@ -7,12 +7,36 @@
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/runtime/grip_sensor.hpp"
+#include "cellwright/twin/sim/fault_injector.hpp"
 #include "cellwright/vision/cell_detector.hpp"
 
 namespace cellwright::twin::sim {
 
-WorldPlant::WorldPlant(World& world, std::vector<FeedEvent> feed) : world_(world), feed_(std::move(feed)) {
+WorldPlant::WorldPlant(World& world, std::vector<FeedEvent> feed, std::vector<scenario::FaultSpec> faults,
+                       std::uint64_t seed)
+    : world_(world), feed_(std::move(feed)) {
   std::stable_sort(feed_.begin(), feed_.end(), [](const FeedEvent& a, const FeedEvent& b) { return a.time < b.time; });
+  if (!faults.empty()) {
+    injector_ = std::make_unique<FaultInjector>(world_, std::move(faults), seed);
+    injector_->prepare(feed_);
+  }
+}
+
+void WorldPlant::report_fault(runtime::InjectedFault fault) {
+  std::lock_guard lock(reported_mutex_);
+  reported_.push_back(std::move(fault));
+}
+
+std::vector<runtime::InjectedFault> WorldPlant::new_faults() {
+  std::vector<runtime::InjectedFault> out;
+  {
+    std::lock_guard lock(reported_mutex_);
+    out.swap(reported_);
+  }
+  if (injector_) {
+    for (runtime::InjectedFault& f : injector_->take()) out.push_back(std::move(f));
+  }
+  return out;
 }
 
 void WorldPlant::advance(runtime::SimDuration dt) {
@@ -23,9 +47,11 @@ void WorldPlant::advance(runtime::SimDuration dt) {
     if (r.status == FeedStatus::occupied) break;
     CW_CHECK(r.ok(), "feeding {} onto {} at {} ns: {}", f.workpiece, f.conveyor, f.time.count(), r.message);
     arrivals_.push_back({f.workpiece, f.conveyor});
+    if (injector_) injector_->fed(f.workpiece);
     ++next_feed_;
   }
   world_.advance(dt);
+  if (injector_) injector_->update();
   for (std::string& w : world_.drain_warnings()) warnings_.push_back(std::move(w));
 }
 
@@ -49,8 +75,15 @@ runtime::Truth WorldPlant::truth() const {
     const std::string held =
         runtime::part_between_fingers(robot.finger_contact[0], robot.finger_contact[1], robot.tcp.translation(), boxes);
     rt.between_fingers = held;
+    // The wrist force sensor measures in its site's frame: turned into the world's.
+    const RobotIds& ids = world_.scene().robots()[r];
+    const mjtNum* x = world_.data()->site_xmat + 9 * ids.wrist_site;
+    Eigen::Matrix3d rot;
+    rot << x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8];
+    rt.wrist_force = Eigen::Vector3d(rot * robot.wrist_force);
     t.robots.push_back(std::move(rt));
   }
+  if (injector_) t.obstacles = injector_->obstacles();
   return t;
 }
 
@@ -61,6 +94,11 @@ std::vector<runtime::Collision> WorldPlant::new_collisions() {
 }
 
 std::optional<runtime::Image> WorldPlant::capture(const std::string& camera, std::string* why) {
+  last_capture_.store(world_.now().count());
+  if (injector_ && injector_->lose_frame(world_.now())) {
+    if (why != nullptr) *why = fmt::format("camera '{}' delivered no frame", camera);
+    return std::nullopt;
+  }
   const models::CameraSpec* spec = world_.scene().cell().find_camera(camera);
   const int id = world_.scene().camera_id(camera);
   if (spec == nullptr || id < 0) {

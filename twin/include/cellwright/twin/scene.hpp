@@ -64,6 +64,20 @@ struct WorkpieceIds {
   int body = -1, joint = -1, qpos_adr = -1, dof_adr = -1, geom = -1;
 };
 
+// An obstacle of the fault injection (docs/faults.md, kind obstacle): a box moved by the simulation (a MuJoCo mocap
+// body "obstacle/<i>", from 1), not part of the cell. It collides with robots and parts. It waits 1 m under the floor
+// (static and mocap geoms never collide, and no camera sees through the floor) until it is put in the cell.
+struct ObstacleIds {
+  std::string name;  // "obstacle/1", ...
+  int body = -1, mocap = -1, geom = -1;
+  double size = 0;  // m, the cube's side
+};
+
+// What a scene holds besides the cell: the obstacles the scenario's faults may put in the cell, by size (m).
+struct SceneOptions {
+  std::vector<double> obstacles;
+};
+
 class Scene {
  public:
   Scene(Scene&&) noexcept;
@@ -80,6 +94,7 @@ class Scene {
   const std::vector<ConveyorIds>& conveyors() const { return conveyors_; }
   const std::vector<MachineIds>& machines() const { return machines_; }
   const std::vector<WorkpieceIds>& workpieces() const { return workpieces_; }
+  const std::vector<ObstacleIds>& obstacles() const { return obstacles_; }
   // Lookups by name; nullptr when there is none.
   const RobotIds* find_robot(std::string_view name) const;
   const ConveyorIds* find_conveyor(std::string_view name) const;
@@ -97,7 +112,7 @@ class Scene {
   void wrap_belts(mjData* data) const;
 
  private:
-  friend Scene build_scene(const models::CellDescription& cell);
+  friend Scene build_scene(const models::CellDescription& cell, const SceneOptions& options);
 
   // Writes MJCF text (e.g. Scene::mjcf(), for MuJoCo's viewer or for debugging) atomically: to a temporary file in
   // the same directory, then renamed over `path`. Throws InputError naming the path if it cannot be written.
@@ -119,17 +134,18 @@ class Scene {
   std::vector<ConveyorIds> conveyors_;
   std::vector<MachineIds> machines_;
   std::vector<WorkpieceIds> workpieces_;
+  std::vector<ObstacleIds> obstacles_;
 };
 
 // The MJCF text of the whole cell. Reads each robot's URDF (primitive geometry only: box, cylinder, sphere).
 // Throws InputError naming the URDF when it cannot be read or lacks what the scene needs (links flange and tcp,
 // prismatic joints finger_left_joint and finger_right_joint, inertials on moving links, no mesh geometry).
-std::string scene_mjcf(const models::CellDescription& cell);
+std::string scene_mjcf(const models::CellDescription& cell, const SceneOptions& options = {});
 
 // Builds the MJCF, compiles it in memory (MuJoCo's virtual file system: nothing is written to disk) and returns
 // the scene, reset to its initial state. Throws InputError as scene_mjcf, or naming the cell file with MuJoCo's
 // message if MuJoCo rejects the model.
-Scene build_scene(const models::CellDescription& cell);
+Scene build_scene(const models::CellDescription& cell, const SceneOptions& options = {});
 
 // Writes MJCF text (e.g. Scene::mjcf(), for MuJoCo's viewer or for debugging) atomically: to a temporary file in
 // the same directory, then renamed over `path`. Throws InputError naming the path if it cannot be written.

@@ -135,6 +135,12 @@ class SimDriver final : public drivers::DriverCore {
   // state from `data`. Calls the notifier (lock released) if a command finished.
   void step(std::chrono::nanoseconds now, const mjModel* model, mjData* data);
 
+  // A fault injected on purpose (docs/faults.md, kind drop): the gripper loses its grip force until simulation time
+  // `until`: the finger servos are driven fully open whatever the commands say (a command running meanwhile goes on
+  // as the fingers let it); from `until` on the fingers obey the last command again (after a close they close, on
+  // whatever is still between them). Nothing the owner reads says that it happened.
+  void release_grip(std::chrono::nanoseconds until);
+
   // MuJoCo reset the simulation: every command fails with hardware, the driver enters fault (unless disconnected),
   // and the targets are taken from `data` as it is now. Calls the notifier.
   void fault(const std::string& message, std::chrono::nanoseconds now, const mjData* data);
@@ -227,6 +233,7 @@ class SimDriver final : public drivers::DriverCore {
   bool finger_closing_ = false;  // the last finger motion closed (the force limit holds the fingers on a part)
   std::chrono::nanoseconds finger_start_{0};
   double finger_duration_ = 0;
+  std::chrono::nanoseconds released_until_{0};  // release_grip(): the fingers are driven open before this time
 };
 
 }  // namespace cellwright::twin::sim

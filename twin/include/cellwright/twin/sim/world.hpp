@@ -212,6 +212,19 @@ class World {
   // Whether a workpiece waits in the parking row. InternalError if there is no such workpiece.
   bool parked(std::string_view workpiece) const;
 
+  // ---- Fault injection (fault_injector.hpp): the physics made to go wrong on purpose ----
+  // Puts a workpiece (parked or not) at `pose` (its centre, world), at rest. Refuses with unknown_workpiece only.
+  FeedResult place(std::string_view workpiece, const Eigen::Isometry3d& pose);
+  // Moves a workpiece by `delta` (world), keeping its velocity: a part sliding in the fingers. InternalError if there
+  // is no such workpiece.
+  void shift(std::string_view workpiece, const Eigen::Vector3d& delta);
+  // How far the workpiece's bottom (its centre less half its height) is above whatever is straight below its centre
+  // (infinity when nothing is). InternalError if there is no such workpiece.
+  double clearance_below(std::string_view workpiece) const;
+  // Puts obstacle `index` (scene().obstacles()) with its centre at `centre` (world, axis-aligned), or back under the
+  // floor with nullopt. Its contacts with robots are collisions (new_collisions).
+  void place_obstacle(std::size_t index, const std::optional<Eigen::Vector3d>& centre);
+
  private:
   struct BodyInfo {
     int robot = -1;        // index of the robot owning the body, -1 if none

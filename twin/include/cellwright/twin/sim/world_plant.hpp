@@ -10,19 +10,30 @@
 //    since the last call, where = the conveyor.
 //  - MuJoCo warnings are drained every advance and kept (warnings()): a run that raised any is suspect, and tests
 //    fail on them.
+//  - Faults (docs/faults.md): given the scenario's faults, a FaultInjector (fault_injector.hpp) changes the feed and
+//    the parts at the start when the plant is made, and after every World::advance injects what is due; capture()
+//    delivers no frame while a frame_lost fault says so. new_faults() returns what was injected since the last call:
+//    first the faults reported from other threads by report_fault() (the driver faults, in the order they were
+//    reported), then the injector's of this advance. truth() lists the obstacles in the cell and each robot's wrist
+//    force (the World's wrist force sensor, turned into the world frame).
 //  - capture(camera) renders the World's camera offscreen (OSMesa), with a Renderer made on the first call, on the
 //    calling thread, and freed by release_thread_resources() on the same thread (or by the destructor, which must then
 //    run on that thread too).
 //
-// Threads: as Plant (plant.hpp); warnings() and feed_log() only while the simulation thread is not running.
+// Threads: as Plant (plant.hpp); warnings() only while the simulation thread is not running; report_fault() and
+// last_capture() from any thread.
 #pragma once
 
+#include <atomic>
+#include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
 #include "cellwright/runtime/plant.hpp"
 #include "cellwright/twin/render.hpp"
+#include "cellwright/twin/scenario/faults.hpp"
 #include "cellwright/twin/sim/world.hpp"
 
 namespace cellwright::twin::sim {
@@ -36,21 +47,33 @@ struct FeedEvent {
   Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
 };
 
+class FaultInjector;
+
 class WorldPlant final : public runtime::Plant {
  public:
   // The World must outlive the plant. Feed events are sorted by time (stable: equal times keep their order).
-  explicit WorldPlant(World& world, std::vector<FeedEvent> feed = {});
+  // `faults` (the kinds the injector makes; others are ignored) need a World whose scene holds the obstacles of
+  // FaultInjector::scene_options(faults); random amounts are drawn from `seed`.
+  explicit WorldPlant(World& world, std::vector<FeedEvent> feed = {}, std::vector<scenario::FaultSpec> faults = {},
+                      std::uint64_t seed = 1);
 
   void advance(runtime::SimDuration dt) override;
   runtime::Truth truth() const override;
   std::vector<runtime::Collision> new_collisions() override;
   std::vector<runtime::Arrival> new_arrivals() override;
+  std::vector<runtime::InjectedFault> new_faults() override;
   std::optional<runtime::Image> capture(const std::string& camera, std::string* why) override;
   void release_thread_resources() override;
   ~WorldPlant() override;
 
   // Every MuJoCo warning raised so far, as the World words them.
   const std::vector<std::string>& warnings() const { return warnings_; }
+
+  // A fault injected elsewhere (a FaultyDriver around a robot's driver, on its owner's thread), for new_faults().
+  // Any thread.
+  void report_fault(runtime::InjectedFault fault);
+  // The simulation time of the last capture() (the frame image processing is detecting). Any thread.
+  runtime::SimDuration last_capture() const { return runtime::SimDuration(last_capture_.load()); }
 
  private:
   World& world_;
@@ -59,6 +82,10 @@ class WorldPlant final : public runtime::Plant {
   std::vector<runtime::Arrival> arrivals_;
   std::vector<std::string> warnings_;
   std::unique_ptr<Renderer> renderer_;  // made by capture() on the simulation thread
+  std::unique_ptr<FaultInjector> injector_;  // nullptr without faults
+  std::mutex reported_mutex_;
+  std::vector<runtime::InjectedFault> reported_;  // by report_fault(), under reported_mutex_
+  std::atomic<std::int64_t> last_capture_{0};     // ns
 };
 
 }  // namespace cellwright::twin::sim

@@ -723,7 +723,7 @@ const std::vector<Metric>& metrics() {
 cv::Mat draw_campaign(const CampaignSummary& s, int width, int height) {
   CW_CHECK(width >= 400 && height >= 300, "campaign chart of {} x {} px", width, height);
   cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
-  const int left = 80, right = 30, top = 60, bottom = 130;
+  const int left = 80, right = 30, top = 75, bottom = 130;
   const int x0 = left, x1 = width - right, y0 = top, y1 = height - bottom;
   put_text(img,
            fmt::format("{}: {} runs, seed {}; crashes {}, hangs {}, false alarms {}", s.scenario, s.total.runs, s.seed,
@@ -756,10 +756,10 @@ cv::Mat draw_campaign(const CampaignSummary& s, int width, int height) {
   const int groups = std::max<int>(1, static_cast<int>(s.kinds.size()));
   const double group_w = static_cast<double>(x1 - x0) / groups;
   const int n_metrics = static_cast<int>(metrics().size());
-  const int bar_w = std::max(2, static_cast<int>(group_w * 0.8 / n_metrics));
+  const int bar_w = std::clamp(static_cast<int>(group_w * 0.8 / n_metrics), 2, 60);
   for (int g = 0; g < static_cast<int>(s.kinds.size()); ++g) {
     const KindSummary& k = s.kinds[static_cast<std::size_t>(g)];
-    const int gx = x0 + static_cast<int>(std::lround(group_w * g + group_w * 0.1));
+    const int gx = x0 + static_cast<int>(std::lround(group_w * (g + 0.5))) - n_metrics * bar_w / 2;
     if (g % 2 == 1) {
       cv::Mat band = img(cv::Rect(x0 + static_cast<int>(group_w * g), y0, static_cast<int>(group_w), y1 - y0));
       band -= cv::Scalar(8, 8, 8);

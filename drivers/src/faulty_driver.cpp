@@ -52,6 +52,10 @@ FaultyDriver::FaultyDriver(RobotDriver& inner, FaultPlan plan)
     CW_CHECK(r.nth > 0, "a fault rule counts commands from 1, got nth 0");
     check_fault(r.fault);
   }
+  for (const KindsRule& r : plan_.kinds_rules) {
+    CW_CHECK(r.nth > 0 && !r.kinds.empty(), "a fault rule counts commands of some kinds from 1");
+    check_fault(r.fault);
+  }
   CW_CHECK(plan_.probability >= 0.0 && plan_.probability <= 1.0, "fault probability {} is outside [0, 1]",
            plan_.probability);
   CW_CHECK(plan_.probability == 0.0 || !plan_.random.empty(), "a fault probability needs faults to draw from");
@@ -151,6 +155,7 @@ Submitted FaultyDriver::submit(const Command& command) {
       fault_ = fault;
       wait_for_ = last_queued_inner_;
       injected_.commands.push_back(h.id);
+      if (plan_.on_injection) plan_.on_injection(h.id, command, *fault);
       update();
     }
     return h;
@@ -223,6 +228,15 @@ std::optional<Fault> FaultyDriver::choose(const Command& command) {
     const bool match =
         r.kind ? static_cast<std::size_t>(*r.kind) == kind && submitted_by_kind_[kind] == r.nth : submitted_ == r.nth;
     if (match) return r.fault;
+  }
+  for (const KindsRule& r : plan_.kinds_rules) {
+    std::uint64_t count = 0;
+    bool of_kind = false;
+    for (CommandKind k : r.kinds) {
+      count += submitted_by_kind_[static_cast<std::size_t>(k)];
+      of_kind = of_kind || static_cast<std::size_t>(k) == kind;
+    }
+    if (of_kind && count == r.nth) return r.fault;
   }
   return chosen;
 }

@@ -287,5 +287,38 @@ TEST(FaultyDriver, RandomFaultsAreTheSameForTheSameSeed) {
   EXPECT_LE(a.failed, 40u);
 }
 
+// A rule over a set of kinds counts them together (the scenario's `command: move` counts joint and pose moves), and
+// the injection callback is told of the chosen command at once, on the owner's thread.
+TEST(FaultyDriver, ASetOfKindsCountsTogetherAndTheCallbackIsToldOfTheChosenCommand) {
+  ScriptedDriver robot(config());
+  FaultPlan plan;
+  plan.kinds_rules.push_back({{CommandKind::move_joints, CommandKind::grip}, 3, Fault{ErrorCode::protocol, false,
+                                                                                   "garbage reply"}});
+  std::vector<std::pair<CommandId, CommandKind>> told;
+  plan.on_injection = [&](CommandId id, const Command& c, const Fault& f) {
+    told.emplace_back(id, kind_of(c));
+    EXPECT_EQ(f.error, ErrorCode::protocol);
+  };
+  FaultyDriver d(robot, plan);
+  bring_up(d, robot);
+  Grip g;
+  g.action = Grip::Action::close;
+  const Submitted a = d.submit(kMove);
+  const Submitted b = d.submit(SetOutput{1, true});  // not counted
+  const Submitted c = d.submit(g);
+  EXPECT_TRUE(told.empty());
+  const Submitted e = d.submit(kMove);  // the third move or grip
+  ASSERT_EQ(told.size(), 1u);
+  EXPECT_EQ(told[0].first, e.id);
+  EXPECT_EQ(told[0].second, CommandKind::move_joints);
+  EXPECT_EQ(run_until_finished(d, robot, c.id).phase, CommandPhase::done);
+  const CommandStatus failed = run_until_finished(d, robot, e.id);
+  EXPECT_EQ(failed.error, ErrorCode::protocol);
+  EXPECT_EQ(failed.message, "garbage reply");
+  EXPECT_EQ(d.poll(a.id).phase, CommandPhase::done);
+  EXPECT_EQ(d.poll(b.id).phase, CommandPhase::done);
+  EXPECT_EQ(d.state(), DriverState::fault);
+}
+
 }  // namespace
 }  // namespace cellwright::drivers

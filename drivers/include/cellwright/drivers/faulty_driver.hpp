@@ -5,6 +5,7 @@
 //    unreachable or timeout (the command fails, the driver stays as it was), hardware or protocol (the driver enters
 //    fault), connection_lost (fault, and reset() then leaves it disconnected);
 //  - or it never completes: it runs until stop(), disconnect() or a fault ends it;
+//  - or the n-th of a set of kinds counted together (KindsRule: every move, joint or pose);
 //  - or, with a probability, each submitted command draws one of a list of such faults from a generator seeded by
 //    the plan (std::mt19937_64: the same seed and the same sequence of submissions give the same faults).
 //
@@ -32,7 +33,12 @@
 //  - With reads_while_moving, position requests are always forwarded (they are behind nothing); otherwise they are
 //    held like commands while something is held.
 //
-// THREADS. As every RobotDriver: one owner calls every method, including the counters (injected()). The wrapped
+// INJECTION CALLBACK. FaultPlan::on_injection is told of each command chosen for a fault (not of one that is not made),
+// inside the submit() that accepted it, so that a caller can report the injection (ScenarioRun does, as the plant's
+// injected faults).
+//
+// THREADS. As every RobotDriver: one owner calls every method, including the counters (injected()); the callback
+// runs on it. The wrapped
 // driver's own threads call the notifier as before.
 #pragma once
 
@@ -71,12 +77,25 @@ struct FaultRule {
   Fault fault;
 };
 
+// The n-th command of any of `kinds`, counted together ({move_joints, move_pose}: every move).
+struct KindsRule {
+  std::vector<CommandKind> kinds;
+  std::uint64_t nth = 1;
+  Fault fault;
+};
+
+// Told of each command chosen for a fault, on the owner's thread, inside the submit() that accepted it: its id, the
+// command, the fault. It must not call the decorator.
+using InjectionCallback = std::function<void(CommandId, const Command&, const Fault&)>;
+
 struct FaultPlan {
-  std::vector<FaultRule> rules;  // the first rule that matches a command decides
+  std::vector<FaultRule> rules;  // the first rule that matches a command decides ...
+  std::vector<KindsRule> kinds_rules;  // ... then the first of these
   // Random faults: a command that no rule chose draws a fault with this probability, uniformly among `random`.
   double probability = 0.0;
   std::vector<Fault> random;
   std::uint64_t seed = 1;
+  InjectionCallback on_injection;  // may be empty
 };
 
 class FaultyDriver final : public RobotDriver {

@@ -277,8 +277,8 @@ RunRecord record(std::size_t index, const std::vector<std::string>& specs, RunSt
   r.status = status;
   r.exit_code = status == RunStatus::kDone ? 0 : -1;
   r.report = std::move(report);
-  if (status == RunStatus::kCrash) r.problem = "killed by signal 11 (Segmentation fault)";
-  if (status == RunStatus::kHang) r.problem = "still running after 5 s: killed";
+  if (status == RunStatus::kCrash) r.problem = std::string("killed by signal 11 (Segmentation fault)");
+  if (status == RunStatus::kHang) r.problem = std::string("still running after 5 s: killed");
   return r;
 }
 

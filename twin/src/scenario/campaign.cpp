@@ -538,7 +538,7 @@ CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<
   CampaignSummary s;
   s.scenario = scenario;
   s.seed = seed;
-  s.total.kind = "all";
+  s.total.kind = std::string("all");
   std::map<std::string, std::size_t> row;
   std::map<std::string, std::vector<double>> times;
   auto row_of = [&](const std::string& kind) -> KindSummary& {

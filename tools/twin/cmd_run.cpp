@@ -1,5 +1,5 @@
 // `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]
-// [--driver ROBOT=KIND[:PORT]]... [--dry]`: run a scenario's task program on the simulated cell (or with some robots
+// [--driver ROBOT=KIND[:PORT]]... [--fault SPEC]... [--seed N] [--dry]`: run a scenario's task program on the simulated cell (or with some robots
 // real, mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and every expected outcome
 // holds, 1 when not, 2 on bad input (refused before any thread starts, nothing written).
 #include <unistd.h>
@@ -11,6 +11,7 @@
 #include <iostream>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 
 #include "cellwright/common/error.hpp"
@@ -97,6 +98,8 @@ void add_run(CLI::App& app, Command* run) {
     std::string perception;
     std::string frames;
     std::vector<std::string> drivers;
+    std::vector<std::string> faults;
+    std::optional<std::uint64_t> seed;
     bool dry = false;
   };
   auto args = std::make_shared<Args>();
@@ -111,6 +114,11 @@ void add_run(CLI::App& app, Command* run) {
   cmd->add_option("--driver", args->drivers,
                   "put a robot on another driver, the rest of the scenario unchanged: ROBOT=sim, "
                   "ROBOT=movemaster:PORT or ROBOT=val2:PORT (repeatable; real drivers need --realtime)");
+  cmd->add_option("--fault", args->faults,
+                  "inject a fault, added to the scenario's faults: KIND:key=value,key=value with a list as a/b, e.g. "
+                  "drop:robot=puma,carry=1 (docs/faults.md; repeatable)");
+  cmd->add_option("--seed", args->seed, "the run's seed instead of the scenario's (random amounts of the faults, "
+                                        "perturbations)");
   cmd->add_flag("--dry", args->dry,
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
                 "program; nothing else moves. Exit 0 when all is well, 1 when not");
@@ -121,6 +129,8 @@ void add_run(CLI::App& app, Command* run) {
       using namespace cellwright::twin::scenario;
       Scenario s = load_scenario(args->scenario);
       for (const std::string& d : args->drivers) set_driver(s, d, {"--driver", 0, 0});
+      for (const std::string& f : args->faults) s.faults.push_back(parse_fault_text(f, s.cell, "--fault"));
+      if (args->seed) s.seed = *args->seed;
       const Preflight pre = preflight(s);
       if (!pre.ok()) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", args->scenario.c_str());

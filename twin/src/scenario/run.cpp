@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -14,6 +15,7 @@
 #include "cellwright/twin/scenario/gantt.hpp"
 #include "cellwright/twin/scenario/real_drivers.hpp"
 #include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/sim/fault_injector.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
 #include "cellwright/vision/camera_model.hpp"
 #include "cellwright/vision/cell_detector.hpp"
@@ -25,6 +27,44 @@ namespace {
 
 runtime::SimDuration seconds(double s) {
   return std::chrono::duration_cast<runtime::SimDuration>(std::chrono::duration<double>(s));
+}
+
+// The driver faults of robot `robot` as a FaultyDriver's plan (docs/faults.md): `command: move` counts joint and pose
+// moves together, `grip` opens and closes. Empty when it has none.
+drivers::FaultPlan driver_plan(const Scenario& s, const std::string& robot) {
+  drivers::FaultPlan plan;
+  for (const FaultSpec& f : s.faults) {
+    if (!is_driver_fault(f.kind) || f.robot != robot) continue;
+    drivers::KindsRule rule;
+    rule.kinds = f.command == FaultCommand::move
+                     ? std::vector<drivers::CommandKind>{drivers::CommandKind::move_joints, drivers::CommandKind::move_pose}
+                     : std::vector<drivers::CommandKind>{drivers::CommandKind::grip};
+    rule.nth = f.n;
+    switch (f.kind) {
+      case FaultKind::timeout:
+        rule.fault.never_completes = true;
+        break;
+      case FaultKind::garbage:
+        rule.fault.error = drivers::ErrorCode::protocol;
+        rule.fault.message = "garbage reply: the controller answered with bytes that are no reply";
+        break;
+      case FaultKind::hardware:
+        rule.fault.error = drivers::ErrorCode::hardware;
+        rule.fault.message = "ER 1: the controller reports a hardware error";
+        break;
+      case FaultKind::position:
+        rule.fault.error = drivers::ErrorCode::unreachable;
+        rule.fault.message = "ER 2: the controller refuses the position";
+        break;
+      default:
+        rule.fault.error = drivers::ErrorCode::connection_lost;
+        rule.fault.message = "the serial link to the controller dropped";
+        break;
+    }
+    plan.kinds_rules.push_back(std::move(rule));
+  }
+  plan.seed = s.seed;
+  return plan;
 }
 
 }  // namespace
@@ -45,7 +85,8 @@ CellWorld make_cell_world(const Scenario& s) {
     w.pose.rpy.z() += std::atan2(it->second.linear()(1, 0), it->second.linear()(0, 0));
   }
   CellWorld out;
-  out.world = std::make_unique<sim::World>(build_scene(real), world_options);
+  out.world =
+      std::make_unique<sim::World>(build_scene(real, sim::FaultInjector::scene_options(s.faults)), world_options);
   if (s.feed) {
     for (std::size_t i = 0; i < s.feed->workpieces.size(); ++i) {
       const auto it = offsets.find(s.feed->workpieces[i]);
@@ -67,6 +108,13 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
                                             "real driver: a real arm moves on the wall clock and cannot wait for the "
                                             "simulation's steps; run with --realtime",
                                             d.robot, to_string(d.kind)));
+    }
+  }
+  for (const FaultSpec& f : s.faults) {
+    if (needs_vision(f.kind) && perception_ != runtime::Perception::kVision) {
+      throw InputError(f.where, fmt::format("a {} fault needs perception vision (the camera), and this run's "
+                                            "perception is {}",
+                                            to_string(f.kind), runtime::to_string(perception_)));
     }
   }
   CellWorld cell = make_cell_world(s);
@@ -103,6 +151,23 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
       connect_real_driver(*real, *choice);
       mirrors_.push_back(std::make_unique<sim::MirroredDriver>(b.name, std::move(real), driver, driver.kinematics()));
       config.drivers[b.name] = mirrors_.back().get();
+    } else if (drivers::FaultPlan plan = driver_plan(s, b.name); !plan.kinds_rules.empty()) {
+      // The controller's and the link's faults: each reported, as it is chosen on the robot's thread, through the plant.
+      plan.on_injection = [this, robot = b.name](drivers::CommandId id, const drivers::Command& command,
+                                                 const drivers::Fault& fault) {
+        const std::string kind =
+            fault.never_completes ? std::string("timeout")
+            : fault.error == drivers::ErrorCode::protocol        ? std::string("garbage")
+            : fault.error == drivers::ErrorCode::hardware        ? std::string("hardware")
+            : fault.error == drivers::ErrorCode::unreachable     ? std::string("position")
+                                                                 : std::string("link_lost");
+        world_plant_->report_fault(
+            {kind, robot, "",
+             fmt::format("command {} ({}): {}", id, drivers::describe(command),
+                         fault.never_completes ? std::string("the controller never answers") : fault.message)});
+      };
+      faulty_.push_back(std::make_unique<drivers::FaultyDriver>(driver, std::move(plan)));
+      config.drivers[b.name] = faulty_.back().get();
     }
     RobotTiming timing;
     timing.max_joint_speed = driver.capabilities().max_joint_speed;
@@ -114,7 +179,12 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     estimate_options.robots[b.name] = timing;
   }
 
-  plant_ = std::make_unique<sim::WorldPlant>(*world_, std::move(cell.feed));
+  auto plant = std::make_unique<sim::WorldPlant>(*world_, std::move(cell.feed), s.faults, s.seed);
+  world_plant_ = plant.get();
+  plant_ = std::move(plant);
+  for (const FaultSpec& f : s.faults) {
+    if (f.kind == FaultKind::lost_signal) config.lost_signals.push_back(f.n);
+  }
   estimate_ = estimate_cycle_time(s, net, estimate_options);
 
   config.plant = plant_.get();
@@ -140,6 +210,12 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     config.vision = runtime::VisionOptions{v.camera, seconds(v.period)};
     config.detector = std::make_shared<const vision::CellDetector>(
         std::make_shared<const vision::Detector>(s.cell, vision::CameraModel(*camera)));
+    if (std::any_of(s.faults.begin(), s.faults.end(),
+                    [](const FaultSpec& f) { return f.kind == FaultKind::detection_noise; })) {
+      sim::WorldPlant* frames = world_plant_;
+      config.detector = std::make_shared<const sim::NoisyDetector>(config.detector, s.faults, s.seed,
+                                                                   [frames] { return frames->last_capture(); });
+    }
     config.on_frame = std::move(options.on_frame);
   }
   config.on_progress = std::move(options.on_progress);

@@ -3,6 +3,10 @@
 // drivers, the plant (with the scenario's workpiece feed), the detector when the perception is vision, the cycle-time
 // estimate and the Runtime (given the cell description as written: the controller does not know the perturbation);
 // after the run it turns the result into the report and writes the outputs.
+// The scenario's faults (docs/faults.md) are put in place here: the physical ones and the camera's by the plant
+// (sim::FaultInjector; the scene gets the obstacle bodies), the detection noise by a sim::NoisyDetector around the
+// detector, the driver faults by a drivers::FaultyDriver around the robot's simulation driver (each reported through
+// the plant's new_faults() as it is chosen), lost_signal by RunConfig::lost_signals.
 //
 // Order of use (main thread):
 //    Scenario s = load_scenario(file);            // InputError: bad input
@@ -28,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/drivers/faulty_driver.hpp"
 #include "cellwright/petri/net.hpp"
 #include "cellwright/runtime/runtime.hpp"
 #include "cellwright/twin/scenario/estimate.hpp"
@@ -104,7 +109,9 @@ class ScenarioRun {
   runtime::Perception perception_ = runtime::Perception::kTruth;
   std::unique_ptr<sim::World> world_;
   std::vector<std::unique_ptr<sim::MirroredDriver>> mirrors_;  // real robots, with their copies in world_
+  std::vector<std::unique_ptr<drivers::FaultyDriver>> faulty_;  // simulated robots with driver faults
   std::unique_ptr<runtime::Plant> plant_;
+  sim::WorldPlant* world_plant_ = nullptr;  // plant_, the World's
   Estimate estimate_;
   std::unique_ptr<runtime::Runtime> runtime_;
 };

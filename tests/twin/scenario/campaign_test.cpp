@@ -302,6 +302,8 @@ std::vector<RunRecord> fabricated_runs() {
                              {"faults", json::array({fault("drop", true, true, 2.0)})}}));
   runs.push_back(record(1, {"drop:robot=melfa"}, RunStatus::kDone,
                         json{{"result", "ok"}, {"unaccounted", 0}, {"false_alarms", 0},
+                             {"account", json::array({json{{"workpiece", "A"}, {"lost", json{{"t", 3.0}}}},
+                                                      json{{"workpiece", "B"}, {"lost", json()}}})},
                              {"faults", json::array({fault("drop", true, true, 4.0)})}}));
   runs.push_back(record(2, {"drop:robot=puma"}, RunStatus::kDone,
                         json{{"result", "failed"}, {"unaccounted", 1}, {"false_alarms", 0},
@@ -329,6 +331,7 @@ TEST(CampaignAggregate, CountsPerKindAndInAll) {
   EXPECT_EQ(drop.recovered, 3u);
   EXPECT_EQ(drop.stopped_safely, 0u);
   EXPECT_EQ(drop.unaccounted, 1u);
+  EXPECT_EQ(drop.lost, 1u);
   EXPECT_EQ(drop.ok_runs, 3u);
   ASSERT_TRUE(drop.mean_recovery_time);
   EXPECT_DOUBLE_EQ(*drop.mean_recovery_time, 3.0);
@@ -371,15 +374,15 @@ TEST(CampaignAggregate, CsvMarkdownAndChart) {
   const std::vector<RunRecord> runs = fabricated_runs();
   const CampaignSummary s = aggregate(runs, {"drop", "timeout"}, "exchange.yaml", 1);
   const std::string csv = format_csv(s);
-  EXPECT_THAT(csv, HasSubstr("kind,runs,injected,detected,recovered,stopped_safely,unaccounted,false_alarms,crashes,"
-                             "hangs,ok_runs,mean_recovery_time_s\n"));
-  EXPECT_THAT(csv, HasSubstr("\ndrop,4,4,3,3,0,1,0,0,0,3,3.0000\n"));
-  EXPECT_THAT(csv, HasSubstr("\ntimeout,4,2,2,1,1,0,1,1,1,1,1.0000\n"));
-  EXPECT_THAT(csv, HasSubstr("\nall,7,6,5,4,1,1,1,1,1,3,2.5000\n"));
+  EXPECT_THAT(csv, HasSubstr("kind,runs,injected,detected,recovered,stopped_safely,lost,unaccounted,false_alarms,"
+                             "crashes,hangs,ok_runs,mean_recovery_time_s\n"));
+  EXPECT_THAT(csv, HasSubstr("\ndrop,4,4,3,3,0,1,1,0,0,0,3,3.0000\n"));
+  EXPECT_THAT(csv, HasSubstr("\ntimeout,4,2,2,1,1,0,0,1,1,1,1,1.0000\n"));
+  EXPECT_THAT(csv, HasSubstr("\nall,7,6,5,4,1,1,1,1,1,1,3,2.5000\n"));
   const std::string md = format_markdown(s, runs);
   EXPECT_THAT(md, HasSubstr("# Fault campaign: exchange.yaml, 7 runs, seed 1"));
-  EXPECT_THAT(md, HasSubstr("| drop | 4 | 4 | 3 | 3 | 0 | 1 | 0 | 0 | 0 | 3.00 |"));
-  EXPECT_THAT(md, HasSubstr("| **all** | 7 | 6 | 5 | 4 | 1 | 1 | 1 | 1 | 1 | 2.50 |"));
+  EXPECT_THAT(md, HasSubstr("| drop | 4 | 4 | 3 | 3 | 0 | 1 | 1 | 0 | 0 | 0 | 3.00 |"));
+  EXPECT_THAT(md, HasSubstr("| **all** | 7 | 6 | 5 | 4 | 1 | 1 | 1 | 1 | 1 | 1 | 2.50 |"));
   EXPECT_THAT(md, HasSubstr("- run 0005 (seed 105, timeout:robot=puma): crash: killed by signal 11"));
   EXPECT_THAT(md, HasSubstr("- run 0006 (seed 106, timeout:robot=melfa): hang:"));
   const std::string runs_csv = format_runs_csv(runs);

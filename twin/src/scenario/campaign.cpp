@@ -556,7 +556,7 @@ CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<
   for (const RunRecord& rec : runs) {
     std::set<std::string> drawn;
     for (const DrawnFault& f : rec.variant.faults) drawn.insert(f.kind);
-    std::size_t unaccounted = 0, false_alarms = 0;
+    std::size_t lost = 0, unaccounted = 0, false_alarms = 0;
     bool ok = false;
     if (rec.report) {
       const json& j = *rec.report;
@@ -566,6 +566,9 @@ CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<
         for (const json& a : j["account"]) unaccounted += a.value("unaccounted", false) ? 1 : 0;
       }
       false_alarms = count_of(j, "false_alarms").value_or(0);
+      if (j.contains("account") && j["account"].is_array()) {
+        for (const json& a : j["account"]) lost += a.is_object() && a.contains("lost") && a["lost"].is_object() ? 1 : 0;
+      }
       ok = j.value("result", std::string()) == "ok";
       if (j.contains("faults") && j["faults"].is_array()) {
         for (const json& f : j["faults"]) {
@@ -588,6 +591,7 @@ CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<
     }
     auto count_run = [&](KindSummary& k) {
       ++k.runs;
+      k.lost += lost;
       k.unaccounted += unaccounted;
       k.false_alarms += false_alarms;
       if (rec.status == RunStatus::kCrash) ++k.crashes;
@@ -618,15 +622,15 @@ std::string csv_field(const std::string& s) {
 }
 
 std::string csv_line(const KindSummary& k) {
-  return fmt::format("{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(k.kind), k.runs, k.injected, k.detected,
-                     k.recovered, k.stopped_safely, k.unaccounted, k.false_alarms, k.crashes, k.hangs, k.ok_runs,
+  return fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(k.kind), k.runs, k.injected, k.detected,
+                     k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.crashes, k.hangs, k.ok_runs,
                      k.mean_recovery_time ? fmt::format("{:.4f}", *k.mean_recovery_time) : std::string());
 }
 
 std::string md_line(const KindSummary& k, bool bold) {
   const std::string name = bold ? "**" + k.kind + "**" : k.kind;
-  return fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", name, k.runs, k.injected,
-                     k.detected, k.recovered, k.stopped_safely, k.unaccounted, k.false_alarms, k.crashes, k.hangs,
+  return fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", name, k.runs, k.injected,
+                     k.detected, k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.crashes, k.hangs,
                      k.mean_recovery_time ? fmt::format("{:.2f}", *k.mean_recovery_time) : std::string("-"));
 }
 
@@ -640,7 +644,7 @@ std::string faults_text(const Variant& v) {
 
 std::string format_csv(const CampaignSummary& s) {
   std::string out =
-      "kind,runs,injected,detected,recovered,stopped_safely,unaccounted,false_alarms,crashes,hangs,ok_runs,"
+      "kind,runs,injected,detected,recovered,stopped_safely,lost,unaccounted,false_alarms,crashes,hangs,ok_runs,"
       "mean_recovery_time_s\n";
   for (const KindSummary& k : s.kinds) out += csv_line(k);
   out += csv_line(s.total);
@@ -669,9 +673,9 @@ std::string format_markdown(const CampaignSummary& s, const std::vector<RunRecor
                      s.total.ok_runs, s.total.runs, s.total.injected, s.total.detected, s.total.recovered,
                      s.total.stopped_safely);
   out +=
-      "| fault | runs | injected | detected | recovered | stopped safely | unaccounted parts | false alarms | "
-      "crashes | hangs | mean time to recover (s) |\n";
-  out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+      "| fault | runs | injected | detected | recovered | stopped safely | lost parts | unaccounted parts | "
+      "false alarms | crashes | hangs | mean time to recover (s) |\n";
+  out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const KindSummary& k : s.kinds) out += md_line(k, false);
   out += md_line(s.total, true);
   std::string bad;
@@ -682,9 +686,10 @@ std::string format_markdown(const CampaignSummary& s, const std::vector<RunRecor
   }
   if (!bad.empty()) out += "\nRuns that crashed or hung:\n\n" + bad;
   out +=
-      "\nA run's faults count under their kind; its unaccounted parts, false alarms, crash or hang under every kind "
-      "it drew (a run drew one kind, now and then two). Mean time to recover: from the injection to the recovery's "
-      "end, over the recovered faults.\n";
+      "\nA run's faults count under their kind; its lost and unaccounted parts, false alarms, crash or hang under "
+      "every kind it drew (a run drew one kind, now and then two). Recovered: the recovery ended well (setting a lost "
+      "part aside included); lost parts: declared lost by the controller; unaccounted: neither where expected nor "
+      "declared lost. Mean time to recover: from the injection to the recovery's end, over the recovered faults.\n";
   return out;
 }
 
@@ -713,6 +718,7 @@ const std::vector<Metric>& metrics() {
       {"detected", {178, 114, 0}, &KindSummary::detected},
       {"recovered", {115, 158, 0}, &KindSummary::recovered},
       {"stopped safely", {0, 159, 230}, &KindSummary::stopped_safely},
+      {"lost parts", {167, 121, 204}, &KindSummary::lost},
       {"unaccounted parts", {0, 94, 213}, &KindSummary::unaccounted},
   };
   return m;

@@ -168,6 +168,7 @@ struct KindSummary {
   std::size_t detected = 0;        // ... detected
   std::size_t recovered = 0;       // ... recovered
   std::size_t stopped_safely = 0;  // ... after which the cell was stopped
+  std::size_t lost = 0;            // parts the controller declared lost in the runs that drew the kind
   std::size_t unaccounted = 0;     // parts unaccounted in the runs that drew the kind
   std::size_t false_alarms = 0;    // false alarms in the runs that drew the kind
   std::size_t crashes = 0, hangs = 0;  // of the runs that drew the kind
@@ -183,22 +184,22 @@ struct CampaignSummary {
 };
 
 // Adds up the records' reports. A report's faults are counted under their own kind (a kind the campaign did not ask
-// for, e.g. injected by the scenario itself, gets a row of its own after the others); a run's unaccounted parts,
-// false alarms, crash or hang under every kind it drew.
+// for, e.g. injected by the scenario itself, gets a row of its own after the others); a run's lost and unaccounted
+// parts, false alarms, crash or hang under every kind it drew.
 CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<std::string>& kinds,
                           const std::string& scenario, std::uint64_t seed);
 
 // campaign.csv: a header line, one line per kind, then "all". Columns: kind, runs, injected, detected, recovered,
-// stopped_safely, unaccounted, false_alarms, crashes, hangs, ok_runs, mean_recovery_time_s (empty when none).
+// stopped_safely, lost, unaccounted, false_alarms, crashes, hangs, ok_runs, mean_recovery_time_s (empty when none).
 std::string format_csv(const CampaignSummary& summary);
 // runs.csv: one line per run: index, seed, status, exit_code, outcome, result, unaccounted, faults (the --fault
 // texts joined by " + "), problem.
 std::string format_runs_csv(const std::vector<RunRecord>& runs);
-// campaign.md: a title line, the table (kind, runs, injected, detected, recovered, stopped safely, unaccounted parts,
-// false alarms, crashes, hangs, mean time to recover) and the runs that crashed or hung.
+// campaign.md: a title line, the table (kind, runs, injected, detected, recovered, stopped safely, lost parts,
+// unaccounted parts, false alarms, crashes, hangs, mean time to recover) and the runs that crashed or hung.
 std::string format_markdown(const CampaignSummary& summary, const std::vector<RunRecord>& runs);
-// campaign.png: per kind a group of bars (injected, detected, recovered, stopped safely, unaccounted) with a count
-// axis, the mean time to recover under each group, and a legend; in the style of the Gantt chart (gantt.hpp).
+// campaign.png: per kind a group of bars (injected, detected, recovered, stopped safely, lost, unaccounted) with a
+// count axis, the mean time to recover under each group, and a legend; in the style of the Gantt chart (gantt.hpp).
 cv::Mat draw_campaign(const CampaignSummary& summary, int width = 1200, int height = 600);
 
 // Checks that `dir` can be created or written (an existing non-directory, a parent that is a file or not writable:

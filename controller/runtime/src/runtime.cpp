@@ -179,6 +179,11 @@ struct Runtime::Impl {
   // When the run started on the wall clock, moved on by the time parked between steps (simulation thread).
   std::chrono::steady_clock::time_point wall_start;
 
+  // A stop asked for from outside (Runtime::request_stop).
+  std::atomic<bool> stop_requested{false};
+  std::mutex stop_mutex;
+  std::string stop_reason;
+
   // The end, as the simulation thread decided it.
   Outcome outcome = Outcome::kTimeout;
   std::string reason;
@@ -246,6 +251,12 @@ struct Runtime::Impl {
     }
     if (state == TaskControl::State::kStopped) {
       outcome = Outcome::kStopped;
+      return false;
+    }
+    if (stop_requested.load()) {
+      outcome = Outcome::kStopped;
+      std::lock_guard lock(stop_mutex);
+      reason = stop_reason;
       return false;
     }
     if (state == TaskControl::State::kFinished && now >= SimDuration(finished_at_ns.load()) + cfg.limits.settle) {
@@ -553,6 +564,19 @@ void Runtime::start() {
   }
 }
 
+void Runtime::request_stop(const std::string& reason) {
+  Impl& im = *impl_;
+  {
+    std::lock_guard lock(im.stop_mutex);
+    if (im.stop_requested.load()) return;
+    im.stop_reason = reason;
+  }
+  im.stop_requested = true;
+  // Parked between steps: let the simulation turn see it.
+  std::lock_guard lock(im.m);
+  im.cv.notify_all();
+}
+
 RunResult Runtime::finish() {
   Impl& im = *impl_;
   for (auto& t : im.threads) {
@@ -565,7 +589,9 @@ RunResult Runtime::finish() {
   r.end_time = im.clock.now();
   im.task->account_until(r.end_time);
   r.outcome = im.outcome;
-  r.reason = im.outcome == Outcome::kFailed || im.outcome == Outcome::kStopped ? im.task->reason() : im.reason;
+  r.reason = im.outcome == Outcome::kFailed || (im.outcome == Outcome::kStopped && im.reason.empty())
+                 ? im.task->reason()
+                 : im.reason;
   r.finished_at = im.task->finished_at();
   r.final_marking = im.task->marking();
   r.firings = im.task->firings();

@@ -39,7 +39,7 @@ std::vector<Eigen::Vector3d> watched_points(const models::KinematicChain& chain,
   std::vector<Eigen::Vector3d> out;
   if (joints.size() != chain.dof()) return out;
   const Eigen::VectorXd q = to_eigen(joints);
-  const std::size_t first = chain.dof() > 3 ? chain.dof() - 3 : 1;
+  const std::size_t first = chain.dof() > 3 ? chain.dof() - 2 : 1;  // joint_frame counts from 1
   for (std::size_t k = first; k <= chain.dof(); ++k) out.push_back(base * chain.joint_frame(q, k).translation());
   out.push_back(base * chain.forward(q).translation());
   return out;

@@ -264,6 +264,30 @@ TEST(RuntimeRun, WithRecoveryAGripOnNothingIsTriedAgainThenThePartIsSetAsideAndT
   EXPECT_TRUE(cell.config.net.is_final(r.final_marking));
 }
 
+TEST(RuntimeRun, AStopAskedForFromAnotherThreadStopsTheCellAndKeepsTheLog) {
+  ScriptedCell cell;
+  Runtime* self = nullptr;
+  cell.config.progress_every = std::chrono::milliseconds(300);
+  // Called by the simulation thread: as a signal-handling thread would, it asks for the stop while the run goes on.
+  cell.config.on_progress = [&](SimDuration t, std::uint64_t) {
+    if (self != nullptr && t >= std::chrono::milliseconds(300)) self->request_stop("stopped by the user (SIGINT)");
+  };
+  Runtime rt(cell.config);
+  self = &rt;
+  const RunResult r = rt.run();
+  EXPECT_EQ(r.outcome, Outcome::kStopped);
+  EXPECT_EQ(r.reason, "stopped by the user (SIGINT)");
+  EXPECT_GE(r.end_time, std::chrono::milliseconds(300));
+  EXPECT_LT(r.end_time, std::chrono::milliseconds(400));
+  const auto events = parse(rt.log());
+  ASSERT_GE(events.size(), 2U);
+  EXPECT_EQ(events[events.size() - 2]["type"], "cell_stopped");
+  EXPECT_EQ(events.back()["type"], "run_end");
+  EXPECT_EQ(events.back()["outcome"], "stopped");
+  // Everything logged before the stop is still there: the commands that had started.
+  EXPECT_NE(find(events, {{"type", "command_start"}, {"robot", "r1"}}), -1);
+}
+
 TEST(RuntimeRun, TheSimTimeLimitEndsARunThatDoesNotFinish) {
   ScriptedCell cell;
   cell.config.limits.sim_time = std::chrono::milliseconds(500);

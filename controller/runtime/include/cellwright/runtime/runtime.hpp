@@ -164,6 +164,11 @@ class Runtime {
   // connects the drivers and starts the threads.
   StepState step();
 
+  // Any thread (e.g. one that caught SIGINT): asks the run to stop at the next control period, as a cell stopped
+  // safely: the robots are halted, the outcome is kStopped with `reason`, and run()/step() return the result with the
+  // log complete up to then. Does nothing after the end.
+  void request_stop(const std::string& reason);
+
   // The event log (complete once run() has returned).
   const EventLog& log() const { return *log_; }
   // The plant, for snapshots: only between steps or after the run (the simulation thread is parked or gone).

@@ -568,6 +568,34 @@ TEST(ReportFaults, DetectionsBeforeAnyInjectionAreFalseAlarms) {
   EXPECT_THAT(format_summary(r), HasSubstr("false alarm at t = 1.00 s: driver_timeout by r2"));
 }
 
+// A driver's fault is logged by the simulation thread a round after robot control saw the command fail.
+TEST(ReportFaults, ADetectionOfTheSameRobotARoundBeforeItsDriverFaultIsItsDetection) {
+  const Scenario s = exchange_scenario();
+  LogWriter w;
+  w.start();  // period 0.01 s
+  w.event(3.0, "fault_detected", R"("robot":"r2","primitive":3,"symptom":"driver_fault","detail":"")");  // too early
+  w.event(22.05, "fault_detected", R"("robot":"r1","primitive":7,"symptom":"link_lost","detail":"")");
+  w.event(22.05, "diagnosis", R"("robot":"r1","symptom":"link_lost","cause":"link_dropped","action":"reset_rehome","path":"")");
+  w.event(22.06, "fault_injected", R"("kind":"link_lost","robot":"puma","workpiece":"","detail":"command 2190")");
+  w.event(24.0, "recovery_end", R"("robot":"r1","cause":"link_dropped","action":"reset_rehome","ok":true,"detail":"","duration":1.95)");
+  // Another robot's detection just before an injection is not taken.
+  w.event(30.0, "fault_detected", R"("robot":"r1","primitive":9,"symptom":"wait_timeout","detail":"")");
+  w.event(30.01, "fault_injected", R"("kind":"timeout","robot":"melfa","workpiece":"","detail":"")");
+  w.end(40, "finished", "", 32);
+  const Report r = make_report(s, parse_event_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
+  ASSERT_EQ(r.faults.size(), 2u);
+  EXPECT_TRUE(r.faults[0].detected);
+  EXPECT_DOUBLE_EQ(*r.faults[0].detected_at, 22.05);
+  EXPECT_EQ(r.faults[0].cause, "link_dropped");
+  EXPECT_TRUE(r.faults[0].recovered);
+  EXPECT_NEAR(*r.faults[0].recovery_time, 24.0 - 22.06, 1e-9);
+  EXPECT_FALSE(r.faults[1].detected);
+  // The detection at 3 s came before every injection and nothing took it; the one at 30 s is no false alarm (a fault
+  // had been injected before it).
+  ASSERT_EQ(r.false_alarms.size(), 1u);
+  EXPECT_DOUBLE_EQ(r.false_alarms[0].t, 3.0);
+}
+
 TEST(Gantt, TickStepsAreOneTwoOrFiveTimesAPowerOfTen) {
   EXPECT_DOUBLE_EQ(tick_step(16.5, 20), 1.0);
   EXPECT_DOUBLE_EQ(tick_step(40, 20), 2.0);

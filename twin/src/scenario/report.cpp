@@ -294,19 +294,24 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
   }
   if (stop != none) r.stopped_at = events[stop]["t"].get<double>();
 
+  // A fault the simulation thread picks up from a driver is logged up to a round after the controller saw its effect
+  // (the driver failed the command at once; the injection reaches the log at the next step): a detection of the same
+  // robot logged at most two control periods before the injection belongs to it too.
+  double period = 0.01;
+  for (const json& e : events) {
+    if (e["type"] == "run_start" && e.contains("period") && e["period"].is_number()) {
+      period = e["period"].get<double>();
+      break;
+    }
+  }
+  const double slack = 2 * period + 1e-9;
+
   std::vector<bool> matched(events.size(), false);
-  bool injected_before = false;
+  std::size_t first_injection = none;
   for (std::size_t i = 0; i < events.size(); ++i) {
     const json& e = events[i];
-    const std::string type = e["type"].get<std::string>();
-    if (type == "fault_detected" && !injected_before) {
-      r.false_alarms.push_back({e["t"].get<double>(), field<std::string>(e, "robot", file),
-                                static_cast<int>(e.value("primitive", std::int64_t{-1})),
-                                field<std::string>(e, "symptom", file), e.value("detail", std::string())});
-      continue;
-    }
-    if (type != "fault_injected") continue;
-    injected_before = true;
+    if (e["type"] != "fault_injected") continue;
+    if (first_injection == none) first_injection = i;
     FaultReport f;
     f.kind = field<std::string>(e, "kind", file);
     f.t = e["t"].get<double>();
@@ -315,15 +320,20 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
     f.detail = e.value("detail", std::string());
     f.stopped_safely = stop != none && stop > i;
 
-    std::size_t detection = events.size();
-    for (std::size_t k = i + 1; k < events.size(); ++k) {
-      if (matched[k] || events[k]["type"] != "fault_detected") continue;
+    std::size_t detection = none;
+    for (std::size_t k = 0; k < events.size(); ++k) {
+      if (k == i || matched[k] || events[k]["type"] != "fault_detected") continue;
       const std::string by = field<std::string>(events[k], "robot", file);
-      if (!f.robot.empty() && !by.empty() && cell_robot(s, by, false) != f.robot) continue;
+      const bool same_robot = !f.robot.empty() && !by.empty() && cell_robot(s, by, false) == f.robot;
+      if (k < i) {
+        if (!same_robot || events[k]["t"].get<double>() < f.t - slack) continue;
+      } else if (!f.robot.empty() && !by.empty() && !same_robot) {
+        continue;
+      }
       detection = k;
       break;
     }
-    if (detection < events.size()) {
+    if (detection != none) {
       matched[detection] = true;
       const json& d = events[detection];
       f.detected = true;
@@ -353,6 +363,14 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
       }
     }
     r.faults.push_back(std::move(f));
+  }
+  // False alarms: detections no injection took, with no injection before them.
+  for (std::size_t k = 0; k < events.size() && k < first_injection; ++k) {
+    const json& e = events[k];
+    if (matched[k] || e["type"] != "fault_detected") continue;
+    r.false_alarms.push_back({e["t"].get<double>(), field<std::string>(e, "robot", file),
+                              static_cast<int>(e.value("primitive", std::int64_t{-1})),
+                              field<std::string>(e, "symptom", file), e.value("detail", std::string())});
   }
 }
 

@@ -144,7 +144,7 @@ struct FaultReport {
   std::string workpiece;  // cell workpiece, "" none
   std::string detail;
   // The first fault_detected at or after the injection not matched to an earlier fault, of the same robot when both
-  // name one.
+  // name one (or of the same robot up to two control periods before it: see make_report).
   bool detected = false;
   std::optional<double> detected_at;
   std::string detected_by;  // the detection's robot (program label, "" for the cell)
@@ -187,7 +187,7 @@ struct Report {
   std::vector<CollisionEntry> collisions;
   std::optional<double> stopped_at;  // s: the cell_stopped event (else run_end) of a run that ended "stopped"
   std::vector<FaultReport> faults;    // one per fault_injected event, in log order
-  std::vector<Detection> false_alarms;  // fault_detected events with no fault_injected before them in the log
+  std::vector<Detection> false_alarms;  // fault_detected events not matched, with no fault_injected before them
   std::vector<std::string> failures;    // why the run is not ok, one line each; empty when ok
 
   // The run finished and every expected outcome holds (a lost part counts against it unless expected lost).
@@ -207,10 +207,12 @@ struct Report {
 // held by a robot is held; one whose expectation holds is in_place; the rest are elsewhere. Workpieces and robots in
 // the events may be named by their cell name or their program label.
 //
-// Faults: each fault_injected event, in log order, is matched to the first fault_detected after it in the log not yet
-// matched (same robot when both name one, else any); then the first diagnosis of the detecting robot after the
-// detection, and the first recovery_end of that robot after the diagnosis. Detections with no fault_injected before
-// them are false alarms. Throws InputError as build_timeline, or when a fault event lacks a field.
+// Faults: each fault_injected event, in log order, is matched to the first fault_detected in the log not yet matched
+// that comes after it (same robot when both name one, else any) or, of the same robot, at most two control periods
+// (run_start's period) before it: a driver's fault reaches the log a round after the controller saw the command fail.
+// Then the first diagnosis of the detecting robot after the detection, and the first recovery_end of that robot after
+// the diagnosis. Detections that no injection took and with no fault_injected before them are false alarms. Throws
+// InputError as build_timeline, or when a fault event lacks a field.
 Report make_report(const Scenario& scenario, const std::vector<nlohmann::json>& events,
                    const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time,
                    const std::string& file = "events.jsonl");

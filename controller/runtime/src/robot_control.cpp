@@ -247,7 +247,9 @@ bool RobotControl::submit_current(SimDuration now) {
       fail(now, seen.target.reason);
       return false;
     }
-    if (options_.recovery.enabled) {
+    // Not on a recovery step: a pick_again goes to the part where it is seen anyway, and a symptom here would replace
+    // the recovery under way (its remaining steps lost).
+    if (options_.recovery.enabled && !current_->step) {
       const std::uint64_t before = symptoms_;
       check_misplaced(now, target);
       if (!current_ || (symptoms_ != before && recovery_)) return false;  // the check started a recovery
@@ -800,11 +802,16 @@ bool RobotControl::advance_recovery(SimDuration now) {
   }
   if (r.rehome) {
     switch (driver_.state()) {
-      case drivers::DriverState::fault:
-        if (driver_.reset() != drivers::ErrorCode::none) {
+      case drivers::DriverState::fault: {
+        const drivers::ErrorCode e = driver_.reset();
+        // A lost link leaves the driver disconnected with connection_lost (robot_driver.hpp): connect again next.
+        const bool link_down = e == drivers::ErrorCode::connection_lost &&
+                               driver_.state() == drivers::DriverState::disconnected;
+        if (e != drivers::ErrorCode::none && !link_down) {
           stop_cell(now, fmt::format("the driver of {} could not be reset", cell_));
         }
         return false;
+      }
       case drivers::DriverState::disconnected: {
         drivers::ErrorCode e = drivers::ErrorCode::none;
         std::string why;

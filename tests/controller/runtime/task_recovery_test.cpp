@@ -186,8 +186,16 @@ TEST(RuntimeTaskRecovery, ARobotWaitingForALostSignalIsDetectedAndTheEventDelive
 }
 
 TEST(RuntimeTaskRecovery, TheWaitForALostSignalIsDetectedAfterWaitTimeout) {
-  // r2 never finishes its first command: the net is never dead, and only the watchdog can find r1's wait.
-  Harness h("exchange.task", with_recovery(milliseconds(200)), {1});
+  // r2 never finishes its first command: the net is never dead, and only the watchdog can find r1's wait. (A wait
+  // whose signal did not fire goes on here, whatever the standard tree says: r1 later waits for r2.)
+  RecoveryOptions o = with_recovery(milliseconds(200));
+  o.tree = std::make_shared<const DecisionTree>(DecisionTree::parse(
+      "wait_timeout:\n"
+      "  ask: signal_fired\n"
+      "  yes: {cause: signal_lost, action: resignal}\n"
+      "  no: {cause: slow_partner, action: go_on}\n",
+      "patient.yaml"));
+  Harness h("exchange.task", o, {1});
   h.run(100, /*stuck=*/1);
   const auto detected = of_robot(h.events("fault_detected"), "r1");
   ASSERT_GE(detected.size(), 1u);  // the first; later r1 waits for r2, which never comes

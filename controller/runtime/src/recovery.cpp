@@ -16,7 +16,8 @@ namespace {
 constexpr std::array<std::string_view, kSymptoms> kSymptomNames = {
     "grip_lost",        "closed_on_nothing",  "closed_on_wrong_part", "part_shifted", "part_misplaced",
     "part_not_arrived", "target_unreachable", "driver_timeout",       "driver_fault", "link_lost",
-    "position_refused", "position_missed",    "protective_stop",      "wait_timeout", "frame_lost"};
+    "position_refused", "position_missed",    "protective_stop",      "wait_timeout", "frame_lost",
+    "obstacle_seen"};
 constexpr std::array<std::string_view, 9> kQuestionNames = {
     "part_seen",       "part_at_rest", "part_upright",  "part_reachable", "part_in_hand",
     "driver_in_fault", "retries_left", "obstacle_near", "signal_fired"};
@@ -64,7 +65,10 @@ closed_on_nothing:
       no: {cause: part_out_of_reach, action: set_aside}
     no: {cause: cannot_grasp, action: set_aside}
   no: {cause: part_gone, action: set_aside}
-closed_on_wrong_part: {cause: wrong_part_in_the_way, action: stop_cell}
+closed_on_wrong_part:
+  ask: retries_left
+  yes: {cause: wrong_part_in_the_way, action: pick_again}
+  no: {cause: wrong_part_in_the_way, action: stop_cell}
 part_shifted:
   ask: part_in_hand
   yes: {cause: slipped, action: adopt_hold}
@@ -108,8 +112,12 @@ protective_stop:
 wait_timeout:
   ask: signal_fired
   yes: {cause: signal_lost, action: resignal}
-  no: {cause: program_error, action: stop_cell}
+  no: {cause: signaller_still_busy, action: go_on}
 frame_lost: {cause: camera_dropout, action: go_on}
+obstacle_seen:
+  ask: obstacle_near
+  yes: {cause: obstacle, action: go_on}
+  no: {cause: obstacle_far_away, action: go_on}
 )TREE";
 
 }  // namespace

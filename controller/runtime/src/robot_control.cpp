@@ -229,16 +229,21 @@ bool RobotControl::submit_current(SimDuration now) {
             target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt ? target.object : "");
         current_->wait_logged = true;
       }
-      if (!current_->waiting_since) current_->waiting_since = now;
+      // A part that is not in the cell for part_wait has not arrived (one riding a belt is on its way).
       const bool part_target = target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt;
-      if (options_.recovery.enabled && part_target && now - *current_->waiting_since >= options_.recovery.part_wait) {
-        const bool is_part = env_.read([&](const EnvironmentModel& m) { return m.find_workpiece(target.object) != nullptr; });
-        if (is_part) {
-          symptom(now, Symptom::part_not_arrived,
-                  fmt::format("waited {} s for {}: {}", format_sim_time(now - *current_->waiting_since), target.object,
-                              seen.target.reason),
-                  target.object);
-        }
+      const bool absent = part_target && env_.read([&](const EnvironmentModel& m) {
+        const WorkpieceState* w = m.find_workpiece(target.object);
+        return w != nullptr && !w->present;
+      });
+      if (!absent) {
+        current_->waiting_since.reset();
+      } else if (!current_->waiting_since) {
+        current_->waiting_since = now;
+      } else if (options_.recovery.enabled && now - *current_->waiting_since >= options_.recovery.part_wait) {
+        symptom(now, Symptom::part_not_arrived,
+                fmt::format("{} has not been in the cell for {} s: {}", target.object,
+                            format_sim_time(now - *current_->waiting_since), seen.target.reason),
+                target.object);
       }
       return false;
     }
@@ -303,6 +308,7 @@ bool RobotControl::submit_current(SimDuration now) {
     return false;
   }
   current_->id = s.id;
+  current_->submitted_at = now;
   phase_ = RobotPhase::kExecuting;
   log_start(now);
   return true;
@@ -322,7 +328,7 @@ void RobotControl::complete(SimDuration now) {
   if (p.kind == task::PrimitiveKind::kMove) {
     if (!check_position(now)) return;  // waiting for the read-back, or failed
     if (current_->target) last_target_ = current_->target;
-    if (options_.recovery.enabled) check_shift(now);
+    if (options_.recovery.enabled && check_shift(now)) return;  // the part is gone from the hand: recovering
   } else if (p.kind == task::PrimitiveKind::kClose) {
     const std::string expected = p.workpiece.empty() ? std::string() : bound(p.workpiece);
     const std::optional<std::string> between =
@@ -497,6 +503,13 @@ void RobotControl::poll_current(SimDuration now) {
   switch (st.phase) {
     case drivers::CommandPhase::pending:
     case drivers::CommandPhase::running:
+      if (options_.recovery.enabled && !halted_ && now - current_->submitted_at >= options_.recovery.command_timeout) {
+        driver_.stop();  // what it was doing is abandoned
+        return symptom(now, Symptom::driver_timeout,
+                       fmt::format("'{}' has not ended {} s after it was sent", current_->detail,
+                                   format_sim_time(now - current_->submitted_at)),
+                       std::string());
+      }
       return;
     case drivers::CommandPhase::failed: {
       const std::string reason = fmt::format("the driver failed '{}': {}: {}", current_->detail,
@@ -674,7 +687,7 @@ bool RobotControl::answer(Question q) const {
         const RobotState* r = m.find_robot(cell_);
         if (r == nullptr || !r->tcp) return !m.obstacles.empty();
         for (const ObstacleState& o : m.obstacles) {
-          if (distance_to_box(r->tcp->translation(), o.centre, o.size) < 1.0) return true;
+          if (distance_to_box(r->tcp->translation(), o.centre, o.size) < 0.5) return true;
         }
         return false;
       });
@@ -733,9 +746,30 @@ void RobotControl::diagnose_and_act(SimDuration now) {
   switch (d.action) {
     case Action::retry:
       return;  // the command is submitted again (reset_submission was done)
-    case Action::reset_rehome:
+    case Action::reset_rehome: {
       r.rehome = true;
+      // Homing takes the arm away from where it stopped: it comes back the way the program brought it there (a
+      // straight approach is made from its approach pose again) before the command is done again.
+      std::optional<task::Target> back;
+      if (current_ && current_->command.primitive.kind == K::kMove) {
+        back = current_->command.primitive.target;
+      } else {
+        back = last_target_;
+      }
+      const bool grip = current_ && current_->command.primitive.kind != K::kMove;
+      if (back) {
+        task::Target t = *back;
+        const auto step_to = [&](task::TargetKind kind) {
+          task::Primitive p = primitive(K::kMove);
+          p.target = task::Target{kind, t.object};
+          r.steps.push_back(p);
+        };
+        if (t.kind == task::TargetKind::kAt) step_to(task::TargetKind::kAbove);
+        if (t.kind == task::TargetKind::kHandGrasp) step_to(task::TargetKind::kHandApproach);
+        if (grip) step_to(t.kind);  // a grip is made where the arm was
+      }
       return;
+    }
     case Action::wait_clear:
       r.wait_clear = true;
       return;
@@ -759,8 +793,9 @@ void RobotControl::diagnose_and_act(SimDuration now) {
         rs->hold->in_hand = rs->tcp->inverse() * w->pose;
         rs->hold->tcp_above_bottom = rs->tcp->translation().z() - (w->pose.translation().z() - w->size().z() / 2);
       });
+      const SimDuration took = now - r.detected;
       recovery_.reset();
-      log_.recovery_end(now, label_, d.cause, to_string(d.action), true, "the hold follows the part", now - r.detected);
+      log_.recovery_end(now, label_, d.cause, to_string(d.action), true, "the hold follows the part", took);
       return;
     }
     case Action::go_on:
@@ -1008,8 +1043,18 @@ void RobotControl::watch_grip(SimDuration now) {
   grip_missing_ = 0;
 }
 
-void RobotControl::check_shift(SimDuration now) {
-  if (shift_reported_ || options_.track_held_parts) return;
+bool RobotControl::check_shift(SimDuration now) {
+  const std::optional<std::string> lost = env_.read([&](const EnvironmentModel& m) -> std::optional<std::string> {
+    const RobotState* r = m.find_robot(cell_);
+    if (r == nullptr || !r->hold || !r->between_fingers || *r->between_fingers == r->hold->workpiece) return std::nullopt;
+    return r->hold->workpiece;
+  });
+  if (lost) {
+    // Standing still after a move, the grip sensor misses the part it holds (lost while re-homing, say).
+    symptom(now, Symptom::grip_lost, fmt::format("the grip sensor no longer has {} after the move", *lost), *lost);
+    return true;
+  }
+  if (shift_reported_ || options_.track_held_parts) return false;
   struct Seen {
     std::optional<Hold> hold;
     std::optional<Eigen::Isometry3d> tcp, part;
@@ -1028,29 +1073,72 @@ void RobotControl::check_shift(SimDuration now) {
     }
     return s;
   });
-  if (!seen.hold || !seen.tcp || !seen.part || !seen.fresh) return;
+  if (!seen.hold || !seen.tcp || !seen.part || !seen.fresh) return false;
   const Eigen::Vector3d expected = (*seen.tcp * seen.hold->in_hand).translation();
   const double off = (seen.part->translation() - expected).norm();
-  if (off <= options_.recovery.shift_tolerance) return;
+  if (off <= options_.recovery.shift_tolerance) return false;
   shift_reported_ = true;
-  const int primitive = static_cast<int>(current_->command.index);
-  log_.fault_detected(now, label_, primitive, to_string(Symptom::part_shifted),
-                      fmt::format("{} is {:.4f} m from where the hold puts it (tolerance {:.4f})", seen.hold->workpiece,
-                                  off, options_.recovery.shift_tolerance));
-  // Diagnosed without interrupting the command: adopt_hold and go_on act at once; anything else is taken up as the
-  // recovery of the next command.
-  const std::optional<Recovery> saved = std::move(recovery_);
+  return note(now, Symptom::part_shifted,
+       fmt::format("{} is {:.4f} m from where the hold puts it (tolerance {:.4f})", seen.hold->workpiece, off,
+                   options_.recovery.shift_tolerance),
+       seen.hold->workpiece);
+}
+
+bool RobotControl::note(SimDuration now, Symptom s, const std::string& detail, const std::string& workpiece) {
+  const DecisionTree& tree = options_.recovery.tree ? *options_.recovery.tree : DecisionTree::standard();
+  std::optional<Recovery> saved = std::move(recovery_);
   recovery_.emplace();
-  recovery_->diagnosis.symptom = Symptom::part_shifted;
+  recovery_->diagnosis.symptom = s;
   recovery_->detected = now;
-  recovery_->workpiece = seen.hold->workpiece;
-  recovery_->detail = "shifted in the hand";
-  diagnose_and_act(now);
-  if (!recovery_) recovery_ = saved;
+  recovery_->workpiece = workpiece;
+  recovery_->detail = detail;
+  const Diagnosis d = tree.diagnose(s, [&](Question q) { return answer(q); });
+  if (d.action != Action::adopt_hold && d.action != Action::go_on) {
+    // The tree wants the command interrupted: taken up like any symptom.
+    recovery_ = std::move(saved);
+    symptom(now, s, detail, workpiece);
+    return true;
+  }
+  ++symptoms_;
+  log_.fault_detected(now, label_, current_ ? static_cast<int>(current_->command.index) : -1, to_string(s), detail);
+  diagnose_and_act(now);  // acts at once and ends this recovery
+  recovery_ = std::move(saved);
+  return false;
 }
 
 void RobotControl::watch_safety(SimDuration now) {
   if (!options_.safety.enabled) return;
+  // A new object in the cell: noted by the robot whose tool is nearest to it.
+  struct New {
+    std::string name;
+    double distance = 0;
+  };
+  const std::vector<New> appeared = env_.read([&](const EnvironmentModel& m) {
+    std::vector<New> out;
+    const RobotState* self = m.find_robot(cell_);
+    if (self == nullptr || !self->tcp) return out;
+    for (const ObstacleState& o : m.obstacles) {
+      if (std::find(obstacles_seen_.begin(), obstacles_seen_.end(), o.name) != obstacles_seen_.end()) continue;
+      const double mine = distance_to_box(self->tcp->translation(), o.centre, o.size);
+      bool nearest = true;
+      for (const RobotState& r : m.robots) {
+        if (r.name != cell_ && r.tcp && distance_to_box(r.tcp->translation(), o.centre, o.size) < mine) nearest = false;
+      }
+      out.push_back({nearest ? o.name : std::string(), mine});
+      if (!nearest) out.back().name = "~" + o.name;  // seen, noted by another robot
+    }
+    return out;
+  });
+  for (const New& n : appeared) {
+    const bool mine = n.name.empty() || n.name.front() != '~';
+    const std::string name = mine ? n.name : n.name.substr(1);
+    obstacles_seen_.push_back(name);
+    if (mine) {
+      note(now, Symptom::obstacle_seen,
+           fmt::format("the safety sensor sees {}, {:.3f} m from the tool of {}", name, n.distance, cell_),
+           std::string());
+    }
+  }
   const bool moving = current_ && current_->id != 0 && active().kind == task::PrimitiveKind::kMove;
   if (!moving && !protective_) return;
   const std::vector<double> goal = moving ? current_->goal : std::vector<double>{};

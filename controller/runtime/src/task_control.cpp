@@ -181,6 +181,19 @@ void TaskControl::detect_end(SimDuration now) {
     finished_at_ = now;
     return;
   }
+  if (petri::is_dead(net_, marking_) && recovery_.enabled) {
+    // Nothing can fire: a wait whose event was signalled but is not there is a wait that will never end. Every
+    // waiting robot is taken up at once (the wait watchdog would only find it later).
+    classify(now);
+    for (auto& since : wait_since_) {
+      if (since) since = now - recovery_.wait_timeout;
+    }
+    for (std::size_t r = 0; r < program_.robots.size(); ++r) {
+      if (activity_[r] == RobotActivity::kWaiting && !wait_since_[r]) wait_since_[r] = now - recovery_.wait_timeout;
+    }
+    watch_waits(now, true);
+    if (state_ != State::kRunning || !petri::is_dead(net_, marking_)) return;
+  }
   if (petri::is_dead(net_, marking_)) {
     std::string marked;
     for (petri::PlaceId p = 0; p < net_.num_places(); ++p) {
@@ -249,11 +262,11 @@ TaskControl::State TaskControl::step(SimDuration now) {
     detect_end(now);
   }
   classify(now);
-  if (state_ == State::kRunning && recovery_.enabled) watch_waits(now);
+  if (state_ == State::kRunning && recovery_.enabled) watch_waits(now, false);
   return state_;
 }
 
-void TaskControl::watch_waits(SimDuration now) {
+void TaskControl::watch_waits(SimDuration now, bool dead) {
   for (std::size_t r = 0; r < program_.robots.size(); ++r) {
     if (activity_[r] != RobotActivity::kWaiting) {
       wait_since_[r].reset();
@@ -270,10 +283,13 @@ void TaskControl::watch_waits(SimDuration now) {
     if (k == prims.size()) continue;
     const auto ev = net_.find_place(task::event_place_id(prims[k].event));
     if (!ev) continue;
-    log_.fault_detected(now, label, static_cast<int>(k), "wait_timeout",
-                        fmt::format("{} waited {} s for event {}", label, format_sim_time(now - *wait_since_[r]),
-                                    prims[k].event));
     const bool fired = expected_tokens_[*ev] > static_cast<std::int64_t>(marking_[*ev]);
+    if (dead && !fired) continue;  // it waits for another robot, which is the one stuck
+    log_.fault_detected(now, label, static_cast<int>(k), "wait_timeout",
+                        dead ? fmt::format("no transition can fire while {} waits for event {}, which was signalled",
+                                           label, prims[k].event)
+                             : fmt::format("{} waited {} s for event {}", label,
+                                           format_sim_time(now - *wait_since_[r]), prims[k].event));
     const DecisionTree& tree = recovery_.tree ? *recovery_.tree : DecisionTree::standard();
     const Diagnosis d = tree.diagnose(Symptom::wait_timeout, [&](Question q) {
       return q == Question::signal_fired ? fired : q == Question::retries_left;
@@ -282,7 +298,7 @@ void TaskControl::watch_waits(SimDuration now) {
     if (d.action == Action::resignal && fired) {
       marking_[*ev] = static_cast<petri::Tokens>(expected_tokens_[*ev]);
       log_.recovery_end(now, label, d.cause, to_string(d.action), true,
-                        fmt::format("event {} delivered again", prims[k].event), now - *wait_since_[r]);
+                        fmt::format("event {} delivered again", prims[k].event), SimDuration{0});
       wait_since_[r].reset();
       fire_until_quiescent(now);
       detect_end(now);

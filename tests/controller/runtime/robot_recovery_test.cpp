@@ -248,7 +248,7 @@ TEST_F(RobotRecoveryTest, APartThatNeverArrivesIsSetAsideAndWhatConcernsItSkippe
   const auto detected = events("fault_detected");
   ASSERT_EQ(detected.size(), 1u);
   EXPECT_EQ(detected[0]["symptom"], "part_not_arrived");
-  EXPECT_THAT(detected[0]["detail"].get<std::string>(), HasSubstr("for A"));
+  EXPECT_THAT(detected[0]["detail"].get<std::string>(), HasSubstr("A has not been in the cell"));
   const auto diagnoses = events("diagnosis");
   ASSERT_EQ(diagnoses.size(), 1u);
   EXPECT_EQ(diagnoses[0]["cause"], "missing");

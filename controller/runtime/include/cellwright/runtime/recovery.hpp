@@ -55,8 +55,9 @@ enum class Symptom : std::uint8_t {
   protective_stop,       // the safety layer stopped the robot
   wait_timeout,          // a robot waited too long for an event
   frame_lost,            // the camera delivered no frame
+  obstacle_seen,         // the safety sensor sees an object that is not in the cell model
 };
-inline constexpr std::size_t kSymptoms = 15;
+inline constexpr std::size_t kSymptoms = 16;
 std::string_view to_string(Symptom s);
 std::optional<Symptom> symptom_from(std::string_view name);
 
@@ -130,12 +131,17 @@ struct RecoveryOptions {
   bool enabled = true;  // false: the first fault fails the run (the behaviour before recovery existed)
   std::shared_ptr<const DecisionTree> tree;  // nullptr: DecisionTree::standard()
   int max_attempts = 3;                      // recoveries of one command before retries_left says no
-  SimDuration part_wait = std::chrono::seconds(30);     // part_not_arrived after waiting this long for a part
-  SimDuration wait_timeout = std::chrono::seconds(30);  // wait_timeout after waiting this long for an event
+  SimDuration part_wait = std::chrono::seconds(20);  // part_not_arrived when a part waited for is absent this long
+  SimDuration wait_timeout = std::chrono::seconds(60);  // wait_timeout after waiting this long for an event
+  // driver_timeout when a command has not ended this long after it was sent (the driver's own deadlines come first:
+  // a serial driver fails a command its controller does not answer; this catches one that never ends)
+  SimDuration command_timeout = std::chrono::seconds(8);
   SimDuration clear_wait = std::chrono::seconds(20);    // wait_clear gives up (stop_cell) after this long
   int grip_lost_periods = 3;       // grip_lost when the grip sensor misses the part this many periods running
   double shift_tolerance = 0.008;  // m: part_shifted when a held part is this far from where the hold puts it
-  double misplace_offset = 0.02;   // m: part_misplaced when a part rests this far from its place ...
+  // m: part_misplaced when a part rests this far from its place (parts a belt brings to a stop rest up to ~4 cm
+  // from the pick location, by the stop and the part before them) ...
+  double misplace_offset = 0.05;
   double misplace_yaw = 0.1745;    // rad: ... or turned this much (10 degrees; a box's quarter turns are alike)
 };
 

@@ -160,6 +160,7 @@ class RobotControl {
     std::string waiting_for;    // why the target is not ready yet (for view(); the log's detail is the driver's)
     std::optional<SimDuration> waiting_since;  // when the wait for its target began
     int attempts = 0;                          // recoveries of this command so far
+    SimDuration submitted_at{0};               // when the active primitive was sent to the driver
   };
   // A recovery under way for the current command (docs/faults.md).
   struct Recovery {
@@ -223,7 +224,12 @@ class RobotControl {
   void watch_grip(SimDuration now);
   void watch_safety(SimDuration now);
   // After a move, with the robot standing still: a held part far from where the hold puts it is part_shifted.
-  void check_shift(SimDuration now);
+  // A part no longer between the fingers is grip_lost; true when that interrupted the command.
+  bool check_shift(SimDuration now);
+  // A symptom that need not interrupt the command (a shifted hold, an obstacle seen): diagnosed at once; an action
+  // other than adopt_hold/go_on interrupts the command like symptom().
+  // True when it interrupted the command.
+  bool note(SimDuration now, Symptom s, const std::string& detail, const std::string& workpiece);
   // A part to be picked resting off its place: part_misplaced (once per part).
   void check_misplaced(SimDuration now, const task::Target& target);
   // Whether some pose of `target` is reachable (IK, the 5-axis rule), from the model now.
@@ -272,7 +278,8 @@ class RobotControl {
   std::string protective_reason_;
   int protective_stops_ = 0;  // of the current command
   bool halted_ = false;
-  std::uint64_t symptoms_ = 0;  // symptoms sensed so far       // halt() was called: the run is over, failures are final
+  std::uint64_t symptoms_ = 0;  // symptoms sensed so far
+  std::vector<std::string> obstacles_seen_;  // obstacles the safety sensor reported, noted once       // halt() was called: the run is over, failures are final
 };
 
 }  // namespace cellwright::runtime

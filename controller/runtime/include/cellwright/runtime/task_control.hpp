@@ -114,7 +114,8 @@ class TaskControl {
   void fire_until_quiescent(SimDuration now);
   void detect_end(SimDuration now);
   void classify(SimDuration now);
-  void watch_waits(SimDuration now);
+  // `dead`: no transition can fire: only a wait whose event was lost is taken up, at once.
+  void watch_waits(SimDuration now, bool dead);
   std::vector<bool> allowed() const;
 
   const petri::Net& net_;

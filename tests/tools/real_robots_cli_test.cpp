@@ -100,7 +100,7 @@ TEST(RealRobotsCli, ExchangeWithOneArmSwappedFinishes) {
   EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
 }
 
-TEST(RealRobotsCli, AHardwareErrorMidRunStopsTheRunWithTheReason) {
+TEST(RealRobotsCli, AHardwareErrorMidRunIsResetAndRehomedAndTheRunGoesOn) {
   TwinCli cli("real-er1");
   const std::vector<std::string> robots = {"melfa=movemaster", "puma=val2"};
   // The MELFA's controller reports a hardware error on its 200th line: while it waits for the PUMA's part, its
@@ -109,11 +109,14 @@ TEST(RealRobotsCli, AHardwareErrorMidRunStopsTheRunWithTheReason) {
   ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
   const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) + " -o " +
                          shell_quote((cli.dir() / "out").string()));
-  EXPECT_EQ(r.status, 1) << r.out << r.err;
-  EXPECT_THAT(r.out, HasSubstr("hardware"));
-  EXPECT_THAT(r.out, HasSubstr("robot r2"));
   const std::string events = cellwright::testing::slurp(cli.dir() / "out" / "events.jsonl");
-  EXPECT_THAT(events, HasSubstr("\"outcome\":\"failed\""));
+  // Sensed as the driver's hardware fault, diagnosed by the decision tree, and recovered: the controller was reset
+  // (RS), homed again (a second NT) and the interrupted command done again; the part still reached its place.
+  EXPECT_THAT(events, HasSubstr("\"symptom\":\"driver_fault\""));
+  EXPECT_THAT(events, HasSubstr("\"action\":\"reset_rehome\""));
+  EXPECT_THAT(events, HasSubstr("\"type\":\"recovery_end\",\"robot\":\"r2\",\"cause\":\"controller_error\",\"action\":\"reset_rehome\",\"ok\":true"));
+  EXPECT_THAT(events, HasSubstr("\"outcome\":\"finished\""));
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_EQ(cell.process->stop(), 0) << cell.process->output();
 }
 

@@ -94,6 +94,12 @@ TEST(RunCli, ExchangeMovesThePartToTheOutputConveyorAndRepeatsExactly) {
   }
   EXPECT_EQ(gripped["r1"], 1);
   EXPECT_EQ(gripped["r2"], 1);
+  // A clean run raises no alarm: no detector fired, the safety layer never stopped a robot (docs/faults.md).
+  EXPECT_EQ(report["false_alarms"], 0);
+  for (const auto& e : events) {
+    EXPECT_NE(e["type"], "fault_detected") << e.dump();
+    EXPECT_NE(e["type"], "protective_stop") << e.dump();
+  }
 
   // The event order respects the net: each robot fires its transitions in program order, a command runs between the
   // transition that starts it and the next one, and the hand-over handshake (docs/task-language.md's listing) goes
@@ -146,6 +152,11 @@ TEST_P(PipelinedScenario, DeliversEveryFedPartWithoutACollision) {
     EXPECT_EQ(w["ok"], true) << w.dump();
   }
   EXPECT_EQ(expected, 3);
+  // No detector fired on the clean run, and every part is accounted in place.
+  EXPECT_EQ(report["false_alarms"], 0);
+  EXPECT_EQ(report["unaccounted"], 0);
+  EXPECT_THAT(slurp(out / "events.jsonl"), Not(HasSubstr("fault_detected")));
+  EXPECT_THAT(slurp(out / "events.jsonl"), Not(HasSubstr("protective_stop")));
 }
 
 INSTANTIATE_TEST_SUITE_P(RunCli, PipelinedScenario, ::testing::Values("pipeline.yaml", "pipeline_single.yaml"));

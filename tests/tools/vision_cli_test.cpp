@@ -35,6 +35,12 @@ TEST(VisionCli, PicksThePerturbedPartWhereTheCameraSeesItAndMissesItWithoutTheCa
   const std::string log = run_vision(cli, cli.dir() / "vision", "--save-frames " + shell_quote(frames.string()), seen);
   ASSERT_EQ(seen.status, 0) << seen.out << seen.err;
   EXPECT_THAT(seen.out, HasSubstr("ok   A: expected mill_side"));
+  // The scenario's perturbation is logged as a misplacement, and the controller sensed it (camera: A off its place)
+  // and picked it where it was seen: no false alarm.
+  EXPECT_THAT(log, HasSubstr("\"type\":\"fault_injected\",\"kind\":\"misplace\""));
+  EXPECT_THAT(log, HasSubstr("\"symptom\":\"part_misplaced\""));
+  const nlohmann::json report = nlohmann::json::parse(slurp(cli.dir() / "vision" / "report.json"));
+  EXPECT_EQ(report["false_alarms"], 0);
 
   // The camera saw A off its nominal place (the cell description puts it on the belt's centre line, y = -0.55), and
   // the model took the camera's word: the vision events carry A's position.

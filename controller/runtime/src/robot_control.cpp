@@ -409,6 +409,15 @@ bool RobotControl::check_position(SimDuration now) {
   if (!reading_ || reading_number_ <= current_->reads_at_done) {
     // Only a read asked for once the driver said done shows where the arm stopped.
     if (position_request_ == 0) request_position(now);
+    if (options_.recovery.enabled && !halted_ && current_->done_seen &&
+        now - *current_->done_seen >= options_.recovery.command_timeout) {
+      driver_.stop();
+      position_request_ = 0;
+      symptom(now, Symptom::driver_timeout,
+              fmt::format("no position read-back {} s after '{}' was done", format_sim_time(now - *current_->done_seen),
+                          current_->detail),
+              std::string());
+    }
     return false;
   }
   const drivers::PositionReading& r = *reading_;
@@ -1203,7 +1212,19 @@ void RobotControl::check_misplaced(SimDuration now, const task::Target& target) 
     if (at == nullptr) return s;
     s.part = true;
     s.location = at->name;
-    s.offset = (bottom - at->pose.translation()).head<2>().norm();
+    Eigen::Vector3d off = bottom - at->pose.translation();
+    off.z() = 0;
+    // On a belt, the stop and the part before it decide where along the belt a part comes to rest: only how far it
+    // is off to the side tells.
+    for (const CellConveyor& c : m.geometry->conveyors) {
+      const Eigen::Vector3d local = c.pose.inverse() * bottom;
+      if (std::abs(local.x()) <= c.length / 2 && std::abs(local.y()) <= c.width / 2) {
+        const Eigen::Vector3d along = c.pose.linear().col(0);
+        off -= along * along.dot(off);
+        break;
+      }
+    }
+    s.offset = off.norm();
     if (w->shape() == models::Shape::kBox) {
       const Eigen::Vector3d xp = w->pose.linear().col(0);
       const Eigen::Vector3d xl = at->pose.linear().col(0);

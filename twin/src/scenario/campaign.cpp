@@ -201,11 +201,11 @@ DrawnFault draw_fault(Draw& d, const CampaignTargets& t, const std::string& kind
                          num(d.uniform(0.1, 0.6), 2));
   } else if (kind == "misplace") {
     const std::string& w = d.pick(t.workpieces);
-    // Amounts only: the injection draws the sides from the run's seed. Turned beyond what the controller takes for
-    // a part in its place (10 degrees) and what the nominal grasp tolerates, and no further than a grasp at the seen
-    // pose can still take it from between its neighbours on the belt (docs/faults.md).
-    const double x = d.uniform(0.0, 0.02), y = d.uniform(0.0, 0.02);
-    const double yaw = d.uniform(15, 25);
+    // Amounts only: the injection draws the sides from the run's seed. Off to the side by more than the controller
+    // takes for a part in its place (2 cm) and than the nominal grasp tolerates; turned by up to 20 degrees (a belt's
+    // stop straightens a turned part again; docs/faults.md).
+    const double x = d.uniform(0.0, 0.02), y = d.uniform(0.025, 0.04);
+    const double yaw = d.uniform(0, 20);
     f.spec = fmt::format("misplace:workpiece={},offset={}/{},yaw={}", w, num(x, 3), num(y, 3), num(yaw, 1));
   } else if (kind == "unreachable" || kind == "missing") {
     f.spec = fmt::format("{}:workpiece={}", kind, d.pick(t.workpieces));

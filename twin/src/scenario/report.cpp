@@ -280,6 +280,29 @@ std::string format_position(const Eigen::Vector3d& p) {
   return fmt::format("({:.3f}, {:.3f}, {:.3f})", p.x(), p.y(), p.z());
 }
 
+// Whether a fault of this kind can be sensed as this symptom (docs/faults.md section 2): a detection is matched only
+// to an injection it can be the sign of, so that a fault that did nothing does not take another fault's detection.
+bool can_show_as(const std::string& kind, const std::string& symptom) {
+  static const std::map<std::string, std::vector<std::string>> signs = {
+      {"drop", {"grip_lost", "closed_on_nothing", "part_shifted"}},
+      {"slip", {"part_shifted", "grip_lost"}},
+      {"misplace", {"part_misplaced", "closed_on_nothing", "closed_on_wrong_part", "target_unreachable"}},
+      {"unreachable", {"target_unreachable", "part_misplaced"}},
+      {"missing", {"part_not_arrived"}},
+      {"obstacle", {"obstacle_seen", "protective_stop"}},
+      {"timeout", {"driver_timeout"}},
+      {"garbage", {"driver_fault"}},
+      {"hardware", {"driver_fault"}},
+      {"position", {"position_refused", "position_missed"}},
+      {"link_lost", {"link_lost", "driver_fault"}},
+      {"lost_signal", {"wait_timeout"}},
+      {"frame_lost", {"frame_lost"}},
+  };
+  const auto it = signs.find(kind);
+  if (it == signs.end()) return true;  // detection noise, or a kind this table does not know: any symptom
+  return std::find(it->second.begin(), it->second.end(), symptom) != it->second.end();
+}
+
 // The faults (fault_injected matched to fault_detected, diagnosis, recovery_end) and false alarms of a run.
 void match_faults(const Scenario& s, const std::vector<json>& events, const std::string& file, Report& r) {
   // The index of the event that stopped the cell if the run ended "stopped", else events.size() (a plain index:
@@ -323,6 +346,7 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
     std::size_t detection = none;
     for (std::size_t k = 0; k < events.size(); ++k) {
       if (k == i || matched[k] || events[k]["type"] != "fault_detected") continue;
+      if (!can_show_as(f.kind, field<std::string>(events[k], "symptom", file))) continue;
       const std::string by = field<std::string>(events[k], "robot", file);
       const bool same_robot = !f.robot.empty() && !by.empty() && cell_robot(s, by, false) == f.robot;
       if (k < i) {
@@ -540,7 +564,10 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
       wr.status = PartStatus::kElsewhere;
       wr.where = wr.final_location;
     }
-    wr.unaccounted = expect != nullptr && !expect_lost && !*wr.ok && !wr.lost;
+    // In a cell stopped safely, a part not yet where it should be is accounted where it is found (held, or
+    // elsewhere, named): the run says so. Otherwise a part not where the program put it, that the controller did not
+    // declare lost, is unaccounted for.
+    wr.unaccounted = expect != nullptr && !expect_lost && !*wr.ok && !wr.lost && r.outcome != "stopped";
     if (!wr.label.empty()) {
       if (auto it = pick_start.find(wr.label); it != pick_start.end()) wr.pick_start = it->second;
       if (auto it = place_end.find(wr.label); it != place_end.end()) wr.place_end = it->second;

@@ -181,6 +181,18 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
 
   auto plant = std::make_unique<sim::WorldPlant>(*world_, std::move(cell.feed), s.faults, s.seed);
   world_plant_ = plant.get();
+  if (s.perturb) {
+    // The scenario's perturbation misplaces parts on purpose (the controller's model does not know it): logged as
+    // such, so that its detection is matched to it and not taken for a false alarm.
+    for (const auto& [name, offset] : draw_perturbation(*s.perturb, s.seed)) {
+      world_plant_->report_fault(
+          {"misplace", "", name,
+           fmt::format("the scenario's perturbation: workpiece '{}' moved by ({:.3f}, {:.3f}) m in its own frame and "
+                       "turned by {:.1f} degrees",
+                       name, offset.translation().x(), offset.translation().y(),
+                       std::atan2(offset.linear()(1, 0), offset.linear()(0, 0)) * 180.0 / M_PI)});
+    }
+  }
   plant_ = std::move(plant);
   for (const FaultSpec& f : s.faults) {
     if (f.kind == FaultKind::lost_signal) config.lost_signals.push_back(f.n);

@@ -139,9 +139,9 @@ struct RecoveryOptions {
   SimDuration clear_wait = std::chrono::seconds(20);    // wait_clear gives up (stop_cell) after this long
   int grip_lost_periods = 3;       // grip_lost when the grip sensor misses the part this many periods running
   double shift_tolerance = 0.008;  // m: part_shifted when a held part is this far from where the hold puts it
-  // m: part_misplaced when a part rests this far from its place (parts a belt brings to a stop rest up to ~4 cm
-  // from the pick location, by the stop and the part before them) ...
-  double misplace_offset = 0.05;
+  // m: part_misplaced when a part rests this far from its place (on a belt: this far to the side; along it, the
+  // stop and the part before it decide) ...
+  double misplace_offset = 0.02;
   double misplace_yaw = 0.1745;    // rad: ... or turned this much (10 degrees; a box's quarter turns are alike)
 };
 

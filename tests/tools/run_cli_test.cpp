@@ -254,3 +254,31 @@ TEST(StepCli, BadScenarioExitsTwo) {
 }
 
 }  // namespace
+
+namespace {
+
+// Ctrl-C or SIGTERM during a run stops the cell safely and still writes what a finished run writes: the event log up
+// to the stop, the report and the charts.
+TEST(RunCli, ASignalStopsTheCellSafelyAndTheOutputsSoFarAreWritten) {
+  TwinCli cli("cw-run-signal");
+  const fs::path out = cli.dir() / "out";
+  // In real time the pipeline takes a minute: the signal certainly comes first.
+  cellwright::testing::BackgroundTwin run(
+      {"run", source_path("scenes/pipeline.yaml"), "--realtime", "-o", out.string()});
+  ASSERT_TRUE(run.wait_for("estimated cycle time", std::chrono::seconds(60))) << run.output();
+  EXPECT_EQ(run.stop(), 1) << run.output();
+  EXPECT_THAT(run.output(), HasSubstr("the cell was stopped: stopped by the user"));
+  for (const char* f : {"events.jsonl", "report.json", "gantt.png", "final.png"}) {
+    EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
+  }
+  const auto events = read_events(out / "events.jsonl");
+  ASSERT_GE(events.size(), 3U);
+  EXPECT_EQ(events.front()["type"], "run_start");
+  EXPECT_EQ(events[events.size() - 2]["type"], "cell_stopped");
+  EXPECT_EQ(events.back()["outcome"], "stopped");
+  const nlohmann::json report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(report["outcome"], "stopped");
+  EXPECT_EQ(report["result"], "failed");
+}
+
+}  // namespace

@@ -24,37 +24,11 @@
 #include "cellwright/twin/scenario/emulated_cell.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
 #include "commands.hpp"
+#include "until_signal.hpp"
 
 namespace cellwright::tools {
 
 namespace {
-
-// Runs `work` on a thread of its own until it returns or SIGINT/SIGTERM arrives, then `stop` and joins it. The
-// signals are blocked on every thread and taken with sigwait here, so no handler runs. Rethrows what `work` threw.
-void run_until_signal(const std::function<void()>& work, const std::function<void()>& stop) {
-  sigset_t set;
-  sigemptyset(&set);
-  sigaddset(&set, SIGINT);
-  sigaddset(&set, SIGTERM);
-  sigaddset(&set, SIGUSR1);  // the worker's "I am done"
-  pthread_sigmask(SIG_BLOCK, &set, nullptr);
-  std::exception_ptr error;
-  std::thread worker([&] {
-    try {
-      work();
-    } catch (...) {
-      error = std::current_exception();
-    }
-    kill(getpid(), SIGUSR1);
-  });
-  int sig = 0;
-  sigwait(&set, &sig);
-  if (sig != SIGUSR1) {
-    stop();
-  }
-  worker.join();
-  if (error) std::rethrow_exception(error);
-}
 
 // Joins a thread however the scope is left.
 struct Joined {

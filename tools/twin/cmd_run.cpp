@@ -23,6 +23,7 @@
 #include "cellwright/vision/cell_detector.hpp"
 #include "cellwright/vision/draw.hpp"
 #include "commands.hpp"
+#include "until_signal.hpp"
 
 namespace cellwright::tools {
 
@@ -153,6 +154,7 @@ void add_run(CLI::App& app, Command* run) {
         return dry.ok() ? 0 : 1;
       }
 
+      block_stop_signals();  // a stop from now on ends the run safely (run_until_signal below), never mid-write
       auto progress = std::make_shared<Progress>(args->quiet);
       RunOptions options;
       if (args->realtime) options.realtime = true;
@@ -196,15 +198,20 @@ void add_run(CLI::App& app, Command* run) {
 
       // Lock-step runs go firing by firing, so that the progress line can say what each robot does; real-time runs
       // are paced by the wall clock. The limits (sim time, wall time) are the runtime's.
-      if (sr.realtime()) {
-        sr.runtime().run();
-      } else {
-        for (;;) {
-          const runtime::StepState st = sr.runtime().step();
-          if (st.ended) break;
-          progress->set_robots(st.task.robots);
-        }
-      }
+      // Ctrl-C (or SIGTERM) stops the cell safely at the next period; the outputs so far are written below.
+      run_until_signal(
+          [&] {
+            if (sr.realtime()) {
+              sr.runtime().run();
+            } else {
+              for (;;) {
+                const runtime::StepState st = sr.runtime().step();
+                if (st.ended) break;
+                progress->set_robots(st.task.robots);
+              }
+            }
+          },
+          [&] { sr.runtime().request_stop("stopped by the user (signal)"); });
       progress->finish();
 
       const Report report = sr.report();

@@ -1,0 +1,46 @@
+#include "until_signal.hpp"
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <exception>
+#include <thread>
+
+namespace cellwright::tools {
+
+// Runs `work` on a thread of its own until it returns or SIGINT/SIGTERM arrives, then `stop` and joins it. The
+// signals are blocked on every thread and taken with sigwait here, so no handler runs. Rethrows what `work` threw.
+void run_until_signal(const std::function<void()>& work, const std::function<void()>& stop) {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGUSR1);  // the worker's "I am done"
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  std::exception_ptr error;
+  std::thread worker([&] {
+    try {
+      work();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    kill(getpid(), SIGUSR1);
+  });
+  int sig = 0;
+  sigwait(&set, &sig);
+  if (sig != SIGUSR1) {
+    stop();
+  }
+  worker.join();
+  if (error) std::rethrow_exception(error);
+}
+
+void block_stop_signals() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+}
+
+}  // namespace cellwright::tools

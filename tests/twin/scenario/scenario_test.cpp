@@ -433,3 +433,64 @@ TEST_F(ScenarioFiles, UnreachableTargetFailsPreflightNamingRobotTargetAndCommand
 
 }  // namespace
 }  // namespace cellwright::twin::scenario
+
+namespace cellwright::twin::scenario {
+namespace {
+
+class ScenarioRecovery : public ScenarioFiles {};
+
+TEST_F(ScenarioRecovery, WithoutTheFieldRecoveryIsOnWithTheStandardTree) {
+  const Scenario s = load_scenario(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"));
+  EXPECT_TRUE(s.recovery.enabled);
+  EXPECT_EQ(s.recovery.tree, nullptr);
+  EXPECT_TRUE(s.recovery_file.empty());
+}
+
+TEST_F(ScenarioRecovery, ATreeFileAndTheWatchdogTimesAreRead) {
+  write("tree.yaml", "closed_on_nothing: {cause: operator_needed, action: stop_cell}\n");
+  const Scenario s = load_scenario(scenario(
+      "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"
+      "recovery: {tree: tree.yaml, max_attempts: 2, part_wait: 5, wait_timeout: 12.5, command_timeout: 4}\n"));
+  ASSERT_NE(s.recovery.tree, nullptr);
+  EXPECT_EQ(s.recovery_file, dir_ / "tree.yaml");
+  const runtime::Diagnosis d =
+      s.recovery.tree->diagnose(runtime::Symptom::closed_on_nothing, [](runtime::Question) { return true; });
+  EXPECT_EQ(d.cause, "operator_needed");
+  EXPECT_EQ(s.recovery.max_attempts, 2);
+  EXPECT_EQ(s.recovery.part_wait, std::chrono::seconds(5));
+  EXPECT_EQ(s.recovery.wait_timeout, std::chrono::milliseconds(12500));
+  EXPECT_EQ(s.recovery.command_timeout, std::chrono::seconds(4));
+  // The plain form names the file only.
+  const Scenario plain = load_scenario(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"
+                                                "recovery: tree.yaml\n"));
+  EXPECT_NE(plain.recovery.tree, nullptr);
+  const Scenario off = load_scenario(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"
+                                              "recovery: {enabled: false}\n"));
+  EXPECT_FALSE(off.recovery.enabled);
+}
+
+TEST_F(ScenarioRecovery, BadRecoverySettingsNameTheFieldOrTheTreeFile) {
+  const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
+  expect_error(scenario(head + "recovery: {tree: t.yaml, retries: 2}\n"), 5, "unknown field 'retries'");
+  expect_error(scenario(head + "recovery: {max_attempts: 1.5}\n"), 5, "must be a whole number from 1 to 100");
+  expect_error(scenario(head + "recovery: {part_wait: -1}\n"), 5, "part_wait");
+  // A tree file that is missing or wrong is named itself.
+  try {
+    load_scenario(scenario(head + "recovery: nowhere.yaml\n"));
+    ADD_FAILURE() << "no error for a missing tree file";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, (dir_ / "nowhere.yaml").string());
+  }
+  write("bad.yaml", "grip_lost: {cause: x, action: dance}\n");
+  try {
+    load_scenario(scenario(head + "recovery: bad.yaml\n"));
+    ADD_FAILURE() << "no error for a bad tree file";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, (dir_ / "bad.yaml").string());
+    EXPECT_EQ(e.where().line, 1);
+    EXPECT_THAT(e.what(), HasSubstr("unknown action 'dance'"));
+  }
+}
+
+}  // namespace
+}  // namespace cellwright::twin::scenario

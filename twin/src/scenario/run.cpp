@@ -207,6 +207,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   config.limits.wall_time = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(s.limits.wall_time));
   config.motion.targets.handover_clearance = s.options.handover_clearance;
+  config.motion.recovery = s.recovery;
   config.perception = perception_;
   if (perception_ == runtime::Perception::kVision) {
     // The scenario's camera (checked when it was loaded), else, when --perception asks for vision, the cell's first.

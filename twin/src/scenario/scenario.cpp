@@ -288,7 +288,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
   const Fields f(doc, root, "the scenario",
                  {"cell", "program", "seed", "locations", "drivers", "robots", "bind", "feed", "limits", "expect",
-                  "tolerance", "options", "perception", "vision", "perturb", "faults"});
+                  "tolerance", "options", "perception", "vision", "perturb", "faults", "recovery"});
   const std::filesystem::path dir = source.parent_path();
 
   Scenario s;
@@ -501,6 +501,38 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       v.camera = s.cell.cameras.front().name;
     }
     s.vision = v;
+  }
+  if (f.has("recovery")) {
+    // A decision tree file, or {tree, enabled, max_attempts, part_wait, wait_timeout, command_timeout}.
+    const YAML::Node& n = f.node("recovery");
+    std::string tree;
+    if (n.IsScalar()) {
+      tree = f.word("recovery");
+    } else {
+      const Fields rf(doc, n, "field 'recovery'",
+                      {"tree", "enabled", "max_attempts", "part_wait", "wait_timeout", "command_timeout"});
+      if (rf.has("tree")) tree = rf.word("tree");
+      s.recovery.enabled = rf.boolean_or("enabled", true);
+      if (rf.has("max_attempts")) {
+        const double a = rf.positive("max_attempts");
+        if (a != std::floor(a) || a > 100) {
+          doc.fail(rf.node("max_attempts"),
+                   fmt::format("{} must be a whole number from 1 to 100, got {}", rf.field("max_attempts"), a));
+        }
+        s.recovery.max_attempts = static_cast<int>(a);
+      }
+      const auto duration = [&](const char* key, runtime::SimDuration& out) {
+        if (rf.has(key)) out = std::chrono::duration_cast<runtime::SimDuration>(
+                              std::chrono::duration<double>(rf.positive(key)));
+      };
+      duration("part_wait", s.recovery.part_wait);
+      duration("wait_timeout", s.recovery.wait_timeout);
+      duration("command_timeout", s.recovery.command_timeout);
+    }
+    if (!tree.empty()) {
+      s.recovery_file = resolve(dir, tree);
+      s.recovery.tree = std::make_shared<const runtime::DecisionTree>(runtime::DecisionTree::load(s.recovery_file));
+    }
   }
   if (f.has("perturb")) {
     const Fields pf(doc, f.node("perturb"), "field 'perturb'", {"workpieces", "offset", "yaw"});

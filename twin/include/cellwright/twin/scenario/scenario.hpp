@@ -26,6 +26,7 @@
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/net.hpp"
 #include "cellwright/runtime/environment_model.hpp"
+#include "cellwright/runtime/recovery.hpp"
 #include "cellwright/task/compiled.hpp"
 #include "cellwright/twin/scenario/faults.hpp"
 
@@ -139,6 +140,10 @@ struct Scenario {
   runtime::Perception perception = runtime::Perception::kTruth;  // `perception:` truth (default), vision or cad
   std::optional<VisionSettings> vision;                          // set when perception is vision
   std::optional<Perturbation> perturb;
+  // How the controller recovers from faults (`recovery:`, docs/faults.md): the decision tree (the standard one unless
+  // the scenario names a file) and the watchdogs' times.
+  runtime::RecoveryOptions recovery;
+  std::filesystem::path recovery_file;  // absolute; empty: the standard tree
   // Faults to inject on purpose (`faults:`, and `twin run --fault`), in file order (docs/faults.md).
   std::vector<FaultSpec> faults;
 

@@ -9,13 +9,15 @@
 namespace cellwright::runtime {
 
 ImageProcessing::ImageProcessing(const PartDetector& detector, SharedEnvironment& env, MessageQueue<Frame>& frames,
-                                 EventLog& log, VisionOptions options, std::function<void(const VisionFrame&)> on_frame)
+                                 EventLog& log, VisionOptions options, std::function<void(const VisionFrame&)> on_frame,
+                                 RecoveryOptions recovery)
     : detector_(detector),
       env_(env),
       frames_(frames),
       log_(log),
       options_(std::move(options)),
-      on_frame_(std::move(on_frame)) {
+      on_frame_(std::move(on_frame)),
+      recovery_(std::move(recovery)) {
   CW_CHECK(options_.period.count() > 0, "the vision period must be positive, got {} ns", options_.period.count());
 }
 
@@ -84,6 +86,22 @@ void ImageProcessing::process(const Frame& frame, SimDuration now) {
     }
   });
   log_.vision(now, frame.time, seen, not_seen, result.rejected, result.frame_problem);
+  // A frame that did not come is a symptom (docs/faults.md): the model keeps its last estimates, which age, until a
+  // frame comes again; that ends the recovery.
+  if (!recovery_.enabled) {
+    // No recovery: the vision event's problem is the whole story.
+  } else if (!frame.problem.empty() && !frame_lost_since_) {
+    frame_lost_since_ = now;
+    log_.fault_detected(now, "", -1, to_string(Symptom::frame_lost), frame.problem);
+    const DecisionTree& tree = recovery_.tree ? *recovery_.tree : DecisionTree::standard();
+    frame_lost_diagnosis_ = tree.diagnose(Symptom::frame_lost, [](Question) { return false; });
+    log_.diagnosis(now, "", "frame_lost", frame_lost_diagnosis_.cause, to_string(frame_lost_diagnosis_.action),
+                   frame_lost_diagnosis_.path);
+  } else if (frame.problem.empty() && frame_lost_since_) {
+    log_.recovery_end(now, "", frame_lost_diagnosis_.cause, to_string(frame_lost_diagnosis_.action), true,
+                      "a frame came again", now - *frame_lost_since_);
+    frame_lost_since_.reset();
+  }
   ++processed_;
   if (on_frame_) on_frame_(VisionFrame{frame.time, frame.image, std::move(result)});
 }

@@ -446,7 +446,7 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     CW_CHECK(config_.vision.has_value() && config_.detector != nullptr && config_.plant != nullptr,
              "vision perception needs a camera, a detector and a plant that renders the camera");
     im.vision = std::make_unique<ImageProcessing>(*config_.detector, im.env, im.frames, *log_, *config_.vision,
-                                                  config_.on_frame);
+                                                  config_.on_frame, config_.motion.recovery);
     // Until the camera has seen them, parts are not known to be in the cell (a fed part may not have arrived): their
     // poses stay the cell description's, unconfirmed, nothing known of their motion.
     im.env.write([](EnvironmentModel& m) {

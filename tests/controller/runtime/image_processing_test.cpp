@@ -314,7 +314,10 @@ TEST_F(ImageProcessingTest, AFrameThatCouldNotBeMadeChangesNothingAndIsNotShownT
   const EnvironmentModel after = env_.snapshot();
   ASSERT_EQ(after.workpieces.size(), before.workpieces.size());
   for (std::size_t i = 0; i < after.workpieces.size(); ++i) expect_same(after.workpieces[i], before.workpieces[i]);
-  const nlohmann::ordered_json e = last_event();
+  nlohmann::ordered_json e;
+  for (const auto& ev : events()) {
+    if (ev["type"] == "vision") e = ev;
+  }
   EXPECT_EQ(e["problem"], "offscreen rendering failed");
   EXPECT_TRUE(e["seen"].empty());
   EXPECT_THAT(names(e["not_seen"]), ElementsAre("A", "B", "C", "D"));
@@ -322,6 +325,27 @@ TEST_F(ImageProcessingTest, AFrameThatCouldNotBeMadeChangesNothingAndIsNotShownT
   EXPECT_EQ(vision_.frames_processed(), 1u);
   ASSERT_EQ(shown_.size(), 1u);
   EXPECT_EQ(shown_[0].result.frame_problem, "offscreen rendering failed");
+}
+
+TEST_F(ImageProcessingTest, AFrameThatDidNotComeIsASymptomUntilAFrameComesAgain) {
+  push(milliseconds(400), Image{}, "camera 'overhead' delivered no frame");
+  vision_.step(milliseconds(400));
+  push(milliseconds(800), Image{}, "camera 'overhead' delivered no frame");
+  vision_.step(milliseconds(800));
+  frame_at(milliseconds(1200));
+  std::vector<nlohmann::ordered_json> faults;
+  for (const auto& ev : events()) {
+    if (ev["type"] == "fault_detected" || ev["type"] == "diagnosis" || ev["type"] == "recovery_end") faults.push_back(ev);
+  }
+  // Sensed once (the second lost frame is the same fault), diagnosed by the standard tree, over when a frame came.
+  ASSERT_EQ(faults.size(), 3u);
+  EXPECT_EQ(faults[0]["symptom"], "frame_lost");
+  EXPECT_EQ(faults[0]["t"], 0.4);
+  EXPECT_EQ(faults[1]["cause"], "camera_dropout");
+  EXPECT_EQ(faults[1]["action"], "go_on");
+  EXPECT_EQ(faults[2]["ok"], true);
+  EXPECT_EQ(faults[2]["t"], 1.2);
+  EXPECT_EQ(faults[2]["duration"], 0.8);
 }
 
 TEST_F(ImageProcessingTest, AFrameTheDetectorCannotUseChangesNothingAndIsLoggedWithItsProblem) {

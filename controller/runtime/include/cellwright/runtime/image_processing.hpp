@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "cellwright/runtime/clock.hpp"
@@ -32,6 +33,7 @@
 #include "cellwright/runtime/event_log.hpp"
 #include "cellwright/runtime/message_queue.hpp"
 #include "cellwright/runtime/part_detector.hpp"
+#include "cellwright/runtime/recovery.hpp"
 
 namespace cellwright::runtime {
 
@@ -59,8 +61,10 @@ struct VisionOptions {
 class ImageProcessing {
  public:
   // `detector` and the rest must outlive this object. `on_frame` may be empty.
+  // `recovery` gives the decision tree for a frame that did not come (frame_lost, docs/faults.md).
   ImageProcessing(const PartDetector& detector, SharedEnvironment& env, MessageQueue<Frame>& frames, EventLog& log,
-                  VisionOptions options, std::function<void(const VisionFrame&)> on_frame = {});
+                  VisionOptions options, std::function<void(const VisionFrame&)> on_frame = {},
+                  RecoveryOptions recovery = {});
 
   // Processes every frame waiting in the queue, without blocking, at simulation time `now`. Returns how many.
   std::size_t step(SimDuration now);
@@ -84,6 +88,9 @@ class ImageProcessing {
   std::function<void(const VisionFrame&)> on_frame_;
   std::map<std::string, LastSeen> last_seen_;
   std::uint64_t processed_ = 0;
+  RecoveryOptions recovery_;
+  std::optional<SimDuration> frame_lost_since_;  // frames have not come since then
+  Diagnosis frame_lost_diagnosis_;
 };
 
 }  // namespace cellwright::runtime

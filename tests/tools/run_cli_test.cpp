@@ -215,7 +215,9 @@ TEST(RunCli, MissingScenarioFileExitsTwo) {
 TEST(StepCli, StepsThroughAPipeShowingFiringsMarkingAndRobots) {
   TwinCli cli("cw-step-cli");
   const std::string input = "n\nn\nm\ns " + (cli.dir() / "snap.png").string() + "\nq\n";
-  const Outcome r = cli.run("step " + shell_quote(source_path("scenes/exchange.yaml")), &input);
+  const Outcome r = cli.run(
+      "step " + shell_quote(source_path("scenes/exchange.yaml")) + " -o " + shell_quote((cli.dir() / "out").string()),
+      &input);
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   // First step: r1 starts its Pick (open), r2 passes its step-1 signal and waits at the barrier.
   EXPECT_THAT(r.out, HasSubstr("fired r1.t0: r1 line 8 'Pick A' (approach A): r1 begin open"));
@@ -229,9 +231,18 @@ TEST(StepCli, StepsThroughAPipeShowingFiringsMarkingAndRobots) {
   EXPECT_THAT(r.out, HasSubstr("saved " + (cli.dir() / "snap.png").string()));
   EXPECT_GT(fs::file_size(cli.dir() / "snap.png"), 0u);
   EXPECT_THAT(r.out, HasSubstr("quit at t = "));
-  // Exactly two steps were taken: "t = ..., N firings" appears twice.
+  // Exactly two steps were taken ("t = ..., N firings" twice), then the quit's final state and the summary say the
+  // time of the second step again: nothing ran after the quit.
   const std::regex step_line("t = [0-9.]+ s, [0-9]+ firings");
-  EXPECT_EQ(std::distance(std::sregex_iterator(r.out.begin(), r.out.end(), step_line), std::sregex_iterator()), 2);
+  EXPECT_EQ(std::distance(std::sregex_iterator(r.out.begin(), r.out.end(), step_line), std::sregex_iterator()), 4);
+  EXPECT_THAT(r.out, HasSubstr("stopped at t = 0.36 s, 4 firings"));
+  // Quitting stops the cell safely and writes what was logged so far, the report and the charts.
+  EXPECT_THAT(r.out, HasSubstr("the cell was stopped: quit by the user (twin step)"));
+  const auto events = read_events(cli.dir() / "out" / "events.jsonl");
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.back()["outcome"], "stopped");
+  EXPECT_TRUE(fs::is_regular_file(cli.dir() / "out" / "report.json"));
+  EXPECT_TRUE(fs::is_regular_file(cli.dir() / "out" / "gantt.png"));
 }
 
 TEST(StepCli, UnknownCommandsAreExplainedAndEndOfInputQuits) {

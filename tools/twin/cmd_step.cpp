@@ -1,7 +1,8 @@
 // `twin step <scenario.yaml>`: step the concurrent processes one firing at a time from the terminal, as the paper's
 // simulator does for debugging. Commands are read from standard input, one per line (a pipe works as well as a
 // terminal): Enter or `n` next firing, `c` continue to the end, `s FILE` save a snapshot PNG, `m` show the marking,
-// `q` quit, `h` help. Exit status as `twin run` once the run has ended; 0 when quit before; 2 on bad input.
+// `q` quit (the cell is stopped safely; with -o the outputs so far are written), `h` help. Exit status as `twin run`
+// once the run has ended; 0 when quit before; 2 on bad input.
 #include <unistd.h>
 
 #include <cstdio>
@@ -66,9 +67,12 @@ void add_step(CLI::App& app, Command* run) {
                                  "Step a scenario one firing at a time, reading commands from standard input: Enter/n "
                                  "next firing, c continue, s FILE snapshot, m marking, q quit.");
   auto scenario = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
   cmd->add_option("scenario", *scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
-  cmd->callback([run, scenario] {
-    *run = [scenario] {
+  cmd->add_option("-o,--out", *out,
+                  "directory for the outputs when the run ends or is quit (events.jsonl, report.json, charts)");
+  cmd->callback([run, scenario, out] {
+    *run = [scenario, out] {
       using namespace cellwright::twin::scenario;
       const Scenario s = load_scenario(*scenario);
       const Preflight pre = preflight(s);
@@ -94,7 +98,9 @@ void add_step(CLI::App& app, Command* run) {
       auto finish = [&](const runtime::StepState& st) {
         print_state(net, st, false);
         const Report report = sr.report();
+        if (!out->empty()) write_outputs(*out, s, report, sr.runtime().log().text(), sr.snapshot(800, 600));
         std::printf("%s", format_summary(report).c_str());
+        if (!out->empty()) std::printf("outputs in %s\n", out->c_str());
         return report.ok() ? 0 : 1;
       };
       std::string line;
@@ -136,6 +142,11 @@ void add_step(CLI::App& app, Command* run) {
           std::fflush(stdout);
         } else if (word == "q") {
           std::printf("quit at t = %.3f s\n", last ? std::chrono::duration<double>(last->time).count() : 0.0);
+          if (!last) return 0;  // nothing ran
+          // The cell is stopped safely at the next period; what was logged so far is kept and written.
+          sr.runtime().request_stop("quit by the user (twin step)");
+          last = sr.runtime().step();
+          (void)finish(*last);
           return 0;
         } else if (word == "h" || word == "?") {
           std::printf("%s", kHelp);

@@ -209,12 +209,15 @@ TEST(CampaignVariants, OnlyRequestedKindsWithValidWhereAndWhen) {
         const std::string offset = s.fields.at("offset");
         const auto slash = offset.find('/');
         ASSERT_NE(slash, std::string::npos) << f.spec;
-        for (const std::string& part : {offset.substr(0, slash), offset.substr(slash + 1)}) {
-          EXPECT_GE(std::stod(part), 0.02 - 1e-9) << f.spec;
-          EXPECT_LE(std::stod(part), 0.05) << f.spec;
-        }
-        EXPECT_GE(num("yaw"), 5.0);
-        EXPECT_LE(num("yaw"), 40.0);
+        // Along the belt up to 2 cm, to the side 2.5 to 4 cm (what a belt's stop does not straighten), turned up to
+        // 20 degrees.
+        const double along = std::stod(offset.substr(0, slash)), side = std::stod(offset.substr(slash + 1));
+        EXPECT_GE(along, 0.0) << f.spec;
+        EXPECT_LE(along, 0.02) << f.spec;
+        EXPECT_GE(side, 0.025 - 1e-9) << f.spec;
+        EXPECT_LE(side, 0.04) << f.spec;
+        EXPECT_GE(num("yaw"), 0.0);
+        EXPECT_LE(num("yaw"), 20.0);
       } else if (s.kind == "unreachable" || s.kind == "missing") {
         EXPECT_EQ(s.fields.size(), 1u);
         EXPECT_EQ(s.fields.at("workpiece"), "A");

@@ -529,7 +529,9 @@ TEST(ReportFaults, StoppedRunIsAKnownOutcomeAndTheFaultWasStoppedSafely) {
   EXPECT_EQ(r.faults[0].action, "stop_cell");
   EXPECT_TRUE(r.faults[0].stopped_safely);
   EXPECT_FALSE(r.faults[0].recovered);  // the cell was stopped before the recovery's end
-  EXPECT_TRUE(part(r, "A").unaccounted);  // on the floor, never declared lost
+  // On the floor, never declared lost: in a cell stopped safely it is accounted where it was found.
+  EXPECT_FALSE(part(r, "A").unaccounted);
+  EXPECT_EQ(part(r, "A").status, PartStatus::kElsewhere);
   EXPECT_EQ(to_json(s, r)["stopped_at"], 5.54);
   EXPECT_THAT(format_summary(r), HasSubstr("cell stopped safely"));
 }

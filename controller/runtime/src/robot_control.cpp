@@ -1154,11 +1154,13 @@ void RobotControl::watch_safety(SimDuration now) {
   const SafetyVerdict v = env_.read([&](const EnvironmentModel& m) {
     const RobotState* r = m.find_robot(cell_);
     if (r == nullptr) return SafetyVerdict{};
-    const std::vector<double>& to = protective_ && current_ && !current_->goal.empty() ? current_->goal : goal;
+    // While stopped, the way it was going to take is watched until it is clear.
+    const std::vector<double>& to = protective_ ? protective_goal_ : goal;
     return check_safety(m, cell_, chain_, r->joints, to, options_.safety);
   });
   if (v.stop && !protective_) {
     protective_ = true;
+    protective_goal_ = goal;
     protective_since_ = now;
     clear_since_.reset();
     protective_reason_ = v.reason;

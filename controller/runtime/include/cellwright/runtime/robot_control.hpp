@@ -276,6 +276,7 @@ class RobotControl {
   std::optional<SimDuration> clear_since_;
   SimDuration protective_since_{0};
   std::string protective_reason_;
+  std::vector<double> protective_goal_;  // the joints the stopped motion was going to, watched until its way is clear
   int protective_stops_ = 0;  // of the current command
   bool halted_ = false;
   std::uint64_t symptoms_ = 0;  // symptoms sensed so far

@@ -156,10 +156,20 @@ TEST_F(CellDetectorTest, AFrameThatCouldNotBeMadeChangesNothingAndSaysWhy) {
   push(milliseconds(800), cv::Mat(10, 10, CV_8UC3, cv::Scalar(0, 0, 255)));  // wrong size
   EXPECT_EQ(vision_.step(milliseconds(800)), 2u);
   EXPECT_TRUE(part("A").pose.isApprox(before));
-  const auto lines = log_.lines();
-  ASSERT_EQ(lines.size(), 2u);
-  EXPECT_THAT(nlohmann::json::parse(lines[0])["problem"].get<std::string>(), HasSubstr("no camera"));
-  EXPECT_FALSE(nlohmann::json::parse(lines[1])["problem"].get<std::string>().empty());
+  // One vision event per frame, each with its problem; the frame that did not come is also the symptom frame_lost
+  // (docs/faults.md), the unusable one is not (a frame came).
+  std::vector<nlohmann::json> frames, faults;
+  for (const std::string& l : log_.lines()) {
+    const nlohmann::json e = nlohmann::json::parse(l);
+    (e["type"] == "vision" ? frames : faults).push_back(e);
+  }
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_THAT(frames[0]["problem"].get<std::string>(), HasSubstr("no camera"));
+  EXPECT_FALSE(frames[1]["problem"].get<std::string>().empty());
+  ASSERT_EQ(faults.size(), 3u);
+  EXPECT_EQ(faults[0]["symptom"], "frame_lost");
+  EXPECT_EQ(faults[1]["type"], "diagnosis");
+  EXPECT_EQ(faults[2]["type"], "recovery_end");
 }
 
 }  // namespace

@@ -672,12 +672,8 @@ bool RobotControl::answer(Question q) const {
         return w != nullptr && w->pose.linear().col(2).z() > std::cos(15.0 * M_PI / 180.0);
       });
     case Question::part_reachable: {
-      if (part.empty()) return false;
-      const bool upright = env_.read([&](const EnvironmentModel& m) {
-        const WorkpieceState* w = m.find_workpiece(part);
-        return w != nullptr && w->pose.linear().col(2).z() > std::cos(15.0 * M_PI / 180.0);
-      });
-      if (!upright) return false;  // a grasp from above fits only a part standing up
+      // A grasp from above fits only a part standing up.
+      if (part.empty() || !answer(Question::part_upright)) return false;
       task::Target above{task::TargetKind::kAbove, part};
       task::Target at{task::TargetKind::kAt, part};
       return reachable(above) && reachable(at);
@@ -922,22 +918,21 @@ void RobotControl::end_recovery(SimDuration now, bool ok, const std::string& det
 
 void RobotControl::set_aside(SimDuration now, const std::string& workpiece, const std::string& reason) {
   if (workpiece.empty()) return;
-  const std::optional<Eigen::Vector3d> last = env_.write([&](EnvironmentModel& m) -> std::optional<Eigen::Vector3d> {
+  struct Lost {
+    bool now = false;  // declared lost here (not already lost)
+    std::optional<Eigen::Vector3d> last_seen;
+  };
+  const Lost lost = env_.write([&](EnvironmentModel& m) {
     WorkpieceState* w = m.find_workpiece(workpiece);
-    if (w == nullptr || w->lost) return std::nullopt;
+    if (w == nullptr || w->lost) return Lost{};
     w->lost = true;
     w->lost_reason = reason;
     if (w->held_by == cell_) w->held_by.clear();
     RobotState* r = m.find_robot(cell_);
     if (r != nullptr && r->hold && r->hold->workpiece == workpiece) r->hold.reset();
-    if (!w->present) return std::nullopt;
-    return w->pose.translation();
+    return Lost{true, w->present ? std::optional<Eigen::Vector3d>(w->pose.translation()) : std::nullopt};
   });
-  const bool lost_now = env_.read([&](const EnvironmentModel& m) {
-    const WorkpieceState* w = m.find_workpiece(workpiece);
-    return w != nullptr && w->lost_reason == reason;
-  });
-  if (lost_now) log_.workpiece_lost(now, workpiece, reason, last);
+  if (lost.now) log_.workpiece_lost(now, workpiece, reason, lost.last_seen);
   carrying_lost_ = workpiece;
 }
 
@@ -970,9 +965,6 @@ void RobotControl::skip_current(SimDuration now, const std::string& reason) {
     recovery_.reset();
     log_.recovery_end(now, label_, r.diagnosis.cause, to_string(r.diagnosis.action), true,
                       fmt::format("set aside: {}", r.workpiece), now - r.detected);
-    if (driver_.state() == drivers::DriverState::active && p.kind != task::PrimitiveKind::kOpen) {
-      // An empty hand goes on; nothing to open.
-    }
   }
   log_.skipped(now, label_, index, task::to_string(p), reason);
   log_start(now);
@@ -1015,25 +1007,10 @@ void RobotControl::watch_grip(SimDuration now) {
   struct Seen {
     std::optional<Hold> hold;
     std::optional<std::string> between;
-    std::optional<Eigen::Isometry3d> tcp;
-    std::optional<Eigen::Isometry3d> part;
-    bool measured = false;
   };
   const Seen seen = env_.read([&](const EnvironmentModel& m) {
-    Seen s;
     const RobotState* r = m.find_robot(cell_);
-    if (r == nullptr) return s;
-    s.hold = r->hold;
-    s.between = r->between_fingers;
-    s.tcp = r->tcp;
-    if (r->hold) {
-      const WorkpieceState* w = m.find_workpiece(r->hold->workpiece);
-      if (w != nullptr) {
-        s.part = w->pose;
-        s.measured = w->stamp >= m.time && !options_.track_held_parts;
-      }
-    }
-    return s;
+    return r == nullptr ? Seen{} : Seen{r->hold, r->between_fingers};
   });
   if (!seen.hold || !seen.between) {
     grip_missing_ = 0;
@@ -1121,6 +1098,7 @@ void RobotControl::watch_safety(SimDuration now) {
   struct New {
     std::string name;
     double distance = 0;
+    bool nearest = false;  // this robot's tool is the nearest: it notes the obstacle
   };
   const std::vector<New> appeared = env_.read([&](const EnvironmentModel& m) {
     std::vector<New> out;
@@ -1133,18 +1111,15 @@ void RobotControl::watch_safety(SimDuration now) {
       for (const RobotState& r : m.robots) {
         if (r.name != cell_ && r.tcp && distance_to_box(r.tcp->translation(), o.centre, o.size) < mine) nearest = false;
       }
-      out.push_back({nearest ? o.name : std::string(), mine});
-      if (!nearest) out.back().name = "~" + o.name;  // seen, noted by another robot
+      out.push_back({o.name, mine, nearest});
     }
     return out;
   });
   for (const New& n : appeared) {
-    const bool mine = n.name.empty() || n.name.front() != '~';
-    const std::string name = mine ? n.name : n.name.substr(1);
-    obstacles_seen_.push_back(name);
-    if (mine) {
+    obstacles_seen_.push_back(n.name);
+    if (n.nearest) {
       note(now, Symptom::obstacle_seen,
-           fmt::format("the safety sensor sees {}, {:.3f} m from the tool of {}", name, n.distance, cell_),
+           fmt::format("the safety sensor sees {}, {:.3f} m from the tool of {}", n.name, n.distance, cell_),
            std::string());
     }
   }

@@ -44,6 +44,10 @@ class Emitter {
     add(PrimitiveKind::kWait).event = event;
     return *this;
   }
+  Emitter& loop(int index) {
+    add(PrimitiveKind::kLoop).loop = index;
+    return *this;
+  }
 
  private:
   Primitive& add(PrimitiveKind kind) {
@@ -68,11 +72,18 @@ class Compiler {
   CompiledProgram run() {
     out_.file = program_.file;
     out_.robots = declared_names(program_, NameKind::kRobot);
-    out_.workpieces = declared_names(program_, NameKind::kWorkpiece);
+    for (const Declaration& d : program_.declarations) {
+      if (d.kind != NameKind::kWorkpiece) continue;
+      if (d.from.empty()) {
+        out_.workpieces.push_back(d.name);
+      } else {
+        out_.classes.push_back({d.name, d.from, d.where});
+      }
+    }
     out_.locations = declared_names(program_, NameKind::kLocation);
     for (std::size_t r = 0; r < out_.robots.size(); ++r) {
       robot_index_[out_.robots[r]] = r;
-      out_.programs.push_back({out_.robots[r], {}});
+      out_.programs.push_back({out_.robots[r], {}, {}});
     }
     state_.resize(out_.robots.size());
     for (const Declaration& d : program_.declarations) {
@@ -110,6 +121,11 @@ class Compiler {
     std::optional<Holding> holding;
     std::vector<Inside> inside;
   };
+  // A robot at the start of a loop's body: where its body begins and what it holds and is inside.
+  struct LoopStart {
+    std::size_t begin = 0;
+    RobotState state;
+  };
 
   [[noreturn]] static void fail(const SourceLocation& where, std::string problem) {
     throw InputError(where, std::move(problem));
@@ -129,6 +145,8 @@ class Compiler {
 
   static std::string held_since(const Holding& h) { return fmt::format("{} (since line {})", h.workpiece, h.line); }
 
+  bool is_class(const std::string& workpiece) const { return find_class(out_, workpiece) != nullptr; }
+
   // Every command but Put/Get. `table` lists the robots whose holdings are ordered with this command (the steps
   // table's robots, in line order); sequences run unsynchronised, so their holdings are only tracked per robot.
   void compile_command(std::size_t r, const Command& cmd, const std::vector<std::size_t>& table) {
@@ -140,9 +158,10 @@ class Compiler {
       case CommandKind::kPick: {
         if (st.holding)
           fail(cmd.where, fmt::format("{} cannot pick {}: it is already holding {}", name, x, held_since(*st.holding)));
+        // Parts of a class are different parts: two robots may each hold one (a pipeline).
         for (std::size_t other : table) {
           const auto& h = state_[other].holding;
-          if (other != r && h && h->workpiece == x) {
+          if (other != r && h && h->workpiece == x && !is_class(x)) {
             fail(cmd.argument_where, fmt::format("{} cannot pick {}: robot {} is holding it (since line {})", name, x,
                                                  out_.robots[other], h->line));
           }
@@ -157,6 +176,11 @@ class Compiler {
         if (!st.holding) fail(cmd.where, fmt::format("{} cannot place on {}: it is holding nothing", name, x));
         const std::string w = st.holding->workpiece;
         if (w == x) fail(cmd.argument_where, fmt::format("{} cannot place {} on itself", name, x));
+        if (const WorkpieceClass* c = find_class(out_, x)) {
+          fail(cmd.argument_where, fmt::format("{} cannot place on {}: it is a workpiece class (whichever part "
+                                               "arrives at {}); place on a location or a named workpiece",
+                                               name, x, c->from));
+        }
         emit.motion("approach " + x).move(TargetKind::kAbove, x);
         emit.motion("put down " + w).move(TargetKind::kAt, x);
         emit.motion("release " + w).open(w);
@@ -213,8 +237,81 @@ class Compiler {
 
   void compile_sequence(const Sequence& seq) {
     const std::size_t r = robot(seq.robot);
-    for (const Command& cmd : seq.commands) compile_command(r, cmd, {});
+    std::size_t next_loop = 0;
+    LoopStart start;
+    for (std::size_t i = 0; i < seq.commands.size(); ++i) {
+      if (next_loop < seq.loops.size() && seq.loops[next_loop].begin == i) start = {primitives(r).size(), state_[r]};
+      compile_command(r, seq.commands[i], {});
+      if (next_loop < seq.loops.size() && seq.loops[next_loop].end == i + 1) {
+        close_loop(seq.loops[next_loop], {r}, {start});
+        ++next_loop;
+      }
+    }
+    CW_CHECK(next_loop == seq.loops.size(), "sequence {}: loop {} of {} was not reached", seq.robot, next_loop,
+             seq.loops.size());
     expect_outside_regions(r);
+  }
+
+  static std::string holding_text(const RobotState& st) {
+    return st.holding ? held_since(*st.holding) : std::string("nothing");
+  }
+  static std::vector<std::string> region_names(const RobotState& st) {
+    std::vector<std::string> names;
+    for (const Inside& in : st.inside) names.push_back(in.region);
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+  static std::string regions_text(const std::vector<std::string>& names) {
+    if (names.empty()) return "no region";
+    std::string out = names.size() == 1 ? "region " : "regions ";
+    for (std::size_t i = 0; i < names.size(); ++i) out += (i == 0 ? "" : ", ") + names[i];
+    return out;
+  }
+
+  // The end of a loop's body for the robots `rows` (leader first), whose body starts are `starts`: checks that each
+  // robot is as it was at the start (so every iteration runs like the first), then closes each robot's body with a
+  // kLoop primitive and records the loop. With followers, the leader's decision events are inserted.
+  void close_loop(const LoopBlock& block, const std::vector<std::size_t>& rows, const std::vector<LoopStart>& starts) {
+    const std::string loop_text = fmt::format("repeat {}", block.count);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const std::string& name = out_.robots[rows[i]];
+      const RobotState& before = starts[i].state;
+      const RobotState& after = state_[rows[i]];
+      const bool same_holding = before.holding.has_value() == after.holding.has_value() &&
+                                (!before.holding || before.holding->workpiece == after.holding->workpiece);
+      if (!same_holding) {
+        fail(block.where, fmt::format("{} holds {} at the start of the loop's body and {} at its end: an iteration "
+                                      "must leave each robot holding what it held when the iteration began",
+                                      name, holding_text(before), holding_text(after)));
+      }
+      const auto regions_before = region_names(before);
+      const auto regions_after = region_names(after);
+      if (regions_before != regions_after) {
+        fail(block.where, fmt::format("{} is inside {} at the start of the loop's body and inside {} at its end: an "
+                                      "iteration must leave each robot in the regions it was in when the iteration "
+                                      "began",
+                                      name, regions_text(regions_before), regions_text(regions_after)));
+      }
+    }
+    Loop loop;
+    loop.name = fmt::format("loop{}", block.where.line);
+    loop.where = block.where;
+    loop.count = block.count;
+    loop.leader = out_.robots[rows.front()];
+    for (std::size_t i = 1; i < rows.size(); ++i) loop.followers.push_back(out_.robots[rows[i]]);
+    for (const std::string& follower : loop.followers) {
+      add_event(loop_again_event(loop, follower), block.where);
+      add_event(loop_exit_event(loop, follower), block.where);
+    }
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      RobotProgram& prog = out_.programs[rows[i]];
+      Loop mine = loop;
+      if (i > 0) mine.followers.clear();
+      mine.begin = starts[i].begin;
+      mine.end = prog.primitives.size();
+      Emitter(prog.primitives, block.where, loop_text).motion("loop").loop(static_cast<int>(prog.loops.size()));
+      prog.loops.push_back(std::move(mine));
+    }
   }
 
   // The Put/Get pair that includes the command in column `c` of `line`. Returns the column of the partner.
@@ -281,8 +378,15 @@ class Compiler {
   void compile_table(const StepTable& table) {
     std::vector<std::size_t> rows;  // robot index of each column
     for (const std::string& name : table.robots) rows.push_back(robot(name));
+    std::size_t next_loop = 0;
+    std::vector<LoopStart> starts;  // per column, at the start of the current loop's body
     for (std::size_t l = 0; l < table.lines.size(); ++l) {
       const StepLine& line = table.lines[l];
+      const LoopBlock* loop = next_loop < table.loops.size() ? &table.loops[next_loop] : nullptr;
+      if (loop != nullptr && loop->begin == l) {
+        starts.clear();
+        for (std::size_t r : rows) starts.push_back({primitives(r).size(), state_[r]});
+      }
       CW_CHECK(line.cells.size() == rows.size(), "step line {} has {} cells for {} columns", line.where.line,
                line.cells.size(), rows.size());
       std::vector<bool> done(rows.size(), false);
@@ -296,8 +400,16 @@ class Compiler {
         }
         done[c] = true;
       }
-      if (l + 1 < table.lines.size() && rows.size() > 1) barrier(table, line, rows);
+      // The barrier after a loop's last line comes before the leader decides, even at the end of the table.
+      const bool closes_loop = loop != nullptr && loop->end == l + 1;
+      if ((l + 1 < table.lines.size() || closes_loop) && rows.size() > 1) barrier(table, line, rows);
+      if (closes_loop) {
+        close_loop(*loop, rows, starts);
+        ++next_loop;
+      }
     }
+    CW_CHECK(next_loop == table.loops.size(), "steps table: loop {} of {} was not reached", next_loop,
+             table.loops.size());
     for (std::size_t r : rows) expect_outside_regions(r);
   }
 

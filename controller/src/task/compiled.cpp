@@ -21,8 +21,25 @@ const char* to_string(PrimitiveKind k) {
       return "signal";
     case PrimitiveKind::kWait:
       return "wait";
+    case PrimitiveKind::kLoop:
+      return "loop";
   }
   return "?";
+}
+
+std::string loop_again_event(const Loop& loop, const std::string& follower) {
+  return fmt::format("{}.{}>{}.again", loop.name, loop.leader, follower);
+}
+
+std::string loop_exit_event(const Loop& loop, const std::string& follower) {
+  return fmt::format("{}.{}>{}.exit", loop.name, loop.leader, follower);
+}
+
+const WorkpieceClass* find_class(const CompiledProgram& program, const std::string& name) {
+  for (const WorkpieceClass& c : program.classes) {
+    if (c.name == name) return &c;
+  }
+  return nullptr;
 }
 
 namespace {
@@ -77,6 +94,9 @@ std::string to_string(const Primitive& p) {
     case PrimitiveKind::kSignal:
     case PrimitiveKind::kWait:
       return fmt::format("{} {}", to_string(p.kind), p.event);
+    case PrimitiveKind::kLoop:
+      // The loop's name is "loopL", L the line of its `repeat`, which is where the kLoop primitive points.
+      return fmt::format("loop loop{}", p.where.line);
   }
   return "?";
 }
@@ -95,8 +115,14 @@ std::string format_listing(const CompiledProgram& compiled) {
       task_w = std::max(task_w, p.task.size());
     }
   }
-  std::string out = fmt::format("program {}\nrobots: {}\nworkpieces: {}\nlocations: {}\n", compiled.file,
-                                names(compiled.robots), names(compiled.workpieces), names(compiled.locations));
+  std::string out = fmt::format("program {}\nrobots: {}\nworkpieces: {}\n", compiled.file, names(compiled.robots),
+                                names(compiled.workpieces));
+  if (!compiled.classes.empty()) {
+    std::vector<std::string> classes;
+    for (const WorkpieceClass& c : compiled.classes) classes.push_back(fmt::format("{} from {}", c.name, c.from));
+    out += fmt::format("workpiece classes: {}\n", fmt::join(classes, ", "));
+  }
+  out += fmt::format("locations: {}\n", names(compiled.locations));
   for (const RobotProgram& prog : compiled.programs) {
     const std::size_t n = prog.primitives.size();
     out += n == 0 ? fmt::format("\nrobot {}: no primitives\n", prog.robot)
@@ -105,6 +131,13 @@ std::string format_listing(const CompiledProgram& compiled) {
       const Primitive& p = prog.primitives[i];
       out += fmt::format("  {:>{}}  {:<{}}  # {:<{}}  {:<{}}  {}\n", i, index_w, to_string(p), text_w,
                          location(p.where), where_w, p.task, task_w, p.motion);
+    }
+    for (const Loop& l : prog.loops) {
+      const std::string decision =
+          l.leader != prog.robot ? fmt::format("{} waits for {}'s decision", l.end, l.leader)
+          : l.followers.empty()  ? fmt::format("{} decides again or exit", l.end)
+                                 : fmt::format("{} decides again or exit and tells {}", l.end, fmt::join(l.followers, " "));
+      out += fmt::format("  {} (repeat {}): body [{}, {}), {}\n", l.name, l.count, l.begin, l.end, decision);
     }
   }
   if (compiled.semaphores.empty()) {
@@ -152,10 +185,23 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
         case PrimitiveKind::kWait:
           j["event"] = p.event;
           break;
+        case PrimitiveKind::kLoop:
+          j["loop"] = p.loop;
+          break;
       }
       prims.push_back(std::move(j));
     }
-    programs.push_back({{"robot", prog.robot}, {"primitives", std::move(prims)}});
+    nlohmann::json loops = nlohmann::json::array();
+    for (const Loop& l : prog.loops) {
+      loops.push_back({{"name", l.name},
+                       {"where", location_json(l.where)},
+                       {"count", l.count},
+                       {"begin", l.begin},
+                       {"end", l.end},
+                       {"leader", l.leader},
+                       {"followers", l.followers}});
+    }
+    programs.push_back({{"robot", prog.robot}, {"primitives", std::move(prims)}, {"loops", std::move(loops)}});
   }
   nlohmann::json semaphores = nlohmann::json::array();
   for (const Semaphore& s : compiled.semaphores) {
@@ -171,8 +217,17 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
     for (const RegionSpan& s : r.spans) spans.push_back({{"robot", s.robot}, {"begin", s.begin}, {"end", s.end}});
     regions.push_back({{"name", r.name}, {"spans", std::move(spans)}});
   }
-  return {{"file", compiled.file},           {"robots", compiled.robots},       {"workpieces", compiled.workpieces},
-          {"locations", compiled.locations}, {"programs", std::move(programs)}, {"semaphores", std::move(semaphores)},
+  nlohmann::json classes = nlohmann::json::array();
+  for (const WorkpieceClass& c : compiled.classes) {
+    classes.push_back({{"name", c.name}, {"from", c.from}, {"where", location_json(c.where)}});
+  }
+  return {{"file", compiled.file},
+          {"robots", compiled.robots},
+          {"workpieces", compiled.workpieces},
+          {"classes", std::move(classes)},
+          {"locations", compiled.locations},
+          {"programs", std::move(programs)},
+          {"semaphores", std::move(semaphores)},
           {"regions", std::move(regions)}};
 }
 

@@ -9,6 +9,7 @@
 #include <array>
 #include <cctype>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <system_error>
@@ -138,6 +139,10 @@ constexpr std::array<CommandSpec, 8> kCommands{{
 constexpr std::array<const char*, 8> kStatements{"robot",  "workpiece", "location", "semaphore",
                                                  "region", "steps",     "sequence", "end"};
 
+// Words that are neither statements nor commands but are reserved too: `repeat N` opens a loop inside a block,
+// `from` names where the parts of a workpiece class arrive.
+constexpr std::array<const char*, 2> kOtherKeywords{"repeat", "from"};
+
 const CommandSpec* find_command(std::string_view word) {
   const std::string w = lower(word);
   for (const CommandSpec& c : kCommands) {
@@ -162,6 +167,9 @@ bool is_keyword(std::string_view word) {
   for (const char* s : kStatements) {
     if (w == s) return true;
   }
+  for (const char* s : kOtherKeywords) {
+    if (w == s) return true;
+  }
   return find_command(w) != nullptr;
 }
 
@@ -174,6 +182,10 @@ bool is_top_level_statement(const Token& t) {
 }
 
 constexpr const char* kCommandList = "Pick, Put, Get, Place, signal, wait, enter or leave";
+
+bool is_word(const Token& t, std::string_view keyword) {
+  return t.kind == TokenKind::kName && lower(t.text) == keyword;
+}
 
 // ---- parser ------------------------------------------------------------------------------------------------------
 
@@ -194,11 +206,19 @@ class Parser {
       if (nl == std::string_view::npos) break;
       pos = nl + 1;
     }
+    if (open_loop_) {
+      throw InputError(open_loop_->where, "the loop opened here has no matching 'end' before the end of the file");
+    }
     if (mode_ != Mode::kTop) {
       const char* what = mode_ == Mode::kSequence ? "sequence" : "steps";
+      // With a loop in the block, the block's own 'end' may be the one that closed the loop.
+      const std::string closed =
+          last_loop_end_ > 0
+              ? fmt::format(" (the 'end' on line {} closed the loop opened on line {})", last_loop_end_, last_loop_line_)
+              : std::string();
       throw InputError(block_where_, fmt::format("the {} block opened here has no matching 'end' before the end "
-                                                 "of the file",
-                                                 what));
+                                                 "of the file{}",
+                                                 what, closed));
     }
     resolve();
     return std::move(program_);
@@ -279,7 +299,7 @@ class Parser {
       fail(name,
            fmt::format("'{}' is already declared as a {} on line {}", name.text, to_string(d->kind), d->where.line));
     }
-    program_.declarations.push_back({kind, name.text, initial, at(name)});
+    program_.declarations.push_back({kind, name.text, initial, at(name), {}, {}});
   }
 
   void parse_top() {
@@ -290,7 +310,10 @@ class Parser {
                               quoted(first)));
     }
     const std::string word = lower(first.text);
-    if (word == "robot" || word == "workpiece" || word == "location" || word == "region") {
+    if (word == "workpiece" && tokens_.size() > 1 &&
+        std::any_of(tokens_.begin() + 1, tokens_.end(), [](const Token& t) { return is_word(t, "from"); })) {
+      parse_class(first);
+    } else if (word == "robot" || word == "workpiece" || word == "location" || word == "region") {
       const NameKind kind = word == "robot"       ? NameKind::kRobot
                             : word == "workpiece" ? NameKind::kWorkpiece
                             : word == "location"  ? NameKind::kLocation
@@ -324,6 +347,7 @@ class Parser {
       program_.steps.emplace();
       program_.steps->where = at(first);
       block_where_ = at(first);
+      last_loop_end_ = 0;
       mode_ = Mode::kStepsHeader;
     } else if (word == "sequence") {
       if (tokens_.size() == 1) fail(first, "'sequence' needs the name of the robot it programs");
@@ -333,18 +357,107 @@ class Parser {
         fail(tokens_[2], fmt::format("unexpected {} after 'sequence {}': a sequence programs one robot",
                                      quoted(tokens_[2]), robot.text));
       }
-      program_.sequences.push_back({robot.text, at(robot), {}});
+      program_.sequences.push_back({robot.text, at(robot), {}, {}});
       block_where_ = at(first);
+      last_loop_end_ = 0;
       mode_ = Mode::kSequence;
     } else if (word == "end") {
       fail(first, "'end' without an open steps or sequence block");
-    } else if (find_command(word) != nullptr) {
+    } else if (find_command(word) != nullptr || word == "repeat") {
       fail(first, fmt::format("'{}' must stand inside a steps or sequence block", first.text));
+    } else if (word == "from") {
+      fail(first, "'from' stands in a workpiece class declaration: 'workpiece NAME from LOCATION'");
     } else {
       fail(first, fmt::format("unknown statement '{}' (expected robot, workpiece, location, semaphore, region, "
                               "steps or sequence)",
                               first.text));
     }
+  }
+
+  // `workpiece NAME from LOCATION`: one class per statement. The location is resolved after the whole file.
+  void parse_class(const Token& first) {
+    const auto from = std::find_if(tokens_.begin() + 1, tokens_.end(), [](const Token& t) { return is_word(t, "from"); });
+    const auto from_index = static_cast<std::size_t>(from - tokens_.begin());
+    if (from_index == 1) {
+      fail(*from, fmt::format("'{} from' needs the class name before 'from': 'workpiece NAME from LOCATION'",
+                              first.text));
+    }
+    if (from_index > 2) {
+      fail(tokens_[2], fmt::format("a workpiece class is declared alone ('workpiece NAME from LOCATION'), but {} "
+                                   "names stand before 'from'; declare each class on a line of its own",
+                                   from_index - 1));
+    }
+    const Token& name = expect_new_name(1, "workpiece");
+    if (from_index + 1 >= tokens_.size()) {
+      fail(*from, fmt::format("'from' after workpiece class '{}' needs the location its parts arrive at",
+                              name.text));
+    }
+    const Token& location = tokens_[from_index + 1];
+    if (location.kind != TokenKind::kName) {
+      fail(location, fmt::format("expected a location name after 'from', found {}", quoted(location)));
+    }
+    if (from_index + 2 < tokens_.size()) {
+      fail(tokens_[from_index + 2],
+           fmt::format("unexpected {} after 'workpiece {} from {}': a class takes its parts from one location",
+                       quoted(tokens_[from_index + 2]), name.text, location.text));
+    }
+    declare(NameKind::kWorkpiece, name, 0);
+    program_.declarations.back().from = location.text;
+    program_.declarations.back().from_where = at(location);
+  }
+
+  // `repeat N` inside a block: opens a loop over the lines (table) or commands (sequence) that follow.
+  void open_loop(const Token& first, std::size_t next) {
+    if (open_loop_) {
+      fail(first, fmt::format("loops do not nest: the loop opened on line {} is still open (close it with 'end' "
+                              "first)",
+                              open_loop_->where.line));
+    }
+    if (tokens_.size() == 1) fail(first, "'repeat' needs the number of iterations (a number 1 or more)");
+    const Token& n = tokens_[1];
+    if (n.kind != TokenKind::kNumber) {
+      fail(n, fmt::format("expected the number of iterations after 'repeat', found {}", quoted(n)));
+    }
+    if (n.text.front() == '-' || std::all_of(n.text.begin(), n.text.end(), [](char c) { return c == '0'; })) {
+      fail(n, fmt::format("the number of iterations must be 1 or more, not {}", n.text));
+    }
+    std::uint64_t value = 0;
+    for (char c : n.text) {
+      value = value * 10 + static_cast<std::uint64_t>(c - '0');
+      if (value > std::numeric_limits<std::uint32_t>::max()) {
+        fail(n, fmt::format("the number of iterations is too large: {} (at most {})", n.text,
+                            std::numeric_limits<std::uint32_t>::max()));
+      }
+    }
+    if (tokens_.size() > 2) {
+      fail(tokens_[2], fmt::format("unexpected {} after 'repeat {}': the line that opens a loop holds nothing else",
+                                   quoted(tokens_[2]), n.text));
+    }
+    LoopBlock loop;
+    loop.where = at(first);
+    loop.count = static_cast<std::uint32_t>(value);
+    loop.begin = next;
+    loop.end = next;
+    open_loop_ = loop;
+  }
+
+  // The `end` of the open loop; `next` is the index the next line or command would get.
+  void close_loop(const Token& end, std::size_t next) {
+    LoopBlock loop = *open_loop_;
+    if (next == loop.begin) {
+      fail(end, fmt::format("the loop opened on line {} has an empty body: put the {} it repeats between "
+                            "'repeat {}' and 'end'",
+                            loop.where.line, mode_ == Mode::kSequence ? "commands" : "step lines", loop.count));
+    }
+    loop.end = next;
+    if (mode_ == Mode::kSequence) {
+      program_.sequences.back().loops.push_back(loop);
+    } else {
+      program_.steps->loops.push_back(loop);
+    }
+    last_loop_end_ = line_;
+    last_loop_line_ = loop.where.line;
+    open_loop_.reset();
   }
 
   std::uint32_t parse_count(const Token& t, const std::string& semaphore) const {
@@ -371,15 +484,34 @@ class Parser {
   void parse_block_line() {
     const Token& first = tokens_.front();
     const char* block = mode_ == Mode::kSequence ? "sequence" : "steps";
+    const std::size_t next =
+        mode_ == Mode::kSequence ? program_.sequences.back().commands.size() : program_.steps->lines.size();
     if (first.kind == TokenKind::kName && is_statement(first.text, "end")) {
       expect_alone(first);
       if (mode_ == Mode::kStepsHeader) fail(first, "the steps block has no header line naming its robot columns");
+      if (open_loop_) {
+        close_loop(first, next);
+        return;
+      }
       mode_ = Mode::kTop;
       return;
     }
     if (is_top_level_statement(first)) {
+      if (open_loop_) {
+        throw InputError(open_loop_->where,
+                         fmt::format("the loop opened here has no matching 'end' before '{}' on line {}", first.text,
+                                     line_));
+      }
       fail(first, fmt::format("'{}' inside the {} block opened on line {}: is its 'end' missing?", first.text, block,
                               block_where_.line));
+    }
+    if (is_word(first, "repeat")) {
+      if (mode_ == Mode::kStepsHeader) {
+        fail(first, "the first line of a steps block is its header naming the robot columns (like 'r1 | r2'), found "
+                    "'repeat': a loop opens after the header");
+      }
+      open_loop(first, next);
+      return;
     }
     switch (mode_) {
       case Mode::kStepsHeader:
@@ -428,6 +560,7 @@ class Parser {
                                "'r1 | r2'), found the command '{}'",
                                name.text));
       }
+      if (is_keyword(name.text)) fail(name, fmt::format("'{}' is a keyword and cannot be used as a name", name.text));
       if (e - b > 1) {
         fail(tokens_[b + 1], fmt::format("unexpected {} after robot '{}': separate the header's robot columns "
                                          "with '|'",
@@ -481,6 +614,9 @@ class Parser {
       fail(word, fmt::format("expected a command ({}), found {}", kCommandList, quoted(word)));
     }
     const CommandSpec* spec = find_command(word.text);
+    if (is_word(word, "repeat")) {
+      fail(word, "'repeat' opens a loop on a line of its own ('repeat N'), not in a table cell");
+    }
     if (spec == nullptr) fail(word, fmt::format("unknown command '{}' (expected {})", word.text, kCommandList));
     if (e - b < 2) fail(word, fmt::format("{} needs an argument: {} name", to_string(spec->kind), spec->needs));
     const Token& arg = tokens_[b + 1];
@@ -592,21 +728,37 @@ class Parser {
     for (Command& cmd : seq.commands) resolve_command(cmd);
   }
 
-  // Resolves the blocks in source order, so the first error in the file is the one reported.
-  void resolve() {
-    bool table_done = !program_.steps.has_value();
-    for (std::size_t i = 0; i < program_.sequences.size(); ++i) {
-      if (!table_done && program_.steps->where.line < program_.sequences[i].where.line) {
-        resolve_table(*program_.steps);
-        table_done = true;
-      }
-      resolve_sequence(program_.sequences[i], i);
+  // The location a workpiece class takes its parts from.
+  void resolve_class(const Declaration& c) const {
+    const Declaration* d = find_declaration(program_, c.from);
+    if (d == nullptr) fail_at(c.from_where, fmt::format("unknown location '{}'", c.from));
+    if (d->kind != NameKind::kLocation) {
+      fail_at(c.from_where, fmt::format("workpiece class '{}' takes its parts from a location, but '{}' is a {} "
+                                        "(declared on line {})",
+                                        c.name, c.from, to_string(d->kind), d->where.line));
     }
-    if (!table_done) resolve_table(*program_.steps);
+  }
+
+  // Resolves the class declarations and the blocks in source order, so the first error in the file is the one
+  // reported.
+  void resolve() {
+    std::vector<std::pair<int, std::function<void()>>> work;  // (source line, what to resolve)
+    for (const Declaration& d : program_.declarations) {
+      if (!d.from.empty()) work.emplace_back(d.where.line, [this, &d] { resolve_class(d); });
+    }
+    if (program_.steps) work.emplace_back(program_.steps->where.line, [this] { resolve_table(*program_.steps); });
+    for (std::size_t i = 0; i < program_.sequences.size(); ++i) {
+      work.emplace_back(program_.sequences[i].where.line, [this, i] { resolve_sequence(program_.sequences[i], i); });
+    }
+    std::stable_sort(work.begin(), work.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [line, resolve_one] : work) resolve_one();
   }
 
   std::string_view text_;
   Program program_;
+  std::optional<LoopBlock> open_loop_;  // the `repeat` whose `end` has not come yet
+  int last_loop_end_ = 0;               // line of the `end` that closed the last loop of the open block (0: none)
+  int last_loop_line_ = 0;              // line of that loop's `repeat`
   std::vector<Token> tokens_;
   int line_ = 0;
   Mode mode_ = Mode::kTop;

@@ -12,6 +12,9 @@ std::string place_id(const std::string& robot, std::size_t primitive) {
 std::string transition_id(const std::string& robot, std::size_t primitive) {
   return fmt::format("{}.t{}", robot, primitive);
 }
+std::string loop_again_transition_id(const std::string& robot, std::size_t primitive) {
+  return fmt::format("{}.again{}", robot, primitive);
+}
 std::string start_place_id(const std::string& robot) {
   return robot + ".start";
 }
@@ -63,6 +66,15 @@ petri::Net to_net(const CompiledProgram& program) {
     }
     return it->second;
   };
+  // A loop's decision event (loopL.LEADER>FOLLOWER.again/exit), which compile() inserts.
+  auto decision_place = [&](const std::string& robot, const Primitive& prim, const std::string& event) {
+    auto it = shared.find(event);
+    if (it == shared.end()) {
+      throw InputError(prim.where, fmt::format("robot {}: {} needs the undeclared event '{}'", robot, to_string(prim),
+                                               event));
+    }
+    return it->second;
+  };
 
   std::vector<petri::Arc> final_places;
   // Robot chains; remember each robot's primitive places for the regions.
@@ -71,6 +83,17 @@ petri::Net to_net(const CompiledProgram& program) {
     const RobotProgram& rp = program.programs[r];
     CW_CHECK(rp.robot == program.robots[r], "program {} is for '{}', expected '{}'", r, rp.robot, program.robots[r]);
     const auto& prims = rp.primitives;
+    // The loop each kLoop primitive closes, checked against the program's loop table.
+    auto loop_of = [&](std::size_t k) -> const Loop& {
+      const int l = prims[k].loop;
+      CW_CHECK(l >= 0 && static_cast<std::size_t>(l) < rp.loops.size(), "robot {} primitive {}: loop {} of {}",
+               rp.robot, k, l, rp.loops.size());
+      const Loop& loop = rp.loops[static_cast<std::size_t>(l)];
+      CW_CHECK(loop.end == k && loop.begin <= loop.end, "robot {} loop {}: body [{}, {}) closed by primitive {}",
+               rp.robot, loop.name, loop.begin, loop.end, k);
+      return loop;
+    };
+    auto leads = [&](const Loop& loop) { return loop.leader == rp.robot; };
 
     petri::Place start;
     start.id = start_place_id(rp.robot);
@@ -84,10 +107,18 @@ petri::Net to_net(const CompiledProgram& program) {
     for (std::size_t k = 0; k < prims.size(); ++k) {
       petri::Place p;
       p.id = place_id(rp.robot, k);
-      const bool waiting = prims[k].kind == PrimitiveKind::kWait;
-      p.name = waiting ? fmt::format("{} waiting for {}", rp.robot, prims[k].event)
-                       : fmt::format("{} executing {}", rp.robot, to_string(prims[k]));
-      p.kind = waiting ? petri::PlaceKind::kWaiting : petri::PlaceKind::kExecuting;
+      if (prims[k].kind == PrimitiveKind::kLoop) {
+        // The leader decides at once (an instant primitive); a follower waits for the leader's decision.
+        const Loop& loop = loop_of(k);
+        p.name = leads(loop) ? fmt::format("{} deciding {} (repeat {})", rp.robot, loop.name, loop.count)
+                             : fmt::format("{} waiting for {} decision", rp.robot, loop.name);
+        p.kind = leads(loop) ? petri::PlaceKind::kExecuting : petri::PlaceKind::kWaiting;
+      } else {
+        const bool waiting = prims[k].kind == PrimitiveKind::kWait;
+        p.name = waiting ? fmt::format("{} waiting for {}", rp.robot, prims[k].event)
+                         : fmt::format("{} executing {}", rp.robot, to_string(prims[k]));
+        p.kind = waiting ? petri::PlaceKind::kWaiting : petri::PlaceKind::kExecuting;
+      }
       p.origin = origin_of(rp.robot, prims[k], k);
       places.push_back(b.add_place(std::move(p)));
     }
@@ -109,6 +140,17 @@ petri::Net to_net(const CompiledProgram& program) {
         t.inputs.push_back({shared_place(rp.robot, prims[k - 1]), 1});
       }
       t.outputs.push_back({k == prims.size() ? done_id : places[k], 1});
+      if (k > 0 && prims[k - 1].kind == PrimitiveKind::kLoop) {
+        // The exit of a loop: the leader tells each follower; a follower goes on once told.
+        const Loop& loop = loop_of(k - 1);
+        if (leads(loop)) {
+          for (const std::string& f : loop.followers) {
+            t.outputs.push_back({decision_place(rp.robot, prims[k - 1], loop_exit_event(loop, f)), 1});
+          }
+        } else {
+          t.inputs.push_back({decision_place(rp.robot, prims[k - 1], loop_exit_event(loop, rp.robot)), 1});
+        }
+      }
       if (k < prims.size() && prims[k].kind == PrimitiveKind::kSignal) {
         // If the robot just waited for the same event, this is a self-loop (consume, then produce): kept as two
         // arcs, since the wait must still find a token.
@@ -127,6 +169,31 @@ petri::Net to_net(const CompiledProgram& program) {
           t.origin.primitive = -1;
         }
       }
+      b.add_transition(std::move(t));
+    }
+
+    // Each loop's again: from its kLoop place back to the body's first primitive, which it begins as Tb does.
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      if (prims[k].kind != PrimitiveKind::kLoop) continue;
+      const Loop& loop = loop_of(k);
+      petri::Transition t;
+      t.id = loop_again_transition_id(rp.robot, k);
+      t.name = fmt::format("{} repeat {}", rp.robot, loop.name);
+      t.inputs.push_back({places[k], 1});
+      t.outputs.push_back({places[loop.begin], 1});
+      if (leads(loop)) {
+        for (const std::string& f : loop.followers) {
+          t.outputs.push_back({decision_place(rp.robot, prims[k], loop_again_event(loop, f)), 1});
+        }
+      } else {
+        t.inputs.push_back({decision_place(rp.robot, prims[k], loop_again_event(loop, rp.robot)), 1});
+      }
+      if (prims[loop.begin].kind == PrimitiveKind::kSignal) {
+        t.outputs.push_back({shared_place(rp.robot, prims[loop.begin]), 1});
+      }
+      t.origin = origin_of(rp.robot, prims[k], k);
+      t.starts_robot = static_cast<std::uint32_t>(r);
+      t.starts_primitive = static_cast<int>(loop.begin);
       b.add_transition(std::move(t));
     }
   }

@@ -464,7 +464,7 @@ TEST(CompileErrors, SemanticErrorsHaveTheProgramFileInWhat) {
 TEST(CompileErrors, HandMadeProgramBreakingTheParserInvariantsIsABug) {
   Program p;
   p.file = "made.task";
-  p.sequences.push_back({"ghost", {"made.task", 1, 1}, {}});  // no robot 'ghost' declared
+  p.sequences.push_back({"ghost", {"made.task", 1, 1}, {}, {}});  // no robot 'ghost' declared
   EXPECT_THROW(compile(p), InternalError);
 }
 

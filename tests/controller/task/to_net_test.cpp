@@ -26,7 +26,7 @@ CompiledProgram two_robots(std::vector<Primitive> a, std::vector<Primitive> b, s
   CompiledProgram c;
   c.file = "t.task";
   c.robots = {"r1", "r2"};
-  c.programs = {RobotProgram{"r1", std::move(a)}, RobotProgram{"r2", std::move(b)}};
+  c.programs = {RobotProgram{"r1", std::move(a), {}}, RobotProgram{"r2", std::move(b), {}}};
   c.semaphores = std::move(sems);
   return c;
 }

@@ -11,7 +11,9 @@
 
 namespace cellwright::task {
 
-enum class PrimitiveKind : std::uint8_t { kMove, kOpen, kClose, kSignal, kWait };
+// kLoop closes the body of a `repeat N ... end` block (RobotProgram::loops): it never goes to a robot and takes no
+// time; after it the robot goes back to the body's first primitive (again) or on to the next one (exit).
+enum class PrimitiveKind : std::uint8_t { kMove, kOpen, kClose, kSignal, kWait, kLoop };
 
 // Where a move goes, symbolically; robot control resolves it against the environment model at run time.
 enum class TargetKind : std::uint8_t {
@@ -33,15 +35,40 @@ struct Primitive {
   Target target;          // kMove only
   std::string event;      // kSignal / kWait: event (semaphore) name
   std::string workpiece;  // kClose: the workpiece grasped; kOpen: the workpiece released (empty if none)
+  int loop = -1;          // kLoop: index into RobotProgram::loops of the loop it closes; -1 for the other kinds
   // Provenance, for listings and for analysis results told in program terms.
   SourceLocation where;   // the task-level command (or signal/wait/enter/leave statement) in the source
   std::string task;       // task-level command as written, e.g. "Pick A"
   std::string motion;     // motion-level command, e.g. "approach A"
 };
 
+// One `repeat N ... end` block as one robot runs it. Primitives [begin, end) are the body; primitive `end` is the
+// kLoop primitive that closes it. Reaching it, the robot goes back to `begin` (again) or on to end + 1 (exit).
+//
+// Who decides: a loop in the steps table is run by every robot of the table; the first column (the leader) decides,
+// after the barrier that ends the body's last line, and tells each other table robot (a follower, column order) by
+// an inserted event, `loopL.LEADER>FOLLOWER.again` or `loopL.LEADER>FOLLOWER.exit` (L: the source line of `repeat`).
+// A follower's kLoop primitive waits for one of its two events. In a sequence the robot is its own leader and has no
+// followers. The count is not in the Petri net: the net lets the leader choose freely (so its check holds for any
+// number of iterations, and costs the same for 3 or 3,000); task control counts and chooses at run time.
+struct Loop {
+  std::string name;          // "loopL", L the line of `repeat`; the prefix of its inserted events
+  SourceLocation where;      // the `repeat` keyword
+  std::uint32_t count = 1;   // iterations (at least 1)
+  std::size_t begin = 0;     // first primitive of the body
+  std::size_t end = 0;       // index of the kLoop primitive (begin <= end)
+  std::string leader;        // the robot that decides (this robot, in a sequence or as the table's first column)
+  std::vector<std::string> followers;  // leader only: the robots it tells, in column order; empty for a follower
+};
+
+// The events of a loop's decision: "loopL.r1>r2.again", "loopL.r1>r2.exit".
+std::string loop_again_event(const Loop& loop, const std::string& follower);
+std::string loop_exit_event(const Loop& loop, const std::string& follower);
+
 struct RobotProgram {
   std::string robot;
   std::vector<Primitive> primitives;
+  std::vector<Loop> loops;  // in program order; loops do not nest
 };
 
 // An event object / counting semaphore. Critical regions are semaphores too (initial 1) whose wait/signal pairs
@@ -65,17 +92,31 @@ struct RegionUse {
   std::vector<RegionSpan> spans;
 };
 
+// A workpiece class (`workpiece part from IN`): not one workpiece but whichever arrives at location `from`. At run
+// time each Pick of the class by a robot takes the next part that has arrived there and that nobody else has taken,
+// and the name means that part in the robot's commands until it lets go of it (the taker of a hand-over takes the
+// giver's part with it).
+struct WorkpieceClass {
+  std::string name;
+  std::string from;     // a location label of the program
+  SourceLocation where;  // the name in the declaration
+};
+
 struct CompiledProgram {
   std::string file;
   std::vector<std::string> robots;       // declaration order
-  std::vector<std::string> workpieces;
+  std::vector<std::string> workpieces;   // named workpieces only (declaration order); classes are in `classes`
+  std::vector<WorkpieceClass> classes;   // declaration order
   std::vector<std::string> locations;
   std::vector<RobotProgram> programs;    // one per robot, same order as robots
   std::vector<Semaphore> semaphores;     // user semaphores, regions, and the events the compiler inserted
   std::vector<RegionUse> regions;
 };
 
-// "move above(A)", "close A", "signal step2.r1>r2" ...
+// The class named `name`, or nullptr if it is a named workpiece (or not declared).
+const WorkpieceClass* find_class(const CompiledProgram& program, const std::string& name);
+
+// "move above(A)", "close A", "signal step2.r1>r2", "loop loop7" ...
 std::string to_string(const Primitive& p);
 const char* to_string(PrimitiveKind k);
 std::string to_string(const Target& t);

@@ -35,6 +35,10 @@ struct Declaration {
   std::string name;
   std::uint32_t initial = 0;  // semaphores: initial count; always 0 for the other kinds
   SourceLocation where;       // the name token in the declaration
+  // Workpieces only: a class (`workpiece part from IN`, one name per such statement) names the location its parts
+  // arrive at (a declared location); empty for a named workpiece.
+  std::string from;
+  SourceLocation from_where;  // the location token after `from`
 };
 
 enum class CommandKind : std::uint8_t { kPick, kPut, kGet, kPlace, kSignal, kWait, kEnter, kLeave };
@@ -61,12 +65,22 @@ struct StepLine {
   std::vector<std::optional<Command>> cells;  // exactly one per column of the table; nullopt = the robot idles
 };
 
+// A `repeat N ... end` block inside a steps table or a sequence: lines (table) or commands (sequence) [begin, end)
+// are its body, run `count` times. Loops do not nest, and a body is never empty.
+struct LoopBlock {
+  SourceLocation where;     // the `repeat` keyword
+  std::uint32_t count = 1;  // at least 1
+  std::size_t begin = 0;
+  std::size_t end = 0;
+};
+
 // The `steps ... end` block.
 struct StepTable {
   SourceLocation where;                     // the `steps` keyword
   std::vector<std::string> robots;          // the columns, left to right, as named in the header line
   std::vector<SourceLocation> robot_where;  // each column's name in the header line
   std::vector<StepLine> lines;              // in source order
+  std::vector<LoopBlock> loops;             // in source order, indexes into `lines`
 };
 
 // A `sequence ROBOT ... end` block: one robot's commands, executed one after the other, unsynchronised with the
@@ -75,6 +89,7 @@ struct Sequence {
   std::string robot;
   SourceLocation where;  // the robot name after `sequence`
   std::vector<Command> commands;
+  std::vector<LoopBlock> loops;  // in source order, indexes into `commands`
 };
 
 // A parsed, name-resolved program.

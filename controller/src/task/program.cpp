@@ -211,14 +211,9 @@ class Parser {
     }
     if (mode_ != Mode::kTop) {
       const char* what = mode_ == Mode::kSequence ? "sequence" : "steps";
-      // With a loop in the block, the block's own 'end' may be the one that closed the loop.
-      const std::string closed =
-          last_loop_end_ > 0
-              ? fmt::format(" (the 'end' on line {} closed the loop opened on line {})", last_loop_end_, last_loop_line_)
-              : std::string();
       throw InputError(block_where_, fmt::format("the {} block opened here has no matching 'end' before the end "
                                                  "of the file{}",
-                                                 what, closed));
+                                                 what, closed_loop_note()));
     }
     resolve();
     return std::move(program_);
@@ -374,6 +369,12 @@ class Parser {
     }
   }
 
+  // With a loop in the open block, the block's own 'end' may be the one that closed the loop: say so.
+  std::string closed_loop_note() const {
+    if (last_loop_end_ == 0) return {};
+    return fmt::format(" (the 'end' on line {} closed the loop opened on line {})", last_loop_end_, last_loop_line_);
+  }
+
   // `workpiece NAME from LOCATION`: one class per statement. The location is resolved after the whole file.
   void parse_class(const Token& first) {
     const auto from = std::find_if(tokens_.begin() + 1, tokens_.end(), [](const Token& t) { return is_word(t, "from"); });
@@ -502,8 +503,8 @@ class Parser {
                          fmt::format("the loop opened here has no matching 'end' before '{}' on line {}", first.text,
                                      line_));
       }
-      fail(first, fmt::format("'{}' inside the {} block opened on line {}: is its 'end' missing?", first.text, block,
-                              block_where_.line));
+      fail(first, fmt::format("'{}' inside the {} block opened on line {}: is its 'end' missing?{}", first.text,
+                              block, block_where_.line, closed_loop_note()));
     }
     if (is_word(first, "repeat")) {
       if (mode_ == Mode::kStepsHeader) {

@@ -84,6 +84,34 @@ void expect_well_formed(const CompiledProgram& c) {
       EXPECT_FALSE(p.motion.empty());
     }
   }
+  for (const RobotProgram& prog : c.programs) {
+    std::size_t loops_closed = 0;
+    for (std::size_t k = 0; k < prog.primitives.size(); ++k) {
+      const Primitive& p = prog.primitives[k];
+      if (p.kind != PrimitiveKind::kLoop) {
+        EXPECT_EQ(p.loop, -1);
+        continue;
+      }
+      // Each kLoop closes the next loop of the robot's list, which says so.
+      ASSERT_EQ(p.loop, static_cast<int>(loops_closed)) << prog.robot << " primitive " << k;
+      const Loop& loop = prog.loops[loops_closed++];
+      EXPECT_EQ(loop.end, k);
+      EXPECT_LT(loop.begin, loop.end);
+      EXPECT_GE(loop.count, 1u);
+      EXPECT_EQ(loop.name, "loop" + std::to_string(loop.where.line));
+      EXPECT_EQ(p.where.line, loop.where.line);
+      for (const std::string& f : loop.followers) {
+        EXPECT_TRUE(events.count(loop_again_event(loop, f))) << loop.name;
+        EXPECT_TRUE(events.count(loop_exit_event(loop, f))) << loop.name;
+      }
+      if (loop.leader != prog.robot) {
+        EXPECT_TRUE(loop.followers.empty());
+      }
+    }
+    EXPECT_EQ(loops_closed, prog.loops.size()) << prog.robot;
+    // Loops do not nest.
+    for (std::size_t l = 1; l < prog.loops.size(); ++l) EXPECT_LT(prog.loops[l - 1].end, prog.loops[l].begin);
+  }
   for (const RegionUse& region : c.regions) {
     for (const RegionSpan& s : region.spans) {
       const RobotProgram& prog = program_of(c, s.robot);
@@ -256,7 +284,8 @@ TEST(ToJson, CarriesEveryField) {
 // ---- the example programs ----------------------------------------------------------------------------------------
 
 TEST(Scenes, AllExamplesCompile) {
-  for (const char* name : {"exchange.task", "pick_place.task", "deadlock.task", "regions.task"}) {
+  for (const char* name : {"exchange.task", "pick_place.task", "deadlock.task", "regions.task", "pipeline.task",
+                           "pipeline_shift.task"}) {
     SCOPED_TRACE(name);
     const CompiledProgram c = compile_file(kScenes / name);
     expect_well_formed(c);
@@ -468,6 +497,262 @@ TEST(CompileErrors, HandMadeProgramBreakingTheParserInvariantsIsABug) {
   EXPECT_THROW(compile(p), InternalError);
 }
 
+// ---- loops and workpiece classes ---------------------------------------------------------------------------------
+
+TEST(Compile, ShiftLoopEmitsTheBodyOnceClosedByTheLeadersDecision) {
+  const CompiledProgram c = compile_file(kScenes / "pipeline_shift.task");
+  expect_well_formed(c);
+  EXPECT_TRUE(c.workpieces.empty());  // named workpieces only
+  ASSERT_EQ(c.classes.size(), 1u);
+  EXPECT_EQ(c.classes[0].name, "part");
+  EXPECT_EQ(c.classes[0].from, "IN");
+  EXPECT_EQ(c.classes[0].where.line, 8);
+  ASSERT_NE(find_class(c, "part"), nullptr);
+  EXPECT_EQ(find_class(c, "part")->from, "IN");
+  EXPECT_EQ(find_class(c, "OUT"), nullptr);
+
+  // r1 (the first column) leads: lines 16-17 once, the step-4 barrier, then its decision.
+  const RobotProgram& r1 = program_of(c, "r1");
+  const auto t1 = texts(r1);
+  ASSERT_EQ(t1.size(), 29u);
+  EXPECT_EQ(std::vector<std::string>(t1.begin() + 14, t1.end()),
+            (std::vector<std::string>{"open", "move above(part)", "move at(part)", "close part", "move above(part)",
+                                      "signal step3.r1>r2", "wait step3.r2>r1", "move handover(r2)",
+                                      "signal put17.r1>r2.ready", "wait put17.r2>r1.gripped", "open part",
+                                      "signal put17.r1>r2.released", "signal step4.r1>r2", "wait step4.r2>r1",
+                                      "loop loop15"}));
+  ASSERT_EQ(r1.loops.size(), 1u);
+  const Loop& lead = r1.loops[0];
+  EXPECT_EQ(lead.name, "loop15");
+  EXPECT_EQ(lead.where.line, 15);
+  EXPECT_EQ(lead.where.column, 1);
+  EXPECT_EQ(lead.count, 9u);
+  EXPECT_EQ(lead.begin, 14u);
+  EXPECT_EQ(lead.end, 28u);
+  EXPECT_EQ(lead.leader, "r1");
+  EXPECT_EQ(lead.followers, (std::vector<std::string>{"r2"}));
+  const Primitive& decide = r1.primitives[28];
+  EXPECT_EQ(decide.kind, PrimitiveKind::kLoop);
+  EXPECT_EQ(decide.loop, 0);
+  EXPECT_EQ(decide.task, "repeat 9");
+  EXPECT_EQ(decide.motion, "loop");
+  EXPECT_EQ(decide.where.line, 15);
+  EXPECT_EQ(decide.where.column, 1);
+
+  // r2 follows; after the loop it places the last part.
+  const RobotProgram& r2 = program_of(c, "r2");
+  const auto t2 = texts(r2);
+  ASSERT_EQ(t2.size(), 33u);
+  EXPECT_EQ(t2[12], "move above(OUT)");
+  EXPECT_EQ(t2[27], "wait step4.r1>r2");
+  EXPECT_EQ(t2[28], "loop loop15");
+  EXPECT_EQ(t2[29], "move above(OUT)");
+  ASSERT_EQ(r2.loops.size(), 1u);
+  EXPECT_EQ(r2.loops[0].name, "loop15");
+  EXPECT_EQ(r2.loops[0].begin, 12u);
+  EXPECT_EQ(r2.loops[0].end, 28u);
+  EXPECT_EQ(r2.loops[0].leader, "r1");
+  EXPECT_TRUE(r2.loops[0].followers.empty());
+  EXPECT_EQ(r2.primitives[28].loop, 0);
+
+  // The decision events come last, declared at the repeat line, like the other inserted events.
+  ASSERT_EQ(c.semaphores.size(), 16u);
+  EXPECT_EQ(c.semaphores[13].name, "step4.r2>r1");
+  EXPECT_EQ(c.semaphores[14].name, "loop15.r1>r2.again");
+  EXPECT_EQ(c.semaphores[15].name, "loop15.r1>r2.exit");
+  EXPECT_EQ(loop_again_event(lead, "r2"), "loop15.r1>r2.again");
+  EXPECT_EQ(loop_exit_event(lead, "r2"), "loop15.r1>r2.exit");
+  for (std::size_t i = 14; i < 16; ++i) {
+    EXPECT_EQ(c.semaphores[i].initial, 0u);
+    EXPECT_TRUE(c.semaphores[i].inserted);
+    EXPECT_FALSE(c.semaphores[i].region);
+    EXPECT_EQ(c.semaphores[i].declared.line, 15);
+  }
+}
+
+TEST(Compile, EveryTableRobotRunsTheLoopEvenIdleAndTheBarrierEndsTheBody) {
+  // r3 idles in the whole body; the loop is the table's last thing, yet its last line ends with a barrier.
+  const CompiledProgram c = compile_text(kDecl + "steps\nr1 | r2 | r3\nrepeat 2\nsignal s | wait s\nend\nend\n");
+  expect_well_formed(c);
+  EXPECT_EQ(texts(program_of(c, "r3")), (std::vector<std::string>{"signal step1.r3>r1", "signal step1.r3>r2",
+                                                                   "wait step1.r1>r3", "wait step1.r2>r3",
+                                                                   "loop loop8"}));
+  EXPECT_EQ(texts(program_of(c, "r1")).back(), "loop loop8");
+  EXPECT_EQ(texts(program_of(c, "r1"))[4], "wait step1.r3>r1");
+  const Loop& lead = program_of(c, "r1").loops.at(0);
+  EXPECT_EQ(lead.followers, (std::vector<std::string>{"r2", "r3"}));  // column order
+  EXPECT_EQ(lead.count, 2u);
+  EXPECT_EQ(program_of(c, "r3").loops.at(0).leader, "r1");
+  std::vector<std::string> inserted;
+  for (const Semaphore& sem : c.semaphores) {
+    if (sem.name.rfind("loop", 0) == 0) inserted.push_back(sem.name);
+  }
+  EXPECT_EQ(inserted, (std::vector<std::string>{"loop8.r1>r2.again", "loop8.r1>r2.exit", "loop8.r1>r3.again",
+                                                "loop8.r1>r3.exit"}));
+}
+
+TEST(Compile, OneColumnTableAndSequenceLoopsHaveNoFollowers) {
+  const CompiledProgram table = compile_text(
+      "robot r1\nworkpiece part from IN\nlocation IN OUT\nsteps\nr1\nrepeat 1000\nPick part\nPlace OUT\nend\nend\n");
+  expect_well_formed(table);
+  EXPECT_EQ(texts(program_of(table, "r1")),
+            (std::vector<std::string>{"open", "move above(part)", "move at(part)", "close part", "move above(part)",
+                                      "move above(OUT)", "move at(OUT)", "open part", "move above(OUT)",
+                                      "loop loop6"}));
+  const Loop& loop = program_of(table, "r1").loops.at(0);
+  EXPECT_EQ(loop.leader, "r1");
+  EXPECT_TRUE(loop.followers.empty());
+  EXPECT_EQ(loop.begin, 0u);
+  EXPECT_EQ(loop.end, 9u);
+  EXPECT_TRUE(table.semaphores.empty());  // no barrier, no decision events
+
+  // Two loops in a sequence, with a command between them; the robot leads its own loops.
+  const CompiledProgram seq = compile_text(kDecl +
+                                           "sequence r2\n  repeat 3\n    wait s\n  end\n  signal s\n"
+                                           "  repeat 2\n    enter Z\n    leave Z\n  end\nend\n");
+  expect_well_formed(seq);
+  EXPECT_EQ(texts(program_of(seq, "r2")), (std::vector<std::string>{"wait s", "loop loop7", "signal s", "wait Z",
+                                                                     "signal Z", "loop loop11"}));
+  const auto& loops = program_of(seq, "r2").loops;
+  ASSERT_EQ(loops.size(), 2u);
+  EXPECT_EQ(loops[0].begin, 0u);
+  EXPECT_EQ(loops[0].end, 1u);
+  EXPECT_EQ(loops[1].begin, 3u);
+  EXPECT_EQ(loops[1].end, 5u);
+  EXPECT_EQ(loops[1].leader, "r2");
+  EXPECT_EQ(seq.semaphores.size(), 2u);  // s and Z only
+  // Region spans inside a body are indices within it.
+  ASSERT_EQ(seq.regions.at(0).spans.size(), 1u);
+  EXPECT_EQ(seq.regions[0].spans[0].begin, 4u);
+  EXPECT_EQ(seq.regions[0].spans[0].end, 4u);
+}
+
+TEST(Compile, ClassesAreExemptFromTheCrossRobotHoldingCheck) {
+  // Both robots hold a part at once: different parts of the class.
+  const CompiledProgram c =
+      compile_text("robot r1 r2\nworkpiece part from IN\nlocation IN OUT\nsteps\nr1 | r2\nPick part\n"
+                   "Put r2 | Get r1\nPick part | Place OUT\nend\n");
+  expect_well_formed(c);
+  // A named workpiece is still checked, in a loop as elsewhere.
+  expect_failure("robot r1 r2\nworkpiece A\nlocation IN OUT\nsteps\nr1 | r2\nPick A\nPut r2 | Get r1\nrepeat 3\n"
+                 "Pick A | Place OUT\nPut r2 | Get r1\nend\n| Place OUT\nend\n",
+                 9, 6, "r1 cannot pick A: robot r2 is holding it (since line 7)");
+  // The per-robot checks apply to classes by name.
+  expect_failure("robot r1\nworkpiece part from IN\nlocation IN\nsequence r1\nPick part\nPick part\nend\n", 6, 1,
+                 "r1 cannot pick part: it is already holding part (since line 5)");
+  expect_failure("robot r1 r2\nworkpiece part from IN\nlocation IN\nsteps\nr1 | r2\nPick part | Pick part\n"
+                 "Put r2 | Get r1\nend\n",
+                 7, 10, "r2 cannot Get from r1: it is already holding part (since line 6)");
+}
+
+TEST(CompileErrors, PlaceOnAClass) {
+  expect_failure("robot r1\nworkpiece part from IN\nworkpiece A\nlocation IN\nsequence r1\nPick A\nPlace part\nend\n", 7,
+                 7,
+                 "r1 cannot place on part: it is a workpiece class (whichever part arrives at IN); place on a "
+                 "location or a named workpiece");
+}
+
+TEST(CompileErrors, LoopBodyMustLeaveEachRobotAsItFoundIt) {
+  // Holding: picked in the body, placed after it.
+  expect_failure(kDecl + "sequence r1\n  repeat 2\n    Pick A\n  end\n  Place B\nend\n", 7, 3,
+                 "r1 holds nothing at the start of the loop's body and A (since line 8) at its end: an iteration must "
+                 "leave each robot holding what it held when the iteration began");
+  // Holding another workpiece at the end than at the start; the robots are checked in column order.
+  expect_failure(kDecl + "steps\nr1 | r2\nPick A\nrepeat 2\nPut r2 | Get r1\nPick C\nend\nend\n", 9, 1,
+                 "r1 holds A (since line 8) at the start of the loop's body and C (since line 11) at its end: an "
+                 "iteration must leave each robot holding what it held when the iteration began");
+  expect_failure(kDecl + "steps\nr1 | r2\nPick A\nrepeat 2\nPut r2 | Get r1\nend\nend\n", 9, 1,
+                 "r1 holds A (since line 8) at the start of the loop's body and nothing at its end: an iteration "
+                 "must leave each robot holding what it held when the iteration began");
+  expect_failure(kDecl + "sequence r1\n  Pick A\n  repeat 2\n    Place B\n    Pick C\n  end\nend\n", 8, 3,
+                 "r1 holds A (since line 7) at the start of the loop's body and C (since line 10) at its end: an "
+                 "iteration must leave each robot holding what it held when the iteration began");
+  // Regions: entered in the body and left after it, or the other way round.
+  expect_failure(kDecl + "sequence r1\n  repeat 2\n    enter Z\n  end\n  leave Z\nend\n", 7, 3,
+                 "r1 is inside no region at the start of the loop's body and inside region Z at its end: an iteration "
+                 "must leave each robot in the regions it was in when the iteration began");
+  expect_failure(kDecl + "region Y\nsequence r3\n  enter Z\n  enter Y\n  repeat 2\n    leave Z\n  end\n"
+                         "  enter Z\n  leave Y\n  leave Z\nend\n",
+                 10, 3,
+                 "r3 is inside regions Y, Z at the start of the loop's body and inside region Y at its end: an "
+                 "iteration must leave each robot in the regions it was in when the iteration began");
+  // Balanced bodies compile, holding or inside across the loop.
+  const CompiledProgram ok =
+      compile_text(kDecl + "sequence r1\n  Pick A\n  enter Z\n  repeat 2\n    signal s\n  end\n  leave Z\n"
+                           "  Place B\nend\n");
+  expect_well_formed(ok);
+  EXPECT_EQ(ok.regions[0].spans[0].begin, 6u);
+  EXPECT_EQ(ok.regions[0].spans[0].end, 8u);  // the kLoop primitive (7) is inside too
+}
+
+TEST(FormatListing, ClassesAndLoops) {
+  const std::string listing = format_listing(compile_file(kScenes / "pipeline_shift.task"));
+  EXPECT_NE(listing.find("\nworkpieces: none\nworkpiece classes: part from IN\nlocations: IN OUT\n"),
+            std::string::npos)
+      << listing;
+  EXPECT_NE(listing.find("\n  28  loop loop15                  # 15:1   repeat 9       loop\n"
+                         "  loop15 (repeat 9): body [14, 28), 28 decides again or exit and tells r2\n\nrobot r2"),
+            std::string::npos)
+      << listing;
+  EXPECT_NE(listing.find("  loop15 (repeat 9): body [12, 28), 28 waits for r1's decision\n"), std::string::npos)
+      << listing;
+  EXPECT_NE(listing.find("\n  loop15.r1>r2.again          0  event      15:1\n"), std::string::npos) << listing;
+  const std::string seq = format_listing(
+      compile_text("robot r1\nsemaphore s\nsequence r1\nrepeat 4\nsignal s\nend\nend\n"));
+  EXPECT_NE(seq.find("  loop4 (repeat 4): body [0, 1), 1 decides again or exit\n"), std::string::npos) << seq;
+  // Without classes the listing has no classes line.
+  EXPECT_EQ(format_listing(compile_file(kScenes / "exchange.task")).find("classes"), std::string::npos);
+}
+
+TEST(ToJson, LoopsAndClassesRoundTrip) {
+  const CompiledProgram c = compile_file(kScenes / "pipeline_shift.task");
+  // Through text and back, as a tool reading `twin compile --json` would.
+  const nlohmann::json j = nlohmann::json::parse(to_json(c).dump());
+  EXPECT_TRUE(j["workpieces"].empty());
+  ASSERT_EQ(j["classes"].size(), 1u);
+  EXPECT_EQ(j["classes"][0]["name"], "part");
+  EXPECT_EQ(j["classes"][0]["from"], "IN");
+  EXPECT_EQ(j["classes"][0]["where"]["line"], 8);
+  ASSERT_EQ(j["programs"].size(), c.programs.size());
+  for (std::size_t r = 0; r < c.programs.size(); ++r) {
+    const RobotProgram& prog = c.programs[r];
+    const nlohmann::json& jp = j["programs"][r];
+    ASSERT_EQ(jp["loops"].size(), prog.loops.size());
+    for (std::size_t l = 0; l < prog.loops.size(); ++l) {
+      const Loop& loop = prog.loops[l];
+      const nlohmann::json& jl = jp["loops"][l];
+      EXPECT_EQ(jl["name"], loop.name);
+      EXPECT_EQ(jl["count"], loop.count);
+      EXPECT_EQ(jl["begin"], loop.begin);
+      EXPECT_EQ(jl["end"], loop.end);
+      EXPECT_EQ(jl["leader"], loop.leader);
+      EXPECT_EQ(jl["followers"].get<std::vector<std::string>>(), loop.followers);
+      EXPECT_EQ(jl["where"]["line"], loop.where.line);
+      EXPECT_EQ(jl["where"]["column"], loop.where.column);
+    }
+    ASSERT_EQ(jp["primitives"].size(), prog.primitives.size());
+    for (std::size_t k = 0; k < prog.primitives.size(); ++k) {
+      const Primitive& p = prog.primitives[k];
+      const nlohmann::json& jk = jp["primitives"][k];
+      EXPECT_EQ(jk["text"], to_string(p));
+      EXPECT_EQ(jk["kind"], to_string(p.kind));
+      EXPECT_EQ(jk.contains("loop"), p.kind == PrimitiveKind::kLoop) << k;
+      if (p.kind == PrimitiveKind::kLoop) {
+        EXPECT_EQ(jk["loop"], p.loop);
+      }
+    }
+  }
+  EXPECT_EQ(j["programs"][0]["primitives"][28]["text"], "loop loop15");
+  EXPECT_EQ(j["programs"][0]["primitives"][28]["kind"], "loop");
+  EXPECT_EQ(j["programs"][0]["primitives"][28]["task"], "repeat 9");
+  EXPECT_EQ(j["programs"][1]["loops"][0]["followers"], nlohmann::json::array());
+  EXPECT_EQ(j["semaphores"].back()["name"], "loop15.r1>r2.exit");
+  // A program without loops or classes has them as empty lists.
+  const nlohmann::json plain = to_json(compile_file(kScenes / "exchange.task"));
+  EXPECT_EQ(plain["classes"], nlohmann::json::array());
+  EXPECT_EQ(plain["programs"][0]["loops"], nlohmann::json::array());
+}
+
 // ---- garbage in --------------------------------------------------------------------------------------------------
 
 std::string read_file(const std::filesystem::path& path) {
@@ -530,7 +815,13 @@ std::string mutate(std::string text, std::mt19937& rng) {
                                                   "\xff",
                                                   std::string(1, '\0'),
                                                   "loaded",
-                                                  "fixture"};
+                                                  "fixture",
+                                                  "repeat",
+                                                  "repeat 3",
+                                                  "from",
+                                                  "part",
+                                                  "IN",
+                                                  "OUT"};
   const auto pick = [&](std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng); };
   if (text.empty()) return kWords[pick(kWords.size())];
   switch (pick(7)) {
@@ -584,7 +875,8 @@ TEST(GarbageIn, MutatedExamplesEitherCompileOrFailWithInputError) {
   std::mt19937 rng(20240611);
   int compiled = 0;
   int rejected = 0;
-  for (const char* name : {"exchange.task", "pick_place.task", "deadlock.task", "regions.task"}) {
+  for (const char* name :
+       {"exchange.task", "pick_place.task", "deadlock.task", "regions.task", "pipeline_shift.task"}) {
     const std::string original = read_file(kScenes / name);
     ASSERT_FALSE(original.empty()) << name;
     for (int i = 0; i < 1500; ++i) {

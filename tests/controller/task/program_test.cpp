@@ -154,6 +154,171 @@ TEST(ParseProgram, EmptyProgramAndEmptyTable) {
   EXPECT_TRUE(p.steps->lines.empty());
 }
 
+// ---- loops and workpiece classes ---------------------------------------------------------------------------------
+
+const std::string kShift = R"(robot r1 r2
+workpiece part from IN
+location IN OUT
+steps
+  r1        | r2
+  Pick part |
+  Put r2    | Get r1
+repeat 9
+  Pick part | Place OUT
+  Put r2    | Get r1
+end
+            | Place OUT
+end
+)";
+
+TEST(ParseProgram, LoopInTheTableCoversItsLinesAndStepsKeepCounting) {
+  const Program p = parse_program(kShift, "shift.task");
+  const StepTable& t = *p.steps;
+  ASSERT_EQ(t.lines.size(), 5u);
+  // Step numbers count the table lines in source order; the repeat and end lines are not steps.
+  for (std::size_t i = 0; i < t.lines.size(); ++i) EXPECT_EQ(t.lines[i].step, static_cast<int>(i) + 1);
+  EXPECT_EQ(t.lines[2].where.line, 9);
+  EXPECT_EQ(t.lines[4].where.line, 12);
+  ASSERT_EQ(t.loops.size(), 1u);
+  EXPECT_EQ(t.loops[0].where.line, 8);
+  EXPECT_EQ(t.loops[0].where.column, 1);
+  EXPECT_EQ(t.loops[0].count, 9u);
+  EXPECT_EQ(t.loops[0].begin, 2u);  // "Pick part | Place OUT"
+  EXPECT_EQ(t.loops[0].end, 4u);    // up to, not including, "| Place OUT"
+}
+
+TEST(ParseProgram, WorkpieceClassNamesTheLocationItsPartsArriveAt) {
+  const Program p = parse_program(kShift, "shift.task");
+  const Declaration* part = find_declaration(p, "part");
+  ASSERT_NE(part, nullptr);
+  EXPECT_EQ(part->kind, NameKind::kWorkpiece);
+  EXPECT_EQ(part->from, "IN");
+  EXPECT_EQ(part->where.line, 2);
+  EXPECT_EQ(part->where.column, 11);
+  EXPECT_EQ(part->from_where.line, 2);
+  EXPECT_EQ(part->from_where.column, 21);
+  // A class is used like a workpiece.
+  EXPECT_EQ(p.steps->lines[0].cells[0]->argument_kind, NameKind::kWorkpiece);
+  // Named workpieces have no `from`; the keyword is case-insensitive, and the location may come later in the file.
+  const Program q = parse_program("workpiece A B\nWorkpiece box FROM belt\nlocation belt\n", "t");
+  EXPECT_TRUE(find_declaration(q, "A")->from.empty());
+  EXPECT_TRUE(find_declaration(q, "B")->from.empty());
+  EXPECT_EQ(find_declaration(q, "box")->from, "belt");
+  EXPECT_EQ(declared_names(q, NameKind::kWorkpiece), (std::vector<std::string>{"A", "B", "box"}));
+}
+
+TEST(ParseProgram, LoopsInASequence) {
+  const Program p = parse_program(
+      "robot r1\nworkpiece part from IN\nlocation IN OUT\nsemaphore s\n"
+      "sequence r1\n"
+      "  wait s\n"
+      "  REPEAT 3   # case-insensitive, like every keyword\n"
+      "    Pick part\n"
+      "    Place OUT\n"
+      "  end\n"
+      "  repeat 1\n"
+      "    signal s\n"
+      "  End\n"
+      "end\n",
+      "t.task");
+  const Sequence& seq = p.sequences.at(0);
+  ASSERT_EQ(seq.commands.size(), 4u);
+  ASSERT_EQ(seq.loops.size(), 2u);
+  EXPECT_EQ(seq.loops[0].where.line, 7);
+  EXPECT_EQ(seq.loops[0].where.column, 3);
+  EXPECT_EQ(seq.loops[0].count, 3u);
+  EXPECT_EQ(seq.loops[0].begin, 1u);
+  EXPECT_EQ(seq.loops[0].end, 3u);
+  EXPECT_EQ(seq.loops[1].count, 1u);
+  EXPECT_EQ(seq.loops[1].begin, 3u);
+  EXPECT_EQ(seq.loops[1].end, 4u);
+  // The largest count there is.
+  const Program big = parse_program("robot r1\nsemaphore s\nsequence r1\nrepeat 4294967295\nsignal s\nend\nend\n", "t");
+  EXPECT_EQ(big.sequences[0].loops[0].count, 4294967295u);
+}
+
+TEST(ParseErrors, LoopCounts) {
+  const std::string head = "robot r1\nsemaphore s\nsequence r1\n";
+  expect_failure(head + "repeat\nsignal s\nend\nend\n", 4, 1,
+                 "'repeat' needs the number of iterations (a number 1 or more)");
+  expect_failure(head + "repeat 0\nsignal s\nend\nend\n", 4, 8, "the number of iterations must be 1 or more, not 0");
+  expect_failure(head + "repeat 000\nsignal s\nend\nend\n", 4, 8,
+                 "the number of iterations must be 1 or more, not 000");
+  expect_failure(head + "repeat -2\nsignal s\nend\nend\n", 4, 8,
+                 "the number of iterations must be 1 or more, not -2");
+  expect_failure(head + "repeat 4294967296\nsignal s\nend\nend\n", 4, 8,
+                 "the number of iterations is too large: 4294967296 (at most 4294967295)");
+  expect_failure(head + "repeat s\nsignal s\nend\nend\n", 4, 8,
+                 "expected the number of iterations after 'repeat', found 's'");
+  expect_failure(head + "repeat 3 4\nsignal s\nend\nend\n", 4, 10,
+                 "unexpected '4' after 'repeat 3': the line that opens a loop holds nothing else");
+  expect_failure("robot r1 r2\nsemaphore s\nsteps\nr1 | r2\nrepeat 3 | signal s\n| wait s\nend\nend\n", 5, 10,
+                 "unexpected '|' after 'repeat 3': the line that opens a loop holds nothing else");
+}
+
+TEST(ParseErrors, LoopStructure) {
+  // Loops do not nest: the message names the outer loop's line.
+  expect_failure("robot r1\nsemaphore s\nsequence r1\nrepeat 2\nrepeat 3\nsignal s\nend\nend\nend\n", 5, 1,
+                 "loops do not nest: the loop opened on line 4 is still open (close it with 'end' first)");
+  // An empty body.
+  expect_failure("robot r1\nsequence r1\n  repeat 2\n  end\nend\n", 4, 3,
+                 "the loop opened on line 3 has an empty body: put the commands it repeats between 'repeat 2' and "
+                 "'end'");
+  expect_failure("robot r1\nsteps\nr1\nrepeat 5\nend\nend\n", 5, 1,
+                 "the loop opened on line 4 has an empty body: put the step lines it repeats between 'repeat 5' and "
+                 "'end'");
+  // A missing loop end is reported at the repeat: at the end of the file, or when a top-level statement comes.
+  expect_failure("robot r1\nsemaphore s\nsequence r1\n  repeat 2\n  signal s\n", 4, 3,
+                 "the loop opened here has no matching 'end' before the end of the file");
+  expect_failure("robot r1 r2\nsemaphore s\nsteps\nr1 | r2\nrepeat 2\nsignal s | wait s\nsequence r2\nend\n", 5, 1,
+                 "the loop opened here has no matching 'end' before 'sequence' on line 7");
+  expect_failure("robot r1 r2\nsemaphore s\nsteps\nr1 | r2\nrepeat 2\nsignal s | wait s\nend\nsequence r2\nend\n",
+                 8, 1,
+                 "'sequence' inside the steps block opened on line 3: is its 'end' missing? (the 'end' on line 7 "
+                 "closed the loop opened on line 5)");
+  // With one 'end' in the file, it closes the loop; the block's message says so.
+  expect_failure("robot r1\nsemaphore s\nsequence r1\n  repeat 2\n  signal s\n  end\n", 3, 1,
+                 "the sequence block opened here has no matching 'end' before the end of the file (the 'end' on line "
+                 "6 closed the loop opened on line 4)");
+  // repeat stands on a line of its own, inside a block, after the header.
+  expect_failure("robot r1\nrepeat 2\n", 2, 1, "'repeat' must stand inside a steps or sequence block");
+  expect_failure("robot r1\nsteps\nrepeat 2\nend\n", 3, 1,
+                 "the first line of a steps block is its header naming the robot columns (like 'r1 | r2'), found "
+                 "'repeat': a loop opens after the header");
+  expect_failure("robot r1 r2\nsemaphore s\nsteps\nr1 | r2\nsignal s | repeat 2\nend\n", 5, 12,
+                 "'repeat' opens a loop on a line of its own ('repeat N'), not in a table cell");
+}
+
+TEST(ParseErrors, WorkpieceClasses) {
+  expect_failure("location IN\nworkpiece from IN\n", 2, 11,
+                 "'workpiece from' needs the class name before 'from': 'workpiece NAME from LOCATION'");
+  expect_failure("location IN\nworkpiece a b from IN\n", 2, 13,
+                 "a workpiece class is declared alone ('workpiece NAME from LOCATION'), but 2 names stand before "
+                 "'from'; declare each class on a line of its own");
+  expect_failure("location IN\nworkpiece a from\n", 2, 13,
+                 "'from' after workpiece class 'a' needs the location its parts arrive at");
+  expect_failure("location IN\nworkpiece a from 3\n", 2, 18, "expected a location name after 'from', found '3'");
+  expect_failure("location IN X\nworkpiece a from IN X\n", 2, 21,
+                 "unexpected 'X' after 'workpiece a from IN': a class takes its parts from one location");
+  expect_failure("location IN\nworkpiece steps from IN\n", 2, 11, "'steps' is a keyword and cannot be used as a name");
+  expect_failure("location IN\nworkpiece a from IN\nworkpiece a\n", 3, 11,
+                 "'a' is already declared as a workpiece on line 2");
+  // The location is resolved after the whole file: unknown, or not a location.
+  expect_failure("workpiece a from IN\n", 1, 18, "unknown location 'IN'");
+  expect_failure("robot r1\nworkpiece a from r1\n", 2, 18,
+                 "workpiece class 'a' takes its parts from a location, but 'r1' is a robot (declared on line 1)");
+  // Errors come in source order: the class on line 1 before the sequence on line 2.
+  expect_failure("workpiece a from IN\nsequence r9\nend\n", 1, 18, "unknown location 'IN'");
+  expect_failure("sequence r9\nend\nworkpiece a from IN\n", 1, 10, "unknown robot 'r9'");
+  expect_failure("from IN\n", 1, 1, "'from' stands in a workpiece class declaration: 'workpiece NAME from LOCATION'");
+}
+
+TEST(ParseErrors, RepeatAndFromAreKeywords) {
+  expect_failure("robot r1 repeat\n", 1, 10, "'repeat' is a keyword and cannot be used as a name");
+  expect_failure("location FROM\n", 1, 10, "'FROM' is a keyword and cannot be used as a name");
+  expect_failure("robot r1\nsteps\nr1 | repeat\nend\n", 3, 6, "'repeat' is a keyword and cannot be used as a name");
+}
+
 // ---- errors ------------------------------------------------------------------------------------------------------
 
 TEST(ParseErrors, UnknownNamesSayWhichKindWasExpected) {

@@ -4,9 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/firing.hpp"
+#include "cellwright/task/compile.hpp"
 
 namespace cellwright::task {
 namespace {
@@ -138,6 +142,169 @@ TEST(ToNet, UndeclaredEventIsAnInputErrorAtTheCommand) {
     EXPECT_EQ(e.where().line, 7);
     EXPECT_NE(e.problem().find("nope"), std::string::npos);
   }
+}
+
+// ---- loops --------------------------------------------------------------------------------------------------------
+
+std::string read_scene(const std::string& name) {
+  std::ifstream in(std::filesystem::path(CW_SOURCE_DIR) / "scenes" / name, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+petri::Net net_of(const std::string& text) {
+  return to_net(compile(parse_program(text, "t.task")));
+}
+
+const petri::Transition& transition(const petri::Net& net, const std::string& id) {
+  const auto t = net.find_transition(id);
+  if (!t) throw std::runtime_error("no transition " + id);
+  return net.transitions()[*t];
+}
+
+petri::PlaceId place(const petri::Net& net, const std::string& id) {
+  const auto p = net.find_place(id);
+  if (!p) throw std::runtime_error("no place " + id);
+  return *p;
+}
+
+bool has_arc(const std::vector<petri::Arc>& arcs, petri::PlaceId p) {
+  return std::any_of(arcs.begin(), arcs.end(), [&](const petri::Arc& a) { return a.place == p && a.weight == 1; });
+}
+
+TEST(ToNet, LoopDecisionHasAgainAndExitTransitions) {
+  // scenes/pipeline_shift.task: both robots' kLoop primitive is 28; r1's body is [14, 28), r2's [12, 28).
+  const petri::Net net = net_of(read_scene("pipeline_shift.task"));
+  const petri::PlaceId again_ev = place(net, event_place_id("loop15.r1>r2.again"));
+  const petri::PlaceId exit_ev = place(net, event_place_id("loop15.r1>r2.exit"));
+  EXPECT_EQ(net.places()[again_ev].kind, petri::PlaceKind::kEvent);
+
+  // The leader decides at once; the follower waits for the decision.
+  const petri::Place& decide = net.places()[place(net, place_id("r1", 28))];
+  EXPECT_EQ(decide.kind, petri::PlaceKind::kExecuting);
+  EXPECT_EQ(decide.name, "r1 deciding loop15 (repeat 9)");
+  EXPECT_EQ(decide.origin.line, 15);
+  const petri::Place& wait = net.places()[place(net, place_id("r2", 28))];
+  EXPECT_EQ(wait.kind, petri::PlaceKind::kWaiting);
+  EXPECT_EQ(wait.name, "r2 waiting for loop15 decision");
+
+  // Leader's again: back to the body's first primitive, telling r2.
+  const petri::Transition& again1 = transition(net, loop_again_transition_id("r1", 28));
+  EXPECT_EQ(again1.id, "r1.again28");
+  EXPECT_EQ(again1.name, "r1 repeat loop15");
+  EXPECT_EQ(again1.inputs.size(), 1u);
+  EXPECT_TRUE(has_arc(again1.inputs, place(net, place_id("r1", 28))));
+  EXPECT_EQ(again1.outputs.size(), 2u);
+  EXPECT_TRUE(has_arc(again1.outputs, place(net, place_id("r1", 14))));
+  EXPECT_TRUE(has_arc(again1.outputs, again_ev));
+  ASSERT_TRUE(again1.starts_robot);
+  EXPECT_EQ(*again1.starts_robot, 0u);
+  EXPECT_EQ(again1.starts_primitive, 14);
+  EXPECT_EQ(again1.origin.robot, "r1");
+  EXPECT_EQ(again1.origin.line, 15);
+  EXPECT_EQ(again1.origin.task, "repeat 9");
+  EXPECT_EQ(again1.origin.primitive, 28);
+  // Leader's exit: the usual T29 (r1 has 29 primitives: it finishes), telling r2.
+  const petri::Transition& exit1 = transition(net, transition_id("r1", 29));
+  EXPECT_EQ(exit1.inputs.size(), 1u);
+  EXPECT_TRUE(has_arc(exit1.outputs, place(net, done_place_id("r1"))));
+  EXPECT_TRUE(has_arc(exit1.outputs, exit_ev));
+  EXPECT_EQ(exit1.outputs.size(), 2u);
+
+  // Follower's again and exit each take the leader's event.
+  const petri::Transition& again2 = transition(net, loop_again_transition_id("r2", 28));
+  EXPECT_EQ(again2.inputs.size(), 2u);
+  EXPECT_TRUE(has_arc(again2.inputs, place(net, place_id("r2", 28))));
+  EXPECT_TRUE(has_arc(again2.inputs, again_ev));
+  EXPECT_EQ(again2.outputs.size(), 1u);
+  EXPECT_TRUE(has_arc(again2.outputs, place(net, place_id("r2", 12))));
+  EXPECT_EQ(again2.starts_primitive, 12);
+  const petri::Transition& exit2 = transition(net, transition_id("r2", 29));
+  EXPECT_EQ(exit2.inputs.size(), 2u);
+  EXPECT_TRUE(has_arc(exit2.inputs, exit_ev));
+  EXPECT_TRUE(has_arc(exit2.outputs, place(net, place_id("r2", 29))));
+  EXPECT_EQ(exit2.starts_primitive, 29);
+
+  // Token game: once r1 has chosen again, r2 can only go again too.
+  petri::Marking m = net.initial_marking();
+  m[place(net, start_place_id("r1"))] = 0;
+  m[place(net, start_place_id("r2"))] = 0;
+  m[place(net, place_id("r1", 28))] = 1;
+  m[place(net, place_id("r2", 28))] = 1;
+  const auto again2_id = *net.find_transition(loop_again_transition_id("r2", 28));
+  const auto exit2_id = *net.find_transition(transition_id("r2", 29));
+  EXPECT_FALSE(petri::is_enabled(net, m, again2_id));
+  EXPECT_FALSE(petri::is_enabled(net, m, exit2_id));
+  EXPECT_TRUE(petri::is_enabled(net, m, *net.find_transition(loop_again_transition_id("r1", 28))));
+  EXPECT_TRUE(petri::is_enabled(net, m, *net.find_transition(transition_id("r1", 29))));
+  petri::fire_in_place(net, m, *net.find_transition(loop_again_transition_id("r1", 28)));
+  EXPECT_TRUE(petri::is_enabled(net, m, again2_id));
+  EXPECT_FALSE(petri::is_enabled(net, m, exit2_id));
+}
+
+TEST(ToNet, AgainBeginsASignalAtTheBodysStartAsTbDoes) {
+  // A sequence loop: r1 leads itself, no followers, no decision events; its body starts with a signal.
+  const petri::Net net = net_of("robot r1 r2\nsemaphore s\nsequence r1\nrepeat 3\nsignal s\nend\nend\n"
+                                "sequence r2\nrepeat 3\nwait s\nend\nend\n");
+  const petri::Transition& again = transition(net, loop_again_transition_id("r1", 1));
+  EXPECT_EQ(again.inputs.size(), 1u);
+  EXPECT_EQ(again.outputs.size(), 2u);
+  EXPECT_TRUE(has_arc(again.outputs, place(net, place_id("r1", 0))));
+  EXPECT_TRUE(has_arc(again.outputs, place(net, event_place_id("s"))));
+  const petri::Transition& exit = transition(net, transition_id("r1", 2));
+  EXPECT_EQ(exit.inputs.size(), 1u);
+  EXPECT_EQ(exit.outputs.size(), 1u);  // just done
+  EXPECT_EQ(net.places()[place(net, place_id("r1", 1))].name, "r1 deciding loop4 (repeat 3)");
+}
+
+TEST(ToNet, ShiftProgramHasNoDeadlockAndItsCheckCostsTheSameForAnyCount) {
+  const std::string text = read_scene("pipeline_shift.task");
+  const auto r = petri::analyze(net_of(text));
+  EXPECT_TRUE(r.complete) << r.stop_reason;
+  EXPECT_TRUE(r.bounded);
+  EXPECT_EQ(r.deadlocks, 0u);
+  EXPECT_EQ(r.final_states, 1u);  // every robot done, after the exit
+  EXPECT_TRUE(r.ok());
+  // The count is not in the net: repeat 3 and repeat 3000 give the same reachability graph.
+  const auto with_count = [&](const std::string& n) {
+    std::string t = text;
+    const auto at = t.find("repeat 9");
+    t.replace(at, 8, "repeat " + n);
+    return t;
+  };
+  const auto three = petri::analyze(net_of(with_count("3")));
+  const auto many = petri::analyze(net_of(with_count("3000")));
+  EXPECT_TRUE(three.ok());
+  EXPECT_EQ(three.states, r.states);
+  EXPECT_EQ(many.states, three.states);
+  EXPECT_EQ(many.edges, three.edges);
+}
+
+TEST(ToNet, LoopWaitingForASignalGivenOnlyBeforeItDeadlocks) {
+  // r2 signals s once, before the loop; r1 waits for s in every iteration: the second iteration never gets it.
+  const std::string text =
+      "robot r1 r2\nsemaphore s\nsteps\nr1 | r2\n| signal s\nrepeat 3\nwait s |\nend\nend\n";
+  const petri::Net net = net_of(text);
+  const auto r = petri::analyze(net);
+  EXPECT_TRUE(r.complete);
+  EXPECT_GE(r.deadlocks, 1u);
+  EXPECT_FALSE(r.ok());
+  ASSERT_FALSE(r.deadlock_examples.empty());
+  // The deadlock: r1 waits for s again while r2 waits at the barrier of the repeated line.
+  petri::Marking m = net.initial_marking();
+  for (auto t : r.deadlock_examples.front().path) petri::fire_in_place(net, m, t);
+  EXPECT_TRUE(petri::enabled(net, m).empty());
+  EXPECT_FALSE(net.is_final(m));
+  EXPECT_EQ(m[place(net, place_id("r1", 2))], 1u) << petri::describe_marking(net, m);  // wait s
+  // The path goes round the loop: r1's again is in it.
+  const auto again = *net.find_transition(loop_again_transition_id("r1", 5));
+  const auto& path = r.deadlock_examples.front().path;
+  EXPECT_NE(std::find(path.begin(), path.end(), again), path.end());
+  // With the signal inside the loop the same program is fine.
+  const auto fixed = petri::analyze(net_of("robot r1 r2\nsemaphore s\nsteps\nr1 | r2\nrepeat 3\n| signal s\n"
+                                           "wait s |\nend\nend\n"));
+  EXPECT_TRUE(fixed.ok());
 }
 
 TEST(ToNet, EmptyProgramGoesStraightToDone) {

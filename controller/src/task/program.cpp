@@ -422,13 +422,10 @@ class Parser {
     if (n.text.front() == '-' || std::all_of(n.text.begin(), n.text.end(), [](char c) { return c == '0'; })) {
       fail(n, fmt::format("the number of iterations must be 1 or more, not {}", n.text));
     }
-    std::uint64_t value = 0;
-    for (char c : n.text) {
-      value = value * 10 + static_cast<std::uint64_t>(c - '0');
-      if (value > std::numeric_limits<std::uint32_t>::max()) {
-        fail(n, fmt::format("the number of iterations is too large: {} (at most {})", n.text,
-                            std::numeric_limits<std::uint32_t>::max()));
-      }
+    const std::optional<std::uint32_t> value = to_u32(n.text);
+    if (!value) {
+      fail(n, fmt::format("the number of iterations is too large: {} (at most {})", n.text,
+                          std::numeric_limits<std::uint32_t>::max()));
     }
     if (tokens_.size() > 2) {
       fail(tokens_[2], fmt::format("unexpected {} after 'repeat {}': the line that opens a loop holds nothing else",
@@ -436,7 +433,7 @@ class Parser {
     }
     LoopBlock loop;
     loop.where = at(first);
-    loop.count = static_cast<std::uint32_t>(value);
+    loop.count = *value;
     loop.begin = next;
     loop.end = next;
     open_loop_ = loop;
@@ -465,13 +462,20 @@ class Parser {
     if (t.text.front() == '-') {
       fail(t, fmt::format("the initial count of semaphore '{}' must be 0 or more, not {}", semaphore, t.text));
     }
+    const std::optional<std::uint32_t> value = to_u32(t.text);
+    if (!value) {
+      fail(t, fmt::format("the initial count of semaphore '{}' is too large: {} (at most {})", semaphore, t.text,
+                          std::numeric_limits<std::uint32_t>::max()));
+    }
+    return *value;
+  }
+
+  // The value of a number token without sign, or nullopt if it does not fit 32 bits.
+  static std::optional<std::uint32_t> to_u32(const std::string& digits) {
     std::uint64_t value = 0;
-    for (char c : t.text) {
+    for (char c : digits) {
       value = value * 10 + static_cast<std::uint64_t>(c - '0');
-      if (value > std::numeric_limits<std::uint32_t>::max()) {
-        fail(t, fmt::format("the initial count of semaphore '{}' is too large: {} (at most {})", semaphore, t.text,
-                            std::numeric_limits<std::uint32_t>::max()));
-      }
+      if (value > std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
     }
     return static_cast<std::uint32_t>(value);
   }

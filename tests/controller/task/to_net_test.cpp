@@ -307,6 +307,19 @@ TEST(ToNet, LoopWaitingForASignalGivenOnlyBeforeItDeadlocks) {
   EXPECT_TRUE(fixed.ok());
 }
 
+TEST(ToNet, SequenceLoopsDecideIndependentlySoTheCheckSeesOneStopEarly) {
+  // Two sequences whose loops take turns through s and t. Each robot decides its own loop, and the net leaves the
+  // count out, so it also holds the run in which r1 stops after one iteration while r2 goes on and waits for s: the
+  // check reports that deadlock (docs/task-language.md, "Loops"). The same work in the table has one leader: fine.
+  const auto seqs = petri::analyze(net_of("robot r1 r2\nsemaphore s t\nsequence r1\nrepeat 3\nsignal s\nwait t\nend\n"
+                                          "end\nsequence r2\nrepeat 3\nwait s\nsignal t\nend\nend\n"));
+  EXPECT_TRUE(seqs.complete);
+  EXPECT_GE(seqs.deadlocks, 1u);
+  const auto table = petri::analyze(net_of("robot r1 r2\nsemaphore s t\nsteps\nr1 | r2\nrepeat 3\nsignal s | wait s\n"
+                                           "wait t | signal t\nend\nend\n"));
+  EXPECT_TRUE(table.ok());
+}
+
 TEST(ToNet, EmptyProgramGoesStraightToDone) {
   const auto c = two_robots({}, {}, {});
   const petri::Net net = to_net(c);

@@ -92,6 +92,23 @@ TEST_F(AnalyzeCli, PhilosophersDeadlockExitsOneWithThePath) {
   EXPECT_THAT(text.out, HasSubstr("take_left2"));
 }
 
+TEST_F(AnalyzeCli, FullByDefaultStubbornOnRequest) {
+  const Outcome full = twin(data("philosophers-2.pnml") + " --json");
+  const Outcome red = twin(data("philosophers-2.pnml") + " --json --reduction stubborn");
+  EXPECT_EQ(red.status, full.status) << red.out << red.err;
+  const nlohmann::json f = nlohmann::json::parse(full.out), r = nlohmann::json::parse(red.out);
+  EXPECT_EQ(f.at("reduction"), "none");
+  EXPECT_EQ(f.at("reduced"), false);
+  EXPECT_EQ(r.at("reduction"), "stubborn");
+  EXPECT_EQ(r.at("deadlocks"), f.at("deadlocks"));
+  EXPECT_EQ(r.at("deadlock_path").size(), f.at("deadlock_path").size());
+
+  const Outcome text = twin(data("kanban-1.pnml") + " --reduction stubborn");
+  EXPECT_EQ(text.status, 0) << text.out << text.err;
+  EXPECT_THAT(text.out, HasSubstr("markings explored (reduced)"));
+  EXPECT_EQ(twin(data("kanban-1.pnml") + " --reduction all").status, 2);
+}
+
 TEST_F(AnalyzeCli, StateLimitIsNotASuccess) {
   const Outcome r = twin(data("kanban-1.pnml") + " --json --max-states 10");
   EXPECT_EQ(r.status, 1) << r.out << r.err;

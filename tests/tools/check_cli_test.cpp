@@ -10,8 +10,11 @@ namespace cellwright::testing {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 
-std::string scene(const std::string& name) { return shell_quote(source_path("scenes/" + name)); }
+std::string scene(const std::string& name) {
+  return shell_quote(source_path("scenes/" + name));
+}
 
 TEST(CheckCli, Table1ExchangeAndSinglePickPlacePass) {
   TwinCli cli("cw-check");
@@ -69,6 +72,42 @@ TEST(CheckCli, BadProgramNamesFileLineAndProblem) {
   EXPECT_THAT(missing.err, HasSubstr("nope.task"));
 }
 
+TEST(CheckCli, ReducedByDefaultWithTheSameVerdictsAsFullExploration) {
+  TwinCli cli("cw-check");
+  for (const char* program : {"exchange.task", "regions.task", "deadlock.task", "pipeline.task"}) {
+    SCOPED_TRACE(program);
+    const Outcome red = cli.run("check --json " + scene(program));
+    const Outcome full = cli.run("check --json --reduction none " + scene(program));
+    ASSERT_EQ(red.status, full.status) << red.out << red.err;
+    const auto r = nlohmann::json::parse(red.out), f = nlohmann::json::parse(full.out);
+    EXPECT_EQ(r["reduction"], "stubborn");
+    EXPECT_EQ(f["reduction"], "none");
+    EXPECT_EQ(r["reduced"], true);
+    EXPECT_EQ(f["reduced"], false);
+    for (const char* key : {"ok", "deadlocks", "final_states", "bounded", "mutex_ok"}) EXPECT_EQ(r[key], f[key]) << key;
+    EXPECT_LE(r["states"].get<std::uint64_t>(), f["states"].get<std::uint64_t>());
+    EXPECT_EQ(r["deadlock_path_shortest"], true);
+    if (!f["deadlock_path"].is_null()) {
+      EXPECT_EQ(r["deadlock_path"].size(), f["deadlock_path"].size());
+    }
+    // A fast check prints no progress line.
+    EXPECT_EQ(red.err, "");
+  }
+  const Outcome text = cli.run("check " + scene("exchange.task"));
+  EXPECT_EQ(text.status, 0) << text.out << text.err;
+  EXPECT_THAT(text.out, HasSubstr("markings explored (reduced)"));
+  const Outcome exact = cli.run("check --reduction none " + scene("exchange.task"));
+  EXPECT_THAT(exact.out, HasSubstr("explored "));
+  EXPECT_THAT(exact.out, Not(HasSubstr("(reduced)")));
+}
+
+TEST(CheckCli, UnknownReductionIsBadInput) {
+  TwinCli cli("cw-check");
+  const Outcome r = cli.run("check --reduction symmetric " + scene("exchange.task"));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("symmetric"));
+}
+
 TEST(CompileCli, DotAndPnmlExportOfTheProgramNet) {
   TwinCli cli("cw-compile");
   const auto pnml = cli.dir() / "exchange.pnml";
@@ -78,7 +117,7 @@ TEST(CompileCli, DotAndPnmlExportOfTheProgramNet) {
   EXPECT_THAT(r.out, HasSubstr("r1"));
   // The PNML written is the same net: analysing it gives the figures `twin check` gives for the program.
   const Outcome from_pnml = cli.run("analyze --json " + shell_quote(pnml.string()));
-  const Outcome from_program = cli.run("check --json " + scene("exchange.task"));
+  const Outcome from_program = cli.run("check --json --reduction none " + scene("exchange.task"));
   ASSERT_EQ(from_pnml.status, 0) << from_pnml.out << from_pnml.err;
   const auto a = nlohmann::json::parse(from_pnml.out), b = nlohmann::json::parse(from_program.out);
   for (const char* key : {"states", "edges", "deadlocks", "final_states"}) EXPECT_EQ(a[key], b[key]) << key;

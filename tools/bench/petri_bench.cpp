@@ -1,9 +1,12 @@
 // Petri net engine figures: reachability exploration speed and memory (targets: >= 1,000,000 markings/s on one core,
 // <= 64 bytes per stored marking, counting packed markings, parent links and hash table), and the token-game rate
 // the task-control thread can sustain on a 100-transition net. Rates are per CPU second (the machine is shared; CPU
-// time is what one core delivers), Google Benchmark's default.
+// time is what one core delivers), Google Benchmark's default. And `twin check` at scale: a lock-step program of 12
+// robots and 20 lines (target: under 1 s with the stubborn-set reduction), full vs reduced markings where full
+// exploration is feasible.
 //
 //   cmake --build build --target petri_bench && build/tools/petri_bench
+//   taskset -c 0 build/tools/petri_bench --benchmark_filter=CheckLockStep
 #include <benchmark/benchmark.h>
 
 #include <cstdint>
@@ -12,6 +15,9 @@
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/petri/generators.hpp"
+#include "cellwright/task/compile.hpp"
+#include "cellwright/task/program.hpp"
+#include "cellwright/task/to_net.hpp"
 
 namespace cellwright::petri {
 namespace {
@@ -55,6 +61,44 @@ void BM_ExploreKanban(benchmark::State& state) {
   explore(state, generators::kanban(n), generators::kanban_reachable(n));
 }
 BENCHMARK(BM_ExploreKanban)->Arg(5)->Unit(benchmark::kMillisecond);
+
+// What `twin check` does with a generated lock-step program (generators::lockstep_program): parse, compile, build the
+// net, analyse it, fully (reduction 0) or with stubborn sets (1). Counters: markings explored, transitions of the net,
+// whether the program passed.
+void BM_CheckLockStep(benchmark::State& state) {
+  const int robots = static_cast<int>(state.range(0));
+  const int lines = static_cast<int>(state.range(1));
+  const std::string text = generators::lockstep_program(robots, lines);
+  AnalysisOptions options;
+  options.reduction = state.range(2) != 0 ? Reduction::kStubborn : Reduction::kNone;
+  AnalysisResult r;
+  std::size_t transitions = 0;
+  for (auto _ : state) {
+    const Net net = task::to_net(task::compile(task::parse_program(text, "lockstep.task")));
+    r = analyze(net, options);
+    transitions = net.num_transitions();
+    benchmark::DoNotOptimize(r.states);
+  }
+  if (!r.complete) {
+    state.SkipWithError(("exploration stopped: " + r.stop_reason).c_str());
+    return;
+  }
+  state.counters["markings"] = static_cast<double>(r.states);
+  state.counters["transitions"] = static_cast<double>(transitions);
+  state.counters["ok"] = r.ok() ? 1 : 0;
+}
+BENCHMARK(BM_CheckLockStep)
+    ->ArgNames({"robots", "lines", "stubborn"})
+    ->Args({12, 20, 1})
+    ->Args({2, 20, 0})
+    ->Args({2, 20, 1})
+    ->Args({4, 2, 0})
+    ->Args({4, 2, 1})
+    ->Args({6, 2, 0})
+    ->Args({6, 2, 1})
+    ->Args({4, 4, 0})
+    ->Args({4, 4, 1})
+    ->Unit(benchmark::kMillisecond);
 
 // The token game as the task-control thread plays it: choose a maximal fair step, fire it. 10 robots x 10 steps =
 // 100 transitions, sharing three regions.

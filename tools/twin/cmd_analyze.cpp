@@ -21,6 +21,7 @@ void add_analyze(CLI::App& app, Command* run) {
     std::string net;
     bool json = false;
     std::uint64_t max_states = petri::AnalysisOptions{}.max_states;
+    std::string reduction = "none";
     std::string dot;
     std::string net_id;
   };
@@ -29,6 +30,10 @@ void add_analyze(CLI::App& app, Command* run) {
   cmd->add_flag("--json", args->json, "print the analysis as JSON");
   cmd->add_option("--max-states", args->max_states, "stop exploring beyond this many markings (then exit 1)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--reduction", args->reduction,
+                  "which interleavings to explore: none (all) or stubborn (partial-order reduction); "
+                  "default none")
+      ->check(CLI::IsMember({"none", "stubborn"}));
   cmd->add_option("--dot", args->dot, "also write the net as Graphviz DOT to this file");
   cmd->add_option("--net-id", args->net_id, "the id of the <net> to read when the file holds several (default: first)");
   cmd->callback([run, args] {
@@ -46,6 +51,8 @@ void add_analyze(CLI::App& app, Command* run) {
       if (!args->dot.empty()) petri::write_dot(doc.net, args->dot);
       petri::CheckOptions options;
       options.analysis.max_states = args->max_states;
+      options.analysis.reduction = petri::parse_reduction(args->reduction);
+      options.progress = true;
       options.json = args->json;
       return petri::check_and_report(doc.net, args->net, options, std::cout);
     };

@@ -17,16 +17,23 @@ void add_check(CLI::App& app, Command* run) {
     std::string program;
     bool json = false;
     std::uint64_t max_states = petri::AnalysisOptions{}.max_states;
+    std::string reduction = "stubborn";
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("program", args->program, "task-level program (.task)")->required();
   cmd->add_flag("--json", args->json, "print the analysis as JSON");
   cmd->add_option("--max-states", args->max_states, "stop exploring beyond this many markings")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--reduction", args->reduction,
+                  "which interleavings to explore: none (all) or stubborn (partial-order reduction); "
+                  "default stubborn")
+      ->check(CLI::IsMember({"none", "stubborn"}));
   cmd->callback([run, args] {
     *run = [args] {
       petri::CheckOptions options;
       options.analysis.max_states = args->max_states;
+      options.analysis.reduction = petri::parse_reduction(args->reduction);
+      options.progress = true;
       options.json = args->json;
       return petri::check_and_report(task::to_net(task::compile_file(args->program)), args->program, options,
                                      std::cout);

@@ -15,10 +15,14 @@
 
 #include <algorithm>
 #include <bit>
+#include <chrono>
 #include <cstring>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <stdexcept>
+
+#include "cellwright/petri/stubborn.hpp"
 
 namespace cellwright::petri {
 
@@ -412,8 +416,13 @@ std::string place_list(const Net& net, const std::vector<PlaceId>& places) {
 // One exploration: the store, the scratch buffers and what has been found so far.
 class Explorer {
  public:
-  Explorer(const Net& net, const AnalysisOptions& options)
+  // With `stubborn`, only the enabled transitions of a stubborn set are fired from each marking; with `proviso` too,
+  // a marking whose reduced successors include an already expanded one is expanded fully (stubborn.hpp).
+  Explorer(const Net& net, const AnalysisOptions& options, StubbornSets* stubborn, bool proviso)
       : net_(net),
+        options_(options),
+        stubborn_(stubborn),
+        proviso_(proviso),
         f_(flatten(net)),
         max_states_(std::min<std::uint64_t>(options.max_states, UINT32_MAX - 1)),
         max_examples_(options.max_deadlocks_reported),
@@ -439,12 +448,30 @@ class Explorer {
         store_.insert(cur_w_.data(), hash_words(cur_w_.data(), layout_.words), kNone, kNone, saturate(total));
     for (std::size_t k = 0; k < net_.regions().size(); ++k) note_inside(k, inside_of(cur_w_.data(), k), root);
 
-    for (std::uint32_t at = 0; at < store_.size() && !stopped_; ++at) expand(at);
+    start_ = std::chrono::steady_clock::now();
+    next_progress_ = start_ + options_.progress_interval;
+    for (std::uint32_t at = 0; at < store_.size() && !stopped_; ++at) {
+      if (options_.progress && (at & 255) == 0) report_progress(at);
+      expand(at);
+    }
     return finish();
   }
 
  private:
   static constexpr std::size_t kBatch = 32;  // successors whose lookups are overlapped
+
+  void report_progress(std::uint32_t at) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now < next_progress_) return;
+    next_progress_ = now + options_.progress_interval;
+    AnalysisProgress p;
+    p.markings = store_.size();
+    p.edges = r_.edges;
+    p.queue = store_.size() - at;
+    p.seconds = std::chrono::duration<double>(now - start_).count();
+    p.reduced = stubborn_ != nullptr;
+    options_.progress(p);
+  }
 
   static std::vector<std::uint32_t> initial_widths(const Marking& m) {
     std::vector<std::uint32_t> w(m.size());
@@ -595,19 +622,36 @@ class Explorer {
       }
       return;
     }
-    r_.edges += enabled_.size();
     for (TransitionId t : enabled_) ever_enabled_[t] = true;
     cur_total_known_ = false;
     std::fill(cur_inside_known_.begin(), cur_inside_known_.end(), false);
+    if (stubborn_ == nullptr) {
+      fire_all(at, enabled_);
+      return;
+    }
+    stubborn_->choose(
+        enabled_, [this](PlaceId p) { return static_cast<Tokens>(value(cur_w_.data(), p)); }, chosen_);
+    const bool back = fire_all(at, chosen_);
+    if (!(proviso_ && back && chosen_.size() < enabled_.size()) || stopped_) return;
+    // Ignoring proviso: a reduced successor was expanded already (a cycle may close here), so fire the rest too.
+    rest_.clear();
+    std::set_difference(enabled_.begin(), enabled_.end(), chosen_.begin(), chosen_.end(), std::back_inserter(rest_));
+    fire_all(at, rest_);
+  }
 
-    for (std::size_t b = 0; b < enabled_.size() && !stopped_; b += kBatch) {
-      const std::size_t n = std::min(kBatch, enabled_.size() - b);
+  // Fires each of `ts` (enabled) from marking `at` (loaded in cur_w_) and stores the successors. Returns true when
+  // one of them is a marking expanded before (index <= at).
+  bool fire_all(std::uint32_t at, const std::vector<TransitionId>& ts) {
+    r_.edges += ts.size();
+    bool back = false;
+    for (std::size_t b = 0; b < ts.size() && !stopped_; b += kBatch) {
+      const std::size_t n = std::min(kBatch, ts.size() - b);
       // Build the batch's successors and start fetching their hash slots; a widening restarts the batch.
       std::size_t built = 0;
       while (built < n) {
         std::uint64_t* w = &batch_w_[built * (layout_.words + 1)];
-        if (!build(enabled_[b + built], w)) {
-          if (stopped_) return;
+        if (!build(ts[b + built], w)) {
+          if (stopped_) return back;
           built = 0;
           continue;
         }
@@ -617,17 +661,20 @@ class Explorer {
       }
       for (std::size_t j = 0; j < n; ++j) store_.prefetch_record(hash_[j]);
       for (std::size_t j = 0; j < n && !stopped_; ++j) {
-        add(at, enabled_[b + j], &batch_w_[j * (layout_.words + 1)], hash_[j]);
+        back = add(at, ts[b + j], &batch_w_[j * (layout_.words + 1)], hash_[j]) || back;
       }
     }
+    return back;
   }
 
-  // Stores the successor `w` of marking `at` under t unless it is known, and checks it.
-  void add(std::uint32_t at, TransitionId t, const std::uint64_t* w, std::uint64_t h) {
-    if (store_.find(w, h) != kNone) return;
+  // Stores the successor `w` of marking `at` under t unless it is known, and checks it. Returns true when it was
+  // known and already expanded (index <= at).
+  bool add(std::uint32_t at, TransitionId t, const std::uint64_t* w, std::uint64_t h) {
+    const std::uint32_t known = store_.find(w, h);
+    if (known != kNone) return known <= at;
     if (store_.size() >= max_states_) {
       stop(fmt::format("state limit of {} markings reached; raise --max-states", max_states_));
-      return;
+      return false;
     }
     const std::uint32_t parent_max = store_.path_max(at);
     // Only a transition that adds tokens can exceed the path maximum, which is at least the parent's total.
@@ -659,6 +706,7 @@ class Explorer {
       note_inside(reg, cur_inside_[reg] + static_cast<std::uint64_t>(f_.reg_delta[k]), next);
     }
     if (adds && total > parent_max) check_covering(at, next, w);
+    return false;
   }
 
   // Karp-Miller: a new marking that covers an ancestor (and differs from it, being new) can repeat the firing
@@ -695,8 +743,9 @@ class Explorer {
   AnalysisResult finish() {
     r_.states = store_.size();
     r_.complete = !stopped_;
-    r_.place_bounds = max_seen_;
-    if (r_.complete) {
+    r_.reduced = stubborn_ != nullptr;
+    if (!r_.reduced) r_.place_bounds = max_seen_;
+    if (r_.complete && !r_.reduced) {
       for (std::size_t t = 0; t < f_.transitions; ++t) {
         if (!ever_enabled_[t]) r_.dead_transitions.push_back(static_cast<TransitionId>(t));
       }
@@ -710,6 +759,7 @@ class Explorer {
     for (std::size_t k = 0; k < net_.regions().size(); ++k) {
       RegionCheck& rc = r_.regions[k];
       rc.name = net_.regions()[k].name;
+      rc.witness_shortest = !r_.reduced;
       if (region_witness_[k] != kNone) {
         rc.exclusive = false;
         r_.mutex_ok = false;
@@ -721,6 +771,10 @@ class Explorer {
   }
 
   const Net& net_;
+  const AnalysisOptions& options_;
+  StubbornSets* const stubborn_;
+  const bool proviso_;
+  std::chrono::steady_clock::time_point start_, next_progress_;
   const FlatNet f_;
   const std::uint64_t max_states_;
   const std::size_t max_examples_;
@@ -740,6 +794,7 @@ class Explorer {
   std::vector<TransitionId> sources_;
   std::vector<std::uint64_t> cand_bits_;
   std::vector<TransitionId> enabled_;
+  std::vector<TransitionId> chosen_, rest_;  // the reduced expansion: stubborn, then the rest (proviso)
   std::vector<std::uint64_t> cur_w_, anc_w_, batch_w_;
   std::vector<Field> in_field_;   // per input arc (parallel to FlatNet::in_place)
   std::vector<Field> eff_field_;  // per effect (parallel to FlatNet::eff_place)
@@ -754,9 +809,41 @@ class Explorer {
 
 }  // namespace
 
+const char* to_string(Reduction r) {
+  switch (r) {
+    case Reduction::kNone:
+      return "none";
+    case Reduction::kStubborn:
+      return "stubborn";
+  }
+  return "?";
+}
+
+Reduction parse_reduction(std::string_view name) {
+  if (name == "none") return Reduction::kNone;
+  if (name == "stubborn") return Reduction::kStubborn;
+  throw std::invalid_argument(fmt::format("unknown reduction '{}' (expected none or stubborn)", name));
+}
+
 AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
   if (options.max_states == 0) throw std::invalid_argument("analysis: max_states must be at least 1");
-  return Explorer(net, options).run();
+  if (options.reduction == Reduction::kNone) return Explorer(net, options, nullptr, false).run();
+
+  // Deadlocks need no proviso; regions do once runs can be infinite (the state space may have cycles).
+  const bool finite = finite_runs(net);
+  StubbornSets stubborn(net);
+  AnalysisResult r = Explorer(net, options, &stubborn, !finite && !net.regions().empty()).run();
+  r.reduction = Reduction::kStubborn;
+  // A complete reduced search without a covering says nothing about boundedness unless the structure does.
+  if (r.complete && !finite && !structurally_bounded(net)) {
+    AnalysisResult full = Explorer(net, options, nullptr, false).run();
+    full.reduction = Reduction::kStubborn;
+    full.reduction_note =
+        "explored fully: the net has cycles and is not structurally bounded, and the reduced search cannot show "
+        "boundedness";
+    return full;
+  }
+  return r;
 }
 
 }  // namespace cellwright::petri

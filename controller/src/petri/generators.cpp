@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -157,6 +158,285 @@ std::uint64_t robot_cell_reachable(int robots, int steps, int regions) {
     total += term;
   }
   return total;
+}
+
+std::string lockstep_program(int robots, int lines) {
+  if (robots < 1 || lines < 1) {
+    throw std::invalid_argument(
+        fmt::format("lockstep_program: need robots >= 1 and lines >= 1; got {} robots, {} lines", robots, lines));
+  }
+  const int pairs = (robots + 1) / 2;
+  std::string out =
+      fmt::format("# {} robots in one lock-step table of {} lines (generators::lockstep_program)\n", robots, lines);
+  auto names = [](const char* prefix, int n) {
+    std::string s;
+    for (int i = 1; i <= n; ++i) s += fmt::format(" {}{}", prefix, i);
+    return s;
+  };
+  out += "robot" + names("r", robots) + "\n";
+  out += "workpiece" + names("W", pairs) + "\n";
+  out += "location" + names("L", pairs) + "\n";
+  out += "semaphore" + names("s", pairs) + "\n";
+  out += "steps\n  r1";
+  for (int r = 2; r <= robots; ++r) out += fmt::format(" | r{}", r);
+  out += "\n";
+  for (int line = 0; line < lines; ++line) {
+    std::vector<std::string> cells(static_cast<std::size_t>(robots));
+    for (int j = 0; j < pairs; ++j) {
+      const int g = 2 * j, t = 2 * j + 1;  // 0-based columns of giver and taker
+      const bool alone = t >= robots;
+      auto& gc = cells[static_cast<std::size_t>(g)];
+      switch (line % 4) {
+        case 0:
+          gc = fmt::format("Pick W{}", j + 1);
+          break;
+        case 1:
+          if (!alone) {
+            gc = fmt::format("Put r{}", t + 1);
+            cells[static_cast<std::size_t>(t)] = fmt::format("Get r{}", g + 1);
+          }
+          break;
+        case 2:
+          (alone ? gc : cells[static_cast<std::size_t>(t)]) = fmt::format("Place L{}", j + 1);
+          break;
+        default:
+          if (!alone) {
+            gc = fmt::format("signal s{}", j + 1);
+            cells[static_cast<std::size_t>(t)] = fmt::format("wait s{}", j + 1);
+          }
+          break;
+      }
+    }
+    out += "  " + fmt::format("{}", fmt::join(cells, " | ")) + "\n";
+  }
+  out += "end\n";
+  return out;
+}
+
+namespace {
+
+// Deterministic on every platform (the standard distributions are not): values from the engine, reduced by modulo.
+class Dice {
+ public:
+  explicit Dice(std::uint64_t seed) : rng_(seed) {}
+  std::uint32_t below(std::uint32_t n) { return static_cast<std::uint32_t>(rng_() % n); }
+  bool chance(std::uint32_t in) { return below(in) == 0; }  // 1 in `in`
+
+ private:
+  std::mt19937_64 rng_;
+};
+
+struct Op {
+  enum Kind { kMove, kSignal, kWait, kEnter, kLeave, kSneak } kind = kMove;
+  std::size_t object = 0;  // event or region index
+};
+
+}  // namespace
+
+Net random_cell(std::uint64_t seed) {
+  Dice dice(seed);
+  const std::size_t robots = 1 + dice.below(4);
+  const std::size_t declared_events = dice.below(4);
+  const std::size_t regions = dice.below(3);
+  std::vector<std::vector<Op>> ops(robots);
+  std::vector<Tokens> event_initial;
+  for (std::size_t e = 0; e < declared_events; ++e) event_initial.push_back(dice.chance(4) ? 1 : 0);
+  auto new_event = [&] {
+    event_initial.push_back(0);
+    return event_initial.size() - 1;
+  };
+  std::vector<std::vector<bool>> inside(robots, std::vector<bool>(regions, false));
+  auto random_ops = [&](std::size_t r, std::uint32_t count) {
+    for (std::uint32_t i = 0; i < count; ++i) {
+      const std::uint32_t pick = dice.below(10);
+      if (pick < 3 || (pick < 7 && declared_events == 0) || (pick >= 7 && regions == 0)) {
+        ops[r].push_back({Op::kMove, 0});
+      } else if (pick < 5) {
+        ops[r].push_back({Op::kSignal, dice.below(static_cast<std::uint32_t>(declared_events))});
+      } else if (pick < 7) {
+        ops[r].push_back({Op::kWait, dice.below(static_cast<std::uint32_t>(declared_events))});
+      } else {
+        const std::size_t z = dice.below(static_cast<std::uint32_t>(regions));
+        if (inside[r][z]) {
+          ops[r].push_back({Op::kLeave, z});
+          inside[r][z] = false;
+        } else {
+          ops[r].push_back({dice.chance(12) ? Op::kSneak : Op::kEnter, z});
+          inside[r][z] = true;
+        }
+      }
+    }
+  };
+  auto handover = [&](std::size_t giver, std::size_t taker) {
+    const std::size_t ready = new_event(), gripped = new_event(), released = new_event();
+    ops[giver].insert(ops[giver].end(),
+                      {{Op::kMove, 0}, {Op::kSignal, ready}, {Op::kWait, gripped}, {Op::kSignal, released}});
+    ops[taker].insert(ops[taker].end(), {{Op::kWait, ready}, {Op::kSignal, gripped}, {Op::kWait, released}});
+  };
+  // A lock-step table among the first `table` robots (at least two), the others free sequences.
+  const std::size_t table = robots >= 2 && dice.chance(3) ? 2 + dice.below(static_cast<std::uint32_t>(robots - 1)) : 0;
+  if (table > 0) {
+    const std::uint32_t lines = 1 + dice.below(3);
+    for (std::uint32_t line = 0; line < lines; ++line) {
+      for (std::size_t r = 0; r < table; ++r) random_ops(r, dice.below(3));
+      if (dice.chance(3)) {
+        const std::size_t g = dice.below(static_cast<std::uint32_t>(table));
+        handover(g, (g + 1 + dice.below(static_cast<std::uint32_t>(table - 1))) % table);
+      }
+      if (line + 1 == lines) break;
+      std::vector<std::vector<std::size_t>> barrier(table, std::vector<std::size_t>(table));
+      for (std::size_t a = 0; a < table; ++a) {
+        for (std::size_t b = 0; b < table; ++b) {
+          if (a != b) barrier[a][b] = new_event();
+        }
+      }
+      for (std::size_t a = 0; a < table; ++a) {
+        for (std::size_t b = 0; b < table; ++b) {
+          if (a != b) ops[a].push_back({Op::kSignal, barrier[a][b]});
+        }
+        for (std::size_t b = 0; b < table; ++b) {
+          if (a != b) ops[a].push_back({Op::kWait, barrier[b][a]});
+        }
+      }
+    }
+  }
+  for (std::size_t r = table; r < robots; ++r) random_ops(r, dice.below(6));
+  if (robots >= 2 && table == 0 && dice.chance(3)) {
+    const std::size_t g = dice.below(static_cast<std::uint32_t>(robots));
+    handover(g, (g + 1 + dice.below(static_cast<std::uint32_t>(robots - 1))) % robots);
+  }
+  std::vector<bool> loops(robots);
+  for (std::size_t r = 0; r < robots; ++r) {
+    loops[r] = dice.chance(4);
+    // Leave what is still entered (a looping robot always does, so that its next round starts outside).
+    for (std::size_t z = 0; z < regions; ++z) {
+      if (inside[r][z] && (loops[r] || !dice.chance(8))) {
+        ops[r].push_back({Op::kLeave, z});
+        inside[r][z] = false;
+      }
+    }
+    if (ops[r].empty()) ops[r].push_back({Op::kMove, 0});
+  }
+
+  NetBuilder b(fmt::format("random-cell-{}", seed));
+  std::vector<PlaceId> event_place;
+  for (std::size_t e = 0; e < event_initial.size(); ++e) {
+    Place p;
+    p.id = fmt::format("e{}", e);
+    p.name = fmt::format("event e{}", e);
+    p.initial = event_initial[e];
+    p.kind = PlaceKind::kEvent;
+    event_place.push_back(b.add_place(std::move(p)));
+  }
+  std::vector<PlaceId> free_place;
+  std::vector<Region> region(regions);
+  for (std::size_t z = 0; z < regions; ++z) {
+    Place p;
+    p.id = fmt::format("Z{}.free", z);
+    p.name = fmt::format("region Z{} free", z);
+    p.initial = dice.chance(6) ? 2 : 1;
+    p.kind = PlaceKind::kRegion;
+    free_place.push_back(b.add_place(std::move(p)));
+    region[z].name = fmt::format("Z{}", z);
+  }
+  std::vector<std::string> labels;
+  std::vector<Arc> final_places;
+  for (std::size_t r = 0; r < robots; ++r) {
+    const std::string robot = fmt::format("r{}", r + 1);
+    labels.push_back(robot);
+    const std::vector<Op>& list = ops[r];
+    std::vector<PlaceId> at;
+    std::vector<bool> in(regions, false);
+    for (std::size_t k = 0; k <= list.size(); ++k) {
+      if (k == list.size() && loops[r]) break;
+      Place p;
+      p.id = fmt::format("{}.p{}", robot, k);
+      p.name = p.id;
+      p.initial = k == 0 ? 1 : 0;
+      p.kind = k == 0                          ? PlaceKind::kStart
+               : k == list.size()              ? PlaceKind::kDone
+               : list[k - 1].kind == Op::kWait ? PlaceKind::kWaiting
+                                               : PlaceKind::kExecuting;
+      p.origin.robot = robot;
+      p.origin.line = static_cast<int>(k);
+      at.push_back(b.add_place(std::move(p)));
+    }
+    for (std::size_t k = 0; k < list.size(); ++k) {
+      const Op& op = list[k];
+      Transition t;
+      t.id = fmt::format("{}.t{}", robot, k);
+      t.name = t.id;
+      t.origin.robot = robot;
+      t.origin.line = static_cast<int>(k + 1);
+      const PlaceId to = k + 1 < at.size() ? at[k + 1] : at[0];
+      t.inputs.push_back({at[k], 1});
+      t.outputs.push_back({to, 1});
+      switch (op.kind) {
+        case Op::kMove:
+          break;
+        case Op::kSignal:
+          t.outputs.push_back({event_place[op.object], 1});
+          break;
+        case Op::kWait:
+          t.inputs.push_back({event_place[op.object], 1});
+          break;
+        case Op::kEnter:
+          t.inputs.push_back({free_place[op.object], 1});
+          in[op.object] = true;
+          break;
+        case Op::kSneak:
+          in[op.object] = true;
+          break;
+        case Op::kLeave:
+          t.outputs.push_back({free_place[op.object], 1});
+          in[op.object] = false;
+          break;
+      }
+      // The place this transition leads to is inside every region the robot is in after it.
+      for (std::size_t z = 0; z < regions; ++z) {
+        if (in[z] && to != at[0]) region[z].inside.push_back(to);
+      }
+      b.add_transition(std::move(t));
+    }
+    if (!loops[r]) final_places.push_back({at.back(), 1});
+  }
+  for (Region& z : region) b.add_region(std::move(z));
+  b.set_robots(std::move(labels));
+  b.set_final(std::move(final_places));
+  return std::move(b).build();
+}
+
+Net random_net(std::uint64_t seed) {
+  Dice dice(seed);
+  NetBuilder b(fmt::format("random-net-{}", seed));
+  const std::size_t places = 2 + dice.below(5);
+  const std::size_t transitions = 2 + dice.below(5);
+  for (std::size_t p = 0; p < places; ++p) plain(b, fmt::format("p{}", p), dice.below(3));
+  for (std::size_t t = 0; t < transitions; ++t) {
+    std::vector<Arc> in, out;
+    for (std::size_t p = 0; p < places; ++p) {
+      const auto id = static_cast<PlaceId>(p);
+      const std::uint32_t roll = dice.below(8);
+      if (roll == 0) in.push_back({id, 1 + dice.below(2)});
+      if (roll == 1) out.push_back({id, 1 + dice.below(2)});
+      if (roll == 2) {
+        in.push_back({id, 1});
+        out.push_back({id, 1});
+      }
+    }
+    if (in.empty() && !dice.chance(6))
+      in.push_back({static_cast<PlaceId>(dice.below(static_cast<std::uint32_t>(places))), 1});
+    transition(b, fmt::format("t{}", t), std::move(in), std::move(out));
+  }
+  if (dice.chance(2)) {
+    Region z;
+    z.name = "Z";
+    z.inside.push_back(static_cast<PlaceId>(dice.below(static_cast<std::uint32_t>(places))));
+    const auto other = static_cast<PlaceId>(dice.below(static_cast<std::uint32_t>(places)));
+    if (other != z.inside.front()) z.inside.push_back(other);
+    b.add_region(std::move(z));
+  }
+  return std::move(b).build();
 }
 
 }  // namespace cellwright::petri::generators

@@ -2,7 +2,10 @@
 // the JSON report.
 #include <fmt/format.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <iostream>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -176,14 +179,22 @@ std::string format_report(const Net& net, const AnalysisResult& r) {
   } else {
     out = net.regions().empty() ? "OK: no deadlock, bounded\n" : "OK: no deadlock, bounded, mutual exclusion holds\n";
   }
-  out += fmt::format("explored {}, {}", plural(r.states, "marking", "markings"), plural(r.edges, "edge", "edges"));
+  if (r.reduced) {
+    out += fmt::format("{} explored (reduced), {}", plural(r.states, "marking", "markings"),
+                       plural(r.edges, "edge", "edges"));
+  } else {
+    out += fmt::format("explored {}, {}", plural(r.states, "marking", "markings"), plural(r.edges, "edge", "edges"));
+  }
   // Proper ends only mean something when the net declares its final marking.
   if (!net.final_places().empty()) out += ", " + plural(r.final_states, "proper end", "proper ends");
   out += r.complete ? " (complete)\n" : fmt::format("; stopped: {}\n", r.stop_reason);
+  if (!r.reduction_note.empty())
+    out += fmt::format("reduction {} not applied: {}\n", to_string(r.reduction), r.reduction_note);
 
   if (!r.deadlock_examples.empty()) {
     const Deadlock& d = r.deadlock_examples.front();
-    out += fmt::format("deadlock after {}:\n", plural(d.path.size(), "firing", "firings"));
+    out += fmt::format("deadlock after {}{}:\n", plural(d.path.size(), "firing", "firings"),
+                       r.deadlock_path_shortest ? "" : " (not necessarily shortest)");
     out += indent(describe_path(net, d.path), "  ") + "\n";
     out += "  stuck: " + describe_marking(net, d.marking) + "\n";
   }
@@ -200,7 +211,12 @@ std::string format_report(const Net& net, const AnalysisResult& r) {
     } else {
       out += fmt::format("region {}: {} inside at once (capacity {})", rc.name, rc.max_inside, cap);
       if (rc.witness) {
-        out += fmt::format(", first after {}:\n", plural(rc.witness->path.size(), "firing", "firings"));
+        if (rc.witness_shortest) {
+          out += fmt::format(", first after {}:\n", plural(rc.witness->path.size(), "firing", "firings"));
+        } else {
+          out += fmt::format(", after {} (not necessarily shortest):\n",
+                             plural(rc.witness->path.size(), "firing", "firings"));
+        }
         out += indent(describe_path(net, rc.witness->path), "  ") + "\n";
         out += "  then: " + describe_marking(net, rc.witness->marking) + "\n";
       } else {
@@ -208,7 +224,7 @@ std::string format_report(const Net& net, const AnalysisResult& r) {
       }
     }
   }
-  if (r.complete && !r.dead_transitions.empty()) {
+  if (r.complete && !r.reduced && !r.dead_transitions.empty()) {
     std::vector<std::string> ids;
     constexpr std::size_t kShown = 10;
     for (std::size_t i = 0; i < r.dead_transitions.size() && i < kShown; ++i) {
@@ -234,13 +250,17 @@ nlohmann::json to_json(const Net& net, const AnalysisResult& r) {
   j["bounded"] = r.bounded;
   j["mutex_ok"] = r.mutex_ok;
   j["stored_bytes"] = r.stored_bytes;
+  j["reduction"] = to_string(r.reduction);
+  j["reduced"] = r.reduced;
+  j["reduction_note"] = r.reduction_note;
+  j["deadlock_path_shortest"] = r.deadlock_path_shortest;
 
   nlohmann::json unbounded = nlohmann::json::array();
   for (PlaceId p : r.unbounded_places) unbounded.push_back(net.places()[p].id);
   j["unbounded_places"] = unbounded;
   j["unbounded_path"] = r.unbounded_witness ? path_json(net, r.unbounded_witness->path) : nlohmann::json();
 
-  if (r.complete) {
+  if (r.complete && !r.reduced) {
     nlohmann::json dead = nlohmann::json::array();
     for (TransitionId t : r.dead_transitions) dead.push_back(net.transitions()[t].id);
     j["dead_transitions"] = dead;
@@ -262,6 +282,7 @@ nlohmann::json to_json(const Net& net, const AnalysisResult& r) {
                           {"max_inside", rc.max_inside},
                           {"capacity", k < net.regions().size() ? net.regions()[k].capacity : 1}};
     reg["witness_path"] = rc.witness ? path_json(net, rc.witness->path) : nlohmann::json();
+    reg["witness_shortest"] = rc.witness_shortest;
     reg["witness_marking"] = rc.witness ? marking_json(net, rc.witness->marking) : nlohmann::json();
     regions.push_back(reg);
   }
@@ -285,8 +306,29 @@ nlohmann::json to_json(const Net& net, const AnalysisResult& r) {
   return j;
 }
 
+void ProgressPrinter::operator()(const AnalysisProgress& p) {
+  const double rate = p.seconds > 0 ? static_cast<double>(p.markings) / p.seconds : 0.0;
+  const std::string line = fmt::format("checking: {} markings{}, {:.0f}/s, queue {}, {:.0f} s", p.markings,
+                                       p.reduced ? " (reduced)" : "", rate, p.queue, p.seconds);
+  if (terminal_) {
+    out_ << '\r' << line << "\x1b[K" << std::flush;
+  } else {
+    out_ << line << '\n' << std::flush;
+  }
+  shown_ = true;
+}
+
+void ProgressPrinter::finish() {
+  if (terminal_ && shown_) out_ << "\r\x1b[K" << std::flush;
+  shown_ = false;
+}
+
 int check_and_report(const Net& net, std::string_view source, const CheckOptions& options, std::ostream& out) {
-  const AnalysisResult result = analyze(net, options.analysis);
+  AnalysisOptions analysis = options.analysis;
+  ProgressPrinter printer(std::cerr, ::isatty(STDERR_FILENO) == 1);
+  if (options.progress) analysis.progress = [&printer](const AnalysisProgress& p) { printer(p); };
+  const AnalysisResult result = analyze(net, analysis);
+  printer.finish();
   if (options.json) {
     out << to_json(net, result).dump(2) << "\n";
   } else {

@@ -6,15 +6,18 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <sstream>
 #include <stdexcept>
 
 #include "cellwright/petri/firing.hpp"
+#include "cellwright/petri/generators.hpp"
 #include "controller/petri/test_nets.hpp"
 
 namespace cellwright::petri {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using ::testing::StartsWith;
 using testnets::add_place;
 using testnets::add_transition;
@@ -571,6 +574,109 @@ TEST(Report, ForeignNetsAreToldByNamesAndIds) {
   EXPECT_EQ(describe_marking(net, r.deadlock_examples[0].marking), "hasLeft0: 1; hasLeft1: 1");
   EXPECT_EQ(describe_path(net, {}), "(no firing: the initial marking)");
   EXPECT_EQ(describe_marking(net, Marking(net.num_places(), 0)), "(no tokens)");
+}
+
+TEST(Report, ReducedRunsSayWhatTheirCountsAreAndWhichPathsMayNotBeShortest) {
+  AnalysisOptions stubborn;
+  stubborn.reduction = Reduction::kStubborn;
+  // Two robots looping through a region with two free tokens: a violation, found by the reduced search.
+  const Net bad = testnets::region_loop(2, 2);
+  const AnalysisResult r = analyze(bad, stubborn);
+  ASSERT_TRUE(r.reduced);
+  const std::string text = format_report(bad, r);
+  EXPECT_THAT(text, StartsWith("FAIL: region Z not exclusive\n"));
+  EXPECT_THAT(text, HasSubstr(fmt::format("{} markings explored (reduced), ", r.states)));
+  EXPECT_THAT(text, HasSubstr("(not necessarily shortest):"));
+  EXPECT_THAT(text, Not(HasSubstr("never enabled")));
+  const nlohmann::json j = to_json(bad, r);
+  EXPECT_EQ(j["reduction"], "stubborn");
+  EXPECT_EQ(j["reduced"], true);
+  EXPECT_EQ(j["deadlock_path_shortest"], true);
+  EXPECT_EQ(j["regions"][0]["witness_shortest"], false);
+  EXPECT_TRUE(j["place_bounds"].is_null());
+  EXPECT_TRUE(j["dead_transitions"].is_null());
+
+  // Full exploration keeps its wording and exact figures.
+  const AnalysisResult full = analyze(bad);
+  EXPECT_THAT(format_report(bad, full), HasSubstr(fmt::format("explored {} markings, ", full.states)));
+  const nlohmann::json fj = to_json(bad, full);
+  EXPECT_EQ(fj["reduction"], "none");
+  EXPECT_EQ(fj["reduced"], false);
+  EXPECT_EQ(fj["regions"][0]["witness_shortest"], true);
+}
+
+TEST(Report, FallbackToFullExplorationIsNamed) {
+  AnalysisOptions stubborn;
+  stubborn.reduction = Reduction::kStubborn;
+  // A token cycling a -> c -> a, leaving a note in e on the way and taking it back: bounded, with cycles, but "go"
+  // adds a token, so no weighting of the places that no firing increases shows it. The reduced search finds no growth,
+  // which proves nothing here, so the net is explored fully.
+  NetBuilder b("fallback");
+  const PlaceId a = add_place(b, "a", 1);
+  const PlaceId c = add_place(b, "c", 0);
+  const PlaceId e = add_place(b, "e", 0);
+  add_transition(b, "go", {{a, 1}}, {{c, 1}, {e, 1}});
+  add_transition(b, "back", {{c, 1}, {e, 1}}, {{a, 1}});
+  const Net net = std::move(b).build();
+  const AnalysisResult r = analyze(net, stubborn);
+  EXPECT_TRUE(r.ok()) << format_report(net, r);
+  EXPECT_FALSE(r.reduced);
+  EXPECT_FALSE(r.reduction_note.empty());
+  EXPECT_THAT(format_report(net, r), HasSubstr("reduction stubborn not applied: "));
+  EXPECT_EQ(r.states, analyze(net).states);
+}
+
+TEST(Analysis, ProgressIsReportedWhileARunLastsAndNeverForAShortOne) {
+  const Net net = generators::robot_cell(5, 6, 1);
+  std::vector<AnalysisProgress> seen;
+  AnalysisOptions o;
+  o.progress = [&seen](const AnalysisProgress& p) { seen.push_back(p); };
+  o.progress_interval = std::chrono::milliseconds(0);  // every check: the interval has always passed
+  const AnalysisResult r = analyze(net, o);
+  ASSERT_GT(seen.size(), 2u);
+  for (std::size_t i = 1; i < seen.size(); ++i) {
+    EXPECT_GE(seen[i].markings, seen[i - 1].markings);
+    EXPECT_GE(seen[i].edges, seen[i - 1].edges);
+    EXPECT_GE(seen[i].seconds, seen[i - 1].seconds);
+  }
+  EXPECT_LE(seen.back().markings, r.states);
+  EXPECT_LE(seen.back().queue, seen.back().markings);
+  EXPECT_FALSE(seen.back().reduced);
+
+  seen.clear();
+  o.progress_interval = std::chrono::hours(1);
+  analyze(net, o);
+  EXPECT_TRUE(seen.empty());
+}
+
+TEST(Report, ProgressLineInPlaceOnATerminalAndOneLineEachOtherwise) {
+  AnalysisProgress p;
+  p.markings = 2'000'000;
+  p.edges = 5'000'000;
+  p.queue = 300'000;
+  p.seconds = 2.0;
+  std::ostringstream tty;
+  ProgressPrinter on_tty(tty, true);
+  on_tty(p);
+  p.markings = 3'000'000;
+  p.seconds = 3.0;
+  on_tty(p);
+  on_tty.finish();
+  EXPECT_EQ(tty.str(),
+            "\rchecking: 2000000 markings, 1000000/s, queue 300000, 2 s\x1b[K"
+            "\rchecking: 3000000 markings, 1000000/s, queue 300000, 3 s\x1b[K\r\x1b[K");
+
+  std::ostringstream log;
+  ProgressPrinter plain(log, false);
+  p.reduced = true;
+  plain(p);
+  plain.finish();
+  EXPECT_EQ(log.str(), "checking: 3000000 markings (reduced), 1000000/s, queue 300000, 3 s\n");
+
+  std::ostringstream quiet;
+  ProgressPrinter none(quiet, true);
+  none.finish();  // nothing shown, nothing to erase
+  EXPECT_EQ(quiet.str(), "");
 }
 
 }  // namespace

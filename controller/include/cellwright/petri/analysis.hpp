@@ -10,11 +10,26 @@
 // every marking before them on their BFS path, which keeps it cheap (never, for nets that conserve tokens) and is
 // still complete: every unbounded net is reported unbounded, given enough max_states to reach the covering.
 //
+// Partial-order reduction (AnalysisOptions::reduction = kStubborn; stubborn.hpp says how and why it is sound): only
+// the transitions of a stubborn set are fired from each marking, so a program of many robots that mostly work
+// independently is explored along far fewer interleavings. What the reduced search guarantees, once complete:
+//  - deadlocks: every reachable dead marking is found, so `deadlocks` and `final_states` are exact, and the reported
+//    deadlock path is still a shortest one (deadlock_path_shortest stays true);
+//  - mutual exclusion: each region's verdict and its largest occupancy (max_inside) are exact; the witness path to a
+//    violation may be longer than the shortest one (RegionCheck::witness_shortest is false);
+//  - boundedness: an unbounded witness found is real; "bounded" is claimed only for nets shown bounded structurally
+//    (structurally_bounded()); for any other net that the reduced search finds no covering in, analyze() explores
+//    fully instead and says so in reduction_note;
+//  - `states` and `edges` count what was explored (reduced == true), not the reachability graph; place_bounds and
+//    dead_transitions are not computed.
+//
 // Thread safety: analyze() and the report functions are re-entrant and share no state; a Net may be analysed from
-// several threads at once.
+// several threads at once. A progress callback runs on the analysing thread.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
+#include <functional>
 #include <iosfwd>
 #include <optional>
 #include <string>
@@ -27,10 +42,34 @@
 
 namespace cellwright::petri {
 
+// Which interleavings the exploration visits.
+enum class Reduction : std::uint8_t {
+  kNone,      // every interleaving: exact state and edge counts, place bounds, dead transitions
+  kStubborn,  // stubborn sets: deadlocks, region verdicts and boundedness preserved (see above), far fewer markings
+};
+// "none", "stubborn".
+const char* to_string(Reduction r);
+// The inverse of to_string; throws std::invalid_argument naming the value for anything else.
+Reduction parse_reduction(std::string_view name);
+
+// How far an exploration has got, for a progress display.
+struct AnalysisProgress {
+  std::uint64_t markings = 0;  // stored so far
+  std::uint64_t edges = 0;     // firings explored so far
+  std::uint64_t queue = 0;     // markings stored but not expanded yet
+  double seconds = 0;          // since the exploration started
+  bool reduced = false;        // a stubborn-set exploration
+};
+
 struct AnalysisOptions {
   // Stop with complete == false beyond this many stored markings (at least 1; values above 2^32 - 2 act as 2^32 - 2).
   std::uint64_t max_states = 5'000'000;
   std::size_t max_deadlocks_reported = 1;  // how many counterexample paths to keep (the count is always exact)
+  Reduction reduction = Reduction::kNone;
+  // Called from analyze() once `progress_interval` has passed since the start, and then every interval, while the
+  // exploration runs (never for a run that ends sooner). Empty: no calls.
+  std::function<void(const AnalysisProgress&)> progress;
+  std::chrono::milliseconds progress_interval{1000};
 };
 
 struct Deadlock {
@@ -42,7 +81,8 @@ struct RegionCheck {
   std::string name;
   bool exclusive = true;            // never more than capacity tokens inside
   Tokens max_inside = 0;            // the most tokens found inside at once
-  std::optional<Deadlock> witness;  // a shortest path to a violating marking (Deadlock reused as a path holder)
+  std::optional<Deadlock> witness;  // a path to a violating marking (Deadlock reused as a path holder)
+  bool witness_shortest = true;     // the witness path is a shortest one (false under reduction)
 };
 
 // Counts and negative findings (a deadlock, an unbounded place, a region violation) are definite; when `complete` is
@@ -64,13 +104,17 @@ struct AnalysisResult {
   std::vector<RegionCheck> regions;
   bool mutex_ok = true;
   std::uint64_t stored_bytes = 0;  // memory held by the marking store at the end, for the <= 64 B/marking target
+  Reduction reduction = Reduction::kNone;  // what was asked for
+  bool reduced = false;                    // states/edges count a reduced exploration (stubborn sets were applied)
+  bool deadlock_path_shortest = true;      // deadlock_examples hold shortest paths (true in both modes)
+  std::string reduction_note;  // why a requested reduction was not applied (then reduced == false), else empty
 
   // Deadlock-free, bounded, every region exclusive, and the exploration was complete.
   bool ok() const { return complete && deadlocks == 0 && bounded && mutex_ok; }
 };
 
-// Explores the reachability graph of `net` from its initial marking. Throws std::invalid_argument if
-// options.max_states is 0; std::bad_alloc only if memory runs out below the state limit.
+// Explores the reachability graph of `net` from its initial marking, reduced as options.reduction says. Throws
+// std::invalid_argument if options.max_states is 0; std::bad_alloc only if memory runs out below the state limit.
 AnalysisResult analyze(const Net& net, const AnalysisOptions& options = {});
 
 // A firing sequence told in the program's terms: one numbered line per transition, e.g.
@@ -83,13 +127,17 @@ std::string describe_path(const Net& net, const std::vector<TransitionId>& path)
 std::string describe_marking(const Net& net, const Marking& m);
 
 // Human-readable report: the verdict first ("OK: ...", "FAIL: 1 deadlock, region Z not exclusive", "UNKNOWN: ..."),
-// then the counts, the shortest deadlock path and where the robots are stuck, the unbounded witness, each region,
-// and the transitions never enabled. Ends with a newline.
+// then the counts ("explored N markings, E edges", or "N markings explored (reduced), E edges" under reduction, with a
+// line saying why when a requested reduction fell back to full exploration), the shortest deadlock path and where the
+// robots are stuck, the unbounded witness, each region (a witness path that may not be shortest says "not necessarily
+// shortest"), and the transitions never enabled (full exploration only). Ends with a newline.
 std::string format_report(const Net& net, const AnalysisResult& r);
 // The JSON report. Keys: ok, complete, stop_reason, states, edges, deadlocks, final_states, bounded, mutex_ok,
-// stored_bytes, unbounded_places (place ids), unbounded_path, dead_transitions (transition ids; null unless complete),
-// place_bounds ({place id: max tokens}; null unless complete), regions ([{name, exclusive, max_inside, capacity,
-// witness_path, witness_marking}]), deadlock_path, deadlock_marking ({place id: tokens}, non-zero places only),
+// stored_bytes, reduction ("none"/"stubborn", as asked), reduced (states and edges count a reduced exploration),
+// reduction_note, deadlock_path_shortest, unbounded_places (place ids), unbounded_path, dead_transitions (transition
+// ids; null unless complete and not reduced), place_bounds ({place id: max tokens}; null unless complete and not
+// reduced), regions ([{name, exclusive, max_inside, capacity, witness_path, witness_shortest, witness_marking}]),
+// deadlock_path, deadlock_marking ({place id: tokens}, non-zero places only),
 // deadlock_description (describe_marking), deadlock_examples ([{path, marking}]). A path is a list of {transition
 // (id), name, robot, line, task, motion} ("" and 0 where the net has no origin); absent paths and markings are null.
 nlohmann::json to_json(const Net& net, const AnalysisResult& r);
@@ -98,6 +146,24 @@ nlohmann::json to_json(const Net& net, const AnalysisResult& r);
 struct CheckOptions {
   AnalysisOptions analysis;
   bool json = false;  // print to_json instead of format_report
+  // Show progress on stderr (ProgressPrinter, in place when stderr is a terminal) for a run longer than
+  // analysis.progress_interval; replaces analysis.progress.
+  bool progress = false;
+};
+
+// Prints AnalysisProgress as one line, e.g. "checking: 1234567 markings, 850000/s, queue 120345": on a terminal
+// overwritten in place ("\r" and erase to the end of the line), else one line per call. finish() erases the line on
+// a terminal (so that the report starts on a clean line) and does nothing otherwise.
+class ProgressPrinter {
+ public:
+  ProgressPrinter(std::ostream& out, bool terminal) : out_(out), terminal_(terminal) {}
+  void operator()(const AnalysisProgress& p);
+  void finish();
+
+ private:
+  std::ostream& out_;
+  bool terminal_;
+  bool shown_ = false;
 };
 
 // Analyses `net` and prints the outcome to `out`: with options.json the JSON report (to_json) indented by 2 and a

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 
 #include "cellwright/petri/net.hpp"
 
@@ -35,5 +36,25 @@ Net robot_cell(int robots, int steps, int regions);
 // Its reachable markings: sum over j = 0..min(regions, robots) of C(regions, j) * robots!/(robots-j)! * 2^j *
 // (steps - 2 regions)^(robots - j) (each occupied region holds one robot at one of its two steps).
 std::uint64_t robot_cell_reachable(int robots, int steps, int regions);
+
+// A task-level program (docs/task-language.md) of `robots` robots (r1..rN) in one lock-step table of `lines` lines:
+// robots work in pairs (r1 with r2, r3 with r4, ...; an odd last robot alone) through a cycle of four lines: the giver
+// picks its workpiece, hands it to the taker (Put/Get), the taker places it, and the giver signals a semaphore that
+// the taker waits for on the same line. Every line ends in a barrier of every robot with every other, so the net has
+// lines - 1 barriers of robots * (robots - 1) events each. The workload for `twin check` at scale. Throws
+// std::invalid_argument unless robots >= 1 and lines >= 1.
+std::string lockstep_program(int robots, int lines);
+
+// A random net shaped like a compiled cell program, from `seed` (the same seed gives the same net on every platform):
+// 1 to 4 robots, each a chain of places (kStart, kExecuting/kWaiting, kDone) with one token, some looping back to
+// their start; events signalled and waited for at random (kEvent), hand-over handshakes between two robots, lock-step
+// barriers among some robots, and critical regions entered and left (kRegion, capacity 1), sometimes with two free
+// tokens or entered without taking one, so that exclusion can fail. Deadlocks, region violations and unbounded
+// events (a loop that signals more than its partner waits) all occur among the seeds. Small enough to explore fully.
+Net random_cell(std::uint64_t seed);
+
+// A random P/T net from `seed`: 2 to 6 places with 0 to 2 tokens, 2 to 6 transitions with random arcs of weight 1 or
+// 2, sometimes a region over one or two places. Bounded or not, deadlocking or not.
+Net random_net(std::uint64_t seed);
 
 }  // namespace cellwright::petri::generators

@@ -1,0 +1,83 @@
+// Partial-order reduction for the reachability analysis (analysis.hpp, AnalysisOptions::reduction): stubborn sets in
+// the sense of Valmari, as LoLA computes them for P/T nets, and the structural facts that decide what a reduced
+// search may claim.
+//
+// A stubborn set S of a marking m (not dead) is a set of transitions with
+//  - D1: for every enabled t in S, every transition that consumes from a place of t's pre-set is in S (so no
+//    transition outside S can disable t, and t commutes with every sequence of transitions outside S);
+//  - D2: for every disabled t in S, all transitions that raise one of its insufficiently marked places (the
+//    "scapegoat") are in S (so no sequence outside S can enable t);
+//  - at least one enabled transition (the key);
+//  - V (regions): if S holds an enabled transition that lowers the tokens inside some region, S holds every
+//    transition that raises the tokens inside some region.
+// Firing only the enabled transitions of S keeps every reachable dead marking reachable, at its BFS distance (so a
+// breadth-first search still reports shortest deadlock paths and the exact number of dead markings), and, with V and
+// the ignoring proviso below, every upward-closed set of region occupancies (so each region's verdict and its largest
+// occupancy are exact; the witness path may be longer than the shortest one).
+//
+// The ignoring proviso: in a state space with cycles, a transition can stay enabled forever outside every stubborn
+// set along a cycle. The explorer fully expands a marking whose reduced successors include one already expanded
+// (breadth-first, every cycle then holds a fully expanded marking: the member expanded last). It is not needed when
+// every run is finite (finite_runs()), nor when the net has no regions (deadlocks do not need it).
+//
+// Boundedness is not preserved by stubborn sets (a transition that pumps tokens can be ignored in favour of one that
+// drains them). A covering found by the reduced search is a real unbounded witness; the absence of one proves
+// nothing, so analyze() trusts a reduced search for boundedness only when structurally_bounded() holds, and otherwise
+// falls back to full exploration.
+//
+// Thread safety: a StubbornSets is used by one exploration; the free functions are re-entrant.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "cellwright/petri/net.hpp"
+
+namespace cellwright::petri {
+
+// True when every transition can fire only finitely often in any run, shown structurally: a transition is finite when
+// it takes tokens (net) from a place that only finite transitions raise. Then every run is finite, the reachability
+// graph is finite and acyclic, and the net is bounded. Holds for every task program without loops (each robot's chain
+// is acyclic), whatever its events, regions and hand-overs.
+bool finite_runs(const Net& net);
+
+// True when a weighting y >= 1 of the places exists with y . C(t) <= 0 for every transition t (Memmi-Roucairol: the
+// weighted token sum never grows, so every place is bounded from any initial marking). Searched in a family solved
+// without linear programming: places of robots (Origin::robot non-empty) get free weights when every transition moves
+// at most one robot token (weight 1) from one robot place to another, every other place weight 1; the conditions are
+// then difference constraints, solved by Bellman-Ford. Holds for acyclic task nets and for loops whose events are
+// handshaken (each signal answered before the next), not for a loop that signals faster than its partner waits.
+bool structurally_bounded(const Net& net);
+
+// The stubborn-set computation for one net (precomputed consumers, raisers and region effects).
+class StubbornSets {
+ public:
+  explicit StubbornSets(const Net& net);
+
+  // The enabled transitions of the smallest stubborn set found (closures from each enabled transition as key, the
+  // first with a single enabled transition wins), ascending, into `out`. `enabled` lists the enabled transitions,
+  // ascending and non-empty; `tokens(p)` gives the marking. The result is a non-empty subset of `enabled`.
+  void choose(const std::vector<TransitionId>& enabled, const std::function<Tokens(PlaceId)>& tokens,
+              std::vector<TransitionId>& out);
+
+ private:
+  // Closure from `key`: returns the number of enabled transitions in it, or stops (returning `limit`) once it reaches
+  // `limit`. Members carry stamp_ == gen_.
+  std::size_t closure(TransitionId key, std::size_t limit, const std::function<Tokens(PlaceId)>& tokens);
+  void push(TransitionId t);
+
+  const Net& net_;
+  std::vector<std::vector<TransitionId>> consumers_;  // per place: transitions with it in their pre-set
+  std::vector<std::vector<TransitionId>> raisers_;    // per place: transitions whose firing adds to it (net)
+  std::vector<TransitionId> region_raisers_;          // transitions that add tokens inside some region
+  std::vector<bool> region_lowers_;                   // per transition: it removes tokens from inside some region
+  std::vector<std::uint32_t> stamp_;                  // closure membership, by generation
+  std::vector<std::uint32_t> enabled_stamp_;          // enabled in the current marking, by generation
+  std::uint32_t gen_ = 0;
+  std::uint32_t marking_gen_ = 0;
+  std::vector<TransitionId> stack_;
+};
+
+}  // namespace cellwright::petri

@@ -89,6 +89,10 @@ void EventLog::workpiece_arrived(SimDuration t, std::string_view workpiece, std:
   append(fmt::format("{},\"workpiece\":{},\"where\":{}}}", head(t, "workpiece_arrived"), q(workpiece), q(where)));
 }
 
+void EventLog::workpiece_left(SimDuration t, std::string_view workpiece, std::string_view where) {
+  append(fmt::format("{},\"workpiece\":{},\"where\":{}}}", head(t, "workpiece_left"), q(workpiece), q(where)));
+}
+
 void EventLog::fault_injected(SimDuration t, std::string_view kind, std::string_view robot,
                               std::string_view workpiece, std::string_view detail) {
   append(fmt::format("{},\"kind\":{},\"robot\":{},\"workpiece\":{},\"detail\":{}}}", head(t, "fault_injected"),

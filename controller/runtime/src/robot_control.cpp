@@ -80,9 +80,76 @@ void RobotControl::connect() {
 }
 
 std::string RobotControl::bound(const std::string& label) const {
+  if (auto it = instances_.find(label); it != instances_.end()) return it->second;
   if (auto it = names_.objects.find(label); it != names_.objects.end()) return it->second;
   if (auto it = names_.robots.find(label); it != names_.robots.end()) return it->second;
   return label;
+}
+
+bool RobotControl::bind_class(SimDuration now, const task::Primitive& p) {
+  const bool to_part = p.kind == task::PrimitiveKind::kMove &&
+                       (p.target.kind == task::TargetKind::kAbove || p.target.kind == task::TargetKind::kAt);
+  const std::string& label = to_part ? p.target.object : p.workpiece;
+  if (!to_part && p.kind != task::PrimitiveKind::kClose) return true;
+  const auto cls = names_.classes.find(label);
+  if (cls == names_.classes.end() || instances_.count(label) != 0) return true;
+  std::string part;
+  if (to_part) {
+    // Parts further than this from the class's location have not arrived there yet.
+    constexpr double kReach = 0.25;
+    part = env_.write([&](EnvironmentModel& m) {
+      const CellLocation* at = m.find_location(cls->second);
+      CW_CHECK(at != nullptr, "class {} arrives at {}, which the cell model does not have", label, cls->second);
+      WorkpieceState* best = nullptr;
+      double best_d = kReach;
+      for (WorkpieceState& w : m.workpieces) {
+        if (!w.present || w.lost || !w.held_by.empty() || !w.claimed_by.empty()) continue;
+        const Eigen::Vector3d bottom = w.pose.translation() - Eigen::Vector3d(0, 0, w.size().z() / 2);
+        const Eigen::Vector3d d = bottom - at->pose.translation();
+        if (std::abs(d.z()) > 0.1) continue;
+        if (const double h = d.head<2>().norm(); h < best_d) {
+          best_d = h;
+          best = &w;
+        }
+      }
+      if (best == nullptr) return std::string();
+      best->claimed_by = cell_;
+      return best->name;
+    });
+  } else if (!hand_peer_.empty()) {
+    // A Get: the part the giver holds.
+    part = env_.write([&](EnvironmentModel& m) {
+      const RobotState* giver = m.find_robot(hand_peer_);
+      if (giver == nullptr || !giver->hold) return std::string();
+      WorkpieceState* w = m.find_workpiece(giver->hold->workpiece);
+      if (w == nullptr) return std::string();
+      w->claimed_by = cell_;
+      return w->name;
+    });
+  }
+  if (part.empty()) return false;
+  instances_[label] = part;
+  misplace_checked_.erase(std::remove(misplace_checked_.begin(), misplace_checked_.end(), part),
+                          misplace_checked_.end());  // a new part, though maybe the same body as before
+  log_.sensor(now, label_, static_cast<int>(current_->command.index), "bound", fmt::format("{}={}", label, part));
+  return true;
+}
+
+void RobotControl::unbind_part(const std::string& part) {
+  if (part.empty()) return;
+  bool was_bound = false;
+  for (auto it = instances_.begin(); it != instances_.end();) {
+    if (it->second == part) {
+      it = instances_.erase(it);
+      was_bound = true;
+    } else {
+      ++it;
+    }
+  }
+  if (!was_bound) return;
+  env_.write([&](EnvironmentModel& m) {
+    if (WorkpieceState* w = m.find_workpiece(part); w != nullptr && w->claimed_by == cell_) w->claimed_by.clear();
+  });
 }
 
 void RobotControl::report(SimDuration now, CommandOutcome outcome, std::string reason) {
@@ -206,9 +273,27 @@ bool RobotControl::submit_current(SimDuration now) {
   const task::Primitive& p = active();
   const drivers::Capabilities& caps = driver_.capabilities();
   drivers::Command cmd;
+  if (!bind_class(now, p)) {
+    phase_ = RobotPhase::kResolving;
+    current_->waiting_for = fmt::format("no part of {} has arrived at {} yet", p.kind == task::PrimitiveKind::kMove
+                                                                                 ? p.target.object
+                                                                                 : p.workpiece,
+                                        names_.classes.at(p.kind == task::PrimitiveKind::kMove ? p.target.object
+                                                                                                : p.workpiece));
+    log_start(now);
+    if (!current_->wait_logged) {
+      log_.sensor(now, label_, current_->command.index, "waiting_for_part",
+                  p.kind == task::PrimitiveKind::kMove ? p.target.object : p.workpiece);
+      current_->wait_logged = true;
+    }
+    return false;
+  }
   if (p.kind == task::PrimitiveKind::kMove) {
     task::Target target = p.target;
     target.object = bound(target.object);
+    if (target.kind == task::TargetKind::kHandApproach || target.kind == task::TargetKind::kHandGrasp) {
+      hand_peer_ = target.object;
+    }
     struct Seen {
       MotionTarget target;
       std::vector<double> joints;
@@ -383,6 +468,7 @@ void RobotControl::complete(SimDuration now) {
       return name;
     });
     log_.sensor(now, label_, index, "released", released);
+    unbind_part(released);
   }
   if (current_->step) {
     // A recovery step is done: the next one, or the command again (or skipped).
@@ -959,6 +1045,7 @@ void RobotControl::skip_current(SimDuration now, const std::string& reason) {
     carrying_lost_ = bound(p.workpiece);  // it would carry it: skip until it releases it
   } else if (p.kind == task::PrimitiveKind::kOpen) {
     carrying_lost_.clear();
+    if (!p.workpiece.empty()) unbind_part(bound(p.workpiece));
   }
   if (recovery_) {
     const Recovery r = std::move(*recovery_);

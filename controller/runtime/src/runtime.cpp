@@ -108,6 +108,7 @@ NameMap check_binding(const RunConfig& c) {
   };
   for (const auto& w : c.program.workpieces) object(w, true);
   for (const auto& l : c.program.locations) object(l, false);
+  for (const task::WorkpieceClass& w : c.program.classes) names.classes[w.name] = names.objects.at(w.from);
   for (const auto& [label, entry] : b.objects) {
     if (names.objects.count(label) == 0) {
       throw InputError(entry.where,
@@ -291,7 +292,13 @@ struct Runtime::Impl {
         log.collision(t, c.a, c.b, c.depth);
         collisions.push_back(std::move(c));
       }
-      for (const Arrival& a : cfg.plant->new_arrivals()) log.workpiece_arrived(t, a.workpiece, a.where);
+      for (const Arrival& a : cfg.plant->new_arrivals()) {
+        if (a.left) {
+          log.workpiece_left(t, a.workpiece, a.where);
+        } else {
+          log.workpiece_arrived(t, a.workpiece, a.where);
+        }
+      }
       for (const InjectedFault& f : cfg.plant->new_faults()) {
         log.fault_injected(t, f.kind, f.robot, f.workpiece, f.detail);
       }

@@ -30,7 +30,7 @@ const char* to_string(RobotActivity activity) {
 namespace {
 
 bool net_only(task::PrimitiveKind k) {
-  return k == task::PrimitiveKind::kSignal || k == task::PrimitiveKind::kWait;
+  return k == task::PrimitiveKind::kSignal || k == task::PrimitiveKind::kWait || k == task::PrimitiveKind::kLoop;
 }
 
 }  // namespace
@@ -46,6 +46,7 @@ TaskControl::TaskControl(const petri::Net& net, const task::CompiledProgram& pro
       log_(log),
       marking_(net.initial_marking()),
       arbiter_(petri::make_arbiter(net)),
+      loops_(net, program),
       places_(net.num_places()),
       completed_(net.num_places(), false),
       in_flight_(program.robots.size(), false),
@@ -92,6 +93,7 @@ std::vector<bool> TaskControl::allowed() const {
       }
     }
   }
+  loops_.restrict(ok);
   return ok;
 }
 
@@ -134,6 +136,7 @@ void TaskControl::fire_until_quiescent(SimDuration now) {
     if (chosen.empty()) return;
     petri::fire_chosen(net_, marking_, arbiter_, chosen);
     for (const petri::TransitionId id : chosen) {
+      loops_.fired(id);
       const petri::Transition& t = net_.transitions()[id];
       for (const petri::Arc& a : t.inputs) expected_tokens_[a.place] -= a.weight;
       for (const petri::Arc& a : t.outputs) expected_tokens_[a.place] += a.weight;
@@ -146,7 +149,9 @@ void TaskControl::fire_until_quiescent(SimDuration now) {
       const task::Primitive& p = program_.programs[r].primitives[k];
       const petri::PlaceId place = *net_.find_place(task::place_id(program_.robots[r], k));
       if (net_only(p.kind)) {
-        completed_[place] = true;  // a signal is done as it fires; a wait is gated by its event place
+        // A signal is done as it fires; a wait is gated by its event place; a loop's end by the iteration count (the
+        // leader's) or the leader's decision event (a follower's).
+        completed_[place] = true;
         if (p.kind == task::PrimitiveKind::kSignal) {
           ++signals_fired_;
           if (std::find(lost_signals_.begin(), lost_signals_.end(), signals_fired_) != lost_signals_.end()) {

@@ -184,6 +184,12 @@ struct Writer {
         }
         return add(fmt::format("WAIT SIG({})", 1000 + c.channel));
       }
+      case PrimitiveKind::kLoop:
+        // A loop needs a counter and a jump in the controller's language (and, with several robots, the leader's
+        // decision wired to the others); not written yet, so refused rather than unrolled or dropped.
+        throw InputError(p.where, fmt::format("robot '{}': '{}' cannot be written as a {} program yet: loops are "
+                                              "run from the cell controller only",
+                                              out.robot, p.task, movemaster() ? "Movemaster EX" : "VAL II"));
       case PrimitiveKind::kMove:
         break;
     }

@@ -73,6 +73,7 @@ CampaignTargets campaign_targets(const Scenario& s, double cycle_time) {
           ++t.signals;
           break;
         case task::PrimitiveKind::kWait:
+        case task::PrimitiveKind::kLoop:
           break;
       }
     }

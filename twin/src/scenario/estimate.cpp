@@ -150,9 +150,38 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
 
   petri::Marking m = net.initial_marking();
   petri::Arbiter arbiter = petri::make_arbiter(net);
+  // Workpiece classes, as robot control binds them: a move to a part of a class the arm does not have takes the next
+  // body the feed brings (in feed order, round the list), at rest where it stops; a Get's close takes the body the
+  // giver holds; the open that lets go of it unbinds it. Each primitive is planned once (the loop bodies' first
+  // iteration), so a few bodies suffice.
+  std::map<std::string, std::map<std::string, std::string>> instance;  // cell robot -> class label -> cell workpiece
+  std::map<std::string, std::string> hand_peer;                        // cell robot -> the robot its hand went to
+  std::size_t next_body = 0;
+  std::map<std::string, Eigen::Isometry3d> ready_pose;
+  for (const models::WorkpieceSpec& w : s.cell.workpieces) ready_pose[w.name] = model.find_workpiece(w.name)->pose;
+  auto bind_class = [&](const std::string& robot, const std::string& label) -> std::string {
+    auto& mine = instance[robot];
+    if (auto it = mine.find(label); it != mine.end()) return it->second;
+    std::string body;
+    if (auto peer = hand_peer.find(robot); peer != hand_peer.end() && held.count(peer->second) != 0) {
+      body = held.at(peer->second).first;
+    } else if (s.feed && !s.feed->workpieces.empty()) {
+      body = s.feed->workpiece_at(next_body++);
+      runtime::WorkpieceState& ws = *model.find_workpiece(body);
+      if (ws.held_by.empty()) ws.pose = ready_pose.at(body);
+    }
+    if (!body.empty()) mine[label] = body;
+    return body;
+  };
+
   std::uint64_t guard = 0;
+  task::LoopControl loops(net, prog);
   while (!petri::is_dead(net, m) && guard++ < 1'000'000) {
-    const auto chosen = petri::choose(net, m, arbiter);
+    std::vector<bool> allowed;
+    loops.restrict(allowed);
+    const auto chosen = petri::choose(net, m, arbiter, allowed);
+    if (chosen.empty()) break;
+    for (petri::TransitionId t : chosen) loops.fired(t);
     for (petri::TransitionId t : chosen) {
       const petri::Transition& tr = net.transitions()[t];
       if (!tr.starts_robot) continue;
@@ -166,7 +195,16 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
       runtime::RobotState& rs = *model.find_robot(arm.cell);
       switch (p.kind) {
         case task::PrimitiveKind::kMove: {
-          const task::Target target = bound(p.target);
+          task::Target target = p.target;
+          const bool to_part = target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt;
+          if (to_part && task::find_class(prog, target.object) != nullptr) {
+            hand_peer.erase(arm.cell);
+            const std::string body = bind_class(arm.cell, target.object);
+            target.object = body.empty() ? s.location_of(task::find_class(prog, target.object)->from) : body;
+          } else {
+            target = bound(p.target);
+            if (!to_part && target.kind != task::TargetKind::kHome) hand_peer[arm.cell] = target.object;
+          }
           // A part still to come holds back the first move to it.
           if (target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt) {
             if (auto it = ready_at.find(target.object); it != ready_at.end()) {
@@ -227,7 +265,10 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
         case task::PrimitiveKind::kOpen:
         case task::PrimitiveKind::kClose: {
           if (p.workpiece.empty()) break;
-          const std::string w = s.workpiece_of(p.workpiece);
+          const bool of_class = task::find_class(prog, p.workpiece) != nullptr;
+          const std::string w = of_class ? bind_class(arm.cell, p.workpiece) : s.workpiece_of(p.workpiece);
+          if (w.empty()) break;
+          if (of_class && p.kind == task::PrimitiveKind::kOpen) instance[arm.cell].erase(p.workpiece);
           runtime::WorkpieceState& ws = *model.find_workpiece(w);
           const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
           if (p.kind == task::PrimitiveKind::kClose) {
@@ -247,6 +288,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
         }
         case task::PrimitiveKind::kSignal:
         case task::PrimitiveKind::kWait:
+        case task::PrimitiveKind::kLoop:
           break;
       }
     }
@@ -299,6 +341,7 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Est
           break;
         case task::PrimitiveKind::kSignal:
         case task::PrimitiveKind::kWait:
+        case task::PrimitiveKind::kLoop:
           ce.basis = "net only";
           break;
       }
@@ -308,7 +351,8 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Est
   }
   est.timed_net = with_arrivals(net, plan.gates, durations);
   est.place_duration = durations;
-  est.run = simulate_timed(est.timed_net, durations);
+  task::LoopControl loops(est.timed_net, prog);
+  est.run = simulate_timed(est.timed_net, durations, 1'000'000, &loops);
   est.cycle_time = est.run.finish;
   return est;
 }

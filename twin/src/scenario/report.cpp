@@ -106,16 +106,26 @@ Timeline build_timeline(const std::vector<json>& events, const task::CompiledPro
   for (RobotTimeline& rt : tl.robots) {
     const task::RobotProgram& rp = program.programs[index.at(rt.robot)];
     const std::size_t n = rp.primitives.size();
-    // When each of the robot's transitions fired (transition k starts primitive k; n ends the program), and when each
-    // primitive's command ended.
-    std::vector<std::optional<double>> fired(n + 1), ended(n);
+    // The robot's path through its program, in firing order: each firing of one of its transitions starts a visit of
+    // the primitive it begins (k for transition k, the body's first for a loop's again; n: the program's end). A
+    // visit lasts until the robot's next firing; its command ended at the first command_end of that primitive
+    // within it. In a program without loops every primitive is visited at most once.
+    struct Visit {
+      std::size_t k = 0;
+      double begin = 0;
+      std::optional<double> ended;
+    };
+    std::vector<Visit> visits;
     std::map<std::string, std::size_t> transition_index;
     for (std::size_t k = 0; k <= n; ++k) transition_index[task::transition_id(rt.robot, k)] = k;
+    for (const task::Loop& loop : rp.loops) {
+      transition_index[task::loop_again_transition_id(rt.robot, loop.end)] = loop.begin;
+    }
     for (const json& e : events) {
       const std::string type = e["type"].get<std::string>();
       if (type == "fire") {
         auto it = transition_index.find(field<std::string>(e, "transition", file));
-        if (it != transition_index.end() && !fired[it->second]) fired[it->second] = e["t"].get<double>();
+        if (it != transition_index.end()) visits.push_back({it->second, e["t"].get<double>(), std::nullopt});
       } else if ((type == "command_start" || type == "command_end") &&
                  field<std::string>(e, "robot", file) == rt.robot) {
         const auto k = field<std::int64_t>(e, "primitive", file);
@@ -126,16 +136,19 @@ Timeline build_timeline(const std::vector<json>& events, const task::CompiledPro
         }
         if (type == "command_start") {
           ++rt.commands;
-        } else if (!ended[static_cast<std::size_t>(k)]) {
-          ended[static_cast<std::size_t>(k)] = e["t"].get<double>();
+        } else if (!visits.empty() && visits.back().k == static_cast<std::size_t>(k) && !visits.back().ended) {
+          visits.back().ended = e["t"].get<double>();
         }
       }
     }
 
-    for (std::size_t k = 0; k < n; ++k) {
-      if (!fired[k]) break;  // the robot never got here
-      const double begin = *fired[k];
-      const double finish = fired[k + 1] ? *fired[k + 1] : tl.end;
+    for (std::size_t i = 0; i < visits.size(); ++i) {
+      const std::size_t k = visits[i].k;
+      if (k == n) break;  // the program's end
+      const double begin = visits[i].begin;
+      const double finish = i + 1 < visits.size() ? visits[i + 1].begin : tl.end;
+      const std::optional<double>& ended = visits[i].ended;
+      const std::size_t next = i + 1 < visits.size() ? visits[i + 1].k : k + 1;
       const task::Primitive& p = rp.primitives[k];
       Bar bar;
       bar.primitive = static_cast<int>(k);
@@ -147,14 +160,14 @@ Timeline build_timeline(const std::vector<json>& events, const task::CompiledPro
         case task::PrimitiveKind::kOpen:
         case task::PrimitiveKind::kClose: {
           bar.activity = p.kind == task::PrimitiveKind::kMove ? Activity::kMove : Activity::kGrip;
-          bar.end = std::clamp(ended[k].value_or(finish), begin, std::max(begin, finish));
-          if (bar.end > bar.start || !ended[k]) rt.bars.push_back(bar);
-          if (ended[k] && finish > bar.end) {
+          bar.end = std::clamp(ended.value_or(finish), begin, std::max(begin, finish));
+          if (bar.end > bar.start || !ended) rt.bars.push_back(bar);
+          if (ended && finish > bar.end) {
             Bar blocked = bar;
             blocked.activity = Activity::kBlocked;
             blocked.start = bar.end;
             blocked.end = finish;
-            blocked.label = k + 1 < n ? fmt::format("before {}", task::to_string(rp.primitives[k + 1])) : "before done";
+            blocked.label = next < n ? fmt::format("before {}", task::to_string(rp.primitives[next])) : "before done";
             rt.bars.push_back(blocked);
           }
           break;
@@ -165,6 +178,7 @@ Timeline build_timeline(const std::vector<json>& events, const task::CompiledPro
           if (bar.end > bar.start) rt.bars.push_back(bar);
           break;
         case task::PrimitiveKind::kSignal:
+        case task::PrimitiveKind::kLoop:
           if (finish > begin) {
             bar.activity = Activity::kBlocked;
             bar.end = finish;
@@ -584,6 +598,31 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
     const double span = *std::max_element(places.begin(), places.end()) - *std::min_element(picks.begin(), picks.end());
     if (span > 0) r.throughput = static_cast<double>(r.parts_completed) * 60.0 / span;
   }
+  for (const json& e : events) {
+    const std::string type = e["type"].get<std::string>();
+    if (type == "workpiece_arrived") ++r.parts_fed;
+    if (type == "workpiece_left") ++r.parts_delivered;
+    if (type == "command_end" && e.value("ok", false)) {
+      // A placement: the open of a Place command (primitive text "open W", task "Place X").
+      const std::string robot = field<std::string>(e, "robot", file);
+      const auto it = std::find(s.program.robots.begin(), s.program.robots.end(), robot);
+      if (it == s.program.robots.end()) continue;
+      const auto& prims = s.program.programs[static_cast<std::size_t>(it - s.program.robots.begin())].primitives;
+      const auto k = static_cast<std::size_t>(field<std::int64_t>(e, "primitive", file));
+      if (k < prims.size() && prims[k].kind == task::PrimitiveKind::kOpen && !prims[k].workpiece.empty() &&
+          prims[k].task.rfind("Place", 0) == 0) {
+        r.placed_at.push_back(e["t"].get<double>());
+      }
+    }
+  }
+  if (r.placed_at.size() >= 3) {
+    const double span = r.placed_at.back() - r.placed_at[1];
+    const auto parts = static_cast<double>(r.placed_at.size() - 2);
+    if (span > 0) {
+      r.steady_throughput = parts * 60.0 / span;
+      r.steady_cycle = span / parts;
+    }
+  }
   return r;
 }
 
@@ -610,6 +649,11 @@ json to_json(const Scenario& s, const Report& r) {
   j["cycle_time"] = {{"estimated", opt(r.estimated_cycle_time)}, {"measured", opt(r.finished_at)}};
   j["throughput_parts_per_min"] = opt(r.throughput);
   j["parts_completed"] = r.parts_completed;
+  j["flow"] = {{"placed", r.placed_at.size()},
+               {"fed", r.parts_fed},
+               {"delivered", r.parts_delivered},
+               {"steady_throughput_parts_per_min", opt(r.steady_throughput)},
+               {"steady_cycle_s", opt(r.steady_cycle)}};
   json wps = json::array();
   for (const WorkpieceReport& w : r.workpieces) {
     json wj;
@@ -710,6 +754,11 @@ std::string format_summary(const Report& r) {
   if (r.parts_completed > 0) {
     out += fmt::format("parts completed {}, throughput {} parts/min\n", r.parts_completed,
                        r.throughput ? fmt::format("{:.2f}", *r.throughput) : std::string("n/a"));
+  }
+  if (r.steady_throughput) {
+    out += fmt::format("parts placed {} (fed {}, delivered {}); steady state from the 2nd: {:.2f} parts/min, {:.2f} s "
+                       "per part\n",
+                       r.placed_at.size(), r.parts_fed, r.parts_delivered, *r.steady_throughput, *r.steady_cycle);
   }
   for (const RobotTimeline& t : r.timeline.robots) {
     out += fmt::format("  {} ({}): busy {:.2f} s, waiting {:.2f} s, blocked {:.2f} s, idle {:.2f} s\n", t.robot, t.cell,

@@ -88,10 +88,11 @@ CellWorld make_cell_world(const Scenario& s) {
   out.world =
       std::make_unique<sim::World>(build_scene(real, sim::FaultInjector::scene_options(s.faults)), world_options);
   if (s.feed) {
-    for (std::size_t i = 0; i < s.feed->workpieces.size(); ++i) {
-      const auto it = offsets.find(s.feed->workpieces[i]);
-      out.feed.push_back({seconds(s.feed->arrival(i)), s.feed->workpieces[i], s.feed->conveyor,
-                          it == offsets.end() ? Eigen::Isometry3d::Identity() : it->second});
+    for (std::size_t i = 0; i < s.feed->count; ++i) {
+      const auto it = offsets.find(s.feed->workpiece_at(i));
+      out.feed.push_back({seconds(s.feed->arrival(i)), s.feed->workpiece_at(i), s.feed->conveyor,
+                          it == offsets.end() || i >= s.feed->workpieces.size() ? Eigen::Isometry3d::Identity()
+                                                                                : it->second});
     }
   }
   return out;
@@ -181,6 +182,20 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
 
   auto plant = std::make_unique<sim::WorldPlant>(*world_, std::move(cell.feed), s.faults, s.seed);
   world_plant_ = plant.get();
+  if (s.feed && s.feed->recycles()) {
+    // A shift: parts leave the cell at the end of every conveyor but the feed's, and their bodies are fed again.
+    std::vector<std::string> exits;
+    for (const models::ConveyorSpec& c : s.cell.conveyors) {
+      if (c.name != s.feed->conveyor) exits.push_back(c.name);
+    }
+    if (exits.empty()) {
+      throw InputError(s.feed->where, fmt::format("the feed brings {} parts with {} bodies, but the cell has no "
+                                                  "other conveyor to carry parts out on, so no body is ever free "
+                                                  "again",
+                                                  s.feed->count, s.feed->workpieces.size()));
+    }
+    plant->recycle_at(std::move(exits));
+  }
   if (s.perturb) {
     // The scenario's perturbation misplaces parts on purpose (the controller's model does not know it): logged as
     // such, so that its detection is matched to it and not taken for a false alarm.

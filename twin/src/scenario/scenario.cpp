@@ -14,6 +14,7 @@
 #include "cellwright/models/yaml_fields.hpp"
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/task/compile.hpp"
+#include "cellwright/task/loop_control.hpp"
 #include "cellwright/task/to_net.hpp"
 #include "cellwright/twin/scenario/estimate.hpp"
 
@@ -427,7 +428,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
 
   // --- feed ---
   if (f.has("feed")) {
-    const Fields ff(doc, f.node("feed"), "field 'feed'", {"conveyor", "workpieces", "start", "period"});
+    const Fields ff(doc, f.node("feed"), "field 'feed'", {"conveyor", "workpieces", "start", "period", "count"});
     Feed feed;
     feed.where = doc.at(f.key_node("feed"));
     feed.conveyor = ff.word("conveyor");
@@ -462,6 +463,19 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
                            feed.workpieces.size()));
     }
     feed.period = ff.positive_or("period", 0.0);
+    feed.count = feed.workpieces.size();
+    if (ff.has("count")) {
+      const double count = ff.positive("count");
+      if (count != std::floor(count) || count > 1e6 || count < static_cast<double>(feed.workpieces.size())) {
+        doc.fail(ff.node("count"),
+                 fmt::format("{} must be a whole number of parts from {} (the workpieces listed) to 1000000, got {}",
+                             ff.field("count"), feed.workpieces.size(), ff.node("count").Scalar()));
+      }
+      feed.count = static_cast<std::size_t>(count);
+      if (feed.count > 1 && !ff.has("period")) {
+        doc.fail(f.node("feed"), "field 'feed' has a 'count' of more than one part but no 'period'");
+      }
+    }
     s.feed = std::move(feed);
   }
 
@@ -774,6 +788,11 @@ Preflight preflight(const Scenario& s) {
     needs.push_back({ReachNeed{robot, spot.text, command_text(p)}, spot});
   };
   auto spot_of_object = [&](const std::string& mover, const std::string& label) -> std::optional<Spot> {
+    if (const task::WorkpieceClass* c = task::find_class(s.program, label)) {
+      // A part of a class is picked where the class's parts arrive.
+      (void)mover;
+      return location_spot(*s.cell.find_location(s.location_of(c->from)));
+    }
     if (std::find(s.program.workpieces.begin(), s.program.workpieces.end(), label) != s.program.workpieces.end()) {
       const std::string& w = s.workpiece_of(label);
       // A workpiece in a gripper is not a place to go to.
@@ -793,8 +812,13 @@ Preflight preflight(const Scenario& s) {
 
   petri::Marking m = out.net.initial_marking();
   petri::Arbiter arbiter = petri::make_arbiter(out.net);
+  task::LoopControl loops(out.net, s.program);
   while (!petri::is_dead(out.net, m)) {
-    const auto chosen = petri::choose(out.net, m, arbiter);
+    std::vector<bool> allowed;
+    loops.restrict(allowed);
+    const auto chosen = petri::choose(out.net, m, arbiter, allowed);
+    if (chosen.empty()) break;  // only a decision the counts rule out is enabled: cannot happen after a passed check
+    for (petri::TransitionId t : chosen) loops.fired(t);
     for (petri::TransitionId t : chosen) {
       const petri::Transition& tr = out.net.transitions()[t];
       if (!tr.starts_robot) continue;
@@ -821,10 +845,15 @@ Preflight preflight(const Scenario& s) {
           break;
         }
         case task::PrimitiveKind::kClose:
-          if (!p.workpiece.empty()) holding[robot] = s.workpiece_of(p.workpiece);
+          if (!p.workpiece.empty()) {
+            holding[robot] = task::find_class(s.program, p.workpiece) != nullptr ? fmt::format("class {}", p.workpiece)
+                                                                                 : s.workpiece_of(p.workpiece);
+          }
           break;
         case task::PrimitiveKind::kOpen:
-          if (!p.workpiece.empty()) {
+          if (!p.workpiece.empty() && task::find_class(s.program, p.workpiece) != nullptr) {
+            holding.erase(robot);  // a class's part is not followed further: the next Pick takes a new one
+          } else if (!p.workpiece.empty()) {
             const std::string& w = s.workpiece_of(p.workpiece);
             if (auto it = last_target.find(robot); it != last_target.end()) {
               Spot put = it->second;
@@ -836,6 +865,7 @@ Preflight preflight(const Scenario& s) {
           break;
         case task::PrimitiveKind::kSignal:
         case task::PrimitiveKind::kWait:
+        case task::PrimitiveKind::kLoop:
           break;
       }
     }

@@ -9,7 +9,8 @@
 
 namespace cellwright::twin::scenario {
 
-TimedRun simulate_timed(const petri::Net& net, const std::vector<double>& place_duration, std::uint64_t max_firings) {
+TimedRun simulate_timed(const petri::Net& net, const std::vector<double>& place_duration, std::uint64_t max_firings,
+                        task::LoopControl* loops) {
   CW_CHECK(place_duration.size() == net.num_places(), "{} place durations for a net of {} places",
            place_duration.size(), net.num_places());
   for (std::size_t p = 0; p < place_duration.size(); ++p) {
@@ -25,10 +26,16 @@ TimedRun simulate_timed(const petri::Net& net, const std::vector<double>& place_
 
   TimedRun run;
   constexpr double kNever = std::numeric_limits<double>::infinity();
+  std::vector<bool> allowed;
   while (run.firings.size() < max_firings) {
     petri::TransitionId best = 0;
     double best_time = kNever;
+    if (loops != nullptr) {
+      allowed.assign(net.num_transitions(), true);
+      loops->restrict(allowed);
+    }
     for (petri::TransitionId t = 0; t < net.num_transitions(); ++t) {
+      if (!allowed.empty() && !allowed[t]) continue;
       double ready = 0;
       for (const petri::Arc& a : net.transitions()[t].inputs) {
         const auto& tokens = available[a.place];
@@ -58,6 +65,7 @@ TimedRun simulate_timed(const petri::Net& net, const std::vector<double>& place_
       tokens.insert(std::upper_bound(tokens.begin(), tokens.end(), from), a.weight, from);
     }
     run.firings.push_back({best, now});
+    if (loops != nullptr) loops->fired(best);
   }
 
   run.final_marking.assign(net.num_places(), 0);

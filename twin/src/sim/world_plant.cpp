@@ -22,6 +22,36 @@ WorldPlant::WorldPlant(World& world, std::vector<FeedEvent> feed, std::vector<sc
   }
 }
 
+void WorldPlant::recycle_at(std::vector<std::string> conveyors) {
+  exits_.clear();
+  for (const std::string& name : conveyors) {
+    const models::ConveyorSpec* c = world_.scene().cell().find_conveyor(name);
+    CW_CHECK(c != nullptr, "recycle_at: no conveyor '{}'", name);
+    exits_.push_back(c);
+  }
+}
+
+void WorldPlant::take_out_delivered() {
+  const WorldTruth w = world_.truth();
+  for (const WorkpieceTruth& p : w.workpieces) {
+    if (p.parked) continue;
+    for (const models::ConveyorSpec* c : exits_) {
+      // The part's centre along the belt from its upstream end, and across it, in the horizontal plane.
+      const Eigen::Vector3d start = c->belt_point(0);
+      const Eigen::Vector3d along = (c->belt_point(1) - start).normalized();
+      const Eigen::Vector3d rel = p.pose.translation() - start;
+      const double s = rel.dot(along);
+      const double across = (rel - s * along).head<2>().norm();
+      const bool on_belt_line = across <= c->width / 2 + 0.05 && rel.z() > -c->height;
+      if (s >= c->leave - (c->stop ? 0.05 : 0.0) && s <= c->length + 0.5 && on_belt_line) {
+        world_.park(p.name);
+        arrivals_.push_back({p.name, c->name, true});
+        break;
+      }
+    }
+  }
+}
+
 void WorldPlant::report_fault(runtime::InjectedFault fault) {
   std::lock_guard lock(reported_mutex_);
   reported_.push_back(std::move(fault));
@@ -45,12 +75,14 @@ void WorldPlant::advance(runtime::SimDuration dt) {
     const FeedEvent& f = feed_[next_feed_];
     const FeedResult r = world_.feed(f.workpiece, f.conveyor, f.offset);
     if (r.status == FeedStatus::occupied) break;
+    if (r.status == FeedStatus::not_parked && !exits_.empty()) break;  // its body has not left the cell yet
     CW_CHECK(r.ok(), "feeding {} onto {} at {} ns: {}", f.workpiece, f.conveyor, f.time.count(), r.message);
     arrivals_.push_back({f.workpiece, f.conveyor});
     if (injector_) injector_->fed(f.workpiece);
     ++next_feed_;
   }
   world_.advance(dt);
+  if (!exits_.empty()) take_out_delivered();
   if (injector_) injector_->update();
   for (std::string& w : world_.drain_warnings()) warnings_.push_back(std::move(w));
 }

@@ -115,6 +115,9 @@ struct WorkpieceState {
   bool motion_known = true;
   bool present = true;    // in the cell now
   std::string held_by;    // cell robot holding it, empty if none (set by robot control on close/open)
+  // Cell robot that has taken it as the part of a workpiece class it is about to pick or is carrying (robot
+  // control's NameMap::classes), empty if none: no other robot binds a class to it meanwhile.
+  std::string claimed_by;
   double confidence = 1;  // 1 for the CAD data and the simulation's truth; vision's confidence after correct()
   SimDuration stamp{0};   // simulation time the pose was measured at
   // Declared lost by robot control's recovery (set_aside, docs/faults.md): every command about it is skipped from

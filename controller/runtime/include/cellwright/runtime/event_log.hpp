@@ -15,6 +15,7 @@
 //                     workpiece ("" if none)
 //   collision         a, b, depth (m, 6 decimals)
 //   workpiece_arrived workpiece, where
+//   workpiece_left    workpiece, where (the conveyor it was carried off): the part left the cell, delivered
 //   vision            frame (its sim time, 4 decimals), seen [{workpiece, x, y, z (m, 4 decimals), yaw (degrees, 2
 //                     decimals, null for a cylinder), confidence (3 decimals)}], not_seen [names], rejected (count),
 //                     problem ("" if none)
@@ -80,6 +81,7 @@ class EventLog {
               std::string_view workpiece);
   void collision(SimDuration t, std::string_view a, std::string_view b, double depth);
   void workpiece_arrived(SimDuration t, std::string_view workpiece, std::string_view where);
+  void workpiece_left(SimDuration t, std::string_view workpiece, std::string_view where);
   void fault_injected(SimDuration t, std::string_view kind, std::string_view robot, std::string_view workpiece,
                       std::string_view detail);
   void fault_detected(SimDuration t, std::string_view robot, int primitive, std::string_view symptom,

@@ -87,10 +87,12 @@ struct Collision {
   double depth = 0;  // penetration, metres (>= 0)
 };
 
-// A workpiece that came into the cell (fed on a conveyor) or reached a place, as the plant reports it.
+// A workpiece that came into the cell (fed on a conveyor) or reached a place, or, with `left`, one that left the cell
+// (carried off the end of a conveyor that takes parts out of it), as the plant reports it.
 struct Arrival {
   std::string workpiece;
   std::string where;  // e.g. the conveyor's name
+  bool left = false;
 };
 
 class Plant {

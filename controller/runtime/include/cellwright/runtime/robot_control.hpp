@@ -93,6 +93,12 @@ struct MotionOptions {
 struct NameMap {
   std::map<std::string, std::string> robots;   // program robot label -> cell robot
   std::map<std::string, std::string> objects;  // program workpiece/location label -> cell workpiece/location
+  // Program workpiece class label -> the cell location its parts arrive at (task/compiled.hpp WorkpieceClass). Robot
+  // control binds a class to one cell workpiece at a time: at the move to a part of the class it does not have yet,
+  // the part at that location nearest to it that no robot holds or has claimed (it claims it:
+  // WorkpieceState::claimed_by); at a close that takes a part of the class out of another robot's hand, that part. The
+  // class then means that part until the open that releases it.
+  std::map<std::string, std::string> classes;
 };
 
 enum class RobotPhase {
@@ -198,6 +204,11 @@ class RobotControl {
   void report(SimDuration now, CommandOutcome outcome, std::string reason);
   void log_start(SimDuration now);
   std::string bound(const std::string& label) const;
+  // Binds the class the active primitive names, if it is unbound (see NameMap::classes); false while no part of it
+  // is there to take (the command waits).
+  bool bind_class(SimDuration now, const task::Primitive& p);
+  // The robot let go of `part` (cell workpiece): a class bound to it is unbound and the part unclaimed.
+  void unbind_part(const std::string& part);
 
   // ---- Faults (docs/faults.md) ----
   // The primitive being executed: a recovery step, else the command's.
@@ -266,6 +277,9 @@ class RobotControl {
   std::uint64_t reading_number_ = 0;  // which of them reading_ answers (1 = the first)
   // The target of this robot's previous move (a straight approach follows from it).
   std::optional<task::Target> last_target_;
+
+  std::map<std::string, std::string> instances_;  // class label -> the cell workpiece it means now (bind_class)
+  std::string hand_peer_;  // cell robot whose hand this robot's last hand-approach or hand-grasp move went to
 
   std::optional<Recovery> recovery_;
   std::string carrying_lost_;  // the lost part this robot would be carrying: skip until the open that releases it

@@ -6,8 +6,8 @@
 //   1. drain the status inbox: a done command marks its place completed; a failed one ends the run (kFailed, with
 //      the robot's reason);
 //   2. fire until quiescent: the `allowed` mask admits a transition when every robot place among its inputs has
-//      completed (move/open/close: the robot reported done; signal/wait: at once, they never go to a robot; start
-//      places: always). choose() picks a conflict-free set, fire_chosen() fires it; for each fired transition, in
+//      completed (move/open/close: the robot reported done; signal/wait/loop: at once, they never go to a robot;
+//      start places: always), and a loop leader's again/exit as its iteration count says (task::LoopControl). choose() picks a conflict-free set, fire_chosen() fires it; for each fired transition, in
 //      ascending id order, a `fire` event is logged and, if it starts a move/open/close, the MotionCommand goes to
 //      that robot's queue (try_push: the queue has room, each robot has at most one command in flight);
 //   3. detect the end: the final marking (every robot done) -> kFinished; a dead marking that is not final -> kFailed
@@ -40,6 +40,7 @@
 #include "cellwright/runtime/messages.hpp"
 #include "cellwright/runtime/recovery.hpp"
 #include "cellwright/task/compiled.hpp"
+#include "cellwright/task/loop_control.hpp"
 
 namespace cellwright::runtime {
 
@@ -126,6 +127,7 @@ class TaskControl {
 
   petri::Marking marking_;
   petri::Arbiter arbiter_;
+  task::LoopControl loops_;  // which of a loop's again/exit transitions the iteration count allows
   // Per place: the primitive it stands for (robot, index), or none; and whether that primitive has completed.
   struct PlaceInfo {
     bool command = false;  // a robot's primitive place

@@ -178,6 +178,15 @@ struct Report {
   std::vector<WorkpieceReport> workpieces;  // cell order
   std::optional<double> throughput;         // parts per minute: completed parts / (last place end - first pick start)
   std::size_t parts_completed = 0;          // workpieces with a place end
+  // The flow of parts, for programs with loops and shifts (feed count): a part is placed when a command of a "Place"
+  // releases it (its open ends), fed when it arrives on the feed's conveyor, delivered when it leaves the cell.
+  std::vector<double> placed_at;  // s, in order
+  std::size_t parts_fed = 0;
+  std::size_t parts_delivered = 0;
+  // Steady state: the first placement is left out (it includes the first part's arrival and the filling of the
+  // pipeline); from the second to the last placement, parts per minute and seconds per part. Needs 3 placements.
+  std::optional<double> steady_throughput;
+  std::optional<double> steady_cycle;
   Timeline timeline;
   struct CollisionEntry {
     double t = 0;

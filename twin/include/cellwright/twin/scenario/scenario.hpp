@@ -55,12 +55,22 @@ struct DriverChoice {
 // Workpieces put on a conveyor during the run, one every `period` seconds from `start` on, in the listed order. They
 // are cell workpieces: before their turn they are kept out of the cell (the simulated world parks them), then they
 // appear at rest on the conveyor's entry point (ConveyorSpec::enter).
+//
+// A shift: with `count` greater than the list, the list's bodies are fed again and again in list order, each once it
+// has left the cell (carried to the end of another conveyor: the world takes it out there and reports it as
+// delivered), so that a few bodies make a thousand parts. An arrival whose body is still in the cell waits for it.
 struct Feed {
   std::string conveyor;
   std::vector<std::string> workpieces;  // cell workpiece names, in order of arrival
   double start = 0;                     // s, sim time of the first arrival
   double period = 0;                    // s between arrivals (> 0 when more than one)
+  std::size_t count = 0;                // parts fed in all (at least workpieces.size())
   SourceLocation where;
+
+  // Whether bodies are fed more than once.
+  bool recycles() const { return count > workpieces.size(); }
+  // The body of the i-th part fed.
+  const std::string& workpiece_at(std::size_t i) const { return workpieces[i % workpieces.size()]; }
 
   // Sim time at which workpieces[i] arrives.
   double arrival(std::size_t i) const { return start + period * static_cast<double>(i); }

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cellwright/petri/net.hpp"
+#include "cellwright/task/loop_control.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -35,8 +36,9 @@ struct TimedRun {
 
 // Runs the net from its initial marking until no transition is enabled, or until `max_firings` firings (a guard
 // against unbounded nets; finished is then false). place_duration has one entry per place, each finite and >= 0
-// (else InternalError).
+// (else InternalError). The net of a program with loops needs `loops` (made for it, fresh): the loops' decisions
+// are then taken as their counts say (task/loop_control.hpp); without, a decision goes to the lower transition id.
 TimedRun simulate_timed(const petri::Net& net, const std::vector<double>& place_duration,
-                        std::uint64_t max_firings = 1'000'000);
+                        std::uint64_t max_firings = 1'000'000, task::LoopControl* loops = nullptr);
 
 }  // namespace cellwright::twin::scenario

@@ -66,6 +66,13 @@ class WorldPlant final : public runtime::Plant {
   void release_thread_resources() override;
   ~WorldPlant() override;
 
+  // A shift of more parts than bodies (scenario Feed::count): a part carried to the `leave` point of one of these
+  // conveyors (where parts fall off its end, or, with a stop, collect against it: its centre within 5 cm of the
+  // point) has left the cell; it is parked out of the cell at once and reported by
+  // new_arrivals() with `left`, and its body may be fed again. A feed event whose body is still in the cell waits
+  // for it (and the events after it wait too). Call before the run.
+  void recycle_at(std::vector<std::string> conveyors);
+
   // Every MuJoCo warning raised so far, as the World words them.
   const std::vector<std::string>& warnings() const { return warnings_; }
 
@@ -80,6 +87,8 @@ class WorldPlant final : public runtime::Plant {
   std::vector<FeedEvent> feed_;
   std::size_t next_feed_ = 0;
   std::vector<runtime::Arrival> arrivals_;
+  std::vector<const models::ConveyorSpec*> exits_;  // recycle_at()
+  void take_out_delivered();
   std::vector<std::string> warnings_;
   std::unique_ptr<Renderer> renderer_;  // made by capture() on the simulation thread
   std::unique_ptr<FaultInjector> injector_;  // nullptr without faults

@@ -200,6 +200,7 @@ struct Runtime::Impl {
   bool abort = false;
   bool ended = false;
   std::uint64_t firings_seen = 0;
+  std::uint64_t pauses = 0;
   std::exception_ptr error;
 
   std::optional<RunResult> result;
@@ -233,6 +234,7 @@ struct Runtime::Impl {
     if (f == firings_seen) return !abort;
     firings_seen = f;
     paused = true;
+    ++pauses;
     const auto parked = std::chrono::steady_clock::now();
     cv.notify_all();
     cv.wait(lock, [&] { return resume || abort; });
@@ -316,7 +318,8 @@ struct Runtime::Impl {
         f.problem = why;
       }
       // Real-time: image processing may lag; a frame it has no room for is dropped (the next one is newer anyway).
-      (void)frames.try_push(std::move(f));
+      // Lock-step: image processing sleeps until told, and takes this frame in this period, right after this turn.
+      if (frames.try_push(std::move(f)) == QueueStatus::ok && scheduler) scheduler->notify(vision_seat());
       next_frame += vision->options().period;
     }
     if (cfg.on_progress && t >= next_progress) {
@@ -335,35 +338,73 @@ struct Runtime::Impl {
     task_state = static_cast<int>(s);
   }
 
-  void run_lockstep(std::size_t participant) {
-    LockstepScheduler::Seat seat(*scheduler, participant);
+  // Lock-step: one thread's loop. It takes the turns of the participants the scheduler put on it (by default all).
+  void run_lockstep(std::size_t thread) {
+    LockstepScheduler::Seat seat(*scheduler, LockstepScheduler::Thread{thread});
     try {
       while (seat.await_turn()) {
-        if (participant == 0) {
+        if (seat.id() == 0) {
           if (!maybe_pause() || !sim_turn()) {
             scheduler->stop();
             announce_end();
             break;
           }
-        } else if (participant == task_seat() - 1) {
-          vision->step(clock.now());
-        } else if (participant == task_seat()) {
-          task_step();
+          seat.yield();
         } else {
-          robots[participant - first_robot_seat()]->step(clock.now());
+          seat.yield(take_turn(seat.id()));
         }
-        seat.yield();
       }
-      if (participant == 0) release_plant();
-      if (participant >= first_robot_seat()) robots[participant - first_robot_seat()]->halt();
     } catch (...) {
-      if (participant == 0) release_plant();
       record_error();
       end_all();
     }
+    // The run is over (or this thread failed and ended it): halt the robots this thread served, then free the
+    // plant's thread resources on the thread that stepped it.
+    for (std::size_t r = 0; r < robots.size(); ++r) {
+      if (scheduler->thread_of(first_robot_seat() + r) != thread) continue;
+      try {
+        robots[r]->halt();
+      } catch (...) {
+        record_error();
+        end_all();
+      }
+    }
+    if (scheduler->thread_of(0) == thread) release_plant();
   }
 
-  // Seats (lock-step turns, thread indices): simulation, image processing (with vision), task control, robots.
+  // Lock-step: the turn of participant p (not the simulation), and when it next needs one.
+  Wake take_turn(std::size_t p) {
+    const SimDuration now = clock.now();
+    const bool skip = cfg.lockstep_skip_idle;
+    if (vision && p == vision_seat()) {
+      vision->step(now);
+      return skip ? Wake::on_notify() : Wake::next_round();  // the simulation notifies it with each frame
+    }
+    if (p == task_seat()) {
+      task_step();
+      // It has nothing to do until a robot reports (that robot's turn notifies it: it runs next period, as it always
+      // did, the robots coming after it) unless its wait watchdog is armed: that is a time, so it looks every period.
+      return skip && !task_watches_time() ? Wake::on_notify() : Wake::next_round();
+    }
+    const std::size_t r = p - first_robot_seat();
+    robots[r]->step(now);
+    if (statuses.size() > 0) scheduler->notify(task_seat());
+    return Wake::next_round();  // every period it reads where its arm is and watches its grip and the safety layer
+  }
+
+  // Whether task control's step depends on time now, not only on statuses: recovery's watchdog on a robot waiting
+  // for an event (TaskControl::step, 4). Anything else in its step happens only after a status arrives. Keep this in
+  // step with TaskControl::step: a turn skipped that had something to do changes the run (the runtime tests compare
+  // the log with and without skipping).
+  bool task_watches_time() const {
+    if (!cfg.motion.recovery.enabled || task->state() != TaskControl::State::kRunning) return false;
+    const TaskView v = task->view();
+    return std::any_of(v.robots.begin(), v.robots.end(),
+                       [](const RobotView& r) { return r.activity == RobotActivity::kWaiting; });
+  }
+
+  // Seats (lock-step turns): simulation, image processing (with vision), task control, robots.
+  std::size_t vision_seat() const { return 1; }
   std::size_t task_seat() const { return vision ? 2 : 1; }
   std::size_t first_robot_seat() const { return task_seat() + 1; }
   std::size_t participants() const { return first_robot_seat() + robots.size(); }
@@ -384,7 +425,7 @@ struct Runtime::Impl {
         }
         release_plant();
         end_all();
-      } else if (participant == task_seat() - 1) {
+      } else if (vision && participant == vision_seat()) {
         while (!stopping) {
           Frame f;
           if (frames.pop_for(f, wall_period() * 10) != QueueStatus::ok) continue;
@@ -534,7 +575,7 @@ StepState Runtime::step() {
     s.result = im.result;
     return s;
   }
-  // Parked: the simulation thread holds the turn and waits, every other participant waits for its turn.
+  // Parked: the simulation thread holds the turn and waits (any other lock-step thread waits for its turn).
   s.time = im.clock.now();
   s.task = im.task->view();
   for (const auto& r : im.robots) s.robots.push_back(r->view());
@@ -564,11 +605,21 @@ void Runtime::start() {
   im.started = true;
   im.wall_start = std::chrono::steady_clock::now();
   if (config_.mode == Mode::kLockstep) {
-    im.scheduler = std::make_unique<LockstepScheduler>(participants);
-    for (std::size_t p = 0; p < participants; ++p) im.threads.emplace_back([&im, p] { im.run_lockstep(p); });
+    std::vector<std::size_t> threads_of(participants, 0);  // kShared: every participant on the simulation thread
+    if (config_.lockstep_threads == LockstepThreads::kOwn) {
+      for (std::size_t p = 0; p < participants; ++p) threads_of[p] = p;
+    }
+    im.scheduler = std::make_unique<LockstepScheduler>(std::move(threads_of), &im.clock);
+    for (std::size_t t = 0; t < im.scheduler->threads(); ++t) im.threads.emplace_back([&im, t] { im.run_lockstep(t); });
   } else {
     for (std::size_t p = 0; p < participants; ++p) im.threads.emplace_back([&im, p] { im.run_realtime(p); });
   }
+}
+
+void Runtime::set_lockstep(LockstepThreads threads, bool skip_idle) {
+  CW_CHECK(!impl_->started, "the lock-step turns are chosen before the run starts");
+  config_.lockstep_threads = threads;
+  config_.lockstep_skip_idle = skip_idle;
 }
 
 void Runtime::request_stop(const std::string& reason) {
@@ -607,6 +658,10 @@ RunResult Runtime::finish() {
   }
   r.collisions = im.collisions;
   r.environment = im.env.snapshot();
+  if (im.scheduler) {
+    r.lockstep = {im.scheduler->rounds(), im.scheduler->turns(), im.scheduler->skipped(), im.scheduler->handoffs(),
+                  im.pauses};
+  }
   if (r.outcome == Outcome::kStopped) log_->cell_stopped(r.end_time, r.reason);
   log_->run_end(r.end_time, to_string(r.outcome), r.reason, r.firings);
   im.result = r;

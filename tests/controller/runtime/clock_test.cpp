@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <latch>
 #include <limits>
+#include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -301,6 +303,176 @@ TEST(RuntimeLockstep, VirtualTimeDrivesPeriodicThreadsDeterministically) {
     expected += fmt::format("{} image: model updated\n{} task: woke\n", t.count(), t.count());
   }
   for (int run = 0; run < 20; ++run) ASSERT_EQ(run_miniature_cell(), expected) << "run " << run;
+}
+
+// ---- Event-driven turns and threads that take several participants' turns ----
+
+// A small script over 4 participants, run by whatever threads `threads_of` says. Participant 0 is the clock: it
+// advances 10 ms a turn and stops the run at 60 ms. 1 sleeps 25 ms after each turn. 2 sleeps until notified and, when
+// it runs, notifies 3. 3 runs every round and notifies 2 at 30 ms. Returns "id@ms" per turn taken, in order.
+struct ScriptRun {
+  std::string order;
+  std::uint64_t skipped = 0, handoffs = 0, turns = 0, rounds = 0;
+};
+
+ScriptRun run_script(std::vector<std::size_t> threads_of) {
+  VirtualClock clock;
+  LockstepScheduler scheduler(threads_of, &clock);
+  ScriptRun out;
+  const auto turn = [&](LockstepScheduler::Id id) -> std::optional<Wake> {  // nothing: the run ends
+    const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(clock.now()).count();
+    out.order += fmt::format("{}@{} ", id, ms);
+    switch (id) {
+      case 0:
+        if (clock.now() >= 60ms) return std::nullopt;
+        clock.advance(10ms);
+        return Wake::next_round();
+      case 1:
+        return Wake::at(clock.now() + 25ms);
+      case 2:
+        scheduler.notify(3);
+        return Wake::on_notify();
+      default:
+        if (clock.now() == 30ms) scheduler.notify(2);
+        return Wake::next_round();
+    }
+  };
+  std::vector<std::thread> threads;
+  for (std::size_t t = 0; t < scheduler.threads(); ++t) {
+    threads.emplace_back([&, t] {
+      LockstepScheduler::Seat seat(scheduler, LockstepScheduler::Thread{t});
+      while (seat.await_turn()) {
+        const std::optional<Wake> next = turn(seat.id());
+        if (!next) {
+          scheduler.stop();
+          break;
+        }
+        seat.yield(*next);
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  out.skipped = scheduler.skipped();
+  out.handoffs = scheduler.handoffs();
+  out.turns = scheduler.turns();
+  out.rounds = scheduler.rounds();
+  return out;
+}
+
+// What the script must do, worked out by hand: 1 runs at 10 ms, then not before 35 ms (so at 40 ms), then not
+// before 65 ms (never); 2 runs at 10 ms (every participant starts awake), then only when 3 has notified it at 30 ms:
+// 3's seat is after 2's, so in the next round (40 ms); 3 every round.
+const char* const kScriptOrder =
+    "0@0 1@10 2@10 3@10 "
+    "0@10 3@20 "
+    "0@20 3@30 "
+    "0@30 1@40 2@40 3@40 "
+    "0@40 3@50 "
+    "0@50 3@60 "
+    "0@60 ";
+
+TEST(RuntimeLockstep, ASleeperIsNotWokenBeforeItsTimeAndANotifiedOneRunsInTheFixedOrder) {
+  const ScriptRun one = run_script({0, 0, 0, 0});
+  EXPECT_EQ(one.order, kScriptOrder);
+  // Passed over: 1 and 2 each in the rounds at 20, 30, 50 and 60 ms.
+  EXPECT_EQ(one.skipped, 8u);
+  EXPECT_EQ(one.handoffs, 0u);  // one thread: the turn never leaves it
+  EXPECT_EQ(one.rounds, 6u);
+}
+
+TEST(RuntimeLockstep, TheOrderIsTheSameWhicheverThreadsTakeTheTurns) {
+  for (int run = 0; run < 20; ++run) {
+    const ScriptRun each = run_script({0, 1, 2, 3});
+    const ScriptRun mixed = run_script({0, 0, 1, 1});
+    ASSERT_EQ(each.order, kScriptOrder) << "run " << run;
+    ASSERT_EQ(mixed.order, kScriptOrder) << "run " << run;
+    ASSERT_EQ(each.skipped, 8u);
+    // A thread each: every turn but the last (0's at 60 ms, which ends the run) is handed to another thread.
+    ASSERT_EQ(each.handoffs + 1, each.turns);
+    ASSERT_LT(mixed.handoffs, each.handoffs);
+  }
+}
+
+TEST(RuntimeLockstep, ANotifyBeforeTheSleepCountsAndOneAfterTheSeatWaitsForTheNextRound) {
+  VirtualClock clock;
+  LockstepScheduler s(std::vector<std::size_t>{0, 0}, &clock);
+  LockstepScheduler::Seat seat(s, LockstepScheduler::Thread{0});
+  // Yields the turn held, waits for the next and says whose it is.
+  const auto pass = [&](Wake next) {
+    seat.yield(next);
+    EXPECT_TRUE(seat.await_turn());
+    return seat.id();
+  };
+  ASSERT_TRUE(seat.await_turn());
+  ASSERT_EQ(seat.id(), 0u);
+  s.notify(1);  // before 1 sleeps: sticky
+  ASSERT_EQ(pass(Wake::next_round()), 1u);
+  EXPECT_EQ(pass(Wake::on_notify()), 0u);  // the earlier notify woke this turn of 1's, not the next: 1 sleeps now
+  EXPECT_EQ(pass(Wake::next_round()), 0u);  // 1 passed over
+  EXPECT_EQ(s.skipped(), 1u);
+  EXPECT_EQ(s.rounds(), 2u);
+  s.notify(1);
+  EXPECT_EQ(pass(Wake::next_round()), 1u);
+  EXPECT_EQ(pass(Wake::at(1s)), 0u);  // a sleeper until a time is also woken early by a notify
+  s.notify(1);
+  EXPECT_EQ(pass(Wake::next_round()), 1u);
+  EXPECT_EQ(clock.now(), SimDuration(0));
+  seat.yield();
+}
+
+TEST(RuntimeLockstep, WithEveryoneAsleepTheSchedulerIdlesUntilANotifyOrStop) {
+  VirtualClock clock;
+  LockstepScheduler s(std::vector<std::size_t>{0, 1, 0}, &clock);
+  std::vector<std::string> ran;
+  std::mutex ran_mutex;
+  ThreadGroup threads([&] { s.stop(); });
+  for (std::size_t t = 0; t < 2; ++t) {
+    threads.spawn([&, t] {
+      LockstepScheduler::Seat seat(s, LockstepScheduler::Thread{t});
+      while (seat.await_turn()) {
+        {
+          std::lock_guard lock(ran_mutex);
+          ran.push_back(fmt::format("{}", seat.id()));
+        }
+        seat.yield(Wake::on_notify());
+      }
+    });
+  }
+  ASSERT_TRUE(eventually([&] { return s.waiting() == 2 && s.turns() == 3; }));  // one round, then all asleep
+  EXPECT_EQ(s.skipped(), 3u);
+  s.notify(2);  // from outside: 2 takes the turn, then all sleep again
+  ASSERT_TRUE(eventually([&] { return s.waiting() == 2 && s.turns() == 4; }));
+  s.stop();  // wakes the sleepers' threads: await_turn returns false
+  threads.join();
+  EXPECT_EQ(ran, (std::vector<std::string>{"0", "1", "2", "2"}));
+}
+
+TEST(RuntimeLockstep, StopReleasesAThreadOfSeveralAndSleepers) {
+  LockstepScheduler s(std::vector<std::size_t>{0, 1, 1});
+  std::optional<LockstepScheduler::Id> got{7};
+  ThreadGroup threads([&] { s.stop(); });
+  threads.spawn([&] { got = s.await_turn(LockstepScheduler::Thread{1}); });
+  ASSERT_TRUE(eventually([&] { return s.waiting() == 1; }));  // it is 0's turn: thread 1 is parked
+  s.stop();
+  threads.join();
+  EXPECT_FALSE(got.has_value());
+  EXPECT_FALSE(s.await_turn(LockstepScheduler::Thread{0}).has_value());
+}
+
+TEST(RuntimeLockstep, MisuseOfThreadsAndWakesIsReported) {
+  EXPECT_THROW(LockstepScheduler(std::vector<std::size_t>{}), InternalError);
+  EXPECT_THROW(LockstepScheduler(std::vector<std::size_t>{0, 2}), InternalError);  // thread 1 serves nobody
+  LockstepScheduler s(std::vector<std::size_t>{0, 0, 1});  // no clock
+  EXPECT_EQ(s.threads(), 2u);
+  EXPECT_EQ(s.thread_of(2), 1u);
+  EXPECT_THROW((void)s.await_turn(LockstepScheduler::Thread{2}), InternalError);
+  EXPECT_THROW(s.notify(3), InternalError);
+  ASSERT_EQ(s.await_turn(LockstepScheduler::Thread{0}), std::optional<LockstepScheduler::Id>(0));
+  EXPECT_THROW((void)s.await_turn(LockstepScheduler::Thread{0}), InternalError);  // already holds it
+  EXPECT_THROW(s.yield(0, Wake::at(1s)), InternalError);                          // no clock to wake it by
+  s.yield(0);
+  s.leave(2);
+  EXPECT_THROW((void)s.await_turn(LockstepScheduler::Thread{1}), InternalError);  // all of thread 1 left
 }
 
 // A wall clock that moves only when the pacer sleeps, or when the test says so.

@@ -313,6 +313,67 @@ TEST(RuntimeRun, LockstepLogsAreByteIdenticalOverTwentyRuns) {
   }
 }
 
+// The lock-step turns are a deployment choice that must not show in the log: every participant on the simulation
+// thread or each on its own, passing over the participants with nothing to do or giving everyone every turn, the run
+// is the same byte for byte. Run with a lost signal and the wait watchdog, so that task control must also take its
+// turns while a robot waits (the watchdog is a time, not a message).
+struct LockstepVariant {
+  LockstepThreads threads;
+  bool skip_idle;
+};
+
+std::pair<std::string, LockstepStats> run_variant(LockstepVariant v, bool lose_a_signal) {
+  ScriptedCell cell;
+  cell.config.lockstep_threads = v.threads;
+  cell.config.lockstep_skip_idle = v.skip_idle;
+  if (lose_a_signal) {
+    cell.config.lost_signals = {1};
+    cell.config.motion.recovery.wait_timeout = std::chrono::milliseconds(500);
+  }
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  EXPECT_EQ(r.outcome, Outcome::kFinished) << r.reason;
+  return {rt.log().text(), r.lockstep};
+}
+
+TEST(RuntimeRun, TheLogIsTheSameOnOneThreadOrManyAndWithIdleParticipantsPassedOver) {
+  for (const bool lose : {false, true}) {
+    SCOPED_TRACE(lose ? "a signal lost" : "plain");
+    const auto [before, today] = run_variant({LockstepThreads::kOwn, false}, lose);  // the scheduling of old
+    ASSERT_GT(before.size(), 1000u);
+    if (lose) {
+      ASSERT_NE(before.find("\"wait_timeout\""), std::string::npos);  // the watchdog did act
+    }
+    for (const LockstepVariant v : {LockstepVariant{LockstepThreads::kOwn, true},
+                                    LockstepVariant{LockstepThreads::kShared, false},
+                                    LockstepVariant{LockstepThreads::kShared, true}}) {
+      const auto [log, stats] = run_variant(v, lose);
+      EXPECT_EQ(log, before) << "threads " << (v.threads == LockstepThreads::kOwn ? "own" : "shared") << ", skip "
+                             << v.skip_idle;
+      EXPECT_EQ(stats.rounds, today.rounds);
+    }
+  }
+}
+
+TEST(RuntimeRun, IdleParticipantsCostNoTurnAndOneThreadNoHandOff) {
+  // The exchange has 4 participants: simulation, task control, two robots.
+  const auto [log_own, own] = run_variant({LockstepThreads::kOwn, false}, false);
+  EXPECT_GT(own.rounds, 100u);
+  EXPECT_EQ(own.skipped, 0u);
+  EXPECT_EQ(own.turns, 4 * own.rounds + 1);  // the simulation's last turn ends the run before its yield
+  EXPECT_EQ(own.handoffs + 1, own.turns);    // every turn but that last one woke another thread
+  const auto [log_skip, skip] = run_variant({LockstepThreads::kOwn, true}, false);
+  // Task control takes a turn when a robot has reported, and every period while a robot waits for an event (the
+  // watchdog); otherwise it is passed over. The robots take every turn.
+  EXPECT_GT(skip.skipped, 0u);
+  EXPECT_EQ(skip.turns + skip.skipped, own.turns);
+  EXPECT_LT(skip.handoffs, own.handoffs);
+  const auto [log_one, one] = run_variant({LockstepThreads::kShared, true}, false);
+  EXPECT_EQ(one.handoffs, 0u);  // every turn on the simulation thread
+  EXPECT_EQ(one.turns, skip.turns);
+  EXPECT_EQ(one.pauses, 0u);  // run(), not step()
+}
+
 TEST(RuntimeRun, TheLogShowsWhenTwoRobotsDurationsAreSwapped) {
   // The byte comparison above would catch an order change: swapping the arms' speeds changes when events happen.
   ScriptedCell a("exchange.task", {{"puma", ScriptedTiming{120, 40}}, {"melfa", ScriptedTiming{80, 40}}});

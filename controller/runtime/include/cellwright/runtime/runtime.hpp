@@ -12,10 +12,15 @@
 //   robot control  one per program robot, RobotControl::step (robot_control.hpp).
 // The main thread (the caller) builds everything, checks the input, starts and joins the threads.
 //
-// LOCK-STEP mode: the threads take turns through a LockstepScheduler in the fixed order simulation, image processing,
-// task control, robot 1..n, once per control period; each turn runs to quiescence without blocking. Simulation time is
-// a VirtualClock advanced by the simulation turn. Nothing depends on wall-clock time or the OS scheduler, so the event
-// log is byte-identical from run to run and on one core or many.
+// LOCK-STEP mode: the threads' work is done in turns through a LockstepScheduler in the fixed order simulation, image
+// processing, task control, robot 1..n, once per control period; each turn runs to quiescence without blocking.
+// Simulation time is a VirtualClock advanced by the simulation turn. Nothing depends on wall-clock time or the OS
+// scheduler, so the event log is byte-identical from run to run and on one core or many. Turns cost no thread switch
+// and idle participants no turn (clock.hpp): by default the simulation thread takes every participant's turn
+// (RunConfig::lockstep_threads), image processing sleeps until the simulation queues a frame for it, and task control
+// until a robot leaves a status in its inbox (or, while a robot waits for an event with recovery on, every period: the
+// wait watchdog is a time). Robots take every turn (they read where their arm is and watch their sensors every
+// period). Neither choice changes the order of the turns that run, so neither changes the log.
 // REAL-TIME mode: the same threads run freely. The simulation thread paces itself to the wall clock (RealtimePacer,
 // at `realtime_speed`); task control and robot control sleep on an Event until a message or a driver notification
 // arrives, or at most one control period (the period at which they watch sensor conditions).
@@ -66,6 +71,12 @@ struct Binding {
 
 enum class Mode { kLockstep, kRealtime };
 
+// Lock-step: which threads take the participants' turns. The order of the turns, hence the log, is the same either way.
+enum class LockstepThreads {
+  kShared,  // the simulation thread takes every turn: no thread switch between turns (the default)
+  kOwn,     // each participant on a thread of its own, as in real time: every turn handed to another thread is a wake
+};
+
 // "lockstep", "realtime".
 const char* to_string(Mode mode);
 
@@ -99,6 +110,10 @@ struct RunConfig {
   Mode mode = Mode::kLockstep;
   SimDuration period = std::chrono::milliseconds(10);  // control period: one lock-step round
   double realtime_speed = 1.0;                         // real-time mode: simulation time per wall time
+  LockstepThreads lockstep_threads = LockstepThreads::kShared;
+  // Lock-step: pass over participants with nothing to do (image processing without a frame, task control without a
+  // status; see the top). false gives every participant every turn, as before, for comparisons: the log is the same.
+  bool lockstep_skip_idle = true;
   Limits limits;
   MotionOptions motion;
   std::ostream* log_stream = nullptr;  // the event log is also written here (JSONL), if set
@@ -122,6 +137,15 @@ struct RobotTime {
   ActivityTime time;  // adds up to RunResult::end_time
 };
 
+// What taking turns cost in a lock-step run (all zero in real time).
+struct LockstepStats {
+  std::uint64_t rounds = 0;    // control periods
+  std::uint64_t turns = 0;     // turns taken, all participants together
+  std::uint64_t skipped = 0;   // turns passed over: a participant asleep with nothing to do
+  std::uint64_t handoffs = 0;  // turns handed to another thread: each a wake of that thread and a thread switch
+  std::uint64_t pauses = 0;    // stepping (Runtime::step): the simulation thread parked and handed back to the caller
+};
+
 struct RunResult {
   Outcome outcome = Outcome::kTimeout;
   std::string reason;                      // kFailed/kTimeout: why; kFinished: ""
@@ -132,6 +156,7 @@ struct RunResult {
   std::vector<RobotTime> robots;      // program order
   std::vector<Collision> collisions;  // every collision logged, in order
   EnvironmentModel environment;       // the environment model at the end
+  LockstepStats lockstep;
 };
 
 // The state `twin step` shows after each step.
@@ -168,6 +193,10 @@ class Runtime {
   // safely: the robots are halted, the outcome is kStopped with `reason`, and run()/step() return the result with the
   // log complete up to then. Does nothing after the end.
   void request_stop(const std::string& reason);
+
+  // Before the run starts (InternalError after): how lock-step turns are taken (RunConfig::lockstep_threads and
+  // lockstep_skip_idle), for a caller that did not build the config itself (a ScenarioRun), e.g. to compare them.
+  void set_lockstep(LockstepThreads threads, bool skip_idle);
 
   // The event log (complete once run() has returned).
   const EventLog& log() const { return *log_; }

@@ -131,7 +131,7 @@ bool RobotControl::bind_class(SimDuration now, const task::Primitive& p) {
   instances_[label] = part;
   misplace_checked_.erase(std::remove(misplace_checked_.begin(), misplace_checked_.end(), part),
                           misplace_checked_.end());  // a new part, though maybe the same body as before
-  log_.sensor(now, label_, static_cast<int>(current_->command.index), "bound", fmt::format("{}={}", label, part));
+  log_.sensor(now, label_, current_->command.index, "bound", part);  // the class's part is `part` from now on
   return true;
 }
 

@@ -351,7 +351,7 @@ TEST(ReportAccount, EachStatusFromTheFinalPosesAndTheEvents) {
   Scenario s = exchange_scenario();
   // A in place; B held by the MELFA; C never fed (a fed part that did not arrive); D where it started (no
   // expectation: elsewhere, where it is).
-  s.feed = Feed{"input", {"C"}, 0, 0, {}};
+  s.feed = Feed{"input", {"C"}, 0, 0, 1, {}};
   FinalPose b;
   b.name = "B";
   b.held_by = "melfa";
@@ -457,7 +457,7 @@ TEST(ReportAccount, PartExpectedLostAndLostIsOk) {
 
 TEST(ReportAccount, LostPartThatNeverArrivedIsNotArrivedAndAccounted) {
   Scenario s = exchange_scenario();
-  s.feed = Feed{"input", {"A"}, 0, 0, {}};
+  s.feed = Feed{"input", {"A"}, 0, 0, 1, {}};
   LogWriter w;
   w.start();
   w.event(0, "fault_injected", R"("kind":"missing","robot":"","workpiece":"A","detail":"")");

@@ -11,8 +11,8 @@
 //                     driver, drivers::describe(); "" when nothing was sent yet)
 //   command_end       robot, primitive, command, ok (true|false), reason ("" when ok)
 //   sensor            robot, primitive, condition ("gripped" | "closed_on_nothing" | "closed_on_wrong_part" |
-//                     "grip_not_sensed" | "released" | "position_reached" | "position_missed" | "waiting_for_part"),
-//                     workpiece ("" if none)
+//                     "grip_not_sensed" | "released" | "position_reached" | "position_missed" | "waiting_for_part" |
+//                     "bound": a workpiece class of the command now means this part), workpiece ("" if none)
 //   collision         a, b, depth (m, 6 decimals)
 //   workpiece_arrived workpiece, where
 //   workpiece_left    workpiece, where (the conveyor it was carried off): the part left the cell, delivered

@@ -1,13 +1,25 @@
-// The cycle-time estimate of a scenario: command durations from the kinematics and the controller's speeds, the
-// part's arrival on the conveyor, and the timed net they feed.
+// The cycle-time estimate of a scenario: command durations from the kinematics, the controller's speeds and the
+// lock-step turns, the part's arrival on the conveyor, and the timed net they feed; and, on every shipped scenario,
+// the estimate against a lock-step run of it made here (so it stays true whatever the physics or the runtime become).
 #include "cellwright/twin/scenario/estimate.hpp"
 
+#include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "cellwright/task/to_net.hpp"
+#include "cellwright/twin/scenario/report.hpp"
+#include "cellwright/twin/scenario/run.hpp"
+#include "cellwright/twin/sim/grip_timing.hpp"
 #include "cellwright/twin/sim/trajectory.hpp"
 
 namespace cellwright::twin::scenario {
@@ -15,7 +27,7 @@ namespace {
 
 const std::string kScenes = std::string(CW_SOURCE_DIR) + "/scenes";
 
-EstimateOptions uniform(double joint_speed, double min_move_time, double dispatch) {
+EstimateOptions uniform(double joint_speed, double min_move_time) {
   EstimateOptions o;
   for (const char* robot : {"puma", "melfa"}) {
     RobotTiming t;
@@ -23,10 +35,13 @@ EstimateOptions uniform(double joint_speed, double min_move_time, double dispatc
     t.speed = 0.5;
     t.min_move_time = min_move_time;
     t.finger_speed = 0.05;
-    t.finger_travel = 0.04;
+    t.finger_open = 0.04;
+    t.finger_closed = 0.0;
+    t.finger_squeeze = 0.002;
     o.robots[robot] = t;
   }
-  o.dispatch = dispatch;
+  o.control_period = 0.01;
+  o.physics_step = 0.002;
   return o;
 }
 
@@ -45,40 +60,53 @@ class ExchangeEstimate : public ::testing::Test {
 };
 
 TEST_F(ExchangeEstimate, CommandDurationsFollowTheirKinds) {
-  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2, 0.02));
+  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
   EXPECT_TRUE(e.notes.empty()) << e.notes.front();
   ASSERT_EQ(e.commands.size(), 14u + 16u);
-  const double grip = sim::kQuinticPeakSpeed * 0.04 / 0.05 + 0.02;
   for (const CommandEstimate& c : e.commands) {
     const task::Primitive& p = s_.program.programs[c.robot == "r1" ? 0 : 1].primitives[c.primitive];
-    switch (p.kind) {
-      case task::PrimitiveKind::kMove:
-        EXPECT_GE(c.seconds, 0.2 + 0.02) << c.command;
-        EXPECT_LT(c.seconds, 10.0) << c.command;
-        break;
-      case task::PrimitiveKind::kOpen:
-      case task::PrimitiveKind::kClose:
-        EXPECT_DOUBLE_EQ(c.seconds, grip) << c.command;
-        break;
-      case task::PrimitiveKind::kSignal:
-      case task::PrimitiveKind::kWait:
-        EXPECT_EQ(c.seconds, 0.0) << c.command;
-        break;
+    if (p.kind == task::PrimitiveKind::kMove) {
+      // At least the shortest motion; then up to the end of its round, a round to read the position back and one to
+      // fire the next transition.
+      EXPECT_GE(c.motion, 0.2) << c.command;
+      EXPECT_LT(c.motion, 10.0) << c.command;
+      EXPECT_GT(c.seconds, c.motion + 2 * 0.01) << c.command;
+      EXPECT_LE(c.seconds, c.motion + 3 * 0.01 + 0.002 + 1e-9) << c.command;  // (its end rounded to a 2 ms step)
+      EXPECT_NEAR(std::remainder(c.seconds, 0.01), 0.0, 1e-9) << c.command;  // whole rounds
+    } else if (p.kind == task::PrimitiveKind::kOpen || p.kind == task::PrimitiveKind::kClose) {
+      EXPECT_GT(c.seconds, c.motion + 0.01) << c.command;  // no read-back
+      EXPECT_LE(c.seconds, c.motion + 2 * 0.01 + 0.002 + 1e-9) << c.command;
+    } else {
+      EXPECT_EQ(c.seconds, 0.0) << c.command;
     }
   }
   // "move at(A)" after "move above(A)" is a short straight drop: shorter than the move from home to above A.
   EXPECT_LT(find(e, "r1", 2).seconds, find(e, "r1", 1).seconds);
 }
 
+TEST_F(ExchangeEstimate, GripsTakeTheFingerTravelTheyReallyMake) {
+  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
+  // r1's first open: the fingers are already open (homing opened them): the shortest finger motion.
+  EXPECT_DOUBLE_EQ(find(e, "r1", 0).motion, sim::kFingerMinTime + sim::kFingerRestWindow);
+  // Closing on A (40 mm across the fingers): done when the ramp has run the squeeze past the faces, well before
+  // fully closed; the open that lets go of it then runs the whole ramp back.
+  const double full = sim::kQuinticPeakSpeed * 0.04 / 0.05;
+  const double close = find(e, "r1", 3).motion - sim::kFingerRestWindow;
+  EXPECT_NEAR(close, *sim::finger_press_time(0.04, 0.0, 0.02, 0.002, 0.05), 1e-9);
+  EXPECT_GT(close, 0.3 * full);
+  EXPECT_LT(close, 0.7 * full);
+  EXPECT_NEAR(find(e, "r1", 10).motion, full + sim::kFingerRestWindow, 1e-12);
+}
+
 TEST_F(ExchangeEstimate, FasterJointsMakeMovesProportionallyShorter) {
-  // Without a minimum time or dispatch cost a joint move's duration is distance / speed: twice the speed, half the
-  // time; grips do not change.
-  const Estimate slow = estimate_cycle_time(s_, net_, uniform(1.0, 0.0, 0.0));
-  const Estimate fast = estimate_cycle_time(s_, net_, uniform(2.0, 0.0, 0.0));
+  // Without a minimum time a joint move's motion is distance / speed: twice the speed, half the time; grips do not
+  // change.
+  const Estimate slow = estimate_cycle_time(s_, net_, uniform(1.0, 0.0));
+  const Estimate fast = estimate_cycle_time(s_, net_, uniform(2.0, 0.0));
   ASSERT_EQ(slow.commands.size(), fast.commands.size());
   for (std::size_t i = 0; i < slow.commands.size(); ++i) {
     if (slow.commands[i].command.starts_with("move")) {
-      EXPECT_NEAR(fast.commands[i].seconds, slow.commands[i].seconds / 2, 1e-9) << slow.commands[i].command;
+      EXPECT_NEAR(fast.commands[i].motion, slow.commands[i].motion / 2, 1e-9) << slow.commands[i].command;
     } else {
       EXPECT_DOUBLE_EQ(fast.commands[i].seconds, slow.commands[i].seconds) << slow.commands[i].command;
     }
@@ -87,22 +115,24 @@ TEST_F(ExchangeEstimate, FasterJointsMakeMovesProportionallyShorter) {
 }
 
 TEST_F(ExchangeEstimate, PuttingThePartOnTheBeltWaitsForItToReachTheStop) {
-  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2, 0.02));
+  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
   // A starts on the input belt and rides it to the stop bar at the belt's speed.
   const models::ConveyorSpec& input = *s_.cell.find_conveyor("input");
   const models::WorkpieceSpec& a = *s_.cell.find_workpiece("A");
   const double s0 = (input.pose.transform().inverse() * a.pose.xyz).x() + input.length / 2;
   const double arrival = (input.leave - a.size.x() / 2 - s0) / input.speed;
   ASSERT_GT(arrival, 1.0);
-  // The move that goes above A (r1's primitive 1, started by r1.t1) waits for it; the open before it does not.
+  // The move that goes above A (r1's primitive 1, started by r1.t1) waits for it; the open before it only for the
+  // robot's bring-up.
   const auto t1 = *e.timed_net.find_transition(task::transition_id("r1", 1));
   const auto t0 = *e.timed_net.find_transition(task::transition_id("r1", 0));
   for (const TimedFiring& f : e.run.firings) {
     if (f.transition == t0) {
-      EXPECT_DOUBLE_EQ(f.time, 0.0);
+      // After the bring-up: homing (the shortest motion, 0.2 s) seen in round 21, the first command taken in 22.
+      EXPECT_NEAR(f.time, 0.22, 1e-9);
     }
     if (f.transition == t1) {
-      EXPECT_NEAR(f.time, arrival, 1e-9);
+      EXPECT_NEAR(f.time, std::ceil(arrival / 0.01 - 1e-9) * 0.01, 1e-9);  // seen in the round after
     }
   }
   EXPECT_TRUE(e.run.finished);
@@ -111,7 +141,7 @@ TEST_F(ExchangeEstimate, PuttingThePartOnTheBeltWaitsForItToReachTheStop) {
 }
 
 TEST_F(ExchangeEstimate, CycleIsTheTimedNetsFinishWithTheseDurations) {
-  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2, 0.02));
+  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
   const TimedRun again = simulate_timed(e.timed_net, e.place_duration);
   EXPECT_DOUBLE_EQ(again.finish, e.cycle_time);
   // The critical path after the pick: r2 cannot start its approach before r1's step 1 ends, and places last. The
@@ -128,10 +158,90 @@ TEST_F(ExchangeEstimate, CycleIsTheTimedNetsFinishWithTheseDurations) {
 }
 
 TEST_F(ExchangeEstimate, RobotWithoutTimingIsABug) {
-  EstimateOptions o = uniform(2.0, 0.2, 0.02);
+  EstimateOptions o = uniform(2.0, 0.2);
   o.robots.erase("melfa");
   EXPECT_THROW(estimate_cycle_time(s_, net_, o), InternalError);
 }
+
+
+
+// ---- The estimate against the twin -------------------------------------------------------------------------------
+
+// Every scenario shipped in scenes/ (a YAML file with a program).
+std::vector<std::string> shipped_scenarios() {
+  std::vector<std::string> out;
+  for (const auto& entry : std::filesystem::directory_iterator(kScenes)) {
+    if (entry.path().extension() != ".yaml") continue;
+    std::ifstream in(entry.path());
+    for (std::string line; std::getline(in, line);) {
+      if (line.starts_with("program:")) {
+        out.push_back(entry.path().filename().string());
+        break;
+      }
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// Per robot command: when the estimate and the run started it, and how long each took (for a failure's message).
+std::string comparison(const Estimate& e, const std::string& events_text) {
+  std::map<std::string, double> est_fire, fire;
+  for (const TimedFiring& f : e.run.firings) est_fire.emplace(e.timed_net.transitions()[f.transition].id, f.time);
+  for (const auto& ev : parse_event_log(events_text, "events.jsonl")) {
+    if (ev["type"] == "fire") fire.emplace(ev["transition"].get<std::string>(), ev["t"].get<double>());
+  }
+  std::string out = "robot primitive command: started estimated / measured, lasted estimated / measured (s)\n";
+  for (std::size_t i = 0; i < e.commands.size(); ++i) {
+    const CommandEstimate& c = e.commands[i];
+    const auto at = [](const std::map<std::string, double>& m, const std::string& id) {
+      const auto it = m.find(id);
+      return it == m.end() ? -1.0 : it->second;
+    };
+    const std::string id = task::transition_id(c.robot, c.primitive);
+    const std::string next = task::transition_id(c.robot, c.primitive + 1);
+    out += fmt::format("{} {:2} {:28} {:8.2f} / {:8.2f}  {:6.2f} / {:6.2f}  {}\n", c.robot, c.primitive, c.command,
+                       at(est_fire, id), at(fire, id), c.seconds, at(fire, next) - at(fire, id), c.basis);
+  }
+  return out;
+}
+
+class ShippedScenario : public ::testing::TestWithParam<std::string> {};
+
+// The target of docs/scenarios.md: the estimate printed before a run within 5 % of the cycle the run measures (the
+// last firing), on every shipped scenario, from a lock-step run made here.
+TEST_P(ShippedScenario, EstimateIsWithinFivePercentOfTheMeasuredCycle) {
+  const Scenario s = load_scenario(kScenes + "/" + GetParam());
+  if (s.feed && s.feed->recycles()) {
+    // Not modelled yet (estimate.hpp): a feed of more parts than bodies waits for a delivered body to come round.
+    GTEST_SKIP() << GetParam() << ": the estimate does not model a feed that recycles its bodies";
+  }
+  const Preflight pre = preflight(s);
+  ASSERT_TRUE(pre.ok()) << pre.problems.front();
+  ScenarioRun run(s, pre.net);
+  const Estimate& e = run.estimate();
+  EXPECT_TRUE(e.run.finished);
+  EXPECT_TRUE(e.notes.empty()) << e.notes.front();
+  ASSERT_EQ(run.runtime().run().outcome, runtime::Outcome::kFinished);
+  const Report report = run.report();
+  ASSERT_TRUE(report.finished_at.has_value());
+  const double measured = *report.finished_at;
+  const double error = (e.cycle_time - measured) / measured;
+  RecordProperty("estimated_cycle_s", fmt::format("{:.2f}", e.cycle_time));
+  RecordProperty("measured_cycle_s", fmt::format("{:.2f}", measured));
+  EXPECT_LE(std::abs(error), 0.05) << fmt::format("estimated {:.2f} s, measured {:.2f} s ({:+.1f} %)\n", e.cycle_time,
+                                                  measured, 100 * error)
+                                   << comparison(e, run.runtime().log().text());
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, ShippedScenario, ::testing::ValuesIn(shipped_scenarios()),
+                         [](const ::testing::TestParamInfo<std::string>& param) {
+                           std::string name = param.param.substr(0, param.param.find('.'));
+                           for (char& ch : name) {
+                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                           }
+                           return name;
+                         });
 
 }  // namespace
 }  // namespace cellwright::twin::scenario

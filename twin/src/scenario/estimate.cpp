@@ -12,6 +12,7 @@
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/runtime/robot_control.hpp"
 #include "cellwright/task/to_net.hpp"
+#include "cellwright/twin/sim/grip_timing.hpp"
 #include "cellwright/twin/sim/trajectory.hpp"
 
 namespace cellwright::twin::scenario {
@@ -46,19 +47,33 @@ std::optional<double> pick_ready_time(const models::CellDescription& cell, const
   return start_time + (c->speed > 0 ? travel / c->speed : 0.0);
 }
 
-// The program's net with extra places: one per part that arrives late, a self-loop on the transition that starts the
-// first move to it, holding its token until the part is there.
+// The program's net with the parts' arrivals: per part that arrives late, a place "coming" holding a token until the
+// part is there (its duration), a transition "arrived" that fires then, and a place "arrived" on a self-loop of the
+// transition that starts the first move to it. The self-loop gives the token back at once: when a loop runs that move
+// again, the next part is taken to be waiting already (fed faster than the cell takes them; a slower feed is not
+// modelled).
 petri::Net with_arrivals(const petri::Net& net, const std::vector<ArrivalGate>& gates, std::vector<double>& durations) {
   petri::NetBuilder b(net.name());
   for (const petri::Place& p : net.places()) b.add_place(p);
   for (const petri::Transition& t : net.transitions()) b.add_transition(t);
   for (const ArrivalGate& g : gates) {
-    petri::Place p;
-    p.id = fmt::format("arrival.{}", g.workpiece);
-    p.name = fmt::format("{} arrived", g.workpiece);
-    p.initial = 1;
-    const petri::PlaceId id = b.add_place(std::move(p));
+    petri::Place coming;
+    coming.id = fmt::format("arrival.{}.coming", g.workpiece);
+    coming.name = fmt::format("{} on its way", g.workpiece);
+    coming.initial = 1;
+    const petri::PlaceId from = b.add_place(std::move(coming));
     durations.push_back(g.ready);
+    petri::Place here;
+    here.id = fmt::format("arrival.{}", g.workpiece);
+    here.name = fmt::format("{} arrived", g.workpiece);
+    const petri::PlaceId id = b.add_place(std::move(here));
+    durations.push_back(0.0);
+    petri::Transition arrived;
+    arrived.id = fmt::format("arrival.{}.arrived", g.workpiece);
+    arrived.name = fmt::format("{} arrives", g.workpiece);
+    arrived.inputs.push_back({from, 1});
+    arrived.outputs.push_back({id, 1});
+    b.add_transition(std::move(arrived));
     b.transition(g.transition).inputs.push_back({id, 1});
     b.transition(g.transition).outputs.push_back({id, 1});
   }
@@ -66,6 +81,25 @@ petri::Net with_arrivals(const petri::Net& net, const std::vector<ArrivalGate>& 
   b.set_robots(net.robots());
   b.set_final(net.final_places());
   return std::move(b).build();
+}
+
+// Half the extent of a workpiece along the unit direction `d` (world): where fingers closing along d touch it.
+double half_extent(const runtime::WorkpieceState& w, const Eigen::Vector3d& d) {
+  const Eigen::Vector3d local = w.pose.linear().transpose() * d;
+  const Eigen::Vector3d size = w.size();
+  if (w.shape() == models::Shape::kCylinder) {  // size: diameter, -, height; its axis along its z
+    return 0.5 * size.x() * std::hypot(local.x(), local.y()) + 0.5 * size.z() * std::abs(local.z());
+  }
+  return 0.5 * local.cwiseAbs().dot(size);
+}
+
+// From the firing that starts a command to the firing after it, in lock-step (see estimate.hpp): the driver's `motion`
+// seconds end at a physics step, seen by robot control in the round of that step, a move's read-back one round later,
+// the next firing one round after that.
+double lockstep_span(double motion, bool move, double period, double step) {
+  const double steps = std::ceil(motion / step - 1e-9);
+  const double rounds = std::floor(steps * step / period + 1e-9) + 1;
+  return (rounds + (move ? 2 : 1)) * period;
 }
 
 }  // namespace
@@ -257,6 +291,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           }
           c.goal.assign(goal->data(), goal->data() + goal->size());
           rs.joints = c.goal;
+          rs.tcp = tcp_of(arm, rs.joints);
           if (auto h = held.find(arm.cell); h != held.end()) {
             model.find_workpiece(h->second.first)->pose = tcp_of(arm, rs.joints) * h->second.second;
           }
@@ -272,6 +307,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           runtime::WorkpieceState& ws = *model.find_workpiece(w);
           const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
           if (p.kind == task::PrimitiveKind::kClose) {
+            c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)
+            rs.released_tcp.reset();
             held[arm.cell] = {w, tcp.inverse() * ws.pose};
             ws.held_by = arm.cell;
             // As robot control records it: held from above when the tool points down, else from the side.
@@ -280,6 +317,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
             rs.hold = runtime::Hold{w, down ? models::Approach::kDown : models::Approach::kSide,
                                     tcp.translation().z() - bottom};
           } else {
+            // As robot control records it: the hand departs straight up from where it let go (resolve_target).
+            if (rs.hold) rs.released_tcp = tcp;
             held.erase(arm.cell);
             rs.hold.reset();
             if (ws.held_by == arm.cell) ws.held_by.clear();
@@ -307,48 +346,69 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Est
     CW_CHECK(it != options.robots.end(), "no timing for robot {}", cell_name);
     timing.push_back(&it->second);
   }
-  const MotionPlan plan = plan_motions(s, net, options.targets);
+  MotionPlan plan = plan_motions(s, net, options.targets);
   est.notes = plan.problems();
 
+  const double period = options.control_period, step = options.physics_step;
+  CW_CHECK(period > 0 && step > 0, "control period {} s, physics step {} s", period, step);
   std::vector<double> durations(net.num_places(), 0.0);
   for (std::size_t r = 0; r < plan.commands.size(); ++r) {
     const RobotTiming& rt = *timing[r];
+    // Bring-up: the driver homes (the arm to its home joints, the fingers opening), then robot control activates it
+    // and takes the first command in the next round.
+    const double home = std::max(rt.min_move_time, sim::kFingerMinTime + sim::kFingerRestWindow);
+    durations[*net.find_place(task::start_place_id(prog.robots[r]))] = lockstep_span(home, false, period, step);
+    double fingers = rt.finger_open;  // where the finger ramp stands (homing opened the fingers)
     for (const PlannedCommand& c : plan.commands[r]) {
       CommandEstimate ce;
       ce.robot = c.robot;
       ce.primitive = c.primitive;
       ce.command = c.command;
-      switch (c.kind) {
-        case task::PrimitiveKind::kMove:
-          if (c.goal.empty()) {
-            ce.seconds = rt.min_move_time + options.dispatch;
-            ce.basis = c.reached ? "move that cannot be made" : "not reached";
-          } else {
-            CW_CHECK(rt.max_joint_speed.size() == c.goal.size(), "robot {}: {} joint speeds for {} joints", c.cell,
-                     rt.max_joint_speed.size(), c.goal.size());
-            const Eigen::VectorXd from = vec(c.from), goal = vec(c.goal);
-            ce.seconds =
-                sim::move_duration(from, goal, vec(rt.max_joint_speed), rt.speed, rt.min_move_time) + options.dispatch;
-            Eigen::Index j = 0;
-            const double largest = (goal - from).cwiseAbs().maxCoeff(&j);
-            ce.basis = fmt::format("joint move, largest step {:.3f} rad (joint {})", largest, j + 1);
-          }
-          break;
-        case task::PrimitiveKind::kOpen:
-        case task::PrimitiveKind::kClose:
-          ce.seconds = sim::kQuinticPeakSpeed * rt.finger_travel / rt.finger_speed + options.dispatch;
-          ce.basis = fmt::format("finger travel {:.3f} m at {:.3f} m/s", rt.finger_travel, rt.finger_speed);
-          break;
-        case task::PrimitiveKind::kSignal:
-        case task::PrimitiveKind::kWait:
-        case task::PrimitiveKind::kLoop:
-          ce.basis = "net only";
-          break;
+      if (c.kind == task::PrimitiveKind::kMove) {
+        if (c.goal.empty()) {
+          ce.motion = rt.min_move_time;
+          ce.basis = c.reached ? "move that cannot be made" : "not reached";
+        } else {
+          CW_CHECK(rt.max_joint_speed.size() == c.goal.size(), "robot {}: {} joint speeds for {} joints", c.cell,
+                   rt.max_joint_speed.size(), c.goal.size());
+          const Eigen::VectorXd from = vec(c.from), goal = vec(c.goal);
+          ce.motion = sim::move_duration(from, goal, vec(rt.max_joint_speed), rt.speed, rt.min_move_time);
+          Eigen::Index j = 0;
+          const double largest = (goal - from).cwiseAbs().maxCoeff(&j);
+          ce.basis = fmt::format("joint move, largest step {:.3f} rad (joint {})", largest, j + 1);
+        }
+        ce.seconds = lockstep_span(ce.motion, true, period, step);
+      } else if (c.kind == task::PrimitiveKind::kOpen) {
+        ce.motion = sim::finger_ramp_duration(fingers, rt.finger_open, rt.finger_speed) + sim::kFingerRestWindow;
+        ce.basis = fmt::format("fingers open from {:.4f} m to {:.4f} m at {:.3f} m/s", fingers, rt.finger_open,
+                               rt.finger_speed);
+        fingers = rt.finger_open;
+        ce.seconds = lockstep_span(ce.motion, false, period, step);
+      } else if (c.kind == task::PrimitiveKind::kClose) {
+        const std::optional<double> press =
+            c.contact && fingers > rt.finger_closed
+                ? sim::finger_press_time(fingers, rt.finger_closed, *c.contact, rt.finger_squeeze, rt.finger_speed)
+                : std::nullopt;
+        if (press) {
+          ce.motion = *press + sim::kFingerRestWindow;
+          ce.basis = fmt::format("fingers close from {:.4f} m on a part {:.4f} m wide at {:.3f} m/s", fingers,
+                                 2 * *c.contact, rt.finger_speed);
+        } else {
+          ce.motion = sim::finger_ramp_duration(fingers, rt.finger_closed, rt.finger_speed) + sim::kFingerRestWindow;
+          ce.basis = fmt::format("fingers close from {:.4f} m to {:.4f} m at {:.3f} m/s", fingers, rt.finger_closed,
+                                 rt.finger_speed);
+        }
+        fingers = rt.finger_closed;  // the ramp runs on to fully closed (see the top)
+        ce.seconds = lockstep_span(ce.motion, false, period, step);
+      } else {
+        ce.basis = "net only";  // signal, wait, a loop's end
       }
       durations[*net.find_place(task::place_id(c.robot, c.primitive))] = ce.seconds;
       est.commands.push_back(std::move(ce));
     }
   }
+  // A part seen at rest is taken in the round after it came to rest.
+  for (ArrivalGate& g : plan.gates) g.ready = std::ceil(g.ready / period - 1e-9) * period;
   est.timed_net = with_arrivals(net, plan.gates, durations);
   est.place_duration = durations;
   task::LoopControl loops(est.timed_net, prog);

@@ -133,9 +133,8 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   // A simulation driver for each robot the program uses, and the timing the estimate needs from it.
   EstimateOptions estimate_options;
   estimate_options.targets.handover_clearance = s.options.handover_clearance;
-  // A command's completion is seen by robot control in the round the simulation completed it; task control fires the
-  // next transition in the following round, and the driver starts it at the next physics step: two control periods.
-  estimate_options.dispatch = 2 * s.options.control_period;
+  estimate_options.control_period = s.options.control_period;
+  estimate_options.physics_step = s.cell.timestep;
   for (const Binding& b : s.robots) {
     sim::SimDriverOptions driver_options;
     for (const DriverChoice& d : s.drivers) {
@@ -176,7 +175,11 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     timing.min_move_time = driver_options.min_move_time;
     timing.finger_speed = driver_options.finger_speed;
     const RobotIds& ids = *world_->scene().find_robot(b.name);
-    timing.finger_travel = ids.finger_range[1] - ids.finger_range[0];
+    timing.finger_closed = ids.finger_range[0];
+    timing.finger_open = ids.finger_range[1];
+    // The fingers' servo stiffness (N/m) in the scene: the grip force is reached this far behind the ramp.
+    const double finger_stiffness = world_->scene().model()->actuator_gainprm[ids.finger_actuator[0] * mjNGAIN];
+    timing.finger_squeeze = driver.capabilities().gripper_max_force / finger_stiffness;
     estimate_options.robots[b.name] = timing;
   }
 

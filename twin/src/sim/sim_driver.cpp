@@ -7,6 +7,8 @@
 #include <numbers>
 #include <type_traits>
 
+#include "cellwright/twin/sim/grip_timing.hpp"
+
 namespace cellwright::twin::sim {
 
 using drivers::CommandId;
@@ -16,8 +18,6 @@ using drivers::Submitted;
 
 namespace {
 
-constexpr double kFingerRestWindow = 0.02;  // s the fingers must stay stopped for a grip to be done
-constexpr double kFingerMinTime = 0.1;      // s, the shortest finger motion
 constexpr double kLinearAngleStep = 0.05;   // rad of tool rotation between straight-line waypoints
 constexpr double kOnPartMargin = 0.001;     // m short of fully closed for a close to count as on a part
 
@@ -360,8 +360,7 @@ void SimDriver::move_fingers(std::chrono::nanoseconds now, double goal, double f
   finger_force_ = force;
   finger_closing_ = goal < finger_from_;
   finger_start_ = now;
-  finger_duration_ =
-      std::max(kFingerMinTime, kQuinticPeakSpeed * std::abs(goal - finger_from_) / options_.finger_speed);
+  finger_duration_ = finger_ramp_duration(finger_from_, goal, options_.finger_speed);
 }
 
 void SimDriver::start_head(std::chrono::nanoseconds now, Job& head) {

@@ -1,23 +1,32 @@
 // The cycle-time estimate made before a run: the program's Petri net timed with the durations of its commands and
 // simulated at earliest firing times (timed_net.hpp), all robots concurrent, waits resolved at the times of their
-// signals.
+// signals. It predicts a lock-step run on the twin; docs/scenarios.md compares it with measured runs.
 //
 // First the motion plan (plan_motions), which follows the program in the order one untimed run of the net gives: each
 // move's target is resolved as robot control resolves it (runtime::resolve_target on an environment model that
 // follows the program: parts held move with the hand and keep the approach they were grasped with, parts put down
-// rest where they were put, parts on a conveyor are picked at its stop) and solved with the robot's inverse kinematics
-// from its previous joints (the solution within the limits closest to them). Preflight refuses a program with a move
-// the plan cannot make.
+// rest where they were put, parts on a conveyor are picked at its stop, a hand that has just let go of a part departs
+// straight up from where it let go) and solved with the robot's inverse kinematics from its previous joints (the
+// solution within the limits closest to them). Preflight refuses a program with a move the plan cannot make.
 //
-// Then the command durations, per robot primitive:
-//  - move: timed as the simulated controller times a joint move (sim::move_duration: the quintic profile's peak within
-//    max_joint_speed x speed, at least min_move_time);
-//  - open/close: the fingers' quintic travel across their whole range at finger_speed;
-//  - signal/wait: 0 (a wait lasts until its signal, which the timed net resolves);
-//  - each move/open/close also costs `dispatch` seconds: the control periods between a command's completion and the
-//    firing that starts the next one.
+// Then the command durations, per robot primitive, as the simulated controller (sim/sim_driver.hpp) ends them:
+//  - move: a joint move (robot control sends joint targets to a simulation driver): sim::move_duration, the quintic
+//    profile's peak within max_joint_speed x speed, at least min_move_time;
+//  - open/close: the finger ramp (sim/grip_timing.hpp) from where the last grip left it: an open to fully open, a
+//    close to fully closed or, on a part, until the fingers press it (the part's width across the fingers from the
+//    plan), then the rest window;
+//  - signal/wait (and a loop's end): 0 (a wait lasts until its signal, which the timed net resolves);
+//  - lock-step turns: the driver starts a command at the physics step after the round it was sent in and ends it at
+//    a physics step; robot control sees that in the next round, a move's position read-back takes one more round,
+//    and task control fires the next transition in the round after the command's end. So a command lasts from its
+//    firing to the next one: its physical time rounded up to the physics step and then to the control period, plus
+//    two periods (a move three).
+//  - before its first command each robot homes (min_move_time at home speed, the fingers opening) and activates.
 // A part that arrives on a conveyor (fed, or carried to the stop from where it starts) holds back the move that goes
-// to pick it until it has arrived, at the belt's speed; parts queueing behind each other are not modelled.
+// to pick it until it has arrived, at the belt's speed; parts queueing behind each other are not modelled, nor the
+// frames a camera needs to see a part (perception vision), nor the few control periods a part pressed against a
+// stop bar may take to come to rest. The finger ramp of a close is taken to be over by the next open (it is over
+// 1.5 s after the close began, and an arm moves in between).
 //
 // Thread safety: pure functions; any thread may call them.
 #pragma once
@@ -48,6 +57,9 @@ struct PlannedCommand {
   std::vector<double> from, goal;  // joints before and after (goal empty when the move cannot be made)
   std::string target;              // the resolved target ("above B: tool at (...)"), or "" when unresolved
   std::string problem;             // why the move cannot be made, "" when it can
+  // Close only: half the width of the part across the fingers (m), where they close on it; nullopt when the plan puts
+  // no part between them (a close that names none).
+  std::optional<double> contact;
 };
 
 // A part that has to arrive before a robot can go to it: `transition` starts the first move to it.
@@ -76,13 +88,16 @@ struct RobotTiming {
   std::vector<double> max_joint_speed;  // rad/s per arm joint at speed 1
   double speed = 0.5;                   // fraction of max_joint_speed the moves use
   double min_move_time = 0.2;           // s, the shortest motion
-  double finger_speed = 0.05;           // m/s of each finger
-  double finger_travel = 0.04;          // m of each finger from fully open to fully closed
+  double finger_speed = 0.05;           // m/s of each finger's ramp at its peak
+  double finger_open = 0.04;            // m: each finger's position fully open ...
+  double finger_closed = 0.0;           // ... and fully closed
+  double finger_squeeze = 0.002;        // m: grip force / finger stiffness, the ramp's lead when the fingers press
 };
 
 struct EstimateOptions {
   std::map<std::string, RobotTiming> robots;  // by cell robot name; every program robot needs one
-  double dispatch = 0.02;                     // s per command, see the top
+  double control_period = 0.01;               // s: the lock-step round (scenario options.control_period)
+  double physics_step = 0.002;                // s: the simulation's timestep (the cell's timestep)
   runtime::TargetOptions targets;
 };
 
@@ -91,8 +106,9 @@ struct CommandEstimate {
   std::string robot;  // program label
   std::size_t primitive = 0;
   std::string command;  // "move above(A)"
-  double seconds = 0;
-  std::string basis;  // "joint move, largest step 1.234 rad (joint 2)", "finger travel ...", "net only"
+  double motion = 0;   // s the driver takes (its physical part, before the lock-step turns are added)
+  double seconds = 0;  // s from the firing that starts it to the firing after it (what the timed net uses)
+  std::string basis;   // "joint move, largest step 1.234 rad (joint 2)", "close on a part ...", "net only"
 };
 
 struct Estimate {
@@ -105,8 +121,8 @@ struct Estimate {
 };
 
 // Estimates the cycle time of the scenario's program, whose net is `net` (task::to_net of the program), from its
-// motion plan. Throws InternalError when a program robot has no timing in `options` (or one of the wrong size);
-// InputError if a URDF cannot be read.
+// motion plan. Throws InternalError when a program robot has no timing in `options` (or one of the wrong size), or a
+// period or step is not > 0; InputError if a URDF cannot be read.
 Estimate estimate_cycle_time(const Scenario& scenario, const petri::Net& net, const EstimateOptions& options);
 
 }  // namespace cellwright::twin::scenario

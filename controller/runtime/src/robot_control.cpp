@@ -117,11 +117,19 @@ bool RobotControl::bind_class(SimDuration now, const task::Primitive& p) {
       return best->name;
     });
   } else if (!hand_peer_.empty()) {
-    // A Get: the part the giver holds.
+    // A Get: the part the giver holds; if it holds none (it lost it, and skips its hand-over), the part it took for
+    // it, so that the taker skips too.
     part = env_.write([&](EnvironmentModel& m) {
       const RobotState* giver = m.find_robot(hand_peer_);
-      if (giver == nullptr || !giver->hold) return std::string();
-      WorkpieceState* w = m.find_workpiece(giver->hold->workpiece);
+      if (giver == nullptr) return std::string();
+      WorkpieceState* w = nullptr;
+      if (giver->hold) {
+        w = m.find_workpiece(giver->hold->workpiece);
+      } else {
+        for (WorkpieceState& c : m.workpieces) {
+          if (c.claimed_by == hand_peer_) w = &c;
+        }
+      }
       if (w == nullptr) return std::string();
       w->claimed_by = cell_;
       return w->name;
@@ -286,6 +294,10 @@ bool RobotControl::submit_current(SimDuration now) {
                   p.kind == task::PrimitiveKind::kMove ? p.target.object : p.workpiece);
       current_->wait_logged = true;
     }
+    return false;
+  }
+  if (!current_->step && !recovery_ && about_lost_part()) {  // the class's part just bound is one declared lost
+    skip_current(now, "its workpiece is lost");
     return false;
   }
   if (p.kind == task::PrimitiveKind::kMove) {

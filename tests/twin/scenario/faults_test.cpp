@@ -154,7 +154,7 @@ TEST_F(FaultFiles, BadEntriesNameFileLineAndField) {
   expect_error("  - {kind: drop, robot: kuka}\n", 6, "names robot 'kuka', which is not a robot of the cell");
   expect_error("  - {kind: missing, workpiece: Z}\n", 6, "names workpiece 'Z', which is not a workpiece of the cell");
   expect_error("  - {kind: drop, robot: puma, distance: 0.01}\n", 6,
-               "unknown field 'distance' in the drop fault (a drop fault takes: kind, robot, carry, after)");
+               "unknown field 'distance' in the drop fault (a drop fault takes: kind, robot, carry, every, after)");
   expect_error("  - {kind: drop, robot: puma, colour: red}\n", 6, "unknown field 'colour'");
   expect_error("  - {kind: drop, robot: puma, carry: 0}\n", 6,
                "field 'carry' of the drop fault must be a whole number from 1 up, got '0'");
@@ -194,7 +194,7 @@ TEST_F(FaultFiles, ExpectLost) {
 TEST(FaultText, ReadsEveryKindAndWritesItBack) {
   const std::vector<std::string> texts = {
       "drop:robot=puma",
-      "slip:robot=melfa,carry=2,after=0.5,distance=0.02",
+      "slip:robot=melfa,carry=2,every=5,after=0.5,distance=0.02",
       "misplace:workpiece=A,offset=0.05/0.01,yaw=12",
       "unreachable:workpiece=B",
       "missing:workpiece=C",
@@ -216,6 +216,9 @@ TEST(FaultText, ReadsEveryKindAndWritesItBack) {
     EXPECT_EQ(parse_fault_text(full, paper_cell()), f) << texts[i] << " -> " << full;
     EXPECT_EQ(to_text(parse_fault_text(full, paper_cell())), full);
   }
+  EXPECT_EQ(parse_fault_text(texts[1], paper_cell()).every, 5u);  // a slip at carries 2, 7, 12, ...
+  EXPECT_EQ(parse_fault_text(texts[0], paper_cell()).every, 0u);  // once only
+  EXPECT_THROW(parse_fault_text("drop:robot=puma,every=0", paper_cell()), InputError);
   const FaultSpec m = parse_fault_text("misplace:workpiece=A,offset=0.05/0.01,yaw=12", paper_cell());
   EXPECT_DOUBLE_EQ(m.offset[0], 0.05);
   EXPECT_DOUBLE_EQ(m.offset[1], 0.01);

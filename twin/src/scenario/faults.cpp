@@ -97,7 +97,8 @@ FaultSpec FaultSpec::defaults(FaultKind kind) {
 }
 
 bool FaultSpec::operator==(const FaultSpec& o) const {
-  return kind == o.kind && robot == o.robot && workpiece == o.workpiece && carry == o.carry && after == o.after &&
+  return kind == o.kind && robot == o.robot && workpiece == o.workpiece && carry == o.carry && every == o.every &&
+         after == o.after &&
          distance == o.distance && offset == o.offset && yaw == o.yaw && size == o.size && ahead == o.ahead &&
          duration == o.duration && time == o.time && command == o.command && n == o.n && count == o.count &&
          sigma == o.sigma && sigma_yaw == o.sigma_yaw;
@@ -107,8 +108,8 @@ const std::vector<std::string>& fault_fields(FaultKind kind) {
   static const std::array<std::vector<std::string>, kFaultKinds> fields = [] {
     std::array<std::vector<std::string>, kFaultKinds> f;
     const std::vector<std::string> driver{"robot", "command", "n"};
-    f[static_cast<std::size_t>(FaultKind::drop)] = {"robot", "carry", "after"};
-    f[static_cast<std::size_t>(FaultKind::slip)] = {"robot", "carry", "after", "distance"};
+    f[static_cast<std::size_t>(FaultKind::drop)] = {"robot", "carry", "every", "after"};
+    f[static_cast<std::size_t>(FaultKind::slip)] = {"robot", "carry", "every", "after", "distance"};
     f[static_cast<std::size_t>(FaultKind::misplace)] = {"workpiece", "offset", "yaw"};
     f[static_cast<std::size_t>(FaultKind::unreachable)] = {"workpiece", "distance"};
     f[static_cast<std::size_t>(FaultKind::missing)] = {"workpiece"};
@@ -152,7 +153,7 @@ FaultSpec parse_fault(const Doc& doc, const YAML::Node& entry, const models::Cel
   }
   // Every field of every kind: the check above has already refused those this kind does not take.
   const Fields f(doc, entry, what,
-                 {"kind", "robot", "workpiece", "carry", "after", "distance", "offset", "yaw", "size", "ahead",
+                 {"kind", "robot", "workpiece", "carry", "every", "after", "distance", "offset", "yaw", "size", "ahead",
                   "duration", "time", "command", "n", "count", "sigma", "sigma_yaw"});
   FaultSpec s = FaultSpec::defaults(*kind);
   s.where = doc.at(entry);
@@ -180,6 +181,7 @@ FaultSpec parse_fault(const Doc& doc, const YAML::Node& entry, const models::Cel
     return f.has(key) ? count_of(doc, f.node(key), f.field(key)) : fallback;
   };
   s.carry = count("carry", s.carry);
+  s.every = count("every", s.every);
   s.n = count("n", s.n);
   s.count = count("count", s.count);
   s.after = f.non_negative_or("after", s.after);
@@ -287,6 +289,7 @@ std::string to_text(const FaultSpec& f) {
     if (key == "robot") add(key, f.robot);
     if (key == "workpiece") add(key, f.workpiece);
     if (key == "carry") add(key, fmt::format("{}", f.carry));
+    if (key == "every" && f.every > 0) add(key, fmt::format("{}", f.every));  // absent: once only
     if (key == "after") add(key, fmt::format("{}", f.after));
     if (key == "distance") add(key, fmt::format("{}", f.distance));
     if (key == "offset") add(key, fmt::format("{}/{}", f.offset[0], f.offset[1]));

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <set>
 
 #include "cellwright/task/to_net.hpp"
 
@@ -598,8 +599,10 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
     const double span = *std::max_element(places.begin(), places.end()) - *std::min_element(picks.begin(), picks.end());
     if (span > 0) r.throughput = static_cast<double>(r.parts_completed) * 60.0 / span;
   }
+  std::set<std::pair<std::string, std::int64_t>> skipped;  // (robot, primitive) of commands skipped, not done
   for (const json& e : events) {
     const std::string type = e["type"].get<std::string>();
+    if (type == "skipped") skipped.insert({e.value("robot", std::string()), e.value("primitive", std::int64_t{-1})});
     if (type == "workpiece_arrived") ++r.parts_fed;
     if (type == "workpiece_left") ++r.parts_delivered;
     if (type == "command_end" && e.value("ok", false)) {
@@ -609,6 +612,8 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
       if (it == s.program.robots.end()) continue;
       const auto& prims = s.program.programs[static_cast<std::size_t>(it - s.program.robots.begin())].primitives;
       const auto k = static_cast<std::size_t>(field<std::int64_t>(e, "primitive", file));
+      // A skipped open (of a part declared lost) placed nothing.
+      if (skipped.erase({robot, static_cast<std::int64_t>(k)}) != 0) continue;
       if (k < prims.size() && prims[k].kind == task::PrimitiveKind::kOpen && !prims[k].workpiece.empty() &&
           prims[k].task.rfind("Place", 0) == 0) {
         r.placed_at.push_back(e["t"].get<double>());

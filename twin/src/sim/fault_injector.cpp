@@ -274,8 +274,16 @@ void FaultInjector::update_carries(const WorldTruth& truth) {
       c.since = c.last_held = now;
       ++c.count;
       for (Active& a : faults_) {
-        if (a.done || a.part >= 0 || (a.spec.kind != FaultKind::drop && a.spec.kind != FaultKind::slip)) continue;
-        if (robot_index(a.spec.robot) != r || a.spec.carry != c.count) continue;
+        if (a.spec.kind != FaultKind::drop && a.spec.kind != FaultKind::slip) continue;
+        const bool due = a.spec.carry == c.count || (a.spec.every > 0 && c.count > a.spec.carry &&
+                                                     (c.count - a.spec.carry) % a.spec.every == 0);
+        if (robot_index(a.spec.robot) != r || !due) continue;
+        if (a.spec.every > 0 && a.done) {  // a fault at a set rate: armed again for this carry
+          a.done = false;
+          a.part = -1;
+          a.slip_left = 0;
+        }
+        if (a.done || a.part >= 0) continue;
         a.part = c.part;
         a.due = now + std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(a.spec.after));
       }
@@ -368,7 +376,7 @@ void FaultInjector::update() {
     if (now < a.due || !held || world_.clearance_below(part) < room) continue;
     const Eigen::Vector3d at = truth.workpieces[static_cast<std::size_t>(a.part)].pose.translation();
     const std::string when = fmt::format("carry {} of '{}', {:.3f} s after the grasp, at ({:.3f}, {:.3f}, {:.3f}) m",
-                                         f.carry, part, seconds(now - c.since), at.x(), at.y(), at.z());
+                                         c.count, part, seconds(now - c.since), at.x(), at.y(), at.z());
     if (f.kind == FaultKind::drop) {
       SimDriver* driver = world_.driver(f.robot);
       a.done = true;

@@ -29,6 +29,10 @@ void WorldPlant::recycle_at(std::vector<std::string> conveyors) {
     CW_CHECK(c != nullptr, "recycle_at: no conveyor '{}'", name);
     exits_.push_back(c);
   }
+  bodies_.clear();
+  for (const FeedEvent& f : feed_) {
+    if (std::find(bodies_.begin(), bodies_.end(), f.workpiece) == bodies_.end()) bodies_.push_back(f.workpiece);
+  }
 }
 
 void WorldPlant::take_out_delivered() {
@@ -72,10 +76,16 @@ std::vector<runtime::InjectedFault> WorldPlant::new_faults() {
 void WorldPlant::advance(runtime::SimDuration dt) {
   // Due parts first, in order; one still blocked by the part before it waits (and so do the ones behind it).
   while (next_feed_ < feed_.size() && feed_[next_feed_].time <= world_.now()) {
-    const FeedEvent& f = feed_[next_feed_];
-    const FeedResult r = world_.feed(f.workpiece, f.conveyor, f.offset);
+    FeedEvent& f = feed_[next_feed_];
+    FeedResult r = world_.feed(f.workpiece, f.conveyor, f.offset);
+    // A shift: a body still in the cell is replaced by the next parked one, in the feed's order.
+    for (std::size_t b = 0; r.status == FeedStatus::not_parked && b < bodies_.size() && !exits_.empty(); ++b) {
+      if (bodies_[b] == f.workpiece) continue;
+      r = world_.feed(bodies_[b], f.conveyor, f.offset);
+      if (r.status != FeedStatus::not_parked) f.workpiece = bodies_[b];
+    }
     if (r.status == FeedStatus::occupied) break;
-    if (r.status == FeedStatus::not_parked && !exits_.empty()) break;  // its body has not left the cell yet
+    if (r.status == FeedStatus::not_parked && !exits_.empty()) break;  // no body has left the cell yet
     CW_CHECK(r.ok(), "feeding {} onto {} at {} ns: {}", f.workpiece, f.conveyor, f.time.count(), r.message);
     arrivals_.push_back({f.workpiece, f.conveyor});
     if (injector_) injector_->fed(f.workpiece);

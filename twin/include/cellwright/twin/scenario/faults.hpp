@@ -3,7 +3,8 @@
 //
 // A FaultSpec is a plain value: the kind, where (a robot or a workpiece, as the kind needs) and when and what, every
 // field holding the kind's default until the input sets it. It is read
-//  - from a YAML map, an entry of a scenario's `faults:` list: `{kind: drop, robot: puma, carry: 1, after: 0.5}`;
+//  - from a YAML map, an entry of a scenario's `faults:` list: `{kind: drop, robot: puma, carry: 1, after: 0.5}`
+//    (with `every: 50`, again at carries 51, 101, ...: a fault at a set rate, for soaks);
 //  - from command-line text, the same fields as `KIND:key=value,key=value`, a list value written `a/b`
 //    (`misplace:workpiece=A,offset=0.04/0.02,yaw=10`); to_text() writes that form back (every field of the kind).
 // Both check every field: an unknown field or one the kind does not take, a value of the wrong type or range, a
@@ -75,6 +76,7 @@ struct FaultSpec {
   std::string robot;      // cell robot (drop, slip, obstacle, the driver faults); "" otherwise
   std::string workpiece;  // cell workpiece (misplace, unreachable, missing); "" otherwise
   std::uint64_t carry = 1;                  // drop, slip: the robot's n-th carry (from 1)
+  std::uint64_t every = 0;                  // drop, slip: and again every `every` carries after it (0: once only)
   double after = 0.3;                       // drop, slip: s after the carry began
   double distance = 0.015;                  // slip: m the part slides; unreachable: m out from the belt (0.6)
   std::array<double, 2> offset{0.04, 0.02};  // misplace: m along the part's own x and y (sides drawn from the seed)

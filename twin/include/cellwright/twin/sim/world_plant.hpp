@@ -69,8 +69,9 @@ class WorldPlant final : public runtime::Plant {
   // A shift of more parts than bodies (scenario Feed::count): a part carried to the `leave` point of one of these
   // conveyors (where parts fall off its end, or, with a stop, collect against it: its centre within 5 cm of the
   // point) has left the cell; it is parked out of the cell at once and reported by
-  // new_arrivals() with `left`, and its body may be fed again. A feed event whose body is still in the cell waits
-  // for it (and the events after it wait too). Call before the run.
+  // new_arrivals() with `left`, and its body may be fed again. A feed event whose body is still in the cell (or will
+  // never leave it: dropped on the floor) takes the next parked body of the feed instead; with none parked it waits
+  // (and the events after it wait too). Call before the run.
   void recycle_at(std::vector<std::string> conveyors);
 
   // Every MuJoCo warning raised so far, as the World words them.
@@ -88,6 +89,7 @@ class WorldPlant final : public runtime::Plant {
   std::size_t next_feed_ = 0;
   std::vector<runtime::Arrival> arrivals_;
   std::vector<const models::ConveyorSpec*> exits_;  // recycle_at()
+  std::vector<std::string> bodies_;                  // recycle_at(): the fed bodies, in order of first arrival
   void take_out_delivered();
   std::vector<std::string> warnings_;
   std::unique_ptr<Renderer> renderer_;  // made by capture() on the simulation thread

@@ -47,8 +47,9 @@
 // The safety layer (safety.hpp) is asked every period before any command is sent: while it says stop, the driver is
 // stopped (protective_stop) and nothing is sent; the command is done again once it releases.
 //
-// Threads: a RobotControl is used by its own robot-control thread only (step()), except connect() (main thread,
-// before the threads start) and view() (another thread, only while this one is not running: in lock-step outside its
+// Threads: step() runs on one thread at a time: its robot-control participant's (real time: its own thread; lock-step:
+// the thread the runtime gives the participant, by default the simulation thread, in its turn; runtime.hpp), except
+// connect() (main thread, before the threads start) and view() (another thread, only while this one is not running: in lock-step outside its
 // turn). It shares the environment model (Guarded), its inbox and the status queue.
 #pragma once
 

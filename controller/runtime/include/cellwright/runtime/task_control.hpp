@@ -20,7 +20,8 @@
 //   6. account time: the time since the previous step is added to each robot's activity as classified at the end of
 //      the previous step (busy / waiting / blocked / idle, see RobotActivity).
 //
-// Threads: TaskControl is used by the one task-control thread only (step(), and the accessors between steps). The
+// Threads: TaskControl is used by its task-control participant only (step(), and the accessors between steps): in
+// real time its own thread; in lock-step the thread the runtime gives it (runtime.hpp), in its turn. The
 // queues it holds are shared with the robot-control threads. view() may be read by another thread only while task
 // control is not running (in lock-step: outside its turn, e.g. while the runtime is paused in Runtime::step()).
 #pragma once

@@ -34,6 +34,11 @@ constexpr double kPayload = 1.0;          // kg, at the tool centre point
 constexpr double kKpMin = 100.0;          // N m / rad
 constexpr double kOmegaStep = 0.3;        // rad per timestep at the servo's natural frequency
 constexpr double kFingerSqueeze = 0.002;  // m of squeeze at which a finger reaches its grip force
+constexpr double kFingerOmegaFactor = 2.0;  // the fingers' natural frequency bound, times the arm servos'
+
+// --- Buffers ------------------------------------------------------------------------------------------------------
+constexpr int kNjmax = 500;    // constraint rows (see the <size> element below)
+constexpr int kNconmax = 200;  // contacts
 
 // --- Conveyor belts -------------------------------------------------------------------------------------------
 // The belt is a body sliding along the conveyor, driven by a velocity servo; its friction carries the parts. It is
@@ -49,7 +54,15 @@ constexpr const char* kBeltBits = "2";
 constexpr const char* kPartBits = "3";
 constexpr double kFrameGap = 0.002;  // m between the frame's top and the belt's top
 constexpr double kBeltMass = 2.0;
+// The belt's speed servo, force = kv (ctrl - v), is split into joint damping kv (which the Euler integrator treats
+// implicitly: as an actuator's velocity gain it would be explicit, and kv h / mass = 5 at a 5 ms step oscillates) and a
+// motor force kv ctrl: the same law, stable at any step.
 constexpr double kBeltKv = 2000.0;  // N / (m/s): 1 N of drag slows the belt by 0.5 mm/s
+// Parts on the belt: an accumulating conveyor's low-friction belt. A part pushed against the stop by the belt's
+// friction F = mu m g at its bottom, the stop pushing back up to its 40 mm top, tips when mu x 40 mm exceeds half
+// the part's 40 mm width: with mu = 1 the parts rocked at the stop (about 0.4 mm up and down at a 2 ms step, 1 mm at
+// 5 ms). 0.3 keeps them standing; it still takes a fed part to belt speed within 20 ms.
+const char* const kBeltFriction = "0.3 0.005 0.0001";
 constexpr double kPedestalSide = 0.3;
 
 const char* const kPadFriction = "1 0.005 0.0001";  // sliding, torsional, rolling (facts.md: grasps hold with these)
@@ -360,7 +373,11 @@ struct Builder {
       force_limit = j.limits && j.limits->effort > 0 ? j.limits->effort : 0;
       initial = is_arm ? r.spec->home[static_cast<std::size_t>(arm - r.arm_joints.begin())] : 0;
     }
-    const double armature = std::max(kp / (omega_max * omega_max), prismatic ? 0.01 : 0.01);
+    // The fingers' damping is joint damping, which Euler integrates implicitly: their spring alone must stay stable
+    // (symplectic Euler: omega h < 2), so they may be twice as fast as the arm servos; at a 5 ms step with the arms'
+    // bound they would take 30 ms to close the last millimetre on a part.
+    const double omega = is_finger ? kFingerOmegaFactor * omega_max : omega_max;
+    const double armature = std::max(kp / (omega * omega), prismatic ? 0.01 : 0.01);
     const double urdf_damping = j.dynamics ? j.dynamics->damping : 0.0;
     const double damping = std::max(urdf_damping, 2.0 * std::sqrt(kp * (armature + 0.5 * load.inertia)));
     // An arm servo's damping acts in the servo (force = kp (ctrl - q) - kd qdot, within the joint's effort), not as
@@ -480,7 +497,7 @@ struct Builder {
     // The belt: kBeltWrap longer than the conveyor, reaching kBeltWrap upstream at q = 0, so that for q in
     // [0, kBeltWrap) its top covers the whole conveyor. Collision only: the visible belt is the static plate above.
     x.open("body", {{"name", name + "/belt"}, {"pos", nums({0, 0, h - t / 2})}});
-    x.leaf("joint", {{"name", name + "/belt"}, {"type", "slide"}, {"axis", "1 0 0"}, {"damping", "0"}});
+    x.leaf("joint", {{"name", name + "/belt"}, {"type", "slide"}, {"axis", "1 0 0"}, {"damping", num(kBeltKv)}});
     qpos.push_back(0);
     x.leaf("inertial", {{"pos", "0 0 0"}, {"mass", num(kBeltMass)}, {"diaginertia", "0.1 0.1 0.1"}});
     x.leaf("geom", {{"name", name + "/belt"},
@@ -491,14 +508,16 @@ struct Builder {
                     {"size", nums({(l + kBeltWrap) / 2, w / 2, t / 2})},
                     {"contype", kBeltBits},
                     {"conaffinity", kBeltBits},
-                    {"friction", kPadFriction}});
+                    {"priority", "1"},  // its friction, not the part's, acts between them
+                    {"friction", kBeltFriction}});
     x.close();
     x.close();
     excludes.emplace_back(name, name + "/belt");
-    actuator("velocity",
+    actuator("general",
              {{"name", name + "/belt"},
               {"joint", name + "/belt"},
-              {"kv", num(kBeltKv)},
+              {"gaintype", "fixed"},
+              {"gainprm", num(kBeltKv)},  // with the joint's damping kBeltKv: a velocity servo, ctrl in m/s
               {"ctrllimited", "true"},
               {"ctrlrange", "-2 2"}},
              c.speed);
@@ -564,15 +583,18 @@ struct Builder {
   std::string build(const std::vector<RobotModel>& robots) {
     x.open("mujoco", {{"model", cell.name}});
     x.leaf("compiler", {{"angle", "radian"}, {"autolimits", "false"}, {"inertiafromgeom", "auto"}});
-    // Elliptic friction cones and a high impratio make friction grasps hold (facts.md); a few noslip iterations
-    // remove the slow creep of soft friction (a held part otherwise slides about 0.1 mm/s down the pads). The
-    // implicit integrator treats joint damping and the belts' velocity servos implicitly, which keeps them stable.
-    x.leaf("option", {{"timestep", num(cell.timestep)},
-                      {"integrator", "implicit"},
-                      {"cone", "elliptic"},
-                      {"impratio", "10"},
-                      {"noslip_iterations", "3"}});
-    x.leaf("size", {{"njmax", "4000"}, {"nconmax", "1000"}});
+    // docs/simulation.md, "Physics settings", has the measurements behind each choice. Elliptic friction cones and a
+    // high impratio make friction grasps hold (facts.md; pyramidal cones lost a part in the pipeline). Euler, not the
+    // implicit integrator: MuJoCo 2.2's implicit integration spends a third of a step on the velocity derivative of
+    // every force; Euler integrates joint damping (fingers, belts) implicitly and the arm servos' damping explicitly,
+    // which is stable because their natural frequency stays under kOmegaStep / timestep. No noslip iterations: the
+    // part held in the fingers creeps no more without them (pick_place_test), and they cost 15 % of a step.
+    x.leaf("option",
+           {{"timestep", num(cell.timestep)}, {"integrator", "Euler"}, {"cone", "elliptic"}, {"impratio", "10"}});
+    // MuJoCo 2.2 sizes mjData by these: njmax rows of constraint (its njmax x njmax matrix made 4000 rows cost 200
+    // MB), nconmax contacts. The shipped scenarios need at most about 135 rows and 35 contacts; a run that needs more
+    // fails with a clear error (World: the buffer-full warning faults every robot).
+    x.leaf("size", {{"njmax", std::to_string(kNjmax)}, {"nconmax", std::to_string(kNconmax)}});
     int offwidth = 640, offheight = 480;
     for (const auto& c : cell.cameras) {
       offwidth = std::max(offwidth, c.width);

@@ -375,7 +375,7 @@ TEST_F(ScenarioFiles, NumbersOutOfRange) {
   expect_error(scenario(head + "seed: -1\n"), 5, "field 'seed' of the scenario must be a whole number");
   expect_error(scenario(head + "limits: {sim_time: 0}\n"), 5, "must be greater than 0");
   expect_error(scenario(head + "options:\n  control_period: 0.0001\n"), 6, "whole multiple of the cell's simulation");
-  expect_error(scenario(head + "options:\n  control_period: 0.005\n"), 6, "whole multiple of the cell's simulation");
+  expect_error(scenario(head + "options:\n  control_period: 0.0125\n"), 6, "whole multiple of the cell's simulation");
   expect_error(scenario(head + "options: {realtime: maybe}\n"), 5, "must be true or false");
 }
 

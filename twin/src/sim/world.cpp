@@ -348,7 +348,7 @@ void World::check_contacts() {
 
 void World::check_warnings() {
   const mjData* d = scene_.data();
-  bool reset = false;
+  bool reset = false, full = false;
   for (int i = 0; i < mjNWARNING; ++i) {
     const int count = d->warning[i].number;
     int& seen = warning_counts_[static_cast<std::size_t>(i)];
@@ -359,10 +359,17 @@ void World::check_warnings() {
                                     d->warning[i].lastinfo));
     seen = count;
     reset = reset || resets_simulation(i);
+    full = full || i == mjWARN_CNSTRFULL || i == mjWARN_CONTACTFULL;
   }
-  if (!reset) return;
+  if (!reset && !full) return;
+  // Dropped contacts or constraints are as bad as a reset: parts fall through what holds them, grasps let go.
+  const mjModel* m = scene_.model();
   const std::string message =
-      fmt::format("the simulation was reset by MuJoCo at t={:.3f} s after a numerical failure", time());
+      reset ? fmt::format("the simulation was reset by MuJoCo at t={:.3f} s after a numerical failure", time())
+            : fmt::format("the physics dropped contacts or constraints at t={:.3f} s: the cell needed more than "
+                          "the scene's buffers hold ({} constraint rows, {} contacts; kNjmax and kNconmax in "
+                          "twin/src/scene.cpp)",
+                          time(), m->njmax, m->nconmax);
   for (auto& driver : drivers_) {
     if (driver) driver->fault(message, now(), d);
   }

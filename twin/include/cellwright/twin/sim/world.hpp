@@ -196,8 +196,9 @@ class World {
   // Whether MuJoCo raised warnings not drained yet.
   bool warnings() const { return !warnings_.empty(); }
   // MuJoCo's warnings since the last call, one line each: "t=1.234 s: MuJoCo warning: contact buffer full (raised
-  // 3 times; last info 1000)". When MuJoCo reset the simulation after bad accelerations, the drivers are put in fault
-  // and the line says so.
+  // 3 times; last info 1000)". When MuJoCo reset the simulation after bad accelerations, or its contact or
+  // constraint buffer was full (contacts were dropped: the scene's njmax and nconmax are too small for what the cell
+  // does), the drivers are put in fault with a message that says which; their commands fail with `hardware`.
   std::vector<std::string> drain_warnings();
 
   // Puts workpiece `workpiece`, waiting in the parking row, on conveyor `conveyor` at its entry point (`enter`), at

@@ -282,16 +282,12 @@ bool RobotControl::submit_current(SimDuration now) {
   const drivers::Capabilities& caps = driver_.capabilities();
   drivers::Command cmd;
   if (!bind_class(now, p)) {
+    const std::string& cls = p.kind == task::PrimitiveKind::kMove ? p.target.object : p.workpiece;
     phase_ = RobotPhase::kResolving;
-    current_->waiting_for = fmt::format("no part of {} has arrived at {} yet", p.kind == task::PrimitiveKind::kMove
-                                                                                 ? p.target.object
-                                                                                 : p.workpiece,
-                                        names_.classes.at(p.kind == task::PrimitiveKind::kMove ? p.target.object
-                                                                                                : p.workpiece));
+    current_->waiting_for = fmt::format("no part of {} has arrived at {} yet", cls, names_.classes.at(cls));
     log_start(now);
     if (!current_->wait_logged) {
-      log_.sensor(now, label_, current_->command.index, "waiting_for_part",
-                  p.kind == task::PrimitiveKind::kMove ? p.target.object : p.workpiece);
+      log_.sensor(now, label_, current_->command.index, "waiting_for_part", cls);
       current_->wait_logged = true;
     }
     return false;

@@ -88,7 +88,13 @@ class WorldPlant final : public runtime::Plant {
   std::vector<FeedEvent> feed_;
   std::size_t next_feed_ = 0;
   std::vector<runtime::Arrival> arrivals_;
-  std::vector<const models::ConveyorSpec*> exits_;  // recycle_at()
+  // recycle_at(): each exit conveyor with its belt's upstream end and direction (world), fixed for the run.
+  struct Exit {
+    const models::ConveyorSpec* conveyor = nullptr;
+    Eigen::Vector3d start = Eigen::Vector3d::Zero();
+    Eigen::Vector3d along = Eigen::Vector3d::UnitX();
+  };
+  std::vector<Exit> exits_;
   std::vector<std::string> bodies_;                  // recycle_at(): the fed bodies, in order of first arrival
   void take_out_delivered();
   std::vector<std::string> warnings_;

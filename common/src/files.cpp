@@ -1,5 +1,6 @@
 #include "cellwright/common/files.hpp"
 
+#include <stdlib.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -44,6 +45,40 @@ void write_file_atomically(const std::filesystem::path& path, std::string_view b
     std::filesystem::remove(tmp, ignored);
     throw InputError({path.string()}, fmt::format("cannot replace: {}", ec.message()));
   }
+}
+
+void move_file(const std::filesystem::path& from, const std::filesystem::path& to) {
+  std::error_code ec;
+  std::filesystem::rename(from, to, ec);
+  if (!ec) return;
+  if (ec != std::errc::cross_device_link) {
+    throw InputError({to.string()}, fmt::format("cannot move {} here: {}", from.string(), ec.message()));
+  }
+  const std::filesystem::path tmp = to.string() + fmt::format(".tmp.{}", ::getpid());
+  std::filesystem::copy_file(from, tmp, std::filesystem::copy_options::overwrite_existing, ec);
+  if (!ec) std::filesystem::rename(tmp, to, ec);
+  if (ec) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw InputError({to.string()}, fmt::format("cannot copy {} here: {}", from.string(), ec.message()));
+  }
+  std::filesystem::remove(from, ec);  // a leftover temporary file is not worth failing for
+}
+
+TemporaryFile::TemporaryFile(std::string_view prefix, std::string_view suffix) {
+  std::error_code ec;
+  std::filesystem::path dir = std::filesystem::temp_directory_path(ec);
+  if (ec) dir = "/tmp";
+  std::string name = (dir / fmt::format("{}XXXXXX{}", prefix, suffix)).string();
+  const int fd = ::mkstemps(name.data(), static_cast<int>(suffix.size()));
+  if (fd < 0) throw InputError({name}, fmt::format("cannot create a temporary file: {}", std::strerror(errno)));
+  ::close(fd);
+  path_ = name;
+}
+
+TemporaryFile::~TemporaryFile() {
+  std::error_code ignored;
+  std::filesystem::remove(path_, ignored);
 }
 
 }  // namespace cellwright

@@ -46,5 +46,35 @@ TEST_F(Files, UnwritableDirectoryLeavesTheOldFileIntact) {
   EXPECT_EQ(read_file(dir_ / "keep.txt"), "old");
 }
 
+TEST_F(Files, MoveFileReplacesTheTargetAndLeavesNothingBehind) {
+  write_file_atomically(dir_ / "a.jsonl", "new");
+  write_file_atomically(dir_ / "b.jsonl", "old");
+  move_file(dir_ / "a.jsonl", dir_ / "b.jsonl");
+  EXPECT_EQ(read_file(dir_ / "b.jsonl"), "new");
+  EXPECT_FALSE(fs::exists(dir_ / "a.jsonl"));
+  try {
+    move_file(dir_ / "gone.jsonl", dir_ / "b.jsonl");
+    FAIL() << "a missing file was moved";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("gone.jsonl"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(read_file(dir_ / "b.jsonl"), "new");  // unchanged
+}
+
+TEST_F(Files, TemporaryFileIsNewEmptyAndRemovedWhenItGoes) {
+  fs::path kept;
+  {
+    TemporaryFile a("cw-files-", ".jsonl");
+    const TemporaryFile b("cw-files-", ".jsonl");
+    kept = a.path();
+    EXPECT_NE(a.path(), b.path());
+    EXPECT_TRUE(fs::is_regular_file(a.path()));
+    EXPECT_EQ(fs::file_size(a.path()), 0u);
+    EXPECT_EQ(a.path().extension(), ".jsonl");
+    EXPECT_EQ(a.path().filename().string().rfind("cw-files-", 0), 0u);
+  }
+  EXPECT_FALSE(fs::exists(kept));
+}
+
 }  // namespace
 }  // namespace cellwright

@@ -69,9 +69,10 @@ TEST(RunCli, ExchangeMovesThePartToTheOutputConveyorAndRepeatsExactly) {
     EXPECT_TRUE(fs::is_regular_file(a / f)) << f;
     EXPECT_GT(fs::file_size(a / f), 0u) << f;
   }
-  // No temporary files are left behind by the atomic writes.
+  // No temporary files are left behind by the atomic writes, nor the log streamed during the run.
   for (const auto& entry : fs::directory_iterator(a)) {
     EXPECT_THAT(entry.path().filename().string(), Not(HasSubstr("tmp"))) << entry.path();
+    EXPECT_THAT(entry.path().filename().string(), Not(HasSubstr(".part"))) << entry.path();
   }
 
   const nlohmann::json report = nlohmann::json::parse(slurp(a / "report.json"));

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/common/files.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/dry_run.hpp"
@@ -184,6 +185,20 @@ void add_run(CLI::App& app, Command* run) {
       }
       options.on_progress = [progress](SimDuration t, std::uint64_t firings) { progress->print(t, firings); };
       options.progress_every = progress->every();
+      // The event log goes to a file as it is written, never held whole: into the output directory (renamed to
+      // events.jsonl at the end; a run that dies leaves events.jsonl.part), else into a temporary file.
+      std::optional<TemporaryFile> scratch;
+      if (args->out.empty()) {
+        scratch.emplace("cellwright-events-", ".jsonl");
+        options.events_file = scratch->path();
+      } else {
+        std::error_code ec;
+        std::filesystem::create_directories(args->out, ec);
+        if (ec) {
+          throw InputError({args->out, 0, 0}, fmt::format("cannot create the output directory: {}", ec.message()));
+        }
+        options.events_file = std::filesystem::path(args->out) / (std::string(kEventsFile) + ".part");
+      }
       ScenarioRun sr(s, pre.net, options);
 
       if (!args->quiet) {
@@ -216,7 +231,7 @@ void add_run(CLI::App& app, Command* run) {
 
       const Report report = sr.report();
       if (!args->out.empty()) {
-        write_outputs(args->out, s, report, sr.runtime().log().text(), sr.snapshot(800, 600));
+        sr.write_outputs(args->out, report, sr.snapshot(800, 600));
       }
       std::printf("%s", format_summary(report).c_str());
       for (const auto& m : sr.mirrors()) {

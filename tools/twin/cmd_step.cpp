@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 
+#include "cellwright/common/files.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/run.hpp"
@@ -83,6 +84,9 @@ void add_step(CLI::App& app, Command* run) {
       }
       RunOptions options;
       options.realtime = false;  // stepping is lock-step
+      // The event log streams to a file, as in `twin run`.
+      TemporaryFile scratch("cellwright-events-", ".jsonl");
+      options.events_file = scratch.path();
       ScenarioRun sr(s, pre.net, options);
       const petri::Net& net = sr.runtime().config().net;
       const bool interactive = isatty(STDIN_FILENO) == 1;
@@ -98,7 +102,7 @@ void add_step(CLI::App& app, Command* run) {
       auto finish = [&](const runtime::StepState& st) {
         print_state(net, st, false);
         const Report report = sr.report();
-        if (!out->empty()) write_outputs(*out, s, report, sr.runtime().log().text(), sr.snapshot(800, 600));
+        if (!out->empty()) sr.write_outputs(*out, report, sr.snapshot(800, 600));
         std::printf("%s", format_summary(report).c_str());
         if (!out->empty()) std::printf("outputs in %s\n", out->c_str());
         return report.ok() ? 0 : 1;

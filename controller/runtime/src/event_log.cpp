@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <stdexcept>
 
 #include "cellwright/common/error.hpp"
 
@@ -32,7 +33,11 @@ std::string head(SimDuration t, std::string_view type) {
 
 }  // namespace
 
-EventLog::EventLog(std::ostream* sink) : sink_(sink) {}
+EventLog::EventLog(std::ostream* sink, Keep keep) : sink_(sink), keep_(keep) {
+  if (keep == Keep::kNothing && sink == nullptr) {
+    throw std::invalid_argument("an event log that keeps no lines needs a sink to write them to");
+  }
+}
 
 void EventLog::append(std::string line, bool flush) {
   std::lock_guard lock(mutex_);
@@ -40,7 +45,15 @@ void EventLog::append(std::string line, bool flush) {
     *sink_ << line << '\n';
     if (flush) sink_->flush();
   }
-  lines_.push_back(std::move(line));
+  ++count_;
+  if (keep_ == Keep::kLines) lines_.push_back(std::move(line));
+}
+
+void EventLog::flush() const {
+  std::lock_guard lock(mutex_);
+  if (sink_ == nullptr) return;
+  sink_->flush();
+  if (!*sink_) throw std::runtime_error(fmt::format("the event log could not be written after {} lines", count_));
 }
 
 void EventLog::run_start(SimDuration t, std::string_view program, std::string_view cell, std::string_view mode,
@@ -184,11 +197,13 @@ void EventLog::vision(SimDuration t, SimDuration frame_time, const std::vector<S
 
 std::vector<std::string> EventLog::lines() const {
   std::lock_guard lock(mutex_);
+  CW_CHECK(keep_ == Keep::kLines, "lines() of an event log that streams its {} lines to a file and keeps none", count_);
   return lines_;
 }
 
 std::string EventLog::text() const {
   std::lock_guard lock(mutex_);
+  CW_CHECK(keep_ == Keep::kLines, "text() of an event log that streams its {} lines to a file and keeps none", count_);
   std::string out;
   for (const auto& l : lines_) {
     out += l;
@@ -199,7 +214,7 @@ std::string EventLog::text() const {
 
 std::size_t EventLog::size() const {
   std::lock_guard lock(mutex_);
-  return lines_.size();
+  return count_;
 }
 
 }  // namespace cellwright::runtime

@@ -476,7 +476,8 @@ struct Runtime::Impl {
   }
 };
 
-Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_unique<EventLog>(config_.log_stream)) {
+Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_unique<EventLog>(config_.log_stream,
+                                        config_.keep_log ? EventLog::Keep::kLines : EventLog::Keep::kNothing)) {
   CW_CHECK(config_.period.count() > 0, "the control period must be positive, got {} ns", config_.period.count());
   CW_CHECK(config_.realtime_speed > 0.0, "real-time speed must be positive, got {}", config_.realtime_speed);
   CW_CHECK(config_.net.robots() == config_.program.robots, "the net was not made from the program");

@@ -3,10 +3,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 
 #include <nlohmann/json.hpp>
+
+#include "cellwright/common/error.hpp"
 
 namespace cellwright::runtime {
 namespace {
@@ -58,6 +62,31 @@ TEST(RuntimeEventLog, WritesEachLineToTheSinkAndKeepsTheText) {
   EXPECT_EQ(out.str(), log.text());
   EXPECT_EQ(log.size(), 2u);
   EXPECT_NE(log.text().find("\"depth\":0.000000}"), std::string::npos);  // negative zero folded
+}
+
+// A streamed log holds a count, not its lines: what a thousand-part shift needs to keep its memory flat.
+TEST(RuntimeEventLog, AStreamedLogKeepsNoLinesAndSaysSoWhenAskedForThem) {
+  std::ostringstream out;
+  EventLog log(&out, EventLog::Keep::kNothing);
+  EXPECT_FALSE(log.keeps_lines());
+  for (int i = 0; i < 3; ++i) log.workpiece_arrived(nanoseconds(i), "A", "input");
+  log.flush();
+  EXPECT_EQ(log.size(), 3u);
+  const std::string text = out.str();
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 3);
+  EXPECT_THROW((void)log.text(), InternalError);
+  EXPECT_THROW((void)log.lines(), InternalError);
+  EXPECT_THROW(EventLog(nullptr, EventLog::Keep::kNothing), std::invalid_argument);  // its lines would go nowhere
+}
+
+TEST(RuntimeEventLog, FlushSaysWhenTheSinkHasFailed) {
+  std::ostringstream out;
+  EventLog log(&out, EventLog::Keep::kNothing);
+  log.workpiece_arrived(nanoseconds(0), "A", "input");
+  EXPECT_NO_THROW(log.flush());
+  out.setstate(std::ios::badbit);  // as a full disk leaves a file stream
+  log.workpiece_arrived(nanoseconds(1), "A", "input");
+  EXPECT_THROW(log.flush(), std::runtime_error);
 }
 
 TEST(RuntimeEventLog, LinesFromManyThreadsNeverInterleave) {

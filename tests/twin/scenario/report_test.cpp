@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -596,6 +597,48 @@ TEST(ReportFaults, ADetectionOfTheSameRobotARoundBeforeItsDriverFaultIsItsDetect
   // had been injected before it).
   ASSERT_EQ(r.false_alarms.size(), 1u);
   EXPECT_DOUBLE_EQ(r.false_alarms[0].t, 3.0);
+}
+
+// A long run's report is built from its file one line at a time (the log is never held whole): the same report as
+// from the parsed log, faults and all.
+TEST(ReportFromStream, IsTheReportOfTheParsedLog) {
+  const Scenario s = exchange_scenario();
+  for (const std::string& log : {exchange_log(), exchange_log(false), drop_log("recover"), drop_log("stop", "stopped")}) {
+    std::istringstream in(log);
+    const Report streamed = make_report(s, in, {on_output(s, 0.1)}, 14.0);
+    const Report parsed = make_report(s, parse_event_log(log, "events.jsonl"), {on_output(s, 0.1)}, 14.0);
+    EXPECT_EQ(to_json(s, streamed).dump(1), to_json(s, parsed).dump(1));
+    EXPECT_EQ(format_summary(streamed), format_summary(parsed));
+    ASSERT_EQ(streamed.timeline.robots.size(), parsed.timeline.robots.size());
+    for (std::size_t i = 0; i < parsed.timeline.robots.size(); ++i) {
+      ASSERT_EQ(streamed.timeline.robots[i].bars.size(), parsed.timeline.robots[i].bars.size());
+      for (std::size_t k = 0; k < parsed.timeline.robots[i].bars.size(); ++k) {
+        EXPECT_EQ(streamed.timeline.robots[i].bars[k].label, parsed.timeline.robots[i].bars[k].label);
+        EXPECT_EQ(streamed.timeline.robots[i].bars[k].end, parsed.timeline.robots[i].bars[k].end);
+      }
+    }
+  }
+}
+
+TEST(ReportFromStream, ABadLineOrAFiringBeforeRunStartIsRefusedWithItsLineNumber) {
+  const Scenario s = exchange_scenario();
+  std::string log = exchange_log();
+  log.insert(log.find('\n', log.find('\n') + 1) + 1, "{\"t\":1,\"type\":\n");  // line 3
+  std::istringstream bad(log);
+  try {
+    (void)make_report(s, bad, {}, std::nullopt, "run/events.jsonl");
+    FAIL() << "a broken line was accepted";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("run/events.jsonl:3"));
+  }
+  std::istringstream early("{\"t\":0,\"type\":\"fire\",\"transition\":\"r1.t0\"}\n" + exchange_log());
+  try {
+    (void)make_report(s, early, {}, std::nullopt, "e.jsonl");
+    FAIL() << "a firing before run_start was accepted";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("e.jsonl:1"));
+    EXPECT_THAT(e.what(), HasSubstr("before run_start"));
+  }
 }
 
 TEST(Gantt, TickStepsAreOneTwoOrFiveTimesAPowerOfTen) {

@@ -5,6 +5,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <istream>
 #include <cmath>
 #include <map>
 #include <set>
@@ -15,6 +16,20 @@ namespace cellwright::twin::scenario {
 
 using nlohmann::json;
 
+std::optional<json> parse_event_line(std::string_view line, int line_no, const std::string& file) {
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  if (line.find_first_not_of(" \t") == std::string_view::npos) return std::nullopt;
+  json j = json::parse(line, nullptr, false);
+  if (j.is_discarded()) throw InputError({file, line_no, 0}, "not a JSON value");
+  if (!j.is_object()) throw InputError({file, line_no, 0}, "an event must be a JSON object");
+  if (!j.contains("t") || !j["t"].is_number()) throw InputError({file, line_no, 0}, "the event has no numeric \"t\"");
+  if (!j.contains("type") || !j["type"].is_string()) {
+    throw InputError({file, line_no, 0}, "the event has no string \"type\"");
+  }
+  j["_log_line"] = line_no;  // for errors about this event
+  return j;
+}
+
 std::vector<json> parse_event_log(std::string_view jsonl, const std::string& file) {
   std::vector<json> out;
   int line_no = 0;
@@ -22,20 +37,10 @@ std::vector<json> parse_event_log(std::string_view jsonl, const std::string& fil
   while (pos < jsonl.size()) {
     std::size_t end = jsonl.find('\n', pos);
     if (end == std::string_view::npos) end = jsonl.size();
-    std::string_view line = jsonl.substr(pos, end - pos);
-    pos = end + 1;
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    if (line.find_first_not_of(" \t") == std::string_view::npos) continue;
-    json j = json::parse(line, nullptr, false);
-    if (j.is_discarded()) throw InputError({file, line_no, 0}, "not a JSON value");
-    if (!j.is_object()) throw InputError({file, line_no, 0}, "an event must be a JSON object");
-    if (!j.contains("t") || !j["t"].is_number()) throw InputError({file, line_no, 0}, "the event has no numeric \"t\"");
-    if (!j.contains("type") || !j["type"].is_string()) {
-      throw InputError({file, line_no, 0}, "the event has no string \"type\"");
+    if (std::optional<json> e = parse_event_line(jsonl.substr(pos, end - pos), ++line_no, file)) {
+      out.push_back(std::move(*e));
     }
-    j["_log_line"] = line_no;  // for errors about this event
-    out.push_back(std::move(j));
+    pos = end + 1;
   }
   return out;
 }
@@ -77,135 +82,192 @@ double round4(double x) {
 
 }  // namespace
 
-Timeline build_timeline(const std::vector<json>& events, const task::CompiledProgram& program,
-                        const std::string& file) {
-  Timeline tl;
-  const json* start = nullptr;
-  for (const json& e : events) {
-    if (e["type"] == "run_start" && start == nullptr) start = &e;
-    tl.end = std::max(tl.end, e["t"].get<double>());
-    if (e["type"] == "run_end") tl.end = e["t"].get<double>();
+namespace {
+
+// A robot's timeline built one event at a time: the robot's path through its program, in firing order. Each firing
+// of one of its transitions starts a visit of the primitive it begins (k for transition k, the body's first for a
+// loop's again; n: the program's end). A visit lasts until the robot's next firing; its command ended at the first
+// command_end of that primitive within it. A visit becomes bars when the next one starts (or at the run's end), so
+// only the current visit is held, however long the run. In a program without loops every primitive is visited at
+// most once.
+class TimelineBuilder {
+ public:
+  TimelineBuilder(const task::CompiledProgram& program, std::string file) : program_(program), file_(std::move(file)) {}
+
+  void add(const json& e) {
+    const std::string& type = e["type"].get_ref<const std::string&>();
+    const double t = e["t"].get<double>();
+    tl_.end = std::max(tl_.end, t);
+    if (type == "run_end") tl_.end = t;
+    if (type == "run_start") {
+      if (!started_) start(e);
+      return;
+    }
+    const bool fire = type == "fire";
+    const bool command = type == "command_start" || type == "command_end";
+    if (!fire && !command) return;
+    if (!started_) {
+      throw InputError({file_, e.value("_log_line", 0), 0}, fmt::format("a {} event before run_start", type));
+    }
+    if (fire) {
+      auto it = transitions_.find(field<std::string>(e, "transition", file_));
+      if (it == transitions_.end()) return;
+      Robot& r = robots_[it->second.first];
+      if (r.current) close(it->second.first, t, it->second.second);
+      r.current = Visit{it->second.second, t, std::nullopt};
+      return;
+    }
+    auto it = robot_index_.find(field<std::string>(e, "robot", file_));
+    if (it == robot_index_.end()) return;
+    Robot& r = robots_[it->second];
+    const task::RobotProgram& rp = program_.programs[r.program];
+    const auto k = field<std::int64_t>(e, "primitive", file_);
+    if (k < 0 || static_cast<std::size_t>(k) >= rp.primitives.size()) {
+      throw InputError({file_, e.value("_log_line", 0), 0},
+                       fmt::format("{} of robot {} names primitive {}, but its program has {} primitives", type,
+                                   tl_.robots[it->second].robot, k, rp.primitives.size()));
+    }
+    if (type == "command_start") {
+      ++tl_.robots[it->second].commands;
+    } else if (r.current && r.current->k == static_cast<std::size_t>(k) && !r.current->ended) {
+      r.current->ended = t;
+    }
   }
-  if (start == nullptr) throw InputError({file, 0, 0}, "the event log has no run_start event");
+
+  Timeline finish() && {
+    if (!started_) throw InputError({file_, 0, 0}, "the event log has no run_start event");
+    for (std::size_t i = 0; i < robots_.size(); ++i) {
+      if (robots_[i].current) close(i, tl_.end, robots_[i].current->k + 1);
+    }
+    for (RobotTimeline& rt : tl_.robots) {
+      for (const Bar& b : rt.bars) {
+        const double d = b.end - b.start;
+        switch (b.activity) {
+          case Activity::kMove:
+          case Activity::kGrip:
+            rt.busy += d;
+            break;
+          case Activity::kWait:
+            rt.waiting += d;
+            break;
+          case Activity::kBlocked:
+            rt.blocked += d;
+            break;
+        }
+      }
+      rt.idle = std::max(0.0, tl_.end - rt.busy - rt.waiting - rt.blocked);
+    }
+    return std::move(tl_);
+  }
+
+ private:
+  struct Visit {
+    std::size_t k = 0;
+    double begin = 0;
+    std::optional<double> ended;
+  };
+  struct Robot {
+    std::size_t program = 0;  // index in program_.robots
+    std::optional<Visit> current;
+    bool at_end = false;  // it has visited the program's end: later firings draw nothing
+  };
 
   // Robots as run_start lists them; each must be a robot of the program.
-  std::map<std::string, std::size_t> index;  // label -> index in program.robots
-  for (const json& r : field<json>(*start, "robots", file)) {
-    RobotTimeline rt;
-    rt.robot = field<std::string>(r, "robot", file);
-    rt.cell = r.value("cell", std::string());
-    auto it = std::find(program.robots.begin(), program.robots.end(), rt.robot);
-    if (it == program.robots.end()) {
-      throw InputError(
-          {file, start->value("_log_line", 0), 0},
-          fmt::format("run_start names robot '{}', which the program {} does not have", rt.robot, program.file));
+  void start(const json& e) {
+    started_ = true;
+    for (const json& r : field<json>(e, "robots", file_)) {
+      RobotTimeline rt;
+      rt.robot = field<std::string>(r, "robot", file_);
+      rt.cell = r.value("cell", std::string());
+      auto it = std::find(program_.robots.begin(), program_.robots.end(), rt.robot);
+      if (it == program_.robots.end()) {
+        throw InputError(
+            {file_, e.value("_log_line", 0), 0},
+            fmt::format("run_start names robot '{}', which the program {} does not have", rt.robot, program_.file));
+      }
+      const std::size_t index = robots_.size();
+      const auto program = static_cast<std::size_t>(it - program_.robots.begin());
+      const task::RobotProgram& rp = program_.programs[program];
+      for (std::size_t k = 0; k <= rp.primitives.size(); ++k) {
+        transitions_[task::transition_id(rt.robot, k)] = {index, k};
+      }
+      for (const task::Loop& loop : rp.loops) {
+        transitions_[task::loop_again_transition_id(rt.robot, loop.end)] = {index, loop.begin};
+      }
+      robot_index_[rt.robot] = index;
+      robots_.push_back({program, std::nullopt, false});
+      tl_.robots.push_back(std::move(rt));
     }
-    index[rt.robot] = static_cast<std::size_t>(it - program.robots.begin());
-    tl.robots.push_back(std::move(rt));
   }
 
-  for (RobotTimeline& rt : tl.robots) {
-    const task::RobotProgram& rp = program.programs[index.at(rt.robot)];
+  // The bars of robot i's current visit, which ends at `finish`, where the visit of primitive `next` starts.
+  void close(std::size_t i, double finish, std::size_t next) {
+    Robot& r = robots_[i];
+    const Visit v = *r.current;
+    r.current.reset();
+    const task::RobotProgram& rp = program_.programs[r.program];
     const std::size_t n = rp.primitives.size();
-    // The robot's path through its program, in firing order: each firing of one of its transitions starts a visit of
-    // the primitive it begins (k for transition k, the body's first for a loop's again; n: the program's end). A
-    // visit lasts until the robot's next firing; its command ended at the first command_end of that primitive
-    // within it. In a program without loops every primitive is visited at most once.
-    struct Visit {
-      std::size_t k = 0;
-      double begin = 0;
-      std::optional<double> ended;
-    };
-    std::vector<Visit> visits;
-    std::map<std::string, std::size_t> transition_index;
-    for (std::size_t k = 0; k <= n; ++k) transition_index[task::transition_id(rt.robot, k)] = k;
-    for (const task::Loop& loop : rp.loops) {
-      transition_index[task::loop_again_transition_id(rt.robot, loop.end)] = loop.begin;
+    if (r.at_end) return;
+    if (v.k == n) {
+      r.at_end = true;  // the program's end
+      return;
     }
-    for (const json& e : events) {
-      const std::string type = e["type"].get<std::string>();
-      if (type == "fire") {
-        auto it = transition_index.find(field<std::string>(e, "transition", file));
-        if (it != transition_index.end()) visits.push_back({it->second, e["t"].get<double>(), std::nullopt});
-      } else if ((type == "command_start" || type == "command_end") &&
-                 field<std::string>(e, "robot", file) == rt.robot) {
-        const auto k = field<std::int64_t>(e, "primitive", file);
-        if (k < 0 || static_cast<std::size_t>(k) >= n) {
-          throw InputError({file, e.value("_log_line", 0), 0},
-                           fmt::format("{} of robot {} names primitive {}, but its program has {} primitives", type,
-                                       rt.robot, k, n));
+    std::vector<Bar>& bars = tl_.robots[i].bars;
+    const task::Primitive& p = rp.primitives[v.k];
+    Bar bar;
+    bar.primitive = static_cast<int>(v.k);
+    bar.task = p.task;
+    bar.label = task::to_string(p);
+    bar.start = v.begin;
+    switch (p.kind) {
+      case task::PrimitiveKind::kMove:
+      case task::PrimitiveKind::kOpen:
+      case task::PrimitiveKind::kClose: {
+        bar.activity = p.kind == task::PrimitiveKind::kMove ? Activity::kMove : Activity::kGrip;
+        bar.end = std::clamp(v.ended.value_or(finish), v.begin, std::max(v.begin, finish));
+        if (bar.end > bar.start || !v.ended) bars.push_back(bar);
+        if (v.ended && finish > bar.end) {
+          Bar blocked = bar;
+          blocked.activity = Activity::kBlocked;
+          blocked.start = bar.end;
+          blocked.end = finish;
+          blocked.label = next < n ? fmt::format("before {}", task::to_string(rp.primitives[next])) : "before done";
+          bars.push_back(std::move(blocked));
         }
-        if (type == "command_start") {
-          ++rt.commands;
-        } else if (!visits.empty() && visits.back().k == static_cast<std::size_t>(k) && !visits.back().ended) {
-          visits.back().ended = e["t"].get<double>();
-        }
+        break;
       }
-    }
-
-    for (std::size_t i = 0; i < visits.size(); ++i) {
-      const std::size_t k = visits[i].k;
-      if (k == n) break;  // the program's end
-      const double begin = visits[i].begin;
-      const double finish = i + 1 < visits.size() ? visits[i + 1].begin : tl.end;
-      const std::optional<double>& ended = visits[i].ended;
-      const std::size_t next = i + 1 < visits.size() ? visits[i + 1].k : k + 1;
-      const task::Primitive& p = rp.primitives[k];
-      Bar bar;
-      bar.primitive = static_cast<int>(k);
-      bar.task = p.task;
-      bar.label = task::to_string(p);
-      bar.start = begin;
-      switch (p.kind) {
-        case task::PrimitiveKind::kMove:
-        case task::PrimitiveKind::kOpen:
-        case task::PrimitiveKind::kClose: {
-          bar.activity = p.kind == task::PrimitiveKind::kMove ? Activity::kMove : Activity::kGrip;
-          bar.end = std::clamp(ended.value_or(finish), begin, std::max(begin, finish));
-          if (bar.end > bar.start || !ended) rt.bars.push_back(bar);
-          if (ended && finish > bar.end) {
-            Bar blocked = bar;
-            blocked.activity = Activity::kBlocked;
-            blocked.start = bar.end;
-            blocked.end = finish;
-            blocked.label = next < n ? fmt::format("before {}", task::to_string(rp.primitives[next])) : "before done";
-            rt.bars.push_back(blocked);
-          }
-          break;
-        }
-        case task::PrimitiveKind::kWait:
-          bar.activity = Activity::kWait;
+      case task::PrimitiveKind::kWait:
+        bar.activity = Activity::kWait;
+        bar.end = finish;
+        if (bar.end > bar.start) bars.push_back(std::move(bar));
+        break;
+      case task::PrimitiveKind::kSignal:
+      case task::PrimitiveKind::kLoop:
+        if (finish > v.begin) {
+          bar.activity = Activity::kBlocked;
           bar.end = finish;
-          if (bar.end > bar.start) rt.bars.push_back(bar);
-          break;
-        case task::PrimitiveKind::kSignal:
-        case task::PrimitiveKind::kLoop:
-          if (finish > begin) {
-            bar.activity = Activity::kBlocked;
-            bar.end = finish;
-            rt.bars.push_back(bar);
-          }
-          break;
-      }
+          bars.push_back(std::move(bar));
+        }
+        break;
     }
-    for (const Bar& b : rt.bars) {
-      const double d = b.end - b.start;
-      switch (b.activity) {
-        case Activity::kMove:
-        case Activity::kGrip:
-          rt.busy += d;
-          break;
-        case Activity::kWait:
-          rt.waiting += d;
-          break;
-        case Activity::kBlocked:
-          rt.blocked += d;
-          break;
-      }
-    }
-    rt.idle = std::max(0.0, tl.end - rt.busy - rt.waiting - rt.blocked);
   }
-  return tl;
+
+  const task::CompiledProgram& program_;
+  std::string file_;
+  bool started_ = false;
+  Timeline tl_;
+  std::vector<Robot> robots_;                                                    // as tl_.robots
+  std::map<std::string, std::pair<std::size_t, std::size_t>> transitions_;       // id -> (robot, primitive begun)
+  std::map<std::string, std::size_t> robot_index_;                               // label -> robot
+};
+
+}  // namespace
+
+Timeline build_timeline(const std::vector<json>& events, const task::CompiledProgram& program,
+                        const std::string& file) {
+  TimelineBuilder b(program, file);
+  for (const json& e : events) b.add(e);
+  return std::move(b).finish();
 }
 
 std::vector<std::string> places_of(const models::CellDescription& cell, const models::WorkpieceSpec& spec,
@@ -413,101 +475,142 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
   }
 }
 
-}  // namespace
+// The report of a run built one event at a time: what it keeps grows with the parts and the robots' bars, never with
+// the log itself, so the report of a thousand-part shift is built from its file without holding the file.
+class ReportBuilder {
+ public:
+  ReportBuilder(const Scenario& s, std::string file) : s_(s), file_(std::move(file)), timeline_(s.program, file_) {}
 
-Report make_report(const Scenario& s, const std::vector<json>& events, const std::vector<FinalPose>& finals,
-                   std::optional<double> estimated_cycle_time, const std::string& file) {
-  Report r;
-  r.timeline = build_timeline(events, s.program, file);
-  r.estimated_cycle_time = estimated_cycle_time;
-  r.end_time = r.timeline.end;
-  bool ended = false;
-  std::optional<double> last_fire;
-  for (const json& e : events) {
-    const std::string type = e["type"].get<std::string>();
-    if (type == "run_end") {
-      ended = true;
-      r.outcome = field<std::string>(e, "outcome", file);
-      r.reason = field<std::string>(e, "reason", file);
-      r.firings = field<std::uint64_t>(e, "firings", file);
-    } else if (type == "fire") {
-      last_fire = e["t"].get<double>();
-    } else if (type == "collision") {
-      r.collisions.push_back({e["t"].get<double>(), field<std::string>(e, "a", file), field<std::string>(e, "b", file),
-                              field<double>(e, "depth", file)});
+  void add(const json& e) {
+    timeline_.add(e);
+    const std::string& type = e["type"].get_ref<const std::string&>();
+    const double t = e["t"].get<double>();
+    if (type == "run_start" || type == "fault_injected" || type == "fault_detected" || type == "diagnosis" ||
+        type == "recovery_end" || type == "cell_stopped" || type == "run_end") {
+      fault_events_.push_back(e);  // few: match_faults looks back and forth among them
     }
-  }
-  if (!ended) {
-    r.outcome = "unfinished";
-    r.reason = "the event log has no run_end: the run was cut short";
-  }
-  if (r.outcome == "finished") r.finished_at = last_fire;
-  if (r.outcome == "stopped") {
-    r.failures.push_back(
-        fmt::format("the run did not finish: the cell was stopped{}", r.reason.empty() ? "" : ": " + r.reason));
-  } else if (r.outcome != "finished") {
-    r.failures.push_back(
-        fmt::format("the run did not finish: {}{}", r.outcome, r.reason.empty() ? "" : ": " + r.reason));
-  }
-  match_faults(s, events, file, r);
-
-  // Parts the controller declared lost (the first declaration of each), and parts that arrived on the feed.
-  std::map<std::string, LostPart> lost;  // by cell workpiece
-  std::map<std::string, bool> arrived;
-  for (const json& e : events) {
-    const std::string type = e["type"].get<std::string>();
-    if (type == "workpiece_arrived") {
-      arrived[cell_workpiece(s, field<std::string>(e, "workpiece", file))] = true;
-    } else if (type == "workpiece_lost") {
+    if (type == "run_end") {
+      ended_ = true;
+      r_.outcome = field<std::string>(e, "outcome", file_);
+      r_.reason = field<std::string>(e, "reason", file_);
+      r_.firings = field<std::uint64_t>(e, "firings", file_);
+    } else if (type == "fire") {
+      last_fire_ = t;
+    } else if (type == "collision") {
+      r_.collisions.push_back({t, field<std::string>(e, "a", file_), field<std::string>(e, "b", file_),
+                               field<double>(e, "depth", file_)});
+    } else if (type == "workpiece_arrived") {
+      arrived_.insert(cell_workpiece(s_, field<std::string>(e, "workpiece", file_)));
+      ++r_.parts_fed;
+    } else if (type == "workpiece_left") {
+      ++r_.parts_delivered;
+    } else if (type == "workpiece_lost") {  // the first declaration of each part counts
       LostPart l;
-      l.t = e["t"].get<double>();
-      l.reason = field<std::string>(e, "reason", file);
+      l.t = t;
+      l.reason = field<std::string>(e, "reason", file_);
       if (e.contains("x") && e["x"].is_number() && e.contains("y") && e["y"].is_number() && e.contains("z") &&
           e["z"].is_number()) {
         l.last_seen = Eigen::Vector3d(e["x"].get<double>(), e["y"].get<double>(), e["z"].get<double>());
       }
-      lost.try_emplace(cell_workpiece(s, field<std::string>(e, "workpiece", file)), std::move(l));
+      lost_.try_emplace(cell_workpiece(s_, field<std::string>(e, "workpiece", file_)), std::move(l));
+    } else if (type == "skipped") {
+      skipped_.insert({e.value("robot", std::string()), e.value("primitive", std::int64_t{-1})});
+    } else if (type == "command_start" || type == "command_end") {
+      command(e, type == "command_start", t);
     }
   }
 
-  // Cycle times: a workpiece (program label W) is picked when the first command of a "Pick W" starts, and done when
-  // the last command of the "Place X" that released it ("open W") has ended (its depart included).
-  std::map<std::string, std::string> label_of;  // cell workpiece -> label
-  for (const auto& b : s.workpieces) label_of[b.name] = b.label;
-  std::map<std::string, double> pick_start, place_end;           // by label
-  std::map<std::pair<std::string, std::size_t>, double> end_of;  // (robot, primitive) -> command_end time
-  std::vector<std::pair<std::string, std::pair<std::string, std::size_t>>> releases;  // W -> (robot, last primitive)
-  for (const json& e : events) {
-    const std::string type = e["type"].get<std::string>();
-    if (type != "command_start" && type != "command_end") continue;
-    const std::string robot = field<std::string>(e, "robot", file);
-    const auto k = static_cast<std::size_t>(field<std::int64_t>(e, "primitive", file));
-    const auto it = std::find(s.program.robots.begin(), s.program.robots.end(), robot);
-    if (it == s.program.robots.end()) continue;  // build_timeline has refused unknown robots already
-    const auto& prims = s.program.programs[static_cast<std::size_t>(it - s.program.robots.begin())].primitives;
-    const task::Primitive& p = prims.at(k);
-    if (type == "command_start") {
-      if (p.task.starts_with("Pick ")) pick_start.try_emplace(p.task.substr(5), e["t"].get<double>());
-      continue;
+  Report finish(const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time) && {
+    Report r = std::move(r_);
+    r.timeline = std::move(timeline_).finish();
+    r.estimated_cycle_time = estimated_cycle_time;
+    r.end_time = r.timeline.end;
+    if (!ended_) {
+      r.outcome = "unfinished";
+      r.reason = "the event log has no run_end: the run was cut short";
     }
-    end_of[{robot, k}] = e["t"].get<double>();
-    if (p.kind == task::PrimitiveKind::kOpen && !p.workpiece.empty() && p.task.starts_with("Place ")) {
+    if (r.outcome == "finished") r.finished_at = last_fire_;
+    if (r.outcome == "stopped") {
+      r.failures.push_back(
+          fmt::format("the run did not finish: the cell was stopped{}", r.reason.empty() ? "" : ": " + r.reason));
+    } else if (r.outcome != "finished") {
+      r.failures.push_back(
+          fmt::format("the run did not finish: {}{}", r.outcome, r.reason.empty() ? "" : ": " + r.reason));
+    }
+    match_faults(s_, fault_events_, file_, r);
+    // A workpiece is done when the last Place that released it has ended (its depart included).
+    std::map<std::string, double> place_end;  // by label
+    for (const auto& [w, robot_primitive] : last_release_) {
+      if (auto it = end_of_.find(robot_primitive); it != end_of_.end()) place_end[w] = it->second;
+    }
+    account(r, finals, place_end);
+    if (r.placed_at.size() >= 3) {
+      const double span = r.placed_at.back() - r.placed_at[1];
+      const auto parts = static_cast<double>(r.placed_at.size() - 2);
+      if (span > 0) {
+        r.steady_throughput = parts * 60.0 / span;
+        r.steady_cycle = span / parts;
+      }
+    }
+    return r;
+  }
+
+ private:
+  // Cycle times: a workpiece (program label W) is picked when the first command of a "Pick W" starts, and done when
+  // the last command of the "Place X" that released it ("open W") has ended. Placements: an open of a Place command
+  // that ended well and was not skipped (a skipped open, of a part declared lost, placed nothing).
+  void command(const json& e, bool start, double t) {
+    const std::string robot = field<std::string>(e, "robot", file_);
+    const auto k = static_cast<std::size_t>(field<std::int64_t>(e, "primitive", file_));
+    const auto it = std::find(s_.program.robots.begin(), s_.program.robots.end(), robot);
+    if (it == s_.program.robots.end()) return;  // the timeline has refused robots of run_start it does not know
+    const auto& prims = s_.program.programs[static_cast<std::size_t>(it - s_.program.robots.begin())].primitives;
+    if (k >= prims.size()) {
+      throw InputError({file_, e.value("_log_line", 0), 0},
+                       fmt::format("command event of robot {} names primitive {}, but its program has {} primitives",
+                                   robot, k, prims.size()));
+    }
+    const task::Primitive& p = prims[k];
+    if (start) {
+      if (p.task.starts_with("Pick ")) pick_start_.try_emplace(p.task.substr(5), t);
+      return;
+    }
+    end_of_[{robot, k}] = t;
+    const bool release = p.kind == task::PrimitiveKind::kOpen && !p.workpiece.empty() && p.task.starts_with("Place ");
+    if (release) {
       std::size_t last = k;
       while (last + 1 < prims.size() && prims[last + 1].task == p.task && prims[last + 1].where.line == p.where.line &&
              prims[last + 1].where.column == p.where.column) {
         ++last;
       }
-      releases.push_back({p.workpiece, {robot, last}});
+      last_release_[p.workpiece] = {robot, last};
     }
-  }
-  for (const auto& [w, robot_primitive] : releases) {
-    if (auto it = end_of.find(robot_primitive); it != end_of.end()) {
-      place_end[w] = it->second;
-    } else {
-      place_end.erase(w);  // its last Place has not ended
-    }
+    if (!e.value("ok", false)) return;
+    if (skipped_.erase({robot, static_cast<std::int64_t>(k)}) != 0) return;
+    if (release) r_.placed_at.push_back(t);
   }
 
+  void account(Report& r, const std::vector<FinalPose>& finals, const std::map<std::string, double>& place_end);
+
+  const Scenario& s_;
+  std::string file_;
+  TimelineBuilder timeline_;
+  Report r_;
+  bool ended_ = false;
+  std::optional<double> last_fire_;
+  std::vector<json> fault_events_;
+  std::map<std::string, LostPart> lost_;  // by cell workpiece
+  std::set<std::string> arrived_;         // cell workpieces
+  std::map<std::string, double> pick_start_;                              // by label
+  std::map<std::pair<std::string, std::size_t>, double> end_of_;          // (robot, primitive) -> command_end time
+  std::map<std::string, std::pair<std::string, std::size_t>> last_release_;  // label -> (robot, last primitive)
+  std::set<std::pair<std::string, std::int64_t>> skipped_;  // (robot, primitive) skipped and not yet ended
+};
+void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
+                            const std::map<std::string, double>& place_end) {
+  const Scenario& s = s_;
+  std::map<std::string, std::string> label_of;  // cell workpiece -> label
+  for (const auto& b : s.workpieces) label_of[b.name] = b.label;
   std::vector<double> picks, places;
   for (const models::WorkpieceSpec& w : s.cell.workpieces) {
     WorkpieceReport wr;
@@ -526,8 +629,8 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
     } else {
       wr.final_location = "unknown";
     }
-    if (auto it = lost.find(w.name); it != lost.end()) wr.lost = it->second;
-    wr.arrived = arrived.count(w.name) > 0;
+    if (auto it = lost_.find(w.name); it != lost_.end()) wr.lost = it->second;
+    wr.arrived = arrived_.count(w.name) > 0;
     const bool expect_lost = expect != nullptr && expect->lost();
     if (wr.lost && !expect_lost) {
       r.failures.push_back(fmt::format(
@@ -584,7 +687,7 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
     // declare lost, is unaccounted for.
     wr.unaccounted = expect != nullptr && !expect_lost && !*wr.ok && !wr.lost && r.outcome != "stopped";
     if (!wr.label.empty()) {
-      if (auto it = pick_start.find(wr.label); it != pick_start.end()) wr.pick_start = it->second;
+      if (auto it = pick_start_.find(wr.label); it != pick_start_.end()) wr.pick_start = it->second;
       if (auto it = place_end.find(wr.label); it != place_end.end()) wr.place_end = it->second;
       if (wr.pick_start && wr.place_end && *wr.place_end >= *wr.pick_start) {
         wr.cycle_time = *wr.place_end - *wr.pick_start;
@@ -599,36 +702,27 @@ Report make_report(const Scenario& s, const std::vector<json>& events, const std
     const double span = *std::max_element(places.begin(), places.end()) - *std::min_element(picks.begin(), picks.end());
     if (span > 0) r.throughput = static_cast<double>(r.parts_completed) * 60.0 / span;
   }
-  std::set<std::pair<std::string, std::int64_t>> skipped;  // (robot, primitive) of commands skipped, not done
-  for (const json& e : events) {
-    const std::string type = e["type"].get<std::string>();
-    if (type == "skipped") skipped.insert({e.value("robot", std::string()), e.value("primitive", std::int64_t{-1})});
-    if (type == "workpiece_arrived") ++r.parts_fed;
-    if (type == "workpiece_left") ++r.parts_delivered;
-    if (type == "command_end" && e.value("ok", false)) {
-      // A placement: the open of a Place command (primitive text "open W", task "Place X").
-      const std::string robot = field<std::string>(e, "robot", file);
-      const auto it = std::find(s.program.robots.begin(), s.program.robots.end(), robot);
-      if (it == s.program.robots.end()) continue;
-      const auto& prims = s.program.programs[static_cast<std::size_t>(it - s.program.robots.begin())].primitives;
-      const auto k = static_cast<std::size_t>(field<std::int64_t>(e, "primitive", file));
-      // A skipped open (of a part declared lost) placed nothing.
-      if (skipped.erase({robot, static_cast<std::int64_t>(k)}) != 0) continue;
-      if (k < prims.size() && prims[k].kind == task::PrimitiveKind::kOpen && !prims[k].workpiece.empty() &&
-          prims[k].task.rfind("Place", 0) == 0) {
-        r.placed_at.push_back(e["t"].get<double>());
-      }
-    }
+}
+
+}  // namespace
+
+Report make_report(const Scenario& s, const std::vector<json>& events, const std::vector<FinalPose>& finals,
+                   std::optional<double> estimated_cycle_time, const std::string& file) {
+  ReportBuilder b(s, file);
+  for (const json& e : events) b.add(e);
+  return std::move(b).finish(finals, estimated_cycle_time);
+}
+
+Report make_report(const Scenario& s, std::istream& jsonl, const std::vector<FinalPose>& finals,
+                   std::optional<double> estimated_cycle_time, const std::string& file) {
+  ReportBuilder b(s, file);
+  std::string line;
+  int line_no = 0;
+  while (std::getline(jsonl, line)) {
+    if (std::optional<json> e = parse_event_line(line, ++line_no, file)) b.add(*e);
   }
-  if (r.placed_at.size() >= 3) {
-    const double span = r.placed_at.back() - r.placed_at[1];
-    const auto parts = static_cast<double>(r.placed_at.size() - 2);
-    if (span > 0) {
-      r.steady_throughput = parts * 60.0 / span;
-      r.steady_cycle = span / parts;
-    }
-  }
-  return r;
+  if (jsonl.bad()) throw InputError({file, line_no, 0}, "the event log could not be read");
+  return std::move(b).finish(finals, estimated_cycle_time);
 }
 
 namespace {

@@ -4,7 +4,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <memory>
 #include <system_error>
@@ -251,6 +253,15 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   }
   config.on_progress = std::move(options.on_progress);
   config.progress_every = options.progress_every;
+  if (!options.events_file.empty()) {
+    events_file_ = std::move(options.events_file);
+    events_out_ = std::make_unique<std::ofstream>(events_file_, std::ios::binary | std::ios::trunc);
+    if (!*events_out_) {
+      throw InputError({events_file_.string()}, fmt::format("cannot write the event log: {}", std::strerror(errno)));
+    }
+    config.log_stream = events_out_.get();
+    config.keep_log = false;
+  }
   runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
 }
 
@@ -276,9 +287,50 @@ std::vector<FinalPose> ScenarioRun::final_poses() const {
   return final_poses_of(*world_);
 }
 
+namespace {
+
+void make_output_directory(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the output directory: {}", ec.message()));
+}
+
+// Every line logged so far in the log's file, or an error naming it (a full disk).
+void flush_streamed_log(const runtime::EventLog& log, const std::filesystem::path& file) {
+  try {
+    log.flush();
+  } catch (const std::runtime_error& e) {
+    throw InputError({file.string()}, e.what());
+  }
+}
+
+}  // namespace
+
 Report ScenarioRun::report() const {
-  return make_report(scenario_, parse_event_log(runtime_->log().text(), kEventsFile), final_poses(),
-                     estimate_.cycle_time, kEventsFile);
+  if (events_file_.empty()) {
+    return make_report(scenario_, parse_event_log(runtime_->log().text(), kEventsFile), final_poses(),
+                       estimate_.cycle_time, kEventsFile);
+  }
+  flush_streamed_log(runtime_->log(), events_file_);
+  std::ifstream in(events_file_, std::ios::binary);
+  if (!in) throw InputError({events_file_.string()}, "cannot read the event log back");
+  return make_report(scenario_, in, final_poses(), estimate_.cycle_time, events_file_.string());
+}
+
+void ScenarioRun::write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image) {
+  if (events_file_.empty()) {
+    scenario::write_outputs(dir, scenario_, report, runtime_->log().text(), final_image);
+    return;
+  }
+  flush_streamed_log(runtime_->log(), events_file_);
+  make_output_directory(dir);
+  std::error_code ec;
+  const std::filesystem::path target = dir / kEventsFile;
+  if (!std::filesystem::equivalent(events_file_, target, ec)) {
+    move_file(events_file_, target);
+    events_file_ = target;
+  }
+  write_report_outputs(dir, scenario_, report, final_image);
 }
 
 cv::Mat ScenarioRun::snapshot(int width, int height) const {
@@ -292,10 +344,14 @@ cv::Mat ScenarioRun::snapshot(int width, int height) const {
 
 void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
                    const std::string& events, const cv::Mat& final_image) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the output directory: {}", ec.message()));
+  make_output_directory(dir);
   write_file_atomically(dir / kEventsFile, events);
+  write_report_outputs(dir, scenario, report, final_image);
+}
+
+void write_report_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
+                          const cv::Mat& final_image) {
+  make_output_directory(dir);
   write_file_atomically(dir / kReportFile, to_json(scenario, report).dump(2) + "\n");
   GanttOptions gantt;
   gantt.title = fmt::format("{}: {} ({}), {:.2f} s", scenario.source.filename().string(),

@@ -15,4 +15,23 @@ std::string read_file(const std::filesystem::path& path);
 // is removed on failure.
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);
 
+// Moves the file `from` to `to`, replacing it: a rename when both are on one file system (atomic), else a copy to a
+// temporary file beside `to`, renamed over it, then `from` removed. Throws InputError naming the paths when it
+// cannot; `to` is then unchanged.
+void move_file(const std::filesystem::path& from, const std::filesystem::path& to);
+
+// A new, empty file of our own in the system's temporary directory (TMPDIR, else /tmp), removed when this object
+// goes. The name is `prefix`, six random characters and `suffix`. Throws InputError when it cannot be created.
+class TemporaryFile {
+ public:
+  TemporaryFile(std::string_view prefix, std::string_view suffix);
+  ~TemporaryFile();
+  TemporaryFile(const TemporaryFile&) = delete;
+  TemporaryFile& operator=(const TemporaryFile&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
 }  // namespace cellwright

@@ -34,6 +34,10 @@
 // Strings are JSON-escaped (nlohmann::json). Numbers other than "t", period, depth and the vision event's are
 // integers.
 //
+// Memory: a log that keeps its lines (Keep::kLines, the default) grows with the run, about 130 bytes per event. A log
+// that streams them (a sink and Keep::kNothing) holds only a count: a shift of a thousand parts costs no more memory
+// than one part, and whoever needs the events reads the sink's file back (scenario::make_report_from_file).
+//
 // Threads: every member may be called from any thread; each call appends one whole line under a mutex, so lines never
 // interleave. (Determinism of the order is the lock-step scheduler's job, not the log's.)
 #pragma once
@@ -59,9 +63,13 @@ std::string format_sim_time(SimDuration t);
 
 class EventLog {
  public:
-  // Keeps every line in memory (lines(), text()) and, if `sink` is not null, also writes each line to it as it is
-  // logged (followed by '\n', flushed at run_end). The sink must outlive the log.
-  explicit EventLog(std::ostream* sink = nullptr);
+  enum class Keep {
+    kLines,    // every line stays in memory: lines() and text() give them
+    kNothing,  // only the sink has them; lines() and text() are not available (an invariant check fails)
+  };
+  // If `sink` is not null, each line is written to it as it is logged (followed by '\n'; flushed at run_end and by
+  // flush()). The sink must outlive the log. Keep::kNothing needs a sink (std::invalid_argument otherwise).
+  explicit EventLog(std::ostream* sink = nullptr, Keep keep = Keep::kLines);
   EventLog(const EventLog&) = delete;
   EventLog& operator=(const EventLog&) = delete;
 
@@ -111,18 +119,25 @@ class EventLog {
   void vision(SimDuration t, SimDuration frame_time, const std::vector<Seen>& seen,
               const std::vector<std::string>& not_seen, std::size_t rejected, std::string_view problem);
 
-  // Every line so far, without the newline.
+  // Every line so far, without the newline. Keep::kLines only.
   std::vector<std::string> lines() const;
-  // Every line so far, each followed by '\n' (the file's content).
+  // Every line so far, each followed by '\n' (the file's content). Keep::kLines only.
   std::string text() const;
+  // How many lines were logged (either Keep).
   std::size_t size() const;
+  bool keeps_lines() const { return keep_ == Keep::kLines; }
+  // Flushes the sink, so that a reader of its file sees every line logged so far. Throws std::runtime_error if the
+  // sink has failed (a write error, a full disk): lines were lost.
+  void flush() const;
 
  private:
   void append(std::string line, bool flush = false);
 
   mutable std::mutex mutex_;
   std::ostream* sink_;
+  Keep keep_;
   std::vector<std::string> lines_;
+  std::size_t count_ = 0;
 };
 
 }  // namespace cellwright::runtime

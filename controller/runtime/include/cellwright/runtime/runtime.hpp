@@ -117,6 +117,9 @@ struct RunConfig {
   Limits limits;
   MotionOptions motion;
   std::ostream* log_stream = nullptr;  // the event log is also written here (JSONL), if set
+  // false: the log keeps no lines in memory, only log_stream has them (needs log_stream): a long shift's memory stays
+  // flat, and log().text() is not available.
+  bool keep_log = true;
   // Called by the simulation thread every `progress_every` of simulation time with the time and the firings so far
   // (for `twin run`'s progress line). Must be short and must not call the Runtime.
   std::function<void(SimDuration, std::uint64_t)> on_progress;

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstddef>
+#include <iosfwd>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -27,8 +28,10 @@
 namespace cellwright::twin::scenario {
 
 // Parses JSON Lines (an events.jsonl). Blank lines are skipped. Throws InputError naming `file` and the line when a
-// line is not a JSON object with a numeric "t" and a string "type".
+// line is not a JSON object with a numeric "t" and a string "type". Each event gets "_log_line" (its line number).
 std::vector<nlohmann::json> parse_event_log(std::string_view jsonl, const std::string& file);
+// One line of it (line_no counts from 1): nullopt for a blank line.
+std::optional<nlohmann::json> parse_event_line(std::string_view line, int line_no, const std::string& file);
 
 // --- Timelines -------------------------------------------------------------------------------------------------------
 
@@ -225,6 +228,11 @@ struct Report {
 Report make_report(const Scenario& scenario, const std::vector<nlohmann::json>& events,
                    const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time,
                    const std::string& file = "events.jsonl");
+// The same from an events.jsonl read one line at a time (parse errors as parse_event_log): what it holds grows with
+// the parts, the faults and the chart's bars, not with the log, so a long shift's report never holds its log whole.
+// Throws InputError also when the stream cannot be read.
+Report make_report(const Scenario& scenario, std::istream& jsonl, const std::vector<FinalPose>& finals,
+                   std::optional<double> estimated_cycle_time, const std::string& file = "events.jsonl");
 
 // report.json (docs/scenarios.md). Times in seconds rounded to 4 decimals, so equal runs give equal bytes.
 nlohmann::json to_json(const Scenario& scenario, const Report& report);

@@ -14,7 +14,7 @@
 //    ScenarioRun run(s, p.net, options);          // builds, starts no thread
 //    RunResult r = run.runtime().run();           // or runtime().step() ...
 //    Report rep = run.report();
-//    write_outputs(dir, s, rep, run.runtime().log().text(), run.snapshot(800, 600));
+//    run.write_outputs(dir, rep, run.snapshot(800, 600));
 //
 // Threads: a ScenarioRun is used by one thread, the caller's; the Runtime it holds starts and joins the others.
 // world() and snapshot() may be used only while the runtime's threads are not running (before run(), between
@@ -26,6 +26,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -55,6 +56,11 @@ struct RunOptions {
   std::optional<runtime::Perception> perception;
   // Called on the image-processing thread after each camera frame (`--save-frames`). Must not touch the ScenarioRun.
   std::function<void(const runtime::VisionFrame&)> on_frame;
+  // If not empty, the event log is streamed to this file as the run writes it (created, or emptied, when the
+  // ScenarioRun is built) and kept nowhere else: the run's memory does not grow with its length, report() reads the
+  // file back, and runtime().log().text() is not available. A run that dies leaves every line logged so far in it.
+  // Empty: the log is kept in memory (tests, benchmarks).
+  std::filesystem::path events_file;
 };
 
 // The scenario's cell as it really is: the World (perturbed parts moved by the scenario's seed, fed parts parked) and
@@ -96,15 +102,25 @@ class ScenarioRun {
   // finger pads of a robot touch is held by it). Only while the runtime's threads are not running.
   std::vector<FinalPose> final_poses() const;
 
-  // The report of the run so far (make_report on the runtime's event log, final_poses() and the estimate). Only while
-  // the runtime's threads are not running: after run(), or between steps (then the log has no run_end yet).
+  // The report of the run so far (make_report on the runtime's event log, or its file, final_poses() and the
+  // estimate). Only while the runtime's threads are not running: after run(), or between steps (then the log has no
+  // run_end yet). Throws InputError if the streamed log cannot be written or read back.
   Report report() const;
+
+  // Where the event log is streamed (RunOptions::events_file; it moves when write_outputs moves it), or empty.
+  const std::filesystem::path& events_file() const { return events_file_; }
+
+  // write_outputs() below with this run's events: the log's text, or the streamed file moved into `dir` as
+  // events.jsonl (copied when `dir` is on another file system). Same threads rule as report().
+  void write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image);
 
   // The overview camera's view of the cell now (a copy of the simulation state is rendered, headless).
   cv::Mat snapshot(int width, int height) const;
 
  private:
   const Scenario& scenario_;
+  std::filesystem::path events_file_;          // the streamed log's file, or empty
+  std::unique_ptr<std::ofstream> events_out_;  // open on events_file_ while the runtime lives
   bool realtime_ = false;
   runtime::Perception perception_ = runtime::Perception::kTruth;
   std::unique_ptr<sim::World> world_;
@@ -127,5 +143,8 @@ inline constexpr const char* kFinalFile = "final.png";
 // then rename). Throws InputError naming the path when a file or the directory cannot be written.
 void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
                    const std::string& events, const cv::Mat& final_image);
+// The same but for events.jsonl, which the caller has already put in `dir` (a streamed log moved there).
+void write_report_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
+                          const cv::Mat& final_image);
 
 }  // namespace cellwright::twin::scenario

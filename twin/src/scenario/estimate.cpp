@@ -12,6 +12,7 @@
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/runtime/robot_control.hpp"
 #include "cellwright/task/to_net.hpp"
+#include "cellwright/twin/sim/belt_exit.hpp"
 #include "cellwright/twin/sim/grip_timing.hpp"
 #include "cellwright/twin/sim/trajectory.hpp"
 
@@ -21,6 +22,18 @@ namespace {
 
 Eigen::VectorXd vec(const std::vector<double>& v) {
   return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+// Seconds part `w` rides conveyor `c` from `from` (m along the belt from its upstream end) to where it is picked: the
+// stop (its centre half its length before the bar) or the leave point. `pick_pose` is set to the part's pose there.
+double ride_to_pick(const models::ConveyorSpec& c, const models::WorkpieceSpec& w, double from,
+                    Eigen::Isometry3d& pick_pose) {
+  const double stop_s = c.stop ? c.leave - w.size.x() / 2 : c.leave;
+  pick_pose = Eigen::Isometry3d::Identity();
+  pick_pose.linear() = Eigen::AngleAxisd(c.pose.rpy.z(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  pick_pose.translation() = c.belt_point(stop_s) + Eigen::Vector3d(0, 0, w.size.z() / 2);
+  const double travel = std::max(0.0, stop_s - from);
+  return c.speed > 0 ? travel / c.speed : 0.0;
 }
 
 // When a part on a conveyor can first be picked: it rides the belt to the stop (or the end), from where it starts
@@ -39,12 +52,18 @@ std::optional<double> pick_ready_time(const models::CellDescription& cell, const
   conveyor = c->name;
   const double start_time = fed ? feed->arrival(*fed) : 0.0;
   const double start_s = fed ? c->enter : (c->pose.transform().inverse() * w.pose.xyz).x() + c->length / 2;
-  const double stop_s = c->stop ? c->leave - w.size.x() / 2 : c->leave;
-  pick_pose = Eigen::Isometry3d::Identity();
-  pick_pose.linear() = Eigen::AngleAxisd(c->pose.rpy.z(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  pick_pose.translation() = c->belt_point(stop_s) + Eigen::Vector3d(0, 0, w.size.z() / 2);
-  const double travel = std::max(0.0, stop_s - start_s);
-  return start_time + (c->speed > 0 ? travel / c->speed : 0.0);
+  return start_time + ride_to_pick(*c, w, start_s, pick_pose);
+}
+
+// A builder holding all of `net` (places, transitions, regions, robots, final places), to add to.
+petri::NetBuilder builder_of(const petri::Net& net) {
+  petri::NetBuilder b(net.name());
+  for (const petri::Place& p : net.places()) b.add_place(p);
+  for (const petri::Transition& t : net.transitions()) b.add_transition(t);
+  for (const petri::Region& r : net.regions()) b.add_region(r);
+  b.set_robots(net.robots());
+  b.set_final(net.final_places());
+  return b;
 }
 
 // The program's net with the parts' arrivals: per part that arrives late, a place "coming" holding a token until the
@@ -53,9 +72,7 @@ std::optional<double> pick_ready_time(const models::CellDescription& cell, const
 // again, the next part is taken to be waiting already (fed faster than the cell takes them; a slower feed is not
 // modelled).
 petri::Net with_arrivals(const petri::Net& net, const std::vector<ArrivalGate>& gates, std::vector<double>& durations) {
-  petri::NetBuilder b(net.name());
-  for (const petri::Place& p : net.places()) b.add_place(p);
-  for (const petri::Transition& t : net.transitions()) b.add_transition(t);
+  petri::NetBuilder b = builder_of(net);
   for (const ArrivalGate& g : gates) {
     petri::Place coming;
     coming.id = fmt::format("arrival.{}.coming", g.workpiece);
@@ -77,9 +94,53 @@ petri::Net with_arrivals(const petri::Net& net, const std::vector<ArrivalGate>& 
     b.transition(g.transition).inputs.push_back({id, 1});
     b.transition(g.transition).outputs.push_back({id, 1});
   }
-  for (const petri::Region& r : net.regions()) b.add_region(r);
-  b.set_robots(net.robots());
-  b.set_final(net.final_places());
+  return std::move(b).build();
+}
+
+// The feed's net joined to `net` (estimate.hpp, estimate_cycle_time): slots at the feed times, bodies free, parts at
+// the stop taken by the plan's feed takes, bodies delivered back by its deliveries. `durations` gets the new places'.
+// `delivered` has each delivery's place duration.
+petri::Net with_feed(const petri::Net& net, const Feed& feed, const MotionPlan& plan,
+                     const std::vector<double>& delivered, double period, std::vector<double>& durations) {
+  petri::NetBuilder b = builder_of(net);
+  const auto place = [&](const std::string& id, std::string name, petri::Tokens initial, double duration) {
+    petri::Place p;
+    p.id = id;
+    p.name = std::move(name);
+    p.initial = initial;
+    durations.push_back(duration);
+    return b.add_place(std::move(p));
+  };
+  const auto transition = [&](const std::string& id, std::string name, std::vector<petri::Arc> in,
+                              std::vector<petri::Arc> out) {
+    petri::Transition t;
+    t.id = id;
+    t.name = std::move(name);
+    t.inputs = std::move(in);
+    t.outputs = std::move(out);
+    b.add_transition(std::move(t));
+  };
+  const auto count = static_cast<petri::Tokens>(feed.count);
+  const auto bodies = static_cast<petri::Tokens>(feed.workpieces.size());
+  const petri::PlaceId first = place("feed.first", "until the first feed time", 1, feed.start);
+  const petri::PlaceId due = place("feed.due", "parts still to feed", count, 0.0);
+  const petri::PlaceId clock = place("feed.clock", "until the next feed time", 0, feed.period);
+  const petri::PlaceId slot = place("feed.slot", "a feed time come", 0, 0.0);
+  const petri::PlaceId free = place("feed.free", "bodies free to feed", bodies, 0.0);
+  const petri::PlaceId part = place("feed.part", "a part fed, at the stop once it has ridden there", 0,
+                                    std::ceil(plan.feed_ride / period - 1e-9) * period);
+  transition("feed.begin", "the first feed time", {{first, 1}, {due, 1}}, {{slot, 1}, {clock, 1}});
+  transition("feed.tick", "the next feed time", {{clock, 1}, {due, 1}}, {{slot, 1}, {clock, 1}});
+  transition("feed.feed", "a body put on the belt", {{slot, 1}, {free, 1}}, {{part, 1}});
+  for (petri::TransitionId t : plan.feed_takes) b.transition(t).inputs.push_back({part, 1});
+  for (std::size_t d = 0; d < plan.deliveries.size(); ++d) {
+    const Delivery& dl = plan.deliveries[d];
+    const petri::PlaceId leaving = place(fmt::format("feed.leaving.{}", d),
+                                         fmt::format("a part riding {} out of the cell", dl.conveyor), 0, delivered[d]);
+    b.transition(dl.transition).outputs.push_back({leaving, 1});
+    transition(fmt::format("feed.delivered.{}", d), fmt::format("a part taken out at the end of {}", dl.conveyor),
+               {{leaving, 1}}, {{free, 1}});
+  }
   return std::move(b).build();
 }
 
@@ -155,6 +216,24 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
 
   // The environment model the plan follows: parts that ride a conveyor wait at its stop, at rest.
   runtime::EnvironmentModel model = runtime::make_environment_model(s.cell);
+  // The feed's ride to the stop, and a shift's exit conveyors as the scenario's run sets them up (run.cpp): every
+  // conveyor but the feed's.
+  std::vector<sim::BeltExit> exits;
+  if (s.feed) {
+    const models::ConveyorSpec* entry = s.cell.find_conveyor(s.feed->conveyor);
+    CW_CHECK(entry != nullptr, "the feed's conveyor {} is not the cell's", s.feed->conveyor);  // (the loader checks)
+    for (const std::string& w : s.feed->workpieces) {
+      const models::WorkpieceSpec* body = s.cell.find_workpiece(w);
+      CW_CHECK(body != nullptr, "the feed's workpiece {} is not the cell's", w);
+      Eigen::Isometry3d at_stop;
+      plan.feed_ride = std::max(plan.feed_ride, ride_to_pick(*entry, *body, entry->enter, at_stop));
+    }
+    if (s.feed->recycles()) {
+      for (const models::ConveyorSpec& c : s.cell.conveyors) {
+        if (c.name != s.feed->conveyor) exits.emplace_back(c);
+      }
+    }
+  }
   std::map<std::string, double> ready_at;         // cell workpiece -> when it can be picked
   std::map<std::string, std::string> arrives_on;  // cell workpiece -> the conveyor it rides to its stop
   for (const models::WorkpieceSpec& w : s.cell.workpieces) {
@@ -193,13 +272,15 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   std::size_t next_body = 0;
   std::map<std::string, Eigen::Isometry3d> ready_pose;
   for (const models::WorkpieceSpec& w : s.cell.workpieces) ready_pose[w.name] = model.find_workpiece(w.name)->pose;
-  auto bind_class = [&](const std::string& robot, const std::string& label) -> std::string {
+  // Sets `fed` when the class takes a new part from the feed.
+  auto bind_class = [&](const std::string& robot, const std::string& label, bool* fed = nullptr) -> std::string {
     auto& mine = instance[robot];
     if (auto it = mine.find(label); it != mine.end()) return it->second;
     std::string body;
     if (auto peer = hand_peer.find(robot); peer != hand_peer.end() && held.count(peer->second) != 0) {
       body = held.at(peer->second).first;
     } else if (s.feed && !s.feed->workpieces.empty()) {
+      if (fed != nullptr) *fed = true;
       body = s.feed->workpiece_at(next_body++);
       runtime::WorkpieceState& ws = *model.find_workpiece(body);
       if (ws.held_by.empty()) ws.pose = ready_pose.at(body);
@@ -233,8 +314,14 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           const bool to_part = target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt;
           if (to_part && task::find_class(prog, target.object) != nullptr) {
             hand_peer.erase(arm.cell);
-            const std::string body = bind_class(arm.cell, target.object);
+            bool fed = false;
+            const std::string body = bind_class(arm.cell, target.object, &fed);
             target.object = body.empty() ? s.location_of(task::find_class(prog, target.object)->from) : body;
+            if (fed) {
+              // Each time this move starts, it takes the next part fed (the feed's net, not a gate of its own).
+              plan.feed_takes.push_back(t);
+              ready_at.erase(body);
+            }
           } else {
             target = bound(p.target);
             if (!to_part && target.kind != task::TargetKind::kHome) hand_peer[arm.cell] = target.object;
@@ -306,8 +393,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           if (of_class && p.kind == task::PrimitiveKind::kOpen) instance[arm.cell].erase(p.workpiece);
           runtime::WorkpieceState& ws = *model.find_workpiece(w);
           const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
+          c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)
           if (p.kind == task::PrimitiveKind::kClose) {
-            c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)
             rs.released_tcp.reset();
             held[arm.cell] = {w, tcp.inverse() * ws.pose};
             ws.held_by = arm.cell;
@@ -319,6 +406,14 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           } else {
             // As robot control records it: the hand departs straight up from where it let go (resolve_target).
             if (rs.hold) rs.released_tcp = tcp;
+            // A body of the shift let go of over an exit conveyor rides out of the cell and is fed again.
+            for (const sim::BeltExit& e : exits) {
+              const std::optional<double> at = e.along(ws.pose.translation());
+              if (!at || e.conveyor().speed <= 0 || !s.feed->feeds(w)) continue;
+              const double distance = std::max(0.0, e.out_at() - *at);
+              plan.deliveries.push_back({t, r, k, e.conveyor().name, distance, distance / e.conveyor().speed});
+              break;
+            }
             held.erase(arm.cell);
             rs.hold.reset();
             if (ws.held_by == arm.cell) ws.held_by.clear();
@@ -352,6 +447,12 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Est
   const double period = options.control_period, step = options.physics_step;
   CW_CHECK(period > 0 && step > 0, "control period {} s, physics step {} s", period, step);
   std::vector<double> durations(net.num_places(), 0.0);
+  // A shift's deliveries: from the start of the open to the end of the period in which the world takes the part out.
+  std::vector<double> delivered(plan.deliveries.size(), 0.0);
+  std::map<std::pair<std::size_t, std::size_t>, std::size_t> delivery_of;  // (robot, primitive) -> delivery
+  for (std::size_t d = 0; d < plan.deliveries.size(); ++d) {
+    delivery_of[{plan.deliveries[d].robot, plan.deliveries[d].primitive}] = d;
+  }
   for (std::size_t r = 0; r < plan.commands.size(); ++r) {
     const RobotTiming& rt = *timing[r];
     // Bring-up: the driver homes (the arm to its home joints, the fingers opening), then robot control activates it
@@ -382,6 +483,20 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Est
         ce.motion = sim::finger_ramp_duration(fingers, rt.finger_open, rt.finger_speed) + sim::kFingerRestWindow;
         ce.basis = fmt::format("fingers open from {:.4f} m to {:.4f} m at {:.3f} m/s", fingers, rt.finger_open,
                                rt.finger_speed);
+        if (auto d = delivery_of.find({r, c.primitive}); d != delivery_of.end()) {
+          // The part rides from when the fingers' ramp passes its faces (at once if they no longer press it), and is
+          // taken out at the end of the period in which it reaches the exit point.
+          const double release =
+              c.contact && *c.contact > fingers
+                  ? sim::finger_ramp_time_to(fingers, rt.finger_open, *c.contact, rt.finger_speed).value_or(ce.motion)
+                  : 0.0;
+          const double out = std::ceil(release / step - 1e-9) * step + plan.deliveries[d->second].ride;
+          delivered[d->second] = (std::floor(out / period + 1e-9) + 1) * period;
+          ce.basis += fmt::format(
+              "; lets go of the part after {:.2f} s, {:.3f} m before it leaves the cell on {}: "
+              "a body free again {:.2f} s after the open starts",
+              release, plan.deliveries[d->second].distance, plan.deliveries[d->second].conveyor, delivered[d->second]);
+        }
         fingers = rt.finger_open;
         ce.seconds = lockstep_span(ce.motion, false, period, step);
       } else if (c.kind == task::PrimitiveKind::kClose) {
@@ -410,10 +525,17 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Est
   // A part seen at rest is taken in the round after it came to rest.
   for (ArrivalGate& g : plan.gates) g.ready = std::ceil(g.ready / period - 1e-9) * period;
   est.timed_net = with_arrivals(net, plan.gates, durations);
+  if (!plan.feed_takes.empty()) est.timed_net = with_feed(est.timed_net, *s.feed, plan, delivered, period, durations);
   est.place_duration = durations;
   task::LoopControl loops(est.timed_net, prog);
   est.run = simulate_timed(est.timed_net, durations, 1'000'000, &loops);
-  est.cycle_time = est.run.finish;
+  // The transitions added to the program's net come after its own.
+  for (auto f = est.run.firings.rbegin(); f != est.run.firings.rend(); ++f) {
+    if (f->transition < net.num_transitions()) {
+      est.cycle_time = f->time;
+      break;
+    }
+  }
   return est;
 }
 

@@ -27,8 +27,7 @@ void WorldPlant::recycle_at(std::vector<std::string> conveyors) {
   for (const std::string& name : conveyors) {
     const models::ConveyorSpec* c = world_.scene().cell().find_conveyor(name);
     CW_CHECK(c != nullptr, "recycle_at: no conveyor '{}'", name);
-    const Eigen::Vector3d start = c->belt_point(0);
-    exits_.push_back({c, start, (c->belt_point(1) - start).normalized()});
+    exits_.emplace_back(*c);
   }
   bodies_.clear();
   for (const FeedEvent& f : feed_) {
@@ -40,16 +39,10 @@ void WorldPlant::take_out_delivered() {
   const WorldTruth w = world_.truth();
   for (const WorkpieceTruth& p : w.workpieces) {
     if (p.parked) continue;
-    for (const Exit& e : exits_) {
-      const models::ConveyorSpec* c = e.conveyor;
-      // The part's centre along the belt from its upstream end, and across it, in the horizontal plane.
-      const Eigen::Vector3d rel = p.pose.translation() - e.start;
-      const double s = rel.dot(e.along);
-      const double across = (rel - s * e.along).head<2>().norm();
-      const bool on_belt_line = across <= c->width / 2 + 0.05 && rel.z() > -c->height;
-      if (s >= c->leave - (c->stop ? 0.05 : 0.0) && s <= c->length + 0.5 && on_belt_line) {
+    for (const BeltExit& e : exits_) {
+      if (e.left(p.pose.translation())) {
         world_.park(p.name);
-        arrivals_.push_back({p.name, c->name, true});
+        arrivals_.push_back({p.name, e.conveyor().name, true});
         break;
       }
     }

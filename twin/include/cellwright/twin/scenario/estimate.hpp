@@ -22,11 +22,21 @@
 //    firing to the next one: its physical time rounded up to the physics step and then to the control period, plus
 //    two periods (a move three).
 //  - before its first command each robot homes (min_move_time at home speed, the fingers opening) and activates.
-// A part that arrives on a conveyor (fed, or carried to the stop from where it starts) holds back the move that goes
-// to pick it until it has arrived, at the belt's speed; parts queueing behind each other are not modelled, nor the
-// frames a camera needs to see a part (perception vision), nor the few control periods a part pressed against a
-// stop bar may take to come to rest. The finger ramp of a close is taken to be over by the next open (it is over
-// 1.5 s after the close began, and an arm moves in between).
+// A named part that arrives on a conveyor (fed, or carried to the stop from where it starts) holds back the move that
+// goes to pick it until it has arrived, at the belt's speed.
+// Parts of a workpiece class that the feed brings (`workpiece part from IN`) are the feed's, in a net of its own
+// joined to the program's (estimate_cycle_time): the i-th part fed is put on the belt at max(its feed time, the time
+// a body became free) and can be picked once it has ridden to the stop; each firing of a move that takes a new part of
+// the class (the first move to it) takes the next part there. In a shift (more parts than bodies) a body becomes free
+// when the part it made has ridden the exit conveyor from where the open let go of it (the fingers' ramp passing its
+// faces) to where the world takes it out (sim/belt_exit.hpp), at the belt's speed, at the end of the control period
+// the world parks it in; the feed puts it on the belt in the next period.
+// Not modelled: parts queueing behind each other on a belt (a part is taken to reach the stop at its own ride's end),
+// the frames a camera needs to see a part (perception vision), the few control periods a part pressed against a stop
+// bar may take to come to rest. Feed times are taken as they are, not rounded to the control period (exact when the
+// feed's start and period are whole periods, as in the shipped scenes). The bodies of a shift are not told apart:
+// each rides in as long as the longest of them. The finger ramp of a close is taken to be over by the next open (it
+// is over 1.5 s after the close began, and an arm moves in between).
 //
 // Thread safety: pure functions; any thread may call them.
 #pragma once
@@ -57,8 +67,8 @@ struct PlannedCommand {
   std::vector<double> from, goal;  // joints before and after (goal empty when the move cannot be made)
   std::string target;              // the resolved target ("above B: tool at (...)"), or "" when unresolved
   std::string problem;             // why the move cannot be made, "" when it can
-  // Close only: half the width of the part across the fingers (m), where they close on it; nullopt when the plan puts
-  // no part between them (a close that names none).
+  // Open and close only: half the width of the part across the fingers (m), where they close on it or let go of it;
+  // nullopt when the plan puts no part between them (a grip that names none).
   std::optional<double> contact;
 };
 
@@ -70,15 +80,32 @@ struct ArrivalGate {
   std::string conveyor;   // the conveyor it rides to its stop (or end)
 };
 
+// A body of a shift delivered: the open that lets go of a fed body over an exit conveyor (every conveyor but the
+// feed's; the world takes the part out at the conveyor's exit point, sim/belt_exit.hpp, and feeds its body again).
+struct Delivery {
+  petri::TransitionId transition = 0;  // starts the open
+  std::size_t robot = 0;               // program robot index
+  std::size_t primitive = 0;           // of the open
+  std::string conveyor;                // the exit conveyor
+  double distance = 0;                 // m along the belt from where the part is let go to the exit point
+  double ride = 0;                     // s: the distance at the belt's speed
+};
+
 struct MotionPlan {
   std::vector<std::vector<PlannedCommand>> commands;  // per program robot, per primitive
-  std::vector<ArrivalGate> gates;
+  std::vector<ArrivalGate> gates;                     // named parts
+  // Transitions that start the first move to a new part of a class the feed brings: each firing takes the next part
+  // fed (see the top).
+  std::vector<petri::TransitionId> feed_takes;
+  double feed_ride = 0;  // s a fed part rides from the feed's entry point to the stop (the longest of the bodies')
+  std::vector<Delivery> deliveries;  // a shift's opens that deliver a body (empty unless the feed recycles)
   // One line per move that cannot be made: the robot, the command, its source and why.
   std::vector<std::string> problems() const;
 };
 
 // Follows one untimed run of the net (petri::choose over everything enabled) and plans every move as robot control
-// will make it (see the top): parts ride conveyors to their stop, are held, handed over and put down. Moves whose
+// will make it (see the top): parts ride conveyors to their stop, are held, handed over, put down and, in a shift,
+// delivered. Moves whose
 // target cannot be resolved or has no inverse-kinematics solution within the joint limits are reported in
 // PlannedCommand::problem (the robot then stays where it was). Throws InputError if a URDF cannot be read.
 MotionPlan plan_motions(const Scenario& scenario, const petri::Net& net, const runtime::TargetOptions& targets);
@@ -106,23 +133,36 @@ struct CommandEstimate {
   std::string robot;  // program label
   std::size_t primitive = 0;
   std::string command;  // "move above(A)"
-  double motion = 0;   // s the driver takes (its physical part, before the lock-step turns are added)
-  double seconds = 0;  // s from the firing that starts it to the firing after it (what the timed net uses)
-  std::string basis;   // "joint move, largest step 1.234 rad (joint 2)", "close on a part ...", "net only"
+  double motion = 0;    // s the driver takes (its physical part, before the lock-step turns are added)
+  double seconds = 0;   // s from the firing that starts it to the firing after it (what the timed net uses)
+  std::string basis;    // "joint move, largest step 1.234 rad (joint 2)", "close on a part ...", "net only"
 };
 
 struct Estimate {
   std::vector<CommandEstimate> commands;  // every primitive of every robot, program order
   std::vector<double> place_duration;     // per place of the timed net
-  petri::Net timed_net;                   // the program's net with the arrival places added
+  // The program's net with the arrival places added and, for a program that takes parts of a class the feed brings,
+  // the feed's net (places and transitions "feed.*", see estimate_cycle_time).
+  petri::Net timed_net;
   TimedRun run;
-  double cycle_time = 0;           // run.finish: when the last robot is done
+  // When the last robot is done: the last firing of one of the program's transitions (`net`'s: run.finish, but for
+  // the feed's net, which goes on delivering the last parts after the program's end).
+  double cycle_time = 0;
   std::vector<std::string> notes;  // targets that could not be resolved (their moves count min_move_time)
 };
 
 // Estimates the cycle time of the scenario's program, whose net is `net` (task::to_net of the program), from its
 // motion plan. Throws InternalError when a program robot has no timing in `options` (or one of the wrong size), or a
 // period or step is not > 0; InputError if a URDF cannot be read.
+//
+// The feed's net, for a program with feed takes (each place's duration in brackets; p = the control period):
+//  - feed.first [start] --feed.begin--> feed.slot [0] + feed.clock [period], feed.clock --feed.tick--> feed.clock +
+//    feed.slot: a slot at each feed time, feed.begin and feed.tick each taking one of the `count` tokens of
+//    feed.due [0];
+//  - feed.slot + feed.free [0] (a token per body) --feed.feed--> feed.part [feed_ride rounded up to p]: a part at the
+//    stop, taken by every feed take (an input arc of its transition);
+//  - in a shift, per delivery d: its open's transition --> feed.leaving.d [from the open's start to the end of the
+//    period in which the part, let go of, has ridden to the exit point] --feed.delivered.d--> feed.free.
 Estimate estimate_cycle_time(const Scenario& scenario, const petri::Net& net, const EstimateOptions& options);
 
 }  // namespace cellwright::twin::scenario

@@ -22,6 +22,10 @@ inline constexpr double kFingerMinTime = 0.1;      // s, the shortest finger mot
 // (> 0): at least kFingerMinTime.
 double finger_ramp_duration(double from, double to, double speed);
 
+// Seconds from the start of the finger ramp from `from` to `to` (speed > 0) until it passes `at`: nullopt unless `at`
+// is strictly between them. (An open lets go of a part when its ramp passes the part's faces.)
+std::optional<double> finger_ramp_time_to(double from, double to, double at, double speed);
+
 // Seconds from the start of a closing ramp from `from` down to `closed` until the ramp passes `contact - squeeze`: when
 // fingers blocked by a part at `contact` start pressing it. nullopt when the ramp never gets there (contact - squeeze
 // <= closed, or contact >= from: the part is not between the fingers as they close). `from` > `closed`; speed > 0.

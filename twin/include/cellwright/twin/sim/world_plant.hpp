@@ -34,6 +34,7 @@
 #include "cellwright/runtime/plant.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/faults.hpp"
+#include "cellwright/twin/sim/belt_exit.hpp"
 #include "cellwright/twin/sim/world.hpp"
 
 namespace cellwright::twin::sim {
@@ -68,7 +69,7 @@ class WorldPlant final : public runtime::Plant {
 
   // A shift of more parts than bodies (scenario Feed::count): a part carried to the `leave` point of one of these
   // conveyors (where parts fall off its end, or, with a stop, collect against it: its centre within 5 cm of the
-  // point) has left the cell; it is parked out of the cell at once and reported by
+  // point; the exact rule: belt_exit.hpp) has left the cell; it is parked out of the cell at once and reported by
   // new_arrivals() with `left`, and its body may be fed again. A feed event whose body is still in the cell (or will
   // never leave it: dropped on the floor) takes the next parked body of the feed instead; with none parked it waits
   // (and the events after it wait too). Call before the run.
@@ -88,14 +89,8 @@ class WorldPlant final : public runtime::Plant {
   std::vector<FeedEvent> feed_;
   std::size_t next_feed_ = 0;
   std::vector<runtime::Arrival> arrivals_;
-  // recycle_at(): each exit conveyor with its belt's upstream end and direction (world), fixed for the run.
-  struct Exit {
-    const models::ConveyorSpec* conveyor = nullptr;
-    Eigen::Vector3d start = Eigen::Vector3d::Zero();
-    Eigen::Vector3d along = Eigen::Vector3d::UnitX();
-  };
-  std::vector<Exit> exits_;
-  std::vector<std::string> bodies_;                  // recycle_at(): the fed bodies, in order of first arrival
+  std::vector<BeltExit> exits_;      // recycle_at(): the exit conveyors, their belts' frames fixed for the run
+  std::vector<std::string> bodies_;  // recycle_at(): the fed bodies, in order of first arrival
   void take_out_delivered();
   std::vector<std::string> warnings_;
   std::unique_ptr<Renderer> renderer_;  // made by capture() on the simulation thread

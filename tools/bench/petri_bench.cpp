@@ -3,11 +3,14 @@
 // the task-control thread can sustain on a 100-transition net. Rates are per CPU second (the machine is shared; CPU
 // time is what one core delivers), Google Benchmark's default. And `twin check` at scale: a lock-step program of 12
 // robots and 20 lines (target: under 1 s with the stubborn-set reduction), full vs reduced markings where full
-// exploration is feasible.
+// exploration is feasible; the same table inside a `repeat` (a cyclic net, shown bounded by a weighting of its places
+// before the reduced search is trusted), and the shift program of the pipeline written for a shift.
 //
 //   cmake --build build --target petri_bench && build/tools/petri_bench
-//   taskset -c 0 build/tools/petri_bench --benchmark_filter=CheckLockStep
+//   taskset -c 0 build/tools/petri_bench --benchmark_filter=Check --benchmark_repetitions=5
+//       (add --benchmark_report_aggregates_only=true for the medians alone)
 #include <benchmark/benchmark.h>
+#include <fmt/format.h>
 
 #include <cstdint>
 #include <string>
@@ -62,19 +65,16 @@ void BM_ExploreKanban(benchmark::State& state) {
 }
 BENCHMARK(BM_ExploreKanban)->Arg(5)->Unit(benchmark::kMillisecond);
 
-// What `twin check` does with a generated lock-step program (generators::lockstep_program): parse, compile, build the
-// net, analyse it, fully (reduction 0) or with stubborn sets (1). Counters: markings explored, transitions of the net,
-// whether the program passed.
-void BM_CheckLockStep(benchmark::State& state) {
-  const int robots = static_cast<int>(state.range(0));
-  const int lines = static_cast<int>(state.range(1));
-  const std::string text = generators::lockstep_program(robots, lines);
+// What `twin check` does with a program text: parse, compile, build the net, analyse it, fully (stubborn false) or
+// with stubborn sets. Counters: markings explored, transitions of the net, whether the program passed, whether the
+// reduction was applied (a cyclic net that cannot be shown bounded is explored fully: reduced 0).
+void check(benchmark::State& state, const std::string& text, bool stubborn) {
   AnalysisOptions options;
-  options.reduction = state.range(2) != 0 ? Reduction::kStubborn : Reduction::kNone;
+  options.reduction = stubborn ? Reduction::kStubborn : Reduction::kNone;
   AnalysisResult r;
   std::size_t transitions = 0;
   for (auto _ : state) {
-    const Net net = task::to_net(task::compile(task::parse_program(text, "lockstep.task")));
+    const Net net = task::to_net(task::compile(task::parse_program(text, "check.task")));
     r = analyze(net, options);
     transitions = net.num_transitions();
     benchmark::DoNotOptimize(r.states);
@@ -86,6 +86,13 @@ void BM_CheckLockStep(benchmark::State& state) {
   state.counters["markings"] = static_cast<double>(r.states);
   state.counters["transitions"] = static_cast<double>(transitions);
   state.counters["ok"] = r.ok() ? 1 : 0;
+  state.counters["reduced"] = r.reduced ? 1 : 0;
+}
+
+// A generated lock-step program (generators::lockstep_program).
+void BM_CheckLockStep(benchmark::State& state) {
+  check(state, generators::lockstep_program(static_cast<int>(state.range(0)), static_cast<int>(state.range(1))),
+        state.range(2) != 0);
 }
 BENCHMARK(BM_CheckLockStep)
     ->ArgNames({"robots", "lines", "stubborn"})
@@ -98,6 +105,50 @@ BENCHMARK(BM_CheckLockStep)
     ->Args({6, 2, 1})
     ->Args({4, 4, 0})
     ->Args({4, 4, 1})
+    ->Unit(benchmark::kMillisecond);
+
+// The same table as the body of a `repeat 1000` loop: the leader r1 tells every other robot again or exit after each
+// iteration, so the net is cyclic (and as large for 3 iterations as for 1000).
+void BM_CheckLockStepLoop(benchmark::State& state) {
+  check(state, generators::lockstep_program(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)), 1000),
+        state.range(2) != 0);
+}
+BENCHMARK(BM_CheckLockStepLoop)
+    ->ArgNames({"robots", "lines", "stubborn"})
+    ->Args({12, 20, 1})
+    ->Args({2, 20, 0})
+    ->Args({2, 20, 1})
+    ->Args({4, 4, 0})
+    ->Args({4, 4, 1})
+    ->Unit(benchmark::kMillisecond);
+
+// A sequence-style looping program: the shipped shift program (a table whose loop pipelines pick, hand-over and
+// place) and, for scale, 6 copies of it side by side (12 robots: pairs rI, rI+1 in one table, looping together).
+std::string shift_program(int pairs) {
+  std::string robots, header, first, second, body1, body2, last;
+  for (int k = 0; k < pairs; ++k) {
+    const int g = 2 * k + 1, t = 2 * k + 2;
+    const std::string sep = k == 0 ? "" : " | ";
+    robots += fmt::format(" r{} r{}", g, t);
+    header += fmt::format("{}r{} | r{}", sep, g, t);
+    first += fmt::format("{}Pick part |", sep);
+    second += fmt::format("{}Put r{} | Get r{}", sep, t, g);
+    body1 += fmt::format("{}Pick part | Place OUT", sep);
+    last += fmt::format("{} | Place OUT", sep);
+  }
+  return fmt::format(
+      "robot{}\nworkpiece part from IN\nlocation IN OUT\nsteps\n  {}\n  {}\n  {}\nrepeat 999\n  {}\n  {}\nend\n  "
+      "{}\nend\n",
+      robots, header, first, second, body1, second, last);
+}
+void BM_CheckShift(benchmark::State& state) {
+  check(state, shift_program(static_cast<int>(state.range(0))), state.range(1) != 0);
+}
+BENCHMARK(BM_CheckShift)
+    ->ArgNames({"pairs", "stubborn"})
+    ->Args({1, 0})
+    ->Args({1, 1})
+    ->Args({6, 1})
     ->Unit(benchmark::kMillisecond);
 
 // The token game as the task-control thread plays it: choose a maximal fair step, fire it. 10 robots x 10 steps =

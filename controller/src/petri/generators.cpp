@@ -160,14 +160,20 @@ std::uint64_t robot_cell_reachable(int robots, int steps, int regions) {
   return total;
 }
 
-std::string lockstep_program(int robots, int lines) {
+std::string lockstep_program(int robots, int lines, std::uint32_t repeat) {
   if (robots < 1 || lines < 1) {
     throw std::invalid_argument(
         fmt::format("lockstep_program: need robots >= 1 and lines >= 1; got {} robots, {} lines", robots, lines));
   }
+  if (repeat > 0 && (lines % 4 == 1 || lines % 4 == 2)) {
+    throw std::invalid_argument(fmt::format(
+        "lockstep_program: a loop's body must end with every robot's hands empty: {} lines leave workpieces held "
+        "(use a number of lines that is 0 or 3 modulo 4)",
+        lines));
+  }
   const int pairs = (robots + 1) / 2;
-  std::string out =
-      fmt::format("# {} robots in one lock-step table of {} lines (generators::lockstep_program)\n", robots, lines);
+  std::string out = fmt::format("# {} robots in one lock-step table of {} lines{} (generators::lockstep_program)\n",
+                                robots, lines, repeat > 0 ? fmt::format(", repeated {} times", repeat) : std::string());
   auto names = [](const char* prefix, int n) {
     std::string s;
     for (int i = 1; i <= n; ++i) s += fmt::format(" {}{}", prefix, i);
@@ -180,6 +186,7 @@ std::string lockstep_program(int robots, int lines) {
   out += "steps\n  r1";
   for (int r = 2; r <= robots; ++r) out += fmt::format(" | r{}", r);
   out += "\n";
+  if (repeat > 0) out += fmt::format("repeat {}\n", repeat);
   for (int line = 0; line < lines; ++line) {
     std::vector<std::string> cells(static_cast<std::size_t>(robots));
     for (int j = 0; j < pairs; ++j) {
@@ -209,6 +216,7 @@ std::string lockstep_program(int robots, int lines) {
     }
     out += "  " + fmt::format("{}", fmt::join(cells, " | ")) + "\n";
   }
+  if (repeat > 0) out += "end\n";
   out += "end\n";
   return out;
 }

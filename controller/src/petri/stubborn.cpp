@@ -1,41 +1,16 @@
-// Stubborn sets and the structural facts the reduced search relies on (stubborn.hpp).
+// Stubborn sets and finite_runs (stubborn.hpp); the bounding weights are in subinvariant.cpp.
 #include "cellwright/petri/stubborn.hpp"
 
 #include <algorithm>
 #include <cstdint>
 #include <limits>
 
+#include "petri/effects.hpp"
+
 namespace cellwright::petri {
 
-namespace {
-
-// Net effect of each transition on each place it touches: (place, delta) pairs, delta != 0.
-std::vector<std::vector<std::pair<PlaceId, std::int64_t>>> effects(const Net& net) {
-  std::vector<std::vector<std::pair<PlaceId, std::int64_t>>> out;
-  out.reserve(net.num_transitions());
-  for (const Transition& t : net.transitions()) {
-    std::vector<std::pair<PlaceId, std::int64_t>> e;
-    auto add = [&](PlaceId p, std::int64_t d) {
-      for (auto& [q, v] : e) {
-        if (q == p) {
-          v += d;
-          return;
-        }
-      }
-      e.emplace_back(p, d);
-    };
-    for (const Arc& a : t.inputs) add(a.place, -static_cast<std::int64_t>(a.weight));
-    for (const Arc& a : t.outputs) add(a.place, a.weight);
-    std::erase_if(e, [](const auto& pv) { return pv.second == 0; });
-    out.push_back(std::move(e));
-  }
-  return out;
-}
-
-}  // namespace
-
 bool finite_runs(const Net& net) {
-  const auto eff = effects(net);
+  const auto eff = detail::effects(net);
   const std::size_t nt = net.num_transitions();
   // unknown_raisers[p]: raisers of p not yet shown finite. A transition becomes finite once some place it takes from
   // (net) has none left.
@@ -77,75 +52,6 @@ bool finite_runs(const Net& net) {
   return count == nt;
 }
 
-bool structurally_bounded(const Net& net) {
-  if (finite_runs(net)) return true;
-  const auto eff = effects(net);
-  const std::size_t np = net.num_places();
-  // Robot places get free weights, node index = place id; node np is the zero (y = 0) reference.
-  std::vector<bool> robot(np, false);
-  for (std::size_t p = 0; p < np; ++p) robot[p] = !net.places()[p].origin.robot.empty();
-  struct Edge {
-    std::uint32_t from, to;
-    std::int64_t w;  // y(to) - y(from) <= w
-  };
-  std::vector<Edge> edges;
-  const auto zero = static_cast<std::uint32_t>(np);
-  auto fail_family = [&] {
-    // Some transition moves robot tokens other than one at a time: fall back to every place weighing 1.
-    std::fill(robot.begin(), robot.end(), false);
-  };
-  for (int attempt = 0; attempt < 2; ++attempt) {
-    edges.clear();
-    bool fits = true;
-    for (const auto& e : eff) {
-      std::int64_t rest = 0;  // weight-1 places: sum of their net change
-      std::uint32_t from = zero, to = zero;
-      int n_from = 0, n_to = 0;
-      for (const auto& [p, d] : e) {
-        if (!robot[p]) {
-          rest += d;
-        } else if (d == -1) {
-          from = p;
-          ++n_from;
-        } else if (d == 1) {
-          to = p;
-          ++n_to;
-        } else {
-          fits = false;
-        }
-      }
-      if (n_from > 1 || n_to > 1) fits = false;
-      if (!fits) break;
-      // y(to) - y(from) + rest <= 0, with y(zero) = 0 for an absent end.
-      if (from == zero && to == zero) {
-        if (rest > 0) return false;
-        continue;
-      }
-      edges.push_back({from, to, -rest});
-    }
-    if (fits) break;
-    if (attempt == 1) return false;
-    fail_family();
-  }
-  // Every free weight at least 1: y(zero) - y(p) <= -1.
-  for (std::uint32_t p = 0; p < np; ++p) {
-    if (robot[p]) edges.push_back({p, zero, -1});
-  }
-  // Bellman-Ford from a virtual source at distance 0 to every node: feasible iff no negative cycle.
-  std::vector<std::int64_t> dist(np + 1, 0);
-  for (std::size_t pass = 0; pass <= np + 1; ++pass) {
-    bool changed = false;
-    for (const Edge& e : edges) {
-      if (dist[e.from] + e.w < dist[e.to]) {
-        dist[e.to] = dist[e.from] + e.w;
-        changed = true;
-      }
-    }
-    if (!changed) return true;
-  }
-  return false;
-}
-
 StubbornSets::StubbornSets(const Net& net)
     : net_(net),
       consumers_(net.num_places()),
@@ -153,7 +59,7 @@ StubbornSets::StubbornSets(const Net& net)
       region_lowers_(net.num_transitions(), false),
       stamp_(net.num_transitions(), 0),
       enabled_stamp_(net.num_transitions(), 0) {
-  const auto eff = effects(net);
+  const auto eff = detail::effects(net);
   std::vector<std::vector<std::size_t>> regions_of(net.num_places());
   for (std::size_t k = 0; k < net.regions().size(); ++k) {
     for (PlaceId p : net.regions()[k].inside) regions_of[p].push_back(k);

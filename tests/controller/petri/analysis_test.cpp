@@ -608,15 +608,18 @@ TEST(Report, ReducedRunsSayWhatTheirCountsAreAndWhichPathsMayNotBeShortest) {
 TEST(Report, FallbackToFullExplorationIsNamed) {
   AnalysisOptions stubborn;
   stubborn.reduction = Reduction::kStubborn;
-  // A token cycling a -> c -> a, leaving a note in e on the way and taking it back: bounded, with cycles, but "go"
-  // adds a token, so no weighting of the places that no firing increases shows it. The reduced search finds no growth,
-  // which proves nothing here, so the net is explored fully.
+  // A token cycling a -> c -> a, leaving a note in e on the way and taking it back, and a pump that would fill e from
+  // g, which starts empty and is never filled: bounded, with cycles, but not from every initial marking (a token in g
+  // makes e grow), so no weighting of the places that no firing increases shows it. The reduced search finds no
+  // growth, which proves nothing here, so the net is explored fully.
   NetBuilder b("fallback");
   const PlaceId a = add_place(b, "a", 1);
   const PlaceId c = add_place(b, "c", 0);
   const PlaceId e = add_place(b, "e", 0);
+  const PlaceId g = add_place(b, "g", 0);
   add_transition(b, "go", {{a, 1}}, {{c, 1}, {e, 1}});
   add_transition(b, "back", {{c, 1}, {e, 1}}, {{a, 1}});
+  add_transition(b, "pump", {{g, 1}}, {{g, 1}, {e, 1}});
   const Net net = std::move(b).build();
   const AnalysisResult r = analyze(net, stubborn);
   EXPECT_TRUE(r.ok()) << format_report(net, r);

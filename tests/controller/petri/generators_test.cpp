@@ -53,6 +53,17 @@ TEST(Generators, RejectsImpossibleShapes) {
   EXPECT_THROW((void)generators::robot_cell(2, 5, 2), std::invalid_argument);  // regions would overlap
   EXPECT_THROW((void)generators::robot_cell(2, 1, 0), std::invalid_argument);
   EXPECT_THROW((void)generators::philosophers(0), std::invalid_argument);
+  EXPECT_THROW((void)generators::lockstep_program(0, 4), std::invalid_argument);
+  // A loop's body must end with empty hands: 1 or 2 lines (mod 4) leave a workpiece held.
+  EXPECT_THROW((void)generators::lockstep_program(2, 6, 3), std::invalid_argument);
+  EXPECT_THROW((void)generators::lockstep_program(2, 5, 3), std::invalid_argument);
+  EXPECT_NO_THROW((void)generators::lockstep_program(2, 5));
+}
+
+TEST(Generators, LockStepProgramInALoop) {
+  const std::string text = generators::lockstep_program(3, 4, 7);
+  EXPECT_NE(text.find("\nrepeat 7\n  Pick W1 |  | Pick W2\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("\n  signal s1 | wait s1 | \nend\nend\n"), std::string::npos) << text;
 }
 
 TEST(Generators, KanbanClosedFormMatchesPublishedSizes) {

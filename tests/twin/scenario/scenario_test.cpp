@@ -395,6 +395,18 @@ TEST_F(ScenarioFiles, ExchangeScenarioPassesPreflight) {
   for (const models::ReachCheck& c : p.reach) EXPECT_TRUE(c.reachable) << c.robot << " " << c.target;
 }
 
+TEST_F(ScenarioFiles, PreflightChecksAsTwinCheckDoesWithTheReduction) {
+  // The shift's loop makes a cyclic net: the reduced search applies (its weighting of the places shows it bounded),
+  // with the verdict of full exploration and fewer markings.
+  const Scenario s = load_scenario(kScenes + "/pipeline_shift.yaml");
+  const Preflight p = preflight(s);
+  EXPECT_TRUE(p.analysis.ok()) << petri::format_report(p.net, p.analysis);
+  EXPECT_TRUE(p.analysis.reduced) << p.analysis.reduction_note;
+  const petri::AnalysisResult full = petri::analyze(p.net);
+  EXPECT_TRUE(full.ok());
+  EXPECT_LT(p.analysis.states, full.states);
+}
+
 TEST_F(ScenarioFiles, MoveThePlanCannotMakeIsRefused) {
   // Backed off 30 cm from its side grasp at the hand-over, the MELFA's tool would be at its own base: both of its
   // moves to hand_approach(r1) (approach, and depart holding A) are refused, naming the command and its source.
@@ -414,6 +426,7 @@ TEST_F(ScenarioFiles, DeadlockingProgramFailsPreflightWithTheCheck) {
   const Preflight p = preflight(s);
   EXPECT_FALSE(p.ok());
   EXPECT_FALSE(p.analysis.ok());
+  EXPECT_EQ(p.analysis.deadlocks, petri::analyze(p.net).deadlocks);  // the reduced search finds every dead marking
   ASSERT_EQ(p.problems.size(), 1u);
   EXPECT_THAT(p.problems[0], HasSubstr("fails the check"));
   EXPECT_THAT(p.problems[0], HasSubstr("deadlock"));

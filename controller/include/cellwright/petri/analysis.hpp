@@ -18,8 +18,9 @@
 //  - mutual exclusion: each region's verdict and its largest occupancy (max_inside) are exact; the witness path to a
 //    violation may be longer than the shortest one (RegionCheck::witness_shortest is false);
 //  - boundedness: an unbounded witness found is real; "bounded" is claimed only for nets shown bounded structurally
-//    (structurally_bounded()); for any other net that the reduced search finds no covering in, analyze() explores
-//    fully instead and says so in reduction_note;
+//    (structurally_bounded(): every run finite, or a weighting of the places that no firing increases, found by
+//    difference constraints or by a linear program and checked exactly); for any other net that the reduced search
+//    finds no covering in, analyze() explores fully instead and says so in reduction_note;
 //  - `states` and `edges` count what was explored (reduced == true), not the reachability graph; place_bounds and
 //    dead_transitions are not computed.
 //

@@ -41,9 +41,12 @@ std::uint64_t robot_cell_reachable(int robots, int steps, int regions);
 // robots work in pairs (r1 with r2, r3 with r4, ...; an odd last robot alone) through a cycle of four lines: the giver
 // picks its workpiece, hands it to the taker (Put/Get), the taker places it, and the giver signals a semaphore that
 // the taker waits for on the same line. Every line ends in a barrier of every robot with every other, so the net has
-// lines - 1 barriers of robots * (robots - 1) events each. The workload for `twin check` at scale. Throws
-// std::invalid_argument unless robots >= 1 and lines >= 1.
-std::string lockstep_program(int robots, int lines);
+// lines - 1 barriers of robots * (robots - 1) events each. The workload for `twin check` at scale. With repeat > 0
+// the lines are the body of a loop `repeat <repeat> ... end` (the table for a shift: a cyclic net, r1 the leader
+// telling every other robot again or exit, and a barrier after the body's last line too). Throws
+// std::invalid_argument unless robots >= 1 and lines >= 1, and, with a loop, lines is 0 or 3 modulo 4 (the body must
+// end with every hand empty, as the compiler requires).
+std::string lockstep_program(int robots, int lines, std::uint32_t repeat = 0);
 
 // A random net shaped like a compiled cell program, from `seed` (the same seed gives the same net on every platform):
 // 1 to 4 robots, each a chain of places (kStart, kExecuting/kWaiting, kDone) with one token, some looping back to

@@ -22,14 +22,16 @@
 //
 // Boundedness is not preserved by stubborn sets (a transition that pumps tokens can be ignored in favour of one that
 // drains them). A covering found by the reduced search is a real unbounded witness; the absence of one proves
-// nothing, so analyze() trusts a reduced search for boundedness only when structurally_bounded() holds, and otherwise
-// falls back to full exploration.
+// nothing, so analyze() trusts a reduced search for boundedness only when structurally_bounded() holds (every run
+// finite, or a bounding weighting of the places exists, found by difference constraints or a linear program), and
+// otherwise falls back to full exploration.
 //
 // Thread safety: a StubbornSets is used by one exploration; the free functions are re-entrant.
 #pragma once
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -43,12 +45,35 @@ namespace cellwright::petri {
 // is acyclic), whatever its events, regions and hand-overs.
 bool finite_runs(const Net& net);
 
-// True when a weighting y >= 1 of the places exists with y . C(t) <= 0 for every transition t (Memmi-Roucairol: the
-// weighted token sum never grows, so every place is bounded from any initial marking). Searched in a family solved
-// without linear programming: places of robots (Origin::robot non-empty) get free weights when every transition moves
-// at most one robot token (weight 1) from one robot place to another, every other place weight 1; the conditions are
-// then difference constraints, solved by Bellman-Ford. Holds for acyclic task nets and for loops whose events are
-// handshaken (each signal answered before the next), not for a loop that signals faster than its partner waits.
+// A bounding weighting of the places (a positive sub-invariant): weight[p] >= 1 for every place and
+// weight . C(t) <= 0 for every transition t, C(t) being the net change of firing t. The weighted token sum then never
+// grows, so place p holds at most (weight . m0) / weight[p] tokens in any marking reachable from any initial marking
+// m0; and such a weighting exists iff the net is bounded for every initial marking (structurally bounded, Memmi and
+// Roucairol). `linear_program` says how it was found.
+struct BoundingWeights {
+  std::vector<std::uint64_t> weight;  // per place, >= 1
+  bool linear_program = false;        // by the linear program (the difference-constraint family had none)
+};
+
+// Finds a bounding weighting, or nullopt. First in a family solved without linear programming: places of robots
+// (Origin::robot non-empty) get free weights when every transition moves at most one robot token (weight 1) from one
+// robot place to another, every other place weight 1; the conditions are then difference constraints, solved by
+// Bellman-Ford in O(places * transitions) at worst. That family covers acyclic task nets and loops whose events are
+// handshaken (each signal answered before the next), but not a loop whose leader tells its followers again or exit:
+// those events need weights other than 1. Then as a linear program solved by GLPK (minimise the sum of the weights
+// subject to weight >= 1 and weight . C(t) <= 0; feasible iff the net is structurally bounded): GLPK's floating-point
+// optimum is turned into the nearest small-denominator rationals, scaled to integers and accepted only if
+// is_bounding_weighting() confirms it exactly; if not, GLPK's exact rational simplex (glp_exact) is asked for the
+// same vertex and the confirmation repeated. So a weighting returned is always exact; nullopt means none exists, or
+// (never seen on task nets) that no exact one could be recovered from GLPK's answer, and boundedness is then simply not
+// claimed. Weights stay below 2^53.
+std::optional<BoundingWeights> bounding_weights(const Net& net);
+
+// True when `weight` (one entry per place) is a bounding weighting of `net`, checked in exact integer arithmetic.
+bool is_bounding_weighting(const Net& net, const std::vector<std::uint64_t>& weight);
+
+// finite_runs(net) or a bounding weighting exists (bounding_weights(net) has a value): every place of the net is
+// bounded, whatever the initial marking.
 bool structurally_bounded(const Net& net);
 
 // The stubborn-set computation for one net (precomputed consumers, raisers and region effects).

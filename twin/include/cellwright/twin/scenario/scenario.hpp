@@ -198,8 +198,9 @@ struct Preflight {
   bool ok() const { return problems.empty(); }
 };
 
-// Builds the program's Petri net and analyses it (petri::analyze with default options: the run is refused unless the
-// analysis is complete, deadlock-free, bounded and every region exclusive), and checks the reach of every target the
+// Builds the program's Petri net and analyses it as twin check does (petri::analyze with stubborn-set reduction, whose
+// verdicts are those of full exploration; `analysis.states` counts the markings explored: the run is refused unless
+// the analysis is complete, deadlock-free, bounded and every region exclusive), and checks the reach of every target the
 // program's moves need: for each program robot, the grasp and approach poses of the locations it moves to, of the
 // places where it picks workpieces (their initial pose, or a conveyor's pick point: the stop bar when it has one),
 // and its grasp at the hand-over when it puts or gets (a robot missing from the cell's hand-over grasps is a problem).

@@ -52,21 +52,22 @@ bool finite_runs(const Net& net);
 // Roucairol). `linear_program` says how it was found.
 struct BoundingWeights {
   std::vector<std::uint64_t> weight;  // per place, >= 1
-  bool linear_program = false;        // by the linear program (the difference-constraint family had none)
+  bool linear_program = false;        // by the linear program (weight 1 for every place off the robots' chains failed)
 };
 
-// Finds a bounding weighting, or nullopt. First in a family solved without linear programming: places of robots
-// (Origin::robot non-empty) get free weights when every transition moves at most one robot token (weight 1) from one
-// robot place to another, every other place weight 1; the conditions are then difference constraints, solved by
-// Bellman-Ford in O(places * transitions) at worst. That family covers acyclic task nets and loops whose events are
-// handshaken (each signal answered before the next), but not a loop whose leader tells its followers again or exit:
-// those events need weights other than 1. Then as a linear program solved by GLPK (minimise the sum of the weights
-// subject to weight >= 1 and weight . C(t) <= 0; feasible iff the net is structurally bounded): GLPK's floating-point
-// optimum is turned into the nearest small-denominator rationals, scaled to integers and accepted only if
-// is_bounding_weighting() confirms it exactly; if not, GLPK's exact rational simplex (glp_exact) is asked for the
-// same vertex and the confirmation repeated. So a weighting returned is always exact; nullopt means none exists, or
-// (never seen on task nets) that no exact one could be recovered from GLPK's answer, and boundedness is then simply not
-// claimed. Weights stay below 2^53.
+// Finds a bounding weighting, or nullopt. Exact: a weighting returned has passed is_bounding_weighting(). Complete as
+// far as GLPK's answer can be made exact (below): the steps are equivalences, not heuristics. Path places (robot places
+// first, then any place every transition takes one token from or gives one token to, at most one of each per
+// transition) only need difference constraints, which are eliminated exactly: constraints between strongly connected
+// components are dropped, chains inside one are added up, so a robot's loop becomes one condition on the weights of the
+// other places (events, semaphores, regions, loop decisions). Those are tried at weight 1 first (a Bellman-Ford over
+// what is left: loops whose events are handshaken, each signal answered before the next), then found by a linear
+// program solved by GLPK (minimise their sum subject to weight >= 1 and the conditions: a loop whose leader tells its
+// followers again or exit needs it). GLPK's floating-point answer is turned into small-denominator rationals and scaled
+// to integers; if that does not hold exactly, GLPK's exact rational simplex (glp_exact) is asked for the same vertex.
+// The path places' weights are then shortest-path potentials. nullopt means no weighting exists, or (never seen on task
+// nets or the tests' random nets) that no exact one could be recovered from GLPK's answer: boundedness is then simply
+// not claimed. Weights stay below 2^53. Uses GLPK, whose environment is per thread and freed before returning.
 std::optional<BoundingWeights> bounding_weights(const Net& net);
 
 // True when `weight` (one entry per place) is a bounding weighting of `net`, checked in exact integer arithmetic.

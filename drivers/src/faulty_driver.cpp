@@ -153,7 +153,13 @@ Submitted FaultyDriver::submit(const Command& command) {
     }
     if (fault && held_.size() == 1) {  // chosen, and not behind another chosen command
       fault_ = fault;
+      // It waits for the wrapped driver's last command if that is still in flight; one that has ended (a stop()
+      // cancelled it, say) is not in front of it, and its failure is not one this command is behind.
       wait_for_ = last_queued_inner_;
+      if (wait_for_ != 0) {
+        const CommandPhase before = inner_.poll(wait_for_).phase;
+        if (before != CommandPhase::pending && before != CommandPhase::running) wait_for_ = 0;
+      }
       injected_.commands.push_back(h.id);
       if (plan_.on_injection) plan_.on_injection(h.id, command, *fault);
       update();

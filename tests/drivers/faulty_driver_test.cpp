@@ -232,6 +232,27 @@ TEST(FaultyDriver, AnEarlierRealFailureCancelsTheChosenCommandToo) {
   EXPECT_EQ(d.injected().cancelled_behind, 2u);
 }
 
+// A protective stop cancels the command in flight; the next command, chosen to never complete, must stall (and be
+// detected as a timeout), not be cancelled as if the stopped command had failed in front of it (found by the
+// exchange campaign: run 126 of seed 11, an obstacle then a timeout, stopped the cell as a broken controller).
+TEST(FaultyDriver, ACommandStoppedEarlierIsNotAFailureInFrontOfTheChosenOne) {
+  ScriptedDriver robot(config());
+  FaultPlan plan;
+  plan.rules.push_back({std::nullopt, 2, Fault{ErrorCode::none, true, {}}});
+  FaultyDriver d(robot, plan);
+  bring_up(d, robot);
+  const Submitted stopped = d.submit(kMove);
+  robot.advance();
+  d.stop();
+  EXPECT_EQ(d.poll(stopped.id).error, ErrorCode::cancelled);
+  ASSERT_EQ(d.activate(), ErrorCode::none);
+  const Submitted stuck = d.submit(kMove);
+  robot.advance(10000);
+  EXPECT_EQ(d.poll(stuck.id).phase, CommandPhase::running) << d.poll(stuck.id).message;
+  EXPECT_EQ(d.injected().never_completed, 1u);
+  EXPECT_EQ(d.injected().cancelled_behind, 0u);
+}
+
 TEST(FaultyDriver, RefusedSubmissionsAreNotCounted) {
   ScriptedDriver robot(config());
   FaultyDriver d(robot, nth(2, ErrorCode::timeout));

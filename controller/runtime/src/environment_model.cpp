@@ -273,7 +273,10 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
             yaw += quarter * std::round((want - yaw) / quarter);
           }
         }
-        const double grasp = mine ? r->hold->tcp_above_bottom : heights.grasp_height;
+        double grasp = mine ? r->hold->tcp_above_bottom : heights.grasp_height;
+        if (!mine && stands_upright(*w) && r->dropped_hold && r->dropped_hold->workpiece == w->name) {
+          grasp = r->dropped_hold->tcp_above_bottom;  // taken again as it was held
+        }
         const Eigen::Vector3d point = bottom + Eigen::Vector3d(0, 0, grasp + (above ? heights.approach_height : 0.0));
         const models::Approach approach = mine ? r->hold->approach : models::Approach::kDown;
         return ok(both_ways(point, approach, yaw, r->base()), what);

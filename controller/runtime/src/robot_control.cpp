@@ -459,6 +459,7 @@ void RobotControl::complete(SimDuration now) {
         hold.tcp_above_bottom = tcp.translation().z() - (w->pose.translation().z() - w->size().z() / 2);
         hold.in_hand = tcp.inverse() * w->pose;
         r->hold = hold;
+        r->dropped_hold.reset();
         r->released_tcp.reset();
         w->held_by = cell_;
       });
@@ -737,7 +738,7 @@ void RobotControl::symptom(SimDuration now, Symptom s, std::string detail, std::
     driver_.stop();
     env_.write([&](EnvironmentModel& m) {
       RobotState* r = m.find_robot(cell_);
-      if (r != nullptr) r->hold.reset();
+      if (r != nullptr) r->dropped_hold = std::exchange(r->hold, std::nullopt);
       WorkpieceState* w = m.find_workpiece(recovery_->workpiece);
       if (w != nullptr && w->held_by == cell_) w->held_by.clear();
     });
@@ -763,7 +764,7 @@ bool RobotControl::answer(Question q) const {
     case Question::part_upright:
       return env_.read([&](const EnvironmentModel& m) {
         const WorkpieceState* w = m.find_workpiece(part);
-        return w != nullptr && w->pose.linear().col(2).z() > std::cos(15.0 * M_PI / 180.0);
+        return w != nullptr && stands_upright(*w);
       });
     case Question::part_reachable: {
       // A grasp from above fits only a part standing up.

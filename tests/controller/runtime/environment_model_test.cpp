@@ -248,6 +248,32 @@ TEST(RuntimeEnvironment, APartNearItsPickLocationIsTakenWithTheLocationsFingerDi
   EXPECT_NEAR(t.poses[0].translation().z(), pick.pose.translation().z() + pick.grasp_height, 1e-9);
 }
 
+// A part dropped while carried and picked again where it fell is taken as it was held: the hand-over after the
+// re-grasp expects the giver's fingers on the upper half (pipeline campaign, seed 13 run 109: taken at the default
+// height, the PUMA's fingers met the MELFA's at the hand-over and could not open). A part on its side is not.
+TEST(RuntimeEnvironment, APartDroppedWhileCarriedIsTakenAgainAsItWasHeld) {
+  EnvironmentModel m = make_environment_model(paper_cell());
+  WorkpieceState& a = *m.find_workpiece("A");
+  a.pose = Eigen::Isometry3d::Identity();
+  a.pose.translation() = Eigen::Vector3d(0.5, 0.0, a.size().z() / 2);  // upright on the floor, far from locations
+  a.velocity.setZero();
+  const double bottom = 0.0;
+  const double by_default = resolve_target(m, "puma", target(task::TargetKind::kAt, "A")).poses.at(0).translation().z();
+  RobotState& puma = *m.find_robot("puma");
+  puma.dropped_hold = Hold{"A", models::Approach::kDown, 0.05};
+  const MotionTarget again = resolve_target(m, "puma", target(task::TargetKind::kAt, "A"));
+  ASSERT_EQ(again.resolution, MotionTarget::Resolution::kOk);
+  EXPECT_NEAR(again.poses[0].translation().z(), bottom + 0.05, 1e-9);
+  EXPECT_GT(std::abs(by_default - (bottom + 0.05)), 0.005) << "the test needs a default that differs";
+  // Another part, or this one lying on its side, is taken the usual way.
+  puma.dropped_hold = Hold{"B", models::Approach::kDown, 0.05};
+  EXPECT_NEAR(resolve_target(m, "puma", target(task::TargetKind::kAt, "A")).poses.at(0).translation().z(), by_default,
+              1e-9);
+  puma.dropped_hold = Hold{"A", models::Approach::kDown, 0.05};
+  a.pose.linear() = Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  EXPECT_FALSE(stands_upright(a));
+}
+
 TEST(RuntimeEnvironment, HandOverTargetsFollowTheCellsHandOverSpec) {
   EnvironmentModel m = make_environment_model(paper_cell());
   const models::HandoverSpec& h = *m.geometry->handover;

@@ -41,6 +41,7 @@
 
 #include <Eigen/Geometry>
 
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <string>
@@ -129,6 +130,11 @@ struct WorkpieceState {
   const Eigen::Vector3d& size() const { return fixed->size; }  // full extents (cell description)
 };
 
+// Whether the part stands upright (its axis within 15 degrees of vertical): a grasp from above fits it.
+inline bool stands_upright(const WorkpieceState& w) {
+  return w.pose.linear().col(2).z() > std::cos(15.0 * M_PI / 180.0);
+}
+
 // How a robot holds the part it has grasped: recorded by robot control when a close succeeds.
 struct Hold {
   std::string workpiece;
@@ -146,6 +152,10 @@ struct RobotState {
   // until the first one.
   std::vector<double> joints;
   std::optional<Hold> hold;  // what it holds, if anything
+  // The hold it had on a part that it lost while carrying it (grip_lost), until it grips again: a re-grasp of that
+  // part, standing upright, takes it at the same height above its bottom, the hold the rest of the program expects
+  // (a hand-over's other arm closes below it).
+  std::optional<Hold> dropped_hold;
   // The tool centre point (world), from the last position read-back (joints, or the tool pose a Cartesian controller
   // reports); nullopt before the first.
   std::optional<Eigen::Isometry3d> tcp;

@@ -289,6 +289,32 @@ TEST_F(RobotProgramsTest, RefusesAPartComingOnAConveyorWithoutSensor) {
   expect_refused(s, "cell.yaml", line_of(cell, "- name: input"), "the conveyor has no part-present sensor");
 }
 
+// A part of a class that the feed brings (review of 643c69d: the estimate's feed net took these moves out of the
+// arrival gates, and the programs lost their sensor wait): the move that takes each fed part waits for the sensor.
+// kSmall with A a part of a class that arrives at IN.
+std::string class_program() {
+  std::string p = kSmall;
+  p.replace(p.find("workpiece A"), 11, "workpiece part from IN\nlocation IN");
+  p.replace(p.find("Pick A"), 6, "Pick part");
+  return p;
+}
+
+constexpr const char* kFeed = "bind: {IN: input_pick}\nfeed: {conveyor: input, workpieces: [A], start: 0, period: 4}\n";
+
+TEST_F(RobotProgramsTest, AFedPartOfAClassIsWaitedForAtTheSensor) {
+  const Scenario s = load(class_program(), kFeed);
+  const RobotPrograms p = generate_robot_programs(s, scenario::preflight(s));
+  const RobotProgram& puma = p.robots.at(0);
+  EXPECT_THAT(puma.text, HasSubstr("  OPENI\n  WAIT SIG(1016)\n  MOVE above."));
+}
+
+TEST_F(RobotProgramsTest, RefusesAFedPartOfAClassOnAConveyorWithoutSensor) {
+  const std::string cell = cell_with(dir_, "    sensor: {signal: 16}\n", "");
+  const Scenario s = load(class_program(), kFeed, (dir_ / "cell.yaml").string());
+  expect_refused(s, "cell.yaml", line_of(cell, "- name: input"),
+                 "robot 'puma' (r1) goes to the next part the feed brings (prog.task:6:3 'Pick part')");
+}
+
 TEST_F(RobotProgramsTest, RefusesASensorOnAnEventWire) {
   const std::string cell = cell_with(dir_, "sensor: {signal: 16}", "sensor: {signal: 1}");
   const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());

@@ -42,7 +42,8 @@ struct EventUse {
 
 // The net's check result, as the headers quote it.
 std::string check_text(const petri::AnalysisResult& a, bool has_regions) {
-  return fmt::format("deadlock-free and bounded, {} reachable markings explored{}", a.states,
+  return fmt::format("deadlock-free and bounded, {} reachable markings explored{}{}", a.states,
+                     a.reduction == petri::Reduction::kStubborn ? " (stubborn-set reduction)" : "",
                      has_regions ? ", every region exclusive" : "");
 }
 
@@ -298,25 +299,35 @@ RobotPrograms generate_robot_programs(const Scenario& s, const scenario::Preflig
   const scenario::MotionPlan plan = scenario::plan_motions(s, pre.net, targets);
 
   // A part that comes later on a conveyor (fed, or riding to the stop): the first move to it waits for the
-  // conveyor's part-present sensor, as robot control waits until it sees the part there.
+  // conveyor's part-present sensor, as robot control waits until it sees the part there. Named parts have their
+  // arrival gates; a part of a class that the feed brings is taken by the moves of plan.feed_takes.
   std::map<std::pair<std::size_t, std::size_t>, const models::ConveyorSpec*> sensor_waits;  // (robot, primitive)
-  for (const scenario::ArrivalGate& g : plan.gates) {
-    const petri::Transition& t = pre.net.transitions()[g.transition];
-    CW_CHECK(t.starts_robot.has_value(), "arrival gate of {} on a transition that starts no primitive", g.workpiece);
+  auto wait_for_sensor = [&](petri::TransitionId transition, const std::string& part, const std::string& conveyor,
+                             const std::string& when) {
+    const petri::Transition& t = pre.net.transitions()[transition];
+    CW_CHECK(t.starts_robot.has_value(), "arrival of {} on a transition that starts no primitive", part);
     const std::size_t r = *t.starts_robot;
     const auto k = static_cast<std::size_t>(t.starts_primitive);
-    const models::ConveyorSpec& c = *s.cell.find_conveyor(g.conveyor);
+    const models::ConveyorSpec& c = *s.cell.find_conveyor(conveyor);
     if (c.sensor == 0) {
       const task::Primitive& p = prog.programs[r].primitives[k];
       throw InputError(c.where,
-                       fmt::format("robot '{}' ({}) goes to workpiece '{}' ({} '{}') before it has ridden conveyor "
-                                   "'{}' to its stop (at {:.1f} s by the plan): its controller must wait for the part, "
-                                   "but the conveyor has no part-present sensor; give it one ('sensor: {{signal: n}}', "
+                       fmt::format("robot '{}' ({}) goes to {} ({} '{}') before it has ridden conveyor '{}' to its "
+                                   "stop{}: its controller must wait for the part, but the conveyor has no "
+                                   "part-present sensor; give it one ('sensor: {{signal: n}}', "
                                    "docs/cell-description.md)",
-                                   s.robot_of(prog.robots[r]), prog.robots[r], g.workpiece, where_text(p.where), p.task,
-                                   c.name, g.ready));
+                                   s.robot_of(prog.robots[r]), prog.robots[r], part, where_text(p.where), p.task,
+                                   c.name, when));
     }
     sensor_waits.emplace(std::make_pair(r, k), &c);
+  };
+  for (const scenario::ArrivalGate& g : plan.gates) {
+    wait_for_sensor(g.transition, fmt::format("workpiece '{}'", g.workpiece), g.conveyor,
+                    fmt::format(" (at {:.1f} s by the plan)", g.ready));
+  }
+  for (const petri::TransitionId t : plan.feed_takes) {
+    CW_CHECK(s.feed.has_value(), "a move takes a fed part, but the scenario has no feed");
+    wait_for_sensor(t, "the next part the feed brings", s.feed->conveyor, "");
   }
 
   for (std::size_t r = 0; r < prog.robots.size(); ++r) {

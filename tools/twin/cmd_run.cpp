@@ -192,11 +192,6 @@ void add_run(CLI::App& app, Command* run) {
         scratch.emplace("cellwright-events-", ".jsonl");
         options.events_file = scratch->path();
       } else {
-        std::error_code ec;
-        std::filesystem::create_directories(args->out, ec);
-        if (ec) {
-          throw InputError({args->out, 0, 0}, fmt::format("cannot create the output directory: {}", ec.message()));
-        }
         options.events_file = std::filesystem::path(args->out) / (std::string(kEventsFile) + ".part");
       }
       ScenarioRun sr(s, pre.net, options);

@@ -6,11 +6,11 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <string>
 
-#include "cellwright/common/files.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/run.hpp"
@@ -84,9 +84,9 @@ void add_step(CLI::App& app, Command* run) {
       }
       RunOptions options;
       options.realtime = false;  // stepping is lock-step
-      // The event log streams to a file, as in `twin run`.
-      TemporaryFile scratch("cellwright-events-", ".jsonl");
-      options.events_file = scratch.path();
+      // With -o the event log streams into the output directory, as in `twin run`; without, a stepped run (short, by
+      // hand) keeps it in memory.
+      if (!out->empty()) options.events_file = std::filesystem::path(*out) / (std::string(kEventsFile) + ".part");
       ScenarioRun sr(s, pre.net, options);
       const petri::Net& net = sr.runtime().config().net;
       const bool interactive = isatty(STDIN_FILENO) == 1;

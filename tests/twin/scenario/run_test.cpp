@@ -3,6 +3,7 @@
 #include "cellwright/twin/scenario/run.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <string>
@@ -20,7 +21,9 @@ const std::string kScenes = std::string(CW_SOURCE_DIR) + "/scenes";
 class StreamedLog : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / fmt::format("cw_run_{}", ::testing::UnitTest::GetInstance()->random_seed());
+    // Its own directory: ctest runs the tests of this file as separate processes at once.
+    dir_ = fs::temp_directory_path() /
+           fmt::format("cw_run_{}_{}", ::getpid(), ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -62,13 +65,19 @@ TEST_F(StreamedLog, AFileThatCannotBeWrittenIsRefusedBeforeAnythingRuns) {
   const Preflight pre = preflight(s);
   ASSERT_TRUE(pre.ok());
   RunOptions options;
-  options.events_file = dir_ / "no" / "such" / "dir" / "events.jsonl";
+  // Its directory is made if missing; here a file stands where the directory would be.
+  write_file_atomically(dir_ / "blocker", "a file, not a directory");
+  options.events_file = dir_ / "blocker" / "events.jsonl";
   try {
     ScenarioRun run(s, pre.net, options);
-    FAIL() << "a log file in a missing directory was accepted";
+    FAIL() << "a log file that cannot be written was accepted";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("no/such/dir/events.jsonl"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("blocker"), std::string::npos) << e.what();
   }
+  // A missing directory is made.
+  options.events_file = dir_ / "new" / "dir" / "events.jsonl";
+  ScenarioRun made(s, pre.net, options);
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "new" / "dir" / "events.jsonl"));
 }
 
 }  // namespace

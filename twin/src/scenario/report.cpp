@@ -80,6 +80,17 @@ double round4(double x) {
   return std::round(x * 1e4) / 1e4;
 }
 
+// The primitive a command event of `robot` names, refused unless its program (of `count` primitives) has it.
+std::size_t primitive_of(const json& e, const std::string& robot, std::size_t count, const std::string& file) {
+  const auto k = field<std::int64_t>(e, "primitive", file);
+  if (k < 0 || static_cast<std::size_t>(k) >= count) {
+    throw InputError({file, e.value("_log_line", 0), 0},
+                     fmt::format("{} of robot {} names primitive {}, but its program has {} primitives",
+                                 e["type"].get<std::string>(), robot, k, count));
+  }
+  return static_cast<std::size_t>(k);
+}
+
 }  // namespace
 
 namespace {
@@ -121,15 +132,10 @@ class TimelineBuilder {
     if (it == robot_index_.end()) return;
     Robot& r = robots_[it->second];
     const task::RobotProgram& rp = program_.programs[r.program];
-    const auto k = field<std::int64_t>(e, "primitive", file_);
-    if (k < 0 || static_cast<std::size_t>(k) >= rp.primitives.size()) {
-      throw InputError({file_, e.value("_log_line", 0), 0},
-                       fmt::format("{} of robot {} names primitive {}, but its program has {} primitives", type,
-                                   tl_.robots[it->second].robot, k, rp.primitives.size()));
-    }
+    const std::size_t k = primitive_of(e, tl_.robots[it->second].robot, rp.primitives.size(), file_);
     if (type == "command_start") {
       ++tl_.robots[it->second].commands;
-    } else if (r.current && r.current->k == static_cast<std::size_t>(k) && !r.current->ended) {
+    } else if (r.current && r.current->k == k && !r.current->ended) {
       r.current->ended = t;
     }
   }
@@ -561,15 +567,10 @@ class ReportBuilder {
   // that ended well and was not skipped (a skipped open, of a part declared lost, placed nothing).
   void command(const json& e, bool start, double t) {
     const std::string robot = field<std::string>(e, "robot", file_);
-    const auto k = static_cast<std::size_t>(field<std::int64_t>(e, "primitive", file_));
     const auto it = std::find(s_.program.robots.begin(), s_.program.robots.end(), robot);
     if (it == s_.program.robots.end()) return;  // the timeline has refused robots of run_start it does not know
     const auto& prims = s_.program.programs[static_cast<std::size_t>(it - s_.program.robots.begin())].primitives;
-    if (k >= prims.size()) {
-      throw InputError({file_, e.value("_log_line", 0), 0},
-                       fmt::format("command event of robot {} names primitive {}, but its program has {} primitives",
-                                   robot, k, prims.size()));
-    }
+    const std::size_t k = primitive_of(e, robot, prims.size(), file_);
     const task::Primitive& p = prims[k];
     if (start) {
       if (p.task.starts_with("Pick ")) pick_start_.try_emplace(p.task.substr(5), t);

@@ -100,6 +100,16 @@ CellWorld make_cell_world(const Scenario& s) {
   return out;
 }
 
+namespace {
+
+void make_output_directory(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the output directory: {}", ec.message()));
+}
+
+}  // namespace
+
 ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions options)
     : scenario_(s),
       realtime_(options.realtime.value_or(s.options.realtime)),
@@ -255,6 +265,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   config.progress_every = options.progress_every;
   if (!options.events_file.empty()) {
     events_file_ = std::move(options.events_file);
+    if (events_file_.has_parent_path()) make_output_directory(events_file_.parent_path());
     events_out_ = std::make_unique<std::ofstream>(events_file_, std::ios::binary | std::ios::trunc);
     if (!*events_out_) {
       throw InputError({events_file_.string()}, fmt::format("cannot write the event log: {}", std::strerror(errno)));
@@ -288,12 +299,6 @@ std::vector<FinalPose> ScenarioRun::final_poses() const {
 }
 
 namespace {
-
-void make_output_directory(const std::filesystem::path& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the output directory: {}", ec.message()));
-}
 
 // Every line logged so far in the log's file, or an error naming it (a full disk).
 void flush_streamed_log(const runtime::EventLog& log, const std::filesystem::path& file) {

@@ -36,7 +36,7 @@
 //
 // Memory: a log that keeps its lines (Keep::kLines, the default) grows with the run, about 130 bytes per event. A log
 // that streams them (a sink and Keep::kNothing) holds only a count: a shift of a thousand parts costs no more memory
-// than one part, and whoever needs the events reads the sink's file back (scenario::make_report_from_file).
+// than one part, and whoever needs the events reads the sink's file back (scenario::make_report on an istream).
 //
 // Threads: every member may be called from any thread; each call appends one whole line under a mutex, so lines never
 // interleave. (Determinism of the order is the lock-step scheduler's job, not the log's.)
@@ -67,8 +67,9 @@ class EventLog {
     kLines,    // every line stays in memory: lines() and text() give them
     kNothing,  // only the sink has them; lines() and text() are not available (an invariant check fails)
   };
-  // If `sink` is not null, each line is written to it as it is logged (followed by '\n'; flushed at run_end and by
-  // flush()). The sink must outlive the log. Keep::kNothing needs a sink (std::invalid_argument otherwise).
+  // If `sink` is not null, each line is written to it as it is logged, followed by '\n', and flushed: a process
+  // that dies leaves every line logged before in the file. The sink must outlive the log. Keep::kNothing needs a
+  // sink (an invariant check).
   explicit EventLog(std::ostream* sink = nullptr, Keep keep = Keep::kLines);
   EventLog(const EventLog&) = delete;
   EventLog& operator=(const EventLog&) = delete;
@@ -131,7 +132,7 @@ class EventLog {
   void flush() const;
 
  private:
-  void append(std::string line, bool flush = false);
+  void append(std::string line);
 
   mutable std::mutex mutex_;
   std::ostream* sink_;

@@ -72,7 +72,7 @@ struct Timeline {
 // the firing of r's transition k (it starts the primitive) to the firing of transition k+1 (or the run's end): a
 // move/open/close is a move/grip bar up to its command_end and blocked after it; a wait is a wait bar; a signal takes
 // no time (a blocked bar if its next transition fired later). Throws InputError naming `file` when the events
-// contradict the program (an unknown robot or primitive) or lack run_start.
+// contradict the program (an unknown robot or primitive), lack run_start, or have a fire or command event before it.
 Timeline build_timeline(const std::vector<nlohmann::json>& events, const task::CompiledProgram& program,
                         const std::string& file = "events.jsonl");
 

@@ -57,7 +57,7 @@ struct RunOptions {
   // Called on the image-processing thread after each camera frame (`--save-frames`). Must not touch the ScenarioRun.
   std::function<void(const runtime::VisionFrame&)> on_frame;
   // If not empty, the event log is streamed to this file as the run writes it (created, or emptied, when the
-  // ScenarioRun is built) and kept nowhere else: the run's memory does not grow with its length, report() reads the
+  // ScenarioRun is built, with its directory) and kept nowhere else: the run's memory does not grow with its length, report() reads the
   // file back, and runtime().log().text() is not available. A run that dies leaves every line logged so far in it.
   // Empty: the log is kept in memory (tests, benchmarks).
   std::filesystem::path events_file;

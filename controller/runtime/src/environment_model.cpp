@@ -274,8 +274,10 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
           }
         }
         double grasp = mine ? r->hold->tcp_above_bottom : heights.grasp_height;
-        if (!mine && stands_upright(*w) && r->dropped_hold && r->dropped_hold->workpiece == w->name) {
-          grasp = r->dropped_hold->tcp_above_bottom;  // taken again as it was held
+        if (!mine && stands_upright(*w) && r->dropped_hold && r->dropped_hold->workpiece == w->name &&
+            r->dropped_hold->approach == models::Approach::kDown && r->dropped_hold->tcp_above_bottom > 0 &&
+            r->dropped_hold->tcp_above_bottom <= w->size().z()) {
+          grasp = r->dropped_hold->tcp_above_bottom;  // taken again from above as it was held
         }
         const Eigen::Vector3d point = bottom + Eigen::Vector3d(0, 0, grasp + (above ? heights.approach_height : 0.0));
         const models::Approach approach = mine ? r->hold->approach : models::Approach::kDown;

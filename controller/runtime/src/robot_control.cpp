@@ -1025,6 +1025,7 @@ void RobotControl::set_aside(SimDuration now, const std::string& workpiece, cons
     if (w->held_by == cell_) w->held_by.clear();
     RobotState* r = m.find_robot(cell_);
     if (r != nullptr && r->hold && r->hold->workpiece == workpiece) r->hold.reset();
+    if (r != nullptr && r->dropped_hold && r->dropped_hold->workpiece == workpiece) r->dropped_hold.reset();
     return Lost{true, w->present ? std::optional<Eigen::Vector3d>(w->pose.translation()) : std::nullopt};
   });
   if (lost.now) log_.workpiece_lost(now, workpiece, reason, lost.last_seen);

@@ -269,9 +269,24 @@ TEST(RuntimeEnvironment, APartDroppedWhileCarriedIsTakenAgainAsItWasHeld) {
   puma.dropped_hold = Hold{"B", models::Approach::kDown, 0.05};
   EXPECT_NEAR(resolve_target(m, "puma", target(task::TargetKind::kAt, "A")).poses.at(0).translation().z(), by_default,
               1e-9);
+  // Held from the side before, or at a height the part does not have: the usual way too.
+  puma.dropped_hold = Hold{"A", models::Approach::kSide, 0.05};
+  EXPECT_NEAR(resolve_target(m, "puma", target(task::TargetKind::kAt, "A")).poses.at(0).translation().z(), by_default,
+              1e-9);
+  puma.dropped_hold = Hold{"A", models::Approach::kDown, a.size().z() + 0.01};
+  EXPECT_NEAR(resolve_target(m, "puma", target(task::TargetKind::kAt, "A")).poses.at(0).translation().z(), by_default,
+              1e-9);
+  // Tilted by 20 degrees (not upright): not as it was held.
   puma.dropped_hold = Hold{"A", models::Approach::kDown, 0.05};
-  a.pose.linear() = Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  EXPECT_FALSE(stands_upright(a));
+  a.pose.linear() = Eigen::AngleAxisd(20 * std::numbers::pi / 180, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  ASSERT_FALSE(stands_upright(a));
+  const MotionTarget tilted = resolve_target(m, "puma", target(task::TargetKind::kAt, "A"));
+  puma.dropped_hold.reset();
+  const MotionTarget usual = resolve_target(m, "puma", target(task::TargetKind::kAt, "A"));
+  ASSERT_EQ(tilted.resolution, usual.resolution);
+  if (usual.resolution == MotionTarget::Resolution::kOk) {
+    EXPECT_TRUE(tilted.poses.at(0).isApprox(usual.poses.at(0), 1e-12));
+  }
 }
 
 TEST(RuntimeEnvironment, HandOverTargetsFollowTheCellsHandOverSpec) {

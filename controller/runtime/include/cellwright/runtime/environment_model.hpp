@@ -152,9 +152,10 @@ struct RobotState {
   // until the first one.
   std::vector<double> joints;
   std::optional<Hold> hold;  // what it holds, if anything
-  // The hold it had on a part that it lost while carrying it (grip_lost), until it grips again: a re-grasp of that
-  // part, standing upright, takes it at the same height above its bottom, the hold the rest of the program expects
-  // (a hand-over's other arm closes below it).
+  // The hold it had on a part that it lost while carrying it (grip_lost), until it grips again or the part is
+  // declared lost: a re-grasp of that part, standing upright, held from above before and at a height within it, takes
+  // it at the same height above its bottom, the hold the rest of the program expects (a hand-over's other arm closes
+  // below it).
   std::optional<Hold> dropped_hold;
   // The tool centre point (world), from the last position read-back (joints, or the tool pose a Cartesian controller
   // reports); nullopt before the first.

@@ -125,7 +125,7 @@ BENCHMARK(BM_CheckLockStepLoop)
 // A sequence-style looping program: the shipped shift program (a table whose loop pipelines pick, hand-over and
 // place) and, for scale, 6 copies of it side by side (12 robots: pairs rI, rI+1 in one table, looping together).
 std::string shift_program(int pairs) {
-  std::string robots, header, first, second, body1, body2, last;
+  std::string robots, header, first, second, body1, last;
   for (int k = 0; k < pairs; ++k) {
     const int g = 2 * k + 1, t = 2 * k + 2;
     const std::string sep = k == 0 ? "" : " | ";

@@ -839,8 +839,9 @@ AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
     AnalysisResult full = Explorer(net, options, nullptr, false).run();
     full.reduction = Reduction::kStubborn;
     full.reduction_note =
-        "explored fully: the net has cycles and is not structurally bounded (no weighting of its places that no "
-        "firing increases exists), and the reduced search cannot show boundedness";
+        "explored fully: the net has cycles and no weighting of its places that no firing increases was found (the "
+        "net is not structurally bounded, or GLPK's answer could not be confirmed), and the reduced search cannot "
+        "show boundedness";
     return full;
   }
   return r;

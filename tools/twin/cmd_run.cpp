@@ -192,7 +192,7 @@ void add_run(CLI::App& app, Command* run) {
         scratch.emplace("cellwright-events-", ".jsonl");
         options.events_file = scratch->path();
       } else {
-        options.events_file = std::filesystem::path(args->out) / (std::string(kEventsFile) + ".part");
+        options.events_file = streamed_events_file(args->out);
       }
       ScenarioRun sr(s, pre.net, options);
 

@@ -86,7 +86,7 @@ void add_step(CLI::App& app, Command* run) {
       options.realtime = false;  // stepping is lock-step
       // With -o the event log streams into the output directory, as in `twin run`; without, a stepped run (short, by
       // hand) keeps it in memory.
-      if (!out->empty()) options.events_file = std::filesystem::path(*out) / (std::string(kEventsFile) + ".part");
+      if (!out->empty()) options.events_file = streamed_events_file(*out);
       ScenarioRun sr(s, pre.net, options);
       const petri::Net& net = sr.runtime().config().net;
       const bool interactive = isatty(STDIN_FILENO) == 1;

@@ -278,6 +278,35 @@ TEST_F(ScenarioFiles, FeedErrors) {
   expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces: []\n"), 7, "must be a non-empty list");
 }
 
+TEST_F(ScenarioFiles, ShiftWithNoConveyorToCarryPartsOutIsRefused) {
+  // The shipped cell without its output conveyor (and the drop point on it): the input conveyor is its only one.
+  std::ifstream in(kScenes + "/cell.yaml");
+  std::string cell;
+  bool skipping = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line.starts_with("  - name: output")) skipping = true;
+    if (skipping && line.empty()) skipping = false;
+    if (skipping || line.find("output_drop") != std::string::npos) continue;
+    // The robots' URDFs are named relative to scenes/.
+    if (const auto at = line.find("../models/"); at != std::string::npos) line.replace(at, 2, kScenes + "/..");
+    cell += line + "\n";
+  }
+  ASSERT_EQ(cell.find("name: output"), std::string::npos);
+  write("one_belt.yaml", cell);
+  const std::string head = fmt::format(
+      "cell: one_belt.yaml\nprogram: {}/pipeline_single.task\n"
+      "locations:\n"
+      "  - {{name: mill_side_1, at: mill.fixture, offset: [0.14, -0.1, -0.03]}}\n"
+      "  - {{name: mill_side_2, at: mill.fixture, offset: [0.14, 0, -0.03]}}\n"
+      "  - {{name: mill_side_3, at: mill.fixture, offset: [0.14, 0.1, -0.03]}}\n"
+      "robots: {{r1: puma}}\nbind: {{P1: mill_side_1, P2: mill_side_2, P3: mill_side_3}}\n",
+      kScenes);
+  // Three bodies fed once each need no exit; fed six times, they do.
+  EXPECT_NO_THROW(load_scenario(write("s.yaml", head + "feed: {conveyor: input, workpieces: [A, B, C], period: 8}\n")));
+  expect_error(write("s.yaml", head + "feed:\n  conveyor: input\n  workpieces: [A, B, C]\n  period: 8\n  count: 6\n"),
+               13, "no other conveyor than 'input' to carry parts out on");
+}
+
 TEST_F(ScenarioFiles, PerceptionAndVision) {
   const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
   const Scenario truth = load_scenario(scenario(head));

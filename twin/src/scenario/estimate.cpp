@@ -228,11 +228,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
       Eigen::Isometry3d at_stop;
       plan.feed_ride = std::max(plan.feed_ride, ride_to_pick(*entry, *body, entry->enter, at_stop));
     }
-    if (s.feed->recycles()) {
-      for (const models::ConveyorSpec& c : s.cell.conveyors) {
-        if (c.name != s.feed->conveyor) exits.emplace_back(c);
-      }
-    }
+    for (const models::ConveyorSpec* c : s.feed->exits(s.cell)) exits.emplace_back(*c);
   }
   std::map<std::string, double> ready_at;         // cell workpiece -> when it can be picked
   std::map<std::string, std::string> arrives_on;  // cell workpiece -> the conveyor it rides to its stop

@@ -200,15 +200,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   if (s.feed && s.feed->recycles()) {
     // A shift: parts leave the cell at the end of every conveyor but the feed's, and their bodies are fed again.
     std::vector<std::string> exits;
-    for (const models::ConveyorSpec& c : s.cell.conveyors) {
-      if (c.name != s.feed->conveyor) exits.push_back(c.name);
-    }
-    if (exits.empty()) {
-      throw InputError(s.feed->where, fmt::format("the feed brings {} parts with {} bodies, but the cell has no "
-                                                  "other conveyor to carry parts out on, so no body is ever free "
-                                                  "again",
-                                                  s.feed->count, s.feed->workpieces.size()));
-    }
+    for (const models::ConveyorSpec* c : s.feed->exits(s.cell)) exits.push_back(c->name);
     plant->recycle_at(std::move(exits));
   }
   if (s.perturb) {

@@ -20,6 +20,15 @@
 
 namespace cellwright::twin::scenario {
 
+std::vector<const models::ConveyorSpec*> Feed::exits(const models::CellDescription& cell) const {
+  std::vector<const models::ConveyorSpec*> out;
+  if (!recycles()) return out;
+  for (const models::ConveyorSpec& c : cell.conveyors) {
+    if (c.name != conveyor) out.push_back(&c);
+  }
+  return out;
+}
+
 namespace {
 
 // YAML with positions in every error: the project's one field reader (yaml_fields.hpp).
@@ -475,6 +484,11 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       if (feed.count > 1 && !ff.has("period")) {
         doc.fail(f.node("feed"), "field 'feed' has a 'count' of more than one part but no 'period'");
       }
+    }
+    if (feed.recycles() && feed.exits(s.cell).empty()) {
+      doc.fail(ff.node("count"), fmt::format("the feed brings {} parts with {} bodies, but the cell has no other "
+                                             "conveyor than '{}' to carry parts out on, so no body is ever free again",
+                                             feed.count, feed.workpieces.size(), feed.conveyor));
     }
     s.feed = std::move(feed);
   }

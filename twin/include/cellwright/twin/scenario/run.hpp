@@ -138,6 +138,13 @@ inline constexpr const char* kReportFile = "report.json";
 inline constexpr const char* kGanttFile = "gantt.png";
 inline constexpr const char* kFinalFile = "final.png";
 
+// Where a run with outputs in `dir` streams its event log while it runs (RunOptions::events_file): events.jsonl.part,
+// which ScenarioRun::write_outputs renames to events.jsonl at the end; a run that dies leaves it, with every line
+// logged so far.
+inline std::filesystem::path streamed_events_file(const std::filesystem::path& dir) {
+  return dir / (std::string(kEventsFile) + ".part");
+}
+
 // Writes events.jsonl (the log's text as given), report.json, gantt.png (draw_gantt of the report's timeline) and,
 // if `final_image` is not empty, final.png into `dir`, creating it if needed; each file atomically (temporary file,
 // then rename). Throws InputError naming the path when a file or the directory cannot be written.

@@ -69,6 +69,10 @@ struct Feed {
 
   // Whether bodies are fed more than once.
   bool recycles() const { return count > workpieces.size(); }
+  // In a shift, the conveyors that carry parts out of the cell: every conveyor of the cell but the feed's (the world
+  // takes a part out at the end of one, and its body is free to be fed again). Empty when the feed does not recycle;
+  // the scenario loader refuses a recycling feed with none.
+  std::vector<const models::ConveyorSpec*> exits(const models::CellDescription& cell) const;
   // The body of the i-th part fed.
   const std::string& workpiece_at(std::size_t i) const { return workpieces[i % workpieces.size()]; }
 

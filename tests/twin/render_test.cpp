@@ -195,5 +195,20 @@ TEST(WritePng, WritesAtomicallyAndReadsBack) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(EncodePng, DecodesToTheSamePixelsIncludingARegionOfALargerImage) {
+  // Seeded noise (no run of equal bytes to hide a wrong stride or channel order), and a region whose rows are not
+  // contiguous in memory.
+  cv::Mat image(37, 53, CV_8UC3);
+  cv::RNG rng(7);
+  rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+  for (const cv::Mat& m : {image, cv::Mat(image(cv::Rect(3, 4, 21, 17)))}) {
+    const std::vector<unsigned char> bytes = encode_png(m);
+    ASSERT_GT(bytes.size(), 8u);
+    const cv::Mat back = cv::imdecode(bytes, cv::IMREAD_COLOR);
+    ASSERT_EQ(back.size(), m.size());
+    EXPECT_EQ(cv::norm(m, back, cv::NORM_INF), 0.0);
+  }
+}
+
 }  // namespace
 }  // namespace cellwright::twin

@@ -1,6 +1,8 @@
 // One run of a scenario on the simulated cell (run.hpp).
 #include "cellwright/twin/scenario/run.hpp"
 
+#include <malloc.h>
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -335,6 +337,9 @@ cv::Mat ScenarioRun::snapshot(int width, int height) const {
   const mjModel* model = world_->scene().model();
   std::unique_ptr<mjData, void (*)(mjData*)> copy(mj_makeData(model), mj_deleteData);
   mj_copyData(copy.get(), model, world_->data());
+  // Give the heap that the run's threads freed (the camera's renderer, released when the simulation thread ended)
+  // back to the system before this renderer takes its own: 18 MB less at the run's peak with a camera.
+  malloc_trim(0);
   Renderer renderer(model, width, height);
   return renderer.render_overview(copy.get(), width, height);
 }

@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 
 #include <filesystem>
+#include <vector>
 #include <memory>
 #include <string_view>
 #include <thread>
@@ -74,6 +75,12 @@ cv::Mat render_view(Scene& scene, std::string_view camera, int width, int height
 // A camera as MuJoCo has it: pose from data->cam_xpos / cam_xmat (valid after mj_forward or mj_kinematics) and
 // model->cam_fovy, at width x height pixels. For a cell camera this agrees with vision::CameraModel(spec).
 vision::CameraModel camera_model(const mjModel* model, const mjData* data, int camera_id, int width, int height);
+
+// An 8-bit, 3-channel (BGR) image encoded as PNG bytes, with libpng: not OpenCV's image codecs, whose library loads
+// GDAL, GDCM, Poppler and some hundred others into every process that links it (about 40 MB of a run's resident
+// memory once an image is written; docs/simulation.md, "Memory"). Throws std::runtime_error with libpng's message if
+// the encoder fails.
+std::vector<unsigned char> encode_png(const cv::Mat& image);
 
 // Writes an image as a PNG file atomically: to a temporary file in the same directory, then renamed over `path`, so
 // that readers never see half a file. Throws InputError naming the path if the directory does not exist or the file

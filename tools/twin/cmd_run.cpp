@@ -1,7 +1,8 @@
 // `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]
-// [--driver ROBOT=KIND[:PORT]]... [--fault SPEC]... [--seed N] [--dry]`: run a scenario's task program on the simulated cell (or with some robots
-// real, mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and every expected outcome
-// holds, 1 when not, 2 on bad input (refused before any thread starts, nothing written).
+// [--driver ROBOT=KIND[:PORT]]... [--fault SPEC]... [--seed N] [--dry] [--allow-collisions]`: run a scenario's task
+// program on the simulated cell (or with some robots real, mirrored in the twin), headless, and judge the outcome.
+// Exit 0 when the run finished and every expected outcome holds, 1 when not, 2 on bad input or a predicted collision
+// (refused before any thread starts, nothing written).
 #include <unistd.h>
 #include <any>
 
@@ -103,6 +104,7 @@ void add_run(CLI::App& app, Command* run) {
     std::vector<std::string> faults;
     std::optional<std::uint64_t> seed;
     bool dry = false;
+    bool allow_collisions = false;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("scenario", args->scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
@@ -124,6 +126,8 @@ void add_run(CLI::App& app, Command* run) {
   cmd->add_flag("--dry", args->dry,
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
                 "program; nothing else moves. Exit 0 when all is well, 1 when not");
+  cmd->add_flag("--allow-collisions", args->allow_collisions,
+                "run even though the preflight's motion sweep predicts collisions (printed as warnings)");
   cmd->add_option("--save-frames", args->frames,
                   "with vision: write each camera frame, detections drawn on it, as DIR/frame_<ms>.png");
   cmd->callback([run, args] {
@@ -134,14 +138,19 @@ void add_run(CLI::App& app, Command* run) {
       for (const std::string& f : args->faults) s.faults.push_back(parse_fault_text(f, s.cell, "--fault"));
       if (args->seed) s.seed = *args->seed;
       const Preflight pre = preflight(s);
-      if (!pre.ok()) {
+      if (!pre.ok(args->allow_collisions)) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", args->scenario.c_str());
         for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+        if (!pre.collisions.empty() && pre.ok(true)) std::fprintf(stderr, "  (--allow-collisions runs it anyway)\n");
         if (!pre.analysis.ok()) {
           std::fprintf(stderr, "%s: %s", s.program_file.string().c_str(),
                        petri::format_report(pre.net, pre.analysis).c_str());
         }
         return 2;
+      }
+      for (const std::string& c : pre.collisions) {
+        std::fprintf(stderr, "%s: warning: predicted collision (--allow-collisions): %s\n", args->scenario.c_str(),
+                     c.c_str());
       }
 
       if (args->dry) {

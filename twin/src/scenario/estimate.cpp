@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
 
 #include "cellwright/drivers/robot_driver.hpp"
 #include "cellwright/models/kinematics.hpp"
@@ -243,6 +244,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   }
   // What each arm holds, relative to its tool (parts held move with the hand).
   std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> held;  // cell robot -> (workpiece, tcp^-1 part)
+  std::map<std::string, double> closed;  // cell robot -> where its fingers closed to (absent: open)
 
   auto tcp_of = [&](const Arm& a, const std::vector<double>& q) { return a.base * a.chain.forward(vec(q)); };
   auto bound = [&](const task::Target& t) {
@@ -330,6 +332,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
             }
           }
           c.from = rs.joints;
+          if (auto h = held.find(arm.cell); h != held.end()) std::tie(c.held, c.grip) = h->second;
+          if (auto f = closed.find(arm.cell); f != closed.end()) c.closed = f->second;
           const runtime::MotionTarget mt = runtime::resolve_target(model, arm.cell, target, targets);
           if (mt.resolution != runtime::MotionTarget::Resolution::kOk) {
             c.problem = mt.reason;
@@ -382,6 +386,11 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
         }
         case task::PrimitiveKind::kOpen:
         case task::PrimitiveKind::kClose: {
+          if (p.kind == task::PrimitiveKind::kOpen) {
+            closed.erase(arm.cell);
+          } else {
+            closed[arm.cell] = 0.0;
+          }
           if (p.workpiece.empty()) break;
           const bool of_class = task::find_class(prog, p.workpiece) != nullptr;
           const std::string w = of_class ? bind_class(arm.cell, p.workpiece) : s.workpiece_of(p.workpiece);
@@ -390,6 +399,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           runtime::WorkpieceState& ws = *model.find_workpiece(w);
           const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
           c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)
+          if (p.kind == task::PrimitiveKind::kClose) closed[arm.cell] = *c.contact;
           if (p.kind == task::PrimitiveKind::kClose) {
             rs.released_tcp.reset();
             held[arm.cell] = {w, tcp.inverse() * ws.pose};

@@ -17,6 +17,7 @@
 #include "cellwright/task/loop_control.hpp"
 #include "cellwright/task/to_net.hpp"
 #include "cellwright/twin/scenario/estimate.hpp"
+#include "cellwright/twin/scenario/sweep.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -953,7 +954,19 @@ Preflight preflight(const Scenario& s) {
   if (out.problems.empty()) {
     runtime::TargetOptions targets;
     targets.handover_clearance = s.options.handover_clearance;
-    for (std::string& p : plan_motions(s, out.net, targets).problems()) out.problems.push_back(std::move(p));
+    const MotionPlan plan = plan_motions(s, out.net, targets);
+    for (std::string& p : plan.problems()) out.problems.push_back(std::move(p));
+    if (out.problems.empty()) {
+      const SweepReport sweep = sweep_motions(s, out.net, plan);
+      for (const PredictedCollision& c : sweep.collisions) {
+        out.collisions.push_back(c.text());
+        out.problems.push_back("predicted collision: " + out.collisions.back());
+      }
+      out.sweep_summary = fmt::format(
+          "swept {} moves ({} poses against the static cell) and {} pairs of commands of two robots ({}); {} poses "
+          "checked",
+          sweep.motions, sweep.samples, sweep.pairs, sweep.concurrency, sweep.pose_checks);
+    }
   }
   return out;
 }

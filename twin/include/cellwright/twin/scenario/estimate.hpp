@@ -41,6 +41,8 @@
 // Thread safety: pure functions; any thread may call them.
 #pragma once
 
+#include <Eigen/Geometry>
+
 #include <map>
 #include <optional>
 #include <string>
@@ -67,6 +69,12 @@ struct PlannedCommand {
   std::vector<double> from, goal;  // joints before and after (goal empty when the move cannot be made)
   std::string target;              // the resolved target ("above B: tool at (...)"), or "" when unresolved
   std::string problem;             // why the move cannot be made, "" when it can
+  // The part the hand carries during the move (cell workpiece, "" for none) and its pose in the tool (tcp) frame;
+  // `closed`: the last grip before the move closed the fingers, to half the part's width across them (m) or, on
+  // nothing, fully (0); nullopt when they are open (as homing leaves them).
+  std::string held;
+  Eigen::Isometry3d grip = Eigen::Isometry3d::Identity();
+  std::optional<double> closed;
   // Open and close only: half the width of the part across the fingers (m), where they close on it or let go of it;
   // nullopt when the plan puts no part between them (a grip that names none).
   std::optional<double> contact;

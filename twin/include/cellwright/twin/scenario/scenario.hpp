@@ -6,7 +6,8 @@
 //  1. load_scenario() reads the YAML file, the cell description and the task program, and binds every program label
 //     to a cell object. Anything wrong with the input throws InputError naming the file, line and field.
 //  2. preflight() builds the program's Petri net, analyses it (as `twin check` does) and checks that every robot can
-//     reach every place its program sends it to (twin::check_reach). It reports rather than throws, so that the
+//     reach every place its program sends it to (twin::check_reach), plans every move and sweeps the moves for
+//     collisions (sweep.hpp). It reports rather than throws, so that the
 //     caller can print the analysis; Preflight::ok() says whether the run may start.
 //
 // Thread safety: plain values and re-entrant functions; any thread may call them.
@@ -198,8 +199,16 @@ struct Preflight {
   std::vector<ReachNeed> needs;           // every (robot, target) pair the program needs, in the order a run meets them
   std::vector<models::ReachCheck> reach;  // the checks run for them (check_reach on the needed targets)
   std::vector<std::string> problems;      // one line per reason the run may not start, empty when it may
+  // One line per collision the motion sweep predicts (sweep.hpp: PredictedCollision::text); each is also in
+  // `problems`, as "predicted collision: " and the line, after the other problems.
+  std::vector<std::string> collisions;
+  std::string sweep_summary;  // what the sweep did, one line; "" when it did not run
 
-  bool ok() const { return problems.empty(); }
+  // Whether the run may start: no problem or, with `allow_collisions` (twin run --allow-collisions), none but the
+  // predicted collisions.
+  bool ok(bool allow_collisions = false) const {
+    return problems.size() == (allow_collisions ? collisions.size() : 0);
+  }
 };
 
 // Builds the program's Petri net and analyses it as twin check does (petri::analyze with stubborn-set reduction, whose
@@ -210,7 +219,9 @@ struct Preflight {
 // and its grasp at the hand-over when it puts or gets (a robot missing from the cell's hand-over grasps is a problem).
 // When all of that holds, it also plans every move as robot control will make it (estimate.hpp plan_motions, with
 // options.handover_clearance) and reports each move that cannot be made: a part held from the side that cannot be
-// put down from the side, a taker that cannot wait backed off from the hand-over.
+// put down from the side, a taker that cannot wait backed off from the hand-over. When every move can be made, it
+// sweeps them for collisions (sweep.hpp: against the static cell, and against the other robots' where the net lets
+// two commands run at once) and lists each predicted one in `collisions`.
 // Throws InputError only if a URDF cannot be read (load_scenario has read them once already).
 Preflight preflight(const Scenario& scenario);
 

@@ -38,7 +38,7 @@ bool is_list(const YAML::Node& map, const char* key) {
 
 // A number field of a mapping, or 0.
 double number_or_zero(const YAML::Node& map, const char* key) {
-  if (!map.IsMap()) return 0;
+  if (!map.IsDefined() || !map.IsMap()) return 0;  // a missing key's node is invalid: only IsDefined() may be asked
   const YAML::Node n = map[key];
   if (!n.IsDefined() || !n.IsScalar()) return 0;
   try {

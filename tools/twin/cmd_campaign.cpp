@@ -2,8 +2,6 @@
 // seeded variants of a scenario, each with a fault drawn from the kinds that apply, as `twin run` child processes,
 // and add up what the controller made of them (docs/faults.md section 6). Exit 0 when the campaign ran (the figures
 // are the verdict), 2 on bad input (refused before anything is written).
-#include <unistd.h>
-
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -16,40 +14,9 @@
 
 #include "cellwright/twin/scenario/campaign.hpp"
 #include "commands.hpp"
+#include "progress_bar.hpp"
 
 namespace cellwright::tools {
-
-namespace {
-
-// The progress bar on stderr: one line rewritten in place on a terminal, a line every tenth of the runs otherwise.
-class ProgressBar {
- public:
-  ProgressBar() : tty_(isatty(STDERR_FILENO) == 1) {}
-
-  void update(const twin::scenario::CampaignProgress& p) {
-    const std::string line = twin::scenario::format_progress(p);
-    if (tty_) {
-      std::fprintf(stderr, "\r%-*s", static_cast<int>(std::max(width_, line.size())), line.c_str());
-      width_ = line.size();
-    } else {
-      const std::size_t every = std::max<std::size_t>(1, p.total / 10);
-      if (p.done == printed_ || (p.done % every != 0 && p.done != p.total)) return;
-      std::fprintf(stderr, "%s\n", line.c_str());
-      printed_ = p.done;
-    }
-    std::fflush(stderr);
-  }
-  void finish() {
-    if (tty_ && width_ > 0) std::fprintf(stderr, "\n");
-  }
-
- private:
-  const bool tty_;
-  std::size_t width_ = 0;
-  std::size_t printed_ = static_cast<std::size_t>(-1);
-};
-
-}  // namespace
 
 void add_campaign(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand(
@@ -89,8 +56,8 @@ void add_campaign(CLI::App& app, Command* run) {
                    fmt::format("{}", fmt::join(options.kinds, ", ")).c_str(), options.jobs,
                    static_cast<unsigned long long>(options.seed));
       ProgressBar bar;
-      const std::vector<ts::RunRecord> records =
-          ts::run_campaign(options, [&bar](const ts::CampaignProgress& p) { bar.update(p); });
+      const std::vector<ts::RunRecord> records = ts::run_campaign(
+          options, [&bar](const ts::CampaignProgress& p) { bar.update(ts::format_progress(p), p.done, p.total); });
       bar.finish();
       const ts::CampaignSummary summary =
           ts::aggregate(records, options.kinds, options.scenario.filename().string(), options.seed);

@@ -23,5 +23,6 @@ void add_run(CLI::App& app, Command* run);
 void add_step(CLI::App& app, Command* run);
 void add_emulate(CLI::App& app, Command* run);
 void add_campaign(CLI::App& app, Command* run);
+void add_test(CLI::App& app, Command* run);
 
 }  // namespace cellwright::tools

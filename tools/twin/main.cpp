@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   cellwright::tools::add_step(app, &run);
   cellwright::tools::add_emulate(app, &run);
   cellwright::tools::add_campaign(app, &run);
+  cellwright::tools::add_test(app, &run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

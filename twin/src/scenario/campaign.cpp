@@ -1,11 +1,7 @@
 // A fault campaign: variants, child processes, the account (campaign.hpp).
 #include "cellwright/twin/scenario/campaign.hpp"
 
-#include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -14,7 +10,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -27,8 +22,6 @@
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/gantt.hpp"
 #include "cellwright/twin/scenario/run.hpp"
-
-extern char** environ;
 
 namespace cellwright::twin::scenario {
 
@@ -325,18 +318,6 @@ CampaignOptions plan_campaign(const std::filesystem::path& scenario, const std::
 
 // --- Running ---------------------------------------------------------------------------------------------------------
 
-const char* to_string(RunStatus st) {
-  switch (st) {
-    case RunStatus::kDone:
-      return "done";
-    case RunStatus::kCrash:
-      return "crash";
-    case RunStatus::kHang:
-      return "hang";
-  }
-  return "?";
-}
-
 std::string format_progress(const CampaignProgress& p, int width) {
   const int filled =
       p.total == 0 ? 0 : static_cast<int>(static_cast<double>(width) * static_cast<double>(p.done) /
@@ -346,180 +327,53 @@ std::string format_progress(const CampaignProgress& p, int width) {
                      p.crashes == 1 ? "" : "es", p.hangs, p.hangs == 1 ? "" : "s");
 }
 
-namespace {
-
-// The first line of a child's stderr that says something (an InputError's message, a parse error), at most 200
-// characters.
-std::string first_line(const std::string& text) {
-  std::size_t pos = 0;
-  while (pos < text.size()) {
-    std::size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string line = text.substr(pos, end - pos);
-    pos = end + 1;
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
-    if (line.find_first_not_of(" \t=-") == std::string::npos) continue;
-    return line.size() > 200 ? line.substr(0, 200) + "..." : line;
-  }
-  return std::string();
-}
-
-std::string slurp_or_empty(const std::filesystem::path& p) {
-  try {
-    return read_file(p);
-  } catch (const InputError&) {
-    return std::string();
-  }
-}
-
-struct Child {
-  pid_t pid = -1;
-  std::size_t index = 0;
-  std::chrono::steady_clock::time_point start;
-  bool killed = false;
-};
-
-pid_t spawn(const CampaignOptions& o, const RunRecord& rec) {
-  std::vector<std::string> args = {o.executable.string(), "run", o.scenario.string()};
-  for (const DrawnFault& f : rec.variant.faults) {
-    args.push_back("--fault");
-    args.push_back(f.spec);
-  }
-  args.push_back("--seed");
-  args.push_back(std::to_string(rec.variant.seed));
-  args.push_back("--quiet");
-  args.push_back("-o");
-  args.push_back(rec.dir.string());
-  std::vector<char*> argv;
-  for (std::string& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-
-  const std::string out = (rec.dir / "stdout.txt").string(), err = (rec.dir / "stderr.txt").string();
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, STDERR_FILENO, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, o.executable.c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) {
-    throw InputError({o.executable.string(), 0, 0},
-                     fmt::format("cannot start run {}: {}", rec.variant.index, std::strerror(rc)));
-  }
-  return pid;
-}
-
-// Classifies an ended child.
-void finish(RunRecord& rec, int raw, bool killed) {
-  if (WIFEXITED(raw)) rec.exit_code = WEXITSTATUS(raw);
-  if (WIFSIGNALED(raw)) rec.signal = WTERMSIG(raw);
-  if (killed) {
-    rec.status = RunStatus::kHang;
-    rec.problem = fmt::format("still running after {:.0f} s: killed", rec.wall_time);
-    return;
-  }
-  if (WIFSIGNALED(raw)) {
-    rec.status = RunStatus::kCrash;
-    rec.problem = fmt::format("killed by signal {} ({})", rec.signal, strsignal(rec.signal));
-    return;
-  }
-  const std::string text = slurp_or_empty(rec.dir / kReportFile);
-  json j = json::parse(text, nullptr, false);
-  if (text.empty() || j.is_discarded() || !j.is_object()) {
-    rec.status = RunStatus::kCrash;
-    const std::string err = first_line(slurp_or_empty(rec.dir / "stderr.txt"));
-    rec.problem = fmt::format("exit {} without {}{}", rec.exit_code,
-                              text.empty() ? std::string(kReportFile) : fmt::format("a readable {}", kReportFile),
-                              err.empty() ? std::string() : ": " + err);
-    return;
-  }
-  rec.status = RunStatus::kDone;
-  rec.report = std::move(j);
-}
-
-}  // namespace
-
 std::vector<RunRecord> run_campaign(const CampaignOptions& o,
                                     const std::function<void(const CampaignProgress&)>& on_progress) {
-  namespace fs = std::filesystem;
-  using Clock = std::chrono::steady_clock;
   std::vector<RunRecord> records(o.runs);
+  std::vector<ChildSpec> children(o.runs);
   for (std::size_t i = 0; i < o.runs; ++i) {
-    records[i].variant = draw_variant(o.targets, o.kinds, o.seed, i);
-    records[i].dir = o.out / "runs" / fmt::format("{:04}", i);
+    RunRecord& rec = records[i];
+    rec.variant = draw_variant(o.targets, o.kinds, o.seed, i);
+    rec.dir = o.out / "runs" / fmt::format("{:04}", i);
+    ChildSpec& c = children[i];
+    c.args = {"run", o.scenario.string()};
+    for (const DrawnFault& f : rec.variant.faults) {
+      c.args.push_back("--fault");
+      c.args.push_back(f.spec);
+    }
+    for (const std::string& a : {std::string("--seed"), std::to_string(rec.variant.seed), std::string("--quiet"),
+                                 std::string("-o"), rec.dir.string()}) {
+      c.args.push_back(a);
+    }
+    c.dir = rec.dir;
+    c.timeout = o.timeout;
   }
-  const std::size_t jobs = std::max<std::size_t>(1, o.jobs);
   CampaignProgress progress;
   progress.total = o.runs;
   auto report = [&] {
     if (on_progress) on_progress(progress);
   };
-  std::vector<Child> running;
-  // On an error: no child outlives the campaign.
-  auto kill_all = [&running] {
-    for (const Child& c : running) {
-      ::kill(c.pid, SIGKILL);
-      ::waitpid(c.pid, nullptr, 0);
-    }
+  ChildCallbacks callbacks;
+  callbacks.started = [&](std::size_t) {
+    ++progress.running;
+    report();
   };
-  std::size_t next = 0;
+  callbacks.ended = [&](std::size_t i, const ChildEnd& end) {
+    RunRecord& rec = records[i];
+    rec.status = end.status;
+    rec.exit_code = end.exit_code;
+    rec.signal = end.signal;
+    rec.wall_time = end.wall_time;
+    rec.problem = end.problem;
+    rec.report = end.report;
+    ++progress.done;
+    --progress.running;
+    if (rec.status == RunStatus::kCrash) ++progress.crashes;
+    if (rec.status == RunStatus::kHang) ++progress.hangs;
+    report();
+  };
   report();
-  while (next < o.runs || !running.empty()) {
-    bool changed = false;
-    while (running.size() < jobs && next < o.runs) {
-      RunRecord& rec = records[next];
-      std::error_code ec;
-      fs::remove_all(rec.dir, ec);
-      fs::create_directories(rec.dir, ec);
-      if (ec) {
-        kill_all();
-        throw InputError({rec.dir.string(), 0, 0}, fmt::format("cannot create the run directory: {}", ec.message()));
-      }
-      Child c;
-      c.index = next;
-      c.start = Clock::now();
-      try {
-        c.pid = spawn(o, rec);
-      } catch (...) {
-        kill_all();
-        throw;
-      }
-      running.push_back(c);
-      ++next;
-      ++progress.running;
-      changed = true;
-    }
-    if (changed) report();
-    changed = false;
-    const auto now = Clock::now();
-    for (auto it = running.begin(); it != running.end();) {
-      RunRecord& rec = records[it->index];
-      int raw = 0;
-      const pid_t r = ::waitpid(it->pid, &raw, WNOHANG);
-      if (r == it->pid) {
-        rec.wall_time = std::chrono::duration<double>(now - it->start).count();
-        finish(rec, raw, it->killed);
-        ++progress.done;
-        --progress.running;
-        if (rec.status == RunStatus::kCrash) ++progress.crashes;
-        if (rec.status == RunStatus::kHang) ++progress.hangs;
-        it = running.erase(it);
-        changed = true;
-        continue;
-      }
-      if (!it->killed && std::chrono::duration<double>(now - it->start).count() > o.timeout) {
-        ::kill(it->pid, SIGKILL);
-        it->killed = true;
-      }
-      ++it;
-    }
-    if (changed) {
-      report();
-    } else {
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-  }
+  run_children(o.executable, children, o.jobs, callbacks);
   return records;
 }
 

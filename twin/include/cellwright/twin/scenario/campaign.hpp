@@ -9,7 +9,7 @@
 //  2. applicable_kinds() / check_kinds(): which fault kinds apply to those targets.
 //  3. draw_variant(): run i's faults as `twin run --fault` texts and its seed, from std::mt19937_64 seeded with (seed,
 //     i) alone, so run i is the same whatever the number of runs and jobs.
-//  4. run_campaign(): the child processes (posix_spawn of an executable, `run SCENARIO --fault ... --seed S --quiet
+//  4. run_campaign(): the child processes (children.hpp: `EXE run SCENARIO --fault ... --seed S --quiet
 //     -o DIR/runs/NNNN`, stdout and stderr to files in the run's directory), at most `jobs` at a time, a child past
 //     its wall-time limit killed (a hang), a child that died by a signal or wrote no report.json a crash.
 //  5. aggregate() and the writers: campaign.csv, runs.csv, campaign.md, campaign.png.
@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/twin/scenario/children.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
 
 namespace cellwright::twin::scenario {
@@ -123,13 +124,6 @@ struct CampaignOptions {
 CampaignOptions plan_campaign(const std::filesystem::path& scenario, const std::vector<std::string>& kinds,
                               long long runs, std::uint64_t seed, unsigned jobs, double timeout,
                               const std::filesystem::path& out, const std::filesystem::path& executable);
-
-enum class RunStatus {
-  kDone,   // exited and wrote report.json
-  kCrash,  // died by a signal, or exited without a report.json
-  kHang,   // outlived the timeout and was killed
-};
-const char* to_string(RunStatus s);  // "done", "crash", "hang"
 
 struct RunRecord {
   Variant variant;

@@ -1,0 +1,181 @@
+// A regression suite: `twin test [DIR|SCENARIO...]` (docs/scenarios.md, "Regression suites"). Every scenario among
+// the paths given runs as a `twin run SCENARIO -o OUT/NAME --quiet` child process (children.hpp), a few at a time,
+// and is judged by its exit status and report.json (its `expect:` outcomes); the verdicts come out as one line per
+// scenario for a person and as JUnit XML for a CI server (Jenkins, GitLab).
+//
+// The parts, each usable alone (the tests use them so):
+//  1. classify_yaml(): what a YAML file is, by its content: a scenario (a mapping with the fields `cell` and
+//     `program`), a cell description (lists of robots, workpieces, conveyors, ...), a decision tree (every key a
+//     symptom of docs/faults.md), or something else.
+//  2. discover(): the scenarios among the paths given, and what was skipped and why. A folder contributes its
+//     *.yaml and *.yml files that are scenarios (the others are skipped, saying what they are); its subfolders are
+//     not entered (they are skipped, saying so) unless named themselves. A file named explicitly must be a scenario.
+//  3. plan_suite(): each scenario's name, output directory and time limit, checked before anything runs.
+//  4. run_suite(): the children, at most `jobs` at a time, and a verdict for each; a passing scenario's outputs are
+//     removed unless kept, a failing one's stay.
+//  5. format_result(), format_totals(), format_junit(): the lines and the XML.
+//
+// Verdicts: pass (exit 0, report.json says "ok"); fail (the run ended and an expectation does not hold: exit 1 or a
+// report that is not "ok"); error (`twin run` refused the scenario: exit 2 before it wrote a report, e.g. a typo in
+// the file); crash (a signal, or an exit without a report.json); hang (still running at the time limit: killed).
+// Only pass counts as passed.
+//
+// Errors: bad input to the suite itself (a path that does not exist, a folder that cannot be read, a file named
+// explicitly that is not a scenario, a YAML file that does not parse, a folder without any scenario, an output
+// directory that cannot be written or would overwrite something that is not an earlier run's outputs) throws
+// InputError naming the file, before any child starts.
+//
+// Thread safety: plain values and functions; run_suite() is for one thread (it waits for its children itself), and
+// its callbacks are called on that thread.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/twin/scenario/children.hpp"
+
+namespace cellwright::twin::scenario {
+
+// --- Discovery -------------------------------------------------------------------------------------------------------
+
+enum class YamlKind { kScenario, kCell, kDecisionTree, kOther };
+
+struct YamlClass {
+  YamlKind kind = YamlKind::kOther;
+  // What it is, for a person: "a scenario", "a cell description (docs/cell-description.md)", "a decision tree
+  // (docs/faults.md)", "a mapping without the fields `cell` and `program`", "a list", ...
+  std::string what;
+  double wall_time = 0;  // a scenario's `limits: {wall_time}` (s), 0 when it sets none
+};
+
+// What the YAML file is, by its content. Throws InputError naming the file when it cannot be read or is not YAML
+// (with the line and column of the syntax error).
+YamlClass classify_yaml(const std::filesystem::path& file);
+
+struct Skipped {
+  std::filesystem::path path;
+  std::string why;  // "a cell description (docs/cell-description.md), not a scenario", "a subfolder (not entered
+                    // unless named)"
+};
+
+struct FoundScenario {
+  std::filesystem::path path;  // as given, or the folder as given joined with the file name
+  double wall_time = 0;        // YamlClass::wall_time
+};
+
+struct Discovery {
+  std::vector<FoundScenario> scenarios;  // folders' files in name order, in the order the paths were given; a file
+                                         // found twice (named twice, or named and in a folder named) only once
+  std::vector<Skipped> skipped;          // in the same order
+};
+
+// The scenarios among `paths` (files and folders). Throws InputError (naming the path) when a path does not exist or
+// cannot be read, a file named explicitly is not a scenario (saying what it is), a YAML file in a folder does not
+// parse, or no scenario is found at all.
+Discovery discover(const std::vector<std::filesystem::path>& paths);
+
+// --- Planning --------------------------------------------------------------------------------------------------------
+
+struct SuiteCase {
+  std::filesystem::path scenario;  // as discovered (for the person); children get it made absolute
+  std::string name;                // the file name without extension, "-2", "-3" ... added when taken already
+  std::filesystem::path dir;       // OUT/NAME: the run's outputs, stdout.txt and stderr.txt
+  double timeout = 0;              // s of wall time before the child is killed
+};
+
+// The default time limit of a scenario: its own wall-time limit plus a minute (so that `twin run` judges a slow run
+// itself), 600 s when it sets none.
+double default_timeout(double scenario_wall_time);
+
+// One case per scenario of `found`, in its order, outputs under `out`; `timeout` (s, > 0) for every scenario, or
+// default_timeout() of each. Throws InputError when `timeout` is not > 0 (naming --timeout), `out` cannot be
+// written (check_writable_dir), or an OUT/NAME exists and is not the outputs of an earlier run (a directory holding
+// stdout.txt, or an empty one): the suite would replace it.
+std::vector<SuiteCase> plan_suite(const Discovery& found, const std::filesystem::path& out,
+                                  std::optional<double> timeout);
+
+// Checks that `file` (the --junit file) can be written: not a directory, its folder writable or creatable
+// (check_writable_dir), the file itself writable when it exists. Throws InputError naming it; creates nothing.
+void check_writable_file(const std::filesystem::path& file);
+
+// A new, empty directory of our own for the outputs when no -o is given: $TMPDIR (else /tmp)/cellwright-test-XXXXXX.
+// Throws InputError when it cannot be made.
+std::filesystem::path make_temporary_output_dir();
+
+// --- Running ---------------------------------------------------------------------------------------------------------
+
+enum class Verdict { kPass, kFail, kError, kCrash, kHang };
+const char* to_string(Verdict v);  // "pass", "fail", "error", "crash", "hang"
+
+struct SuiteOptions {
+  std::filesystem::path executable;   // the `twin` executable (the CLI passes /proc/self/exe)
+  unsigned jobs = 0;                  // scenarios at a time; 0: std::thread::hardware_concurrency()
+  std::optional<std::uint64_t> seed;  // passed to every run as --seed
+  bool keep = false;                  // keep a passing scenario's outputs too
+};
+
+struct CaseResult {
+  SuiteCase test;
+  Verdict verdict = Verdict::kCrash;
+  ChildEnd end;
+  std::optional<double> sim_time;     // s, report.json's end_time
+  std::optional<std::size_t> placed;  // parts placed, report.json's flow.placed
+  // Why it did not pass, one line: the report's first failure (the first expectation that does not hold), the
+  // refusal (the child's first line on stderr), the crash or the hang. Empty when it passed.
+  std::string message;
+  std::vector<std::string> failures;  // every failure of the report (fail), else {message} unless passed
+  std::string output;                 // the child's stdout (`twin run`'s summary of the report)
+  std::string errors;                 // the child's stderr
+  bool kept = true;                   // its outputs are still in test.dir
+  bool passed() const { return verdict == Verdict::kPass; }
+};
+
+// The verdict of a child that ended so, its report read (sim time, parts placed, failures) and the message. `output`
+// and `errors` are read from the child's directory.
+CaseResult judge(const SuiteCase& test, const ChildEnd& end);
+
+struct SuiteProgress {
+  std::size_t done = 0, total = 0, running = 0, failed = 0;
+};
+// "[#####.....] 3/6 scenarios, 2 running, 1 failed" with a bar of `width` cells.
+std::string format_progress(const SuiteProgress& progress, int width = 30);
+
+struct SuiteCallbacks {
+  std::function<void(const SuiteProgress&)> progress;  // a scenario started or ended
+  std::function<void(const CaseResult&)> ended;        // a scenario ended (before the progress call)
+};
+
+// Runs every case as `EXE run SCENARIO -o DIR --quiet [--seed S]` (SCENARIO absolute), at most `jobs` at a time, each
+// killed at its time limit, judges each (judge()) and removes a passing one's directory unless options.keep. Results
+// in the order of `cases`. Throws InputError as run_children.
+std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const SuiteOptions& options,
+                                  const SuiteCallbacks& callbacks = {});
+
+// --- Reporting -------------------------------------------------------------------------------------------------------
+
+// One line (no newline): verdict, name padded to `name_width`, sim time, wall time, parts placed, and for a scenario
+// that did not pass its message:
+//   "PASS   exchange   sim   14.32 s  wall    5.1 s  placed 1"
+//   "FAIL   vision     sim   20.00 s  wall    4.0 s  placed 0  workpiece A: ..."
+//   "HANG   slow       sim       -    wall  600.0 s  placed -  still running after 600 s: killed"
+std::string format_result(const CaseResult& result, std::size_t name_width);
+
+// "5 passed, 1 failed" and, when some did not pass for another reason than an expectation, " (1 crashed, 1 hung,
+// 1 refused)".
+std::string format_totals(const std::vector<CaseResult>& results);
+
+// JUnit XML as Jenkins and GitLab read it: <testsuites> with one <testsuite name="twin test"> (tests, failures,
+// errors, skipped="0", time: `wall_time` s), one <testcase name="NAME" classname="FOLDER" file="SCENARIO"
+// time="WALL"> per result; a fail holds <failure message="FIRST FAILURE" type="fail"> with every failure, one a line,
+// and where the outputs are; an error, crash or hang <error message="..." type="error|crash|hang">. Every test case
+// has the child's stdout (the report's text) in <system-out> and its stderr, when any, in <system-err>. Text is made
+// fit for any XML 1.0 reader: control characters other than tab, newline and carriage return, and bytes that are not
+// UTF-8, become U+FFFD; the XML writer (common/xml.hpp) escapes the rest.
+std::string format_junit(const std::vector<CaseResult>& results, double wall_time);
+
+}  // namespace cellwright::twin::scenario

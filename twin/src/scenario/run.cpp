@@ -16,6 +16,7 @@
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/gantt.hpp"
 #include "cellwright/twin/scenario/real_drivers.hpp"
+#include "cellwright/twin/scenario/report_page.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/fault_injector.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
@@ -355,7 +356,7 @@ void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, c
 }
 
 void write_report_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
-                          const cv::Mat& final_image) {
+                          const cv::Mat& final_image, const std::optional<std::filesystem::path>& video) {
   make_output_directory(dir);
   write_file_atomically(dir / kReportFile, to_json(scenario, report).dump(2) + "\n");
   GanttOptions gantt;
@@ -363,6 +364,12 @@ void write_report_outputs(const std::filesystem::path& dir, const Scenario& scen
                             scenario.program_file.filename().string(), report.outcome, report.end_time);
   write_png(draw_gantt(report.timeline, gantt), dir / kGanttFile);
   if (!final_image.empty()) write_png(final_image, dir / kFinalFile);
+  // The page embeds the very bytes of the files just written.
+  ReportPageMedia media;
+  media.gantt_png = read_file(dir / kGanttFile);
+  if (!final_image.empty()) media.final_png = read_file(dir / kFinalFile);
+  media.video = video;
+  write_file_atomically(dir / kPageFile, render_report_page(scenario, report, media));
 }
 
 }  // namespace cellwright::twin::scenario

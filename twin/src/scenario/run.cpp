@@ -18,6 +18,7 @@
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/gantt.hpp"
 #include "cellwright/twin/scenario/real_drivers.hpp"
+#include "cellwright/twin/scenario/report_page.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/fault_injector.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
@@ -352,14 +353,26 @@ void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, c
 }
 
 void write_report_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
-                          const cv::Mat& final_image) {
+                          const cv::Mat& final_image, const std::optional<std::filesystem::path>& video) {
   make_output_directory(dir);
   write_file_atomically(dir / kReportFile, to_json(scenario, report).dump(2) + "\n");
   GanttOptions gantt;
   gantt.title = fmt::format("{}: {} ({}), {:.2f} s", scenario.source.filename().string(),
                             scenario.program_file.filename().string(), report.outcome, report.end_time);
-  write_png(draw_gantt(report.timeline, gantt), dir / kGanttFile);
-  if (!final_image.empty()) write_png(final_image, dir / kFinalFile);
+  // The page embeds the very bytes of the pictures written beside it, encoded once.
+  const auto png_bytes = [](const cv::Mat& image) {
+    const std::vector<unsigned char> png = encode_png(image);
+    return std::string(png.begin(), png.end());
+  };
+  ReportPageMedia media;
+  media.gantt_png = png_bytes(draw_gantt(report.timeline, gantt));
+  write_file_atomically(dir / kGanttFile, media.gantt_png);
+  if (!final_image.empty()) {
+    media.final_png = png_bytes(final_image);
+    write_file_atomically(dir / kFinalFile, media.final_png);
+  }
+  media.video = video;
+  write_file_atomically(dir / kPageFile, render_report_page(scenario, report, media));
 }
 
 }  // namespace cellwright::twin::scenario

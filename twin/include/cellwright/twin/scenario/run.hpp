@@ -137,6 +137,7 @@ inline constexpr const char* kEventsFile = "events.jsonl";
 inline constexpr const char* kReportFile = "report.json";
 inline constexpr const char* kGanttFile = "gantt.png";
 inline constexpr const char* kFinalFile = "final.png";
+inline constexpr const char* kPageFile = "index.html";
 
 // Where a run with outputs in `dir` streams its event log while it runs (RunOptions::events_file): events.jsonl.part,
 // which ScenarioRun::write_outputs renames to events.jsonl at the end; a run that dies leaves it, with every line
@@ -145,13 +146,16 @@ inline std::filesystem::path streamed_events_file(const std::filesystem::path& d
   return dir / (std::string(kEventsFile) + ".part");
 }
 
-// Writes events.jsonl (the log's text as given), report.json, gantt.png (draw_gantt of the report's timeline) and,
-// if `final_image` is not empty, final.png into `dir`, creating it if needed; each file atomically (temporary file,
-// then rename). Throws InputError naming the path when a file or the directory cannot be written.
+// Writes events.jsonl (the log's text as given), report.json, gantt.png (draw_gantt of the report's timeline), if
+// `final_image` is not empty final.png, and index.html (report_page.hpp: the report page, with both pictures in it)
+// into `dir`, creating it if needed; each file atomically (temporary file, then rename). Throws InputError naming the
+// path when a file or the directory cannot be written.
 void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
                    const std::string& events, const cv::Mat& final_image);
-// The same but for events.jsonl, which the caller has already put in `dir` (a streamed log moved there).
+// The same but for events.jsonl, which the caller has already put in `dir` (a streamed log moved there). `video`:
+// the run's video, relative to `dir`, for the page to play (ReportPageMedia::video).
 void write_report_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,
-                          const cv::Mat& final_image);
+                          const cv::Mat& final_image,
+                          const std::optional<std::filesystem::path>& video = std::nullopt);
 
 }  // namespace cellwright::twin::scenario

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "cellwright/models/kinematics.hpp"
+#include "common/garbage_in.hpp"
 
 namespace cellwright::twin {
 namespace {
@@ -454,6 +455,21 @@ TEST(CellErrors, OutOfRangeValues) {
   expect_error(shape, "must be box or cylinder, got 'sphere'", line_of(shape, "shape: sphere"));
   const std::string name = with(base_yaml(), "- name: A\n", "- name: 'A B'\n");
   expect_error(name, "workpiece name 'A B' is not valid", line_of(name, "'A B'"));
+}
+
+// Seeded garbage in: the shipped cell with random edits (YAML's punctuation, digits, cut lines) is read and its reach
+// checked, or refused with an InputError naming the file; nothing else escapes, nothing crashes or hangs.
+TEST(CellGarbageIn, MutatedCellsAreReadOrRefusedWithAnInputError) {
+  const std::filesystem::path source = kSource / "scenes" / "mutant.yaml";
+  const auto counts = cellwright::testing::feed_garbage(
+      {cellwright::testing::slurp_text(kSource / "scenes" / "cell.yaml")}, 300, 20261124,
+      ":-[]{},#&*!|>'\"%@`? \n\t0123456789abcxyz.eE", source.string(), [&](const std::string& text) {
+        const models::CellDescription cell = models::parse_cell(text, source);
+        (void)models::check_reach(cell);
+      });
+  // Both outcomes occur: the edits reach past the YAML parser into the checks.
+  EXPECT_GT(counts.accepted, 10);
+  EXPECT_GT(counts.refused, 100);
 }
 
 }  // namespace

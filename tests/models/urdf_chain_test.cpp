@@ -8,6 +8,7 @@
 #include <string>
 
 #include "cellwright/models/kinematics.hpp"
+#include "common/garbage_in.hpp"
 #include "models/input_error.hpp"
 
 namespace cellwright::models {
@@ -157,6 +158,25 @@ TEST(UrdfChain, MimicJointsAreRejected) {
   const InputError e = input_error([&] { KinematicChain::from_urdf_string(s, "toy.urdf"); });
   EXPECT_EQ(e.where().line, 9);
   EXPECT_THAT(e.problem(), HasSubstr("mimic"));
+}
+
+// Seeded garbage in: the shipped URDFs with random edits (XML's punctuation, digits) become a chain whose forward
+// kinematics is finite, or are refused with an InputError naming the file; nothing else escapes.
+TEST(UrdfGarbageIn, MutatedUrdfsGiveAChainOrAnInputError) {
+  const std::filesystem::path dir = std::filesystem::path(CW_SOURCE_DIR) / "models" / "urdf";
+  const auto counts = cellwright::testing::feed_garbage(
+      {cellwright::testing::slurp_text(dir / "puma560.urdf"), cellwright::testing::slurp_text(dir / "melfa_rve2.urdf")},
+      1500, 20261124, "<>/=\"' \n-.0123456789eEabxyz", "mutant.urdf", [](const std::string& text) {
+        const KinematicChain chain = KinematicChain::from_urdf_string(text, "mutant.urdf");
+        Eigen::VectorXd q(static_cast<Eigen::Index>(chain.dof()));
+        for (std::size_t i = 0; i < chain.dof(); ++i) {
+          const JointLimit& l = chain.limits()[i];
+          q[static_cast<Eigen::Index>(i)] = std::isfinite(l.lower) ? l.lower : 0.0;
+        }
+        EXPECT_TRUE(chain.forward(q).matrix().allFinite()) << text;
+      });
+  EXPECT_GT(counts.accepted, 100);
+  EXPECT_GT(counts.refused, 300);
 }
 
 }  // namespace

@@ -91,6 +91,37 @@ TEST(Urdf, MalformedXmlAndWrongRootAreReportedAtTheirLine) {
   EXPECT_EQ(input_error([] { (void)parse_urdf("", "e.urdf"); }).problem(), "malformed XML: the file is empty");
 }
 
+// A joint whose parent is its child, a link with two parent joints, and a loop of joints: urdfdom takes them all, and
+// a walk from the tip to the base never ended (found by tests/fuzz/urdf_fuzz: joint2 of the Melfa with parent and
+// child link2 hung KinematicChain::from_urdf). Each is refused at the joint that breaks the tree.
+TEST(Urdf, LinksThatAreNotATreeAreRefusedAtTheJoint) {
+  const auto with_joint = [](const std::string& parent, const std::string& child) {
+    std::string s = toy();
+    s.replace(s.find("  <link name=\"tcp\"/>"), 0,
+              "  <joint name=\"jx\" type=\"fixed\"><parent link=\"" + parent + "\"/><child link=\"" + child +
+                  "\"/></joint>\n");
+    return s;
+  };
+  const InputError self = input_error([&] { (void)parse_urdf(with_joint("l1", "l1"), "self.urdf"); });
+  EXPECT_EQ(self.where().str(), "self.urdf:12");
+  EXPECT_EQ(self.problem(), "joint 'jx' has link 'l1' as both its parent and its child");
+
+  const InputError two = input_error([&] { (void)parse_urdf(with_joint("base_link", "tcp"), "two.urdf"); });
+  EXPECT_EQ(two.where().str(), "two.urdf:12");
+  EXPECT_THAT(two.problem(), HasSubstr("link 'tcp' is the child of joints 'j2' and 'jx'"));
+
+  // base_link -> l1 -> tcp, and l2 <-> l3 off to the side (no second parent, no second root).
+  std::string loop = toy();
+  loop.replace(loop.find("  <link name=\"tcp\"/>"), 0,
+               "  <link name=\"l2\"/><link name=\"l3\"/>\n"
+               "  <joint name=\"ja\" type=\"fixed\"><parent link=\"l2\"/><child link=\"l3\"/></joint>\n"
+               "  <joint name=\"jb\" type=\"fixed\"><parent link=\"l3\"/><child link=\"l2\"/></joint>\n");
+  const InputError cycle = input_error([&] { (void)parse_urdf(loop, "loop.urdf"); });
+  EXPECT_EQ(cycle.where().file, "loop.urdf");
+  EXPECT_THAT(cycle.where().line, ::testing::AnyOf(13, 14));
+  EXPECT_THAT(cycle.problem(), HasSubstr("closes a loop of joints"));
+}
+
 TEST(Urdf, MissingFileNamesIt) {
   const InputError e = input_error([] { (void)load_urdf_file("/nonexistent/arm.urdf"); });
   EXPECT_EQ(e.where().file, "/nonexistent/arm.urdf");

@@ -649,7 +649,7 @@ void RobotControl::start_next(SimDuration now) {
   MotionCommand cmd;
   if (inbox_.try_pop(cmd) != QueueStatus::ok) return;
   CW_CHECK(cmd.robot == index_, "robot {} got a command for robot {}", index_, cmd.robot);
-  current_.emplace();
+  current_ = Current{};  // not emplace(): clang 14 finds these nested structs not default-constructible
   current_->command = std::move(cmd);
   (void)now;
 }
@@ -728,7 +728,7 @@ void RobotControl::symptom(SimDuration now, Symptom s, std::string detail, std::
     reset_submission();
   }
   const SimDuration detected = recovery_ ? recovery_->detected : now;
-  recovery_.emplace();
+  recovery_ = Recovery{};
   recovery_->diagnosis.symptom = s;
   recovery_->detected = detected;
   recovery_->workpiece = std::move(workpiece);
@@ -1170,7 +1170,7 @@ bool RobotControl::check_shift(SimDuration now) {
 bool RobotControl::note(SimDuration now, Symptom s, const std::string& detail, const std::string& workpiece) {
   const DecisionTree& tree = options_.recovery.tree ? *options_.recovery.tree : DecisionTree::standard();
   std::optional<Recovery> saved = std::move(recovery_);
-  recovery_.emplace();
+  recovery_ = Recovery{};
   recovery_->diagnosis.symptom = s;
   recovery_->detected = now;
   recovery_->workpiece = workpiece;

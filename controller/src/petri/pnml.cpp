@@ -265,7 +265,8 @@ class Reader {
       // means the id.
       if (annotation_text(n, &text) != nullptr) return std::string(trim(text));
     }
-    return fallback;
+    // Named by its id: white space around it is dropped as around a <name>, so that the name reads back the same.
+    return std::string(trim(fallback));
   }
 
   std::string required_id(const XMLElement* e) const {

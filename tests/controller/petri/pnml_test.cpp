@@ -468,6 +468,22 @@ TEST(PnmlExport, CorpusNetsRoundTrip) {
   }
 }
 
+// A net or node without <name> is named by its id, with the white space around the id dropped as around a name, so
+// that the export reads back as the same net (found by tests/fuzz/pnml_fuzz: a net id "   x" gave the name "   x",
+// whose export read back as "x").
+TEST(PnmlExport, NamesTakenFromIdsWithSpacesRoundTrip) {
+  const Net net = parse_pnml(R"(<pnml><net id="   net x "><page id="pg"><place id=" p1"/><transition id="t1 "/>
+                                <arc id="a" source=" p1" target="t1 "/></page></net></pnml>)",
+                             "spaces.pnml");
+  EXPECT_EQ(net.name(), "net x");
+  ASSERT_EQ(net.places().size(), 1U);
+  EXPECT_EQ(net.places()[0].id, " p1");
+  EXPECT_EQ(net.places()[0].name, "p1");
+  ASSERT_EQ(net.transitions().size(), 1U);
+  EXPECT_EQ(net.transitions()[0].name, "t1");
+  expect_same_net(net, parse_pnml(to_pnml(net), "spaces-again.pnml"));
+}
+
 // Also: an empty name stays empty (a file without <name> would be read as named by the id).
 TEST(PnmlExport, GeneratedIdsAvoidNodeIdsAndEmptyNamesStayEmpty) {
   NetBuilder b("clash");

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cellwright/common/error.hpp"
+#include "common/garbage_in.hpp"
 
 namespace cellwright::runtime {
 namespace {
@@ -335,6 +336,23 @@ TEST(RuntimeRecovery, ErrorsOfALoadedFileNameTheFile) {
     EXPECT_THAT(e.what(), HasSubstr("has no field 'action'"));
   }
   std::remove(path.c_str());
+}
+
+// Seeded garbage in: the shipped tree with random edits is read (and every symptom's walk ends at a leaf) or refused
+// with an InputError naming the file; nothing else escapes.
+TEST(RuntimeRecovery, MutatedTreesAreReadOrRefusedWithAnInputError) {
+  const auto counts = cellwright::testing::feed_garbage(
+      {read_text(shipped_path())}, 3000, 20261124, ":-[]{},#&*!|>'\"%@`? \n\t0123456789abcxyz_.", "mutant.yaml",
+      [](const std::string& text) {
+        const DecisionTree tree = DecisionTree::parse(text, "mutant.yaml");
+        for (std::size_t s = 0; s < kSymptoms; ++s) {
+          bool yes = false;
+          const Diagnosis d = tree.diagnose(static_cast<Symptom>(s), [&](Question) { return yes = !yes; });
+          EXPECT_FALSE(d.cause.empty()) << text;
+        }
+      });
+  EXPECT_GT(counts.accepted, 100);
+  EXPECT_GT(counts.refused, 1000);
 }
 
 }  // namespace

@@ -12,6 +12,8 @@
 #include <random>
 #include <string>
 
+#include "common/garbage_in.hpp"
+
 namespace cellwright::drivers::movemaster {
 namespace {
 
@@ -111,6 +113,17 @@ TEST(MovemasterProtocolAnswers, WhRefusesAnythingElse) {
                           "1;2;3;4;5", "0", "1,2,3,4,5\x07", "1234567890123456,2,3,4,5"}) {
     EXPECT_FALSE(parse_wh(bad).has_value()) << bad;
   }
+}
+
+// At most 15 digits, exact in a double (the line tests/fuzz/serial_replies_fuzz found: a 15-digit answer is read,
+// and its MP echo, one more digit, is not, so the harness checks that round trip only below 1e13).
+TEST(MovemasterProtocolAnswers, WhTakesFifteenDigitsAndNoMore) {
+  EXPECT_EQ(parse_wh("0,0,2,0,522222222222222"), (Xyzpr{0, 0, 2, 0, 522222222222222.0}));
+  EXPECT_FALSE(parse_wh("0,0,2,0,5222222222222222").has_value());
+  EXPECT_FALSE(parse_wh("0,0,2,0,522222222222222.0").has_value());
+  const std::optional<Xyzpr> small = parse_wh("0,0,0,0,-.123456789012345");
+  ASSERT_TRUE(small.has_value());
+  EXPECT_DOUBLE_EQ(small->r, -0.123456789012345);
 }
 
 // Poses built by hand from the doc's definitions, not from the code under test.
@@ -214,6 +227,36 @@ TEST(MovemasterProtocolPose, RoundTripThroughTheTextKeepsThePose) {
     // 0.05° in p and r each; away from the axis the azimuth's rounding adds little.
     EXPECT_LT(rotation_gap, 0.2 * kDeg) << text;
   }
+}
+
+// Seeded garbage in: answers to ER and WH with random edits are read or refused (nullopt, the driver's protocol
+// fault); an accepted WH answer is five finite numbers with a finite pose; nothing throws.
+TEST(MovemasterProtocolGarbageIn, MutatedAnswersAreReadOrRefusedNeverThrown) {
+  const std::vector<std::string> answers = {"0", "1\r", " 2 ", "+300.0,-12.5,200.0,-90.0,0.0",
+                                            " .5 , -0.5,12,12.25, +.5\r"};
+  std::mt19937_64 rng(20261124);
+  int read = 0, refused = 0;
+  for (int round = 0; round < 20000; ++round) {
+    std::string line = answers[rng() % answers.size()];
+    for (int e = 0, n = 1 + static_cast<int>(rng() % 3); e < n; ++e) {
+      line = cellwright::testing::mutate(std::move(line), rng, "0123456789+-., \t\reEinfa");
+    }
+    const std::optional<int> er = parse_er(line);
+    if (er) {
+      EXPECT_TRUE(*er >= 0 && *er <= 2) << line;
+    }
+    const std::optional<Xyzpr> wh = parse_wh(line);
+    if (!wh) {
+      ++refused;
+      continue;
+    }
+    ++read;
+    for (const double v : {wh->x, wh->y, wh->z, wh->p, wh->r}) EXPECT_TRUE(std::isfinite(v)) << line;
+    EXPECT_TRUE(to_pose(*wh).matrix().allFinite()) << line;
+    if (::testing::Test::HasFailure()) return;
+  }
+  EXPECT_GT(read, 1000);
+  EXPECT_GT(refused, 1000);
 }
 
 }  // namespace

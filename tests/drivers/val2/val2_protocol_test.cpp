@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "common/garbage_in.hpp"
+
 namespace cellwright::drivers::val2 {
 namespace {
 
@@ -256,6 +258,46 @@ TEST(Val2Protocol, ErrorLinesByTheirWords) {
   for (const char* line : {"*Arm power off*", "*Servo error*", "*Emergency stop*", "*Out of range*", "*"}) {
     EXPECT_EQ(classify_error(line), ErrorCode::hardware) << line;
   }
+}
+
+// Seeded garbage in: WHERE answers with random edits are taken line by line as the driver does; the parser accepts
+// a line or leaves it (the driver's protocol fault), a complete answer converts to finite joints and a finite pose,
+// and nothing throws.
+TEST(Val2ProtocolGarbageIn, MutatedWhereAnswersAreReadOrRefusedNeverThrown) {
+  const std::string answer =
+      "     X/JT1      Y/JT2      Z/JT3      O/JT4      A/JT5      T/JT6      HAND\n"
+      "    431.80    -149.09     433.07     90.000    -90.000      0.000     50.000\n"
+      "     0.000    -90.000    180.000      0.000      0.000      0.000\n";
+  std::mt19937_64 rng(20261124);
+  int complete = 0, incomplete = 0;
+  for (int round = 0; round < 5000; ++round) {
+    std::string text = answer;
+    for (int e = 0, n = 1 + static_cast<int>(rng() % 4); e < n; ++e) {
+      text = cellwright::testing::mutate(std::move(text), rng, "0123456789+-. \t\neEinfaX*");
+    }
+    WhereParser where;
+    std::istringstream lines(text);
+    for (std::string line; std::getline(lines, line);) {
+      if (const auto numbers = parse_numbers(line)) {
+        for (const double v : *numbers) EXPECT_TRUE(std::isfinite(v)) << line;
+      }
+      (void)where.feed(line);
+    }
+    EXPECT_EQ(where.complete(), where.missing().empty());
+    const std::optional<WhereParser::Reading> reading = where.reading();
+    if (!reading) {
+      ++incomplete;
+      continue;
+    }
+    ++complete;
+    ASSERT_EQ(reading->joints.size(), 6U) << text;
+    const PositionReading r = to_position_reading(*reading, Orientation::tool_down);
+    for (const double j : r.joints) EXPECT_TRUE(std::isfinite(j)) << text;
+    EXPECT_TRUE(r.tool_pose && r.tool_pose->matrix().allFinite()) << text;
+    if (::testing::Test::HasFailure()) return;
+  }
+  EXPECT_GT(complete, 500);
+  EXPECT_GT(incomplete, 500);
 }
 
 }  // namespace

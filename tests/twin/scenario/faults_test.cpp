@@ -13,6 +13,7 @@
 #include <string>
 
 #include "cellwright/twin/scenario/scenario.hpp"
+#include "common/garbage_in.hpp"
 
 namespace cellwright::twin::scenario {
 namespace {
@@ -248,6 +249,26 @@ TEST(FaultText, ErrorsNameTheOptionAndTheText) {
   expect_error("misplace:workpiece=A,offset=0.1", "must be a list of numbers");
   expect_error("misplace:workpiece=A,offset=0.1/0.2/0.3", "must have 2 numbers, got 3");
   expect_error("timeout:robot=puma,n=0", "whole number from 1 up");
+}
+
+// Seeded garbage in: `--fault` texts with random edits are read (and written back, they read as the same spec) or
+// refused with an InputError naming the option; nothing else escapes.
+TEST(FaultText, MutatedTextsAreReadOrRefusedWithAnInputError) {
+  const std::vector<std::string> texts = {"drop:robot=puma,carry=1,after=0.3",
+                                          "slip:robot=melfa,carry=2,every=5,after=0.5,distance=0.02",
+                                          "misplace:workpiece=A,offset=0.05/0.01,yaw=12",
+                                          "obstacle:robot=puma,time=3,size=0.1,ahead=0.2,duration=1",
+                                          "timeout:robot=puma,command=grip,n=2",
+                                          "frame_lost:time=2,count=3",
+                                          "detection_noise:time=1,sigma=0.02"};
+  const auto counts = cellwright::testing::feed_garbage(
+      texts, 5000, 20261124, ":=,/.-+0123456789eEinfa_ \t", "--fault", [](const std::string& text) {
+        const FaultSpec spec = parse_fault_text(text, paper_cell());
+        EXPECT_EQ(parse_fault_text(to_text(spec), paper_cell()), spec) << text << " -> " << to_text(spec);
+      });
+  // Most edits break a key or a number (the reader is strict); those that survive still reach the round trip.
+  EXPECT_GT(counts.accepted, 50);
+  EXPECT_GT(counts.refused, 1000);
 }
 
 }  // namespace

@@ -13,6 +13,8 @@
 #include <fstream>
 #include <string>
 
+#include "common/garbage_in.hpp"
+
 namespace cellwright::twin::scenario {
 namespace {
 
@@ -532,6 +534,21 @@ TEST_F(ScenarioRecovery, BadRecoverySettingsNameTheFieldOrTheTreeFile) {
     EXPECT_EQ(e.where().line, 1);
     EXPECT_THAT(e.what(), HasSubstr("unknown action 'dance'"));
   }
+}
+
+// Seeded garbage in: the shipped scenarios with random edits are read (their cell, program and recovery files as
+// they name them) or refused with an InputError naming the scenario; nothing else escapes.
+TEST(ScenarioGarbageIn, MutatedScenariosAreReadOrRefusedWithAnInputError) {
+  std::vector<std::string> originals;
+  for (const char* name : {"exchange.yaml", "pipeline.yaml", "pipeline_shift.yaml", "single.yaml", "vision.yaml"}) {
+    originals.push_back(cellwright::testing::slurp_text(fs::path(kScenes) / name));
+  }
+  const std::string source = kScenes + "/mutant.yaml";
+  const auto counts =
+      cellwright::testing::feed_garbage(originals, 300, 20261124, ":-[]{},#&*!|>'\"%@`? \n\t0123456789abcxyz_.", source,
+                                        [&](const std::string& text) { (void)parse_scenario(text, source); });
+  EXPECT_GT(counts.accepted, 10);
+  EXPECT_GT(counts.refused, 100);
 }
 
 }  // namespace

@@ -73,7 +73,7 @@ double travel_mm(const Xyzpr& from, const Xyzpr& to);
 std::optional<int> parse_er(std::string_view line);
 // The answer to `WH`: five comma-separated numbers, each with or without a sign and a leading zero ("+.5", "-0.5",
 // "12", "12.25"), spaces (or tabs) around each allowed; a CR left at the end is ignored. nullopt for anything else
-// (four or six numbers, an exponent, "inf", a letter, an empty field).
+// (four or six numbers, an exponent, "inf", a letter, an empty field, a number of more than 15 digits).
 std::optional<Xyzpr> parse_wh(std::string_view line);
 
 }  // namespace cellwright::drivers::movemaster

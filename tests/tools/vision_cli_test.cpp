@@ -1,14 +1,18 @@
 // `twin run` with the camera, as a user runs it: in scenes/vision.yaml workpiece A arrives 35-70 mm to the side of
 // where the cell description puts it. With vision the PUMA picks it where the camera sees it and the run succeeds;
 // with the camera off (perception cad: the controller knows only the cell description) the same pick misses and the
-// run fails. Frames are saved with --save-frames, and a vision run's log is the same on every run.
+// run fails. Frames are saved with --save-frames (with and without vision), and a run's log is the same on every run
+// and with or without saved frames.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "tools/twin_cli.hpp"
 
@@ -21,6 +25,13 @@ using cellwright::testing::slurp;
 using cellwright::testing::source_path;
 using cellwright::testing::TwinCli;
 using ::testing::HasSubstr;
+
+// White pixels in the band along a saved frame's top, where its simulated time is written.
+int overlay_text_pixels(const cv::Mat& frame) {
+  cv::Mat white;
+  cv::inRange(frame(cv::Rect(0, 0, frame.cols, 22)), cv::Scalar(200, 200, 200), cv::Scalar(255, 255, 255), white);
+  return cv::countNonZero(white);
+}
 
 std::string run_vision(const TwinCli& cli, const fs::path& out, const std::string& extra, Outcome& outcome) {
   outcome = cli.run("run " + shell_quote(source_path("scenes/vision.yaml")) + " --quiet -o " +
@@ -66,6 +77,19 @@ TEST(VisionCli, PicksThePerturbedPartWhereTheCameraSeesItAndMissesItWithoutTheCa
   int pngs = 0;
   for (const auto& f : fs::directory_iterator(frames)) pngs += f.path().extension() == ".png" ? 1 : 0;
   EXPECT_EQ(pngs, frames_logged);
+  // A frame with A on the belt: the time in the band along the top, A's predicted pose (a yellow cross) beside the
+  // detection's outline.
+  int frames_with_a_prediction = 0;
+  for (const auto& f : fs::directory_iterator(frames)) {
+    const cv::Mat image = cv::imread(f.path().string(), cv::IMREAD_COLOR);
+    ASSERT_FALSE(image.empty()) << f.path();
+    EXPECT_GT(overlay_text_pixels(image), 40) << f.path();
+    cv::Mat yellow;
+    cv::inRange(image(cv::Rect(0, 22, image.cols, image.rows - 22)), cv::Scalar(0, 200, 235), cv::Scalar(40, 240, 255),
+                yellow);
+    frames_with_a_prediction += cv::countNonZero(yellow) > 20 ? 1 : 0;
+  }
+  EXPECT_GT(frames_with_a_prediction, 0);
 
   // The same run again: the same bytes.
   Outcome again;
@@ -78,14 +102,30 @@ TEST(VisionCli, PicksThePerturbedPartWhereTheCameraSeesItAndMissesItWithoutTheCa
   EXPECT_THAT(blind.out, HasSubstr("FAIL A: expected mill_side"));
 }
 
-TEST(VisionCli, SavingFramesWithoutVisionIsRefused) {
-  TwinCli cli("cw-vision-cli-refused");
+// Without vision, --save-frames writes the camera's plain frames every vision period (0.4 s), stamped with their
+// simulated time, and the run's log is the same as without them.
+TEST(VisionCli, SavingFramesWithoutVisionWritesPlainCameraFrames) {
+  TwinCli cli("cw-vision-cli-plain");
   const fs::path frames = cli.dir() / "frames";
-  const Outcome o = cli.run("run " + shell_quote(source_path("scenes/single.yaml")) + " --quiet --save-frames " +
-                            shell_quote(frames.string()));
-  EXPECT_EQ(o.status, 2) << o.out << o.err;
-  EXPECT_THAT(o.err, HasSubstr("--save-frames needs perception vision"));
-  EXPECT_FALSE(fs::exists(frames));
+  auto run = [&](const std::string& out, const std::string& extra) {
+    const Outcome o = cli.run("run " + shell_quote(source_path("scenes/single.yaml")) + " --quiet -o " +
+                              shell_quote((cli.dir() / out).string()) + extra);
+    EXPECT_EQ(o.status, 0) << o.out << o.err;
+    return slurp(cli.dir() / out / "events.jsonl");
+  };
+  const std::string log = run("with", " --save-frames " + shell_quote(frames.string()));
+  EXPECT_THAT(log, ::testing::Not(HasSubstr("\"type\":\"vision\"")));  // no one looked at them
+  const double end = nlohmann::json::parse(slurp(cli.dir() / "with" / "report.json"))["end_time"].get<double>();
+  std::vector<fs::path> pngs;
+  for (const auto& f : fs::directory_iterator(frames)) {
+    if (f.path().extension() == ".png") pngs.push_back(f.path());
+  }
+  EXPECT_NEAR(static_cast<double>(pngs.size()), end / 0.4, 2.0);
+  ASSERT_TRUE(fs::exists(frames / "frame_000400.png"));
+  const cv::Mat frame = cv::imread((frames / "frame_000400.png").string(), cv::IMREAD_COLOR);
+  ASSERT_EQ(frame.cols, 640);
+  EXPECT_GT(overlay_text_pixels(frame), 40);  // "t = 0.400 s": about 90 px
+  EXPECT_EQ(run("without", ""), log);
 }
 
 }  // namespace

@@ -129,7 +129,8 @@ void add_run(CLI::App& app, Command* run) {
   cmd->add_flag("--allow-collisions", args->allow_collisions,
                 "run even though the preflight's motion sweep predicts collisions (printed as warnings)");
   cmd->add_option("--save-frames", args->frames,
-                  "with vision: write each camera frame, detections drawn on it, as DIR/frame_<ms>.png");
+                  "write each camera frame as DIR/frame_<ms>.png with its simulated time; with vision, the detections, the "
+                  "predicted poses and the parts not seen drawn on it; without, plain frames every vision period");
   cmd->callback([run, args] {
     *run = [args] {
       using namespace cellwright::twin::scenario;
@@ -171,9 +172,8 @@ void add_run(CLI::App& app, Command* run) {
       if (args->perception == "truth") options.perception = runtime::Perception::kTruth;
       if (args->perception == "vision") options.perception = runtime::Perception::kVision;
       if (args->perception == "cad") options.perception = runtime::Perception::kCad;
-      if (!args->frames.empty() && options.perception.value_or(s.perception) != runtime::Perception::kVision) {
-        std::fprintf(stderr, "%s: --save-frames needs perception vision (the scenario's is %s)\n",
-                     args->scenario.c_str(), runtime::to_string(options.perception.value_or(s.perception)));
+      if (!args->frames.empty() && s.cell.cameras.empty()) {  // without vision: plain frames, of a camera still
+        std::fprintf(stderr, "%s: --save-frames needs a camera, and the cell has none\n", args->scenario.c_str());
         return 2;
       }
       if (!args->frames.empty()) {
@@ -182,12 +182,20 @@ void add_run(CLI::App& app, Command* run) {
         std::filesystem::create_directories(dir, ec);
         if (ec)
           throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the frames directory: {}", ec.message()));
-        options.on_frame = [dir](const runtime::VisionFrame& f) {
+        const models::CameraSpec* cam =
+            s.cell.find_camera(s.vision ? s.vision->camera : s.cell.cameras.empty() ? "" : s.cell.cameras[0].name);
+        options.on_frame = [dir, cam](const runtime::VisionFrame& f) {
           if (f.image.empty()) return;
           const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(f.time).count();
           cv::Mat drawn = vision::as_mat(f.image).clone();
           if (const auto* found = std::any_cast<vision::DetectionResult>(&f.result.detail)) {
             vision::draw_detections(drawn, *found);
+          }
+          std::vector<vision::PredictedPart> predicted;  // the model's poses before this frame corrected them
+          for (const runtime::Prediction& p : f.predictions) predicted.push_back({p.workpiece, p.position});
+          if (cam != nullptr) {
+            vision::draw_frame_overlay(drawn, std::chrono::duration<double>(f.time).count(),
+                                       vision::CameraModel(*cam, drawn.cols, drawn.rows), predicted, f.result.not_seen);
           }
           twin::write_png(drawn, dir / fmt::format("frame_{:06}.png", ms));
         };

@@ -93,24 +93,26 @@ cv::Mat Renderer::render_camera(mjData* data, int camera_id, int width, int heig
   return render(data, cam, width, height, quality);
 }
 
-cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
-  CW_CHECK(data != nullptr, "render needs data");
-  // Frame the bounding sphere of every visible geom but the floor plane, where they are now, from in front and
-  // above: far enough back that the sphere fits both the vertical and the horizontal field of view.
+namespace {
+
+// The free camera of render_overview: it frames the bounding sphere of every visible geom but the floor plane, where
+// they are now (the workpieces included, wherever they ended up), from in front and above: far enough back that the
+// sphere fits both the vertical and the horizontal field of view.
+mjvCamera overview_camera(const mjModel* model, const mjData* data, int width, int height) {
   Eigen::AlignedBox3d box;
-  for (int g = 0; g < model_->ngeom; ++g) {
-    if (model_->geom_type[g] == mjGEOM_PLANE || model_->geom_group[g] > 2 || model_->geom_rgba[4 * g + 3] == 0) {
+  for (int g = 0; g < model->ngeom; ++g) {
+    if (model->geom_type[g] == mjGEOM_PLANE || model->geom_group[g] > 2 || model->geom_rgba[4 * g + 3] == 0) {
       continue;
     }
     const Eigen::Vector3d c(data->geom_xpos[3 * g], data->geom_xpos[3 * g + 1], data->geom_xpos[3 * g + 2]);
-    box.extend(c - Eigen::Vector3d::Constant(model_->geom_rbound[g]));
-    box.extend(c + Eigen::Vector3d::Constant(model_->geom_rbound[g]));
+    box.extend(c - Eigen::Vector3d::Constant(model->geom_rbound[g]));
+    box.extend(c + Eigen::Vector3d::Constant(model->geom_rbound[g]));
   }
   if (box.isEmpty()) box = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1));
   // Bounding spheres of geoms overestimate; the box's half diagonal is a generous radius for the whole cell.
   const Eigen::Vector3d centre = box.center();
   const double radius = 0.5 * box.diagonal().norm();
-  const double half_fovy = 0.5 * model_->vis.global.fovy * std::numbers::pi / 180.0;
+  const double half_fovy = 0.5 * model->vis.global.fovy * std::numbers::pi / 180.0;
   const double half_fovx = std::atan(std::tan(half_fovy) * width / height);
   mjvCamera cam;
   mjv_defaultCamera(&cam);
@@ -119,7 +121,30 @@ cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
   cam.distance = 0.65 * radius / std::sin(std::min(half_fovy, half_fovx));
   cam.azimuth = 60;
   cam.elevation = -30;
-  return render(data, cam, width, height, RenderQuality::kFull);
+  return cam;
+}
+
+}  // namespace
+
+cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
+  CW_CHECK(data != nullptr, "render needs data");
+  return render(data, overview_camera(model_, data, width, height), width, height, RenderQuality::kFull);
+}
+
+vision::CameraModel overview_camera_model(const mjModel* model, const mjData* data, int width, int height) {
+  CW_CHECK(model != nullptr && data != nullptr && width > 0 && height > 0, "overview_camera_model({}x{})", width,
+           height);
+  const mjvCamera cam = overview_camera(model, data, width, height);
+  // MuJoCo's free camera (mjv_updateCamera): it looks along `forward` from `distance` behind `lookat`.
+  const double az = cam.azimuth * std::numbers::pi / 180.0, el = cam.elevation * std::numbers::pi / 180.0;
+  const Eigen::Vector3d forward(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+  const Eigen::Vector3d up(-std::sin(el) * std::cos(az), -std::sin(el) * std::sin(az), std::cos(el));
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(cam.lookat[0], cam.lookat[1], cam.lookat[2]) - cam.distance * forward;
+  pose.linear().col(0) = forward.cross(up);
+  pose.linear().col(1) = up;
+  pose.linear().col(2) = -forward;
+  return vision::CameraModel(pose, model->vis.global.fovy * std::numbers::pi / 180.0, width, height);
 }
 
 cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int height, RenderQuality quality) {

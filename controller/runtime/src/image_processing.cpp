@@ -103,7 +103,7 @@ void ImageProcessing::process(const Frame& frame, SimDuration now) {
     frame_lost_since_.reset();
   }
   ++processed_;
-  if (on_frame_) on_frame_(VisionFrame{frame.time, frame.image, std::move(result)});
+  if (on_frame_) on_frame_(VisionFrame{frame.time, frame.image, std::move(result), predictions});
 }
 
 }  // namespace cellwright::runtime

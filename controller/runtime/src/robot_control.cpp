@@ -404,6 +404,13 @@ bool RobotControl::submit_current(SimDuration now) {
   current_->submitted_at = now;
   phase_ = RobotPhase::kExecuting;
   log_start(now);
+  if (current_->wait_logged && !current_->ready_logged) {  // the part it waited for is there: the wait ends now
+    const bool to_part = p.kind != task::PrimitiveKind::kMove || p.target.kind == task::TargetKind::kAbove ||
+                         p.target.kind == task::TargetKind::kAt;
+    log_.sensor(now, label_, current_->command.index, "part_ready",
+                to_part ? bound(p.kind == task::PrimitiveKind::kMove ? p.target.object : p.workpiece) : "");
+    current_->ready_logged = true;
+  }
   return true;
 }
 

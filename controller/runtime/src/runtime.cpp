@@ -321,6 +321,13 @@ struct Runtime::Impl {
       // Lock-step: image processing sleeps until told, and takes this frame in this period, right after this turn.
       if (frames.try_push(std::move(f)) == QueueStatus::ok && scheduler) scheduler->notify(vision_seat());
       next_frame += vision->options().period;
+    } else if (!vision && cfg.camera_frames && cfg.on_frame && cfg.plant != nullptr && t >= next_frame) {
+      // Plain camera frames (no vision): handed over here, on the thread that rendered them; a failed capture is
+      // skipped (no one acts on these frames).
+      if (std::optional<Image> image = cfg.plant->capture(cfg.camera_frames->camera, nullptr)) {
+        cfg.on_frame(VisionFrame{t, std::move(*image), Sightings{}, {}});
+      }
+      next_frame += cfg.camera_frames->period;
     }
     if (cfg.on_progress && t >= next_progress) {
       cfg.on_progress(t, task_firings.load());

@@ -284,7 +284,9 @@ TEST_F(RobotControlTest, AMoveToAnAbsentPartWaitsForItThenProceeds) {
   EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
   ASSERT_EQ(sent().size(), 1u);
   EXPECT_TRUE(std::holds_alternative<drivers::MoveJoints>(sent()[0]));
-  EXPECT_EQ(sensor_conditions(), (std::vector<std::string>{"waiting_for_part", "position_reached"}));
+  // The wait ends with part_ready when the command goes to the driver (the Gantt chart's wait for the part).
+  EXPECT_EQ(sensor_conditions(), (std::vector<std::string>{"waiting_for_part", "part_ready", "position_reached"}));
+  EXPECT_EQ(events("sensor")[1]["workpiece"], "A");
   EXPECT_EQ(events("command_start").size(), 1u);  // the command started once
 }
 
@@ -304,6 +306,7 @@ TEST_F(RobotControlTest, AMoveToAMovingPartWaitsUntilItRests) {
   const RobotStatus s = next_status();
   EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
   EXPECT_EQ(sent().size(), 1u);
+  EXPECT_EQ(sensor_conditions(), (std::vector<std::string>{"waiting_for_part", "part_ready", "position_reached"}));
 }
 
 // ---- Inverse kinematics at run time ----

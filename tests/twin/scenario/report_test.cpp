@@ -89,17 +89,28 @@ class LogWriter {
 //   r2: 0 signal, 1 wait step1 0..5, 2 open 5-6, 3 move 6-7, 4 wait ready 7..7, 5 move 7-8, 6 close 8-9,
 //       7 signal gripped, 8 wait released 9..10, 9 move 10-11, 10 signal, 11 wait (11..11), 12 move 11-12,
 //       13 move 12-13, 14 open A 13-14 (blocked 14-14.5), 15 move 14.5-15.5, done at 15.5.
-std::string exchange_log(bool finished = true) {
+// With `journey`, also the robot control's sensor events: r1 waits for A from 1 to 1.6 before its move above(A)
+// (waiting_for_part, part_ready), grips it at 4, lets it go to r2 at 10; r2 lets it go on the output at 14.
+std::string exchange_log(bool finished = true, bool journey = false) {
   LogWriter w;
   w.start();
+  auto sensor = [&](double t, const std::string& r, int k, const std::string& condition, const std::string& part) {
+    if (journey) {
+      w.event(t, "sensor",
+              fmt::format(R"("robot":"{}","primitive":{},"condition":"{}","workpiece":"{}")", r, k, condition, part));
+    }
+  };
   auto step = [&](const std::string& r, int k, double t0, double t1, const std::string& text, const std::string& task) {
     w.fire(t0, r, k);
     w.command(t0, t1, r, k, text, task);
   };
   step("r1", 0, 0, 1, "open", "Pick A");
   step("r1", 1, 1, 2, "move above(A)", "Pick A");
+  sensor(1, "r1", 1, "waiting_for_part", "A");
+  sensor(1.6, "r1", 1, "part_ready", "A");
   step("r1", 2, 2, 3, "move at(A)", "Pick A");
   step("r1", 3, 3, 4, "close A", "Pick A");
+  sensor(4, "r1", 3, "gripped", "A");
   step("r1", 4, 4, 5, "move above(A)", "Pick A");
   w.fire(5, "r1", 5);
   w.fire(5, "r1", 6);
@@ -107,6 +118,7 @@ std::string exchange_log(bool finished = true) {
   w.fire(6, "r1", 8);
   w.fire(6, "r1", 9);
   step("r1", 10, 9, 10, "open A", "Put r2");
+  sensor(10, "r1", 10, "released", "A");
   w.fire(10, "r1", 11);
   w.fire(10, "r1", 12);
   w.fire(10, "r1", 13);
@@ -127,6 +139,7 @@ std::string exchange_log(bool finished = true) {
   step("r2", 12, 11, 12, "move above(B)", "Place B");
   step("r2", 13, 12, 13, "move at(B)", "Place B");
   step("r2", 14, 13, 14, "open A", "Place B");
+  sensor(14, "r2", 14, "released", "A");
   w.collision(12.5, "melfa/link4", "conveyor/output");
   if (!finished) {
     w.end(14.2, "timeout", "sim time limit of 14.2 s reached", 30);
@@ -193,6 +206,37 @@ TEST(Timeline, BarsFollowTheFiringsAndCommands) {
   for (const RobotTimeline& rt : tl.robots) {
     for (std::size_t i = 1; i < rt.bars.size(); ++i) EXPECT_LE(rt.bars[i - 1].end, rt.bars[i].start);
   }
+}
+
+// A move that waited for its part is waiting (part_wait) up to part_ready and a move after it; the journey's marks
+// come from the sensor events of the Pick, the Put and the Place.
+TEST(Timeline, AWaitForThePartIsWaitingNotAMoveAndTheJourneyIsMarked) {
+  const Scenario s = exchange_scenario();
+  const Timeline tl = build_timeline(parse_event_log(exchange_log(true, true), "e"), s.program);
+  const RobotTimeline& r1 = tl.robots[0];
+  std::vector<std::string> kinds;
+  for (const Bar& b : r1.bars) kinds.push_back(fmt::format("{} {}-{}", to_string(b.activity), b.start, b.end));
+  EXPECT_THAT(kinds, ElementsAre("grip 0-1", "part_wait 1-1.6", "move 1.6-2", "move 2-3", "grip 3-4", "move 4-5",
+                                 "move 5-6", "wait 6-9", "grip 9-10", "wait 10-11"));
+  EXPECT_DOUBLE_EQ(r1.busy, 6.4);
+  EXPECT_DOUBLE_EQ(r1.waiting, 4.6);
+  EXPECT_DOUBLE_EQ(r1.waiting_for_part, 0.6);
+  EXPECT_DOUBLE_EQ(r1.idle, 16.5 - 11.0);
+  std::vector<std::string> marks;
+  for (const RobotTimeline& rt : tl.robots) {
+    for (const JourneyMark& m : rt.marks) marks.push_back(fmt::format("{} {} {} {}", rt.robot, m.t, to_string(m.step), m.workpiece));
+  }
+  EXPECT_THAT(marks, ElementsAre("r1 4 picked A", "r1 10 handed over A", "r2 14 placed A"));
+  // Without part_ready (the command ended before its part came), the whole command is the wait.
+  std::string log = exchange_log(true, true);
+  log.erase(log.find(R"({"t":1.6000,"type":"sensor")"), log.find('\n', log.find(R"({"t":1.6000,"type":"sensor")")) -
+                                                                log.find(R"({"t":1.6000,"type":"sensor")") + 1);
+  const Timeline no_ready = build_timeline(parse_event_log(log, "e"), s.program);
+  EXPECT_EQ(fmt::format("{} {}-{}", to_string(no_ready.robots[0].bars[1].activity), no_ready.robots[0].bars[1].start,
+                        no_ready.robots[0].bars[1].end),
+            "part_wait 1-2");
+  EXPECT_EQ(to_string(no_ready.robots[0].bars[2].activity), std::string("move"));
+  EXPECT_DOUBLE_EQ(no_ready.robots[0].bars[2].start, 2.0);
 }
 
 TEST(Timeline, EventsOfAnotherProgramAreRefused) {
@@ -664,13 +708,53 @@ TEST(Gantt, DrawsOneRowPerRobotWithBarsInTheirColours) {
   const int left = 170, right = 40, title = 50;
   auto x_of = [&](double t) { return left + static_cast<int>(std::lround((o.width - left - right) * t / 17.0)); };
   auto colour_at = [&](int row, double t) {
-    const cv::Vec3b c = img.at<cv::Vec3b>(title + row * o.row_height + o.row_height / 6 + 4, x_of(t));
+    const cv::Vec3b c = img.at<cv::Vec3b>(title + row * o.row_height + 22 + 4, x_of(t));
     return fmt::format("{},{},{}", c[0], c[1], c[2]);
   };
   EXPECT_EQ(colour_at(0, 7.5), "200,200,200");
   EXPECT_EQ(colour_at(0, 1.5), "178,114,0");
   EXPECT_EQ(colour_at(1, 14.25), "120,60,204");
   EXPECT_EQ(colour_at(0, 13.5), "255,255,255");  // r1 is done: background
+}
+
+// A blocked span of a millisecond in a 17 s chart (under a pixel) is still drawn, and the legend shows every
+// activity's colour and the journey marks; the part wait is drawn in its colour.
+TEST(Gantt, ShortBlockedSpansStayVisibleAndTheLegendShowsEveryColour) {
+  Timeline tl;
+  tl.end = 16.5;
+  RobotTimeline rt;
+  rt.robot = "r1";
+  rt.cell = "puma";
+  rt.bars.push_back({0, 5, Activity::kPartWait, 1, "move above(A)", "Pick A"});
+  rt.bars.push_back({5, 8, Activity::kMove, 1, "move above(A)", "Pick A"});
+  rt.bars.push_back({8, 8.001, Activity::kBlocked, 1, "before move at(A)", "Pick A"});
+  rt.bars.push_back({8.001, 12, Activity::kMove, 2, "move at(A)", "Pick A"});
+  rt.marks.push_back({13, JourneyStep::kPicked, "A"});
+  tl.robots.push_back(rt);
+  GanttOptions o;
+  const cv::Mat img = draw_gantt(tl, o);
+  const int left = 170, right = 40, title = 15;
+  auto x_of = [&](double t) { return left + static_cast<int>(std::lround((o.width - left - right) * t / 17.0)); };
+  auto count = [&](const cv::Mat& part, Activity a) {
+    const cv::Scalar c = activity_colour(a);
+    cv::Mat mask;
+    cv::inRange(part, c, c, mask);
+    return cv::countNonZero(mask);
+  };
+  const cv::Mat row = img(cv::Rect(0, title, o.width, o.row_height));
+  const cv::Mat around_blocked = row(cv::Rect(x_of(8) - 2, 0, 10, o.row_height));
+  EXPECT_GE(count(around_blocked, Activity::kBlocked), 4 * (o.row_height - 30));  // >= 4 px wide
+  EXPECT_GT(count(row, Activity::kPartWait), 0);
+  EXPECT_EQ(count(row, Activity::kGrip), 0);
+  const cv::Mat legend = img(cv::Rect(0, title + o.row_height + 60, o.width, img.rows - title - o.row_height - 60));
+  for (Activity a : {Activity::kMove, Activity::kGrip, Activity::kWait, Activity::kPartWait, Activity::kBlocked}) {
+    EXPECT_GT(count(legend, a), 300) << to_string(a);
+  }
+  // The picked mark: its green above the bar at t = 13 s.
+  const cv::Mat mark = row(cv::Rect(x_of(13) - 6, 0, 12, 22));
+  cv::Mat green;
+  cv::inRange(mark, cv::Scalar(115, 158, 0), cv::Scalar(115, 158, 0), green);
+  EXPECT_GT(cv::countNonZero(green), 10);
 }
 
 }  // namespace

@@ -90,6 +90,39 @@ TEST(DrawDetections, ACylinderGetsACrossAndRejectsABox) {
   EXPECT_FALSE(drawn(image, 215, 130));
 }
 
+// A camera 2 m above the origin looking straight down: the origin is the image's centre (149.5, 99.5).
+TEST(DrawFrameOverlay, TimeNotSeenAndThePredictionsWhereTheCameraProjectsThem) {
+  cv::Mat image(200, 300, CV_8UC3, cv::Scalar(0, 0, 0));
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(0, 0, 2);
+  const CameraModel camera(pose, 0.8, 300, 200);
+  draw_frame_overlay(image, 12.4, camera, {{"A", Eigen::Vector3d(0, 0, 0)}, {"B", Eigen::Vector3d(0.3, 0, 0)}},
+                     {"B"});
+  // The band along the top carries white text (the time and "not seen: B").
+  int text = 0;
+  for (int v = 0; v < 22; ++v) {
+    for (int u = 0; u < 300; ++u) text += white(image, u, v) ? 1 : 0;
+  }
+  EXPECT_GT(text, 100);
+  // A's yellow cross at the centre; B (to the right: +x is image right) circled in red, 12 px from its cross.
+  const cv::Vec3b a = image.at<cv::Vec3b>(100, 150);
+  EXPECT_GT(a[1], 150);
+  EXPECT_GT(a[2], 150);
+  EXPECT_LT(a[0], 80);
+  const cv::Point2d b = *camera.project(Eigen::Vector3d(0.3, 0, 0));
+  ASSERT_GT(b.x, 160);
+  int red = 0;
+  for (int v = static_cast<int>(b.y) - 14; v <= static_cast<int>(b.y) + 14; ++v) {
+    for (int u = static_cast<int>(b.x) - 14; u <= static_cast<int>(b.x) + 14; ++u) {
+      const cv::Vec3b p = image.at<cv::Vec3b>(v, u);
+      red += p[2] > 150 && p[1] < 80 ? 1 : 0;
+    }
+  }
+  EXPECT_GT(red, 30);
+  // Nothing where no part is predicted.
+  EXPECT_FALSE(drawn(image, 40, 170));
+}
+
 TEST(DrawDetections, RefusesAnImageThatIsNotBgr) {
   cv::Mat grey(20, 20, CV_8UC1, cv::Scalar(0));
   EXPECT_THROW(draw_detections(grey, DetectionResult{}), InternalError);

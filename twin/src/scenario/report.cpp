@@ -55,6 +55,20 @@ const char* to_string(Activity a) {
       return "wait";
     case Activity::kBlocked:
       return "blocked";
+    case Activity::kPartWait:
+      return "part_wait";
+  }
+  return "?";
+}
+
+const char* to_string(JourneyStep s) {
+  switch (s) {
+    case JourneyStep::kPicked:
+      return "picked";
+    case JourneyStep::kHandedOver:
+      return "handed over";
+    case JourneyStep::kPlaced:
+      return "placed";
   }
   return "?";
 }
@@ -116,7 +130,8 @@ class TimelineBuilder {
     }
     const bool fire = type == "fire";
     const bool command = type == "command_start" || type == "command_end";
-    if (!fire && !command) return;
+    const bool sensor = type == "sensor";
+    if (!fire && !command && !sensor) return;
     if (!started_) {
       throw InputError({file_, e.value("_log_line", 0), 0}, fmt::format("a {} event before run_start", type));
     }
@@ -125,13 +140,20 @@ class TimelineBuilder {
       if (it == transitions_.end()) return;
       Robot& r = robots_[it->second.first];
       if (r.current) close(it->second.first, t, it->second.second);
-      r.current = Visit{it->second.second, t, std::nullopt};
+      r.current = Visit{it->second.second, t, std::nullopt, false, std::nullopt};
       return;
     }
     auto it = robot_index_.find(field<std::string>(e, "robot", file_));
     if (it == robot_index_.end()) return;
     Robot& r = robots_[it->second];
     const task::RobotProgram& rp = program_.programs[r.program];
+    if (sensor) {  // the timeline's business only when it names one of the robot's primitives
+      const json& k = e.contains("primitive") ? e["primitive"] : json();
+      if (k.is_number_unsigned() && k.get<std::size_t>() < rp.primitives.size()) {
+        this->sensor(e, it->second, rp.primitives[k.get<std::size_t>()], k.get<std::size_t>(), t);
+      }
+      return;
+    }
     const std::size_t k = primitive_of(e, tl_.robots[it->second].robot, rp.primitives.size(), file_);
     if (type == "command_start") {
       ++tl_.robots[it->second].commands;
@@ -156,6 +178,10 @@ class TimelineBuilder {
           case Activity::kWait:
             rt.waiting += d;
             break;
+          case Activity::kPartWait:
+            rt.waiting += d;
+            rt.waiting_for_part += d;
+            break;
           case Activity::kBlocked:
             rt.blocked += d;
             break;
@@ -171,7 +197,29 @@ class TimelineBuilder {
     std::size_t k = 0;
     double begin = 0;
     std::optional<double> ended;
+    bool part_wait = false;        // a "waiting_for_part" sensor event of this primitive within the visit
+    std::optional<double> ready;   // its "part_ready" sensor event
   };
+
+  // A sensor event of robot i about its primitive k (p): the wait for a part, or a step of a part's journey.
+  void sensor(const json& e, std::size_t i, const task::Primitive& p, std::size_t k, double t) {
+    const std::string condition = field<std::string>(e, "condition", file_);
+    Robot& r = robots_[i];
+    const bool in_visit = r.current && r.current->k == k && !r.current->ended;
+    if (condition == "waiting_for_part") {
+      if (in_visit && !r.current->ready) r.current->part_wait = true;
+      return;
+    }
+    if (condition == "part_ready") {
+      if (in_visit && r.current->part_wait && !r.current->ready) r.current->ready = t;
+      return;
+    }
+    std::optional<JourneyStep> step;
+    if (condition == "gripped" && p.task.starts_with("Pick ")) step = JourneyStep::kPicked;
+    if (condition == "released" && p.task.starts_with("Put ")) step = JourneyStep::kHandedOver;
+    if (condition == "released" && p.task.starts_with("Place ")) step = JourneyStep::kPlaced;
+    if (step) tl_.robots[i].marks.push_back({t, *step, field<std::string>(e, "workpiece", file_)});
+  }
   struct Robot {
     std::size_t program = 0;  // index in program_.robots
     std::optional<Visit> current;
@@ -231,7 +279,15 @@ class TimelineBuilder {
       case task::PrimitiveKind::kClose: {
         bar.activity = p.kind == task::PrimitiveKind::kMove ? Activity::kMove : Activity::kGrip;
         bar.end = std::clamp(v.ended.value_or(finish), v.begin, std::max(v.begin, finish));
-        if (bar.end > bar.start || !v.ended) bars.push_back(bar);
+        if (v.part_wait) {  // standing still until the part is ready, then the command proper
+          Bar waiting = bar;
+          waiting.activity = Activity::kPartWait;
+          waiting.end = std::clamp(v.ready.value_or(bar.end), bar.start, bar.end);
+          if (waiting.end > waiting.start || !v.ready) bars.push_back(waiting);
+          bar.start = waiting.end;
+          if (!v.ready) bar.end = bar.start;  // the command ended (or the run stopped) before its part came
+        }
+        if (bar.end > bar.start || (!v.ended && !v.part_wait)) bars.push_back(bar);
         if (v.ended && finish > bar.end) {
           Bar blocked = bar;
           blocked.activity = Activity::kBlocked;
@@ -778,6 +834,7 @@ json to_json(const Scenario& s, const Report& r) {
                       {"commands", t.commands},
                       {"busy", round4(t.busy)},
                       {"waiting", round4(t.waiting)},
+                      {"waiting_for_part", round4(t.waiting_for_part)},
                       {"blocked", round4(t.blocked)},
                       {"idle", round4(t.idle)}});
   }
@@ -861,8 +918,8 @@ std::string format_summary(const Report& r) {
                        r.placed_at.size(), r.parts_fed, r.parts_delivered, *r.steady_throughput, *r.steady_cycle);
   }
   for (const RobotTimeline& t : r.timeline.robots) {
-    out += fmt::format("  {} ({}): busy {:.2f} s, waiting {:.2f} s, blocked {:.2f} s, idle {:.2f} s\n", t.robot, t.cell,
-                       t.busy, t.waiting, t.blocked, t.idle);
+    out += fmt::format("  {} ({}): busy {:.2f} s, waiting {:.2f} s (for parts {:.2f} s), blocked {:.2f} s, idle {:.2f} s\n",
+                       t.robot, t.cell, t.busy, t.waiting, t.waiting_for_part, t.blocked, t.idle);
   }
   for (const WorkpieceReport& w : r.workpieces) {
     if (!w.expected) continue;

@@ -5,6 +5,8 @@
 
 #include <fmt/format.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -255,6 +257,13 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
                                                                    [frames] { return frames->last_capture(); });
     }
     config.on_frame = std::move(options.on_frame);
+  } else if (options.on_frame) {
+    // Plain frames of the camera vision would look through, at its period: for a person to look at, not acted on.
+    const VisionSettings v = s.vision.value_or(VisionSettings{});
+    const std::string camera = s.vision ? v.camera : s.cell.cameras.empty() ? std::string() : s.cell.cameras[0].name;
+    if (camera.empty()) throw InputError({s.source.string(), 0, 0}, "saving camera frames needs a camera, and the cell has none");
+    config.camera_frames = runtime::VisionOptions{camera, seconds(v.period)};
+    config.on_frame = std::move(options.on_frame);
   }
   config.on_progress = std::move(options.on_progress);
   config.progress_every = options.progress_every;
@@ -342,7 +351,28 @@ cv::Mat ScenarioRun::snapshot(int width, int height) const {
   // back to the system before this renderer takes its own: 18 MB less at the run's peak with a camera.
   malloc_trim(0);
   Renderer renderer(model, width, height);
-  return renderer.render_overview(copy.get(), width, height);
+  cv::Mat image = renderer.render_overview(copy.get(), width, height);
+  // The workpieces the verdict is about, named where they ended up (the poses the report judges).
+  const vision::CameraModel camera = overview_camera_model(model, copy.get(), width, height);
+  const std::vector<FinalPose> finals = final_poses();
+  for (const Expectation& e : scenario_.expect) {
+    const auto f = std::find_if(finals.begin(), finals.end(), [&](const FinalPose& p) { return p.name == e.workpiece; });
+    if (f == finals.end() || !f->present) continue;
+    const std::optional<cv::Point2d> px = camera.project(f->pose.translation());
+    if (!px) continue;
+    const cv::Point at(static_cast<int>(std::lround(px->x)), static_cast<int>(std::lround(px->y)));
+    if (at.x < 0 || at.y < 0 || at.x >= width || at.y >= height) continue;
+    const std::string text = fmt::format("{} ({})", e.workpiece, e.place);
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &base);
+    const cv::Point corner(std::min(at.x + 8, width - sz.width - 4), std::max(at.y - 10, sz.height + 4));
+    cv::circle(image, at, 5, {0, 0, 0}, 2, cv::LINE_AA);
+    cv::line(image, at, corner + cv::Point(0, -sz.height / 2), {0, 0, 0}, 1, cv::LINE_AA);
+    cv::rectangle(image, corner + cv::Point(-2, -sz.height - 3), corner + cv::Point(sz.width + 2, base + 1),
+                  {255, 255, 255}, cv::FILLED);
+    cv::putText(image, text, corner, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 0}, 1, cv::LINE_AA);
+  }
+  return image;
 }
 
 void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,

@@ -3,7 +3,11 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -91,6 +95,29 @@ void draw_detections(cv::Mat& bgr, const DetectionResult& result) {
                cv::Point(static_cast<int>(right) + 3, static_cast<int>(top) + 8), kWhite,
                cv::Point(static_cast<int>(right), static_cast<int>(top)));
   }
+}
+
+void draw_frame_overlay(cv::Mat& bgr, double sim_time, const CameraModel& camera,
+                        const std::vector<PredictedPart>& predictions, const std::vector<std::string>& not_seen) {
+  CW_CHECK(bgr.type() == CV_8UC3, "draw_frame_overlay needs an 8-bit BGR image");
+  const cv::Scalar yellow(0, 220, 255), red(0, 0, 230);
+  for (const PredictedPart& p : predictions) {
+    const std::optional<cv::Point2d> px = camera.project(p.position);
+    if (!px || px->x < 0 || px->y < 0 || px->x >= bgr.cols || px->y >= bgr.rows) continue;
+    const cv::Point at(static_cast<int>(std::lround(px->x)), static_cast<int>(std::lround(px->y)));
+    cv::drawMarker(bgr, at, yellow, cv::MARKER_CROSS, 14, 2, cv::LINE_AA);
+    const bool missed = std::find(not_seen.begin(), not_seen.end(), p.workpiece) != not_seen.end();
+    if (missed) cv::circle(bgr, at, 12, red, 2, cv::LINE_AA);
+    cv::putText(bgr, missed ? p.workpiece + " not seen" : p.workpiece + " predicted", at + cv::Point(9, 16),
+                cv::FONT_HERSHEY_SIMPLEX, 0.4, missed ? red : yellow, 1, cv::LINE_AA);
+  }
+  std::string text = fmt::format("t = {:.3f} s", sim_time);
+  if (!not_seen.empty()) {
+    text += "   not seen:";
+    for (std::size_t i = 0; i < not_seen.size(); ++i) text += (i == 0 ? " " : ", ") + not_seen[i];
+  }
+  cv::rectangle(bgr, {0, 0}, {bgr.cols - 1, std::min(bgr.rows - 1, 21)}, {0, 0, 0}, cv::FILLED);
+  cv::putText(bgr, text, {6, 15}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {255, 255, 255}, 1, cv::LINE_AA);
 }
 
 }  // namespace cellwright::vision

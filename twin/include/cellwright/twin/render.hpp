@@ -76,6 +76,10 @@ cv::Mat render_view(Scene& scene, std::string_view camera, int width, int height
 // model->cam_fovy, at width x height pixels. For a cell camera this agrees with vision::CameraModel(spec).
 vision::CameraModel camera_model(const mjModel* model, const mjData* data, int camera_id, int width, int height);
 
+// The camera Renderer::render_overview frames for `data` at width x height, as a CameraModel: to project world points
+// (a workpiece's centre, say) onto the overview image.
+vision::CameraModel overview_camera_model(const mjModel* model, const mjData* data, int width, int height);
+
 // An 8-bit, 3-channel (BGR) image encoded as PNG bytes, with libpng: not OpenCV's image codecs, whose library loads
 // GDAL, GDCM, Poppler and some hundred others into every process that links it (about 40 MB of a run's resident
 // memory once an image is written; docs/simulation.md, "Memory"). Throws std::runtime_error with libpng's message if

@@ -49,6 +49,7 @@ struct VisionFrame {
   SimDuration time{0};
   Image image;
   Sightings result;
+  std::vector<Prediction> predictions;  // where the environment model had each free part before this frame's correction
 };
 
 struct VisionOptions {

@@ -164,6 +164,7 @@ class RobotControl {
     std::string detail;
     bool start_logged = false;  // command_start written
     bool wait_logged = false;   // the "waiting_for_part" sensor event written
+    bool ready_logged = false;  // the "part_ready" sensor event written (the command was sent after that wait)
     std::string waiting_for;    // why the target is not ready yet (for view(); the log's detail is the driver's)
     std::optional<SimDuration> waiting_since;  // when the wait for its target began
     int attempts = 0;                          // recoveries of this command so far

@@ -4,7 +4,8 @@
 //   simulation     advances the Plant by one control period, writes the truth into the environment model (as much
 //                  as RunConfig::perception allows; never the robots' positions, which robot control reads from the
 //                  drivers), logs collisions and arrivals, captures a camera frame every vision period and queues it
-//                  for image processing, decides the end of the run (program finished + settle time, failure, sim
+//                  for image processing (without vision, a plain one for RunConfig::camera_frames' on_frame),
+//                  decides the end of the run (program finished + settle time, failure, sim
 //                  time limit). With no plant (no simulation) it only keeps the clock and decides the end;
 //   image processing  with Perception::kVision only: ImageProcessing::step (image_processing.hpp), then wakes task
 //                  and robot control;
@@ -107,6 +108,10 @@ struct RunConfig {
   std::shared_ptr<const PartDetector> detector;  // for the vision camera
   // Called on the image-processing thread after each frame (e.g. to save it). Must not call the Runtime.
   std::function<void(const VisionFrame&)> on_frame;
+  // Without vision perception (ignored with it): the camera and period of plain frames, captured by the simulation
+  // thread and handed to on_frame there, with no sightings and no predictions (twin run --save-frames without vision).
+  // Capturing tells the controller nothing: the event log is the same with and without. Needs a plant.
+  std::optional<VisionOptions> camera_frames;
   Mode mode = Mode::kLockstep;
   SimDuration period = std::chrono::milliseconds(10);  // control period: one lock-step round
   double realtime_speed = 1.0;                         // real-time mode: simulation time per wall time

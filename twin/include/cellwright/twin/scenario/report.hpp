@@ -41,9 +41,11 @@ enum class Activity {
   kGrip,     // executing an open or close, likewise
   kWait,     // in a wait place: waiting for an event another robot signals
   kBlocked,  // its command is done but its next transition has not fired yet
+  kPartWait,  // its move/open/close has started but waits for its part to arrive (a "waiting_for_part" sensor event
+              // until the "part_ready" one): the robot stands still
 };
 
-// "move", "grip", "wait", "blocked".
+// "move", "grip", "wait", "blocked", "part_wait".
 const char* to_string(Activity a);
 
 struct Bar {
@@ -54,12 +56,30 @@ struct Bar {
   std::string task;    // the task-level command it belongs to ("Pick A")
 };
 
+// A moment of a workpiece's journey, marked on the row of the robot that did it.
+enum class JourneyStep {
+  kPicked,      // gripped by a Pick (the "gripped" sensor event of a close of a task "Pick ...")
+  kHandedOver,  // let go by a Put to the robot that took it (the "released" sensor event of a "Put ...")
+  kPlaced,      // let go by a Place (the "released" sensor event of a "Place ...")
+};
+
+// "picked", "handed over", "placed".
+const char* to_string(JourneyStep s);
+
+struct JourneyMark {
+  double t = 0;  // s
+  JourneyStep step = JourneyStep::kPicked;
+  std::string workpiece;  // cell workpiece (as the sensor event names it)
+};
+
 struct RobotTimeline {
   std::string robot;      // program label
   std::string cell;       // cell robot name
   std::vector<Bar> bars;  // in time order, not overlapping
+  std::vector<JourneyMark> marks;  // in time order
   // Seconds in each activity; idle is the rest of [0, Timeline::end] (before its first command, after its last).
-  double busy = 0, waiting = 0, blocked = 0, idle = 0;
+  // waiting counts the wait and part_wait bars; waiting_for_part only the part_wait ones.
+  double busy = 0, waiting = 0, blocked = 0, idle = 0, waiting_for_part = 0;
   std::size_t commands = 0;  // move/open/close commands started
 };
 
@@ -71,7 +91,10 @@ struct Timeline {
 // Builds the robots' timelines from the events of a run of `program`. A primitive k of robot r spans the time from
 // the firing of r's transition k (it starts the primitive) to the firing of transition k+1 (or the run's end): a
 // move/open/close is a move/grip bar up to its command_end and blocked after it; a wait is a wait bar; a signal takes
-// no time (a blocked bar if its next transition fired later). Throws InputError naming `file` when the events
+// no time (a blocked bar if its next transition fired later). A move/open/close during which the robot control logged
+// "waiting_for_part" is a part_wait bar up to its "part_ready" sensor event (or, without one, up to its command_end or
+// the visit's end: the command ended or the run stopped before the part came) and a move/grip bar after it. The
+// journey marks come from the "gripped" and "released" sensor events of Pick, Put and Place commands. Throws InputError naming `file` when the events
 // contradict the program (an unknown robot or primitive), lack run_start, or have a fire or command event before it.
 Timeline build_timeline(const std::vector<nlohmann::json>& events, const task::CompiledProgram& program,
                         const std::string& file = "events.jsonl");

@@ -55,6 +55,9 @@ struct RunOptions {
   // looks through the cell's first camera.
   std::optional<runtime::Perception> perception;
   // Called on the image-processing thread after each camera frame (`--save-frames`). Must not touch the ScenarioRun.
+  // Without vision perception: called on the simulation thread with plain frames (no sightings, no predictions) of
+  // the scenario's vision camera, else the cell's first, every vision period (`vision.period`, default 0.4 s); the
+  // constructor throws InputError if the cell has no camera.
   std::function<void(const runtime::VisionFrame&)> on_frame;
   // If not empty, the event log is streamed to this file as the run writes it (created, or emptied, when the
   // ScenarioRun is built, with its directory) and kept nowhere else: the run's memory does not grow with its length, report() reads the
@@ -114,7 +117,9 @@ class ScenarioRun {
   // events.jsonl (copied when `dir` is on another file system). Same threads rule as report().
   void write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image);
 
-  // The overview camera's view of the cell now (a copy of the simulation state is rendered, headless).
+  // The overview camera's view of the cell now (a copy of the simulation state is rendered, headless; the camera
+  // frames every visible body, the workpieces wherever they are included), with each workpiece of the scenario's
+  // expectations that is in the picture marked and named with its expected place ("A (output)") at its final pose.
   cv::Mat snapshot(int width, int height) const;
 
  private:

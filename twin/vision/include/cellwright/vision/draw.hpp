@@ -4,8 +4,13 @@
 // Threads: draw_detections only touches the image it is given; any thread.
 #pragma once
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include <string>
+#include <vector>
+
+#include "cellwright/vision/camera_model.hpp"
 #include "cellwright/vision/detector.hpp"
 
 namespace cellwright::vision {
@@ -17,5 +22,19 @@ namespace cellwright::vision {
 // with the name of its best candidate and "?". Throws InternalError if
 // the image is not 8-bit BGR.
 void draw_detections(cv::Mat& bgr, const DetectionResult& result);
+
+// Where the controller's environment model had a part when a frame was taken, before the frame corrected it.
+struct PredictedPart {
+  std::string workpiece;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // world, m
+};
+
+// What a saved frame tells beyond the detections: a band along the top with the frame's simulation time
+// ("t = 12.400 s") and the parts the image processing did not see ("not seen: B, C"); for each prediction a yellow
+// cross at its position as `camera` projects it (those behind the camera or outside the image are left out), named
+// in yellow, and circled in red with "not seen" when the part is among `not_seen`. Throws InternalError if the image
+// is not 8-bit BGR.
+void draw_frame_overlay(cv::Mat& bgr, double sim_time, const CameraModel& camera,
+                        const std::vector<PredictedPart>& predictions, const std::vector<std::string>& not_seen);
 
 }  // namespace cellwright::vision

@@ -4,6 +4,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
 #include "cellwright/models/yaml_fields.hpp"
 
 #include <algorithm>
@@ -160,8 +161,59 @@ SerialSettings read_serial(const Doc& doc, const YAML::Node& n, const std::strin
   return s;
 }
 
+// The fields that fit a robot as its maker publishes it to the cell: link names, gripper, meshes.
+void read_robot_model_fields(const Doc& doc, const Fields& f, const std::filesystem::path& base_dir, RobotSpec& r) {
+  if (f.has("base_link")) r.base_link = f.word("base_link");
+  if (f.has("flange_link")) r.flange_link = f.word("flange_link");
+  if (f.has("gripper")) {
+    const std::string g = f.word("gripper");
+    if (g == "own") {
+      r.gripper = GripperKind::kOwn;
+    } else if (g == "cellwright") {
+      r.gripper = GripperKind::kCellwright;
+    } else {
+      doc.fail(f.node("gripper"), fmt::format("{} must be own (the URDF's) or cellwright (the project's gripper on "
+                                              "the flange), got '{}'",
+                                              f.field("gripper"), g));
+    }
+  }
+  if (f.has("tool_link")) {
+    if (r.gripper == GripperKind::kCellwright) {
+      doc.fail(f.node("tool_link"), fmt::format("{}: with 'gripper: cellwright' the tool link is the gripper's tcp",
+                                                f.field("tool_link")));
+    }
+    r.tool_link = f.word("tool_link");
+  }
+  if (f.has("package_path")) {
+    const YAML::Node& list = f.node("package_path");
+    if (!list.IsSequence()) {
+      doc.fail(list, fmt::format("{} must be a list of directories, got {}", f.field("package_path"), describe(list)));
+    }
+    for (const auto& e : list) {
+      const std::string dir = f.word_of(e, f.field("package_path"));
+      std::filesystem::path p = std::filesystem::path(dir).is_absolute() ? std::filesystem::path(dir) : base_dir / dir;
+      std::error_code ec;
+      if (!std::filesystem::is_directory(p, ec)) {
+        doc.fail(e, fmt::format("{}: '{}' is not a directory", f.field("package_path"), p.string()));
+      }
+      r.package_path.push_back(p.lexically_normal());
+    }
+  }
+  if (f.has("meshes")) {
+    const std::string m = f.word("meshes");
+    if (m != "visual" && m != "collision") {
+      doc.fail(f.node("meshes"), fmt::format("{} must be visual or collision (draw the collision geometry), got '{}'",
+                                             f.field("meshes"), m));
+    }
+    r.draw_collision = m == "collision";
+  }
+}
+
 RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const std::filesystem::path& base_dir) {
-  Fields f(doc, n, "robot", {"name", "urdf", "base", "home", "grip_force", "driver", "serial"}, true);
+  Fields f(doc, n, "robot",
+           {"name", "urdf", "base", "home", "grip_force", "driver", "serial", "base_link", "flange_link", "tool_link",
+            "gripper", "package_path", "meshes"},
+           true);
   RobotSpec r;
   r.where = doc.at(n);
   r.name = names.take(f, "robot");
@@ -175,6 +227,7 @@ RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const st
   }
   r.base = read_pose(doc, f.node("base"), f.field("base"));
   for (double deg : f.numbers("home")) r.home.push_back(deg * kDeg);
+  read_robot_model_fields(doc, f, base_dir, r);
   if (f.has("grip_force")) {
     r.grip_force = f.positive("grip_force");
     if (r.grip_force > 200) {
@@ -711,7 +764,7 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
     const YAML::Node robot_node = list_of(doc, top, "robots")[i];
     std::optional<models::KinematicChain> loaded;
     try {
-      loaded = models::KinematicChain::from_urdf_file(r.urdf, "base_link", "tcp");
+      loaded = models::robot_chain(r);
     } catch (const InputError& e) {
       // Point at the robot's `urdf` field, and keep the URDF's own file and line in the message.
       doc.fail(robot_node["urdf"], fmt::format("robot '{}': its URDF cannot be used: {}", r.name, e.what()));
@@ -719,8 +772,9 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
     const models::KinematicChain& chain = *loaded;
     const YAML::Node home = robot_node["home"];
     if (r.home.size() != chain.dof()) {
-      doc.fail(home, fmt::format("robot '{}': 'home' has {} angles but {} has {} joints from base_link to tcp ({})",
-                                 r.name, r.home.size(), r.urdf.filename().string(), chain.dof(),
+      doc.fail(home, fmt::format("robot '{}': 'home' has {} angles but {} has {} joints from {} to {} ({})", r.name,
+                                 r.home.size(), r.urdf.filename().string(), chain.dof(), chain.base_link(),
+                                 chain.tip_link(),
                                  fmt::join(chain.joint_names(), ", ")));
     }
     for (std::size_t j = 0; j < r.home.size(); ++j) {
@@ -804,7 +858,7 @@ ReachCheck reach_one(const models::KinematicChain& chain, const RobotSpec& robot
 std::vector<ReachCheck> check_reach(const CellDescription& cell) {
   std::map<std::string, models::KinematicChain> chains;
   for (const auto& r : cell.robots) {
-    chains.emplace(r.name, models::KinematicChain::from_urdf_file(r.urdf, "base_link", "tcp"));
+    chains.emplace(r.name, models::robot_chain(r));
   }
   std::vector<ReachCheck> out;
   for (const auto& l : cell.locations) {

@@ -30,6 +30,16 @@ std::mutex& parse_mutex() {
   return m;
 }
 
+// The line of each <mesh> element below `e` by its filename attribute (the first of each).
+void index_meshes(const tinyxml2::XMLElement* e, std::map<std::string, int>& meshes) {
+  for (const tinyxml2::XMLElement* c = e->FirstChildElement(); c != nullptr; c = c->NextSiblingElement()) {
+    if (std::string(c->Name()) == "mesh" && c->Attribute("filename") != nullptr) {
+      meshes.emplace(c->Attribute("filename"), c->GetLineNum());
+    }
+    index_meshes(c, meshes);
+  }
+}
+
 // The line of each <link> and <joint> element by its name attribute.
 void index_lines(const tinyxml2::XMLElement* robot, std::map<std::string, int>& links,
                  std::map<std::string, int>& joints) {
@@ -146,6 +156,10 @@ SourceLocation UrdfModel::joint_at(const std::string& name) const {
   return {file_, line_in(joint_lines_, name)};
 }
 
+SourceLocation UrdfModel::mesh_at(const std::string& filename) const {
+  return {file_, line_in(mesh_lines_, filename)};
+}
+
 UrdfModel load_urdf_file(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError({file.string()}, "cannot open the URDF file (missing or unreadable)");
@@ -169,6 +183,7 @@ UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {
                      fmt::format("the root element is <{}>, a URDF needs <robot>", root ? root->Name() : ""));
   }
   index_lines(root, out.link_lines_, out.joint_lines_);
+  index_meshes(root, out.mesh_lines_);
 
   urdf::ModelInterfaceSharedPtr model;
   std::vector<std::string> messages;

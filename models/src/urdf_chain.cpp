@@ -134,4 +134,14 @@ KinematicChain KinematicChain::from_urdf(const UrdfModel& loaded, const std::str
   return chain;
 }
 
+KinematicChain KinematicChain::mounted(const Eigen::Isometry3d& tool, const std::string& tip) const {
+  KinematicChain out = *this;
+  out.tip_ = tip;
+  out.max_reach_ = max_reach_ - tip_offset_.translation().norm();
+  out.tip_offset_ = tip_offset_ * tool;
+  out.max_reach_ += out.tip_offset_.translation().norm();
+  out.find_spherical_wrist();
+  return out;
+}
+
 }  // namespace cellwright::models

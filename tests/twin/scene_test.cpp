@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -291,23 +292,27 @@ TEST_F(SceneTest, ResetRestoresTheInitialState) {
   EXPECT_DOUBLE_EQ(s.data()->ctrl[s.find_conveyor("output")->belt_actuator], 0.05);
 }
 
-TEST_F(SceneTest, MeshGeometryIsRejectedNamingTheUrdf) {
+// Meshes are read (tests/twin/vendor_robot_test.cpp); a mesh whose file is missing is refused at its line in the URDF.
+TEST_F(SceneTest, AMeshWithoutItsFileIsRefusedAtItsLineInTheUrdf) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cellwright_scene_test";
   std::filesystem::create_directories(dir);
   std::ifstream in(kSource / "models/urdf/puma560.urdf");
   std::string urdf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const std::string cylinder = R"(<geometry><cylinder radius="0.1" length="0.5"/></geometry>)";
   ASSERT_NE(urdf.find(cylinder), std::string::npos);
-  urdf.replace(urdf.find(cylinder), cylinder.size(), R"(<geometry><mesh filename="pedestal.stl"/></geometry>)");
+  const auto at = urdf.find(cylinder);
+  const int line = 1 + static_cast<int>(std::count(urdf.begin(), urdf.begin() + static_cast<std::ptrdiff_t>(at), '\n'));
+  urdf.replace(at, cylinder.size(), R"(<geometry><mesh filename="pedestal.stl"/></geometry>)");
   std::ofstream(dir / "meshy.urdf") << urdf;
   models::CellDescription cell = paper_cell();
   cell.robots[0].urdf = dir / "meshy.urdf";
   try {
     scene_mjcf(cell);
-    FAIL() << "a mesh was accepted";
+    FAIL() << "a mesh without its file was accepted";
   } catch (const InputError& e) {
     EXPECT_EQ(e.where().file, (dir / "meshy.urdf").string());
-    EXPECT_THAT(e.what(), HasSubstr("link 'base_link' uses mesh geometry"));
+    EXPECT_EQ(e.where().line, line);
+    EXPECT_THAT(e.what(), HasSubstr("mesh 'pedestal.stl': no file " + (dir / "pedestal.stl").string()));
   }
   std::filesystem::remove_all(dir);
 }

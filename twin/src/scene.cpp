@@ -16,7 +16,9 @@
 #include <sstream>
 
 #include "cellwright/common/xml.hpp"
+#include "cellwright/models/robot_model.hpp"
 #include "cellwright/models/urdf.hpp"
+#include "cellwright/twin/mesh_import.hpp"
 
 namespace cellwright::twin {
 
@@ -116,12 +118,43 @@ bool movable(const urdf::Joint& j) {
   return j.type == urdf::Joint::REVOLUTE || j.type == urdf::Joint::CONTINUOUS || j.type == urdf::Joint::PRISMATIC;
 }
 
+// A link of a robot as the scene writes it: from the robot's URDF or from the gripper mounted on its flange.
+struct RobotLink {
+  const urdf::Link* link = nullptr;
+  const models::UrdfModel* model = nullptr;  // the file it comes from, for errors
+};
+
 struct RobotModel {
   const models::RobotSpec* spec = nullptr;
-  std::optional<models::UrdfModel> loaded;     // read by the one URDF loader
-  const urdf::ModelInterface* urdf = nullptr;  // loaded->robot()
-  std::vector<std::string> arm_joints;         // movable joints from base_link to tcp
+  std::optional<models::MountedRobot> mounted;  // read by the one URDF loader
+  const urdf::ModelInterface* urdf = nullptr;   // the robot's URDF (mounted->arm)
+  const urdf::ModelInterface* hand = nullptr;   // the model holding the fingers and the tool link
+  std::vector<std::string> arm_joints;          // movable joints from the base link to the tool link
   std::set<std::string> finger_links;
+  std::string left_finger_link;
+  std::string tool_link;  // the link that carries the "<robot>/tcp" site
+
+  // The link named `name` of the robot as mounted.
+  RobotLink link(const std::string& name) const {
+    if (auto l = urdf->getLink(name)) return {l.get(), &mounted->arm};
+    if (mounted->gripper) {
+      if (auto l = hand->getLink(name)) return {l.get(), &*mounted->gripper};
+    }
+    return {};
+  }
+  // The links fixed or jointed to `parent`, with their joints (nullptr: the gripper's root, fixed to the flange).
+  std::vector<std::pair<const urdf::Joint*, RobotLink>> children(const urdf::Link& parent) const {
+    std::vector<std::pair<const urdf::Joint*, RobotLink>> out;
+    for (const auto& j : parent.child_joints) {
+      const RobotLink child = link(j->child_link_name);
+      CW_CHECK(child.link != nullptr, "URDF joint {} without child link", j->name);
+      out.emplace_back(j.get(), child);
+    }
+    if (mounted->gripper && parent.name == spec->flange_link && urdf->getLink(parent.name).get() == &parent) {
+      out.emplace_back(nullptr, RobotLink{hand->getRoot().get(), &*mounted->gripper});
+    }
+    return out;
+  }
 };
 
 RobotModel read_robot_model(const models::RobotSpec& spec) {
@@ -132,45 +165,49 @@ RobotModel read_robot_model(const models::RobotSpec& spec) {
     return InputError({file, 0, 0}, fmt::format("robot '{}': {}", spec.name, problem));
   };
   try {
-    r.loaded = models::load_urdf_file(spec.urdf);
+    r.mounted = models::load_robot(spec);
   } catch (const InputError& e) {
-    throw InputError(e.where(), fmt::format("robot '{}': not a valid URDF file: {}", spec.name, e.problem()));
+    throw InputError(e.where(), fmt::format("robot '{}': not a usable URDF file: {}", spec.name, e.problem()));
   }
-  r.urdf = &r.loaded->robot();
-  if (!r.urdf->getRoot() || r.urdf->getRoot()->name != "base_link") {
-    throw fail("the URDF's root link must be 'base_link'");
-  }
-  for (const char* link : {"flange", "tcp"}) {
-    if (!r.urdf->getLink(link)) throw fail(fmt::format("the URDF has no link '{}'", link));
-  }
+  r.urdf = &r.mounted->arm.robot();
+  r.hand = &r.mounted->hand().robot();
+  r.tool_link = r.mounted->gripper ? "tcp" : spec.tool_link;
+  const models::UrdfModel& hand = r.mounted->hand();
   for (const char* joint : {"finger_left_joint", "finger_right_joint"}) {
-    auto j = r.urdf->getJoint(joint);
+    auto j = r.hand->getJoint(joint);
     if (!j || j->type != urdf::Joint::PRISMATIC || !j->limits) {
-      throw fail(fmt::format("the URDF needs a prismatic joint '{}' with limits (the gripper's fingers)", joint));
+      throw InputError(hand.joint_at(joint),
+                       fmt::format("robot '{}': the URDF needs a prismatic joint '{}' with limits (the gripper's "
+                                   "fingers), or the cell's 'gripper: cellwright' to mount the project's gripper",
+                                   spec.name, joint));
     }
     r.finger_links.insert(j->child_link_name);
   }
-  auto left = r.urdf->getJoint("finger_left_joint")->limits;
-  auto right = r.urdf->getJoint("finger_right_joint")->limits;
+  r.left_finger_link = r.hand->getJoint("finger_left_joint")->child_link_name;
+  auto left = r.hand->getJoint("finger_left_joint")->limits;
+  auto right = r.hand->getJoint("finger_right_joint")->limits;
   if (left->lower != right->lower || left->upper != right->upper || !(left->upper > left->lower)) {
     throw fail("finger_left_joint and finger_right_joint must have the same travel (lower < upper)");
   }
-  for (auto link = r.urdf->getLink("tcp"); link && link->getParent(); link = link->getParent()) {
-    const auto& j = *link->parent_joint;
-    if (movable(j)) r.arm_joints.insert(r.arm_joints.begin(), j.name);
-  }
+  r.arm_joints = models::robot_chain(spec, *r.mounted).joint_names();
   if (r.arm_joints.size() != spec.home.size()) {
-    throw InputError(spec.where, fmt::format("robot '{}': 'home' has {} angles but {} has {} joints from base_link "
-                                             "to tcp",
-                                             spec.name, spec.home.size(), file, r.arm_joints.size()));
+    throw InputError(spec.where, fmt::format("robot '{}': 'home' has {} angles but {} has {} joints from {} to {}",
+                                             spec.name, spec.home.size(), file, r.arm_joints.size(), spec.base_link,
+                                             r.tool_link));
   }
-  for (const auto& [name, joint] : r.urdf->joints_) {
-    if (joint->mimic) throw fail(fmt::format("joint '{}' is a mimic joint; the scene drives every joint", name));
-    if (joint->type == urdf::Joint::FLOATING || joint->type == urdf::Joint::PLANAR) {
-      throw fail(
-          fmt::format("joint '{}' is floating or planar; only fixed, revolute, continuous and prismatic joints "
-                      "are supported",
-                      name));
+  for (const models::UrdfModel* model : {static_cast<const models::UrdfModel*>(&r.mounted->arm), &hand}) {
+    for (const auto& [name, joint] : model->robot().joints_) {
+      if (joint->mimic) {
+        throw InputError(model->joint_at(name),
+                         fmt::format("robot '{}': joint '{}' is a mimic joint; the scene drives every joint",
+                                     spec.name, name));
+      }
+      if (joint->type == urdf::Joint::FLOATING || joint->type == urdf::Joint::PLANAR) {
+        throw InputError(model->joint_at(name),
+                         fmt::format("robot '{}': joint '{}' is floating or planar; only fixed, revolute, continuous "
+                                     "and prismatic joints are supported",
+                                     spec.name, name));
+      }
     }
   }
   return r;
@@ -184,22 +221,35 @@ struct LoadBound {
   double inertia = 0;  // kg m^2 (revolute) or kg (prismatic)
 };
 
-void accumulate_load(const urdf::Link& link, double reach, bool prismatic, LoadBound& b) {
+// The mass of a link that has none in its URDF, as MuJoCo computed it from the link's collision geometry (see
+// Builder::massless): body name -> mass, centre of mass in the body frame, half the trace of the inertia there.
+struct LinkMass {
+  double mass = 0;
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();
+  double half_trace = 0;
+};
+using LinkMasses = std::map<std::string, LinkMass>;
+
+void accumulate_load(const RobotModel& robot, const LinkMasses& estimated, const urdf::Link& link, double reach,
+                     bool prismatic, LoadBound& b) {
+  auto add = [&](double mass, const Eigen::Vector3d& com, double half_trace) {
+    const double r = reach + com.norm();
+    b.torque += mass * kGravity * (prismatic ? 1.0 : r);
+    b.inertia += prismatic ? mass : mass * r * r + half_trace;
+  };
   if (link.inertial) {
     const auto& in = *link.inertial;
-    const double r = reach + to_eigen(in.origin.position).norm();
-    b.torque += in.mass * kGravity * (prismatic ? 1.0 : r);
-    b.inertia += prismatic ? in.mass : in.mass * r * r + 0.5 * (in.ixx + in.iyy + in.izz);
+    add(in.mass, to_eigen(in.origin.position), 0.5 * (in.ixx + in.iyy + in.izz));
+  } else if (auto it = estimated.find(robot.spec->name + "/" + link.name); it != estimated.end()) {
+    add(it->second.mass, it->second.com, it->second.half_trace);
   }
-  if (link.name == "tcp") {
+  if (link.name == robot.tool_link) {
     b.torque += kPayload * kGravity * (prismatic ? 1.0 : reach);
     b.inertia += prismatic ? kPayload : kPayload * reach * reach;
   }
-  for (const auto& j : link.child_joints) {
-    const auto child = std::find_if(link.child_links.begin(), link.child_links.end(),
-                                    [&](const auto& l) { return l->name == j->child_link_name; });
-    if (child == link.child_links.end()) continue;
-    accumulate_load(**child, reach + to_eigen(j->parent_to_joint_origin_transform.position).norm(), prismatic, b);
+  for (const auto& [j, child] : robot.children(link)) {
+    const double offset = j != nullptr ? to_eigen(j->parent_to_joint_origin_transform.position).norm() : 0.0;
+    accumulate_load(robot, estimated, *child.link, reach + offset, prismatic, b);
   }
 }
 
@@ -217,6 +267,13 @@ struct Builder {
   std::vector<std::pair<std::string, Attrs>> sensors;
   std::vector<std::pair<std::string, std::string>> excludes;
   std::vector<std::pair<std::string, std::string>> couplings;  // joints that move together (joint1 = joint2)
+  // Robot meshes: <mesh> assets {name, file MuJoCo reads, scale}, written after the worldbody; by source and scale.
+  std::vector<std::array<std::string, 3>> meshes;
+  std::map<std::pair<std::string, std::string>, std::string> mesh_names;
+  // Bodies of links without <inertial> whose collision geometry gives them mass (MuJoCo's default density), and the
+  // masses MuJoCo computed for them in a first compile (scene_mjcf), used to tune the servos.
+  std::set<std::string> massless;
+  LinkMasses estimated;
 
   void actuator(const std::string& tag, const Attrs& attrs, double initial) {
     actuators.emplace_back(tag, attrs);
@@ -250,11 +307,31 @@ struct Builder {
         a.emplace_back("size", num(s.radius));
         break;
       }
+      case urdf::Geometry::MESH: {
+        const auto& m = static_cast<const urdf::Mesh&>(g);
+        const models::UrdfModel& model = r.link(link).model != nullptr ? *r.link(link).model : r.mounted->arm;
+        const SourceLocation where = model.mesh_at(m.filename);
+        const std::filesystem::path source =
+            models::resolve_mesh(m.filename, *r.spec, std::filesystem::path(model.file()), where);
+        const Eigen::Vector3d scale = to_eigen(m.scale);
+        if (!scale.allFinite() || scale.minCoeff() <= 0) {
+          throw InputError(where, fmt::format("robot '{}': mesh '{}' has scale {} {} {}; each must be above 0",
+                                              r.spec->name, m.filename, scale.x(), scale.y(), scale.z()));
+        }
+        const auto key = std::make_pair(source.string(), vec(scale));
+        auto it = mesh_names.find(key);
+        if (it == mesh_names.end()) {
+          const std::string name = fmt::format("{}/mesh{}", r.spec->name, meshes.size() + 1);
+          meshes.push_back({name, twin::mujoco_mesh(source, where).string(), vec(scale)});
+          it = mesh_names.emplace(key, name).first;
+        }
+        a.emplace_back("type", "mesh");
+        a.emplace_back("mesh", it->second);
+        break;
+      }
       default:
-        throw InputError({r.spec->urdf.string(), 0, 0},
-                         fmt::format("robot '{}': link '{}' uses mesh geometry; the twin supports box, cylinder and "
-                                     "sphere only",
-                                     r.spec->name, link));
+        throw InputError(r.link(link).model != nullptr ? r.link(link).model->link_at(link) : SourceLocation{r.spec->urdf.string()},
+                         fmt::format("robot '{}': link '{}' has a geometry of unknown type", r.spec->name, link));
     }
   }
 
@@ -278,7 +355,8 @@ struct Builder {
     }
   }
 
-  void robot_link(const RobotModel& r, const urdf::Link& link, std::vector<std::string>& collision_bodies) {
+  // `moving`: the link is below a movable joint of the robot.
+  void robot_link(const RobotModel& r, const urdf::Link& link, bool moving, std::vector<std::string>& collision_bodies) {
     const std::string& robot = r.spec->name;
     const std::string body = robot + "/" + link.name;
     if (link.inertial) {
@@ -293,15 +371,22 @@ struct Builder {
                           {"fullinertia", nums({inertia(0, 0), inertia(1, 1), inertia(2, 2), inertia(0, 1),
                                                 inertia(0, 2), inertia(1, 2)})}});
     }
-    for (const auto& v : link.visual_array) {
-      if (!v || !v->geometry) continue;
-      Attrs a{{"class", "visual"}};
-      geom_attrs(a, *v->geometry, v->origin, r, link.name);
-      if (v->material) {
-        const auto& c = v->material->color;
-        a.emplace_back("rgba", nums({c.r, c.g, c.b, c.a}));
+    // A link without <inertial> that has geometry (vendors' URDFs often give no masses) gets its mass the way MuJoCo
+    // gives a body without <inertial> one: from its collision geometry at MuJoCo's default density, 1000 kg/m^3
+    // (MuJoCo refuses a body whose geoms have no mass). The servos of a moving one are tuned with it (scene_mjcf).
+    const bool from_geometry = !link.inertial && !link.collision_array.empty();
+    if (from_geometry && moving) massless.insert(body);
+    if (!r.spec->draw_collision) {
+      for (const auto& v : link.visual_array) {
+        if (!v || !v->geometry) continue;
+        Attrs a{{"class", "visual"}};
+        geom_attrs(a, *v->geometry, v->origin, r, link.name);
+        if (v->material) {
+          const auto& c = v->material->color;
+          a.emplace_back("rgba", nums({c.r, c.g, c.b, c.a}));
+        }
+        x.leaf("geom", a);
       }
-      x.leaf("geom", a);
     }
     const bool finger = r.finger_links.count(link.name) != 0;
     bool has_pad = false;
@@ -311,18 +396,31 @@ struct Builder {
     bool collides = false;
     for (const auto& c : link.collision_array) {
       if (!c || !c->geometry) continue;
+      if (r.spec->draw_collision) {
+        // meshes: collision: the collision geometry drawn in the URDF's visual colour (grey if none).
+        Attrs a{{"class", "visual"}};
+        geom_attrs(a, *c->geometry, c->origin, r, link.name);
+        const urdf::Visual* v = link.visual_array.empty() ? nullptr : link.visual_array.front().get();
+        if (v != nullptr && v->material) {
+          a.emplace_back("rgba", nums({v->material->color.r, v->material->color.g, v->material->color.b, 1}));
+        } else {
+          a.emplace_back("rgba", "0.7 0.7 0.7 1");
+        }
+        x.leaf("geom", a);
+      }
       // Finger pads grip: four contact dimensions (torsional friction too) so that a held part does not pivot.
       const bool pad = finger && (!has_pad || c->name.find("pad") != std::string::npos);
       Attrs a{{"class", pad ? "pad" : "collision"}};
       if (!c->name.empty()) a.emplace_back("name", body + "/" + c->name);
       geom_attrs(a, *c->geometry, c->origin, r, link.name);
+      if (from_geometry) a.emplace_back("density", "1000");
       x.leaf("geom", a);
       collides = true;
       if (pad) {
         // The touch sensor zone: the pad enlarged by 3 mm, so that contacts on its face fall inside.
         const auto [centre, half] = bounds(*c->geometry);
         const Eigen::Isometry3d t = to_eigen(c->origin);
-        const std::string side = link.name == r.urdf->getJoint("finger_left_joint")->child_link_name ? "left" : "right";
+        const std::string side = link.name == r.left_finger_link ? "left" : "right";
         x.leaf("site", {{"name", fmt::format("{}/finger_{}_touch", robot, side)},
                         {"type", "box"},
                         {"group", "4"},
@@ -333,19 +431,17 @@ struct Builder {
       }
     }
     if (collides) collision_bodies.push_back(body);
-    if (link.name == "flange") {
+    if (link.name == r.spec->flange_link && r.link(link.name).link == &link) {
       x.leaf("site", {{"name", robot + "/wrist_ft"}, {"size", "0.01"}, {"group", "4"}, {"rgba", "0.9 0.2 0.2 0.5"}});
     }
-    if (link.name == "tcp") {
+    if (link.name == r.tool_link && r.hand->getLink(link.name).get() == &link) {
       x.leaf("site", {{"name", robot + "/tcp"}, {"size", "0.005"}, {"group", "4"}, {"rgba", "0.2 0.2 0.9 0.5"}});
     }
-    for (const auto& j : link.child_joints) {
-      auto child = r.urdf->getLink(j->child_link_name);
-      CW_CHECK(child != nullptr, "URDF joint {} without child link", j->name);
-      const Eigen::Isometry3d t = to_eigen(j->parent_to_joint_origin_transform);
-      x.open("body", {{"name", robot + "/" + child->name}, {"pos", vec(t.translation())}, {"quat", quat(t.linear())}});
-      if (movable(*j)) robot_joint(r, *j, *child);
-      robot_link(r, *child, collision_bodies);
+    for (const auto& [j, child] : r.children(link)) {
+      const Eigen::Isometry3d t = j != nullptr ? to_eigen(j->parent_to_joint_origin_transform) : Eigen::Isometry3d::Identity();
+      x.open("body", {{"name", robot + "/" + child.link->name}, {"pos", vec(t.translation())}, {"quat", quat(t.linear())}});
+      if (j != nullptr && movable(*j)) robot_joint(r, *j, *child.link);
+      robot_link(r, *child.link, moving || (j != nullptr && movable(*j)), collision_bodies);
       x.close();
     }
   }
@@ -356,7 +452,7 @@ struct Builder {
     const bool prismatic = j.type == urdf::Joint::PRISMATIC;
     const bool limited = j.type != urdf::Joint::CONTINUOUS && j.limits;
     LoadBound load;
-    accumulate_load(child, 0, prismatic, load);
+    accumulate_load(r, estimated, child, 0, prismatic, load);
 
     const auto arm = std::find(r.arm_joints.begin(), r.arm_joints.end(), j.name);
     const bool is_arm = arm != r.arm_joints.end();
@@ -424,7 +520,10 @@ struct Builder {
 
   void robot(const RobotModel& r) {
     const models::RobotSpec& spec = *r.spec;
-    x.comment(fmt::format("robot '{}' from {}", spec.name, spec.urdf.string()));
+    x.comment(fmt::format("robot '{}' from {}{}", spec.name, spec.urdf.string(),
+                          r.mounted->gripper ? fmt::format(", gripper {} on {}", r.mounted->gripper->file(),
+                                                           spec.flange_link)
+                                             : std::string()));
     if (spec.base.xyz.z() > 1e-3) {
       // A robot mounted above the floor stands on a pedestal.
       x.leaf("geom", {{"name", spec.name + "/pedestal"},
@@ -434,10 +533,13 @@ struct Builder {
                       {"size", nums({kPedestalSide / 2, kPedestalSide / 2, spec.base.xyz.z() / 2})},
                       {"material", "pedestal"}});
     }
-    x.open("body",
-           {{"name", spec.name + "/base_link"}, {"pos", vec(spec.base.xyz)}, {"quat", quat(spec.base.rotation())}});
+    // The base link stands at the robot's base; links above it (a `world` root) are left out (load_robot checked
+    // that they are fixed to it).
+    x.open("body", {{"name", spec.name + "/" + spec.base_link},
+                    {"pos", vec(spec.base.xyz)},
+                    {"quat", quat(spec.base.rotation())}});
     std::vector<std::string> bodies;
-    robot_link(r, *r.urdf->getRoot(), bodies);
+    robot_link(r, *r.urdf->getLink(spec.base_link), false, bodies);
     x.close();
     // Self-collision inside one arm is not simulated (its URDF geometry overlaps at the joints); arms still collide
     // with each other, with the cell and with parts.
@@ -720,6 +822,12 @@ struct Builder {
     }
     x.close();
 
+    if (!meshes.empty()) {
+      // The robots' meshes (a second <asset> section: the meshes are known once the robots are written).
+      x.open("asset");
+      for (const auto& [name, file, scale] : meshes) x.leaf("mesh", {{"name", name}, {"file", file}, {"scale", scale}});
+      x.close();
+    }
     x.open("contact");
     for (const auto& [a, b] : excludes) x.leaf("exclude", {{"body1", a}, {"body2", b}});
     x.close();
@@ -767,12 +875,52 @@ struct VfsDeleter {
   }
 };
 
+// Compiles MJCF text with MuJoCo from memory. Throws InputError naming the cell file with MuJoCo's error or warning.
+mjModel* compile_mjcf(const std::string& mjcf, const models::CellDescription& cell) {
+  std::unique_ptr<mjVFS, VfsDeleter> vfs(new mjVFS);
+  mj_defaultVFS(vfs.get());
+  const char* kFile = "cell.xml";
+  CW_CHECK(mj_makeEmptyFileVFS(vfs.get(), kFile, static_cast<int>(mjcf.size())) == 0, "VFS refused {}", kFile);
+  const int index = mj_findFileVFS(vfs.get(), kFile);
+  CW_CHECK(index >= 0, "VFS lost {}", kFile);
+  std::copy(mjcf.begin(), mjcf.end(), static_cast<char*>(vfs->filedata[index]));
+  std::array<char, 1024> error{};
+  mjModel* model = mj_loadXML(kFile, vfs.get(), error.data(), static_cast<int>(error.size()));
+  if (model == nullptr) {
+    throw InputError({cell.source.string(), 0, 0},
+                     fmt::format("MuJoCo rejected the scene built from this cell: {}", error.data()));
+  }
+  if (error[0] != '\0') {
+    mj_deleteModel(model);
+    // A compiler warning (e.g. an inertia fixed up): the model is not what the files describe.
+    throw InputError({cell.source.string(), 0, 0}, fmt::format("MuJoCo warns about the scene: {}", error.data()));
+  }
+  return model;
+}
+
 }  // namespace
 
 std::string scene_mjcf(const models::CellDescription& cell, const SceneOptions& options) {
   const std::vector<RobotModel> robots = read_robot_models(cell);
   Builder b{cell, options};
-  return b.build(robots);
+  std::string mjcf = b.build(robots);
+  if (b.massless.empty()) return mjcf;
+  // Links without <inertial> got their mass from their geometry; MuJoCo computed it. Tune the servos with those
+  // masses: compile once, read them, and write the scene again.
+  LinkMasses estimated;
+  {
+    std::unique_ptr<mjModel, void (*)(mjModel*)> model(compile_mjcf(mjcf, cell), mj_deleteModel);
+    const mjModel* m = model.get();
+    for (const std::string& body : b.massless) {
+      const int id = id_of(m, mjOBJ_BODY, body);
+      estimated[body] = {m->body_mass[id],
+                         Eigen::Vector3d(m->body_ipos[3 * id], m->body_ipos[3 * id + 1], m->body_ipos[3 * id + 2]),
+                         0.5 * (m->body_inertia[3 * id] + m->body_inertia[3 * id + 1] + m->body_inertia[3 * id + 2])};
+    }
+  }
+  Builder tuned{cell, options};
+  tuned.estimated = std::move(estimated);
+  return tuned.build(robots);
 }
 
 Scene::Scene(Scene&&) noexcept = default;
@@ -783,24 +931,7 @@ Scene build_scene(const models::CellDescription& cell, const SceneOptions& optio
   Scene s;
   s.cell_ = cell;
   s.mjcf_ = scene_mjcf(cell, options);
-
-  std::unique_ptr<mjVFS, VfsDeleter> vfs(new mjVFS);
-  mj_defaultVFS(vfs.get());
-  const char* kFile = "cell.xml";
-  CW_CHECK(mj_makeEmptyFileVFS(vfs.get(), kFile, static_cast<int>(s.mjcf_.size())) == 0, "VFS refused {}", kFile);
-  const int index = mj_findFileVFS(vfs.get(), kFile);
-  CW_CHECK(index >= 0, "VFS lost {}", kFile);
-  std::copy(s.mjcf_.begin(), s.mjcf_.end(), static_cast<char*>(vfs->filedata[index]));
-  std::array<char, 1024> error{};
-  s.model_.reset(mj_loadXML(kFile, vfs.get(), error.data(), static_cast<int>(error.size())));
-  if (!s.model_) {
-    throw InputError({cell.source.string(), 0, 0},
-                     fmt::format("MuJoCo rejected the scene built from this cell: {}", error.data()));
-  }
-  if (error[0] != '\0') {
-    // A compiler warning (e.g. an inertia fixed up): the model is not what the files describe.
-    throw InputError({cell.source.string(), 0, 0}, fmt::format("MuJoCo warns about the scene: {}", error.data()));
-  }
+  s.model_.reset(compile_mjcf(s.mjcf_, cell));
   s.data_.reset(mj_makeData(s.model_.get()));
   CW_CHECK(s.data_ != nullptr, "mj_makeData failed");
   const mjModel* m = s.model_.get();
@@ -809,20 +940,17 @@ Scene build_scene(const models::CellDescription& cell, const SceneOptions& optio
     RobotIds ids;
     ids.name = r.name;
     ids.home = r.home;
-    ids.base_body = id_of(m, mjOBJ_BODY, r.name + "/base_link");
-    ids.flange_body = id_of(m, mjOBJ_BODY, r.name + "/flange");
+    ids.base_body = id_of(m, mjOBJ_BODY, r.name + "/" + r.base_link);
+    ids.flange_body = id_of(m, mjOBJ_BODY, r.name + "/" + r.flange_link);
     ids.tcp_site = id_of(m, mjOBJ_SITE, r.name + "/tcp");
     ids.wrist_site = id_of(m, mjOBJ_SITE, r.name + "/wrist_ft");
     ids.wrist_force_sensor = id_of(m, mjOBJ_SENSOR, r.name + "/wrist_force");
     ids.wrist_torque_sensor = id_of(m, mjOBJ_SENSOR, r.name + "/wrist_torque");
-    // Arm joints: the hinge/slide joints of this robot that are not fingers, in MuJoCo's (depth-first) order,
-    // which along a serial chain is base to tip.
-    const std::string prefix = r.name + "/";
-    for (int j = 0; j < m->njnt; ++j) {
-      const std::string jn = mj_id2name(m, mjOBJ_JOINT, j) ? mj_id2name(m, mjOBJ_JOINT, j) : "";
-      if (jn.rfind(prefix, 0) != 0) continue;
-      const std::string local = jn.substr(prefix.size());
-      if (local == "finger_left_joint" || local == "finger_right_joint") continue;
+    // Arm joints: those of the robot's chain from its base link to its tool, base to tip.
+    const models::KinematicChain chain = models::robot_chain(r);
+    for (const std::string& local : chain.joint_names()) {
+      const std::string jn = r.name + "/" + local;
+      const int j = id_of(m, mjOBJ_JOINT, jn);
       ids.joints.push_back(jn);
       ids.joint.push_back(j);
       ids.qpos_adr.push_back(m->jnt_qposadr[j]);

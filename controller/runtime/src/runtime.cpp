@@ -1,4 +1,5 @@
 #include "cellwright/runtime/runtime.hpp"
+#include "cellwright/models/robot_model.hpp"
 
 #include <fmt/format.h>
 
@@ -522,7 +523,7 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     const models::RobotSpec& spec = *config_.cell.find_robot(cell);
     im.cells.push_back(cell);
     im.robots.push_back(std::make_unique<RobotControl>(
-        r, label, cell, *config_.drivers.at(cell), models::KinematicChain::from_urdf_file(spec.urdf), spec.grip_force,
+        r, label, cell, *config_.drivers.at(cell), models::robot_chain(spec), spec.grip_force,
         im.names, im.env, *im.inboxes[r], im.statuses, *log_, config_.motion, config_.mode == Mode::kRealtime));
   }
 }

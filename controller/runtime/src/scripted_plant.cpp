@@ -1,4 +1,5 @@
 #include "cellwright/runtime/scripted_plant.hpp"
+#include "cellwright/models/robot_model.hpp"
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/runtime/grip_sensor.hpp"
@@ -14,7 +15,7 @@ ScriptedPlant::ScriptedPlant(const models::CellDescription& cell,
     CW_CHECK(spec != nullptr, "scripted plant: '{}' is not a robot of the cell", name);
     CW_CHECK(driver != nullptr, "scripted plant: no driver for '{}'", name);
     robots_.push_back(
-        Robot{name, driver, models::KinematicChain::from_urdf_file(spec->urdf), spec->base.transform(), false, {}, {}});
+        Robot{name, driver, models::robot_chain(*spec), spec->base.transform(), false, {}, {}});
   }
   for (const models::WorkpieceSpec& w : cell.workpieces) {
     names_.push_back(w.name);

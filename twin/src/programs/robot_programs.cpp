@@ -11,6 +11,7 @@
 
 #include "cellwright/common/files.hpp"
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
 #include "cellwright/twin/scenario/estimate.hpp"
 #include "programs/conventions.hpp"
 
@@ -333,7 +334,7 @@ RobotPrograms generate_robot_programs(const Scenario& s, const scenario::Preflig
   for (std::size_t r = 0; r < prog.robots.size(); ++r) {
     const std::string& label = prog.robots[r];
     const models::RobotSpec& spec = *s.cell.find_robot(s.robot_of(label));
-    const models::KinematicChain chain = models::KinematicChain::from_urdf_file(spec.urdf, "base_link", "tcp");
+    const models::KinematicChain chain = models::robot_chain(spec);
     Writer w{s, r, languages[r], result.channels, local_regions, {}, {}, {}, {}, {}};
     w.out.robot = label;
     w.out.cell_robot = spec.name;

@@ -10,6 +10,7 @@
 #include "cellwright/drivers/movemaster/movemaster_driver.hpp"
 #include "cellwright/drivers/movemaster/movemaster_protocol.hpp"
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
 #include "cellwright/twin/scenario/estimate.hpp"
 #include "cellwright/twin/scenario/real_drivers.hpp"
 
@@ -109,7 +110,7 @@ DryRunReport dry_run(const Scenario& s, const petri::Net& net, const DryRunOptio
     driver->disconnect();
 
     // Every target of the program for this robot.
-    const models::KinematicChain chain = models::KinematicChain::from_urdf_file(spec.urdf);
+    const models::KinematicChain chain = models::robot_chain(spec);
     const auto* movemaster = dynamic_cast<const drivers::MovemasterDriver*>(driver.get());
     for (const PlannedCommand& c : plan.commands[i]) {
       if (c.kind != task::PrimitiveKind::kMove || !c.reached) continue;

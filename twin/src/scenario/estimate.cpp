@@ -10,6 +10,7 @@
 
 #include "cellwright/drivers/robot_driver.hpp"
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/runtime/robot_control.hpp"
 #include "cellwright/task/to_net.hpp"
@@ -194,7 +195,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
     for (const DriverChoice& d : s.drivers) {
       if (d.robot == spec.name) five_axis = d.kind == models::DriverKind::kMovemaster;
     }
-    arms.push_back({spec.name, models::KinematicChain::from_urdf_file(spec.urdf, "base_link", "tcp"),
+    arms.push_back({spec.name, models::robot_chain(spec),
                     spec.base.transform(), five_axis});
   }
 

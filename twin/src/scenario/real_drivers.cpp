@@ -7,6 +7,7 @@
 #include "cellwright/drivers/movemaster/movemaster_driver.hpp"
 #include "cellwright/drivers/val2/val2_driver.hpp"
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -30,7 +31,7 @@ drivers::SerialLine line_of(const models::SerialSettings& s) {
 
 std::unique_ptr<drivers::SerialDriver> make_real_driver(const DriverChoice& choice, const models::RobotSpec& robot) {
   CW_CHECK(choice.real() && choice.serial.has_value(), "robot {}: no real driver to make", choice.robot);
-  const models::KinematicChain chain = models::KinematicChain::from_urdf_file(robot.urdf);
+  const models::KinematicChain chain = models::robot_chain(robot);
   std::vector<double> speeds, travel;
   for (const models::JointLimit& l : chain.limits()) {
     speeds.push_back(l.velocity > 0 ? l.velocity : 1.0);

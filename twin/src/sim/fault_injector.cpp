@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
 
 namespace cellwright::twin::sim {
@@ -121,7 +122,7 @@ Eigen::Isometry3d FaultInjector::out_of_reach(const std::string& workpiece, cons
   // Joint 1 and the reach of every robot.
   std::vector<std::pair<Eigen::Vector3d, double>> reach;
   for (const models::RobotSpec& r : cell.robots) {
-    const models::KinematicChain chain = models::KinematicChain::from_urdf_file(r.urdf);
+    const models::KinematicChain chain = models::robot_chain(r);
     reach.emplace_back(r.base.transform() * chain.first_joint_origin(), chain.max_reach());
   }
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();

@@ -1,4 +1,5 @@
 #include "cellwright/twin/sim/sim_driver.hpp"
+#include "cellwright/models/robot_model.hpp"
 
 #include <fmt/format.h>
 
@@ -29,10 +30,11 @@ std::chrono::nanoseconds nanos(double s) {
   return std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(s * 1e9)));
 }
 
-std::string joint_list(const Eigen::VectorXd& v, const char* unit) {
+// "<name> <value> <unit>, ..." with the URDF's own joint names.
+std::string joint_list(const std::vector<std::string>& names, const Eigen::VectorXd& v, const char* unit) {
   std::string s;
   for (Eigen::Index i = 0; i < v.size(); ++i) {
-    s += fmt::format("{}joint{} {:.4f} {}", i ? ", " : "", i + 1, v[i], unit);
+    s += fmt::format("{}{} {:.4f} {}", i ? ", " : "", names.at(static_cast<std::size_t>(i)), v[i], unit);
   }
   return s;
 }
@@ -44,7 +46,7 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
       signals_(signals),
       options_(std::move(options)),
       name_(ids_.name),
-      chain_(models::KinematicChain::from_urdf_file(scene.cell().robots.at(robot).urdf)) {
+      chain_(models::robot_chain(scene.cell().robots.at(robot))) {
   const auto& spec = scene.cell().robots.at(robot);
   const std::size_t n = ids_.joints.size();
   auto fail = [&](const std::string& problem) {
@@ -449,7 +451,8 @@ bool SimDriver::check_head(Controller& c, std::chrono::nanoseconds now, const mj
                   fmt::format("the arm did not settle within {:.3f} s of the trajectory's end (tolerance {} rad, {} "
                               "rad/s); joint errors: {}; joint speeds: {}",
                               options_.settle_timeout, options_.joint_tolerance, options_.settle_speed,
-                              joint_list(error, "rad"), joint_list(speed, "rad/s")));
+                              joint_list(chain_.joint_names(), error, "rad"),
+                              joint_list(chain_.joint_names(), speed, "rad/s")));
       return true;
     }
   }

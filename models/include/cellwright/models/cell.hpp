@@ -45,11 +45,29 @@ struct SerialSettings {
   bool xon_xoff = false;
 };
 
+// Which gripper a robot holds (docs/cell-description.md, "Robots as their makers publish them").
+enum class GripperKind {
+  kOwn,        // the robot's URDF has it: prismatic joints finger_left_joint and finger_right_joint, tool link inside
+  kCellwright  // the project's gripper (models/urdf/gripper.urdf, its own model) fixed to the flange link
+};
+
 struct RobotSpec {
   std::string name;
   std::filesystem::path urdf;  // absolute; links base_link..tcp, joints joint1..joint6 and two finger joints
   Pose base;                   // base_link in the world
   std::vector<double> home;    // radians, one per arm joint from base_link to tcp, in chain order
+  // The URDF's own link names: the link placed at `base` (links above it, such as a `world` root fixed to it, are
+  // left out), the tool mounting face (the wrist force sensor's frame, where a mounted gripper goes), and the tool
+  // centre point, the tip of the robot's kinematic chain. With gripper kCellwright the tool link is the gripper's
+  // "tcp".
+  std::string base_link = "base_link";
+  std::string flange_link = "flange";
+  std::string tool_link = "tcp";
+  GripperKind gripper = GripperKind::kOwn;
+  // Absolute directories holding the packages that package://PACKAGE/... mesh paths name (PACKAGE is a
+  // subdirectory of one of them; the first that has it wins).
+  std::vector<std::filesystem::path> package_path;
+  bool draw_collision = false;  // draw the collision geometry in place of the visual one (meshes: collision)
   double grip_force = 5.0;     // newtons: the most each finger's servo pushes with (so the grip on a part)
   DriverKind driver = DriverKind::kSim;
   std::optional<SerialSettings> serial;  // required for movemaster and val2

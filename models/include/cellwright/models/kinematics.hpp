@@ -73,6 +73,10 @@ class KinematicChain {
   static KinematicChain from_urdf(const UrdfModel& robot, const std::string& base = "base_link",
                                   const std::string& tip = "tcp");
 
+  // This chain with a tool fixed to its tip: the new tip, named `tip`, is at `tool` in the old tip's frame (a gripper
+  // mounted on a flange). The maximum reach and the spherical wrist are found again.
+  KinematicChain mounted(const Eigen::Isometry3d& tool, const std::string& tip) const;
+
   // Number of revolute, continuous and prismatic joints between base and tip.
   std::size_t dof() const { return joints_.size(); }
   // Their names, base to tip.

@@ -26,6 +26,8 @@ class UrdfModel {
   // Where the <link> or <joint> element with this name starts: {file(), line}; line 0 if there is none.
   SourceLocation link_at(const std::string& name) const;
   SourceLocation joint_at(const std::string& name) const;
+  // Where the first <mesh> element with this filename attribute is: {file(), line}; line 0 if there is none.
+  SourceLocation mesh_at(const std::string& filename) const;
 
  private:
   friend UrdfModel parse_urdf(const std::string& xml, const std::string& file_label);
@@ -33,7 +35,7 @@ class UrdfModel {
 
   std::string file_;
   std::shared_ptr<const urdf::ModelInterface> robot_;
-  std::map<std::string, int> link_lines_, joint_lines_;
+  std::map<std::string, int> link_lines_, joint_lines_, mesh_lines_;
 };
 
 // Reads and parses a URDF file (see parse_urdf). Throws InputError({file}, "cannot open the URDF file (missing or

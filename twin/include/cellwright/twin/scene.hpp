@@ -2,7 +2,9 @@
 // mjModel, with the ids robot control and the renderer need.
 //
 // What the scene holds (docs/cell-description.md, "The simulated cell", says why each choice was made):
-//  - each robot's URDF links as bodies named "<robot>/<link>" with the URDF's inertials and primitive geoms, its
+//  - each robot's URDF links (from its base link down, with the gripper mounted on its flange when the cell asks,
+//    models/robot_model.hpp) as bodies named "<robot>/<link>" with the URDF's inertials (links without one: mass
+//    from their collision geometry) and geoms (meshes converted where MuJoCo cannot read them: mesh_import.hpp), its
 //    joints as hinge/slide joints "<robot>/<joint>" with their ranges; a position servo per joint and finger
 //    (actuator named like the joint); a wrist force/torque sensor at the flange ("<robot>/wrist_force",
 //    "<robot>/wrist_torque"), finger position sensors ("<robot>/finger_left_pos", ...), touch sensors on the finger
@@ -137,12 +139,16 @@ class Scene {
   std::vector<ObstacleIds> obstacles_;
 };
 
-// The MJCF text of the whole cell. Reads each robot's URDF (primitive geometry only: box, cylinder, sphere).
-// Throws InputError naming the URDF when it cannot be read or lacks what the scene needs (links flange and tcp,
-// prismatic joints finger_left_joint and finger_right_joint, inertials on moving links, no mesh geometry).
+// The MJCF text of the whole cell. Reads each robot's URDF (boxes, cylinders, spheres and meshes) and the gripper
+// mounted on it. Throws InputError naming the URDF's file and line when it cannot be read or lacks what the scene
+// needs (the cell's base, flange and tool links; prismatic joints finger_left_joint and finger_right_joint, in the
+// URDF or the mounted gripper), when a mesh's package is unknown, its file missing or unreadable (mesh_import.hpp).
+// With links that have no mass it compiles the scene once with MuJoCo to tune the servos (and throws as
+// build_scene).
 std::string scene_mjcf(const models::CellDescription& cell, const SceneOptions& options = {});
 
-// Builds the MJCF, compiles it in memory (MuJoCo's virtual file system: nothing is written to disk) and returns
+// Builds the MJCF, compiles it in memory (MuJoCo's virtual file system: nothing is written to disk but converted
+// meshes, mesh_import.hpp) and returns
 // the scene, reset to its initial state. Throws InputError as scene_mjcf, or naming the cell file with MuJoCo's
 // message if MuJoCo rejects the model.
 Scene build_scene(const models::CellDescription& cell, const SceneOptions& options = {});

@@ -13,6 +13,34 @@
 
 namespace cellwright {
 
+void check_writable_dir(const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path p = fs::absolute(dir, ec);
+  if (ec || dir.empty()) throw InputError({dir.string(), 0, 0}, "not a usable output directory");
+  if (fs::exists(p, ec)) {
+    if (!fs::is_directory(p, ec)) throw InputError({dir.string(), 0, 0}, "exists and is not a directory");
+    if (::access(p.c_str(), W_OK | X_OK) != 0) {
+      throw InputError({dir.string(), 0, 0}, fmt::format("cannot write into it: {}", std::strerror(errno)));
+    }
+    return;
+  }
+  // The nearest existing ancestor must be a directory we may write into.
+  fs::path parent = p.parent_path();
+  while (!parent.empty() && !fs::exists(parent, ec)) {
+    if (parent == parent.parent_path()) break;
+    parent = parent.parent_path();
+  }
+  if (!fs::is_directory(parent, ec)) {
+    throw InputError({dir.string(), 0, 0},
+                     fmt::format("cannot be created: {} is not a directory", parent.string()));
+  }
+  if (::access(parent.c_str(), W_OK | X_OK) != 0) {
+    throw InputError({dir.string(), 0, 0},
+                     fmt::format("cannot be created in {}: {}", parent.string(), std::strerror(errno)));
+  }
+}
+
 std::string read_file(const std::filesystem::path& path) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) throw InputError({path.string()}, "is a directory, not a file");

@@ -25,6 +25,14 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 using yaml::describe;
 using yaml::Doc;
 using yaml::Fields;
+using yaml::Range;
+
+constexpr Range kCoordinate{-bounds::kPosition, bounds::kPosition, false, "m"};
+constexpr Range kAngleDeg{-bounds::kAngle, bounds::kAngle, false, "degrees"};
+constexpr Range kBodySize{bounds::kMinSize, bounds::kMaxSize, false, "m"};
+constexpr Range kPartSize{bounds::kMinSize, bounds::kMaxPart, false, "m"};
+constexpr Range kNear{-bounds::kMaxReach, bounds::kMaxReach, false, "m"};
+constexpr Range kHeight{0, bounds::kMaxReach, false, "m"};
 
 // Names become MuJoCo names and references: letters, digits, '_' and '-', starting with a letter or '_'.
 bool valid_name(const std::string& s) {
@@ -46,6 +54,15 @@ class Names {
                                "or '_', at most 64 characters",
                                kind, name));
     }
+    // The scene names a robot's bodies, joints and sites "<robot>/<link>", and the others "conveyor/<name>",
+    // "machine/<name>", "workpiece/<name>", "location/<name>", "handover/<name>": a robot named like one of those
+    // prefixes could give two MJCF elements one name.
+    static const std::set<std::string> kPrefixes = {"conveyor", "machine", "workpiece", "location", "handover"};
+    if (kind == "robot" && kPrefixes.count(name) != 0) {
+      doc_.fail(n, fmt::format("robot name '{}' is reserved: the scene's names of conveyors, machines, workpieces, "
+                               "locations and the hand-over start with '{}/'; choose another",
+                               name, name));
+    }
     auto it = seen_.find(name);
     if (it != seen_.end()) {
       doc_.fail(n, fmt::format("duplicate name '{}': already used for the {} on line {}", name, it->second.first,
@@ -64,11 +81,11 @@ class Names {
 Pose read_pose(const Doc& doc, const YAML::Node& n, const std::string& what) {
   Fields f(doc, n, what, {"xyz", "rpy", "yaw"});
   Pose p;
-  p.xyz = f.vec3("xyz");
+  p.xyz = f.vec3_within("xyz", kCoordinate);
   if (f.has("rpy") && f.has("yaw"))
     doc.fail(f.node("yaw"), fmt::format("{}: give either 'rpy' or 'yaw', not both", what));
-  if (f.has("rpy")) p.rpy = f.vec3("rpy") * kDeg;
-  if (f.has("yaw")) p.rpy = Eigen::Vector3d(0, 0, f.number("yaw") * kDeg);
+  if (f.has("rpy")) p.rpy = f.vec3_within("rpy", kAngleDeg) * kDeg;
+  if (f.has("yaw")) p.rpy = Eigen::Vector3d(0, 0, f.within("yaw", kAngleDeg) * kDeg);
   return p;
 }
 
@@ -261,9 +278,9 @@ ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
   c.where = doc.at(n);
   c.name = names.take(f, "conveyor");
   c.pose = read_pose(doc, f.node("pose"), f.field("pose"));
-  c.length = f.positive("length");
-  c.width = f.positive("width");
-  c.height = f.positive("height");
+  c.length = f.within("length", kBodySize);
+  c.width = f.within("width", kBodySize);
+  c.height = f.within("height", kBodySize);
   c.speed = f.number("speed");
   // The belt runs along +x of the conveyor's pose; a conveyor running the other way is turned by its yaw.
   if (c.speed < 0 || c.speed > 2.0) {
@@ -314,18 +331,20 @@ MachineSpec read_machine(const Doc& doc, Names& names, const YAML::Node& n) {
   if ((m.size.array() <= 0).any()) {
     doc.fail(f.node("size"), fmt::format("{} must be three sizes greater than 0", f.field("size")));
   }
+  m.size = f.vec3_within("size", kBodySize);
   Fields fx(doc, f.node("fixture"), fmt::format("the fixture of machine '{}'", m.name), {"size"});
   m.fixture_size = fx.vec3("size");
   if ((m.fixture_size.array() <= 0).any()) {
     doc.fail(fx.node("size"), fmt::format("{} must be three sizes greater than 0", fx.field("size")));
   }
+  m.fixture_size = fx.vec3_within("size", kBodySize);
   if (m.fixture_size.x() > m.size.x() || m.fixture_size.y() > m.size.y()) {
     doc.fail(fx.node("size"), fmt::format("the fixture of machine '{}' ({} x {} m) must fit on the machine's top "
                                           "({} x {} m)",
                                           m.name, m.fixture_size.x(), m.fixture_size.y(), m.size.x(), m.size.y()));
   }
-  m.process_time = f.non_negative_or("process_time", 0);
   if (!f.has("process_time")) doc.fail(n, fmt::format("machine '{}' has no field 'process_time'", m.name));
+  m.process_time = f.within("process_time", Range{0, bounds::kMaxTime, false, "s"});
   return m;
 }
 
@@ -369,15 +388,15 @@ PendingLocation read_location(const Doc& doc, Names& names, const YAML::Node& n)
     p.spec.pose = read_pose(doc, f.node("pose"), f.field("pose"));
   } else {
     p.at = Ref{f.text("at"), f.node("at")};
-    if (f.has("offset")) p.offset = f.vec3("offset");
-    if (f.has("yaw")) p.spec.pose.rpy.z() = f.number("yaw") * kDeg;
+    if (f.has("offset")) p.offset = f.vec3_within("offset", kCoordinate);
+    if (f.has("yaw")) p.spec.pose.rpy.z() = f.within("yaw", kAngleDeg) * kDeg;
   }
   if (f.has("reach")) {
     p.spec.reach = read_names(doc, f, "reach");
     for (const auto& e : f.node("reach")) p.reach_nodes.push_back(e);
   }
-  p.spec.grasp_height = f.non_negative_or("grasp_height", p.spec.grasp_height);
-  p.spec.approach_height = f.non_negative_or("approach_height", p.spec.approach_height);
+  p.spec.grasp_height = f.within_or("grasp_height", p.spec.grasp_height, kHeight);
+  p.spec.approach_height = f.within_or("approach_height", p.spec.approach_height, kHeight);
   return p;
 }
 
@@ -410,7 +429,8 @@ PendingWorkpiece read_workpiece(const Doc& doc, Names& names, const YAML::Node& 
   if ((w.size.array() <= 0).any()) {
     doc.fail(f.node("size"), fmt::format("{} must be greater than 0 in every dimension", f.field("size")));
   }
-  w.mass = f.positive("mass");
+  for (const auto& e : f.node("size")) f.within_of(e, f.field("size"), kPartSize);
+  w.mass = f.within("mass", Range{bounds::kMinMass, bounds::kMaxMass, false, "kg"});
   const auto rgba = f.numbers("colour");
   if (rgba.size() != 3 && rgba.size() != 4) {
     doc.fail(f.node("colour"), fmt::format("{} must be [r, g, b] or [r, g, b, a] with values 0..1, got {} numbers",
@@ -429,8 +449,17 @@ PendingWorkpiece read_workpiece(const Doc& doc, Names& names, const YAML::Node& 
   }
   if (f.has("pose")) {
     w.pose = read_pose(doc, f.node("pose"), f.field("pose"));
-    if (w.pose.xyz.z() <= 0) {
-      doc.fail(f.node("pose"), fmt::format("workpiece '{}' is below the floor (z = {})", w.name, w.pose.xyz.z()));
+    // Its lowest point: the centre less the half extents along z of its turned box (a cylinder: its end's rim).
+    const Eigen::Matrix3d r = w.pose.rotation();
+    double below = 0;
+    for (int i = 0; i < 3; ++i) below += std::abs(r(2, i)) * w.size[i] / 2;
+    if (w.shape == Shape::kCylinder) {
+      below = std::abs(r(2, 2)) * w.size.z() / 2 + std::hypot(r(2, 0), r(2, 1)) * w.size.x() / 2;
+    }
+    if (w.pose.xyz.z() - below < -bounds::kOverlap) {
+      doc.fail(f.node("pose"), fmt::format("workpiece '{}' reaches below the floor: its centre is at z = {} m and "
+                                           "its lowest point at z = {:.4f} m",
+                                           w.name, w.pose.xyz.z(), w.pose.xyz.z() - below));
     }
   } else {
     p.on = Ref{f.text("on"), f.node("on")};
@@ -476,14 +505,14 @@ CameraSpec read_camera(const Doc& doc, Names& names, const YAML::Node& n) {
     c.pose = read_pose(doc, f.node("pose"), f.field("pose"));
   } else {
     if (!f.has("look_at")) doc.fail(n, fmt::format("camera '{}' has 'position' but no 'look_at'", c.name));
-    c.pose.xyz = f.vec3("position");
-    const Eigen::Vector3d target = f.vec3("look_at");
+    c.pose.xyz = f.vec3_within("position", kCoordinate);
+    const Eigen::Vector3d target = f.vec3_within("look_at", kCoordinate);
     if ((target - c.pose.xyz).norm() < 1e-6) {
       doc.fail(f.node("look_at"), fmt::format("camera '{}' looks at its own position", c.name));
     }
     Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
     if (f.has("up")) {
-      up = f.vec3("up");
+      up = f.vec3_within("up", kCoordinate);
       if (up.norm() < 1e-9) doc.fail(f.node("up"), fmt::format("{} must not be zero", f.field("up")));
       up.normalize();
     }
@@ -512,12 +541,12 @@ LightSpec read_light(const Doc& doc, Names& names, const YAML::Node& n) {
   LightSpec l;
   l.where = doc.at(n);
   l.name = names.take(f, "light");
-  l.position = f.vec3("position");
+  l.position = f.vec3_within("position", kCoordinate);
   if (f.has("direction") && f.has("look_at")) {
     doc.fail(f.node("look_at"), fmt::format("light '{}': give 'direction' or 'look_at', not both", l.name));
   }
-  if (f.has("direction")) l.direction = f.vec3("direction");
-  if (f.has("look_at")) l.direction = f.vec3("look_at") - l.position;
+  if (f.has("direction")) l.direction = f.vec3_within("direction", kCoordinate);
+  if (f.has("look_at")) l.direction = f.vec3_within("look_at", kCoordinate) - l.position;
   if (l.direction.norm() < 1e-9) {
     doc.fail(f.has("direction") ? f.node("direction") : f.node("look_at"),
              fmt::format("light '{}' has no direction (zero vector)", l.name));
@@ -562,7 +591,7 @@ HandoverSpec read_handover(const Doc& doc, Names& names, const YAML::Node& n, st
     } else {
       doc.fail(gf.node("approach"), fmt::format("{} must be down or side, got '{}'", gf.field("approach"), approach));
     }
-    if (gf.has("offset")) grasp.offset = gf.vec3("offset");
+    if (gf.has("offset")) grasp.offset = gf.vec3_within("offset", kNear);
     for (const auto& other : h.grasps) {
       if (other.robot == grasp.robot) {
         doc.fail(gf.node("robot"), fmt::format("robot '{}' is listed twice in the hand-over", grasp.robot));
@@ -754,6 +783,13 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
       w.pose.xyz = c.belt_point(s) + Eigen::Vector3d(0, 0, w.size.z() / 2);
       s += w.size.x() / 2 + kRowGap;
     }
+  }
+  // Nothing may start inside something else (a part inside the machine, a machine over a conveyor).
+  if (const std::vector<Overlap> overlaps = check_overlaps(cell); !overlaps.empty()) {
+    const Overlap& o = overlaps.front();
+    doc.fail(o.where, fmt::format("{} overlaps {} by {:.1f} mm at the start: bodies may touch but not overlap (by more "
+                                  "than {} mm)",
+                                  o.body, o.other, o.depth * 1000, bounds::kOverlap * 1000));
   }
   for (const auto& n : list_of(doc, top, "cameras")) cell.cameras.push_back(read_camera(doc, names, n));
   for (const auto& n : list_of(doc, top, "lights")) cell.lights.push_back(read_light(doc, names, n));

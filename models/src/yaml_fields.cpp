@@ -98,6 +98,25 @@ double Fields::non_negative_or(const std::string& key, double fallback) const {
   return v;
 }
 
+std::string Range::text() const {
+  const std::string u = unit.empty() ? "" : fmt::format(" {}", unit);
+  if (above) return fmt::format("greater than {} and at most {}{}", lo, hi, u);
+  return fmt::format("within {}..{}{}", lo, hi, u);
+}
+
+double Fields::within_of(const YAML::Node& n, const std::string& name, const Range& range) const {
+  const double v = number_of(n, name);
+  if (!range.contains(v)) doc_.fail(n, fmt::format("{} must be {}, got {}", name, range.text(), n.Scalar()));
+  return v;
+}
+
+Eigen::Vector3d Fields::vec3_within(const std::string& key, const Range& range) const {
+  const Eigen::Vector3d v = vec3(key);
+  const YAML::Node& n = node(key);
+  for (std::size_t i = 0; i < 3; ++i) within_of(n[i], field(key), range);
+  return v;
+}
+
 bool Fields::boolean_or(const std::string& key, bool fallback) const {
   if (!has(key)) return fallback;
   const YAML::Node& n = node(key);

@@ -76,5 +76,27 @@ TEST_F(Files, TemporaryFileIsNewEmptyAndRemovedWhenItGoes) {
   EXPECT_FALSE(fs::exists(kept));
 }
 
+// An output directory is checked before anything runs, and checking it creates nothing.
+TEST_F(Files, OutputDirectoryCheckedCreatingNothing) {
+  EXPECT_NO_THROW(check_writable_dir(dir_));                  // exists, writable
+  EXPECT_NO_THROW(check_writable_dir(dir_ / "new" / "deep"));  // can be created
+  EXPECT_FALSE(fs::exists(dir_ / "new"));
+  write_file_atomically(dir_ / "file", "x");
+  try {
+    check_writable_dir(dir_ / "file");
+    ADD_FAILURE() << "a file taken for a directory";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, (dir_ / "file").string());
+    EXPECT_EQ(e.problem(), "exists and is not a directory");
+  }
+  try {
+    check_writable_dir(dir_ / "file" / "out");
+    ADD_FAILURE() << "a directory under a file";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.problem(), fmt::format("cannot be created: {} is not a directory", (dir_ / "file").string()));
+  }
+  EXPECT_THROW(check_writable_dir(""), InputError);
+}
+
 }  // namespace
 }  // namespace cellwright

@@ -472,5 +472,103 @@ TEST(CellGarbageIn, MutatedCellsAreReadOrRefusedWithAnInputError) {
   EXPECT_GT(counts.refused, 100);
 }
 
+// Values no real cell has are refused with the field, its value and the bound, at the value's line: the numbers
+// would otherwise reach the physics (a 1e300 m conveyor, a workpiece of 0.000001 g) or the clock.
+TEST(CellErrors, ImpossibleValuesNameFieldValueAndBound) {
+  struct Case {
+    const char* from;
+    const char* to;
+    const char* fragment;
+  };
+  const Case cases[] = {
+      {"length: 1.2", "length: 0", "field 'length' of conveyor 'belt' must be within 0.001..100 m, got 0"},
+      {"width: 0.2", "width: -0.2", "field 'width' of conveyor 'belt' must be within 0.001..100 m, got -0.2"},
+      {"height: 0.5", "height: 1e300", "field 'height' of conveyor 'belt' must be within 0.001..100 m, got 1e300"},
+      {"mass: 0.1", "mass: 0", "field 'mass' of workpiece 'A' must be within 0.001..1000 kg, got 0"},
+      {"mass: 0.1", "mass: -1", "field 'mass' of workpiece 'A' must be within 0.001..1000 kg, got -1"},
+      {"mass: 0.1", "mass: 5e4", "field 'mass' of workpiece 'A' must be within 0.001..1000 kg, got 5e4"},
+      {"mass: 0.1", "mass: .nan", "field 'mass' of workpiece 'A' must be a finite number, got .nan"},
+      {"size: [0.04, 0.04, 0.06]", "size: [0.04, 0.04, 60]", "field 'size' of workpiece 'A' must be within 0.001..5 m"},
+      {"size: [0.4, 0.35, 0.4]", "size: [0.4, 0.35, 400]", "field 'size' of machine 'mill' must be within 0.001..100 m"},
+      {"process_time: 5", "process_time: -5",
+       "field 'process_time' of machine 'mill' must be within 0..86400 s, got -5"},
+      {"process_time: 5", "process_time: .inf", "field 'process_time' of machine 'mill' must be a finite number"},
+      {"xyz: [0.05, 0.6, 0], yaw: 0", "xyz: [0.05, 0.6, 0], yaw: 1e9",
+       "field 'yaw' of field 'pose' of machine 'mill' must be within -360..360 degrees, got 1e9"},
+      {"xyz: [0.05, 0.6, 0], yaw: 0", "xyz: [5e3, 0.6, 0], yaw: 0",
+       "field 'xyz' of field 'pose' of machine 'mill' must be within -100..100 m, got 5e3"},
+      {"offset: [0, 0, 0.02]", "offset: [0, 0, 20]",
+       "field 'offset' of a hand-over grasp must be within -2..2 m, got 20"},
+      {"    reach: [puma]\n", "    reach: [puma]\n    grasp_height: 30\n",
+       "field 'grasp_height' of location 'pick' must be within 0..2 m, got 30"},
+      {"position: [0, 0, 2.5]", "position: [0, 0, 2500]",
+       "field 'position' of camera 'top' must be within -100..100 m, got 2500"},
+  };
+  for (const Case& c : cases) {
+    const std::string text = with(base_yaml(), c.from, c.to);
+    // The line of the changed value: the last line of the replacement.
+    std::string to = c.to;
+    if (to.back() == '\n') to.pop_back();
+    to = to.substr(to.rfind('\n') + 1);
+    expect_error(text, c.fragment, line_of(text, to.substr(to.find_first_not_of(' '))));
+  }
+}
+
+TEST(CellErrors, WorkpieceBelowTheFloor) {
+  // Its centre above the floor, its bottom 2 cm into it.
+  const std::string text = with(base_yaml(), "on: belt", "pose: {xyz: [1, 1, 0.01]}");
+  expect_error(text, "workpiece 'A' reaches below the floor: its centre is at z = 0.01 m and its lowest point at "
+               "z = -0.0200 m",
+               line_of(text, "pose: {xyz: [1, 1, 0.01]}"));
+}
+
+// Bodies that start inside one another: refused naming both, at the line of the one listed later.
+TEST(CellErrors, BodiesOverlappingAtTheStart) {
+  // A part inside the machine's body (the machine at (0.05, 0.6), 0.4 x 0.35 x 0.4 m).
+  const std::string inside = with(base_yaml(), "on: belt", "pose: {xyz: [0.05, 0.6, 0.2]}");
+  const InputError e = error_of(inside);
+  EXPECT_THAT(e.what(), HasSubstr("workpiece 'A' overlaps machine 'mill' (line 19) by 195.0 mm at the start"));
+  EXPECT_EQ(e.where().file, "case.yaml");
+  EXPECT_EQ(e.where().line, line_of(inside, "- name: A"));
+  // A cylinder beside the machine's corner: its bounding box would cut the corner, the cylinder does not.
+  const std::string corner =
+      with(with(base_yaml(), "on: belt", "pose: {xyz: [0.265, 0.41, 0.03]}"), "shape: box\n    size: [0.04, 0.04, 0.06]",
+           "shape: cylinder\n    size: [0.04, 0.06]");
+  EXPECT_NO_THROW(parse(corner));
+  // Two parts on one spot.
+  const std::string twice =
+      with(base_yaml(), "cameras:", "  - {name: B, shape: box, size: [0.04, 0.04, 0.06], mass: 0.1, colour: [0.1, "
+                                    "0.1, 0.9], pose: {xyz: [1, 1, 0.03]}}\n  - {name: C, shape: box, size: [0.04, "
+                                    "0.04, 0.06], mass: 0.1, colour: [0.1, 0.9, 0.1], pose: {xyz: [1.02, 1, 0.03]}}\n"
+                                    "cameras:");
+  expect_error(twice, "workpiece 'C' overlaps workpiece 'B'", line_of(twice, "name: C"));
+  // A machine standing over the conveyor (the conveyor's listed first: the machine is the one put there).
+  const std::string machine = with(base_yaml(), "xyz: [0.05, 0.6, 0], yaw: 0", "xyz: [-0.5, -0.55, 0], yaw: 0");
+  expect_error(machine, "machine 'mill' overlaps conveyor 'belt' (line 12)", line_of(machine, "- name: mill"));
+  // A part in the robot's pedestal (the MELFA stands on a 0.25 m one at (0.95, 0)).
+  const std::string pedestal = with(base_yaml(), "on: belt", "pose: {xyz: [0.95, 0.1, 0.1]}");
+  expect_error(pedestal, "workpiece 'A' overlaps the pedestal of robot 'melfa' (line 7)", line_of(pedestal, "- name: A"));
+  // Resting on the belt, on the fixture, on the floor beside the machine: touching is not overlapping.
+  const std::string touching =
+      with(base_yaml(), "on: belt", "pose: {xyz: [0.27, 0.6, 0.03]}");  // against the machine's +x face (0.25)
+  EXPECT_NO_THROW(parse(touching));
+}
+
+TEST(CellErrors, RobotNamesThatWouldCollideInTheScene) {
+  const std::string text = with(base_yaml(), "- name: melfa", "- name: workpiece");
+  expect_error(text, "robot name 'workpiece' is reserved", line_of(text, "name: workpiece"));
+}
+
+// A file saved by an editor that starts it with a UTF-8 byte-order mark reads as the same cell.
+TEST(Cell, ByteOrderMarkIsAccepted) {
+  const models::CellDescription cell = parse("\xEF\xBB\xBF" + base_yaml());
+  EXPECT_EQ(cell.name, "test-cell");
+  ASSERT_EQ(cell.workpieces.size(), 1u);
+  // Positions in errors still count lines from the first.
+  const std::string bad = with(base_yaml(), "speed: 0.05", "speed: -0.05");
+  const InputError e = error_of("\xEF\xBB\xBF" + bad);
+  EXPECT_EQ(e.where().line, line_of(bad, "speed: -0.05"));
+}
+
 }  // namespace
 }  // namespace cellwright::twin

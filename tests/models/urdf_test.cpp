@@ -47,6 +47,14 @@ TEST(Urdf, KnowsWhereEachLinkAndJointIs) {
   EXPECT_EQ(m.link_at("nowhere").line, 0);
 }
 
+// A file an editor saved with a UTF-8 byte-order mark reads as the same robot, its lines unchanged.
+TEST(Urdf, ByteOrderMarkIsAccepted) {
+  const UrdfModel m = parse_urdf("\xEF\xBB\xBF" + toy(), "bom.urdf");
+  EXPECT_EQ(m.robot().getName(), "toy");
+  EXPECT_EQ(m.robot().joints_.size(), 2u);
+  EXPECT_EQ(m.joint_at("j1").str(), "bom.urdf:4");
+}
+
 TEST(Urdf, TheChainTakesItsVelocityLimitsFromTheLoadedRobot) {
   const KinematicChain c = KinematicChain::from_urdf(parse_urdf(toy(), "toy.urdf"), "base_link", "tcp");
   ASSERT_EQ(c.limits().size(), 2u);

@@ -165,6 +165,16 @@ TEST_F(SceneTest, OverlapCheckSeesAPartInsideTheMachine) {
   EXPECT_THAT(found[0], HasSubstr("workpiece/A"));
 }
 
+// Names from the user's files reach the generated MJCF only through the XML writer, which escapes them: a cell name
+// with quotes, markup, white space and control characters builds, and MuJoCo reads it back as written. (The names of
+// the cell's objects are plain words, and robots cannot take the scene's prefixes: cell.cpp refuses the rest.)
+TEST_F(SceneTest, ACellNameThatIsNotXmlIsEscapedAndReadBackAsWritten) {
+  models::CellDescription cell = paper_cell();
+  cell.name = "a \"quoted\" <cell> & 'co' --> ]]>\n\tend\x01";
+  Scene s = build_scene(cell);
+  EXPECT_EQ(std::string(s.model()->names), cell.name);
+}
+
 TEST_F(SceneTest, ArmsHoldTheirHomePoseUnderGravity) {
   Scene s = build_scene(paper_cell());
   const int steps = static_cast<int>(2.0 / s.model()->opt.timestep);

@@ -9,6 +9,7 @@
 #include "cellwright/petri/dot.hpp"
 #include "cellwright/petri/pnml.hpp"
 #include "commands.hpp"
+#include "until_signal.hpp"
 
 namespace cellwright::tools {
 
@@ -16,7 +17,7 @@ void add_analyze(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand("analyze",
                                  "Analyse a Petri net read from a PNML file: deadlocks, boundedness, dead transitions, "
                                  "mutual exclusion. Exit 0 only if it is deadlock-free, bounded, mutually exclusive "
-                                 "and fully explored; 1 if not; 2 on bad input.");
+                                 "and fully explored; 1 if not; 2 on bad input; 130 if interrupted (Ctrl-C).");
   struct Args {
     std::string net;
     bool json = false;
@@ -54,7 +55,10 @@ void add_analyze(CLI::App& app, Command* run) {
       options.analysis.reduction = petri::parse_reduction(args->reduction);
       options.progress = true;
       options.json = args->json;
-      return petri::check_and_report(doc.net, args->net, options, std::cout);
+      return run_check_until_signal("twin analyze", [&](const std::atomic<bool>& stop) {
+        options.analysis.stop = &stop;  // Ctrl-C ends the exploration cleanly
+        return petri::check_and_report(doc.net, args->net, options, std::cout);
+      });
     };
   });
 }

@@ -6,13 +6,15 @@
 #include "cellwright/task/compile.hpp"
 #include "cellwright/task/to_net.hpp"
 #include "commands.hpp"
+#include "until_signal.hpp"
 
 namespace cellwright::tools {
 
 void add_check(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand("check",
                                  "Compile a task program and check its Petri net for deadlocks, boundedness and "
-                                 "mutual exclusion. Exit 0 only if all hold; 1 if not; 2 on bad input.");
+                                 "mutual exclusion. Exit 0 only if all hold; 1 if not; 2 on bad input; 130 if "
+                                 "interrupted (Ctrl-C).");
   struct Args {
     std::string program;
     bool json = false;
@@ -35,8 +37,11 @@ void add_check(CLI::App& app, Command* run) {
       options.analysis.reduction = petri::parse_reduction(args->reduction);
       options.progress = true;
       options.json = args->json;
-      return petri::check_and_report(task::to_net(task::compile_file(args->program)), args->program, options,
-                                     std::cout);
+      const petri::Net net = task::to_net(task::compile_file(args->program));
+      return run_check_until_signal("twin check", [&](const std::atomic<bool>& stop) {
+        options.analysis.stop = &stop;  // Ctrl-C ends the exploration cleanly
+        return petri::check_and_report(net, args->program, options, std::cout);
+      });
     };
   });
 }

@@ -134,6 +134,7 @@ void add_run(CLI::App& app, Command* run) {
   cmd->callback([run, args] {
     *run = [args] {
       using namespace cellwright::twin::scenario;
+      for (const std::string& dir : {args->out, args->frames}) if (!dir.empty()) check_writable_dir(dir);  // before all
       Scenario s = load_scenario(args->scenario);
       for (const std::string& d : args->drivers) set_driver(s, d, {"--driver", 0, 0});
       for (const std::string& f : args->faults) s.faults.push_back(parse_fault_text(f, s.cell, "--fault"));

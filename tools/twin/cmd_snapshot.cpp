@@ -27,7 +27,8 @@ void add_snapshot(CLI::App& app, Command* run) {
     bool detections = false;
   };
   auto opts = std::make_shared<Options>();
-  CLI::App* sub = app.add_subcommand("snapshot", "Render a picture of a cell (offscreen, no display) to a PNG file");
+  CLI::App* sub = app.add_subcommand(
+      "snapshot", "Render a picture of a cell (offscreen, no display) to a PNG file. Exit 0 on success; 2 on bad input.");
   sub->add_option("cell", opts->cell, "cell description (.yaml)")->required();
   sub->add_option(
       "--camera", opts->camera,

@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 
+#include "cellwright/common/files.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/scenario/run.hpp"
@@ -66,7 +67,8 @@ void print_state(const petri::Net& net, const runtime::StepState& st, bool with_
 void add_step(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand("step",
                                  "Step a scenario one firing at a time, reading commands from standard input: Enter/n "
-                                 "next firing, c continue, s FILE snapshot, m marking, q quit.");
+                                 "next firing, c continue, s FILE snapshot, m marking, q quit. Exit 0 when the run "
+                                 "ended with every expected outcome holding or was quit; 1 if not; 2 on bad input.");
   auto scenario = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   cmd->add_option("scenario", *scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
@@ -75,6 +77,7 @@ void add_step(CLI::App& app, Command* run) {
   cmd->callback([run, scenario, out] {
     *run = [scenario, out] {
       using namespace cellwright::twin::scenario;
+      if (!out->empty()) check_writable_dir(*out);  // before anything runs: nothing written on a bad -o
       const Scenario s = load_scenario(*scenario);
       const Preflight pre = preflight(s);
       if (!pre.ok()) {

@@ -1,13 +1,31 @@
 // `twin`: the Cellwright command line. Thin: it dispatches to the subcommands in cmd_*.cpp.
+#include <mujoco/mujoco.h>
+
 #include <cstdio>
+#include <cstring>
 #include <exception>
+#include <string>
 
 #include "cellwright/common/error.hpp"
 #include "commands.hpp"
+#include "version.hpp"
+
+namespace {
+
+// "twin 0.1.0 (MuJoCo 2.2.2)": the project's version from CMake, and the MuJoCo library's, which decides the physics.
+std::string version_text() {
+  const int mj = mj_version();
+  return fmt::format("twin {} (MuJoCo {}.{}.{})", CELLWRIGHT_VERSION, mj / 100, mj / 10 % 10, mj % 10);
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"twin: Cellwright cell controller and digital twin for multi-robot workcells"};
+  CLI::App app{"twin: Cellwright cell controller and digital twin for multi-robot workcells. Every command exits 0 on "
+               "success, 1 when its input was processed and the verdict is negative, 2 on bad input or usage (its "
+               "--help says which)."};
   app.require_subcommand(1);
+  app.set_version_flag("--version", version_text(), "print the version of twin and of MuJoCo, and exit");
   cellwright::tools::Command run;
   cellwright::tools::add_compile(app, &run);
   cellwright::tools::add_check(app, &run);
@@ -18,6 +36,21 @@ int main(int argc, char** argv) {
   cellwright::tools::add_emulate(app, &run);
   cellwright::tools::add_campaign(app, &run);
   cellwright::tools::add_test(app, &run);
+  // A first word that is no option and no command is a mistyped command: say so (CLI11 would call it an unexpected
+  // argument).
+  if (argc > 1 && argv[1][0] != '-') {
+    std::string names;
+    bool known = false;
+    for (const CLI::App* sub : app.get_subcommands({})) {
+      known = known || sub->get_name() == argv[1];
+      names += (names.empty() ? "" : ", ") + sub->get_name();
+    }
+    if (!known) {
+      std::fprintf(stderr, "twin: unknown command '%s' (commands: %s; twin --help tells more)\n", argv[1],
+                   names.c_str());
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <exception>
 #include <thread>
 
@@ -33,6 +34,15 @@ void run_until_signal(const std::function<void()>& work, const std::function<voi
   }
   worker.join();
   if (error) std::rethrow_exception(error);
+}
+
+int run_check_until_signal(const char* what, const std::function<int(const std::atomic<bool>& stop)>& check) {
+  std::atomic<bool> stop{false};
+  int status = 0;
+  run_until_signal([&] { status = check(stop); }, [&] { stop = true; });
+  if (!stop) return status;
+  std::fprintf(stderr, "%s: interrupted by the user; the verdict covers only what was explored\n", what);
+  return kInterrupted;
 }
 
 void block_stop_signals() {

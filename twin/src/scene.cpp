@@ -65,7 +65,7 @@ constexpr double kBeltKv = 2000.0;  // N / (m/s): 1 N of drag slows the belt by 
 // the part's 40 mm width: with mu = 1 the parts rocked at the stop (about 0.4 mm up and down at a 2 ms step, 1 mm at
 // 5 ms). 0.3 keeps them standing; it still takes a fed part to belt speed within 20 ms.
 const char* const kBeltFriction = "0.3 0.005 0.0001";
-constexpr double kPedestalSide = 0.3;
+constexpr double kPedestalSide = models::kPedestalSide;
 
 const char* const kPadFriction = "1 0.005 0.0001";  // sliding, torsional, rolling (facts.md: grasps hold with these)
 // Gripper pads and parts: contacts twice as stiff as MuJoCo's default and nearly hard once touching, so that a part

@@ -451,7 +451,13 @@ class Explorer {
     start_ = std::chrono::steady_clock::now();
     next_progress_ = start_ + options_.progress_interval;
     for (std::uint32_t at = 0; at < store_.size() && !stopped_; ++at) {
-      if (options_.progress && (at & 255) == 0) report_progress(at);
+      if ((at & 255) == 0) {
+        if (options_.progress) report_progress(at);
+        if (options_.stop != nullptr && options_.stop->load(std::memory_order_relaxed)) {
+          stop(fmt::format("interrupted after {} markings", store_.size()));
+          break;
+        }
+      }
       expand(at);
     }
     return finish();

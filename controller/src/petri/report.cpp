@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <iostream>
 #include <ostream>
 #include <string>
@@ -327,8 +328,22 @@ int check_and_report(const Net& net, std::string_view source, const CheckOptions
   AnalysisOptions analysis = options.analysis;
   ProgressPrinter printer(std::cerr, ::isatty(STDERR_FILENO) == 1);
   if (options.progress) analysis.progress = [&printer](const AnalysisProgress& p) { printer(p); };
+  const auto start = std::chrono::steady_clock::now();
   const AnalysisResult result = analyze(net, analysis);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   printer.finish();
+  if (!result.complete && !result.stop_reason.empty()) {
+    // Too large to explore within the limit (or stopped by the user): say how far it got and how fast, so that the
+    // user can tell what a larger --max-states would cost.
+    std::cerr << fmt::format("{}: note: exploration stopped ({}): {} markings explored in {:.1f} s ({:.0f} markings/s; "
+                             "state limit {}){}\n",
+                             source, result.stop_reason, result.states, seconds,
+                             seconds > 0 ? static_cast<double>(result.states) / seconds : 0.0,
+                             analysis.max_states,
+                             result.reduced || analysis.reduction == Reduction::kStubborn
+                                 ? ""
+                                 : "; --reduction stubborn explores fewer interleavings");
+  }
   if (options.json) {
     out << to_json(net, result).dump(2) << "\n";
   } else {

@@ -191,7 +191,12 @@ bool is_word(const Token& t, std::string_view keyword) {
 
 class Parser {
  public:
-  Parser(std::string_view text, std::string file) : text_(text) { program_.file = std::move(file); }
+  Parser(std::string_view text, std::string file) : text_(text) {
+    program_.file = std::move(file);
+    // A UTF-8 byte-order mark, which some editors put at the start of a file, is not part of the program (and does
+    // not count in line 1's columns).
+    if (text_.starts_with("\xEF\xBB\xBF")) text_.remove_prefix(3);
+  }
 
   Program run() {
     std::size_t pos = 0;
@@ -215,7 +220,19 @@ class Parser {
                                                  "of the file{}",
                                                  what, closed_loop_note()));
     }
+    // A program that says nothing for any robot to do would compile to a net that is dead from the start.
+    if (program_.declarations.empty() && !program_.steps && program_.sequences.empty()) {
+      throw InputError({program_.file, 1, 0}, "the program is empty: it has no statements, only blank lines and "
+                                              "comments (docs/task-language.md: declare the robots, then say what "
+                                              "they do in a 'steps' table or 'sequence' blocks)");
+    }
     resolve();
+    // Checked after the names, so that a misused name is reported as such.
+    if (!program_.steps && program_.sequences.empty()) {
+      throw InputError(program_.declarations.front().where,
+                       "the program declares names but says nothing for any robot to do: add a 'steps' table or a "
+                       "'sequence' block (docs/task-language.md)");
+    }
     return std::move(program_);
   }
 

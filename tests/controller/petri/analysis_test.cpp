@@ -5,6 +5,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <iostream>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -277,6 +279,34 @@ TEST(Analysis, MutualExclusionHoldsWithOneTokenAndBreaksWithTwo) {
   Tokens inside = 0;
   for (PlaceId p : net.regions()[0].inside) inside += end[p];
   EXPECT_EQ(inside, 2u);
+}
+
+// A user's Ctrl-C sets the stop flag from another thread: exploration ends at its next check with what it found.
+TEST(Analysis, StopsWhenAskedAndSaysSo) {
+  std::atomic<bool> stop{true};
+  AnalysisOptions opt;
+  opt.stop = &stop;
+  const AnalysisResult r = analyze(switches(12), opt);
+  EXPECT_FALSE(r.complete);
+  EXPECT_EQ(r.states, 1u);
+  EXPECT_EQ(r.stop_reason, "interrupted after 1 markings");
+  EXPECT_FALSE(r.ok());
+  stop = false;
+  EXPECT_TRUE(analyze(switches(4), opt).complete);
+}
+
+// A net too large for the state limit: the checking commands say so on stderr with the figures.
+TEST(Analysis, CheckAndReportGivesTheFiguresOfAnExplorationCutShort) {
+  CheckOptions options;
+  options.analysis.max_states = 100;
+  std::ostringstream out, err;
+  std::streambuf* old = std::cerr.rdbuf(err.rdbuf());
+  const int status = check_and_report(switches(12), "big.pnml", options, out);
+  std::cerr.rdbuf(old);
+  EXPECT_EQ(status, 1);
+  EXPECT_THAT(err.str(), HasSubstr("big.pnml: note: exploration stopped (state limit of 100 markings reached; raise "
+                                   "--max-states): 100 markings explored in "));
+  EXPECT_THAT(err.str(), HasSubstr("markings/s; state limit 100); --reduction stubborn explores fewer"));
 }
 
 TEST(Analysis, StopsAtTheStateLimitAndSaysSo) {

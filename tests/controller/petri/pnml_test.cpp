@@ -646,6 +646,23 @@ TEST(PnmlAnalysis, KanbanStateCountsFollowTheClosedForm) {
   }
 }
 
+// A file saved with a UTF-8 byte-order mark reads as the same net; errors keep their lines.
+TEST(PnmlImport, ByteOrderMarkIsAccepted) {
+  std::ifstream in(kData / "kanban-1.pnml", std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  const Net net = parse_pnml("\xEF\xBB\xBF" + text.str(), "bom.pnml");
+  EXPECT_EQ(net.name(), "Kanban-PT-0001");
+  EXPECT_EQ(net.num_places(), 16u);
+  try {
+    (void)parse_pnml("\xEF\xBB\xBF<?xml version=\"1.0\"?>\n<pnml>\n<net id=\"n\">\n</pnml>\n", "bom.pnml");
+    ADD_FAILURE() << "a broken file was accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, "bom.pnml");
+    EXPECT_GE(e.where().line, 3) << e.what();
+  }
+}
+
 TEST(PnmlAnalysis, PhilosophersDeadlockWhenBothHoldTheirLeftFork) {
   const Net net = read_pnml(kData / "philosophers-2.pnml");
   const AnalysisResult r = analyze(net);

@@ -95,6 +95,13 @@ TEST(RuntimeRecovery, TheShippedFileLoadsToTheSameDiagnosesAsTheBuiltInTree) {
   }
 }
 
+// A tree file saved with a UTF-8 byte-order mark reads as the same tree.
+TEST(RuntimeRecovery, ByteOrderMarkIsAccepted) {
+  const DecisionTree tree = DecisionTree::parse(
+      "\xEF\xBB\xBF" + read_text(shipped_path()), "bom.yaml");
+  for (std::size_t i = 0; i < kSymptoms; ++i) EXPECT_TRUE(tree.has(static_cast<Symptom>(i)));
+}
+
 TEST(RuntimeRecovery, QuestionAndActionNamesGoBothWays) {
   for (std::size_t i = 0; i < 9; ++i) {
     const auto q = static_cast<Question>(i);

@@ -240,10 +240,10 @@ TEST(FormatListing, SemaphoresRegionsAndIdleRobots) {
   EXPECT_NE(listing.find("  0  wait Z    # 5:3   enter Z   enter Z\n"), std::string::npos) << listing;
 }
 
-TEST(FormatListing, EmptyProgram) {
-  EXPECT_EQ(format_listing(compile_text("")),
-            "program t.task\nrobots: none\nworkpieces: none\nlocations: none\n\nsemaphores and events: none\n\n"
-            "regions: none\n");
+TEST(FormatListing, RobotWithAnEmptySequence) {
+  EXPECT_EQ(format_listing(compile_text("robot r1\nsequence r1\nend\n")),
+            "program t.task\nrobots: r1\nworkpieces: none\nlocations: none\n\nrobot r1: no primitives\n\n"
+            "semaphores and events: none\n\nregions: none\n");
 }
 
 TEST(ToJson, CarriesEveryField) {

@@ -147,11 +147,36 @@ TEST(ParseProgram, NamesMayBeUsedBeforeTheirDeclaration) {
   EXPECT_EQ(p.sequences[0].commands[0].argument_kind, NameKind::kWorkpiece);
 }
 
-TEST(ParseProgram, EmptyProgramAndEmptyTable) {
-  EXPECT_TRUE(parse_program("", "t").declarations.empty());
-  EXPECT_TRUE(parse_program("# nothing\n\n", "t").declarations.empty());
+TEST(ParseProgram, EmptyTable) {
   const Program p = parse_program("robot r1\nsteps\nr1\nend\n", "t");
   EXPECT_TRUE(p.steps->lines.empty());
+}
+
+// A program that gives no robot anything to do is an input error naming the file, not a net dead from the start.
+TEST(ParseErrors, EmptyProgram) {
+  for (const char* text : {"", "# nothing\n\n", "\n  \t\n# only comments\n", "\xEF\xBB\xBF"}) {
+    const Failure f = parse_failure(text);
+    EXPECT_EQ(f.line, 1) << text;
+    EXPECT_EQ(f.problem.rfind("the program is empty: it has no statements", 0), 0u) << f.problem;
+  }
+  const Failure declared = parse_failure("# robots\nrobot r1 r2\nworkpiece A\n");
+  EXPECT_EQ(declared.line, 2);
+  EXPECT_EQ(declared.column, 7);
+  EXPECT_EQ(declared.problem.rfind("the program declares names but says nothing for any robot to do", 0), 0u)
+      << declared.problem;
+}
+
+// An editor's UTF-8 byte-order mark before the first statement is skipped: the program and its columns are as
+// without it.
+TEST(ParseProgram, ByteOrderMarkIsSkipped) {
+  const Program p = parse_program("\xEF\xBB\xBF" + kExchange, "t");
+  ASSERT_TRUE(p.steps);
+  EXPECT_EQ(p.steps->lines.size(), 3u);
+  const Failure f = parse_failure("\xEF\xBB\xBFrobot r1 r1\nsequence r1\nend\n");
+  EXPECT_EQ(f.line, 1);
+  EXPECT_EQ(f.column, 10);  // the second r1, counted without the mark
+  // Elsewhere the bytes are still no part of the language.
+  EXPECT_EQ(parse_failure("robot r1\n\xEF\xBB\xBFsequence r1\nend\n").line, 2);
 }
 
 // ---- loops and workpiece classes ---------------------------------------------------------------------------------
@@ -200,7 +225,7 @@ TEST(ParseProgram, WorkpieceClassNamesTheLocationItsPartsArriveAt) {
   // A class is used like a workpiece.
   EXPECT_EQ(p.steps->lines[0].cells[0]->argument_kind, NameKind::kWorkpiece);
   // Named workpieces have no `from`; the keyword is case-insensitive, and the location may come later in the file.
-  const Program q = parse_program("workpiece A B\nWorkpiece box FROM belt\nlocation belt\n", "t");
+  const Program q = parse_program("workpiece A B\nWorkpiece box FROM belt\nlocation belt\nrobot r1\nsequence r1\nend\n", "t");
   EXPECT_TRUE(find_declaration(q, "A")->from.empty());
   EXPECT_TRUE(find_declaration(q, "B")->from.empty());
   EXPECT_EQ(find_declaration(q, "box")->from, "belt");
@@ -463,7 +488,8 @@ TEST(ParseErrors, LexicalProblems) {
                  "the initial count of semaphore 's' is too large: 4294967296 (at most 4294967295)");
   expect_failure("semaphore s =\n", 1, 13, "'=' after semaphore 's' needs its initial count (a number 0 or more)");
   expect_failure("semaphore s = t\n", 1, 15, "'=' after semaphore 's' needs its initial count (a number 0 or more)");
-  EXPECT_EQ(parse_program("semaphore s = 4294967295\n", "t").declarations[0].initial, 4294967295u);
+  EXPECT_EQ(parse_program("semaphore s = 4294967295\nrobot r1\nsequence r1\nend\n", "t").declarations[0].initial,
+            4294967295u);
 }
 
 TEST(LoadProgram, ReadsAFileAndNamesItInErrors) {

@@ -161,7 +161,8 @@ TEST_F(FaultFiles, BadEntriesNameFileLineAndField) {
                "field 'carry' of the drop fault must be a whole number from 1 up, got '0'");
   expect_error("  - {kind: drop, robot: puma, carry: 1.5}\n", 6, "must be a whole number from 1 up");
   expect_error("  - {kind: drop, robot: puma, after: soon}\n", 6, "field 'after' of the drop fault must be a number");
-  expect_error("  - {kind: drop, robot: puma, after: -1}\n", 6, "must not be negative");
+  expect_error("  - {kind: drop, robot: puma, after: -1}\n", 6,
+               "field 'after' of the drop fault must be within 0..1000000 s, got -1");
   expect_error("  - {kind: slip, robot: puma, distance: 0.1}\n", 6, "must be at most 0.03 m");
   expect_error("  - {kind: misplace, workpiece: A, offset: [0.1]}\n", 6, "field 'offset' of the misplace fault must "
                                                                          "have 2 numbers");

@@ -410,6 +410,50 @@ TEST_F(ScenarioFiles, NumbersOutOfRange) {
   expect_error(scenario(head + "options: {realtime: maybe}\n"), 5, "must be true or false");
 }
 
+// Values no cell can use are refused with the field, the value and the bound: beyond the bound they are typos (or
+// would overflow the nanosecond clock), and times that end after the run cannot work.
+TEST_F(ScenarioFiles, ImpossibleValuesNameFieldValueAndBound) {
+  const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
+  expect_error(scenario(head + "limits:\n  sim_time: 1e300\n"), 6,
+               "field 'sim_time' of field 'limits' must be greater than 0 and at most 1000000 s, got 1e300");
+  expect_error(scenario(head + "limits:\n  wall_time: -3\n"), 6,
+               "field 'wall_time' of field 'limits' must be greater than 0 and at most 1000000 s, got -3");
+  expect_error(scenario(head + "options:\n  settle_time: .inf\n"), 6,
+               "field 'settle_time' of field 'options' must be a finite number, got .inf");
+  expect_error(scenario(head + "options:\n  control_period: 5\n"), 6,
+               "field 'control_period' of field 'options' must be greater than 0 and at most 1 s, got 5");
+  expect_error(scenario(head + "tolerance: 50\n"), 5,
+               "field 'tolerance' of the scenario must be greater than 0 and at most 2 m, got 50");
+  expect_error(scenario(head + "recovery:\n  command_timeout: 1e12\n"), 6,
+               "field 'command_timeout' of field 'recovery' must be greater than 0 and at most 1000000 s, got 1e12");
+  expect_error(scenario(head + "locations:\n  - {name: x, at: output.enter, yaw: 1e9}\n"), 6,
+               "field 'yaw' of a location of the scenario must be within -360..360 degrees, got 1e9");
+  expect_error(scenario(head + "locations:\n  - {name: x, pose: {xyz: [1, 2, 3e5]}}\n"), 6,
+               "must be within -100..100 m, got 3e5");
+  expect_error(scenario(head + "faults:\n  - {kind: obstacle, robot: puma, time: 1e300}\n"), 6,
+               "field 'time' of the obstacle fault must be within 0..1000000 s, got 1e300");
+  // Settling that outlasts the run: the run would always end in a timeout.
+  expect_error(scenario(head + "limits: {sim_time: 60}\noptions:\n  settle_time: 60\n"), 7,
+               "field 'settle_time' of field 'options' (simulated after the program finishes) is 60 s, but the run "
+               "ends at the simulation time limit of 60 s (field 'sim_time' of field 'limits'): it cannot work");
+  expect_error(scenario(head + "feed:\n  conveyor: input\n  workpieces: [B]\n  start: 400\n"), 8,
+               "field 'start' of field 'feed' (the first part's arrival) is 400 s, but the run ends at the simulation "
+               "time limit of 300 s (the default)");
+}
+
+// An editor's UTF-8 byte-order mark at the start of the file changes nothing, lines included.
+TEST_F(ScenarioFiles, ByteOrderMarkIsAccepted) {
+  const fs::path f = write("bom.yaml", fmt::format("\xEF\xBB\xBF" "cell: {}/cell.yaml\nprogram: {}/exchange.task\n"
+                                                   "robots: {{r1: puma, r2: melfa}}\nbind: {{B: output_drop}}\n",
+                                                   kScenes, kScenes));
+  EXPECT_EQ(load_scenario(f).robot_of("r1"), "puma");
+  const fs::path bad = write("bom_bad.yaml", fmt::format("\xEF\xBB\xBF" "cell: {}/cell.yaml\nprogram: {}/exchange.task\n"
+                                                         "robots: {{r1: puma, r2: melfa}}\nbind: {{B: output_drop}}\n"
+                                                         "tolerance: -1\n",
+                                                         kScenes, kScenes));
+  expect_error(bad, 5, "field 'tolerance' of the scenario must be greater than 0");
+}
+
 // --- preflight ---
 
 TEST_F(ScenarioFiles, ExchangeScenarioPassesPreflight) {

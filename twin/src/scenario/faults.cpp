@@ -184,14 +184,16 @@ FaultSpec parse_fault(const Doc& doc, const YAML::Node& entry, const models::Cel
   s.every = count("every", s.every);
   s.n = count("n", s.n);
   s.count = count("count", s.count);
-  s.after = f.non_negative_or("after", s.after);
-  s.time = f.non_negative_or("time", s.time);
-  s.distance = f.positive_or("distance", s.distance);
-  s.size = f.positive_or("size", s.size);
-  s.ahead = f.positive_or("ahead", s.ahead);
-  s.duration = f.positive_or("duration", s.duration);
-  s.sigma = f.non_negative_or("sigma", s.sigma);
-  s.sigma_yaw = f.non_negative_or("sigma_yaw", s.sigma_yaw);
+  // Bounds as the scenario's (docs/scenarios.md): times up to 1e6 s, lengths up to 2 m.
+  using models::yaml::Range;
+  s.after = f.within_or("after", s.after, Range{0, 1e6, false, "s"});
+  s.time = f.within_or("time", s.time, Range{0, 1e6, false, "s"});
+  s.distance = f.within_or("distance", s.distance, Range{0, 2, true, "m"});
+  s.size = f.within_or("size", s.size, Range{0, 2, true, "m"});
+  s.ahead = f.within_or("ahead", s.ahead, Range{0, 2, true, "m"});
+  s.duration = f.within_or("duration", s.duration, Range{0, 1e6, true, "s"});
+  s.sigma = f.within_or("sigma", s.sigma, Range{0, 2, false, "m"});
+  s.sigma_yaw = f.within_or("sigma_yaw", s.sigma_yaw, Range{0, 180, false, "degrees"});
   if (f.has("yaw")) {
     s.yaw = f.number("yaw");
     if (s.yaw < 0 || s.yaw > 180) {

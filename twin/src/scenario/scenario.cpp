@@ -36,6 +36,14 @@ namespace {
 using models::yaml::describe;
 using models::yaml::Doc;
 using models::yaml::Fields;
+using models::yaml::Range;
+
+// What a scenario cannot need (docs/scenarios.md, "Bounds"): times beyond about eleven days would overflow nothing
+// (the clock counts nanoseconds in 64 bits, up to 292 years) but are typos; the rest as in the cell (models::bounds).
+constexpr double kMaxSeconds = 1e6;
+constexpr Range kDuration{0, kMaxSeconds, true, "s"};     // a period, a timeout, a limit: more than 0
+constexpr Range kInstant{0, kMaxSeconds, false, "s"};     // a start time: 0 or later
+constexpr Range kLength{0, models::bounds::kMaxReach, true, "m"};  // a height, a clearance, a tolerance
 
 std::string list_names(const std::vector<std::string>& names) {
   if (names.empty()) return "none";
@@ -166,7 +174,9 @@ models::LocationSpec read_location(const Doc& doc, const models::CellDescription
   if (f.has("at") == f.has("pose")) {
     doc.fail(n, fmt::format("location '{}' needs either 'at' or 'pose'", l.name));
   }
-  const double yaw = f.has("yaw") ? f.number("yaw") * std::numbers::pi / 180.0 : 0.0;
+  const double yaw =
+      f.within_or("yaw", 0.0, Range{-models::bounds::kAngle, models::bounds::kAngle, false, "degrees"}) *
+      std::numbers::pi / 180.0;
   auto vec3 = [&](const YAML::Node& v, const std::string& what) {
     if (!v.IsSequence() || v.size() != 3) doc.fail(v, fmt::format("{} must be a list of 3 numbers", what));
     Eigen::Vector3d out;
@@ -175,6 +185,7 @@ models::LocationSpec read_location(const Doc& doc, const models::CellDescription
       if (!v[i].IsScalar() || !YAML::convert<double>::decode(v[i], x) || !std::isfinite(x)) {
         doc.fail(v[i], fmt::format("{} must be a list of 3 numbers, got {}", what, describe(v[i])));
       }
+      f.within_of(v[i], what, Range{-models::bounds::kPosition, models::bounds::kPosition, false, "m"});
       out[static_cast<Eigen::Index>(i)] = x;
     }
     return out;
@@ -202,8 +213,8 @@ models::LocationSpec read_location(const Doc& doc, const models::CellDescription
     }
     if (f.has("offset")) l.pose.xyz += vec3(f.node("offset"), f.field("offset"));
   }
-  l.grasp_height = f.positive_or("grasp_height", l.grasp_height);
-  l.approach_height = f.positive_or("approach_height", l.approach_height);
+  l.grasp_height = f.within_or("grasp_height", l.grasp_height, kLength);
+  l.approach_height = f.within_or("approach_height", l.approach_height, kLength);
   return l;
 }
 
@@ -466,13 +477,13 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       seen.emplace(w, doc.at(e).line);
       feed.workpieces.push_back(w);
     }
-    feed.start = ff.non_negative_or("start", 0.0);
+    feed.start = ff.within_or("start", 0.0, kInstant);
     if (feed.workpieces.size() > 1 && !ff.has("period")) {
       doc.fail(f.node("feed"),
                fmt::format("field 'feed' lists {} workpieces but no 'period' (seconds between arrivals)",
                            feed.workpieces.size()));
     }
-    feed.period = ff.positive_or("period", 0.0);
+    feed.period = ff.within_or("period", 0.0, kDuration);
     feed.count = feed.workpieces.size();
     if (ff.has("count")) {
       const double count = ff.positive("count");
@@ -517,7 +528,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     if (f.has("vision")) {
       const Fields vf(doc, f.node("vision"), "field 'vision'", {"camera", "period"});
       if (vf.has("camera")) v.camera = vf.word("camera");
-      v.period = vf.positive_or("period", v.period);
+      v.period = vf.within_or("period", v.period, kDuration);
       if (!v.camera.empty() && s.cell.find_camera(v.camera) == nullptr) {
         doc.fail(vf.node("camera"), fmt::format("the vision camera '{}' is not a camera of the cell (cameras: {})",
                                                 v.camera, list_names(names_of(s.cell.cameras))));
@@ -552,7 +563,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       }
       const auto duration = [&](const char* key, runtime::SimDuration& out) {
         if (rf.has(key)) out = std::chrono::duration_cast<runtime::SimDuration>(
-                              std::chrono::duration<double>(rf.positive(key)));
+                              std::chrono::duration<double>(rf.within(key, kDuration)));
       };
       duration("part_wait", s.recovery.part_wait);
       duration("wait_timeout", s.recovery.wait_timeout);
@@ -626,16 +637,16 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   // --- limits and options ---
   if (f.has("limits")) {
     const Fields lf(doc, f.node("limits"), "field 'limits'", {"sim_time", "wall_time"});
-    s.limits.sim_time = lf.positive_or("sim_time", s.limits.sim_time);
-    s.limits.wall_time = lf.positive_or("wall_time", 0.0);
+    s.limits.sim_time = lf.within_or("sim_time", s.limits.sim_time, kDuration);
+    s.limits.wall_time = lf.within_or("wall_time", 0.0, kDuration);
   }
   if (f.has("options")) {
     const Fields of(doc, f.node("options"), "field 'options'",
                     {"realtime", "control_period", "settle_time", "handover_clearance"});
     s.options.realtime = of.boolean_or("realtime", s.options.realtime);
-    s.options.control_period = of.positive_or("control_period", s.options.control_period);
-    s.options.settle_time = of.non_negative_or("settle_time", s.options.settle_time);
-    s.options.handover_clearance = of.positive_or("handover_clearance", s.options.handover_clearance);
+    s.options.control_period = of.within_or("control_period", s.options.control_period, Range{0, 1, true, "s"});
+    s.options.settle_time = of.within_or("settle_time", s.options.settle_time, kInstant);
+    s.options.handover_clearance = of.within_or("handover_clearance", s.options.handover_clearance, kLength);
     // The simulation advances a whole number of physics steps per control period.
     const double steps = s.options.control_period / s.cell.timestep;
     if (steps < 1 - 1e-9 || std::abs(steps - std::round(steps)) > 1e-6) {
@@ -652,8 +663,29 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
                          s.vision->period, s.options.control_period));
   }
 
+  // Times that cannot work together: the run ends at sim_time whatever is still to come.
+  {
+    const auto check_before_end = [&](bool given, const YAML::Node& node, const std::string& what, double t) {
+      if (given && t >= s.limits.sim_time) {
+        doc.fail(node, fmt::format("{} is {} s, but the run ends at the simulation time limit of {} s ({}): it "
+                                   "cannot work; raise the limit or shorten the time",
+                                   what, t, s.limits.sim_time,
+                                   f.has("limits") ? "field 'sim_time' of field 'limits'" : "the default"));
+      }
+    };
+    const std::optional<YAML::Node> options = f.get("options");
+    const std::optional<YAML::Node> feed = f.get("feed");
+    check_before_end(options && (*options)["settle_time"], options ? (*options)["settle_time"] : YAML::Node(),
+                     "field 'settle_time' of field 'options' (simulated after the program finishes)",
+                     s.options.settle_time);
+    check_before_end(options && (*options)["control_period"], options ? (*options)["control_period"] : YAML::Node(),
+                     "field 'control_period' of field 'options'", s.options.control_period);
+    check_before_end(feed && feed->IsMap() && (*feed)["start"], feed ? (*feed)["start"] : YAML::Node(),
+                     "field 'start' of field 'feed' (the first part's arrival)", s.feed ? s.feed->start : 0.0);
+  }
+
   // --- expected outcome ---
-  const double tolerance = f.positive_or("tolerance", 0.02);
+  const double tolerance = f.within_or("tolerance", 0.02, kLength);
   if (f.has("expect")) {
     std::vector<std::string> places;
     for (const auto& l : s.cell.locations) places.push_back(l.name);
@@ -674,7 +706,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       if (v.IsMap()) {
         const Fields ef(doc, v, fmt::format("the expectation for '{}'", workpiece), {"at", "tolerance"});
         place_node = ef.node("at");
-        e.tolerance = ef.positive_or("tolerance", tolerance);
+        e.tolerance = ef.within_or("tolerance", tolerance, kLength);
       }
       e.place = f.word_of(place_node, fmt::format("where workpiece '{}' must end up", workpiece));
       if (!e.lost() && std::find(places.begin(), places.end(), e.place) == places.end()) {

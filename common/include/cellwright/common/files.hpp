@@ -15,6 +15,12 @@ std::string read_file(const std::filesystem::path& path);
 // is removed on failure.
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);
 
+// Checks, before anything runs, that `dir` can be an output directory: an existing directory we may write into, or
+// one that can be created (its nearest existing ancestor is a directory we may write into). Creates nothing. Throws
+// InputError({dir}) "exists and is not a directory", "cannot write into it: <reason>", "cannot be created: <ancestor>
+// is not a directory" or "cannot be created in <ancestor>: <reason>".
+void check_writable_dir(const std::filesystem::path& dir);
+
 // Moves the file `from` to `to`, replacing it: a rename when both are on one file system (atomic), else a copy to a
 // temporary file beside `to`, renamed over it, then `from` removed. Throws InputError naming the paths when it
 // cannot; `to` is then unchanged.

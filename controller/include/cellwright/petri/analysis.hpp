@@ -28,6 +28,7 @@
 // several threads at once. A progress callback runs on the analysing thread.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -71,6 +72,9 @@ struct AnalysisOptions {
   // exploration runs (never for a run that ends sooner). Empty: no calls.
   std::function<void(const AnalysisProgress&)> progress;
   std::chrono::milliseconds progress_interval{1000};
+  // When set, read (relaxed) every 256 markings expanded: once true, exploration stops with complete == false and
+  // stop_reason "interrupted after N markings" (a user's Ctrl-C, set from another thread). Not owned.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 struct Deadlock {
@@ -168,8 +172,9 @@ class ProgressPrinter {
 };
 
 // Analyses `net` and prints the outcome to `out`: with options.json the JSON report (to_json) indented by 2 and a
-// newline, else "<source>: " and the human report (format_report). Returns the checking commands' exit status: 0 if
-// the result is ok(), 1 if not. Throws as analyze() does.
+// newline, else "<source>: " and the human report (format_report). An exploration that stopped early (the state limit,
+// an interruption) adds a note on stderr with the figures: markings explored, seconds, markings per second and the
+// limit. Returns the checking commands' exit status: 0 if the result is ok(), 1 if not. Throws as analyze() does.
 int check_and_report(const Net& net, std::string_view source, const CheckOptions& options, std::ostream& out);
 
 }  // namespace cellwright::petri

@@ -111,7 +111,9 @@ std::vector<std::string> declared_names(const Program& program, NameKind kind);
 
 // Parses program text. `file` is used only to name the source in locations and messages.
 // Throws InputError (file, line, column of the offending token) on any syntax error, unknown or misused name,
-// duplicate declaration, robot both in the table and in a sequence, and missing `end`.
+// duplicate declaration, robot both in the table and in a sequence, and missing `end`; and for a program that gives
+// no robot anything to do: one with no statements at all (at line 1: "the program is empty"), or with declarations
+// but no `steps` table and no `sequence` (at the first declaration). A UTF-8 byte-order mark at the start is skipped.
 Program parse_program(std::string_view text, const std::string& file);
 
 // Reads and parses a program file. Throws InputError as parse_program does, and when the file cannot be read.

@@ -31,6 +31,24 @@ struct Pose {
   Eigen::Matrix3d rotation() const;
 };
 
+// What a real cell cannot exceed (docs/cell-description.md, "Bounds"): a value outside is refused as a typo or a unit
+// mistake (millimetres for metres, radians for degrees, grams for kilograms) before it reaches the physics.
+namespace bounds {
+inline constexpr double kPosition = 100;   // m: every coordinate of a pose or point, within ±100 m of the origin
+inline constexpr double kAngle = 360;      // degrees: every angle of a pose and every yaw, within ±360
+inline constexpr double kMinSize = 0.001;  // m: the smallest extent of any body (1 mm)
+inline constexpr double kMaxSize = 100;    // m: the largest extent of a conveyor or a machine
+inline constexpr double kMaxPart = 5;      // m: the largest extent of a workpiece
+inline constexpr double kMinMass = 0.001;  // kg: the lightest workpiece (1 g)
+inline constexpr double kMaxMass = 1000;   // kg: the heaviest workpiece
+inline constexpr double kMaxTime = 86400;  // s: the longest process time (a day)
+inline constexpr double kMaxReach = 2;     // m: a grasp or approach height, a hand-over offset
+inline constexpr double kOverlap = 0.001;  // m: bodies may touch at the start, not overlap by more than this
+}  // namespace bounds
+
+// A robot based above the floor (z > 1 mm) stands on a square pedestal this wide, up to its base (the scene builds it).
+inline constexpr double kPedestalSide = 0.3;
+
 enum class DriverKind { kSim, kMovemaster, kVal2 };
 enum class Parity { kNone, kEven, kOdd };
 
@@ -210,13 +228,28 @@ struct ReachCheck {
 // Reads, checks and resolves a cell description file. Relative URDF paths are relative to the file's directory.
 // Throws InputError naming the file, line, column and field when: the file is missing or is not YAML; a field is
 // missing, unknown, of the wrong type or out of range (negative sizes, colours outside 0..1, ...); a name is used
-// twice; a reference (a robot in `reach`, a conveyor or location in `on`, an `at` target) names nothing; a URDF is
+// twice; a number is outside its bounds (namespace bounds); two bodies overlap at the start (a workpiece inside a
+// machine, a machine over a conveyor: message and position name the one listed later and the body it enters, see
+// check_overlaps); a reference (a robot in `reach`, a conveyor or location in `on`, an `at` target) names nothing; a URDF is
 // missing or unusable; a home configuration does not fit the robot; or a location or the hand-over is out of reach
 // of a robot that must reach it (which location, which robot, the distance and the robot's maximum reach).
 CellDescription load_cell(const std::filesystem::path& yaml_file);
 
 // As load_cell, from YAML text; `source` names the text in errors and its parent directory resolves relative paths.
 CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::path& source);
+
+// The bodies of the cell that overlap at the start by more than bounds::kOverlap: workpieces (boxes, upright
+// cylinders), machines (body and fixture plate), conveyors (their frame, up to the belt's top) and robot pedestals,
+// each pair once (two parts of one machine are not a pair). Each entry: the later-listed body first, the other, how
+// deep they overlap (m), and where the first is in the file. Bodies that touch (a part resting on a belt or fixture) do
+// not overlap. Parts on a conveyor's belt are in the conveyor's frame footprint but above it: they do not overlap it.
+struct Overlap {
+  std::string body;   // "workpiece 'A'"
+  std::string other;  // "machine 'mill' (line 40)"
+  double depth = 0;
+  SourceLocation where;
+};
+std::vector<Overlap> check_overlaps(const CellDescription& cell);
 
 // Every reachability check the cell asks for: for each location and each robot in its `reach`, the grasp and the
 // approach pose (gripper pointing down; the fingers along the location's yaw or turned half a turn); for the

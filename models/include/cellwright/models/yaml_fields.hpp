@@ -31,6 +31,17 @@ enum class MissingField {
   kSayRequired,  // "<what> has no field '<key>' (it is required)"
 };
 
+// The values a number may take: lo..hi in `unit` (empty, "m", "s", "kg", "deg"), lo itself excluded when `above`.
+struct Range {
+  double lo = 0;
+  double hi = 0;
+  bool above = false;       // lo is excluded ("greater than lo")
+  std::string_view unit;    // printed after hi
+  // "within lo..hi unit" or "greater than lo and at most hi unit".
+  std::string text() const;
+  bool contains(double v) const { return (above ? v > lo : v >= lo) && v <= hi; }
+};
+
 // One YAML file being read: its name, for the positions in errors.
 class Doc {
  public:
@@ -96,6 +107,15 @@ class Fields {
   double positive_or(const std::string& key, double fallback) const { return has(key) ? positive(key) : fallback; }
   // A number >= 0: "<field> must not be negative, got <value>".
   double non_negative_or(const std::string& key, double fallback) const;
+  // A number within `range`: "<field> must be <range.text()>, got <value>" (e.g. "must be greater than 0 and at
+  // most 3600 s, got 1e+300"). The bounds say what a real cell cannot exceed: values outside are typos or unit
+  // mistakes, and some would overflow the simulation's clock or break its physics.
+  double within(const std::string& key, const Range& range) const { return within_of(node(key), field(key), range); }
+  double within_or(const std::string& key, double fallback, const Range& range) const {
+    return has(key) ? within(key, range) : fallback;
+  }
+  // As vec3(key), each number within `range`.
+  Eigen::Vector3d vec3_within(const std::string& key, const Range& range) const;
   // Any scalar, possibly empty: "<field> must be a word, got <describe>".
   std::string text(const std::string& key) const { return text_of(node(key), field(key)); }
   // A non-empty scalar: "<field> must be a word, got <describe>".
@@ -115,6 +135,7 @@ class Fields {
 
   // The same checks for a node that is not a field of this mapping (a list entry); `name` replaces <field>.
   double number_of(const YAML::Node& n, const std::string& name) const;
+  double within_of(const YAML::Node& n, const std::string& name, const Range& range) const;
   std::string text_of(const YAML::Node& n, const std::string& name) const;
   std::string word_of(const YAML::Node& n, const std::string& name) const;
 

@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/common/files.hpp"
 #include "cellwright/twin/scenario/children.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
 
@@ -196,9 +197,8 @@ std::string format_markdown(const CampaignSummary& summary, const std::vector<Ru
 // count axis, the mean time to recover under each group, and a legend; in the style of the Gantt chart (gantt.hpp).
 cv::Mat draw_campaign(const CampaignSummary& summary, int width = 1200, int height = 600);
 
-// Checks that `dir` can be created or written (an existing non-directory, a parent that is a file or not writable:
-// InputError naming it), creating nothing.
-void check_writable_dir(const std::filesystem::path& dir);
+// Checks that `dir` can be created or written, creating nothing (common/files.hpp; every command's -o uses it).
+using cellwright::check_writable_dir;
 
 // Writes campaign.csv, runs.csv, campaign.md and campaign.png into `dir` (each atomically). Throws InputError when a
 // file cannot be written.

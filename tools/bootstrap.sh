@@ -17,6 +17,7 @@ packages=(
   build-essential cmake pkg-config git
   libmujoco-dev libqhull-dev libeigen3-dev libopencv-dev libosmesa6-dev liburdfdom-dev libyaml-cpp-dev libtinyxml2-dev
   libgtest-dev libgmock-dev libbenchmark-dev libfmt-dev libcli11-dev nlohmann-json3-dev graphviz libglpk-dev
+  ffmpeg libavcodec-dev libavformat-dev libswscale-dev libavutil-dev
 )
 missing=()
 for p in "${packages[@]}"; do

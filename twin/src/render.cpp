@@ -94,7 +94,12 @@ cv::Mat Renderer::render_camera(mjData* data, int camera_id, int width, int heig
 }
 
 cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
+  return render(data, overview_camera(data, width, height), width, height, RenderQuality::kFull);
+}
+
+mjvCamera Renderer::overview_camera(const mjData* data, int width, int height) const {
   CW_CHECK(data != nullptr, "render needs data");
+  CW_CHECK(width >= 1 && height >= 1, "image size {}x{}", width, height);
   // Frame the bounding sphere of every visible geom but the floor plane, where they are now, from in front and
   // above: far enough back that the sphere fits both the vertical and the horizontal field of view.
   Eigen::AlignedBox3d box;
@@ -119,7 +124,7 @@ cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
   cam.distance = 0.65 * radius / std::sin(std::min(half_fovy, half_fovx));
   cam.azimuth = 60;
   cam.elevation = -30;
-  return render(data, cam, width, height, RenderQuality::kFull);
+  return cam;
 }
 
 cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int height, RenderQuality quality) {

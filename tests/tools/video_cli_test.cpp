@@ -110,9 +110,15 @@ TEST(VideoCli, StepTakesTheOptionsOfRun) {
 TEST(VideoCli, CampaignRecordsTheFailedRunsOnly) {
   TwinCli cli("cw-video-cli-campaign");
   const fs::path out = cli.dir() / "campaign";
+  // A video size that cannot be is refused before any run, not after the campaign.
+  const Outcome bad = cli.run("campaign " + shell_quote(source_path("scenes/exchange.yaml")) +
+                              " --runs 2 --video --video-size 161x120 --output " + shell_quote(out.string()));
+  EXPECT_EQ(bad.status, 2) << bad.out << bad.err;
+  EXPECT_THAT(bad.err, HasSubstr("even"));
+  EXPECT_FALSE(fs::exists(out));
   // Garbage on a grip: recovered or not, depending on the draw; a few runs give both kinds.
   const Outcome r = cli.run("campaign " + shell_quote(source_path("scenes/exchange.yaml")) +
-                            " --faults hardware,drop --runs 4 --seed 3 --jobs 2 --video --output " +
+                            " --faults hardware,drop --runs 4 --seed 3 --jobs 2 --video --video-fps 4 --video-size 160x120 --output " +
                             shell_quote(out.string()));
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   int failed = 0, videos = 0;

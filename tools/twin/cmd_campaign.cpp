@@ -56,7 +56,7 @@ class ProgressBar {
 // video into its run directory. Lock-step runs are deterministic, so the video shows the run the campaign counted.
 // Crashes and hangs are not re-run (they would crash or hang this process); only failed runs pay for a video.
 void record_failed_runs(const twin::scenario::CampaignOptions& options,
-                        const std::vector<twin::scenario::RunRecord>& records) {
+                        const std::vector<twin::scenario::RunRecord>& records, int fps, const std::string& size) {
   for (const twin::scenario::RunRecord& r : records) {
     if (r.status != twin::scenario::RunStatus::kDone || r.exit_code != 1) continue;
     RunArgs a;
@@ -64,6 +64,8 @@ void record_failed_runs(const twin::scenario::CampaignOptions& options,
     for (const twin::scenario::DrawnFault& f : r.variant.faults) a.faults.push_back(f.spec);
     a.seed = r.variant.seed;
     a.video = (r.dir / "video.mp4").string();
+    a.video_fps = fps;
+    a.video_size = size;
     const auto start = std::chrono::steady_clock::now();
     (void)run_for_video(a);
     std::fprintf(stderr, "run %zu failed: video in %s (%.1f s)\n", r.variant.index, a.video.c_str(),
@@ -89,6 +91,8 @@ void add_campaign(CLI::App& app, Command* run) {
     double timeout = twin::scenario::CampaignOptions::kDefaultTimeout;
     std::string out;
     bool video = false;
+    int video_fps = 20;
+    std::string video_size = "800x600";
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("scenario", args->scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
@@ -105,10 +109,20 @@ void add_campaign(CLI::App& app, Command* run) {
   cmd->add_flag("--video", args->video,
                 "record a video of each failed run (exit 1: an outcome did not hold) as runs/NNNN/video.mp4: the run "
                 "is run again, lock-step, after the campaign");
+  cmd->add_option("--video-fps", args->video_fps, "with --video: frames per second of simulated time (default 20)")
+      ->check(CLI::Range(1, 120));
+  cmd->add_option("--video-size", args->video_size,
+                  "with --video: width x height in pixels, both even (default 800x600)");
   cmd->callback([run, args] {
     *run = [args] {
       namespace ts = twin::scenario;
       if (args->out.empty()) throw InputError({"-o/--output", 0, 0}, "the campaign needs an output directory");
+      if (args->video) {  // the size and rate checked now, not after the campaign has run
+        RunArgs video;
+        video.video_fps = args->video_fps;
+        video.video_size = args->video_size;
+        (void)video_options_for(video);
+      }
       const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe");
       const ts::CampaignOptions options =
           ts::plan_campaign(std::filesystem::absolute(args->scenario), args->faults, args->runs, args->seed,
@@ -123,7 +137,7 @@ void add_campaign(CLI::App& app, Command* run) {
       const ts::CampaignSummary summary =
           ts::aggregate(records, options.kinds, options.scenario.filename().string(), options.seed);
       ts::write_campaign(options.out, summary, records);
-      if (args->video) record_failed_runs(options, records);
+      if (args->video) record_failed_runs(options, records, args->video_fps, args->video_size);
       std::printf("%s", ts::format_markdown(summary, records).c_str());
       std::printf("outputs in %s\n", args->out.c_str());
       return 0;

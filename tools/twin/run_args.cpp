@@ -96,15 +96,18 @@ twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scen
       twin::write_png(drawn, dir / fmt::format("frame_{:06}.png", ms));
     };
   }
-  if (!args.video.empty()) {
-    twin::VideoOptions video;
-    video.path = args.video;
-    video.fps = args.video_fps;
-    std::tie(video.width, video.height) = parse_size(args.video_size);
-    options.video = std::move(video);
-  }
+  if (!args.video.empty()) options.video = video_options_for(args);
   if (!args.output.empty()) options.events_file = streamed_events_file(args.output);
   return options;
+}
+
+twin::VideoOptions video_options_for(const RunArgs& args) {
+  twin::VideoOptions video;
+  video.path = args.video;
+  video.fps = args.video_fps;
+  std::tie(video.width, video.height) = parse_size(args.video_size);
+  twin::VideoWriter::check_format({"--video-size", 0, 0}, video.width, video.height, video.fps);
+  return video;
 }
 
 twin::scenario::Report run_for_video(const RunArgs& args) {

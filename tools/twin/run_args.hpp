@@ -43,6 +43,10 @@ twin::scenario::Scenario load_scenario_with(const RunArgs& args);
 // when there is one. Throws InputError when --save-frames is given without vision perception.
 twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scenario::Scenario& s);
 
+// The video's options from --video, --video-fps and --video-size, the size and rate checked (InputError naming
+// the option); the file is checked when the video opens.
+twin::VideoOptions video_options_for(const RunArgs& args);
+
 // Runs the scenario of `args` (with its faults and seed) lock-step, quietly, with no outputs but its video
 // (args.video must be set): `twin campaign --video` re-runs a failed run this way, which gives the run it had (the
 // same events, lock-step). Returns the report. InputError as `twin run`, or when preflight refuses the scenario.

@@ -113,13 +113,7 @@ bool VideoWriter::is_open() const { return impl_ != nullptr; }
 
 void VideoWriter::release() { impl_.reset(); }
 
-void VideoWriter::open(const std::filesystem::path& path, int width, int height, int fps) {
-  close();
-  const SourceLocation where{path.string(), 0, 0};
-  if (path.extension() != ".mp4") {
-    throw InputError(where, fmt::format("a video is written as MP4 (H.264): the file name must end in .mp4, not '{}'",
-                                        path.extension().string()));
-  }
+void VideoWriter::check_format(const SourceLocation& where, int width, int height, int fps) {
   if (width < 2 || height < 2 || width > kMaxSide || height > kMaxSide || width % 2 != 0 || height % 2 != 0) {
     throw InputError(where, fmt::format("video size {}x{}: width and height must be even (yuv420p) and within "
                                         "2..{} pixels",
@@ -128,6 +122,16 @@ void VideoWriter::open(const std::filesystem::path& path, int width, int height,
   if (fps < 1 || fps > 120) {
     throw InputError(where, fmt::format("video rate {} frames per second is not within 1..120", fps));
   }
+}
+
+void VideoWriter::open(const std::filesystem::path& path, int width, int height, int fps) {
+  close();
+  const SourceLocation where{path.string(), 0, 0};
+  if (path.extension() != ".mp4") {
+    throw InputError(where, fmt::format("a video is written as MP4 (H.264): the file name must end in .mp4, not '{}'",
+                                        path.extension().string()));
+  }
+  check_format(where, width, height, fps);
   const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec)) {

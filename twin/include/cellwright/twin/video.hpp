@@ -31,6 +31,7 @@
 #include <thread>
 #include <vector>
 
+#include "cellwright/common/error.hpp"
 #include "cellwright/runtime/clock.hpp"
 
 namespace cellwright::twin {
@@ -47,6 +48,10 @@ class VideoWriter {
   // width or height is not even and within 2..4096 (yuv420p halves both), fps is not within 1..120, or the ffmpeg
   // program cannot be started. Any file open before is closed first.
   void open(const std::filesystem::path& path, int width, int height, int fps);
+
+  // The checks of open() on the size and rate alone: InputError at `where` when width or height is not even and
+  // within 2..4096 or fps not within 1..120 (`twin campaign --video` checks them before its runs).
+  static void check_format(const SourceLocation& where, int width, int height, int fps);
 
   bool is_open() const;
   // Appends one frame (CV_8UC3, BGR, the size given to open), shown 1/fps s after the previous one. Throws

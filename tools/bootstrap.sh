@@ -17,7 +17,7 @@ packages=(
   build-essential cmake pkg-config git
   libmujoco-dev libqhull-dev libeigen3-dev libopencv-dev libosmesa6-dev liburdfdom-dev libyaml-cpp-dev libtinyxml2-dev libpng-dev
   libgtest-dev libgmock-dev libbenchmark-dev libfmt-dev libcli11-dev nlohmann-json3-dev graphviz libglpk-dev
-  libassimp-dev
+  libassimp-dev ffmpeg libavcodec-dev libavformat-dev libswscale-dev libavutil-dev
 )
 if [[ $mode == test ]]; then packages+=(chromium); fi  # the report page opened in a browser (tests/tools)
 missing=()

@@ -9,7 +9,7 @@
 #   vision (twin/vision)               OpenCV yes; no MuJoCo, OpenGL/OSMesa; nothing of twin
 #   emulate (twin/emulate)             no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, runtime; none of the
 #                                      drivers' protocol code (drivers/serial, movemaster, val2): each checks the other
-#   twin                               OpenCV only in rendering and reports (render, scenario/gantt, scenario/run,
+#   twin                               OpenCV only in rendering and reports (render, video, scenario/gantt, scenario/run,
 #                                      scenario/campaign: its chart)
 #   every library                      nothing of tools/
 # Each suite of tests links what its library may link (plus GoogleTest).
@@ -64,7 +64,7 @@ check_includes(vision "mujoco/|GL/|osmesa|cellwright/twin/|${tools_reach}" "twin
 check_includes(emulate "${heavy}|cellwright/(twin|vision|runtime)/|cellwright/drivers/(serial|movemaster|val2)/|${tools_reach}"
                "twin/emulate/*")
 check_includes(twin "opencv2/" "twin/include/*" "twin/src/*"
-               EXCEPT "^twin/(include/cellwright/twin|src)/(render\\.|scenario/gantt\\.|scenario/run\\.|scenario/campaign\\.)")
+               EXCEPT "^twin/(include/cellwright/twin|src)/(render\\.|video\\.|scenario/gantt\\.|scenario/run\\.|scenario/campaign\\.)")
 check_includes(twin "${tools_reach}" "twin/include/*" "twin/src/*")
 
 # Links, from the closures the configure step wrote.

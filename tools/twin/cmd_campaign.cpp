@@ -1,11 +1,12 @@
-// `twin campaign SCENARIO [--faults K1,K2,...] [--runs N] [--seed S] [--jobs J] [--timeout SECONDS] -o DIR`: run N
-// seeded variants of a scenario, each with a fault drawn from the kinds that apply, as `twin run` child processes,
-// and add up what the controller made of them (docs/faults.md section 6). Exit 0 when the campaign ran (the figures
-// are the verdict), 2 on bad input (refused before anything is written).
+// `twin campaign SCENARIO [--faults K1,K2,...] [--runs N] [--seed S] [--jobs J] [--timeout SECONDS] [--video] -o DIR`:
+// run N seeded variants of a scenario, each with a fault drawn from the kinds that apply, as `twin run` child
+// processes, and add up what the controller made of them (docs/faults.md section 6). Exit 0 when the campaign ran
+// (the figures are the verdict), 2 on bad input (refused before anything is written).
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -13,10 +14,37 @@
 #include <vector>
 
 #include "cellwright/twin/scenario/campaign.hpp"
+#include "cellwright/common/error.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
+#include "run_args.hpp"
 
 namespace cellwright::tools {
+
+namespace {
+
+// `--video`: each run that ended with a negative verdict is run again in this process, with its faults and seed and a
+// video into its run directory. Lock-step runs are deterministic, so the video shows the run the campaign counted.
+// Crashes and hangs are not re-run (they would crash or hang this process); only failed runs pay for a video.
+void record_failed_runs(const twin::scenario::CampaignOptions& options,
+                        const std::vector<twin::scenario::RunRecord>& records, int fps, const std::string& size) {
+  for (const twin::scenario::RunRecord& r : records) {
+    if (r.status != twin::scenario::RunStatus::kDone || r.exit_code != 1) continue;
+    RunArgs a;
+    a.scenario = options.scenario.string();
+    for (const twin::scenario::DrawnFault& f : r.variant.faults) a.faults.push_back(f.spec);
+    a.seed = r.variant.seed;
+    a.video = (r.dir / "video.mp4").string();
+    a.video_fps = fps;
+    a.video_size = size;
+    const auto start = std::chrono::steady_clock::now();
+    (void)run_for_video(a);
+    std::fprintf(stderr, "run %zu failed: video in %s (%.1f s)\n", r.variant.index, a.video.c_str(),
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+}
+
+}  // namespace
 
 void add_campaign(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand(
@@ -33,6 +61,9 @@ void add_campaign(CLI::App& app, Command* run) {
     unsigned jobs = 0;
     double timeout = twin::scenario::CampaignOptions::kDefaultTimeout;
     std::string out;
+    bool video = false;
+    int video_fps = 20;
+    std::string video_size = "800x600";
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("scenario", args->scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
@@ -44,10 +75,25 @@ void add_campaign(CLI::App& app, Command* run) {
   cmd->add_option("--jobs", args->jobs, "runs at a time (default: the number of cores)");
   cmd->add_option("--timeout", args->timeout,
                   "s of wall time after which a run is killed and counted as a hang (default 600)");
-  cmd->add_option("-o,--out", args->out, "directory for campaign.csv/.md/.png and runs/NNNN")->required();
+  cmd->add_option("-o,--output", args->out, "directory for campaign.csv/.md/.png and runs/NNNN (required)");
+  cmd->add_option("--out", args->out)->group("");  // the old name, still accepted and not shown
+  cmd->add_flag("--video", args->video,
+                "record a video of each failed run (exit 1: an outcome did not hold) as runs/NNNN/video.mp4: the run "
+                "is run again, lock-step, after the campaign");
+  cmd->add_option("--video-fps", args->video_fps, "with --video: frames per second of simulated time (default 20)")
+      ->check(CLI::Range(1, 120));
+  cmd->add_option("--video-size", args->video_size,
+                  "with --video: width x height in pixels, both even (default 800x600)");
   cmd->callback([run, args] {
     *run = [args] {
       namespace ts = twin::scenario;
+      if (args->out.empty()) throw InputError({"-o/--output", 0, 0}, "the campaign needs an output directory");
+      if (args->video) {  // the size and rate checked now, not after the campaign has run
+        RunArgs video;
+        video.video_fps = args->video_fps;
+        video.video_size = args->video_size;
+        (void)video_options_for(video);
+      }
       const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe");
       const ts::CampaignOptions options =
           ts::plan_campaign(std::filesystem::absolute(args->scenario), args->faults, args->runs, args->seed,
@@ -62,6 +108,7 @@ void add_campaign(CLI::App& app, Command* run) {
       const ts::CampaignSummary summary =
           ts::aggregate(records, options.kinds, options.scenario.filename().string(), options.seed);
       ts::write_campaign(options.out, summary, records);
+      if (args->video) record_failed_runs(options, records, args->video_fps, args->video_size);
       std::printf("%s", ts::format_markdown(summary, records).c_str());
       std::printf("outputs in %s\n", args->out.c_str());
       return 0;

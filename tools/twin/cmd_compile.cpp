@@ -29,6 +29,7 @@ namespace {
 template <typename Options>
 int write_robot_programs(const Options& o) {
   using namespace twin::scenario;
+  if (o.out.empty()) throw InputError({"--robot-language", 0, 0}, "needs -o/--output DIR for the robot programs");
   Scenario s = load_scenario(o.scenario);
   std::error_code ec;
   if (!std::filesystem::equivalent(o.program, s.program_file, ec)) {
@@ -83,15 +84,18 @@ void add_compile(CLI::App& app, Command* run) {
   sub->add_option("--scenario", opts->scenario, "the scenario that runs the program (cell, bindings, drivers)");
   sub->add_flag("--robot-language", opts->robot_language,
                 "write each robot's program in its controller's language (Movemaster EX, VAL II) into -o DIR");
-  sub->add_option("-o,--out", opts->out, "directory for the robot programs (created if needed)");
+  sub->add_option("-o,--output", opts->out, "directory for the robot programs (created if needed)");
+  // The old name, for scripts written before the options were made the same everywhere; not shown in --help.
+  auto* old_out = sub->add_option("--out", opts->out)->group("");
   sub->add_option("--driver", opts->drivers,
                   "write a robot's program in another language than the scenario's: ROBOT=movemaster or ROBOT=val2 "
                   "(repeatable; a :PORT after it is ignored)");
   sub->get_option("--dot")->excludes("--json");
   for (const char* o : {"--json", "--dot", "--pnml"}) sub->get_option("--robot-language")->excludes(o);
-  sub->get_option("--robot-language")->needs("--scenario")->needs("--out");
+  sub->get_option("--robot-language")->needs("--scenario");
   sub->get_option("--scenario")->needs("--robot-language");
-  sub->get_option("--out")->needs("--robot-language");
+  sub->get_option("--output")->needs("--robot-language");
+  old_out->needs("--robot-language");
   sub->get_option("--driver")->needs("--robot-language");
   sub->callback([run, opts] {
     *run = [opts] {

@@ -1,8 +1,9 @@
 // `twin step <scenario.yaml>`: step the concurrent processes one firing at a time from the terminal, as the paper's
 // simulator does for debugging. Commands are read from standard input, one per line (a pipe works as well as a
 // terminal): Enter or `n` next firing, `c` continue to the end, `s FILE` save a snapshot PNG, `m` show the marking,
-// `q` quit (the cell is stopped safely; with -o the outputs so far are written), `h` help. Exit status as `twin run`
-// once the run has ended; 0 when quit before; 2 on bad input.
+// `q` quit (the cell is stopped safely; with -o the outputs so far are written), `h` help. It takes the options of
+// `twin run` but --realtime, --quiet and --dry (run_args.hpp). Exit status as `twin run` once the run has ended; 0
+// when quit before; 2 on bad input.
 #include <unistd.h>
 
 #include <cstdio>
@@ -17,6 +18,7 @@
 #include "cellwright/twin/scenario/run.hpp"
 #include "cellwright/twin/scenario/scenario.hpp"
 #include "commands.hpp"
+#include "run_args.hpp"
 
 namespace cellwright::tools {
 
@@ -69,32 +71,33 @@ void add_step(CLI::App& app, Command* run) {
                                  "Step a scenario one firing at a time, reading commands from standard input: Enter/n "
                                  "next firing, c continue, s FILE snapshot, m marking, q quit. Exit 0 when the run "
                                  "ended with every expected outcome holding or was quit; 1 if not; 2 on bad input.");
-  auto scenario = std::make_shared<std::string>();
-  auto out = std::make_shared<std::string>();
-  cmd->add_option("scenario", *scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
-  cmd->add_option("-o,--out", *out,
-                  "directory for the outputs when the run ends or is quit (events.jsonl, report.json, charts)");
-  cmd->callback([run, scenario, out] {
-    *run = [scenario, out] {
+  auto args = std::make_shared<RunArgs>();
+  add_run_options(*cmd, *args);
+  cmd->callback([run, args] {
+    *run = [args] {
       using namespace cellwright::twin::scenario;
-      if (!out->empty()) check_writable_dir(*out);  // before anything runs: nothing written on a bad -o
-      const Scenario s = load_scenario(*scenario);
+      const std::string& scenario = args->scenario;
+      const std::string& out = args->output;
+      const Scenario s = load_scenario_with(*args);
       const Preflight pre = preflight(s);
-      if (!pre.ok()) {
-        std::fprintf(stderr, "%s: refused, nothing was run:\n", scenario->c_str());
+      if (!pre.ok(args->allow_collisions)) {
+        std::fprintf(stderr, "%s: refused, nothing was run:\n", scenario.c_str());
         for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+        if (!pre.collisions.empty() && pre.ok(true)) std::fprintf(stderr, "  (--allow-collisions runs it anyway)\n");
         return 2;
       }
-      RunOptions options;
-      options.realtime = false;  // stepping is lock-step
+      for (const std::string& c : pre.collisions) {
+        std::fprintf(stderr, "%s: warning: predicted collision (--allow-collisions): %s\n", scenario.c_str(), c.c_str());
+      }
       // With -o the event log streams into the output directory, as in `twin run`; without, a stepped run (short, by
       // hand) keeps it in memory.
-      if (!out->empty()) options.events_file = streamed_events_file(*out);
+      RunOptions options = run_options_for(*args, s);
+      options.realtime = false;  // stepping is lock-step
       ScenarioRun sr(s, pre.net, options);
       const petri::Net& net = sr.runtime().config().net;
       const bool interactive = isatty(STDIN_FILENO) == 1;
 
-      std::printf("%s: %s on %s, stepping one firing at a time\n", scenario->c_str(), s.program_file.filename().c_str(),
+      std::printf("%s: %s on %s, stepping one firing at a time\n", scenario.c_str(), s.program_file.filename().c_str(),
                   s.cell.name.c_str());
       std::printf("estimated cycle time %.2f s\n", sr.estimate().cycle_time);
       print_marking(net, net.initial_marking());
@@ -105,9 +108,11 @@ void add_step(CLI::App& app, Command* run) {
       auto finish = [&](const runtime::StepState& st) {
         print_state(net, st, false);
         const Report report = sr.report();
-        if (!out->empty()) sr.write_outputs(*out, report, sr.snapshot(800, 600));
+        if (!out.empty()) sr.write_outputs(out, report, sr.snapshot(800, 600));
+        const std::filesystem::path video = sr.finish_video(report);
         std::printf("%s", format_summary(report).c_str());
-        if (!out->empty()) std::printf("outputs in %s\n", out->c_str());
+        if (!out.empty()) std::printf("outputs in %s\n", out.c_str());
+        if (!video.empty()) std::printf("video in %s\n", video.c_str());
         return report.ok() ? 0 : 1;
       };
       std::string line;

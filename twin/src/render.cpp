@@ -98,7 +98,7 @@ namespace {
 // The free camera of render_overview: it frames the bounding sphere of every visible geom but the floor plane, where
 // they are now (the workpieces included, wherever they ended up), from in front and above: far enough back that the
 // sphere fits both the vertical and the horizontal field of view.
-mjvCamera overview_camera(const mjModel* model, const mjData* data, int width, int height) {
+mjvCamera framing_camera(const mjModel* model, const mjData* data, int width, int height) {
   Eigen::AlignedBox3d box;
   for (int g = 0; g < model->ngeom; ++g) {
     if (model->geom_type[g] == mjGEOM_PLANE || model->geom_group[g] > 2 || model->geom_rgba[4 * g + 3] == 0) {
@@ -127,14 +127,19 @@ mjvCamera overview_camera(const mjModel* model, const mjData* data, int width, i
 }  // namespace
 
 cv::Mat Renderer::render_overview(mjData* data, int width, int height) {
+  return render(data, overview_camera(data, width, height), width, height, RenderQuality::kFull);
+}
+
+mjvCamera Renderer::overview_camera(const mjData* data, int width, int height) const {
   CW_CHECK(data != nullptr, "render needs data");
-  return render(data, overview_camera(model_, data, width, height), width, height, RenderQuality::kFull);
+  CW_CHECK(width >= 1 && height >= 1, "image size {}x{}", width, height);
+  return framing_camera(model_, data, width, height);
 }
 
 vision::CameraModel overview_camera_model(const mjModel* model, const mjData* data, int width, int height) {
   CW_CHECK(model != nullptr && data != nullptr && width > 0 && height > 0, "overview_camera_model({}x{})", width,
            height);
-  const mjvCamera cam = overview_camera(model, data, width, height);
+  const mjvCamera cam = framing_camera(model, data, width, height);
   // MuJoCo's free camera (mjv_updateCamera): it looks along `forward` from `distance` behind `lookat`.
   const double az = cam.azimuth * std::numbers::pi / 180.0, el = cam.elevation * std::numbers::pi / 180.0;
   const Eigen::Vector3d forward(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));

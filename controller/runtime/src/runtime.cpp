@@ -191,6 +191,10 @@ struct Runtime::Impl {
   std::string reason;
   std::vector<Collision> collisions;
   SimDuration next_progress{0};
+  SimDuration next_record{0};
+  // Task control's robots after its last step, for on_record (the task participant writes, the simulation reads).
+  std::mutex record_mutex;
+  std::vector<RobotView> record_robots;
 
   // Stepping (lock-step): the simulation thread parks at the start of its turn after a period with firings.
   std::mutex m;
@@ -334,6 +338,11 @@ struct Runtime::Impl {
       cfg.on_progress(t, task_firings.load());
       next_progress = t + cfg.progress_every;
     }
+    if (cfg.on_record && cfg.record_every.count() > 0 && t >= next_record) {
+      std::lock_guard lock(record_mutex);
+      cfg.on_record(t, record_robots);
+      while (next_record <= t) next_record += cfg.record_every;  // multiples of record_every: fixed frame times
+    }
     return true;
   }
 
@@ -344,6 +353,11 @@ struct Runtime::Impl {
       finished_at_ns = task->finished_at()->count();
     }
     task_state = static_cast<int>(s);
+    if (cfg.on_record && cfg.record_every.count() > 0) {
+      TaskView v = task->view();
+      std::lock_guard lock(record_mutex);
+      record_robots = std::move(v.robots);
+    }
   }
 
   // Lock-step: one thread's loop. It takes the turns of the participants the scheduler put on it (by default all).
@@ -610,6 +624,7 @@ void Runtime::start() {
   }
   log_->run_start(im.clock.now(), config_.program.file, config_.cell.name, to_string(config_.mode), config_.period,
                   names);
+  if (config_.on_record) im.record_robots = im.task->view().robots;  // the first frame's, before any step
   const std::size_t participants = im.participants();
   im.started = true;
   im.wall_start = std::chrono::steady_clock::now();

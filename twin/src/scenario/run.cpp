@@ -265,6 +265,18 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     config.camera_frames = runtime::VisionOptions{camera, seconds(v.period)};
     config.on_frame = std::move(options.on_frame);
   }
+  if (options.video) {
+    video_ = std::make_unique<VideoRecorder>(world_->scene().model(), std::move(*options.video));
+    config.record_every = video_->frame_period();
+    config.on_record = [this](runtime::SimDuration t, const std::vector<runtime::RobotView>& robots) {
+      std::vector<std::string> lines;
+      for (const runtime::RobotView& r : robots) {
+        lines.push_back(r.done ? fmt::format("{}: done", r.robot)
+                               : fmt::format("{}: {} {}", r.robot, runtime::to_string(r.activity), r.command));
+      }
+      if (video_) video_->record(world_->data(), t, std::move(lines));  // copies positions: the World is untouched
+    };
+  }
   config.on_progress = std::move(options.on_progress);
   config.progress_every = options.progress_every;
   if (!options.events_file.empty()) {
@@ -373,6 +385,19 @@ cv::Mat ScenarioRun::snapshot(int width, int height) const {
     cv::putText(image, text, corner, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 0}, 1, cv::LINE_AA);
   }
   return image;
+}
+
+std::filesystem::path ScenarioRun::finish_video(const Report& report) {
+  if (!video_) return {};
+  const std::string verdict =
+      report.ok() ? fmt::format("PASS: {} in {:.2f} s", report.outcome, report.end_time)
+                  : fmt::format("FAIL: {}{}", report.outcome,
+                                report.failures.empty() ? "" : fmt::format(" ({} failures)", report.failures.size()));
+  std::unique_ptr<VideoRecorder> video = std::move(video_);
+  video->finish(world_->data(), std::chrono::duration_cast<runtime::SimDuration>(
+                                    std::chrono::duration<double>(report.end_time)),
+                verdict, report.ok());
+  return video->options().path;
 }
 
 void write_outputs(const std::filesystem::path& dir, const Scenario& scenario, const Report& report,

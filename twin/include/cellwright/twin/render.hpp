@@ -54,8 +54,14 @@ class Renderer {
   // As render_camera, from a free camera that frames the whole cell from above and in front, at an angle.
   cv::Mat render_overview(mjData* data, int width, int height);
 
+  // The free camera render_overview uses for `data`'s state at width x height (it frames where the bodies are now);
+  // a video keeps the first frame's, so that the view does not move with the robots.
+  mjvCamera overview_camera(const mjData* data, int width, int height) const;
+  // As render_camera, from any MuJoCo camera.
+  cv::Mat render(mjData* data, const mjvCamera& camera, int width, int height,
+                 RenderQuality quality = RenderQuality::kFull);
+
  private:
-  cv::Mat render(mjData* data, const mjvCamera& camera, int width, int height, RenderQuality quality);
 
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -129,6 +129,12 @@ struct RunConfig {
   // (for `twin run`'s progress line). Must be short and must not call the Runtime.
   std::function<void(SimDuration, std::uint64_t)> on_progress;
   SimDuration progress_every = std::chrono::seconds(1);
+  // Called by the simulation thread at each multiple of `record_every` of simulation time (in the first period that
+  // reaches it, after the plant has advanced and the period's events are logged), with the time and task control's
+  // view of each robot as of its last step (the command it is on): `twin run --video` copies the plant's state here
+  // for a frame. Must be short, must not change the plant or call the Runtime. Not called when record_every is zero.
+  std::function<void(SimDuration, const std::vector<RobotView>&)> on_record;
+  SimDuration record_every{0};
   // Program faults injected on purpose (docs/faults.md, kind lost_signal): the n-th signal task control fires (counting
   // from 1, over all robots) loses its event, so that the wait for it is never signalled. Logged as fault_injected.
   std::vector<std::uint64_t> lost_signals;

@@ -42,6 +42,7 @@
 #include "cellwright/twin/sim/mirrored_driver.hpp"
 #include "cellwright/twin/sim/world.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
+#include "cellwright/twin/video.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -64,6 +65,10 @@ struct RunOptions {
   // file back, and runtime().log().text() is not available. A run that dies leaves every line logged so far in it.
   // Empty: the log is kept in memory (tests, benchmarks).
   std::filesystem::path events_file;
+  // A video of the run (`--video`, video.hpp): the file is opened when the ScenarioRun is built (InputError if it
+  // cannot be written), frames are recorded on the simulation thread at multiples of 1/fps of simulation time (the
+  // event log is the same with and without), and finish_video() adds the verdict and closes it.
+  std::optional<VideoOptions> video;
 };
 
 // The scenario's cell as it really is: the World (perturbed parts moved by the scenario's seed, fed parts parked) and
@@ -122,6 +127,11 @@ class ScenarioRun {
   // expectations that is in the picture marked and named with its expected place ("A (output)") at its final pose.
   cv::Mat snapshot(int width, int height) const;
 
+  // With RunOptions::video, after the run (or when it was quit): the final state held with the report's verdict,
+  // then the file closed. Returns the video's file, or empty without a video (or when called again). Throws
+  // InputError naming the file if recording failed. Same threads rule as report().
+  std::filesystem::path finish_video(const Report& report);
+
  private:
   const Scenario& scenario_;
   std::filesystem::path events_file_;          // the streamed log's file, or empty
@@ -134,6 +144,7 @@ class ScenarioRun {
   std::unique_ptr<runtime::Plant> plant_;
   sim::WorldPlant* world_plant_ = nullptr;  // plant_, the World's
   Estimate estimate_;
+  std::unique_ptr<VideoRecorder> video_;  // with RunOptions::video; fed by the simulation thread
   std::unique_ptr<runtime::Runtime> runtime_;
 };
 

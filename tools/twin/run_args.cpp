@@ -1,0 +1,138 @@
+// The options `twin run` and `twin step` share (run_args.hpp).
+#include "run_args.hpp"
+
+#include <fmt/format.h>
+
+#include <any>
+#include <chrono>
+#include <filesystem>
+#include <system_error>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/common/files.hpp"
+#include "cellwright/twin/render.hpp"
+#include "cellwright/twin/scenario/faults.hpp"
+#include "cellwright/vision/cell_detector.hpp"
+#include "cellwright/vision/draw.hpp"
+
+namespace cellwright::tools {
+
+void add_run_options(CLI::App& cmd, RunArgs& args) {
+  cmd.add_option("scenario", args.scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
+  cmd.add_option("-o,--output", args.output,
+                 "directory for the outputs (created if needed): events.jsonl, report.json, gantt.png, final.png");
+  // The old name, for scripts written before the options were made the same everywhere; not shown in --help.
+  cmd.add_option("--out", args.output)->group("");
+  cmd.add_option("--perception", args.perception,
+                 "where the controller learns where the parts are, instead of the scenario's choice: truth (the "
+                 "simulation), vision (the camera) or cad (the cell description only: vision off)")
+      ->check(CLI::IsMember({"truth", "vision", "cad"}));
+  cmd.add_option("--driver", args.drivers,
+                 "put a robot on another driver, the rest of the scenario unchanged: ROBOT=sim, "
+                 "ROBOT=movemaster:PORT or ROBOT=val2:PORT (repeatable; real drivers need --realtime)");
+  cmd.add_option("--fault", args.faults,
+                 "inject a fault, added to the scenario's faults: KIND:key=value,key=value with a list as a/b, e.g. "
+                 "drop:robot=puma,carry=1 (docs/faults.md; repeatable)");
+  cmd.add_option("--seed", args.seed,
+                 "the run's seed instead of the scenario's (random amounts of the faults, perturbations)");
+  cmd.add_option("--save-frames", args.frames,
+                 "write each camera frame as DIR/frame_<ms>.png with its simulated time; with vision, the detections, "
+                 "the predicted poses and the parts not seen drawn on it; without, plain frames every vision period");
+  cmd.add_option("--video", args.video,
+                 "record the overview camera as FILE.mp4 (H.264, plays in a browser): simulated time, each robot's "
+                 "command and the verdict drawn on it; the event log is the same with or without");
+  cmd.add_option("--video-fps", args.video_fps, "video frames per second of simulated time (default 20)")
+      ->check(CLI::Range(1, 120));
+  cmd.add_option("--video-size", args.video_size, "video width x height in pixels, both even (default 800x600)");
+  cmd.add_flag("--allow-collisions", args.allow_collisions,
+               "run even though the preflight's motion sweep predicts collisions (printed as warnings)");
+}
+
+twin::scenario::Scenario load_scenario_with(const RunArgs& args) {
+  using namespace twin::scenario;
+  for (const std::string& dir : {args.output, args.frames}) {
+    if (!dir.empty()) check_writable_dir(dir);
+  }
+  Scenario s = load_scenario(args.scenario);
+  for (const std::string& d : args.drivers) set_driver(s, d, {"--driver", 0, 0});
+  for (const std::string& f : args.faults) s.faults.push_back(parse_fault_text(f, s.cell, "--fault"));
+  if (args.seed) s.seed = *args.seed;
+  return s;
+}
+
+namespace {
+
+// "800x600" as width and height; InputError naming --video-size otherwise (the sizes themselves are checked by the
+// video writer when it opens).
+std::pair<int, int> parse_size(const std::string& text) {
+  int w = 0, h = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || x != 'x') {
+    throw InputError({"--video-size", 0, 0}, fmt::format("'{}' is not WIDTHxHEIGHT, e.g. 800x600", text));
+  }
+  return {w, h};
+}
+
+}  // namespace
+
+twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scenario::Scenario& s) {
+  using namespace twin::scenario;
+  RunOptions options;
+  if (args.perception == "truth") options.perception = runtime::Perception::kTruth;
+  if (args.perception == "vision") options.perception = runtime::Perception::kVision;
+  if (args.perception == "cad") options.perception = runtime::Perception::kCad;
+  if (!args.frames.empty() && s.cell.cameras.empty()) {  // without vision: plain frames, of a camera still
+    throw InputError({args.scenario, 0, 0}, "--save-frames needs a camera, and the cell has none");
+  }
+  if (!args.frames.empty()) {
+    const std::filesystem::path dir = args.frames;
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) {
+      throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the frames directory: {}", ec.message()));
+    }
+    const models::CameraSpec* cam = s.cell.find_camera(s.vision ? s.vision->camera : s.cell.cameras[0].name);
+    options.on_frame = [dir, cam](const runtime::VisionFrame& f) {
+      if (f.image.empty()) return;
+      const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(f.time).count();
+      cv::Mat drawn = vision::as_mat(f.image).clone();
+      if (const auto* found = std::any_cast<vision::DetectionResult>(&f.result.detail)) {
+        vision::draw_detections(drawn, *found);
+      }
+      std::vector<vision::PredictedPart> predicted;  // the model's poses before this frame corrected them
+      for (const runtime::Prediction& p : f.predictions) predicted.push_back({p.workpiece, p.position});
+      if (cam != nullptr) {
+        vision::draw_frame_overlay(drawn, std::chrono::duration<double>(f.time).count(),
+                                   vision::CameraModel(*cam, drawn.cols, drawn.rows), predicted, f.result.not_seen);
+      }
+      twin::write_png(drawn, dir / fmt::format("frame_{:06}.png", ms));
+    };
+  }
+  if (!args.video.empty()) options.video = video_options_for(args);
+  if (!args.output.empty()) options.events_file = streamed_events_file(args.output);
+  return options;
+}
+
+twin::VideoOptions video_options_for(const RunArgs& args) {
+  twin::VideoOptions video;
+  video.path = args.video;
+  video.fps = args.video_fps;
+  std::tie(video.width, video.height) = parse_size(args.video_size);
+  twin::VideoWriter::check_format({"--video-size", 0, 0}, video.width, video.height, video.fps);
+  return video;
+}
+
+twin::scenario::Report run_for_video(const RunArgs& args) {
+  using namespace twin::scenario;
+  CW_CHECK(!args.video.empty(), "run_for_video needs a video file");
+  const Scenario s = load_scenario_with(args);
+  const Preflight pre = preflight(s);
+  if (!pre.ok(args.allow_collisions)) throw InputError({args.scenario, 0, 0}, "preflight refuses the scenario");
+  ScenarioRun sr(s, pre.net, run_options_for(args, s));
+  sr.runtime().run();
+  const Report report = sr.report();
+  sr.finish_video(report);
+  return report;
+}
+
+}  // namespace cellwright::tools

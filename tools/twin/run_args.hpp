@@ -1,0 +1,57 @@
+// The options `twin run` and `twin step` share: one definition, so that both take the same names with the same
+// meaning (`twin step` takes every option of `twin run` but those that stepping has no use for: --realtime, since
+// stepping is lock-step; --quiet, since stepping prints the state after each step, not a progress line; --dry, a
+// bring-up of real drivers that runs no program).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/twin/scenario/run.hpp"
+#include "cellwright/twin/scenario/scenario.hpp"
+
+namespace cellwright::tools {
+
+struct RunArgs {
+  std::string scenario;
+  std::string output;  // -o/--output DIR
+  std::string perception;
+  std::string frames;  // --save-frames DIR
+  std::vector<std::string> drivers;
+  std::vector<std::string> faults;
+  std::optional<std::uint64_t> seed;
+  std::string video;  // --video FILE.mp4
+  int video_fps = 20;
+  std::string video_size = "800x600";
+  bool allow_collisions = false;  // run although the preflight sweep predicts collisions
+};
+
+// Adds the shared options to `cmd`, stored in `args` (which must outlive the parse): the scenario, -o/--output
+// (--out, the old name, still accepted and not shown), --perception, --driver, --fault, --seed, --save-frames,
+// --video, --video-fps, --video-size, --allow-collisions.
+void add_run_options(CLI::App& cmd, RunArgs& args);
+
+// The scenario with --driver, --fault and --seed applied, after checking that the -o and --save-frames directories
+// can be written (check_writable_dir: before anything is loaded or run, so that a bad one costs no run). InputError
+// (as check_writable_dir, load_scenario, set_driver, parse_fault_text) on bad input.
+twin::scenario::Scenario load_scenario_with(const RunArgs& args);
+
+// The run's options from the shared options, for scenario `s`: perception, the frames callback (its directory
+// made), the video (checked: InputError naming the option), and the event log streamed into the output directory
+// when there is one. Throws InputError when --save-frames is given and the cell has no camera.
+twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scenario::Scenario& s);
+
+// The video's options from --video, --video-fps and --video-size, the size and rate checked (InputError naming
+// the option); the file is checked when the video opens.
+twin::VideoOptions video_options_for(const RunArgs& args);
+
+// Runs the scenario of `args` (with its faults and seed) lock-step, quietly, with no outputs but its video
+// (args.video must be set): `twin campaign --video` re-runs a failed run this way, which gives the run it had (the
+// same events, lock-step). Returns the report. InputError as `twin run`, or when preflight refuses the scenario.
+twin::scenario::Report run_for_video(const RunArgs& args);
+
+}  // namespace cellwright::tools

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <iostream>
 #include <ostream>
@@ -324,10 +325,33 @@ void ProgressPrinter::finish() {
   shown_ = false;
 }
 
+std::string size_warning(const AnalysisProgress& p, std::uint64_t max_states) {
+  if (p.markings == 0 || p.markings >= max_states || p.seconds <= 0 || p.queue * 10 < p.markings) return "";
+  const double rate = static_cast<double>(p.markings) / p.seconds;
+  return fmt::format("after {:.1f} s {} markings, {} not expanded yet ({:.0f}/s): still growing; at this rate the state "
+                     "limit of {} is reached in about {:.0f} s{}",
+                     p.seconds, p.markings, p.queue, rate, max_states,
+                     std::ceil(static_cast<double>(max_states - p.markings) / rate),
+                     p.reduced ? "" : "; --reduction stubborn explores fewer interleavings");
+}
+
 int check_and_report(const Net& net, std::string_view source, const CheckOptions& options, std::ostream& out) {
   AnalysisOptions analysis = options.analysis;
   ProgressPrinter printer(std::cerr, ::isatty(STDERR_FILENO) == 1);
-  if (options.progress) analysis.progress = [&printer](const AnalysisProgress& p) { printer(p); };
+  bool warned = false;
+  if (options.progress) {
+    analysis.progress = [&](const AnalysisProgress& p) {
+      if (!warned) {
+        const std::string warning = size_warning(p, analysis.max_states);
+        if (!warning.empty()) {
+          printer.finish();  // the note on a line of its own, the progress line below it
+          std::cerr << source << ": note: " << warning << "\n" << std::flush;
+          warned = true;
+        }
+      }
+      printer(p);
+    };
+  }
   const auto start = std::chrono::steady_clock::now();
   const AnalysisResult result = analyze(net, analysis);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -712,5 +712,46 @@ TEST(Report, ProgressLineInPlaceOnATerminalAndOneLineEachOtherwise) {
   EXPECT_EQ(quiet.str(), "");
 }
 
+// A program too large for exhaustive analysis is said to be so from the first progress report, with the figures:
+// while the frontier is wide the space is still growing, and the note gives how soon the limit comes at this rate.
+TEST(Analysis, SizeWarningComesWhileTheFrontierIsWideAndGivesTheFigures) {
+  AnalysisProgress p;
+  p.markings = 800'000;
+  p.queue = 260'000;
+  p.seconds = 1.0;
+  EXPECT_EQ(size_warning(p, 5'000'000),
+            "after 1.0 s 800000 markings, 260000 not expanded yet (800000/s): still growing; at this rate the state "
+            "limit of 5000000 is reached in about 6 s; --reduction stubborn explores fewer interleavings");
+  p.reduced = true;  // already reduced: no advice to reduce
+  EXPECT_THAT(size_warning(p, 5'000'000), ::testing::EndsWith("reached in about 6 s"));
+
+  p.queue = 50'000;  // a narrow frontier: the exploration may be about to end
+  EXPECT_EQ(size_warning(p, 5'000'000), "");
+  p.queue = 260'000;
+  EXPECT_EQ(size_warning(p, 800'000), "");  // the limit is reached already: the closing note says so
+  p.seconds = 0;
+  EXPECT_EQ(size_warning(p, 5'000'000), "");
+}
+
+// check_and_report prints it once, at the first progress report, before the closing note.
+TEST(Analysis, CheckAndReportWarnsOfASpaceTooLargeOnce) {
+  CheckOptions options;
+  options.progress = true;
+  options.analysis.max_states = 200'000;
+  options.analysis.progress_interval = std::chrono::milliseconds(1);
+  std::ostringstream out, err;
+  std::streambuf* old = std::cerr.rdbuf(err.rdbuf());
+  const int status = check_and_report(switches(30), "wide.pnml", options, out);  // 2^30 markings, breadth first
+  std::cerr.rdbuf(old);
+  EXPECT_EQ(status, 1);
+  const std::string text = err.str();
+  const std::string note = "wide.pnml: note: after ";
+  const auto warning = text.find(note);
+  ASSERT_NE(warning, std::string::npos) << text;
+  EXPECT_EQ(text.find(note, warning + note.size()), std::string::npos) << "warned twice:\n" << text;
+  EXPECT_THAT(text.substr(warning), HasSubstr("still growing; at this rate the state limit of 200000 is reached in"));
+  EXPECT_GT(text.find("wide.pnml: note: exploration stopped (state limit"), warning);
+}
+
 }  // namespace
 }  // namespace cellwright::petri

@@ -171,10 +171,18 @@ class ProgressPrinter {
   bool shown_ = false;
 };
 
+// Early word that an exploration is too large, from its first progress report: when the frontier is still wide (at
+// least a tenth of the markings stored are not expanded yet) the state space is still growing, and the note says so
+// with the figures and how soon, at the rate so far, the state limit `max_states` will be reached, e.g. "after 1.0 s
+// 812345 markings, 260000 not expanded yet (812345/s): still growing; at this rate the state limit of 5000000 is
+// reached in about 5 s; --reduction stubborn explores fewer interleavings". Empty when the frontier is narrow (the
+// exploration may well end soon) or the limit is reached already.
+std::string size_warning(const AnalysisProgress& p, std::uint64_t max_states);
+
 // Analyses `net` and prints the outcome to `out`: with options.json the JSON report (to_json) indented by 2 and a
 // newline, else "<source>: " and the human report (format_report). An exploration that stopped early (the state limit,
 // an interruption) adds a note on stderr with the figures: markings explored, seconds, markings per second and the
-// limit. Returns the checking commands' exit status: 0 if the result is ok(), 1 if not. Throws as analyze() does.
+// limit; with options.progress, a size_warning is printed on stderr (once) as soon as a progress report calls for it. Returns the checking commands' exit status: 0 if the result is ok(), 1 if not. Throws as analyze() does.
 int check_and_report(const Net& net, std::string_view source, const CheckOptions& options, std::ostream& out);
 
 }  // namespace cellwright::petri

@@ -2,6 +2,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "tools/twin_cli.hpp"
@@ -130,6 +132,47 @@ TEST(CompileCli, ListingShowsEachRobotsPrimitives) {
   EXPECT_THAT(r.out, HasSubstr("move above(A)"));
   EXPECT_THAT(r.out, HasSubstr("close A"));
   EXPECT_THAT(r.out, HasSubstr("signal "));
+}
+
+// `--robot-language -o DIR`: each robot's program in its controller's language, a file per robot named in the
+// output; `--out`, the option's old name, writes the same files; the option's misuses are refused with exit 2 and
+// nothing written.
+TEST(CompileCli, RobotLanguageWritesAProgramPerRobotIntoTheOutputDirectory) {
+  TwinCli cli("cw-compile-rl");
+  const std::string base = "compile " + scene("exchange.task") + " --scenario " + scene("exchange.yaml") +
+                           " --robot-language --driver puma=val2 --driver melfa=movemaster ";
+  const auto dir = cli.dir() / "programs";
+  const Outcome r = cli.run(base + "-o " + shell_quote(dir.string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("puma (r1): " + dir.string() + "/puma.val2"));
+  EXPECT_THAT(r.out, HasSubstr("melfa (r2): " + dir.string() + "/melfa.movemaster"));
+  const std::string val2 = slurp(dir / "puma.val2"), movemaster = slurp(dir / "melfa.movemaster");
+  EXPECT_THAT(val2, HasSubstr("VAL II: written by twin compile --robot-language"));
+  EXPECT_THAT(movemaster, HasSubstr("Movemaster EX: written by twin compile --robot-language"));
+
+  const auto old = cli.dir() / "old";
+  const Outcome by_old_name = cli.run(base + "--out " + shell_quote(old.string()));
+  ASSERT_EQ(by_old_name.status, 0) << by_old_name.err;
+  EXPECT_EQ(slurp(old / "puma.val2"), val2);
+  EXPECT_EQ(slurp(old / "melfa.movemaster"), movemaster);
+
+  const auto stray = cli.dir() / "stray";
+  const Outcome without_language = cli.run("compile " + scene("exchange.task") + " -o " + shell_quote(stray.string()));
+  EXPECT_EQ(without_language.status, 2);
+  EXPECT_THAT(without_language.err, HasSubstr("-o/--output"));
+  EXPECT_THAT(without_language.err, HasSubstr("--robot-language"));
+  EXPECT_FALSE(std::filesystem::exists(stray));
+
+  const Outcome without_output = cli.run(base);
+  EXPECT_EQ(without_output.status, 2);
+  EXPECT_THAT(without_output.err, HasSubstr("needs -o/--output DIR"));
+
+  const auto file = cli.dir() / "a_file";
+  std::ofstream(file) << "not a directory";
+  const Outcome under_a_file = cli.run(base + "-o " + shell_quote((file / "programs").string()));
+  EXPECT_EQ(under_a_file.status, 2);
+  EXPECT_THAT(under_a_file.err, HasSubstr((file / "programs").string()));
+  EXPECT_EQ(slurp(file), "not a directory");
 }
 
 }  // namespace

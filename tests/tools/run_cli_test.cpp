@@ -256,6 +256,36 @@ TEST(StepCli, UnknownCommandsAreExplainedAndEndOfInputQuits) {
   EXPECT_THAT(r.out, HasSubstr("quit at t = 0.000 s"));
 }
 
+// Quitting before the first step ran nothing: nothing is written, and nothing half-made (the log begun, the video
+// opened) is left in the output directory.
+TEST(StepCli, QuitBeforeAnyStepLeavesNothingBehind) {
+  TwinCli cli("cw-step-cli-noop");
+  const fs::path out = cli.dir() / "out";
+  const std::string input = "q\n";
+  const Outcome r = cli.run("step " + shell_quote(source_path("scenes/exchange.yaml")) + " -o " +
+                                shell_quote(out.string()) + " --video " + shell_quote((out / "step.mp4").string()),
+                            &input);
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("quit at t = 0.000 s"));
+  std::vector<std::string> left;
+  if (fs::exists(out)) {
+    for (const auto& f : fs::directory_iterator(out)) left.push_back(f.path().filename().string());
+  }
+  EXPECT_THAT(left, ::testing::IsEmpty());
+}
+
+// A real robot keeps its own time, so it cannot be stepped: refused with what to run instead.
+TEST(StepCli, RealDriversAreRefusedWithWhatToRunInstead) {
+  TwinCli cli("cw-step-cli-real");
+  const std::string input = "n\n";
+  const Outcome r = cli.run("step " + shell_quote(source_path("scenes/exchange.yaml")) +
+                                " --driver melfa=movemaster:/dev/ttyS0",
+                            &input);
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("twin step runs the program lock-step on simulated robots"));
+  EXPECT_THAT(r.err, HasSubstr("twin run --realtime"));
+}
+
 TEST(StepCli, BadScenarioExitsTwo) {
   TwinCli cli("cw-step-cli-bad");
   const fs::path scenario = exchange_copy(cli.dir(), {{"r2: melfa", "r2: kuka"}});
@@ -291,6 +321,29 @@ TEST(RunCli, ASignalStopsTheCellSafelyAndTheOutputsSoFarAreWritten) {
   const nlohmann::json report = nlohmann::json::parse(slurp(out / "report.json"));
   EXPECT_EQ(report["outcome"], "stopped");
   EXPECT_EQ(report["result"], "failed");
+}
+
+// The same while a video is recorded into the output directory (which does not exist before the run): the stop
+// ends the run, not the process (the video's encoder thread and ffmpeg included), the outputs are written, the page
+// shows the video beside it, and the video is closed with the verdict.
+TEST(RunCli, ASignalDuringAVideoStopsTheRunAndKeepsTheVideo) {
+  TwinCli cli("cw-run-signal-video");
+  const fs::path out = cli.dir() / "new" / "out";
+  // With a video a lock-step run goes at about a frame's encoding per 50 ms simulated: the signal comes first.
+  cellwright::testing::BackgroundTwin run({"run", source_path("scenes/exchange.yaml"), "-o", out.string(), "--video",
+                                           (out / "run.mp4").string(), "--video-size", "320x240"});
+  ASSERT_TRUE(run.wait_for("estimated cycle time", std::chrono::seconds(60))) << run.output();
+  EXPECT_EQ(run.stop(), 1) << run.output();
+  EXPECT_THAT(run.output(), HasSubstr("the cell was stopped: stopped by the user"));
+  EXPECT_THAT(run.output(), HasSubstr("video in " + (out / "run.mp4").string()));
+  for (const char* f : {"events.jsonl", "report.json", "gantt.png", "final.png", "index.html", "run.mp4"}) {
+    EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
+  }
+  EXPECT_THAT(slurp(out / "index.html"), HasSubstr("src=\"run.mp4\""));
+  const std::string video = slurp(out / "run.mp4");
+  ASSERT_GT(video.size(), 1000U);
+  EXPECT_EQ(video.substr(4, 4), "ftyp");
+  EXPECT_NE(video.find("moov"), std::string::npos) << "the MP4 was not closed";
 }
 
 }  // namespace

@@ -82,7 +82,7 @@ TEST(VideoCli, StepTakesTheOptionsOfRun) {
   const Outcome help = cli.run("step --help");
   ASSERT_EQ(help.status, 0) << help.err;
   for (const char* option : {"-o,--output", "--perception", "--driver", "--fault", "--seed", "--save-frames",
-                             "--video", "--video-fps", "--video-size"}) {
+                             "--video", "--video-fps", "--video-size", "--allow-collisions"}) {
     EXPECT_THAT(help.out, HasSubstr(option)) << help.out;
   }
   // No option --realtime (stepping is lock-step; --driver's help may still say real drivers need it), and the old

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -126,6 +127,43 @@ TEST(VisionCli, SavingFramesWithoutVisionWritesPlainCameraFrames) {
   ASSERT_EQ(frame.cols, 640);
   EXPECT_GT(overlay_text_pixels(frame), 40);  // "t = 0.400 s": about 90 px
   EXPECT_EQ(run("without", ""), log);
+}
+
+// A cell with no camera at all: --save-frames has nothing to save, so the run is refused before anything runs
+// (exit 2, the reason named) and neither the frames directory's contents nor any output are written.
+TEST(VisionCli, SavingFramesOfACellWithoutACameraIsRefused) {
+  TwinCli cli("cw-vision-cli-nocam");
+  std::string cell = slurp(source_path("scenes/cell.yaml"));
+  const auto cameras = cell.find("\ncameras:"), lights = cell.find("\nlights:");
+  ASSERT_NE(cameras, std::string::npos);
+  ASSERT_NE(lights, std::string::npos);
+  cell.erase(cameras, lights - cameras);
+  for (const char* urdf : {"puma560.urdf", "melfa_rve2.urdf"}) {
+    const std::string rel = std::string("../models/urdf/") + urdf;
+    const auto at = cell.find(rel);
+    ASSERT_NE(at, std::string::npos) << rel;
+    cell.replace(at, rel.size(), source_path("models/urdf/" + std::string(urdf)));
+  }
+  std::ofstream(cli.dir() / "cell.yaml") << cell;
+  std::string scenario = slurp(source_path("scenes/single.yaml"));
+  const auto program = scenario.find("program: single.task");
+  ASSERT_NE(program, std::string::npos);
+  scenario.replace(program, std::string("program: single.task").size(), "program: " + source_path("scenes/single.task"));
+  std::ofstream(cli.dir() / "single.yaml") << scenario;  // cell: cell.yaml, the copy beside it
+
+  // The copy without frames runs, so what is refused below is the option, not the cell.
+  const Outcome plain = cli.run("run " + shell_quote((cli.dir() / "single.yaml").string()) + " --quiet");
+  EXPECT_EQ(plain.status, 0) << plain.out << plain.err;
+
+  const fs::path frames = cli.dir() / "frames", out = cli.dir() / "out";
+  const Outcome r = cli.run("run " + shell_quote((cli.dir() / "single.yaml").string()) + " --quiet -o " +
+                            shell_quote(out.string()) + " --save-frames " + shell_quote(frames.string()));
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("--save-frames needs a camera, and the cell has none"));
+  EXPECT_THAT(r.err, HasSubstr("single.yaml"));
+  EXPECT_FALSE(fs::exists(out / "events.jsonl"));
+  EXPECT_FALSE(fs::exists(out / "report.json"));
+  EXPECT_TRUE(!fs::exists(frames) || fs::is_empty(frames));
 }
 
 }  // namespace

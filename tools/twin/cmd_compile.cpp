@@ -86,7 +86,7 @@ void add_compile(CLI::App& app, Command* run) {
                 "write each robot's program in its controller's language (Movemaster EX, VAL II) into -o DIR");
   sub->add_option("-o,--output", opts->out, "directory for the robot programs (created if needed)");
   // The old name, for scripts written before the options were made the same everywhere; not shown in --help.
-  auto* old_out = sub->add_option("--out", opts->out)->group("");
+  sub->add_option("--out", opts->out)->group("");
   sub->add_option("--driver", opts->drivers,
                   "write a robot's program in another language than the scenario's: ROBOT=movemaster or ROBOT=val2 "
                   "(repeatable; a :PORT after it is ignored)");
@@ -94,12 +94,16 @@ void add_compile(CLI::App& app, Command* run) {
   for (const char* o : {"--json", "--dot", "--pnml"}) sub->get_option("--robot-language")->excludes(o);
   sub->get_option("--robot-language")->needs("--scenario");
   sub->get_option("--scenario")->needs("--robot-language");
-  sub->get_option("--output")->needs("--robot-language");
-  old_out->needs("--robot-language");
   sub->get_option("--driver")->needs("--robot-language");
   sub->callback([run, opts] {
     *run = [opts] {
       if (opts->robot_language) return write_robot_programs(*opts);
+      // Checked here rather than with CLI11's needs(): the option has two names, and the message should name both.
+      if (!opts->out.empty()) {
+        throw InputError({"-o/--output", 0, 0},
+                         "the output directory is for --robot-language (the robot programs); the listing, --json and "
+                         "--dot go to standard output, the net to --pnml FILE");
+      }
       const task::CompiledProgram compiled = task::compile_file(opts->program);
       std::string text;
       if (opts->dot || !opts->pnml.empty()) {

@@ -90,8 +90,9 @@ class Progress {
 void add_run(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand("run",
                                  "Run a scenario's task program on the simulated cell, headless. Writes events.jsonl, "
-                                 "report.json, gantt.png and final.png with -o. Exit 0 only if the run finished and "
-                                 "every expected outcome holds; 1 if not; 2 on bad input.");
+                                 "report.json, gantt.png, final.png and index.html with -o. Exit 0 only if the run "
+                                 "finished and every expected outcome holds; 1 if not (a run stopped with Ctrl-C "
+                                 "included); 2 on bad input or a predicted collision.");
   struct Args {
     RunArgs run;
     bool realtime = false;

@@ -11,7 +11,10 @@
 #include <iostream>
 #include <memory>
 #include <string>
+#include <system_error>
+#include <vector>
 
+#include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/twin/render.hpp"
@@ -79,6 +82,11 @@ void add_step(CLI::App& app, Command* run) {
       const std::string& scenario = args->scenario;
       const std::string& out = args->output;
       const Scenario s = load_scenario_with(*args);
+      if (uses_real_drivers(s)) {
+        throw InputError({"--driver", 0, 0},
+                         "twin step runs the program lock-step on simulated robots, and a real robot keeps its own "
+                         "time: run it with twin run --realtime (or twin run --dry for a bring-up)");
+      }
       const Preflight pre = preflight(s);
       if (!pre.ok(args->allow_collisions)) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", scenario.c_str());
@@ -93,6 +101,15 @@ void add_step(CLI::App& app, Command* run) {
       // hand) keeps it in memory.
       RunOptions options = run_options_for(*args, s);
       options.realtime = false;  // stepping is lock-step
+      // Files to remove once the run is gone (declared before it, so destroyed after it: the log and the video
+      // closed first): what a quit before the first step would leave half-made.
+      struct RemovedAtExit {
+        std::vector<std::filesystem::path> files;
+        ~RemovedAtExit() {
+          std::error_code ec;
+          for (const std::filesystem::path& f : files) std::filesystem::remove(f, ec);
+        }
+      } unrun;
       ScenarioRun sr(s, pre.net, options);
       const petri::Net& net = sr.runtime().config().net;
       const bool interactive = isatty(STDIN_FILENO) == 1;
@@ -154,7 +171,12 @@ void add_step(CLI::App& app, Command* run) {
           std::fflush(stdout);
         } else if (word == "q") {
           std::printf("quit at t = %.3f s\n", last ? std::chrono::duration<double>(last->time).count() : 0.0);
-          if (!last) return 0;  // nothing ran
+          if (!last) {  // nothing ran: nothing to write, and neither the log begun nor the video left behind
+            for (const std::filesystem::path& f : {sr.events_file(), std::filesystem::path(args->video)}) {
+              if (!f.empty()) unrun.files.push_back(f);
+            }
+            return 0;
+          }
           // The cell is stopped safely at the next period; what was logged so far is kept and written.
           sr.runtime().request_stop("quit by the user (twin step)");
           last = sr.runtime().step();

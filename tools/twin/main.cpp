@@ -22,8 +22,8 @@ std::string version_text() {
 
 int main(int argc, char** argv) {
   CLI::App app{"twin: Cellwright cell controller and digital twin for multi-robot workcells. Every command exits 0 on "
-               "success, 1 when its input was processed and the verdict is negative, 2 on bad input or usage (its "
-               "--help says which)."};
+               "success, 1 when its input was processed and the verdict is negative, 2 on bad input or usage, 130 when "
+               "an analysis (check, analyze) is interrupted with Ctrl-C (its --help says which)."};
   app.require_subcommand(1);
   app.set_version_flag("--version", version_text(), "print the version of twin and of MuJoCo, and exit");
   cellwright::tools::Command run;

@@ -20,7 +20,8 @@ namespace cellwright::tools {
 void add_run_options(CLI::App& cmd, RunArgs& args) {
   cmd.add_option("scenario", args.scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
   cmd.add_option("-o,--output", args.output,
-                 "directory for the outputs (created if needed): events.jsonl, report.json, gantt.png, final.png");
+                 "directory for the outputs (created if needed): events.jsonl, report.json, gantt.png, final.png and "
+                 "index.html, the report page");
   // The old name, for scripts written before the options were made the same everywhere; not shown in --help.
   cmd.add_option("--out", args.output)->group("");
   cmd.add_option("--perception", args.perception,
@@ -81,6 +82,8 @@ twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scen
   if (args.perception == "truth") options.perception = runtime::Perception::kTruth;
   if (args.perception == "vision") options.perception = runtime::Perception::kVision;
   if (args.perception == "cad") options.perception = runtime::Perception::kCad;
+  // Every check before anything is made (the frames directory below).
+  if (!args.video.empty()) options.video = video_options_for(args);
   if (!args.frames.empty() && s.cell.cameras.empty()) {  // without vision: plain frames, of a camera still
     throw InputError({args.scenario, 0, 0}, "--save-frames needs a camera, and the cell has none");
   }
@@ -108,7 +111,6 @@ twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scen
       twin::write_png(drawn, dir / fmt::format("frame_{:06}.png", ms));
     };
   }
-  if (!args.video.empty()) options.video = video_options_for(args);
   if (!args.output.empty()) options.events_file = streamed_events_file(args.output);
   return options;
 }

@@ -19,13 +19,16 @@ void run_until_signal(const std::function<void()>& work, const std::function<voi
   sigaddset(&set, SIGUSR1);  // the worker's "I am done"
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
   std::exception_ptr error;
+  // "Done" goes to this thread alone (pthread_kill), never to the process: a thread the work started (a video's
+  // encoder, say) may not block SIGUSR1, and a process-directed signal could land there and end the process.
+  const pthread_t waiter = pthread_self();
   std::thread worker([&] {
     try {
       work();
     } catch (...) {
       error = std::current_exception();
     }
-    kill(getpid(), SIGUSR1);
+    pthread_kill(waiter, SIGUSR1);
   });
   int sig = 0;
   sigwait(&set, &sig);
@@ -33,6 +36,12 @@ void run_until_signal(const std::function<void()>& work, const std::function<voi
     stop();
   }
   worker.join();
+  if (sig != SIGUSR1) {  // the worker's "done", sent before join() returned, is pending: take it
+    sigset_t done;
+    sigemptyset(&done);
+    sigaddset(&done, SIGUSR1);
+    sigwait(&done, &sig);
+  }
   if (error) std::rethrow_exception(error);
 }
 

@@ -13,11 +13,13 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <utility>
 
 #include "cellwright/common/error.hpp"
@@ -124,6 +126,20 @@ void VideoWriter::check_format(const SourceLocation& where, int width, int heigh
   }
 }
 
+void VideoWriter::check_encoder(const SourceLocation& where) {
+  const char* path = std::getenv("PATH");
+  std::string_view dirs = path != nullptr ? path : "";
+  for (;;) {
+    const std::size_t colon = dirs.find(':');
+    const std::string_view dir = dirs.substr(0, colon);
+    const std::filesystem::path candidate = std::filesystem::path(dir.empty() ? "." : std::string(dir)) / "ffmpeg";
+    if (::access(candidate.c_str(), X_OK) == 0 && !std::filesystem::is_directory(candidate)) return;
+    if (colon == std::string_view::npos) break;
+    dirs.remove_prefix(colon + 1);
+  }
+  throw InputError(where, "cannot record videos: the ffmpeg program is not on PATH; it is Debian's package ffmpeg");
+}
+
 void VideoWriter::open(const std::filesystem::path& path, int width, int height, int fps) {
   close();
   const SourceLocation where{path.string(), 0, 0};
@@ -148,7 +164,7 @@ void VideoWriter::open(const std::filesystem::path& path, int width, int height,
   impl->width = width;
   impl->height = height;
   std::string log_name = (std::filesystem::temp_directory_path() / "cellwright-ffmpeg-XXXXXX").string();
-  const int log_fd = ::mkstemp(log_name.data());
+  const int log_fd = ::mkostemp(log_name.data(), O_CLOEXEC);
   if (log_fd < 0) throw std::runtime_error(fmt::format("cannot make a temporary file: {}", std::strerror(errno)));
   impl->log = log_name;
   int pipe_fds[2];
@@ -181,10 +197,13 @@ void VideoWriter::open(const std::filesystem::path& path, int width, int height,
   sigemptyset(&none);
   sigemptyset(&pipe_default);
   sigaddset(&pipe_default, SIGPIPE);
-  // ffmpeg with no signal blocked (a run blocks SIGINT and SIGTERM in its threads) and SIGPIPE as by default.
+  // ffmpeg with no signal blocked (a run blocks SIGINT and SIGTERM in its threads) and SIGPIPE as by default, in a
+  // process group of its own: a Ctrl-C at the terminal goes to the foreground group, and it is twin's to stop the run
+  // and then close the video, not ffmpeg's to die mid-file. Should twin die, ffmpeg sees the end of its input.
   posix_spawnattr_setsigmask(&attributes, &none);
   posix_spawnattr_setsigdefault(&attributes, &pipe_default);
-  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+  posix_spawnattr_setpgroup(&attributes, 0);
+  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETPGROUP);
   const int rc = posix_spawnp(&impl->pid, "ffmpeg", &actions, &attributes, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   posix_spawnattr_destroy(&attributes);

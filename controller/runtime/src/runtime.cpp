@@ -340,7 +340,11 @@ struct Runtime::Impl {
     }
     if (cfg.on_record && cfg.record_every.count() > 0 && t >= next_record) {
       std::lock_guard lock(record_mutex);
+      const auto recording = std::chrono::steady_clock::now();
       cfg.on_record(t, record_robots);
+      // Time spent recording (a video's encoder catching up) is not run time: a run ends on its wall-time limit
+      // where it would without the recording, so that the event log is the same with and without.
+      wall_start += std::chrono::steady_clock::now() - recording;
       while (next_record <= t) next_record += cfg.record_every;  // multiples of record_every: fixed frame times
     }
     return true;

@@ -6,7 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <chrono>
 #include <sstream>
+#include <thread>
+#include <vector>
 
 #include "cellwright/drivers/faulty_driver.hpp"
 #include "controller/runtime/scripted_cell.hpp"
@@ -164,6 +167,30 @@ TEST(RuntimeRun, TheWallTimeLimitEndsARunThatTakesTooLong) {
   ScriptedCell roomy;  // a limit the run stays well within changes nothing
   roomy.config.limits.wall_time = std::chrono::hours(1);
   EXPECT_EQ(Runtime(roomy.config).run().outcome, Outcome::kFinished);
+}
+
+// A recorder that is slow (a video encoder catching up) does not use up the wall-time limit: the run ends as it does
+// without it, with the same log. The recorder takes 1 s in all; the limit is half of that, far more than the run
+// itself needs.
+TEST(RuntimeRun, TimeSpentRecordingDoesNotCountTowardsTheWallTimeLimit) {
+  ScriptedCell plain;
+  Runtime without(plain.config);
+  const RunResult expected = without.run();
+  ASSERT_EQ(expected.outcome, Outcome::kFinished);
+
+  ScriptedCell cell;
+  cell.config.limits.wall_time = std::chrono::milliseconds(500);
+  cell.config.record_every = expected.end_time / 20;
+  int frames = 0;
+  cell.config.on_record = [&frames](SimDuration, const std::vector<RobotView>&) {
+    ++frames;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the slow consumer, not a wait for another thread
+  };
+  Runtime with(cell.config);
+  const RunResult r = with.run();
+  EXPECT_EQ(r.outcome, Outcome::kFinished) << r.reason;
+  EXPECT_GE(frames, 20);
+  EXPECT_EQ(with.log().text(), without.log().text());
 }
 
 TEST(RuntimeRun, PerRobotTimeAddsUpToTheRunTime) {

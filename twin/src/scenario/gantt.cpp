@@ -21,7 +21,7 @@ cv::Scalar text_colour(Activity a) {
   return a == Activity::kMove || a == Activity::kBlocked ? cv::Scalar(255, 255, 255) : cv::Scalar(30, 30, 30);
 }
 
-// The marks of a workpiece's journey: green picked, blue-green handed over, black placed (BGR).
+// The marks of a workpiece's journey: green picked, purple handed over, black placed (BGR).
 cv::Scalar mark_colour(JourneyStep s) {
   switch (s) {
     case JourneyStep::kPicked:

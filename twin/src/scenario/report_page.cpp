@@ -346,7 +346,9 @@ std::string render_report_page(const Scenario& scenario, const Report& report, c
   collisions(out, report);
   faults(out, report);
   picture(out, "gantt", "Gantt chart", media.gantt_png, "Gantt chart",
-          "Each robot's commands over time: move (blue), grip (orange), wait (grey), blocked (red-purple)",
+          "Each robot's commands over time: move (blue), grip (orange), wait for the part (yellow), wait for a "
+          "signal (grey), blocked (red-purple); each workpiece's journey marked: picked (green), handed over "
+          "(purple), placed (black)",
           kGanttFile);
   picture(out, "final", "Final snapshot", media.final_png, "final snapshot",
           "The overview camera's view of the cell at the end of the run", kFinalFile);

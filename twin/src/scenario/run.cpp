@@ -265,8 +265,40 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     config.camera_frames = runtime::VisionOptions{camera, seconds(v.period)};
     config.on_frame = std::move(options.on_frame);
   }
+  // The event log first: it makes the output directory, where the video may go (-o DIR --video DIR/run.mp4).
+  // The directories this makes for it, innermost first: removed again (when empty) if the video is refused.
+  std::vector<std::filesystem::path> made;
+  if (!options.events_file.empty()) {
+    events_file_ = std::move(options.events_file);
+    std::error_code ec;
+    for (std::filesystem::path d = events_file_.parent_path(); !d.empty() && !std::filesystem::exists(d, ec);
+         d = d.parent_path()) {
+      made.push_back(d);
+      if (d == d.parent_path()) break;
+    }
+    if (events_file_.has_parent_path()) make_output_directory(events_file_.parent_path());
+    events_out_ = std::make_unique<std::ofstream>(events_file_, std::ios::binary | std::ios::trunc);
+    if (!*events_out_) {
+      throw InputError({events_file_.string()}, fmt::format("cannot write the event log: {}", std::strerror(errno)));
+    }
+    config.log_stream = events_out_.get();
+    config.keep_log = false;
+  }
+  config.on_progress = std::move(options.on_progress);
+  config.progress_every = options.progress_every;
   if (options.video) {
-    video_ = std::make_unique<VideoRecorder>(world_->scene().model(), std::move(*options.video));
+    video_file_ = options.video->path;
+    try {
+      video_ = std::make_unique<VideoRecorder>(world_->scene().model(), std::move(*options.video));
+    } catch (...) {  // refused before anything ran: leave nothing behind
+      if (events_out_) {
+        events_out_.reset();
+        std::error_code ec;
+        std::filesystem::remove(events_file_, ec);
+        for (const std::filesystem::path& d : made) std::filesystem::remove(d, ec);  // each only if empty
+      }
+      throw;
+    }
     config.record_every = video_->frame_period();
     config.on_record = [this](runtime::SimDuration t, const std::vector<runtime::RobotView>& robots) {
       std::vector<std::string> lines;
@@ -276,18 +308,6 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
       }
       if (video_) video_->record(world_->data(), t, std::move(lines));  // copies positions: the World is untouched
     };
-  }
-  config.on_progress = std::move(options.on_progress);
-  config.progress_every = options.progress_every;
-  if (!options.events_file.empty()) {
-    events_file_ = std::move(options.events_file);
-    if (events_file_.has_parent_path()) make_output_directory(events_file_.parent_path());
-    events_out_ = std::make_unique<std::ofstream>(events_file_, std::ios::binary | std::ios::trunc);
-    if (!*events_out_) {
-      throw InputError({events_file_.string()}, fmt::format("cannot write the event log: {}", std::strerror(errno)));
-    }
-    config.log_stream = events_out_.get();
-    config.keep_log = false;
   }
   runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
 }
@@ -339,19 +359,23 @@ Report ScenarioRun::report() const {
 }
 
 void ScenarioRun::write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image) {
-  if (events_file_.empty()) {
-    scenario::write_outputs(dir, scenario_, report, runtime_->log().text(), final_image);
-    return;
+  std::optional<std::filesystem::path> video;  // for the page: the file beside it, by its path relative to `dir`
+  if (!video_file_.empty()) {
+    video = std::filesystem::absolute(video_file_).lexically_relative(std::filesystem::absolute(dir));
   }
-  flush_streamed_log(runtime_->log(), events_file_);
   make_output_directory(dir);
-  std::error_code ec;
-  const std::filesystem::path target = dir / kEventsFile;
-  if (!std::filesystem::equivalent(events_file_, target, ec)) {
-    move_file(events_file_, target);
-    events_file_ = target;
+  if (events_file_.empty()) {
+    write_file_atomically(dir / kEventsFile, runtime_->log().text());
+  } else {
+    flush_streamed_log(runtime_->log(), events_file_);
+    std::error_code ec;
+    const std::filesystem::path target = dir / kEventsFile;
+    if (!std::filesystem::equivalent(events_file_, target, ec)) {
+      move_file(events_file_, target);
+      events_file_ = target;
+    }
   }
-  write_report_outputs(dir, scenario_, report, final_image);
+  write_report_outputs(dir, scenario_, report, final_image, video);
 }
 
 cv::Mat ScenarioRun::snapshot(int width, int height) const {

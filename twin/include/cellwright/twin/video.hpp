@@ -52,6 +52,9 @@ class VideoWriter {
   // The checks of open() on the size and rate alone: InputError at `where` when width or height is not even and
   // within 2..4096 or fps not within 1..120 (`twin campaign --video` checks them before its runs).
   static void check_format(const SourceLocation& where, int width, int height, int fps);
+  // Whether the ffmpeg program is there to be started: InputError at `where` when no executable ffmpeg is on $PATH
+  // (`twin campaign --video` checks it before its runs, not when the first failed run is recorded).
+  static void check_encoder(const SourceLocation& where);
 
   bool is_open() const;
   // Appends one frame (CV_8UC3, BGR, the size given to open), shown 1/fps s after the previous one. Throws

@@ -132,7 +132,8 @@ struct RunConfig {
   // Called by the simulation thread at each multiple of `record_every` of simulation time (in the first period that
   // reaches it, after the plant has advanced and the period's events are logged), with the time and task control's
   // view of each robot as of its last step (the command it is on): `twin run --video` copies the plant's state here
-  // for a frame. Must be short, must not change the plant or call the Runtime. Not called when record_every is zero.
+  // for a frame. Must not change the plant or call the Runtime; it may block (a video encoder that is behind), and
+  // the time it takes does not count towards limits.wall_time. Not called when record_every is zero.
   std::function<void(SimDuration, const std::vector<RobotView>&)> on_record;
   SimDuration record_every{0};
   // Program faults injected on purpose (docs/faults.md, kind lost_signal): the n-th signal task control fires (counting

@@ -119,7 +119,8 @@ class ScenarioRun {
   const std::filesystem::path& events_file() const { return events_file_; }
 
   // write_outputs() below with this run's events: the log's text, or the streamed file moved into `dir` as
-  // events.jsonl (copied when `dir` is on another file system). Same threads rule as report().
+  // events.jsonl (copied when `dir` is on another file system); with a video, index.html shows it (by its path
+  // relative to `dir`). Same threads rule as report().
   void write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image);
 
   // The overview camera's view of the cell now (a copy of the simulation state is rendered, headless; the camera
@@ -145,6 +146,7 @@ class ScenarioRun {
   sim::WorldPlant* world_plant_ = nullptr;  // plant_, the World's
   Estimate estimate_;
   std::unique_ptr<VideoRecorder> video_;  // with RunOptions::video; fed by the simulation thread
+  std::filesystem::path video_file_;      // its file, kept when finish_video() has closed it
   std::unique_ptr<runtime::Runtime> runtime_;
 };
 

@@ -133,4 +133,30 @@ TEST(TestCli, APassingSuiteInTheTemporaryFolderLeavesNothingBehind) {
   EXPECT_TRUE(fs::is_empty(tmp));
 }
 
+// --video: the failed scenario is run again with a video, which joins its kept outputs with the page that shows it;
+// the passing one is not recorded. A video size that cannot be is refused before anything runs.
+TEST(TestCli, VideoOfEachFailedScenario) {
+  TwinCli cli("cw-test-cli-video");
+  const fs::path suite = cli.dir() / "suite", out = cli.dir() / "out";
+  tiny(suite, "good", "input");
+  tiny(suite, "bad", "output");
+  const Outcome refused = cli.run("test " + q(suite) + " -o " + q(out) + " --video --video-size 161x120");
+  EXPECT_EQ(refused.status, 2) << refused.out << refused.err;
+  EXPECT_THAT(refused.err, HasSubstr("even"));
+  EXPECT_FALSE(fs::exists(out));
+
+  const Outcome r = cli.run("test " + q(suite) + " -o " + q(out) + " --jobs 2 --video --video-fps 5 --video-size 160x120");
+  ASSERT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("recording the video of 1 failed scenario\n"));
+  EXPECT_THAT(r.out, HasSubstr("video of bad in " + (out / "bad" / "video.mp4").string() + "\n"));
+  EXPECT_THAT(r.out, ::testing::EndsWith("1 passed, 1 failed\n"));
+  const std::string video = slurp(out / "bad" / "video.mp4");
+  ASSERT_GT(video.size(), 1000u);
+  EXPECT_EQ(video.substr(4, 4), "ftyp");
+  EXPECT_THAT(slurp(out / "bad" / "index.html"), HasSubstr("src=\"video.mp4\""));
+  for (const char* f : {"events.jsonl", "report.json", "stdout.txt"}) EXPECT_TRUE(fs::exists(out / "bad" / f)) << f;
+  EXPECT_FALSE(fs::exists(out / "bad" / ".video"));
+  EXPECT_FALSE(fs::exists(out / "good"));
+}
+
 }  // namespace

@@ -1,8 +1,9 @@
-// `twin test [DIR|SCENARIO...] [-o DIR] [--junit FILE] [--jobs N] [--keep] [--seed S] [--timeout SECONDS]`: a
-// regression suite for CI (docs/scenarios.md, "Regression suites"): every scenario given (default: the scenarios in
-// scenes/) runs as a `twin run` child with its expectations, a few at a time; one line per scenario, a closing
-// "N passed, N failed", JUnit XML with --junit. Exit 0 when all pass, 1 when one does not, 2 on bad input (refused
-// before anything runs).
+// `twin test [DIR|SCENARIO...] [-o DIR] [--junit FILE] [--jobs N] [--keep] [--seed S] [--timeout SECONDS]
+// [--video [--video-fps N] [--video-size WxH]]`: a regression suite for CI (docs/scenarios.md, "Regression suites"):
+// every scenario given (default: the scenarios in scenes/) runs as a `twin run` child with its expectations, a few at
+// a time; one line per scenario, a closing "N passed, N failed", JUnit XML with --junit; with --video, each failed
+// scenario is run again with a video that joins its kept outputs. Exit 0 when all pass, 1 when one does not, 2 on
+// bad input (refused before anything runs).
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -17,17 +18,55 @@
 
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/scenario/suite.hpp"
+#include "cellwright/twin/video.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
+#include "run_args.hpp"
 
 namespace cellwright::tools {
+
+namespace {
+
+// --video: the failed scenarios run again with a video each, a line for each as its video is made or not.
+void record_videos(std::vector<twin::scenario::CaseResult>& results, const twin::scenario::SuiteOptions& options,
+                   int fps, const std::string& size) {
+  namespace ts = twin::scenario;
+  const auto failed = static_cast<std::size_t>(std::count_if(
+      results.begin(), results.end(), [](const ts::CaseResult& r) { return r.verdict == ts::Verdict::kFail; }));
+  if (failed == 0) return;
+  std::printf("recording the video%s of %zu failed scenario%s\n", failed == 1 ? "" : "s", failed,
+              failed == 1 ? "" : "s");
+  std::fflush(stdout);
+  ts::VideoSettings video;
+  video.fps = fps;
+  video.size = size;
+  ProgressBar bar;
+  ts::VideoCallbacks callbacks;
+  callbacks.progress = [&](std::size_t done, std::size_t total) {
+    bar.update(fmt::format("{}/{} videos", done, total), done, total);
+  };
+  callbacks.ended = [&](const ts::CaseResult& r) {
+    bar.clear();
+    if (r.video.empty()) {
+      std::printf("no video of %s: %s\n", r.test.name.c_str(), r.video_note.c_str());
+    } else {
+      const std::string note = r.video_note.empty() ? std::string() : " (" + r.video_note + ")";
+      std::printf("video of %s in %s%s\n", r.test.name.c_str(), r.video.c_str(), note.c_str());
+    }
+    std::fflush(stdout);
+  };
+  ts::record_videos(results, options, video, callbacks);
+  bar.finish();
+}
+
+}  // namespace
 
 void add_test(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand(
       "test",
       "Regression suite: run every scenario given (files, or folders: their .yaml scenarios, not their subfolders; "
       "default scenes/) as `twin run` children, a few at a time, and judge each by its expectations. One line per "
-      "scenario, then 'N passed, N failed'; JUnit XML with --junit. A failing scenario's outputs are kept. Exit 0 when "
+      "scenario, then 'N passed, N failed'; JUnit XML with --junit. A failing scenario's outputs are kept (with --video, and a video of it). Exit 0 when "
       "all pass, 1 when one does not, 2 on bad input (nothing run).");
   struct Args {
     std::vector<std::string> paths;
@@ -37,6 +76,9 @@ void add_test(CLI::App& app, Command* run) {
     bool keep = false;
     std::optional<std::uint64_t> seed;
     std::optional<double> timeout;
+    bool video = false;
+    int video_fps = 20;
+    std::string video_size = "800x600";
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("paths", args->paths, "scenario files and folders of them (default: scenes)");
@@ -50,6 +92,13 @@ void add_test(CLI::App& app, Command* run) {
   cmd->add_option("--timeout", args->timeout,
                   "s of wall time after which a scenario is killed and counts as hung (default: the scenario's own "
                   "wall-time limit plus 60 s, 600 s when it has none)");
+  cmd->add_flag("--video", args->video,
+                "record a video of each failed scenario (FAIL: an expectation did not hold) as DIR/NAME/video.mp4, "
+                "shown by its report page: the scenario is run again, lock-step, after the suite");
+  cmd->add_option("--video-fps", args->video_fps, "with --video: frames per second of simulated time (default 20)")
+      ->check(CLI::Range(1, 120));
+  cmd->add_option("--video-size", args->video_size,
+                  "with --video: width x height in pixels, both even (default 800x600)");
   cmd->callback([run, args] {
     *run = [args] {
       namespace ts = twin::scenario;
@@ -57,6 +106,13 @@ void add_test(CLI::App& app, Command* run) {
       const auto start = std::chrono::steady_clock::now();
       std::vector<fs::path> paths(args->paths.begin(), args->paths.end());
       if (paths.empty()) paths.emplace_back("scenes");
+      if (args->video) {  // the size, the rate and ffmpeg checked now, not after the suite has run
+        RunArgs video;
+        video.video_fps = args->video_fps;
+        video.video_size = args->video_size;
+        (void)video_options_for(video);
+        twin::VideoWriter::check_encoder({"--video", 0, 0});
+      }
       const ts::Discovery found = ts::discover(paths);
       if (!args->junit.empty()) ts::check_writable_file(args->junit);
       const bool temporary = args->out.empty();
@@ -89,9 +145,10 @@ void add_test(CLI::App& app, Command* run) {
         std::fflush(stdout);
       };
       callbacks.progress = [&](const ts::SuiteProgress& p) { bar.update(ts::format_progress(p), p.done, p.total); };
-      const std::vector<ts::CaseResult> results = ts::run_suite(cases, options, callbacks);
+      std::vector<ts::CaseResult> results = ts::run_suite(cases, options, callbacks);
       bar.finish();
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (args->video) record_videos(results, options, args->video_fps, args->video_size);
 
       if (!args->junit.empty()) {
         const fs::path junit = args->junit;

@@ -438,6 +438,99 @@ TEST_F(SuiteRun, JunitXmlParsesBackWithEveryVerdict) {
   EXPECT_THAT(cases.at("refused")->FirstChildElement("system-err")->GetText(), HasSubstr("unknown field 'robts'"));
 }
 
+// A stand-in for `twin run SCENARIO -o DIR --quiet [--video FILE --video-fps F --video-size WxH] --seed S`: every
+// scenario fails but "pass"; with --video it records its arguments beside DIR (DIR/.. is the first run's directory),
+// writes the video and a page naming it, and an event log that is the first run's ("same"), another ("differs"), or
+// makes no video and says why ("novideo").
+fs::path fake_video_twin(const fs::path& dir) {
+  const fs::path p = dir / "fake-video-twin.sh";
+  write(p,
+        "#!/bin/sh\n"
+        "name=$(basename \"$2\" .yaml); out=\"$4\"\n"
+        "echo \"$@\" > \"$out/args.txt\"\n"
+        "if [ \"$name\" = pass ]; then echo '{\"result\":\"ok\"}' > \"$out/report.json\"; exit 0; fi\n"
+        "echo '{\"result\":\"failed\",\"failures\":[\"A is elsewhere\"]}' > \"$out/report.json\"\n"
+        "echo 'first run' > \"$out/events.jsonl\"; echo 'page without video' > \"$out/index.html\"\n"
+        "if [ \"$6\" = --video ]; then\n"
+        "  echo \"$@\" > \"$out/../video-args.txt\"\n"
+        "  case $name in\n"
+        "  novideo) echo 'twin: error: ffmpeg: Unknown encoder libx264' >&2; exit 2;;\n"
+        "  differs) echo 'another run' > \"$out/events.jsonl\";;\n"
+        "  esac\n"
+        "  echo 'mp4 bytes' > \"$7\"; echo '<video src=\"video.mp4\">' > \"$out/index.html\"\n"
+        "fi\n"
+        "exit 1\n");
+  fs::permissions(p, fs::perms::owner_all);
+  return p;
+}
+
+TEST(SuiteVideos, EachFailedScenarioIsRunAgainAndItsVideoJoinsItsOutputs) {
+  Scratch scratch("video");
+  const fs::path out = scratch.dir() / "out";
+  std::vector<SuiteCase> cases;
+  for (const char* name : {"pass", "same", "differs", "novideo"}) {
+    SuiteCase c;
+    c.scenario = kScenes / (std::string(name) + ".yaml");
+    c.name = name;
+    c.dir = out / name;
+    c.timeout = 30;
+    cases.push_back(c);
+  }
+  SuiteOptions o;
+  o.executable = fake_video_twin(scratch.dir());
+  o.jobs = 2;
+  o.seed = 7;
+  std::vector<CaseResult> results = run_suite(cases, o);
+  ASSERT_EQ(results.size(), 4u);
+  ASSERT_EQ(results[1].verdict, Verdict::kFail);
+
+  VideoSettings video;
+  video.fps = 5;
+  video.size = "160x120";
+  std::vector<std::string> ended;
+  std::size_t last_done = 0, last_total = 0;
+  VideoCallbacks cb;
+  cb.ended = [&](const CaseResult& r) { ended.push_back(r.test.name); };
+  cb.progress = [&](std::size_t done, std::size_t total) {
+    last_done = done;
+    last_total = total;
+  };
+  record_videos(results, o, video, cb);
+  std::sort(ended.begin(), ended.end());
+  EXPECT_THAT(ended, ElementsAre("differs", "novideo", "same"));  // the passing one is not run again
+  EXPECT_EQ(last_done, 3u);
+  EXPECT_EQ(last_total, 3u);
+
+  const CaseResult& same = results[1];
+  EXPECT_EQ(same.video, out / "same" / "video.mp4");
+  EXPECT_EQ(same.video_note, "");
+  EXPECT_EQ(slurp(out / "same" / "video.mp4"), "mp4 bytes\n");
+  EXPECT_EQ(slurp(out / "same" / "index.html"), "<video src=\"video.mp4\">\n");  // the page that shows it
+  EXPECT_EQ(slurp(out / "same" / "args.txt"),  // the first run's outputs are kept as they were
+            fmt::format("run {} -o {} --quiet --seed 7\n", (kScenes / "same.yaml").string(), (out / "same").string()));
+  EXPECT_FALSE(fs::exists(out / "same" / ".video"));
+  const fs::path rerun = out / "same" / ".video";
+  EXPECT_EQ(slurp(out / "same" / "video-args.txt"),
+            fmt::format("run {} -o {} --quiet --video {} --video-fps 5 --video-size 160x120 --seed 7\n",
+                        (kScenes / "same.yaml").string(), rerun.string(), (rerun / "video.mp4").string()));
+
+  const CaseResult& differs = results[2];
+  EXPECT_EQ(differs.video, out / "differs" / "video.mp4");
+  EXPECT_THAT(differs.video_note, HasSubstr("shows another run"));
+
+  const CaseResult& novideo = results[3];
+  EXPECT_TRUE(novideo.video.empty());
+  EXPECT_EQ(novideo.video_note, "twin: error: ffmpeg: Unknown encoder libx264");
+  EXPECT_EQ(slurp(out / "novideo" / "index.html"), "page without video\n");  // the first run's page stays
+  EXPECT_FALSE(fs::exists(out / "novideo" / "video.mp4"));
+  EXPECT_FALSE(fs::exists(out / "novideo" / ".video"));
+
+  // The JUnit failure names the video.
+  const std::string xml = format_junit(results, 1);
+  EXPECT_THAT(xml, HasSubstr("video in " + (out / "same" / "video.mp4").string()));
+  EXPECT_EQ(xml.find("video in " + (out / "novideo").string()), std::string::npos);
+}
+
 TEST(SuiteJudge, ExitStatusAndReportMustAgreeToPass) {
   Scratch scratch("judge");
   SuiteCase c;

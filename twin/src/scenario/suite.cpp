@@ -306,20 +306,31 @@ std::string format_progress(const SuiteProgress& p, int width) {
                      std::string(static_cast<std::size_t>(width - filled), '.'), p.done, p.total, p.running, p.failed);
 }
 
+namespace {
+
+// `twin run SCENARIO -o DIR --quiet [--seed S]` for a case, its outputs in `dir`.
+ChildSpec run_child(const SuiteCase& c, const fs::path& dir, const SuiteOptions& options) {
+  ChildSpec spec;
+  spec.args = {"run", fs::absolute(c.scenario).string(), "-o", dir.string(), "--quiet"};
+  if (options.seed) {
+    spec.args.push_back("--seed");
+    spec.args.push_back(std::to_string(*options.seed));
+  }
+  spec.dir = dir;
+  spec.timeout = c.timeout;
+  return spec;
+}
+
+unsigned jobs_of(const SuiteOptions& options) {
+  return options.jobs > 0 ? options.jobs : std::max(1u, std::thread::hardware_concurrency());
+}
+
+}  // namespace
+
 std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const SuiteOptions& options,
                                   const SuiteCallbacks& callbacks) {
   std::vector<ChildSpec> children;
-  for (const SuiteCase& c : cases) {
-    ChildSpec spec;
-    spec.args = {"run", fs::absolute(c.scenario).string(), "-o", c.dir.string(), "--quiet"};
-    if (options.seed) {
-      spec.args.push_back("--seed");
-      spec.args.push_back(std::to_string(*options.seed));
-    }
-    spec.dir = c.dir;
-    spec.timeout = c.timeout;
-    children.push_back(std::move(spec));
-  }
+  for (const SuiteCase& c : cases) children.push_back(run_child(c, c.dir, options));
   std::vector<CaseResult> results(cases.size());
   SuiteProgress progress;
   progress.total = cases.size();
@@ -346,9 +357,76 @@ std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const Sui
     report();
   };
   report();
-  const unsigned jobs = options.jobs > 0 ? options.jobs : std::max(1u, std::thread::hardware_concurrency());
-  run_children(options.executable, children, jobs, cb);
+  run_children(options.executable, children, jobs_of(options), cb);
   return results;
+}
+
+// --- Videos of the failed scenarios --------------------------------------------------------------------------------
+
+namespace {
+
+constexpr const char* kVideoDir = ".video";  // DIR/.video: the re-run's outputs, removed once its video is moved
+
+// What went wrong with a re-run that made no video, one line.
+std::string no_video_because(const ChildEnd& end, const fs::path& video) {
+  if (end.status != RunStatus::kDone) return end.problem;
+  if (!end.first_error.empty()) return end.first_error;
+  if (!fs::exists(video)) return fmt::format("the re-run (exit {}) wrote no {}", end.exit_code, video.string());
+  return fmt::format("the re-run ended with exit {}", end.exit_code);
+}
+
+}  // namespace
+
+void record_videos(std::vector<CaseResult>& results, const SuiteOptions& options, const VideoSettings& video,
+                   const VideoCallbacks& callbacks) {
+  std::vector<std::size_t> which;  // indices into results
+  std::vector<ChildSpec> children;
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const CaseResult& r = results[i];
+    if (r.verdict != Verdict::kFail || !r.kept) continue;
+    const fs::path dir = r.test.dir / kVideoDir;
+    ChildSpec spec = run_child(r.test, dir, options);  // run SCENARIO -o DIR --quiet [--seed S]
+    spec.args.insert(spec.args.begin() + 5, {"--video", (dir / "video.mp4").string(), "--video-fps",
+                                       std::to_string(video.fps), "--video-size", video.size});
+    spec.timeout = r.test.timeout * video.slowdown;
+    which.push_back(i);
+    children.push_back(std::move(spec));
+  }
+  std::size_t done = 0;
+  auto progress = [&] {
+    if (callbacks.progress) callbacks.progress(done, which.size());
+  };
+  ChildCallbacks cb;
+  cb.ended = [&](std::size_t k, const ChildEnd& end) {
+    CaseResult& r = results[which[k]];
+    const fs::path dir = r.test.dir / kVideoDir, made = dir / "video.mp4";
+    // exit 1 is the failure again; exit 0 would be a run that passed this time (only in real time): still a video.
+    const bool ok = end.status == RunStatus::kDone && (end.exit_code == 0 || end.exit_code == 1) && fs::exists(made);
+    if (ok) {
+      try {
+        move_file(made, r.test.dir / "video.mp4");
+        if (fs::exists(dir / "index.html")) move_file(dir / "index.html", r.test.dir / "index.html");
+        r.video = r.test.dir / "video.mp4";
+        if (slurp_or_empty(dir / "events.jsonl") != slurp_or_empty(r.test.dir / "events.jsonl")) {
+          r.video_note = "the re-run's event log differs from the run's (a scenario in real time): the video shows "
+                         "another run of it";
+        }
+      } catch (const InputError& e) {
+        r.video_note = e.what();
+      }
+    } else {
+      r.video_note = no_video_because(end, made);
+    }
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    ++done;
+    if (callbacks.ended) callbacks.ended(r);
+    progress();
+  };
+  cb.started = [&](std::size_t) { progress(); };
+  if (children.empty()) return;
+  progress();
+  run_children(options.executable, children, jobs_of(options), cb);
 }
 
 // --- Reporting -------------------------------------------------------------------------------------------------------
@@ -463,6 +541,7 @@ std::string format_junit(const std::vector<CaseResult>& results, double wall_tim
       std::string body;
       for (const std::string& f : r.failures) body += f + "\n";
       if (r.kept) body += fmt::format("outputs in {}\n", r.test.dir.string());
+      if (!r.video.empty()) body += fmt::format("video in {}\n", r.video.string());
       w.open(r.verdict == Verdict::kFail ? "failure" : "error",
              {{"message", xml_safe(r.message)}, {"type", to_string(r.verdict)}});
       w.text(xml_safe(body));

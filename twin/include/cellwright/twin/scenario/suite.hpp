@@ -13,7 +13,9 @@
 //  3. plan_suite(): each scenario's name, output directory and time limit, checked before anything runs.
 //  4. run_suite(): the children, at most `jobs` at a time, and a verdict for each; a passing scenario's outputs are
 //     removed unless kept, a failing one's stay.
-//  5. format_result(), format_totals(), format_junit(): the lines and the XML.
+//  5. record_videos(): with `twin test --video`, each failed scenario run again with a video, which joins its kept
+//     outputs (video.mp4, and the report page index.html that shows it).
+//  6. format_result(), format_totals(), format_junit(): the lines and the XML.
 //
 // Verdicts: pass (exit 0, report.json says "ok"); fail (the run ended and an expectation does not hold: exit 1 or a
 // report that is not "ok"); error (`twin run` refused the scenario: exit 2 before it wrote a report, e.g. a typo in
@@ -132,6 +134,8 @@ struct CaseResult {
   std::string output;                 // the child's stdout (`twin run`'s summary of the report)
   std::string errors;                 // the child's stderr
   bool kept = true;                   // its outputs are still in test.dir
+  std::filesystem::path video;        // test.dir/video.mp4 once record_videos() made it, else empty
+  std::string video_note;             // why there is no video, or what to know of it; empty when all went well
   bool passed() const { return verdict == Verdict::kPass; }
 };
 
@@ -156,6 +160,31 @@ struct SuiteCallbacks {
 std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const SuiteOptions& options,
                                   const SuiteCallbacks& callbacks = {});
 
+// --- Videos of the failed scenarios --------------------------------------------------------------------------------
+
+struct VideoSettings {
+  int fps = 20;                    // --video-fps
+  std::string size = "800x600";    // --video-size
+  double slowdown = 25;            // the re-run's time limit is the case's timeout times this (a video costs ~20x)
+};
+
+struct VideoCallbacks {
+  std::function<void(std::size_t done, std::size_t total)> progress;  // a re-run started or ended
+  std::function<void(const CaseResult&)> ended;                       // a re-run ended (its video or note set)
+};
+
+// Runs every FAILed scenario of `results` whose outputs were kept again, as `EXE run SCENARIO -o DIR/.video --quiet
+// --video DIR/.video/video.mp4 --video-fps F --video-size WxH [--seed S]` children (at most options.jobs at a time),
+// and moves the video and the report page that shows it (index.html, replacing the one without) into DIR, then
+// removes DIR/.video. Lock-step runs are deterministic, so the re-run is the run that failed; when its event log
+// differs from the first run's (a scenario run in real time) the video is kept and `video_note` says it shows
+// another run. A re-run that does not end with a report, or makes no video, leaves `video` empty and says why in
+// `video_note` (its stderr's first line); the first run's outputs are untouched. Only FAILs are re-run: an ERROR
+// would be refused again, a CRASH or HANG would crash or hang again, a PASS has nothing to look at. Throws
+// InputError as run_children.
+void record_videos(std::vector<CaseResult>& results, const SuiteOptions& options, const VideoSettings& video,
+                   const VideoCallbacks& callbacks = {});
+
 // --- Reporting -------------------------------------------------------------------------------------------------------
 
 // One line (no newline): verdict, name padded to `name_width`, sim time, wall time, parts placed, and for a scenario
@@ -173,9 +202,10 @@ std::string format_totals(const std::vector<CaseResult>& results);
 // errors, skipped="0", time: `wall_time` s), one <testcase name="NAME" classname="FOLDER" file="SCENARIO"
 // time="WALL"> per result; a fail holds <failure message="FIRST FAILURE" type="fail"> with every failure, one a line,
 // and where the outputs are; an error, crash or hang <error message="..." type="error|crash|hang">. Every test case
-// has the child's stdout (the report's text) in <system-out> and its stderr, when any, in <system-err>. Text is made
-// fit for any XML 1.0 reader: control characters other than tab, newline and carriage return, and bytes that are not
-// UTF-8, become U+FFFD; the XML writer (common/xml.hpp) escapes the rest.
+// has the child's stdout (the report's text) in <system-out> and its stderr, when any, in <system-err>; a failure's
+// text names its video when there is one. Text is made fit for any XML 1.0 reader: control characters other than
+// tab, newline and carriage return, and bytes that are not UTF-8, become U+FFFD; the XML writer (common/xml.hpp)
+// escapes the rest.
 std::string format_junit(const std::vector<CaseResult>& results, double wall_time);
 
 }  // namespace cellwright::twin::scenario

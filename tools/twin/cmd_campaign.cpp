@@ -16,7 +16,6 @@
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/twin/scenario/campaign.hpp"
-#include "cellwright/twin/video.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
 #include "run_args.hpp"
@@ -29,7 +28,7 @@ namespace {
 // video into its run directory. Lock-step runs are deterministic, so the video shows the run the campaign counted.
 // Crashes and hangs are not re-run (they would crash or hang this process); only failed runs pay for a video.
 void record_failed_runs(const twin::scenario::CampaignOptions& options,
-                        const std::vector<twin::scenario::RunRecord>& records, int fps, const std::string& size) {
+                        const std::vector<twin::scenario::RunRecord>& records, const VideoFlag& video) {
   for (const twin::scenario::RunRecord& r : records) {
     if (r.status != twin::scenario::RunStatus::kDone || r.exit_code != 1) continue;
     RunArgs a;
@@ -37,8 +36,8 @@ void record_failed_runs(const twin::scenario::CampaignOptions& options,
     for (const twin::scenario::DrawnFault& f : r.variant.faults) a.faults.push_back(f.spec);
     a.seed = r.variant.seed;
     a.video = (r.dir / "video.mp4").string();
-    a.video_fps = fps;
-    a.video_size = size;
+    a.video_fps = video.fps;
+    a.video_size = video.size;
     const auto start = std::chrono::steady_clock::now();
     try {
       (void)run_for_video(a);
@@ -68,9 +67,7 @@ void add_campaign(CLI::App& app, Command* run) {
     unsigned jobs = 0;
     double timeout = twin::scenario::CampaignOptions::kDefaultTimeout;
     std::string out;
-    bool video = false;
-    int video_fps = 20;
-    std::string video_size = "800x600";
+    VideoFlag video;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("scenario", args->scenario, "scenario file (.yaml, docs/scenarios.md)")->required();
@@ -84,24 +81,14 @@ void add_campaign(CLI::App& app, Command* run) {
                   "s of wall time after which a run is killed and counted as a hang (default 600)");
   cmd->add_option("-o,--output", args->out, "directory for campaign.csv/.md/.png and runs/NNNN (required)");
   cmd->add_option("--out", args->out)->group("");  // the old name, still accepted and not shown
-  cmd->add_flag("--video", args->video,
-                "record a video of each failed run (exit 1: an outcome did not hold) as runs/NNNN/video.mp4: the run "
-                "is run again, lock-step, after the campaign");
-  cmd->add_option("--video-fps", args->video_fps, "with --video: frames per second of simulated time (default 20)")
-      ->check(CLI::Range(1, 120));
-  cmd->add_option("--video-size", args->video_size,
-                  "with --video: width x height in pixels, both even (default 800x600)");
+  add_video_flag(*cmd, args->video,
+                 "record a video of each failed run (exit 1: an outcome did not hold) as runs/NNNN/video.mp4: the run "
+                 "is run again, lock-step, after the campaign");
   cmd->callback([run, args] {
     *run = [args] {
       namespace ts = twin::scenario;
       if (args->out.empty()) throw InputError({"-o/--output", 0, 0}, "the campaign needs an output directory");
-      if (args->video) {  // the size and rate checked now, not after the campaign has run
-        RunArgs video;
-        video.video_fps = args->video_fps;
-        video.video_size = args->video_size;
-        (void)video_options_for(video);
-        twin::VideoWriter::check_encoder({"--video", 0, 0});
-      }
+      check_video_flag(args->video);  // the size, the rate and ffmpeg checked now, not after the campaign has run
       const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe");
       const ts::CampaignOptions options =
           ts::plan_campaign(std::filesystem::absolute(args->scenario), args->faults, args->runs, args->seed,
@@ -116,7 +103,7 @@ void add_campaign(CLI::App& app, Command* run) {
       const ts::CampaignSummary summary =
           ts::aggregate(records, options.kinds, options.scenario.filename().string(), options.seed);
       ts::write_campaign(options.out, summary, records);
-      if (args->video) record_failed_runs(options, records, args->video_fps, args->video_size);
+      if (args->video.on) record_failed_runs(options, records, args->video);
       std::printf("%s", ts::format_markdown(summary, records).c_str());
       std::printf("outputs in %s\n", args->out.c_str());
       return 0;

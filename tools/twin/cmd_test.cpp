@@ -18,7 +18,6 @@
 
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/scenario/suite.hpp"
-#include "cellwright/twin/video.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
 #include "run_args.hpp"
@@ -29,7 +28,7 @@ namespace {
 
 // --video: the failed scenarios run again with a video each, a line for each as its video is made or not.
 void record_videos(std::vector<twin::scenario::CaseResult>& results, const twin::scenario::SuiteOptions& options,
-                   int fps, const std::string& size) {
+                   const VideoFlag& flag) {
   namespace ts = twin::scenario;
   const auto failed = static_cast<std::size_t>(std::count_if(
       results.begin(), results.end(), [](const ts::CaseResult& r) { return r.verdict == ts::Verdict::kFail; }));
@@ -38,8 +37,8 @@ void record_videos(std::vector<twin::scenario::CaseResult>& results, const twin:
               failed == 1 ? "" : "s");
   std::fflush(stdout);
   ts::VideoSettings video;
-  video.fps = fps;
-  video.size = size;
+  video.fps = flag.fps;
+  video.size = flag.size;
   ProgressBar bar;
   ts::VideoCallbacks callbacks;
   callbacks.progress = [&](std::size_t done, std::size_t total) {
@@ -76,9 +75,7 @@ void add_test(CLI::App& app, Command* run) {
     bool keep = false;
     std::optional<std::uint64_t> seed;
     std::optional<double> timeout;
-    bool video = false;
-    int video_fps = 20;
-    std::string video_size = "800x600";
+    VideoFlag video;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("paths", args->paths, "scenario files and folders of them (default: scenes)");
@@ -92,13 +89,9 @@ void add_test(CLI::App& app, Command* run) {
   cmd->add_option("--timeout", args->timeout,
                   "s of wall time after which a scenario is killed and counts as hung (default: the scenario's own "
                   "wall-time limit plus 60 s, 600 s when it has none)");
-  cmd->add_flag("--video", args->video,
-                "record a video of each failed scenario (FAIL: an expectation did not hold) as DIR/NAME/video.mp4, "
-                "shown by its report page: the scenario is run again, lock-step, after the suite");
-  cmd->add_option("--video-fps", args->video_fps, "with --video: frames per second of simulated time (default 20)")
-      ->check(CLI::Range(1, 120));
-  cmd->add_option("--video-size", args->video_size,
-                  "with --video: width x height in pixels, both even (default 800x600)");
+  add_video_flag(*cmd, args->video,
+                 "record a video of each failed scenario (FAIL: an expectation did not hold) as DIR/NAME/video.mp4, "
+                 "shown by its report page: the scenario is run again, lock-step, after the suite");
   cmd->callback([run, args] {
     *run = [args] {
       namespace ts = twin::scenario;
@@ -106,13 +99,7 @@ void add_test(CLI::App& app, Command* run) {
       const auto start = std::chrono::steady_clock::now();
       std::vector<fs::path> paths(args->paths.begin(), args->paths.end());
       if (paths.empty()) paths.emplace_back("scenes");
-      if (args->video) {  // the size, the rate and ffmpeg checked now, not after the suite has run
-        RunArgs video;
-        video.video_fps = args->video_fps;
-        video.video_size = args->video_size;
-        (void)video_options_for(video);
-        twin::VideoWriter::check_encoder({"--video", 0, 0});
-      }
+      check_video_flag(args->video);  // the size, the rate and ffmpeg checked now, not after the suite has run
       const ts::Discovery found = ts::discover(paths);
       if (!args->junit.empty()) ts::check_writable_file(args->junit);
       const bool temporary = args->out.empty();
@@ -148,7 +135,7 @@ void add_test(CLI::App& app, Command* run) {
       std::vector<ts::CaseResult> results = ts::run_suite(cases, options, callbacks);
       bar.finish();
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      if (args->video) record_videos(results, options, args->video_fps, args->video_size);
+      if (args->video.on) record_videos(results, options, args->video);
 
       if (!args->junit.empty()) {
         const fs::path junit = args->junit;

@@ -124,6 +124,22 @@ twin::VideoOptions video_options_for(const RunArgs& args) {
   return video;
 }
 
+void add_video_flag(CLI::App& cmd, VideoFlag& video, const std::string& help) {
+  cmd.add_flag("--video", video.on, help);
+  cmd.add_option("--video-fps", video.fps, "with --video: frames per second of simulated time (default 20)")
+      ->check(CLI::Range(1, 120));
+  cmd.add_option("--video-size", video.size, "with --video: width x height in pixels, both even (default 800x600)");
+}
+
+void check_video_flag(const VideoFlag& video) {
+  if (!video.on) return;
+  RunArgs args;
+  args.video_fps = video.fps;
+  args.video_size = video.size;
+  (void)video_options_for(args);
+  twin::VideoWriter::check_encoder({"--video", 0, 0});
+}
+
 twin::scenario::Report run_for_video(const RunArgs& args) {
   using namespace twin::scenario;
   CW_CHECK(!args.video.empty(), "run_for_video needs a video file");

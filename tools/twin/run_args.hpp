@@ -49,6 +49,22 @@ twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scen
 // the option); the file is checked when the video opens.
 twin::VideoOptions video_options_for(const RunArgs& args);
 
+// `--video` as a flag, for the commands that record the runs that failed after the fact (`twin campaign`, `twin
+// test`): the flag and the rate and size of the videos.
+struct VideoFlag {
+  bool on = false;
+  int fps = 20;
+  std::string size = "800x600";
+};
+
+// Adds --video (a flag, described by `help`), --video-fps and --video-size to `cmd`, stored in `video` (which must
+// outlive the parse).
+void add_video_flag(CLI::App& cmd, VideoFlag& video, const std::string& help);
+
+// With --video given: the size and rate checked (as video_options_for) and ffmpeg found (VideoWriter::check_encoder),
+// before anything runs. InputError naming the option otherwise; nothing without --video.
+void check_video_flag(const VideoFlag& video);
+
 // Runs the scenario of `args` (with its faults and seed) lock-step, quietly, with no outputs but its video
 // (args.video must be set): `twin campaign --video` re-runs a failed run this way, which gives the run it had (the
 // same events, lock-step). Returns the report. InputError as `twin run`, or when preflight refuses the scenario.

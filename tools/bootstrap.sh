@@ -33,7 +33,12 @@ fi
 
 build=${BUILD_DIR:-build}
 jobs=${JOBS:-$(nproc)}
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCW_SANITIZE="${CW_SANITIZE:-}"
+# Optimised, with line tables only (-g1): backtraces, sanitizer reports and gdb's `bt` keep their file:line, and the
+# build takes about a quarter less time than with -g (one core: twin/src/scenario/run.cpp 15.3 s against 19.1 s,
+# tests/twin/sim/world_test.cpp 9.5 s against 13.8 s). For a debugger that shows variables, configure a build of your
+# own with -DCMAKE_BUILD_TYPE=RelWithDebInfo or Debug (docs/CONTRIBUTING.md).
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
+  -DCW_SANITIZE="${CW_SANITIZE:-}"
 cmake --build "$build" -j "$jobs"
 
 # Rendering is headless everywhere: MuJoCo and our renderer use OSMesa, never a display.

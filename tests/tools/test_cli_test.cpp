@@ -1,7 +1,7 @@
 // `twin test` as CI runs it: bad input is refused with exit 2 before anything runs; a folder of two small scenarios,
 // one passing and one failing its expectation, gives exit 1, a line each, the totals, the failing one's outputs kept
 // and the passing one's removed, and JUnit XML that parses; a passing suite in the default temporary folder leaves
-// nothing behind.
+// nothing behind; --video records the failing one.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <tinyxml2.h>
@@ -134,7 +134,8 @@ TEST(TestCli, APassingSuiteInTheTemporaryFolderLeavesNothingBehind) {
 }
 
 // --video: the failed scenario is run again with a video, which joins its kept outputs with the page that shows it;
-// the passing one is not recorded. A video size that cannot be is refused before anything runs.
+// the passing one is not recorded. A video size that cannot be, or --video-fps without --video, is refused before
+// anything runs.
 TEST(TestCli, VideoOfEachFailedScenario) {
   TwinCli cli("cw-test-cli-video");
   const fs::path suite = cli.dir() / "suite", out = cli.dir() / "out";
@@ -145,7 +146,13 @@ TEST(TestCli, VideoOfEachFailedScenario) {
   EXPECT_THAT(refused.err, HasSubstr("even"));
   EXPECT_FALSE(fs::exists(out));
 
-  const Outcome r = cli.run("test " + q(suite) + " -o " + q(out) + " --jobs 2 --video --video-fps 5 --video-size 160x120");
+  const Outcome alone = cli.run("test " + q(suite) + " -o " + q(out) + " --video-fps 5");
+  EXPECT_EQ(alone.status, 2) << alone.out << alone.err;
+  EXPECT_THAT(alone.err, HasSubstr("--video"));
+  EXPECT_FALSE(fs::exists(out));
+
+  const Outcome r =
+      cli.run("test " + q(suite) + " -o " + q(out) + " --jobs 2 --video --video-fps 5 --video-size 160x120");
   ASSERT_EQ(r.status, 1) << r.out << r.err;
   EXPECT_THAT(r.out, HasSubstr("recording the video of 1 failed scenario\n"));
   EXPECT_THAT(r.out, HasSubstr("video of bad in " + (out / "bad" / "video.mp4").string() + "\n"));

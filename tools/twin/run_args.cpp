@@ -39,12 +39,14 @@ void add_run_options(CLI::App& cmd, RunArgs& args) {
   cmd.add_option("--save-frames", args.frames,
                  "write each camera frame as DIR/frame_<ms>.png with its simulated time; with vision, the detections, "
                  "the predicted poses and the parts not seen drawn on it; without, plain frames every vision period");
-  cmd.add_option("--video", args.video,
+  CLI::Option* video = cmd.add_option("--video", args.video,
                  "record the overview camera as FILE.mp4 (H.264, plays in a browser): simulated time, each robot's "
                  "command and the verdict drawn on it; the event log is the same with or without");
   cmd.add_option("--video-fps", args.video_fps, "video frames per second of simulated time (default 20)")
-      ->check(CLI::Range(1, 120));
-  cmd.add_option("--video-size", args.video_size, "video width x height in pixels, both even (default 800x600)");
+      ->check(CLI::Range(1, 120))
+      ->needs(video);
+  cmd.add_option("--video-size", args.video_size, "video width x height in pixels, both even (default 800x600)")
+      ->needs(video);
   cmd.add_flag("--allow-collisions", args.allow_collisions,
                "run even though the preflight's motion sweep predicts collisions (printed as warnings)");
 }
@@ -125,10 +127,12 @@ twin::VideoOptions video_options_for(const RunArgs& args) {
 }
 
 void add_video_flag(CLI::App& cmd, VideoFlag& video, const std::string& help) {
-  cmd.add_flag("--video", video.on, help);
+  CLI::Option* flag = cmd.add_flag("--video", video.on, help);
   cmd.add_option("--video-fps", video.fps, "with --video: frames per second of simulated time (default 20)")
-      ->check(CLI::Range(1, 120));
-  cmd.add_option("--video-size", video.size, "with --video: width x height in pixels, both even (default 800x600)");
+      ->check(CLI::Range(1, 120))
+      ->needs(flag);
+  cmd.add_option("--video-size", video.size, "with --video: width x height in pixels, both even (default 800x600)")
+      ->needs(flag);
 }
 
 void check_video_flag(const VideoFlag& video) {

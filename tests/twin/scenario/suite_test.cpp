@@ -514,21 +514,58 @@ TEST(SuiteVideos, EachFailedScenarioIsRunAgainAndItsVideoJoinsItsOutputs) {
             fmt::format("run {} -o {} --quiet --video {} --video-fps 5 --video-size 160x120 --seed 7\n",
                         (kScenes / "same.yaml").string(), rerun.string(), (rerun / "video.mp4").string()));
 
+  // Another run: the video is kept, but the first run's page stays with its report; the re-run's goes beside it.
   const CaseResult& differs = results[2];
   EXPECT_EQ(differs.video, out / "differs" / "video.mp4");
   EXPECT_THAT(differs.video_note, HasSubstr("shows another run"));
+  EXPECT_EQ(slurp(out / "differs" / "index.html"), "page without video\n");
+  EXPECT_EQ(slurp(out / "differs" / "video.html"), "<video src=\"video.mp4\">\n");
+  EXPECT_EQ(slurp(out / "differs" / "events.jsonl"), "first run\n");
 
   const CaseResult& novideo = results[3];
   EXPECT_TRUE(novideo.video.empty());
-  EXPECT_EQ(novideo.video_note, "twin: error: ffmpeg: Unknown encoder libx264");
+  EXPECT_THAT(novideo.video_note,
+              ::testing::StartsWith("twin: error: ffmpeg: Unknown encoder libx264 (its stderr in "));
+  EXPECT_EQ(slurp(out / "novideo" / "video-stderr.txt"), "twin: error: ffmpeg: Unknown encoder libx264\n");
   EXPECT_EQ(slurp(out / "novideo" / "index.html"), "page without video\n");  // the first run's page stays
   EXPECT_FALSE(fs::exists(out / "novideo" / "video.mp4"));
   EXPECT_FALSE(fs::exists(out / "novideo" / ".video"));
 
-  // The JUnit failure names the video.
+  // The JUnit failure names the video, and says what to know of it.
   const std::string xml = format_junit(results, 1);
   EXPECT_THAT(xml, HasSubstr("video in " + (out / "same" / "video.mp4").string()));
   EXPECT_EQ(xml.find("video in " + (out / "novideo").string()), std::string::npos);
+  EXPECT_THAT(xml, HasSubstr("video: the re-run's event log differs"));
+}
+
+TEST(SuiteVideos, ReRunsThatCannotStartLeaveNothingBehind) {
+  Scratch scratch("video-nostart");
+  const fs::path out = scratch.dir() / "out";
+  SuiteCase c;
+  c.scenario = kScenes / "same.yaml";
+  c.name = "same";
+  c.dir = out / "same";
+  c.timeout = 30;
+  SuiteOptions o;
+  o.executable = fake_video_twin(scratch.dir());
+  std::vector<CaseResult> results = run_suite({c}, o);
+  ASSERT_EQ(results[0].verdict, Verdict::kFail);
+  o.executable = scratch.dir() / "no-such-twin";
+  EXPECT_THROW(record_videos(results, o, VideoSettings{}), InputError);
+  EXPECT_FALSE(fs::exists(c.dir / ".video"));
+  EXPECT_TRUE(results[0].video.empty());
+  EXPECT_EQ(slurp(c.dir / "index.html"), "page without video\n");
+}
+
+TEST(SuiteVideos, TheReRunsTimeLimitFollowsTheFirstRun) {
+  CaseResult r;
+  r.test.timeout = 600;  // a scenario without a wall-time limit
+  r.end.wall_time = 5;
+  EXPECT_EQ(video_timeout(r, 25), 125);
+  r.end.wall_time = 0.5;
+  EXPECT_EQ(video_timeout(r, 25), 60);  // at least a minute: ffmpeg and the renderer start
+  r.test.timeout = 2;
+  EXPECT_EQ(video_timeout(r, 25), 50);  // never more than the slowdown times the scenario's limit
 }
 
 TEST(SuiteJudge, ExitStatusAndReportMustAgreeToPass) {

@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <set>
 #include <thread>
@@ -21,6 +22,7 @@
 #include "cellwright/models/yaml_fields.hpp"
 #include "cellwright/runtime/recovery.hpp"
 #include "cellwright/twin/scenario/campaign.hpp"
+#include "cellwright/twin/scenario/run.hpp"
 
 namespace cellwright::twin::scenario {
 
@@ -308,10 +310,12 @@ std::string format_progress(const SuiteProgress& p, int width) {
 
 namespace {
 
-// `twin run SCENARIO -o DIR --quiet [--seed S]` for a case, its outputs in `dir`.
-ChildSpec run_child(const SuiteCase& c, const fs::path& dir, const SuiteOptions& options) {
+// `twin run SCENARIO -o DIR --quiet [EXTRA...] [--seed S]` for a case, its outputs in `dir`.
+ChildSpec run_child(const SuiteCase& c, const fs::path& dir, const SuiteOptions& options,
+                    const std::vector<std::string>& extra = {}) {
   ChildSpec spec;
   spec.args = {"run", fs::absolute(c.scenario).string(), "-o", dir.string(), "--quiet"};
+  spec.args.insert(spec.args.end(), extra.begin(), extra.end());
   if (options.seed) {
     spec.args.push_back("--seed");
     spec.args.push_back(std::to_string(*options.seed));
@@ -366,16 +370,64 @@ std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const Sui
 namespace {
 
 constexpr const char* kVideoDir = ".video";  // DIR/.video: the re-run's outputs, removed once its video is moved
+constexpr const char* kVideoFile = "video.mp4";
+constexpr const char* kVideoPage = "video.html";      // the re-run's page, when it was another run than the first
+constexpr const char* kVideoStderr = "video-stderr.txt";  // the re-run's stderr, when it made no video
+
+// Whether two files hold the same bytes, read a block at a time (an event log may be large). False when either
+// cannot be read.
+bool same_bytes(const fs::path& a, const fs::path& b) {
+  std::error_code ec1, ec2;
+  const auto size_a = fs::file_size(a, ec1), size_b = fs::file_size(b, ec2);
+  if (ec1 || ec2 || size_a != size_b) return false;
+  std::ifstream fa(a, std::ios::binary), fb(b, std::ios::binary);
+  if (!fa || !fb) return false;
+  std::vector<char> ba(1 << 16), bb(1 << 16);
+  while (fa && fb) {
+    fa.read(ba.data(), static_cast<std::streamsize>(ba.size()));
+    fb.read(bb.data(), static_cast<std::streamsize>(bb.size()));
+    if (fa.gcount() != fb.gcount() || !std::equal(ba.begin(), ba.begin() + fa.gcount(), bb.begin())) return false;
+  }
+  return fa.eof() && fb.eof();
+}
+
+// fs::exists, false when it cannot tell (no exception: a failed look is a file not there).
+bool present(const fs::path& p) {
+  std::error_code ec;
+  return fs::exists(p, ec);
+}
 
 // What went wrong with a re-run that made no video, one line.
 std::string no_video_because(const ChildEnd& end, const fs::path& video) {
   if (end.status != RunStatus::kDone) return end.problem;
   if (!end.first_error.empty()) return end.first_error;
-  if (!fs::exists(video)) return fmt::format("the re-run (exit {}) wrote no {}", end.exit_code, video.string());
+  if (!present(video)) return fmt::format("the re-run (exit {}) wrote no {}", end.exit_code, video.string());
   return fmt::format("the re-run ended with exit {}", end.exit_code);
 }
 
+// Moves the re-run's video (and its page) from `from` (DIR/.video) into the case's directory; sets r.video and
+// r.video_note. Throws InputError as move_file.
+void take_video(CaseResult& r, const fs::path& from) {
+  move_file(from / kVideoFile, r.test.dir / kVideoFile);
+  r.video = r.test.dir / kVideoFile;
+  const bool same_run = same_bytes(from / kEventsFile, r.test.dir / kEventsFile);
+  if (same_run) {
+    if (present(from / kPageFile)) move_file(from / kPageFile, r.test.dir / kPageFile);
+    return;
+  }
+  // Another run (a scenario in real time): the first run's page, report and pictures stay together; the re-run's
+  // page, which shows the video with that run's verdict, goes beside them.
+  r.video_note = fmt::format("the re-run's event log differs from the run's (a scenario in real time): the video "
+                             "shows another run of it, with its page {}",
+                             kVideoPage);
+  if (present(from / kPageFile)) move_file(from / kPageFile, r.test.dir / kVideoPage);
+}
+
 }  // namespace
+
+double video_timeout(const CaseResult& r, double slowdown) {
+  return std::min(r.test.timeout * slowdown, std::max(60.0, r.end.wall_time * slowdown));
+}
 
 void record_videos(std::vector<CaseResult>& results, const SuiteOptions& options, const VideoSettings& video,
                    const VideoCallbacks& callbacks) {
@@ -385,13 +437,14 @@ void record_videos(std::vector<CaseResult>& results, const SuiteOptions& options
     const CaseResult& r = results[i];
     if (r.verdict != Verdict::kFail || !r.kept) continue;
     const fs::path dir = r.test.dir / kVideoDir;
-    ChildSpec spec = run_child(r.test, dir, options);  // run SCENARIO -o DIR --quiet [--seed S]
-    spec.args.insert(spec.args.begin() + 5, {"--video", (dir / "video.mp4").string(), "--video-fps",
-                                       std::to_string(video.fps), "--video-size", video.size});
-    spec.timeout = r.test.timeout * video.slowdown;
+    ChildSpec spec = run_child(r.test, dir, options,
+                               {"--video", (dir / kVideoFile).string(), "--video-fps", std::to_string(video.fps),
+                                "--video-size", video.size});
+    spec.timeout = video_timeout(r, video.slowdown);
     which.push_back(i);
     children.push_back(std::move(spec));
   }
+  if (children.empty()) return;
   std::size_t done = 0;
   auto progress = [&] {
     if (callbacks.progress) callbacks.progress(done, which.size());
@@ -399,23 +452,27 @@ void record_videos(std::vector<CaseResult>& results, const SuiteOptions& options
   ChildCallbacks cb;
   cb.ended = [&](std::size_t k, const ChildEnd& end) {
     CaseResult& r = results[which[k]];
-    const fs::path dir = r.test.dir / kVideoDir, made = dir / "video.mp4";
+    const fs::path dir = r.test.dir / kVideoDir;
     // exit 1 is the failure again; exit 0 would be a run that passed this time (only in real time): still a video.
-    const bool ok = end.status == RunStatus::kDone && (end.exit_code == 0 || end.exit_code == 1) && fs::exists(made);
-    if (ok) {
+    const bool made = end.status == RunStatus::kDone && (end.exit_code == 0 || end.exit_code == 1) &&
+                      present(dir / kVideoFile);
+    if (made) {
       try {
-        move_file(made, r.test.dir / "video.mp4");
-        if (fs::exists(dir / "index.html")) move_file(dir / "index.html", r.test.dir / "index.html");
-        r.video = r.test.dir / "video.mp4";
-        if (slurp_or_empty(dir / "events.jsonl") != slurp_or_empty(r.test.dir / "events.jsonl")) {
-          r.video_note = "the re-run's event log differs from the run's (a scenario in real time): the video shows "
-                         "another run of it";
-        }
+        take_video(r, dir);
       } catch (const InputError& e) {
         r.video_note = e.what();
       }
     } else {
-      r.video_note = no_video_because(end, made);
+      r.video_note = no_video_because(end, dir / kVideoFile);
+      std::error_code ec;
+      if (fs::file_size(dir / kChildStderr, ec) > 0 && !ec) {
+        try {
+          move_file(dir / kChildStderr, r.test.dir / kVideoStderr);
+          r.video_note += fmt::format(" (its stderr in {})", (r.test.dir / kVideoStderr).string());
+        } catch (const InputError&) {
+          // the note has the first line already
+        }
+      }
     }
     std::error_code ec;
     fs::remove_all(dir, ec);
@@ -424,9 +481,16 @@ void record_videos(std::vector<CaseResult>& results, const SuiteOptions& options
     progress();
   };
   cb.started = [&](std::size_t) { progress(); };
-  if (children.empty()) return;
   progress();
-  run_children(options.executable, children, jobs_of(options), cb);
+  try {
+    run_children(options.executable, children, jobs_of(options), cb);
+  } catch (...) {  // the children were killed: no half-made re-run is left behind
+    for (const ChildSpec& c : children) {
+      std::error_code ec;
+      fs::remove_all(c.dir, ec);
+    }
+    throw;
+  }
 }
 
 // --- Reporting -------------------------------------------------------------------------------------------------------
@@ -542,6 +606,7 @@ std::string format_junit(const std::vector<CaseResult>& results, double wall_tim
       for (const std::string& f : r.failures) body += f + "\n";
       if (r.kept) body += fmt::format("outputs in {}\n", r.test.dir.string());
       if (!r.video.empty()) body += fmt::format("video in {}\n", r.video.string());
+      if (!r.video_note.empty()) body += fmt::format("video: {}\n", r.video_note);
       w.open(r.verdict == Verdict::kFail ? "failure" : "error",
              {{"message", xml_safe(r.message)}, {"type", to_string(r.verdict)}});
       w.text(xml_safe(body));

@@ -163,9 +163,9 @@ std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const Sui
 // --- Videos of the failed scenarios --------------------------------------------------------------------------------
 
 struct VideoSettings {
-  int fps = 20;                    // --video-fps
-  std::string size = "800x600";    // --video-size
-  double slowdown = 25;            // the re-run's time limit is the case's timeout times this (a video costs ~20x)
+  int fps = 20;                  // --video-fps
+  std::string size = "800x600";  // --video-size
+  double slowdown = 25;          // a video costs about 20 times a run's wall time: the re-run's time limit follows
 };
 
 struct VideoCallbacks {
@@ -173,15 +173,22 @@ struct VideoCallbacks {
   std::function<void(const CaseResult&)> ended;                       // a re-run ended (its video or note set)
 };
 
+// The time limit of a failed scenario's re-run with a video: `slowdown` times the first run's wall time, at least
+// 60 s, and at most `slowdown` times the scenario's own limit.
+double video_timeout(const CaseResult& result, double slowdown);
+
 // Runs every FAILed scenario of `results` whose outputs were kept again, as `EXE run SCENARIO -o DIR/.video --quiet
-// --video DIR/.video/video.mp4 --video-fps F --video-size WxH [--seed S]` children (at most options.jobs at a time),
-// and moves the video and the report page that shows it (index.html, replacing the one without) into DIR, then
-// removes DIR/.video. Lock-step runs are deterministic, so the re-run is the run that failed; when its event log
-// differs from the first run's (a scenario run in real time) the video is kept and `video_note` says it shows
-// another run. A re-run that does not end with a report, or makes no video, leaves `video` empty and says why in
-// `video_note` (its stderr's first line); the first run's outputs are untouched. Only FAILs are re-run: an ERROR
-// would be refused again, a CRASH or HANG would crash or hang again, a PASS has nothing to look at. Throws
-// InputError as run_children.
+// --video DIR/.video/video.mp4 --video-fps F --video-size WxH [--seed S]` children (at most options.jobs at a time,
+// each killed at video_timeout()), then moves the video into DIR and removes DIR/.video. Lock-step runs are
+// deterministic, so the re-run is the run that failed: when the two event logs are the same, the re-run's report page
+// (index.html, which shows the video) replaces the first run's. When they differ (a scenario run in real time) the
+// first run's page stays with its report and pictures, the re-run's page goes beside it as video.html, and
+// `video_note` says the video shows another run. A re-run that does not end with a report, or makes no video, leaves
+// `video` empty and says why in `video_note` (its stderr's first line; the whole of it kept as
+// DIR/video-stderr.txt); the first run's outputs are untouched. Only FAILs are re-run: an ERROR would be refused
+// again, a CRASH or HANG would crash or hang again, a PASS has nothing to look at. Throws InputError as run_children
+// (a directory that cannot be made, a child that cannot be started), after killing the re-runs and removing every
+// DIR/.video; the videos already moved stay.
 void record_videos(std::vector<CaseResult>& results, const SuiteOptions& options, const VideoSettings& video,
                    const VideoCallbacks& callbacks = {});
 
@@ -203,9 +210,9 @@ std::string format_totals(const std::vector<CaseResult>& results);
 // time="WALL"> per result; a fail holds <failure message="FIRST FAILURE" type="fail"> with every failure, one a line,
 // and where the outputs are; an error, crash or hang <error message="..." type="error|crash|hang">. Every test case
 // has the child's stdout (the report's text) in <system-out> and its stderr, when any, in <system-err>; a failure's
-// text names its video when there is one. Text is made fit for any XML 1.0 reader: control characters other than
-// tab, newline and carriage return, and bytes that are not UTF-8, become U+FFFD; the XML writer (common/xml.hpp)
-// escapes the rest.
+// text names its video when there is one, and what to know of it (video_note). Text is made fit for any XML 1.0
+// reader: control characters other than tab, newline and carriage return, and bytes that are not UTF-8, become
+// U+FFFD; the XML writer (common/xml.hpp) escapes the rest.
 std::string format_junit(const std::vector<CaseResult>& results, double wall_time);
 
 }  // namespace cellwright::twin::scenario

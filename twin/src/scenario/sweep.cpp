@@ -511,7 +511,11 @@ SweepReport sweep_motions(const Scenario& s, const petri::Net& net, const Motion
     }
     return false;
   };
-  for (const auto& [r, a, q, b] : together) {
+  for (const auto& pair : together) {
+    // Named copies, not structured bindings: clang before 16 (Debian 12's 14, used for the fuzz build) does not let a
+    // lambda capture a structured binding.
+    const auto [r, a, q, b] = pair;
+    const auto key = pair;
     const Span& sa = spans[r][a];
     const Span& sb = spans[q][b];
     ++report.pairs;
@@ -528,7 +532,7 @@ SweepReport sweep_motions(const Scenario& s, const petri::Net& net, const Motion
                             if (!of_span(other, sb)) return;
                             if (shared && (mine.owner == Owner::kPart || other.owner == Owner::kPart))
                               return;  // both hands grip it
-                            PredictedCollision& pc = found_pairs[{r, a, q, b}];
+                            PredictedCollision& pc = found_pairs[key];
                             if (pc.a.robot.empty()) {
                               pc.a = {scene.robots()[static_cast<std::size_t>(sa.scene_robot)].name,
                                       mine.name,

@@ -105,43 +105,55 @@ int line_in(const std::map<std::string, int>& lines, const std::string& name) {
   return it == lines.end() ? 0 : it->second;
 }
 
-// urdfdom's links hold their children by shared_ptr: on a loop of links they hold each other and would never be freed
-// (found by tests/fuzz/urdf_fuzz under LeakSanitizer). Dropping every child link before a refusal breaks the loops.
-[[noreturn]] void refuse_not_a_tree(const urdf::ModelInterface& model, const SourceLocation& where,
-                                    std::string problem) {
-  for (const auto& link : model.links_) link.second->child_links.clear();
-  throw InputError(where, std::move(problem));
-}
-
 // urdfdom accepts a joint whose parent is its child, a link that is the child of two joints (the last one wins) and
-// a loop of joints; a walk along the links would then never end. Refused at the joint that closes the loop.
-void check_tree(const urdf::ModelInterface& model, const UrdfModel& out) {
-  std::map<std::string, const urdf::Joint*> parent_joint;  // child link -> its joint
-  for (const auto& [name, joint] : model.joints_) {
-    if (joint->child_link_name == joint->parent_link_name) {
-      refuse_not_a_tree(model, out.joint_at(name),
-                        fmt::format("joint '{}' has link '{}' as both its parent and its child", name,
-                                    joint->child_link_name));
+// a loop of joints; a walk along the links would then never end. And its links hold their children by shared_ptr: on
+// a loop they hold each other and are never freed, even when urdfdom itself then refuses the file for want of a root
+// (found by tests/fuzz/urdf_fuzz under LeakSanitizer, twice: after urdfdom accepted a loop, and after it refused one).
+// So the joints' parents and children are read from the XML (as urdfdom reads them: each <joint name> directly under
+// <robot>, its first <parent link> and <child link>) and a file that is not a tree is refused at the joint that breaks
+// it before urdfdom sees it. Joints without those are left to urdfdom, which refuses them before it links anything.
+void check_tree(const tinyxml2::XMLElement* robot, const std::string& file) {
+  struct Joint {
+    std::string parent, child;
+    int line = 0;
+  };
+  std::map<std::string, Joint> joints;  // by name, the order urdfdom keeps them in
+  for (const tinyxml2::XMLElement* e = robot->FirstChildElement("joint"); e != nullptr;
+       e = e->NextSiblingElement("joint")) {
+    const tinyxml2::XMLElement* parent = e->FirstChildElement("parent");
+    const tinyxml2::XMLElement* child = e->FirstChildElement("child");
+    const char* name = e->Attribute("name");
+    const char* parent_link = parent != nullptr ? parent->Attribute("link") : nullptr;
+    const char* child_link = child != nullptr ? child->Attribute("link") : nullptr;
+    if (name == nullptr || parent_link == nullptr || child_link == nullptr) continue;
+    joints.emplace(name, Joint{parent_link, child_link, e->GetLineNum()});
+  }
+  std::map<std::string, const std::string*> parent_joint;  // child link -> the name of its joint
+  for (const auto& [name, joint] : joints) {
+    if (joint.child == joint.parent) {
+      throw InputError({file, joint.line},
+                       fmt::format("joint '{}' has link '{}' as both its parent and its child", name, joint.child));
     }
-    const auto [it, first] = parent_joint.emplace(joint->child_link_name, joint.get());
+    const auto [it, first] = parent_joint.emplace(joint.child, &name);
     if (!first) {
-      refuse_not_a_tree(model, out.joint_at(name),
-                        fmt::format("link '{}' is the child of joints '{}' and '{}'; a URDF is a tree, each link has "
-                                    "one parent",
-                                    joint->child_link_name, it->second->name, name));
+      throw InputError({file, joint.line},
+                       fmt::format("link '{}' is the child of joints '{}' and '{}'; a URDF is a tree, each link has "
+                                   "one parent",
+                                   joint.child, *it->second, name));
     }
   }
   // One parent each: a link whose parents do not end at the root within as many steps as there are links is on a loop.
   for (const auto& start : parent_joint) {
-    const urdf::Joint* joint = start.second;
-    for (std::size_t steps = 0; joint != nullptr; ++steps) {
+    const std::string* name = start.second;
+    for (std::size_t steps = 0; name != nullptr; ++steps) {
+      const Joint& joint = joints.at(*name);
       if (steps > parent_joint.size()) {
-        refuse_not_a_tree(model, out.joint_at(joint->name),
-                          fmt::format("joint '{}' closes a loop of joints through link '{}'; a URDF is a tree",
-                                      joint->name, joint->child_link_name));
+        throw InputError({file, joint.line},
+                         fmt::format("joint '{}' closes a loop of joints through link '{}'; a URDF is a tree", *name,
+                                     joint.child));
       }
-      const auto up = parent_joint.find(joint->parent_link_name);
-      joint = up == parent_joint.end() ? nullptr : up->second;
+      const auto up = parent_joint.find(joint.parent);
+      name = up == parent_joint.end() ? nullptr : up->second;
     }
   }
 }
@@ -184,6 +196,7 @@ UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {
   }
   index_lines(root, out.link_lines_, out.joint_lines_);
   index_meshes(root, out.mesh_lines_);
+  check_tree(root, file_label);
 
   urdf::ModelInterfaceSharedPtr model;
   std::vector<std::string> messages;
@@ -211,7 +224,6 @@ UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {
     }
     throw InputError({file_label, line}, fmt::format("invalid URDF: {}", problem));
   }
-  check_tree(*model, out);
   out.robot_ = std::move(model);
   return out;
 }

@@ -1,6 +1,6 @@
 // What every `twin` command shares, as a user meets it: --version, a mistyped command named as such, exit codes in
-// every --help, output directories checked before anything runs, an empty program refused, and long analyses that
-// show progress, stop on Ctrl-C and say when a net is too large.
+// every --help, output directories checked before anything runs, options that would be ignored refused, an empty
+// program refused, and long analyses that show progress, stop on Ctrl-C and say when a net is too large.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -63,6 +63,32 @@ TEST(Cli, OutputDirectoryIsCheckedBeforeAnythingRuns) {
   EXPECT_EQ(campaign.status, 2) << campaign.out << campaign.err;
   EXPECT_THAT(campaign.err, HasSubstr("not a directory"));
   EXPECT_EQ(slurp(file), "a file, not a directory\n");
+}
+
+// Options that would be ignored are refused instead: the old --out beside -o/--output (which one was meant?), and a
+// run's outputs or pace with --dry, a bring-up that runs no program and writes nothing. Exit 2, nothing written.
+TEST(Cli, OptionsThatWouldBeIgnoredAreRefused) {
+  TwinCli cli("cw-cli");
+  const std::string scenario = shell_quote(source_path("scenes/exchange.yaml"));
+  const std::string a = shell_quote((cli.dir() / "a").string()), b = shell_quote((cli.dir() / "b").string());
+  for (const std::string& args :
+       {"run " + scenario + " -o " + a + " --out " + b, "step " + scenario + " --output " + a + " --out " + b,
+        "campaign " + scenario + " --runs 1 -o " + a + " --out " + b,
+        "compile " + shell_quote(source_path("scenes/exchange.task")) + " --robot-language --scenario " + scenario +
+            " -o " + a + " --out " + b}) {
+    const Outcome r = cli.run(args);
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.out << r.err;
+    EXPECT_THAT(r.err, HasSubstr("--out: error: the old name of -o/--output, given with it")) << args;
+  }
+  for (const std::string& option : {"-o " + a, "--video " + shell_quote((cli.dir() / "v.mp4").string()),
+                                    "--save-frames " + a, std::string("--realtime")}) {
+    const Outcome r = cli.run("run " + scenario + " --dry " + option);
+    EXPECT_EQ(r.status, 2) << option << "\n" << r.out << r.err;
+    EXPECT_THAT(r.err, HasSubstr("--dry: error: a bring-up runs no program and writes nothing: ")) << option;
+  }
+  EXPECT_FALSE(fs::exists(cli.dir() / "a"));
+  EXPECT_FALSE(fs::exists(cli.dir() / "b"));
+  EXPECT_FALSE(fs::exists(cli.dir() / "v.mp4"));
 }
 
 TEST(Cli, AnEmptyProgramIsBadInputNamingTheFile) {

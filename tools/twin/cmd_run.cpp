@@ -6,6 +6,8 @@
 // holds, 1 when not, 2 on bad input or a predicted collision (refused before any thread starts, nothing written).
 #include <unistd.h>
 
+#include <fmt/format.h>
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -105,10 +107,17 @@ void add_run(CLI::App& app, Command* run) {
   cmd->add_flag("--quiet", args->quiet, "no progress line");
   cmd->add_flag("--dry", args->dry,
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
-                "program; nothing else moves. Exit 0 when all is well, 1 when not");
-  cmd->callback([run, args] {
-    *run = [args] {
+                "program; nothing else moves and nothing is written. Exit 0 when all is well, 1 when not");
+  cmd->callback([run, args, cmd] {
+    *run = [args, cmd] {
       using namespace cellwright::twin::scenario;
+      // A bring-up runs no program: an option for a run's outputs or pace would be ignored, so it is refused.
+      for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime"}) {
+        if (args->dry && cmd->count(name) > 0) {
+          throw InputError({"--dry", 0, 0},
+                           fmt::format("a bring-up runs no program and writes nothing: {} would be ignored", name));
+        }
+      }
       const RunArgs& a = args->run;
       Scenario s = load_scenario_with(a);
       const Preflight pre = preflight(s);

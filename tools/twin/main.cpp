@@ -58,6 +58,12 @@ int main(int argc, char** argv) {
     return code == 0 ? 0 : 2;
   }
   try {
+    // --out, the old name of -o/--output, is still accepted; both at once are refused rather than one silently winning.
+    for (CLI::App* sub : app.get_subcommands()) {
+      if (sub->get_option_no_throw("--out") != nullptr && sub->count("--out") > 0 && sub->count("--output") > 0) {
+        throw cellwright::InputError({"--out", 0, 0}, "the old name of -o/--output, given with it: give one of them");
+      }
+    }
     return run ? run() : 2;
   } catch (const cellwright::InputError& e) {
     std::fprintf(stderr, "%s\n", e.what());

@@ -122,8 +122,8 @@ TEST(VisionCli, SavingFramesWithoutVisionWritesPlainCameraFrames) {
     if (f.path().extension() == ".png") pngs.push_back(f.path());
   }
   EXPECT_NEAR(static_cast<double>(pngs.size()), end / 0.4, 2.0);
-  ASSERT_TRUE(fs::exists(frames / "frame_000400.png"));
-  const cv::Mat frame = cv::imread((frames / "frame_000400.png").string(), cv::IMREAD_COLOR);
+  ASSERT_TRUE(fs::exists(frames / "frame_00000400.png"));
+  const cv::Mat frame = cv::imread((frames / "frame_00000400.png").string(), cv::IMREAD_COLOR);
   ASSERT_EQ(frame.cols, 640);
   EXPECT_GT(overlay_text_pixels(frame), 40);  // "t = 0.400 s": about 90 px
   EXPECT_EQ(run("without", ""), log);

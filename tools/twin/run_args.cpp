@@ -37,8 +37,9 @@ void add_run_options(CLI::App& cmd, RunArgs& args) {
   cmd.add_option("--seed", args.seed,
                  "the run's seed instead of the scenario's (random amounts of the faults, perturbations)");
   cmd.add_option("--save-frames", args.frames,
-                 "write each camera frame as DIR/frame_<ms>.png with its simulated time; with vision, the detections, "
-                 "the predicted poses and the parts not seen drawn on it; without, plain frames every vision period");
+                 "write each camera frame as DIR/frame_<ms>.png (8 digits) with its simulated time; with vision, the "
+                 "detections, the predicted poses and the parts not seen drawn on it; without, plain frames every "
+                 "vision period");
   CLI::Option* video = cmd.add_option("--video", args.video,
                  "record the overview camera as FILE.mp4 (H.264, plays in a browser): simulated time, each robot's "
                  "command and the verdict drawn on it; the event log is the same with or without");
@@ -110,7 +111,7 @@ twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scen
         vision::draw_frame_overlay(drawn, std::chrono::duration<double>(f.time).count(),
                                    vision::CameraModel(*cam, drawn.cols, drawn.rows), predicted, f.result.not_seen);
       }
-      twin::write_png(drawn, dir / fmt::format("frame_{:06}.png", ms));
+      twin::write_png(drawn, dir / fmt::format("frame_{:08}.png", ms));
     };
   }
   if (!args.output.empty()) options.events_file = streamed_events_file(args.output);

@@ -30,18 +30,19 @@ namespace {
 void record_videos(std::vector<twin::scenario::CaseResult>& results, const twin::scenario::SuiteOptions& options,
                    const VideoFlag& flag) {
   namespace ts = twin::scenario;
-  const auto failed = static_cast<std::size_t>(std::count_if(
-      results.begin(), results.end(), [](const ts::CaseResult& r) { return r.verdict == ts::Verdict::kFail; }));
-  if (failed == 0) return;
-  std::printf("recording the video%s of %zu failed scenario%s\n", failed == 1 ? "" : "s", failed,
-              failed == 1 ? "" : "s");
-  std::fflush(stdout);
   ts::VideoSettings video;
   video.fps = flag.fps;
   video.size = flag.size;
   ProgressBar bar;
   ts::VideoCallbacks callbacks;
+  bool announced = false;  // the library chooses the scenarios to record and says how many in its first report
   callbacks.progress = [&](std::size_t done, std::size_t total) {
+    if (!announced) {
+      std::printf("recording the video%s of %zu failed scenario%s\n", total == 1 ? "" : "s", total,
+                  total == 1 ? "" : "s");
+      std::fflush(stdout);
+      announced = true;
+    }
     bar.update(fmt::format("{}/{} videos", done, total), done, total);
   };
   callbacks.ended = [&](const ts::CaseResult& r) {

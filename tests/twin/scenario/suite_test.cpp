@@ -238,15 +238,20 @@ fs::path fake_twin(const fs::path& dir) {
   return p;
 }
 
+// A case of the stand-ins: scenes/NAME.yaml (the stand-in acts on the name alone), its outputs in OUT/NAME.
+SuiteCase stand_in_case(const fs::path& scenes, const std::string& name, const fs::path& out, double timeout = 30) {
+  SuiteCase c;
+  c.scenario = scenes / (name + ".yaml");
+  c.name = name;
+  c.dir = out / name;
+  c.timeout = timeout;
+  return c;
+}
+
 std::vector<SuiteCase> fake_cases(const fs::path& out) {
   std::vector<SuiteCase> cases;
-  for (const char* name : {"pass", "fail", "refused", "crash", "hang"}) {
-    SuiteCase c;
-    c.scenario = fs::path("scenes") / (std::string(name) + ".yaml");
-    c.name = name;
-    c.dir = out / name;
-    c.timeout = std::string(name) == "hang" ? 0.5 : 30;
-    cases.push_back(c);
+  for (const std::string name : {"pass", "fail", "refused", "crash", "hang"}) {
+    cases.push_back(stand_in_case("scenes", name, out, name == "hang" ? 0.5 : 30));
   }
   return cases;
 }
@@ -468,14 +473,7 @@ TEST(SuiteVideos, EachFailedScenarioIsRunAgainAndItsVideoJoinsItsOutputs) {
   Scratch scratch("video");
   const fs::path out = scratch.dir() / "out";
   std::vector<SuiteCase> cases;
-  for (const char* name : {"pass", "same", "differs", "novideo"}) {
-    SuiteCase c;
-    c.scenario = kScenes / (std::string(name) + ".yaml");
-    c.name = name;
-    c.dir = out / name;
-    c.timeout = 30;
-    cases.push_back(c);
-  }
+  for (const char* name : {"pass", "same", "differs", "novideo"}) cases.push_back(stand_in_case(kScenes, name, out));
   SuiteOptions o;
   o.executable = fake_video_twin(scratch.dir());
   o.jobs = 2;
@@ -541,11 +539,7 @@ TEST(SuiteVideos, EachFailedScenarioIsRunAgainAndItsVideoJoinsItsOutputs) {
 TEST(SuiteVideos, ReRunsThatCannotStartLeaveNothingBehind) {
   Scratch scratch("video-nostart");
   const fs::path out = scratch.dir() / "out";
-  SuiteCase c;
-  c.scenario = kScenes / "same.yaml";
-  c.name = "same";
-  c.dir = out / "same";
-  c.timeout = 30;
+  const SuiteCase c = stand_in_case(kScenes, "same", out);
   SuiteOptions o;
   o.executable = fake_video_twin(scratch.dir());
   std::vector<CaseResult> results = run_suite({c}, o);

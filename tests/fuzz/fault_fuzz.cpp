@@ -2,11 +2,11 @@
 // Text -> parse_fault_text against scenes/cell.yaml; an accepted spec is written back with to_text and must read as
 // the same spec. Only InputError may refuse it. Seeds: the specs of docs/faults.md and the tests.
 #include "cellwright/models/cell.hpp"
-#include "cellwright/twin/scenario/faults.hpp"
+#include "cellwright/twin/faults.hpp"
 #include "fuzz.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  using namespace cellwright::twin::scenario;
+  using namespace cellwright::twin;
   static const cellwright::models::CellDescription cell =
       cellwright::models::load_cell(std::filesystem::path(CW_SOURCE_DIR) / "scenes" / "cell.yaml");
   const std::string text = cellwright::fuzz::text_of(data, size);

@@ -15,12 +15,14 @@
 #include <fstream>
 #include <string>
 
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/models/robot_model.hpp"
 #include "cellwright/twin/mesh_import.hpp"
 #include "cellwright/twin/render.hpp"
-#include "cellwright/twin/scenario/run.hpp"
+#include "cellwright/cell/sim/run.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "twin/mujoco_fixture.hpp"
 
@@ -242,12 +244,12 @@ void picks_and_places(const fs::path& dir, const fs::path& cell, const Vendor& v
                                                        "expect:\n  V: v_place\ntolerance: 0.03\n"
                                                        "options: {{control_period: 0.01, settle_time: 1.0}}\n",
                                                        cell.filename().string(), v.name));
-  const scenario::Scenario s = scenario::load_scenario((dir / "move.yaml").string());
-  const scenario::Preflight pre = scenario::preflight(s);
+  const cell::Scenario s = cell::load_scenario((dir / "move.yaml").string());
+  const cell::Preflight pre = cell::preflight(s, &cell::twin_port());
   ASSERT_TRUE(pre.ok()) << pre.problems.front();
-  scenario::ScenarioRun run(s, pre.net);
+  cell::ScenarioRun run(s, pre.net);
   run.runtime().run();
-  const scenario::Report report = run.report();
+  const cell::Report report = run.report();
   EXPECT_TRUE(report.ok()) << fmt::format("{}", fmt::join(report.failures, "\n"));
   EXPECT_EQ(report.outcome, "finished");
   EXPECT_EQ(report.parts_completed, 1u);

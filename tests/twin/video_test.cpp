@@ -1,5 +1,7 @@
 // The video of a run (video.hpp): what a browser needs (H.264, yuv420p, MP4), the frames at the rate asked, the
 // overlay drawn on them, bad files refused before anything runs, and a run's event log the same with and without.
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/twin/video.hpp"
 
 #include <gtest/gtest.h>
@@ -21,7 +23,7 @@ extern "C" {
 #include "cellwright/common/files.hpp"
 #include "cellwright/models/cell.hpp"
 #include "cellwright/twin/render.hpp"
-#include "cellwright/twin/scenario/run.hpp"
+#include "cellwright/cell/sim/run.hpp"
 #include "cellwright/twin/scene.hpp"
 
 namespace cellwright::twin {
@@ -180,9 +182,9 @@ TEST_F(Video, OverlayDrawsTheTextOnADarkBandAndLeavesTheRestOfThePicture) {
 // A run recorded lock-step: the same events as without the video, a frame every 1/fps of simulated time from the
 // first period on plus the verdict held `hold` s, and the frames are the cell with the text over it.
 TEST_F(Video, ARunRecordsEveryFrameAndKeepsItsEventLog) {
-  using namespace scenario;
+  using namespace cell;
   const Scenario s = load_scenario(kScenes + "/single.yaml");
-  const Preflight pre = preflight(s);
+  const Preflight pre = preflight(s, &twin_port());
   ASSERT_TRUE(pre.ok()) << pre.problems.front();
 
   ScenarioRun plain(s, pre.net);
@@ -258,9 +260,9 @@ TEST_F(Video, RecorderFramesAreTheCellWithTheTextOverIt) {
 }
 
 TEST_F(Video, AFileThatCannotBeWrittenIsRefusedBeforeTheRun) {
-  using namespace scenario;
+  using namespace cell;
   const Scenario s = load_scenario(kScenes + "/single.yaml");
-  const Preflight pre = preflight(s);
+  const Preflight pre = preflight(s, &twin_port());
   ASSERT_TRUE(pre.ok());
   RunOptions options;
   VideoOptions video;

@@ -2,16 +2,21 @@
 # links a package it must not.
 #   cmake -DSOURCE_DIR=<repo> -DLINKS=<build>/walls/links.txt -P tests/walls/check_walls.cmake
 # The rules:
-#   controller (task, petri, runtime)  no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin or vision
-#   models                             no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, drivers, runtime
-#   drivers                            no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, runtime
+#   controller (task, petri, runtime)  no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, emulate or cell
+#   models                             no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, drivers, runtime, cell
+#   drivers                            no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, runtime, cell
 #   common                             nothing of ours but common; no MuJoCo, OpenGL/OSMesa, OpenCV
-#   vision (twin/vision)               OpenCV yes; no MuJoCo, OpenGL/OSMesa; nothing of twin
-#   emulate (twin/emulate)             no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, runtime; none of the
-#                                      drivers' protocol code (drivers/serial, movemaster, val2): each checks the other
-#   twin                               OpenCV only in rendering and reports (render, video, scenario/gantt, scenario/run,
-#                                      scenario/campaign: its chart)
+#   vision                             OpenCV yes; no MuJoCo, OpenGL/OSMesa; nothing of twin or cell
+#   emulate                            no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, runtime, cell; none of
+#                                      the drivers' protocol code (drivers/serial, movemaster, val2): each checks the other
+#   twin/model (the twin's facts)      no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of cell
+#   twin (the simulator)               nothing of cell (the application); OpenCV only in rendering and the video
+#   cell (the application layer)       no MuJoCo, OpenGL/OSMesa; of the twin only its MuJoCo-free facts (twin/model);
+#                                      nothing of cell/sim (the simulated rig); OpenCV only in the reports (cell/report,
+#                                      and the campaign's chart); campaigns and suites never build a run (cell/sim/run)
 #   every library                      nothing of tools/
+# The `twin` executable built with CW_SIM=OFF links no MuJoCo, OSMesa or Assimp (checked when the closures file says
+# it was built so).
 # Each suite of tests links what its library may link (plus GoogleTest).
 cmake_minimum_required(VERSION 3.25)
 
@@ -54,24 +59,37 @@ function(check_includes name forbidden)
 endfunction()
 
 set(tools_reach "tools/|commands\\.hpp")
-check_includes(controller "${heavy}|cellwright/(twin|vision)/|${tools_reach}"
+set(cell_libs "cellwright/(cell|emulate)/")
+check_includes(controller "${heavy}|cellwright/(twin|vision)/|${cell_libs}|${tools_reach}"
                "controller/include/*" "controller/src/*" "controller/runtime/*")
-check_includes(models "${heavy}|cellwright/(twin|vision|drivers|runtime)/|${tools_reach}" "models/*")
-check_includes(drivers "${heavy}|cellwright/(twin|vision|runtime)/|${tools_reach}" "drivers/*")
-check_includes(common "${heavy}|cellwright/(twin|vision|drivers|runtime|models|petri|task)/|${tools_reach}"
+check_includes(models "${heavy}|cellwright/(twin|vision|drivers|runtime)/|${cell_libs}|${tools_reach}" "models/*")
+check_includes(drivers "${heavy}|cellwright/(twin|vision|runtime)/|${cell_libs}|${tools_reach}" "drivers/*")
+check_includes(common "${heavy}|cellwright/(twin|vision|drivers|runtime|models|petri|task|cell|emulate)/|${tools_reach}"
                "common/*")
-check_includes(vision "mujoco/|GL/|osmesa|cellwright/twin/|${tools_reach}" "twin/vision/*")
-check_includes(emulate "${heavy}|cellwright/(twin|vision|runtime)/|cellwright/drivers/(serial|movemaster|val2)/|${tools_reach}"
-               "twin/emulate/*")
+check_includes(vision "mujoco/|GL/|osmesa|cellwright/(twin|cell)/|${tools_reach}" "vision/*")
+check_includes(emulate "${heavy}|cellwright/(twin|vision|runtime|cell)/|cellwright/drivers/(serial|movemaster|val2)/|${tools_reach}"
+               "emulate/*")
+# The twin's MuJoCo-free facts.
+check_includes(twin_model "${heavy}|cellwright/(cell|vision|emulate)/|${tools_reach}" "twin/model/*")
+# The simulator knows nothing of scenarios, plans, rigs or reports.
+check_includes(twin "cellwright/cell/|${tools_reach}" "twin/include/*" "twin/src/*")
 check_includes(twin "opencv2/" "twin/include/*" "twin/src/*"
-               EXCEPT "^twin/(include/cellwright/twin|src)/(render\\.|video\\.|scenario/gantt\\.|scenario/run\\.|scenario/campaign\\.)")
-check_includes(twin "${tools_reach}" "twin/include/*" "twin/src/*")
+               EXCEPT "^twin/(include/cellwright/twin|src)/(render|video)\\.")
+# The application layer: no simulator but its facts, no simulated rig.
+set(simulator "cellwright/twin/(scene|render|video|mesh_import|sim/(world|sim_driver|world_plant|fault_injector|mirrored_driver|signals))")
+set(cell_stages "cell/scenario/*" "cell/plan/*" "cell/rig/*" "cell/report/*" "cell/campaign/*")
+check_includes(cell "mujoco/|GL/|osmesa|${simulator}|cellwright/cell/sim/|${tools_reach}" ${cell_stages})
+check_includes(cell "opencv2/" ${cell_stages} EXCEPT "^cell/(report/|campaign/(src|include/cellwright/cell)/campaign\\.)")
+# Campaigns and suites read reports; they never build a run.
+check_includes(campaign "cellwright/cell/sim/|cellwright/runtime/runtime\\.hpp" "cell/campaign/*")
+# The simulated rig may reach everything but the tools.
+check_includes(cell_sim "${tools_reach}" "cell/sim/*")
 
 # Links, from the closures the configure step wrote.
 set(mujoco_ocv_gl "mujoco|opencv_|OSMESA|osmesa")
 set(link_rules
-    "cellwright_controller|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime|drivers|models)"
-    "cellwright_runtime|${mujoco_ocv_gl}|cellwright_(twin|vision)"
+    "cellwright_controller|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime|drivers|models|scenario|plan|rig|report|campaign|cell_sim)"
+    "cellwright_runtime|${mujoco_ocv_gl}|cellwright_(twin|vision|scenario|plan|rig|report|campaign|cell_sim)"
     "runtime_tests|${mujoco_ocv_gl}|cellwright_(twin|vision)"
     "controller_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
     "cellwright_models|${mujoco_ocv_gl}|cellwright_(twin|vision|drivers|runtime)"
@@ -79,9 +97,28 @@ set(link_rules
     "cellwright_drivers|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
     "drivers_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
     "cellwright_common|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime|drivers|models|controller)"
-    "cellwright_vision|mujoco|OSMESA|osmesa|cellwright_twin"
+    "cellwright_vision|mujoco|OSMESA|osmesa|cellwright_twin|cellwright_(scenario|plan|rig|report|campaign|cell_sim)"
     "cellwright_emulate|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
-    "emulate_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)")
+    "emulate_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
+    "cellwright_twin_model|${mujoco_ocv_gl}|cellwright_(twin$|vision|scenario|plan|rig|report|campaign|cell_sim)"
+    "cellwright_scenario|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(plan|rig|report|campaign|cell_sim)"
+    "cellwright_plan|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(rig|report|campaign|cell_sim)"
+    "cellwright_rig|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(report|campaign|cell_sim)"
+    "cellwright_report|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(plan|rig|campaign|cell_sim)"
+    "cellwright_campaign|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(rig|cell_sim)")
+if(EXISTS ${LINKS}.sim)
+  file(READ ${LINKS}.sim with_sim)
+  string(STRIP "${with_sim}" with_sim)
+else()
+  set(with_sim "ON")
+endif()
+if(with_sim)
+  # The simulator knows no application.
+  list(APPEND link_rules "cellwright_twin|cellwright_(scenario|plan|rig|report|campaign|cell_sim)")
+else()
+  # A twin for real robots only: no simulator in the executable.
+  list(APPEND link_rules "twin|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_cell_sim")
+endif()
 file(STRINGS ${LINKS} closures)
 foreach(rule ${link_rules})
   string(REPLACE "|" ";" parts "${rule}")

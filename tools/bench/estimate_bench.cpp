@@ -15,10 +15,10 @@
 #include <string>
 
 #include "cellwright/task/to_net.hpp"
-#include "cellwright/twin/scenario/estimate.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/cell/estimate.hpp"
+#include "cellwright/cell/scenario.hpp"
 
-namespace cellwright::twin::scenario {
+namespace cellwright::cell {
 namespace {
 
 EstimateOptions timing(const Scenario& s) {
@@ -70,6 +70,6 @@ BENCHMARK_CAPTURE(BM_Estimate, vision, std::string("vision.yaml"))->Unit(benchma
 BENCHMARK(BM_EstimateShiftOf1000Parts)->Unit(benchmark::kMillisecond);
 
 }  // namespace
-}  // namespace cellwright::twin::scenario
+}  // namespace cellwright::cell
 
 BENCHMARK_MAIN();

@@ -10,12 +10,14 @@
 #include <map>
 #include <string>
 
-#include "cellwright/twin/scenario/run.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
+#include "cellwright/cell/sim/run.hpp"
+#include "cellwright/cell/scenario.hpp"
 
 namespace {
 
-using namespace cellwright::twin::scenario;
+using namespace cellwright::cell;
 
 struct Figures {
   double parts_per_min = 0;
@@ -31,7 +33,7 @@ std::map<std::string, Figures>& results() {
 
 void run_scenario(benchmark::State& state, const std::string& name, const std::string& file) {
   const Scenario s = load_scenario(std::string(CW_SOURCE_DIR) + "/scenes/" + file);
-  const Preflight pre = preflight(s);
+  const Preflight pre = preflight(s, &twin_port());
   if (!pre.ok()) {
     state.SkipWithError((file + " refused: " + pre.problems.front()).c_str());
     return;

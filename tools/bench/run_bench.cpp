@@ -28,14 +28,16 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
-#include "cellwright/twin/scenario/run.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/cell/sim/run.hpp"
+#include "cellwright/cell/scenario.hpp"
 
 namespace {
 
 using namespace cellwright;
-using namespace cellwright::twin::scenario;
+using namespace cellwright::cell;
 using Clock = std::chrono::steady_clock;
 
 struct Figures {
@@ -85,7 +87,7 @@ double raw_from_end(const mjModel* m, const mjData* state, double seconds) {
 
 Figures run_once(const std::string& file, double raw_seconds) {
   const Scenario s = load_scenario(file);
-  const Preflight pre = preflight(s);
+  const Preflight pre = preflight(s, &twin_port());
   if (!pre.ok()) throw InputError({file, 0, 0}, "refused: " + pre.problems.front());
   RunOptions options;
   options.realtime = false;

@@ -16,11 +16,13 @@
 #include <vector>
 
 #include "../../tests/controller/runtime/scripted_cell.hpp"
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/runtime/clock.hpp"
 #include "cellwright/runtime/message_queue.hpp"
 #include "cellwright/runtime/runtime.hpp"
-#include "cellwright/twin/scenario/run.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/cell/sim/run.hpp"
+#include "cellwright/cell/scenario.hpp"
 
 namespace {
 
@@ -170,9 +172,9 @@ BENCHMARK(BM_ExchangeRunLockstep)->Arg(0)->Arg(1)->UseRealTime()->Unit(benchmark
 // A shipped scenario in the twin (MuJoCo), as `twin run` runs it (run(), not step(): no progress line), with the old
 // and the new scheduling; fails if the two event logs differ by a byte.
 void BM_ScenarioLockstep(benchmark::State& state, const std::string& file) {
-  using namespace cellwright::twin::scenario;
+  using namespace cellwright::cell;
   const Scenario s = load_scenario(std::string(CW_SOURCE_DIR) + "/scenes/" + file);
-  const Preflight pre = preflight(s);
+  const Preflight pre = preflight(s, &twin_port());
   if (!pre.ok()) {
     state.SkipWithError((file + " refused: " + pre.problems.front()).c_str());
     return;

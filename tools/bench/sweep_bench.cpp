@@ -10,12 +10,14 @@
 
 #include <string>
 
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/task/to_net.hpp"
-#include "cellwright/twin/scenario/estimate.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
-#include "cellwright/twin/scenario/sweep.hpp"
+#include "cellwright/cell/estimate.hpp"
+#include "cellwright/cell/scenario.hpp"
+#include "cellwright/cell/sweep.hpp"
 
-namespace cellwright::twin::scenario {
+namespace cellwright::cell {
 namespace {
 
 Scenario scene(const std::string& file) {
@@ -26,7 +28,7 @@ void BM_Preflight(benchmark::State& state, const std::string& file) {
   const Scenario s = scene(file);
   Preflight p;
   for (auto _ : state) {
-    p = preflight(s);
+    p = preflight(s, &twin_port());
     benchmark::ClobberMemory();
   }
   if (!p.ok()) state.SkipWithError("the preflight refused the scenario");
@@ -57,6 +59,6 @@ BENCHMARK_CAPTURE(BM_Sweep, exchange, std::string("exchange.yaml"))->Unit(benchm
 BENCHMARK_CAPTURE(BM_Sweep, pipeline, std::string("pipeline.yaml"))->Unit(benchmark::kMillisecond);
 
 }  // namespace
-}  // namespace cellwright::twin::scenario
+}  // namespace cellwright::cell
 
 BENCHMARK_MAIN();

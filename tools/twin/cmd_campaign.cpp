@@ -14,8 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
-#include "cellwright/twin/scenario/campaign.hpp"
+#include "cellwright/cell/campaign.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
 #include "run_args.hpp"
@@ -27,13 +28,13 @@ namespace {
 // `--video`: each run that ended with a negative verdict is run again in this process, with its faults and seed and a
 // video into its run directory. Lock-step runs are deterministic, so the video shows the run the campaign counted.
 // Crashes and hangs are not re-run (they would crash or hang this process); only failed runs pay for a video.
-void record_failed_runs(const twin::scenario::CampaignOptions& options,
-                        const std::vector<twin::scenario::RunRecord>& records, const VideoFlag& video) {
-  for (const twin::scenario::RunRecord& r : records) {
-    if (r.status != twin::scenario::RunStatus::kDone || r.exit_code != 1) continue;
+void record_failed_runs(const cell::CampaignOptions& options,
+                        const std::vector<cell::RunRecord>& records, const VideoFlag& video) {
+  for (const cell::RunRecord& r : records) {
+    if (r.status != cell::RunStatus::kDone || r.exit_code != 1) continue;
     RunArgs a;
     a.scenario = options.scenario.string();
-    for (const twin::scenario::DrawnFault& f : r.variant.faults) a.faults.push_back(f.spec);
+    for (const cell::DrawnFault& f : r.variant.faults) a.faults.push_back(f.spec);
     a.seed = r.variant.seed;
     a.video = (r.dir / "video.mp4").string();
     a.video_fps = video.fps;
@@ -65,7 +66,7 @@ void add_campaign(CLI::App& app, Command* run) {
     long long runs = 20;
     std::uint64_t seed = 1;
     unsigned jobs = 0;
-    double timeout = twin::scenario::CampaignOptions::kDefaultTimeout;
+    double timeout = cell::CampaignOptions::kDefaultTimeout;
     std::string out;
     VideoFlag video;
   };
@@ -86,13 +87,13 @@ void add_campaign(CLI::App& app, Command* run) {
                  "is run again, lock-step, after the campaign");
   cmd->callback([run, args] {
     *run = [args] {
-      namespace ts = twin::scenario;
+      namespace ts = cell;
       if (args->out.empty()) throw InputError({"-o/--output", 0, 0}, "the campaign needs an output directory");
       check_video_flag(args->video);  // the size, the rate and ffmpeg checked now, not after the campaign has run
       const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe");
       const ts::CampaignOptions options =
           ts::plan_campaign(std::filesystem::absolute(args->scenario), args->faults, args->runs, args->seed,
-                            args->jobs, args->timeout, args->out, exe);
+                            args->jobs, args->timeout, args->out, exe, ts::twin_port());
       std::fprintf(stderr, "%s: %zu runs of %s, %u at a time, seed %llu\n", args->scenario.c_str(), options.runs,
                    fmt::format("{}", fmt::join(options.kinds, ", ")).c_str(), options.jobs,
                    static_cast<unsigned long long>(options.seed));

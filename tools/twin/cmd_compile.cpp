@@ -11,14 +11,16 @@
 
 #include <fmt/format.h>
 
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/dot.hpp"
 #include "cellwright/petri/pnml.hpp"
 #include "cellwright/task/compile.hpp"
 #include "cellwright/task/to_net.hpp"
-#include "cellwright/twin/programs/robot_programs.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/cell/robot_programs.hpp"
+#include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
 
 namespace cellwright::tools {
@@ -28,7 +30,7 @@ namespace {
 // --robot-language: the scenario's robots in their controllers' languages, written into the output directory.
 template <typename Options>
 int write_robot_programs(const Options& o) {
-  using namespace twin::scenario;
+  using namespace cell;
   if (o.out.empty()) throw InputError({"--robot-language", 0, 0}, "needs -o/--output DIR for the robot programs");
   Scenario s = load_scenario(o.scenario);
   std::error_code ec;
@@ -36,8 +38,8 @@ int write_robot_programs(const Options& o) {
     throw InputError({o.scenario, 0, 0},
                      fmt::format("the scenario runs {}, not {}", s.program_file.string(), o.program));
   }
-  for (const std::string& d : o.drivers) twin::programs::set_language(s, d, {"--driver", 0, 0});
-  const Preflight pre = preflight(s);
+  for (const std::string& d : o.drivers) cell::set_language(s, d, {"--driver", 0, 0});
+  const Preflight pre = preflight(s, &twin_port());
   if (!pre.ok()) {
     std::fprintf(stderr, "%s: refused, no robot program was written:\n", o.scenario.c_str());
     for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
@@ -47,13 +49,13 @@ int write_robot_programs(const Options& o) {
     }
     return 2;
   }
-  const twin::programs::RobotPrograms programs = twin::programs::generate_robot_programs(s, pre);
-  twin::programs::write_robot_programs(programs, o.out);
+  const cell::RobotPrograms programs = cell::generate_robot_programs(s, pre);
+  cell::write_robot_programs(programs, o.out);
   std::printf("net: %s\n", programs.check.c_str());
-  for (const twin::programs::RobotProgram& p : programs.robots) {
+  for (const cell::RobotProgram& p : programs.robots) {
     std::printf("%s (%s): %s/%s\n", p.cell_robot.c_str(), p.robot.c_str(), o.out.c_str(), p.file_name.c_str());
   }
-  for (const twin::programs::IoChannel& c : programs.channels) {
+  for (const cell::IoChannel& c : programs.channels) {
     std::printf("I/O %d: %s, %s -> %s\n", c.channel, c.event.c_str(), s.robot_of(c.from).c_str(),
                 s.robot_of(c.to).c_str());
   }

@@ -21,8 +21,8 @@
 #include "cellwright/emulate/movemaster_emulator.hpp"
 #include "cellwright/emulate/val2_emulator.hpp"
 #include "cellwright/models/kinematics.hpp"
-#include "cellwright/twin/scenario/emulated_cell.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/cell/sim/emulated_cell.hpp"
+#include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
 #include "until_signal.hpp"
 
@@ -99,10 +99,10 @@ void add_emulate(CLI::App& app, Command* run) {
                            "are for one controller alone");
         }
         if (args->robots.empty()) throw InputError(cli, "--scenario needs at least one --robot ROBOT=LANGUAGE:LINK");
-        const twin::scenario::Scenario s = twin::scenario::load_scenario(args->scenario);
-        std::vector<twin::scenario::EmulatedController> controllers;
+        const cell::Scenario s = cell::load_scenario(args->scenario);
+        std::vector<cell::EmulatedController> controllers;
         for (const std::string& r : args->robots) {
-          controllers.push_back(twin::scenario::parse_emulated_controller(r, {"--robot", 0, 0}));
+          controllers.push_back(cell::parse_emulated_controller(r, {"--robot", 0, 0}));
         }
         for (const std::string& m : args->misbehave) {
           const std::size_t colon = m.find(':');
@@ -119,19 +119,19 @@ void add_emulate(CLI::App& app, Command* run) {
                                                                 m));
           }
         }
-        twin::scenario::EmulatedCellOptions options;
+        cell::EmulatedCellOptions options;
         options.seed = args->seed;
         options.echo = !args->no_echo;
         if (args->verbose) options.log = print;
         std::string names;
         for (const auto& c : controllers) {
           names += fmt::format("{}{} ({}) at {}", names.empty() ? "" : ", ", c.robot,
-                               twin::scenario::to_string(c.language), c.link.string());
+                               cell::to_string(c.language), c.link.string());
         }
         options.on_ready = [&] { print(fmt::format("emulating {}; Ctrl-C to stop", names)); };
-        twin::scenario::EmulatedCell cell(s, std::move(controllers), std::move(options), cli);
+        cell::EmulatedCell cell(s, std::move(controllers), std::move(options), cli);
         run_until_signal([&] { cell.run(); }, [&] { cell.stop(); });
-        for (const twin::scenario::FinalPose& p : cell.final_poses()) {
+        for (const cell::FinalPose& p : cell.final_poses()) {
           if (!p.present) continue;
           const Eigen::Vector3d x = p.pose.translation();
           print(fmt::format("{} at ({:.3f}, {:.3f}, {:.3f}){}", p.name, x.x(), x.y(), x.z(),

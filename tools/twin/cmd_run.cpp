@@ -17,13 +17,15 @@
 #include <optional>
 #include <string>
 
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/twin/render.hpp"
-#include "cellwright/twin/scenario/dry_run.hpp"
-#include "cellwright/twin/scenario/run.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/cell/dry_run.hpp"
+#include "cellwright/cell/sim/run.hpp"
+#include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
 #include "run_args.hpp"
 #include "until_signal.hpp"
@@ -110,7 +112,7 @@ void add_run(CLI::App& app, Command* run) {
                 "program; nothing else moves and nothing is written. Exit 0 when all is well, 1 when not");
   cmd->callback([run, args, cmd] {
     *run = [args, cmd] {
-      using namespace cellwright::twin::scenario;
+      using namespace cellwright::cell;
       // A bring-up runs no program: an option for a run's outputs or pace would be ignored, so it is refused.
       for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime"}) {
         if (args->dry && cmd->count(name) > 0) {
@@ -120,7 +122,7 @@ void add_run(CLI::App& app, Command* run) {
       }
       const RunArgs& a = args->run;
       Scenario s = load_scenario_with(a);
-      const Preflight pre = preflight(s);
+      const Preflight pre = preflight(s, &twin_port());
       if (!pre.ok(a.allow_collisions)) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", a.scenario.c_str());
         for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());

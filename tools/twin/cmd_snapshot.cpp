@@ -9,6 +9,7 @@
 
 #include "cellwright/models/cell.hpp"
 #include "cellwright/twin/render.hpp"
+#include "cellwright/vision/png.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/vision/detector.hpp"
 #include "cellwright/vision/draw.hpp"
@@ -76,7 +77,7 @@ void add_snapshot(CLI::App& app, Command* run) {
         }
         for (const auto& name : found.not_seen) std::printf("%s not seen\n", name.c_str());
       }
-      twin::write_png(image, opts->out);
+      vision::write_png(image, opts->out);
       return 0;
     };
   });

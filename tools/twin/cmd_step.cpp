@@ -14,12 +14,15 @@
 #include <system_error>
 #include <vector>
 
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/twin/render.hpp"
-#include "cellwright/twin/scenario/run.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/vision/png.hpp"
+#include "cellwright/cell/sim/run.hpp"
+#include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
 #include "run_args.hpp"
 
@@ -78,7 +81,7 @@ void add_step(CLI::App& app, Command* run) {
   add_run_options(*cmd, *args);
   cmd->callback([run, args] {
     *run = [args] {
-      using namespace cellwright::twin::scenario;
+      using namespace cellwright::cell;
       const std::string& scenario = args->scenario;
       const std::string& out = args->output;
       const Scenario s = load_scenario_with(*args);
@@ -87,7 +90,7 @@ void add_step(CLI::App& app, Command* run) {
                          "twin step runs the program lock-step on simulated robots, and a real robot keeps its own "
                          "time: run it with twin run --realtime (or twin run --dry for a bring-up)");
       }
-      const Preflight pre = preflight(s);
+      const Preflight pre = preflight(s, &twin_port());
       if (!pre.ok(args->allow_collisions)) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", scenario.c_str());
         for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
@@ -162,7 +165,7 @@ void add_step(CLI::App& app, Command* run) {
             std::printf("s needs a file name: s FILE.png\n");
           } else {
             try {
-              twin::write_png(sr.snapshot(800, 600), rest);
+              vision::write_png(sr.snapshot(800, 600), rest);
               std::printf("saved %s\n", rest.c_str());
             } catch (const InputError& e) {
               std::printf("%s\n", e.what());

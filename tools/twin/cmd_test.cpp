@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "cellwright/common/files.hpp"
-#include "cellwright/twin/scenario/suite.hpp"
+#include "cellwright/cell/suite.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
 #include "run_args.hpp"
@@ -27,9 +27,9 @@ namespace cellwright::tools {
 namespace {
 
 // --video: the failed scenarios run again with a video each, a line for each as its video is made or not.
-void record_videos(std::vector<twin::scenario::CaseResult>& results, const twin::scenario::SuiteOptions& options,
+void record_videos(std::vector<cell::CaseResult>& results, const cell::SuiteOptions& options,
                    const VideoFlag& flag) {
-  namespace ts = twin::scenario;
+  namespace ts = cell;
   ts::VideoSettings video;
   video.fps = flag.fps;
   video.size = flag.size;
@@ -100,7 +100,7 @@ void add_test(CLI::App& app, Command* run) {
                  "shown by its report page: the scenario is run again after the suite (lock-step, the same run)");
   cmd->callback([run, args] {
     *run = [args] {
-      namespace ts = twin::scenario;
+      namespace ts = cell;
       namespace fs = std::filesystem;
       const auto start = std::chrono::steady_clock::now();
       std::vector<fs::path> paths(args->paths.begin(), args->paths.end());

@@ -8,10 +8,13 @@
 #include <filesystem>
 #include <system_error>
 
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/render.hpp"
-#include "cellwright/twin/scenario/faults.hpp"
+#include "cellwright/vision/png.hpp"
+#include "cellwright/twin/faults.hpp"
 #include "cellwright/vision/cell_detector.hpp"
 #include "cellwright/vision/draw.hpp"
 
@@ -52,8 +55,8 @@ void add_run_options(CLI::App& cmd, RunArgs& args) {
                "run even though the preflight's motion sweep predicts collisions (printed as warnings)");
 }
 
-twin::scenario::Scenario load_scenario_with(const RunArgs& args) {
-  using namespace twin::scenario;
+cell::Scenario load_scenario_with(const RunArgs& args) {
+  using namespace cell;
   for (const std::string& dir : {args.output, args.frames}) {
     if (!dir.empty()) check_writable_dir(dir);
   }
@@ -79,8 +82,8 @@ std::pair<int, int> parse_size(const std::string& text) {
 
 }  // namespace
 
-twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scenario::Scenario& s) {
-  using namespace twin::scenario;
+cell::RunOptions run_options_for(const RunArgs& args, const cell::Scenario& s) {
+  using namespace cell;
   RunOptions options;
   if (args.perception == "truth") options.perception = runtime::Perception::kTruth;
   if (args.perception == "vision") options.perception = runtime::Perception::kVision;
@@ -111,7 +114,7 @@ twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scen
         vision::draw_frame_overlay(drawn, std::chrono::duration<double>(f.time).count(),
                                    vision::CameraModel(*cam, drawn.cols, drawn.rows), predicted, f.result.not_seen);
       }
-      twin::write_png(drawn, dir / fmt::format("frame_{:08}.png", ms));
+      vision::write_png(drawn, dir / fmt::format("frame_{:08}.png", ms));
     };
   }
   if (!args.output.empty()) options.events_file = streamed_events_file(args.output);
@@ -145,11 +148,11 @@ void check_video_flag(const VideoFlag& video) {
   twin::VideoWriter::check_encoder({"--video", 0, 0});
 }
 
-twin::scenario::Report run_for_video(const RunArgs& args) {
-  using namespace twin::scenario;
+cell::Report run_for_video(const RunArgs& args) {
+  using namespace cell;
   CW_CHECK(!args.video.empty(), "run_for_video needs a video file");
   const Scenario s = load_scenario_with(args);
-  const Preflight pre = preflight(s);
+  const Preflight pre = preflight(s, &twin_port());
   if (!pre.ok(args.allow_collisions)) throw InputError({args.scenario, 0, 0}, "preflight refuses the scenario");
   ScenarioRun sr(s, pre.net, run_options_for(args, s));
   sr.runtime().run();

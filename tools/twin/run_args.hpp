@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "cellwright/twin/scenario/run.hpp"
-#include "cellwright/twin/scenario/scenario.hpp"
+#include "cellwright/cell/sim/run.hpp"
+#include "cellwright/cell/scenario.hpp"
 
 namespace cellwright::tools {
 
@@ -38,12 +38,12 @@ void add_run_options(CLI::App& cmd, RunArgs& args);
 // The scenario with --driver, --fault and --seed applied, after checking that the -o and --save-frames directories
 // can be written (check_writable_dir: before anything is loaded or run, so that a bad one costs no run). InputError
 // (as check_writable_dir, load_scenario, set_driver, parse_fault_text) on bad input.
-twin::scenario::Scenario load_scenario_with(const RunArgs& args);
+cell::Scenario load_scenario_with(const RunArgs& args);
 
 // The run's options from the shared options, for scenario `s`: perception, the frames callback (its directory
 // made), the video (checked: InputError naming the option), and the event log streamed into the output directory
 // when there is one. Throws InputError when --save-frames is given and the cell has no camera.
-twin::scenario::RunOptions run_options_for(const RunArgs& args, const twin::scenario::Scenario& s);
+cell::RunOptions run_options_for(const RunArgs& args, const cell::Scenario& s);
 
 // The video's options from --video, --video-fps and --video-size, the size and rate checked (InputError naming
 // the option); the file is checked when the video opens.
@@ -68,6 +68,6 @@ void check_video_flag(const VideoFlag& video);
 // Runs the scenario of `args` (with its faults and seed) lock-step, quietly, with no outputs but its video
 // (args.video must be set): `twin campaign --video` re-runs a failed run this way, which gives the run it had (the
 // same events, lock-step). Returns the report. InputError as `twin run`, or when preflight refuses the scenario.
-twin::scenario::Report run_for_video(const RunArgs& args);
+cell::Report run_for_video(const RunArgs& args);
 
 }  // namespace cellwright::tools

@@ -20,12 +20,10 @@ namespace {
 
 using drivers::CommandPhase;
 using drivers::Path;
-using scenario::FaultKind;
-using scenario::FaultSpec;
 using namespace testing;  // NOLINT: the simulation test helpers
 
 FaultSpec fault(const std::string& text) {
-  return scenario::parse_fault_text(text, paper_cell());
+  return parse_fault_text(text, paper_cell());
 }
 
 // A World of the paper's cell with the PUMA's simulation driver, and the plant that injects `faults`.
@@ -305,7 +303,7 @@ TEST_F(FaultWorld, SameSeedSameInjections) {
 
 TEST(FaultCamera, FramesAreLostFromTheirTimeForTheirCount) {
   World world(build_scene(paper_cell()));
-  FaultInjector injector(world, {scenario::parse_fault_text("frame_lost:time=1,count=2", paper_cell())}, 1);
+  FaultInjector injector(world, {parse_fault_text("frame_lost:time=1,count=2", paper_cell())}, 1);
   EXPECT_FALSE(injector.lose_frame(400ms));
   EXPECT_TRUE(injector.take().empty());
   EXPECT_TRUE(injector.lose_frame(1200ms));
@@ -336,7 +334,7 @@ TEST(FaultCamera, DetectionNoiseOnlyInItsWindowAndTheSameForTheSameSeed) {
   runtime::SimDuration t{0};
   const auto make = [&](std::uint64_t seed) {
     return NoisyDetector(std::make_shared<FixedDetector>(),
-                         {scenario::parse_fault_text("detection_noise:time=1,duration=2,sigma=0.01,sigma_yaw=5",
+                         {parse_fault_text("detection_noise:time=1,duration=2,sigma=0.01,sigma_yaw=5",
                                                      paper_cell())},
                          seed, [&t] { return t; });
   };

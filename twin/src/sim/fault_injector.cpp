@@ -15,8 +15,6 @@ namespace cellwright::twin::sim {
 
 namespace {
 
-using scenario::FaultKind;
-using scenario::FaultSpec;
 using namespace std::chrono_literals;
 
 constexpr std::chrono::nanoseconds kCarryEnd = 100ms;  // pads apart this long: the carry is over
@@ -68,7 +66,7 @@ FaultInjector::FaultInjector(World& world, std::vector<FaultSpec> faults, std::u
         a.obstacle = obstacles++;
         CW_CHECK(a.obstacle < world_.scene().obstacles().size(),
                  "obstacle fault {} needs obstacle body {}, and the scene has {} (FaultInjector::scene_options)",
-                 scenario::to_text(a.spec), a.obstacle + 1, world_.scene().obstacles().size());
+                 to_text(a.spec), a.obstacle + 1, world_.scene().obstacles().size());
         needs_truth_ = true;
         break;
       case FaultKind::drop:
@@ -96,7 +94,7 @@ std::size_t FaultInjector::robot_index(const std::string& name) const {
 }
 
 void FaultInjector::report(const FaultSpec& f, std::string detail) {
-  out_.push_back({std::string(scenario::to_string(f.kind)), f.robot, f.workpiece, std::move(detail)});
+  out_.push_back({std::string(to_string(f.kind)), f.robot, f.workpiece, std::move(detail)});
 }
 
 Eigen::Isometry3d FaultInjector::out_of_reach(const std::string& workpiece, const Eigen::Isometry3d& from,

@@ -12,7 +12,7 @@
 
 namespace cellwright::twin::sim {
 
-WorldPlant::WorldPlant(World& world, std::vector<FeedEvent> feed, std::vector<scenario::FaultSpec> faults,
+WorldPlant::WorldPlant(World& world, std::vector<FeedEvent> feed, std::vector<FaultSpec> faults,
                        std::uint64_t seed)
     : world_(world), feed_(std::move(feed)) {
   std::stable_sort(feed_.begin(), feed_.end(), [](const FeedEvent& a, const FeedEvent& b) { return a.time < b.time; });

@@ -86,15 +86,4 @@ vision::CameraModel camera_model(const mjModel* model, const mjData* data, int c
 // (a workpiece's centre, say) onto the overview image.
 vision::CameraModel overview_camera_model(const mjModel* model, const mjData* data, int width, int height);
 
-// An 8-bit, 3-channel (BGR) image encoded as PNG bytes, with libpng: not OpenCV's image codecs, whose library loads
-// GDAL, GDCM, Poppler and some hundred others into every process that links it (about 40 MB of a run's resident
-// memory once an image is written; docs/simulation.md, "Memory"). Throws std::runtime_error with libpng's message if
-// the encoder fails.
-std::vector<unsigned char> encode_png(const cv::Mat& image);
-
-// Writes an image as a PNG file atomically: to a temporary file in the same directory, then renamed over `path`, so
-// that readers never see half a file. Throws InputError naming the path if the directory does not exist or the file
-// cannot be written.
-void write_png(const cv::Mat& image, const std::filesystem::path& path);
-
 }  // namespace cellwright::twin

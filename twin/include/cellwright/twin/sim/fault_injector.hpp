@@ -50,7 +50,7 @@
 
 #include "cellwright/runtime/part_detector.hpp"
 #include "cellwright/runtime/plant.hpp"
-#include "cellwright/twin/scenario/faults.hpp"
+#include "cellwright/twin/faults.hpp"
 #include "cellwright/twin/sim/world.hpp"
 
 namespace cellwright::twin::sim {
@@ -65,11 +65,11 @@ inline constexpr double kObstacleToolSpeed = 0.05;  // m/s
 class FaultInjector {
  public:
   // The obstacle bodies a scene needs for `faults` (one per obstacle fault, in order): pass to build_scene.
-  static SceneOptions scene_options(const std::vector<scenario::FaultSpec>& faults);
+  static SceneOptions scene_options(const std::vector<FaultSpec>& faults);
 
   // Keeps the faults of the kinds it injects (the others are ignored). `world` must outlive it and hold the obstacles
   // of scene_options(faults) (InternalError otherwise). Moves nothing yet.
-  FaultInjector(World& world, std::vector<scenario::FaultSpec> faults, std::uint64_t seed);
+  FaultInjector(World& world, std::vector<FaultSpec> faults, std::uint64_t seed);
 
   // Before the run (WorldPlant's constructor): a fed part's misplace/unreachable offset joins its feed event, a
   // missing fed part's event is taken out; parts in the cell at the start are moved or parked now.
@@ -93,7 +93,7 @@ class FaultInjector {
     std::chrono::nanoseconds since{0}, last_held{0};
   };
   struct Active {
-    scenario::FaultSpec spec;
+    FaultSpec spec;
     bool done = false;  // injected, or its moment has passed
     // drop, slip: armed at the spec's carry
     int part = -1;
@@ -109,7 +109,7 @@ class FaultInjector {
     double margin = 0, moved = 0;  // unreachable: m beyond every robot's reach, m out from where it was
   };
 
-  void report(const scenario::FaultSpec& f, std::string detail);
+  void report(const FaultSpec& f, std::string detail);
   std::size_t robot_index(const std::string& name) const;
   // The pose on the floor out of every robot's reach for a part now at `from`, and how far beyond reach it is.
   Eigen::Isometry3d out_of_reach(const std::string& workpiece, const Eigen::Isometry3d& from,
@@ -135,7 +135,7 @@ class FaultInjector {
 // detected (the plant's last capture).
 class NoisyDetector final : public runtime::PartDetector {
  public:
-  NoisyDetector(std::shared_ptr<const runtime::PartDetector> inner, std::vector<scenario::FaultSpec> faults,
+  NoisyDetector(std::shared_ptr<const runtime::PartDetector> inner, std::vector<FaultSpec> faults,
                 std::uint64_t seed, std::function<runtime::SimDuration()> frame_time);
 
   std::vector<std::string> workpieces() const override { return inner_->workpieces(); }
@@ -146,7 +146,7 @@ class NoisyDetector final : public runtime::PartDetector {
   double normal() const;  // a standard normal amount (Box-Muller on the engine's raw output), within [-3, 3]
 
   std::shared_ptr<const runtime::PartDetector> inner_;
-  std::vector<scenario::FaultSpec> faults_;  // detection_noise only
+  std::vector<FaultSpec> faults_;  // detection_noise only
   std::function<runtime::SimDuration()> frame_time_;
   mutable std::mt19937_64 rng_;  // detect() is called on one thread only
 };

@@ -33,7 +33,7 @@
 
 #include "cellwright/runtime/plant.hpp"
 #include "cellwright/twin/render.hpp"
-#include "cellwright/twin/scenario/faults.hpp"
+#include "cellwright/twin/faults.hpp"
 #include "cellwright/twin/sim/belt_exit.hpp"
 #include "cellwright/twin/sim/world.hpp"
 
@@ -55,7 +55,7 @@ class WorldPlant final : public runtime::Plant {
   // The World must outlive the plant. Feed events are sorted by time (stable: equal times keep their order).
   // `faults` (the kinds the injector makes; others are ignored) need a World whose scene holds the obstacles of
   // FaultInjector::scene_options(faults); random amounts are drawn from `seed`.
-  explicit WorldPlant(World& world, std::vector<FeedEvent> feed = {}, std::vector<scenario::FaultSpec> faults = {},
+  explicit WorldPlant(World& world, std::vector<FeedEvent> feed = {}, std::vector<FaultSpec> faults = {},
                       std::uint64_t seed = 1);
 
   void advance(runtime::SimDuration dt) override;

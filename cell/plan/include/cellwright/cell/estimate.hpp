@@ -1,0 +1,176 @@
+// The cycle-time estimate made before a run: the program's Petri net timed with the durations of its commands and
+// simulated at earliest firing times (timed_net.hpp), all robots concurrent, waits resolved at the times of their
+// signals. It predicts a lock-step run on the twin; docs/scenarios.md compares it with measured runs.
+//
+// First the motion plan (plan_motions), which follows the program in the order one untimed run of the net gives: each
+// move's target is resolved as robot control resolves it (runtime::resolve_target on an environment model that
+// follows the program: parts held move with the hand and keep the approach they were grasped with, parts put down
+// rest where they were put, parts on a conveyor are picked at its stop, a hand that has just let go of a part departs
+// straight up from where it let go) and solved with the robot's inverse kinematics from its previous joints (the
+// solution within the limits closest to them). Preflight refuses a program with a move the plan cannot make.
+//
+// Then the command durations, per robot primitive, as the simulated controller (sim/sim_driver.hpp) ends them:
+//  - move: a joint move (robot control sends joint targets to a simulation driver): sim::move_duration, the quintic
+//    profile's peak within max_joint_speed x speed, at least min_move_time;
+//  - open/close: the finger ramp (sim/grip_timing.hpp) from where the last grip left it: an open to fully open, a
+//    close to fully closed or, on a part, until the fingers press it (the part's width across the fingers from the
+//    plan), then the rest window;
+//  - signal/wait (and a loop's end): 0 (a wait lasts until its signal, which the timed net resolves);
+//  - lock-step turns: the driver starts a command at the physics step after the round it was sent in and ends it at
+//    a physics step; robot control sees that in the next round, a move's position read-back takes one more round,
+//    and task control fires the next transition in the round after the command's end. So a command lasts from its
+//    firing to the next one: its physical time rounded up to the physics step and then to the control period, plus
+//    two periods (a move three).
+//  - before its first command each robot homes (min_move_time at home speed, the fingers opening) and activates.
+// A named part that arrives on a conveyor (fed, or carried to the stop from where it starts) holds back the move that
+// goes to pick it until it has arrived, at the belt's speed.
+// Parts of a workpiece class that the feed brings (`workpiece part from IN`) are the feed's, in a net of its own
+// joined to the program's (estimate_cycle_time): the i-th part fed is put on the belt at max(its feed time, the time
+// a body became free) and can be picked once it has ridden to the stop; each firing of a move that takes a new part of
+// the class (the first move to it) takes the next part there. In a shift (more parts than bodies) a body becomes free
+// when the part it made has ridden the exit conveyor from where the open let go of it (the fingers' ramp passing its
+// faces) to where the world takes it out (sim/belt_exit.hpp), at the belt's speed, at the end of the control period
+// the world parks it in; the feed puts it on the belt in the next period.
+// Not modelled: parts queueing behind each other on a belt (a part is taken to reach the stop at its own ride's end),
+// the frames a camera needs to see a part (perception vision), the few control periods a part pressed against a stop
+// bar may take to come to rest. Feed times are taken as they are, not rounded to the control period (exact when the
+// feed's start and period are whole periods, as in the shipped scenes). The bodies of a shift are not told apart:
+// each rides in as long as the longest of them. The finger ramp of a close is taken to be over by the next open (it
+// is over 1.5 s after the close began, and an arm moves in between).
+//
+// Thread safety: pure functions; any thread may call them.
+#pragma once
+
+#include <Eigen/Geometry>
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/petri/net.hpp"
+#include "cellwright/runtime/environment_model.hpp"
+#include "cellwright/task/compiled.hpp"
+#include "cellwright/cell/scenario.hpp"
+#include "cellwright/cell/timed_net.hpp"
+
+namespace cellwright::cell {
+
+// One primitive of the program as the motion plan follows it.
+struct PlannedCommand {
+  std::string robot;  // program label
+  std::string cell;   // cell robot
+  std::size_t primitive = 0;
+  task::PrimitiveKind kind = task::PrimitiveKind::kMove;
+  std::string command;   // "move above(A)"
+  std::string source;    // the task-level command it belongs to: "exchange.task:10:14 'Place B'"
+  bool reached = false;  // the untimed run of the net reached it
+  // Moves only:
+  std::vector<double> from, goal;  // joints before and after (goal empty when the move cannot be made)
+  std::string target;              // the resolved target ("above B: tool at (...)"), or "" when unresolved
+  std::string problem;             // why the move cannot be made, "" when it can
+  // The part the hand carries during the move (cell workpiece, "" for none) and its pose in the tool (tcp) frame;
+  // `closed`: the last grip before the move closed the fingers, to half the part's width across them (m) or, on
+  // nothing, fully (0); nullopt when they are open (as homing leaves them).
+  std::string held;
+  Eigen::Isometry3d grip = Eigen::Isometry3d::Identity();
+  std::optional<double> closed;
+  // Open and close only: half the width of the part across the fingers (m), where they close on it or let go of it;
+  // nullopt when the plan puts no part between them (a grip that names none).
+  std::optional<double> contact;
+};
+
+// A part that has to arrive before a robot can go to it: `transition` starts the first move to it.
+struct ArrivalGate {
+  petri::TransitionId transition = 0;
+  std::string workpiece;  // cell name
+  double ready = 0;       // s: when it is at the stop, at rest
+  std::string conveyor;   // the conveyor it rides to its stop (or end)
+};
+
+// A body of a shift delivered: the open that lets go of a fed body over an exit conveyor (every conveyor but the
+// feed's; the world takes the part out at the conveyor's exit point, sim/belt_exit.hpp, and feeds its body again).
+struct Delivery {
+  petri::TransitionId transition = 0;  // starts the open
+  std::size_t robot = 0;               // program robot index
+  std::size_t primitive = 0;           // of the open
+  std::string conveyor;                // the exit conveyor
+  double distance = 0;                 // m along the belt from where the part is let go to the exit point
+  double ride = 0;                     // s: the distance at the belt's speed
+};
+
+struct MotionPlan {
+  std::vector<std::vector<PlannedCommand>> commands;  // per program robot, per primitive
+  std::vector<ArrivalGate> gates;                     // named parts
+  // Transitions that start the first move to a new part of a class the feed brings: each firing takes the next part
+  // fed (see the top).
+  std::vector<petri::TransitionId> feed_takes;
+  double feed_ride = 0;  // s a fed part rides from the feed's entry point to the stop (the longest of the bodies')
+  std::vector<Delivery> deliveries;  // a shift's opens that deliver a body (empty unless the feed recycles)
+  // One line per move that cannot be made: the robot, the command, its source and why.
+  std::vector<std::string> problems() const;
+};
+
+// Follows one untimed run of the net (petri::choose over everything enabled) and plans every move as robot control
+// will make it (see the top): parts ride conveyors to their stop, are held, handed over, put down and, in a shift,
+// delivered. Moves whose
+// target cannot be resolved or has no inverse-kinematics solution within the joint limits are reported in
+// PlannedCommand::problem (the robot then stays where it was). Throws InputError if a URDF cannot be read.
+MotionPlan plan_motions(const Scenario& scenario, const petri::Net& net, const runtime::TargetOptions& targets);
+
+// How fast one robot's controller executes commands (the simulated controller's settings).
+struct RobotTiming {
+  std::vector<double> max_joint_speed;  // rad/s per arm joint at speed 1
+  double speed = 0.5;                   // fraction of max_joint_speed the moves use
+  double min_move_time = 0.2;           // s, the shortest motion
+  double finger_speed = 0.05;           // m/s of each finger's ramp at its peak
+  double finger_open = 0.04;            // m: each finger's position fully open ...
+  double finger_closed = 0.0;           // ... and fully closed
+  double finger_squeeze = 0.002;        // m: grip force / finger stiffness, the ramp's lead when the fingers press
+};
+
+struct EstimateOptions {
+  std::map<std::string, RobotTiming> robots;  // by cell robot name; every program robot needs one
+  double control_period = 0.01;               // s: the lock-step round (scenario options.control_period)
+  double physics_step = 0.002;                // s: the simulation's timestep (the cell's timestep)
+  runtime::TargetOptions targets;
+};
+
+// One primitive's estimated duration and what it is based on.
+struct CommandEstimate {
+  std::string robot;  // program label
+  std::size_t primitive = 0;
+  std::string command;  // "move above(A)"
+  double motion = 0;    // s the driver takes (its physical part, before the lock-step turns are added)
+  double seconds = 0;   // s from the firing that starts it to the firing after it (what the timed net uses)
+  std::string basis;    // "joint move, largest step 1.234 rad (joint 2)", "close on a part ...", "net only"
+};
+
+struct Estimate {
+  std::vector<CommandEstimate> commands;  // every primitive of every robot, program order
+  std::vector<double> place_duration;     // per place of the timed net
+  // The program's net with the arrival places added and, for a program that takes parts of a class the feed brings,
+  // the feed's net (places and transitions "feed.*", see estimate_cycle_time).
+  petri::Net timed_net;
+  TimedRun run;
+  // When the last robot is done: the last firing of one of the program's transitions (`net`'s: run.finish, but for
+  // the feed's net, which goes on delivering the last parts after the program's end).
+  double cycle_time = 0;
+  std::vector<std::string> notes;  // targets that could not be resolved (their moves count min_move_time)
+};
+
+// Estimates the cycle time of the scenario's program, whose net is `net` (task::to_net of the program), from its
+// motion plan. Throws InternalError when a program robot has no timing in `options` (or one of the wrong size), or a
+// period or step is not > 0; InputError if a URDF cannot be read.
+//
+// The feed's net, for a program with feed takes (each place's duration in brackets; p = the control period):
+//  - feed.first [start] --feed.begin--> feed.slot [0] + feed.clock [period], feed.clock --feed.tick--> feed.clock +
+//    feed.slot: a slot at each feed time, feed.begin and feed.tick each taking one of the `count` tokens of
+//    feed.due [0];
+//  - feed.slot + feed.free [0] (a token per body) --feed.feed--> feed.part [feed_ride rounded up to p]: a part at the
+//    stop, taken by every feed take (an input arc of its transition);
+//  - in a shift, per delivery d: its open's transition --> feed.leaving.d [from the open's start to the end of the
+//    period in which the part, let go of, has ridden to the exit point] --feed.delivered.d--> feed.free.
+Estimate estimate_cycle_time(const Scenario& scenario, const petri::Net& net, const EstimateOptions& options);
+
+}  // namespace cellwright::cell

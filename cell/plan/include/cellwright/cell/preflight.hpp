@@ -1,0 +1,59 @@
+// Preflight: what is checked before a scenario may run, the first thing the plan stage does. The program's net is
+// analysed, every target is checked for reach, every move is planned, and the plan is swept for collisions through
+// the CollisionSweep port (sweep.hpp). A scenario that fails it is refused before anything is built.
+//
+// Thread safety: a pure function of its arguments; any thread may call it.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "cellwright/cell/scenario.hpp"
+#include "cellwright/cell/sweep.hpp"
+#include "cellwright/models/cell.hpp"
+#include "cellwright/petri/analysis.hpp"
+#include "cellwright/petri/net.hpp"
+
+namespace cellwright::cell {
+
+// One place a robot's program sends it to, checked for reach.
+struct ReachNeed {
+  std::string robot;   // cell robot
+  std::string target;  // what it must reach, e.g. "location 'output_drop'", "workpiece 'A' at the input stop"
+  std::string why;     // the program command that needs it: "exchange.task:10:14 'Place B'"
+};
+
+struct Preflight {
+  petri::Net net;
+  petri::AnalysisResult analysis;
+  std::vector<ReachNeed> needs;           // every (robot, target) pair the program needs, in the order a run meets them
+  std::vector<models::ReachCheck> reach;  // the checks run for them (check_reach on the needed targets)
+  std::vector<std::string> problems;      // one line per reason the run may not start, empty when it may
+  // One line per collision the motion sweep predicts (sweep.hpp: PredictedCollision::text); each is also in
+  // `problems`, as "predicted collision: " and the line, after the other problems.
+  std::vector<std::string> collisions;
+  std::string sweep_summary;  // what the sweep did, one line; "" when it did not run
+
+  // Whether the run may start: no problem or, with `allow_collisions` (twin run --allow-collisions), none but the
+  // predicted collisions.
+  bool ok(bool allow_collisions = false) const {
+    return problems.size() == (allow_collisions ? collisions.size() : 0);
+  }
+};
+
+// Builds the program's Petri net and analyses it as twin check does (petri::analyze with stubborn-set reduction, whose
+// verdicts are those of full exploration; `analysis.states` counts the markings explored: the run is refused unless
+// the analysis is complete, deadlock-free, bounded and every region exclusive), and checks the reach of every target the
+// program's moves need: for each program robot, the grasp and approach poses of the locations it moves to, of the
+// places where it picks workpieces (their initial pose, or a conveyor's pick point: the stop bar when it has one),
+// and its grasp at the hand-over when it puts or gets (a robot missing from the cell's hand-over grasps is a problem).
+// When all of that holds, it also plans every move as robot control will make it (estimate.hpp plan_motions, with
+// options.handover_clearance) and reports each move that cannot be made: a part held from the side that cannot be
+// put down from the side, a taker that cannot wait backed off from the hand-over. When every move can be made, it
+// sweeps them for collisions with `collisions` (sweep.hpp: against the static cell, and against the other robots'
+// where the net lets two commands run at once) and lists each predicted one in `collisions`. `collisions` is null in
+// a build without the simulator: then nothing is swept, and sweep_summary says so.
+// Throws InputError only if a URDF cannot be read (load_scenario has read them once already).
+Preflight preflight(const Scenario& scenario, const CollisionSweep* collisions);
+
+}  // namespace cellwright::cell

@@ -1,0 +1,551 @@
+// The cycle-time estimate before a run (estimate.hpp).
+#include "cellwright/cell/estimate.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <tuple>
+
+#include "cellwright/drivers/robot_driver.hpp"
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
+#include "cellwright/petri/firing.hpp"
+#include "cellwright/runtime/robot_control.hpp"
+#include "cellwright/task/to_net.hpp"
+#include "cellwright/twin/sim/belt_exit.hpp"
+#include "cellwright/twin/sim/grip_timing.hpp"
+#include "cellwright/twin/sim/trajectory.hpp"
+
+namespace cellwright::cell {
+
+namespace sim = twin::sim;  // the simulator's World, drivers and plant
+
+namespace {
+
+Eigen::VectorXd vec(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+// Seconds part `w` rides conveyor `c` from `from` (m along the belt from its upstream end) to where it is picked: the
+// stop (its centre half its length before the bar) or the leave point. `pick_pose` is set to the part's pose there.
+double ride_to_pick(const models::ConveyorSpec& c, const models::WorkpieceSpec& w, double from,
+                    Eigen::Isometry3d& pick_pose) {
+  const double stop_s = c.stop ? c.leave - w.size.x() / 2 : c.leave;
+  pick_pose = Eigen::Isometry3d::Identity();
+  pick_pose.linear() = Eigen::AngleAxisd(c.pose.rpy.z(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  pick_pose.translation() = c.belt_point(stop_s) + Eigen::Vector3d(0, 0, w.size.z() / 2);
+  const double travel = std::max(0.0, stop_s - from);
+  return c.speed > 0 ? travel / c.speed : 0.0;
+}
+
+// When a part on a conveyor can first be picked: it rides the belt to the stop (or the end), from where it starts
+// or, when fed, from the entry point at its arrival time. nullopt for a part not on a conveyor. `conveyor` is set to
+// the conveyor it rides.
+std::optional<double> pick_ready_time(const models::CellDescription& cell, const models::WorkpieceSpec& w,
+                                      const std::optional<Feed>& feed, Eigen::Isometry3d& pick_pose,
+                                      std::string& conveyor) {
+  std::optional<std::size_t> fed;
+  if (feed) {
+    auto it = std::find(feed->workpieces.begin(), feed->workpieces.end(), w.name);
+    if (it != feed->workpieces.end()) fed = static_cast<std::size_t>(it - feed->workpieces.begin());
+  }
+  const models::ConveyorSpec* c = cell.find_conveyor(fed ? feed->conveyor : w.on);
+  if (c == nullptr) return std::nullopt;
+  conveyor = c->name;
+  const double start_time = fed ? feed->arrival(*fed) : 0.0;
+  const double start_s = fed ? c->enter : (c->pose.transform().inverse() * w.pose.xyz).x() + c->length / 2;
+  return start_time + ride_to_pick(*c, w, start_s, pick_pose);
+}
+
+// A builder holding all of `net` (places, transitions, regions, robots, final places), to add to.
+petri::NetBuilder builder_of(const petri::Net& net) {
+  petri::NetBuilder b(net.name());
+  for (const petri::Place& p : net.places()) b.add_place(p);
+  for (const petri::Transition& t : net.transitions()) b.add_transition(t);
+  for (const petri::Region& r : net.regions()) b.add_region(r);
+  b.set_robots(net.robots());
+  b.set_final(net.final_places());
+  return b;
+}
+
+// The program's net with the parts' arrivals: per part that arrives late, a place "coming" holding a token until the
+// part is there (its duration), a transition "arrived" that fires then, and a place "arrived" on a self-loop of the
+// transition that starts the first move to it. The self-loop gives the token back at once: when a loop runs that move
+// again, the next part is taken to be waiting already (fed faster than the cell takes them; a slower feed is not
+// modelled).
+petri::Net with_arrivals(const petri::Net& net, const std::vector<ArrivalGate>& gates, std::vector<double>& durations) {
+  petri::NetBuilder b = builder_of(net);
+  for (const ArrivalGate& g : gates) {
+    petri::Place coming;
+    coming.id = fmt::format("arrival.{}.coming", g.workpiece);
+    coming.name = fmt::format("{} on its way", g.workpiece);
+    coming.initial = 1;
+    const petri::PlaceId from = b.add_place(std::move(coming));
+    durations.push_back(g.ready);
+    petri::Place here;
+    here.id = fmt::format("arrival.{}", g.workpiece);
+    here.name = fmt::format("{} arrived", g.workpiece);
+    const petri::PlaceId id = b.add_place(std::move(here));
+    durations.push_back(0.0);
+    petri::Transition arrived;
+    arrived.id = fmt::format("arrival.{}.arrived", g.workpiece);
+    arrived.name = fmt::format("{} arrives", g.workpiece);
+    arrived.inputs.push_back({from, 1});
+    arrived.outputs.push_back({id, 1});
+    b.add_transition(std::move(arrived));
+    b.transition(g.transition).inputs.push_back({id, 1});
+    b.transition(g.transition).outputs.push_back({id, 1});
+  }
+  return std::move(b).build();
+}
+
+// The feed's net joined to `net` (estimate.hpp, estimate_cycle_time): slots at the feed times, bodies free, parts at
+// the stop taken by the plan's feed takes, bodies delivered back by its deliveries. `durations` gets the new places'.
+// `delivered` has each delivery's place duration.
+petri::Net with_feed(const petri::Net& net, const Feed& feed, const MotionPlan& plan,
+                     const std::vector<double>& delivered, double period, std::vector<double>& durations) {
+  petri::NetBuilder b = builder_of(net);
+  const auto place = [&](const std::string& id, std::string name, petri::Tokens initial, double duration) {
+    petri::Place p;
+    p.id = id;
+    p.name = std::move(name);
+    p.initial = initial;
+    durations.push_back(duration);
+    return b.add_place(std::move(p));
+  };
+  const auto transition = [&](const std::string& id, std::string name, std::vector<petri::Arc> in,
+                              std::vector<petri::Arc> out) {
+    petri::Transition t;
+    t.id = id;
+    t.name = std::move(name);
+    t.inputs = std::move(in);
+    t.outputs = std::move(out);
+    b.add_transition(std::move(t));
+  };
+  const auto count = static_cast<petri::Tokens>(feed.count);
+  const auto bodies = static_cast<petri::Tokens>(feed.workpieces.size());
+  const petri::PlaceId first = place("feed.first", "until the first feed time", 1, feed.start);
+  const petri::PlaceId due = place("feed.due", "parts still to feed", count, 0.0);
+  const petri::PlaceId clock = place("feed.clock", "until the next feed time", 0, feed.period);
+  const petri::PlaceId slot = place("feed.slot", "a feed time come", 0, 0.0);
+  const petri::PlaceId free = place("feed.free", "bodies free to feed", bodies, 0.0);
+  const petri::PlaceId part = place("feed.part", "a part fed, at the stop once it has ridden there", 0,
+                                    std::ceil(plan.feed_ride / period - 1e-9) * period);
+  transition("feed.begin", "the first feed time", {{first, 1}, {due, 1}}, {{slot, 1}, {clock, 1}});
+  transition("feed.tick", "the next feed time", {{clock, 1}, {due, 1}}, {{slot, 1}, {clock, 1}});
+  transition("feed.feed", "a body put on the belt", {{slot, 1}, {free, 1}}, {{part, 1}});
+  for (petri::TransitionId t : plan.feed_takes) b.transition(t).inputs.push_back({part, 1});
+  for (std::size_t d = 0; d < plan.deliveries.size(); ++d) {
+    const Delivery& dl = plan.deliveries[d];
+    const petri::PlaceId leaving = place(fmt::format("feed.leaving.{}", d),
+                                         fmt::format("a part riding {} out of the cell", dl.conveyor), 0, delivered[d]);
+    b.transition(dl.transition).outputs.push_back({leaving, 1});
+    transition(fmt::format("feed.delivered.{}", d), fmt::format("a part taken out at the end of {}", dl.conveyor),
+               {{leaving, 1}}, {{free, 1}});
+  }
+  return std::move(b).build();
+}
+
+// Half the extent of a workpiece along the unit direction `d` (world): where fingers closing along d touch it.
+double half_extent(const runtime::WorkpieceState& w, const Eigen::Vector3d& d) {
+  const Eigen::Vector3d local = w.pose.linear().transpose() * d;
+  const Eigen::Vector3d size = w.size();
+  if (w.shape() == models::Shape::kCylinder) {  // size: diameter, -, height; its axis along its z
+    return 0.5 * size.x() * std::hypot(local.x(), local.y()) + 0.5 * size.z() * std::abs(local.z());
+  }
+  return 0.5 * local.cwiseAbs().dot(size);
+}
+
+// From the firing that starts a command to the firing after it, in lock-step (see estimate.hpp): the driver's `motion`
+// seconds end at a physics step, seen by robot control in the round of that step, a move's read-back one round later,
+// the next firing one round after that.
+double lockstep_span(double motion, bool move, double period, double step) {
+  const double steps = std::ceil(motion / step - 1e-9);
+  const double rounds = std::floor(steps * step / period + 1e-9) + 1;
+  return (rounds + (move ? 2 : 1)) * period;
+}
+
+}  // namespace
+
+std::vector<std::string> MotionPlan::problems() const {
+  std::vector<std::string> out;
+  for (const auto& robot : commands) {
+    for (const PlannedCommand& c : robot) {
+      if (!c.problem.empty()) {
+        out.push_back(
+            fmt::format("robot '{}' ({}) cannot make '{}' ({}): {}", c.cell, c.robot, c.command, c.source, c.problem));
+      }
+    }
+  }
+  return out;
+}
+
+MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime::TargetOptions& targets) {
+  const task::CompiledProgram& prog = s.program;
+  struct Arm {
+    std::string cell;
+    models::KinematicChain chain;
+    Eigen::Isometry3d base;
+    bool five_axis = false;  // on a Movemaster EX controller: its yaw follows its position
+  };
+  std::vector<Arm> arms;
+  for (const std::string& label : prog.robots) {
+    const models::RobotSpec& spec = *s.cell.find_robot(s.robot_of(label));
+    bool five_axis = false;
+    for (const DriverChoice& d : s.drivers) {
+      if (d.robot == spec.name) five_axis = d.kind == models::DriverKind::kMovemaster;
+    }
+    arms.push_back({spec.name, models::robot_chain(spec),
+                    spec.base.transform(), five_axis});
+  }
+
+  MotionPlan plan;
+  plan.commands.resize(prog.robots.size());
+  for (std::size_t r = 0; r < prog.robots.size(); ++r) {
+    const auto& prims = prog.programs[r].primitives;
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      PlannedCommand c;
+      c.robot = prog.robots[r];
+      c.cell = arms[r].cell;
+      c.primitive = k;
+      c.kind = prims[k].kind;
+      c.command = task::to_string(prims[k]);
+      c.source = fmt::format("{}:{}:{} '{}'", std::filesystem::path(prims[k].where.file).filename().string(),
+                             prims[k].where.line, prims[k].where.column, prims[k].task);
+      plan.commands[r].push_back(std::move(c));
+    }
+  }
+
+  // The environment model the plan follows: parts that ride a conveyor wait at its stop, at rest.
+  runtime::EnvironmentModel model = runtime::make_environment_model(s.cell);
+  // The feed's ride to the stop, and a shift's exit conveyors as the scenario's run sets them up (run.cpp): every
+  // conveyor but the feed's.
+  std::vector<sim::BeltExit> exits;
+  if (s.feed) {
+    const models::ConveyorSpec* entry = s.cell.find_conveyor(s.feed->conveyor);
+    CW_CHECK(entry != nullptr, "the feed's conveyor {} is not the cell's", s.feed->conveyor);  // (the loader checks)
+    for (const std::string& w : s.feed->workpieces) {
+      const models::WorkpieceSpec* body = s.cell.find_workpiece(w);
+      CW_CHECK(body != nullptr, "the feed's workpiece {} is not the cell's", w);
+      Eigen::Isometry3d at_stop;
+      plan.feed_ride = std::max(plan.feed_ride, ride_to_pick(*entry, *body, entry->enter, at_stop));
+    }
+    for (const models::ConveyorSpec* c : s.feed->exits(s.cell)) exits.emplace_back(*c);
+  }
+  std::map<std::string, double> ready_at;         // cell workpiece -> when it can be picked
+  std::map<std::string, std::string> arrives_on;  // cell workpiece -> the conveyor it rides to its stop
+  for (const models::WorkpieceSpec& w : s.cell.workpieces) {
+    Eigen::Isometry3d pick = Eigen::Isometry3d::Identity();
+    if (auto t = pick_ready_time(s.cell, w, s.feed, pick, arrives_on[w.name])) {
+      runtime::WorkpieceState& ws = *model.find_workpiece(w.name);
+      ws.pose = pick;
+      ws.present = true;
+      ready_at[w.name] = *t;
+    }
+  }
+  // What each arm holds, relative to its tool (parts held move with the hand).
+  std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> held;  // cell robot -> (workpiece, tcp^-1 part)
+  std::map<std::string, double> closed;  // cell robot -> where its fingers closed to (absent: open)
+
+  auto tcp_of = [&](const Arm& a, const std::vector<double>& q) { return a.base * a.chain.forward(vec(q)); };
+  auto bound = [&](const task::Target& t) {
+    task::Target out = t;
+    if (t.kind == task::TargetKind::kAbove || t.kind == task::TargetKind::kAt) {
+      out.object = std::find(prog.workpieces.begin(), prog.workpieces.end(), t.object) != prog.workpieces.end()
+                       ? s.workpiece_of(t.object)
+                       : s.location_of(t.object);
+    } else if (t.kind != task::TargetKind::kHome) {
+      out.object = s.robot_of(t.object);
+    }
+    return out;
+  };
+
+  petri::Marking m = net.initial_marking();
+  petri::Arbiter arbiter = petri::make_arbiter(net);
+  // Workpiece classes, as robot control binds them: a move to a part of a class the arm does not have takes the next
+  // body the feed brings (in feed order, round the list), at rest where it stops; a Get's close takes the body the
+  // giver holds; the open that lets go of it unbinds it. Each primitive is planned once (the loop bodies' first
+  // iteration), so a few bodies suffice.
+  std::map<std::string, std::map<std::string, std::string>> instance;  // cell robot -> class label -> cell workpiece
+  std::map<std::string, std::string> hand_peer;                        // cell robot -> the robot its hand went to
+  std::size_t next_body = 0;
+  std::map<std::string, Eigen::Isometry3d> ready_pose;
+  for (const models::WorkpieceSpec& w : s.cell.workpieces) ready_pose[w.name] = model.find_workpiece(w.name)->pose;
+  // Sets `fed` when the class takes a new part from the feed.
+  auto bind_class = [&](const std::string& robot, const std::string& label, bool* fed = nullptr) -> std::string {
+    auto& mine = instance[robot];
+    if (auto it = mine.find(label); it != mine.end()) return it->second;
+    std::string body;
+    if (auto peer = hand_peer.find(robot); peer != hand_peer.end() && held.count(peer->second) != 0) {
+      body = held.at(peer->second).first;
+    } else if (s.feed && !s.feed->workpieces.empty()) {
+      if (fed != nullptr) *fed = true;
+      body = s.feed->workpiece_at(next_body++);
+      runtime::WorkpieceState& ws = *model.find_workpiece(body);
+      if (ws.held_by.empty()) ws.pose = ready_pose.at(body);
+    }
+    if (!body.empty()) mine[label] = body;
+    return body;
+  };
+
+  std::uint64_t guard = 0;
+  task::LoopControl loops(net, prog);
+  while (!petri::is_dead(net, m) && guard++ < 1'000'000) {
+    std::vector<bool> allowed;
+    loops.restrict(allowed);
+    const auto chosen = petri::choose(net, m, arbiter, allowed);
+    if (chosen.empty()) break;
+    for (petri::TransitionId t : chosen) loops.fired(t);
+    for (petri::TransitionId t : chosen) {
+      const petri::Transition& tr = net.transitions()[t];
+      if (!tr.starts_robot) continue;
+      const std::size_t r = *tr.starts_robot;
+      const std::size_t k = static_cast<std::size_t>(tr.starts_primitive);
+      PlannedCommand& c = plan.commands[r][k];
+      if (c.reached) continue;  // programs are straight lines: each primitive runs once
+      c.reached = true;
+      const task::Primitive& p = prog.programs[r].primitives[k];
+      const Arm& arm = arms[r];
+      runtime::RobotState& rs = *model.find_robot(arm.cell);
+      switch (p.kind) {
+        case task::PrimitiveKind::kMove: {
+          task::Target target = p.target;
+          const bool to_part = target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt;
+          if (to_part && task::find_class(prog, target.object) != nullptr) {
+            hand_peer.erase(arm.cell);
+            bool fed = false;
+            const std::string body = bind_class(arm.cell, target.object, &fed);
+            target.object = body.empty() ? s.location_of(task::find_class(prog, target.object)->from) : body;
+            if (fed) {
+              // Each time this move starts, it takes the next part fed (the feed's net, not a gate of its own).
+              plan.feed_takes.push_back(t);
+              ready_at.erase(body);
+            }
+          } else {
+            target = bound(p.target);
+            if (!to_part && target.kind != task::TargetKind::kHome) hand_peer[arm.cell] = target.object;
+          }
+          // A part still to come holds back the first move to it.
+          if (target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt) {
+            if (auto it = ready_at.find(target.object); it != ready_at.end()) {
+              if (it->second > 0) plan.gates.push_back({t, target.object, it->second, arrives_on[target.object]});
+              ready_at.erase(it);
+            }
+          }
+          c.from = rs.joints;
+          if (auto h = held.find(arm.cell); h != held.end()) std::tie(c.held, c.grip) = h->second;
+          if (auto f = closed.find(arm.cell); f != closed.end()) c.closed = f->second;
+          const runtime::MotionTarget mt = runtime::resolve_target(model, arm.cell, target, targets);
+          if (mt.resolution != runtime::MotionTarget::Resolution::kOk) {
+            c.problem = mt.reason;
+            break;
+          }
+          c.target = mt.description;
+          const Eigen::VectorXd from = vec(rs.joints);
+          std::optional<Eigen::VectorXd> goal;
+          std::string why;
+          if (!mt.joints.empty()) {
+            goal = vec(mt.joints);
+          } else {
+            // As robot control chooses: the best-ranked pose the arm reaches, the nearest of those; for an arm on a
+            // 5-axis controller, only poses it can be told (drivers::out_of_arm_plane).
+            int best_rank = 0;
+            for (std::size_t i = 0; i < mt.poses.size(); ++i) {
+              const int rank = i < mt.rank.size() ? mt.rank[i] : 0;
+              if (goal && rank > best_rank) continue;
+              const Eigen::Isometry3d in_base = arm.base.inverse() * mt.poses[i];
+              if (arm.five_axis && drivers::out_of_arm_plane(in_base) > runtime::MotionOptions{}.arm_plane_tolerance) {
+                if (why.empty()) why = "no pose with the approach axis in the 5-axis arm's vertical plane";
+                continue;
+              }
+              const models::IkResult ik = arm.chain.inverse(in_base, from);
+              if (ik.status == models::IkStatus::kOk &&
+                  (!goal || rank < best_rank || (ik.q - from).norm() < (*goal - from).norm())) {
+                goal = ik.q;
+                best_rank = rank;
+              }
+              if (ik.status != models::IkStatus::kOk && why.empty()) why = ik.reason;
+            }
+          }
+          if (!goal) {
+            const Eigen::Isometry3d& pose = mt.poses.front();
+            c.problem = fmt::format(
+                "no joint configuration puts its tool at ({:.3f}, {:.3f}, {:.3f}) pointing ({:.2f}, "
+                "{:.2f}, {:.2f}){}: {}",
+                pose.translation().x(), pose.translation().y(), pose.translation().z(), pose.linear()(0, 2),
+                pose.linear()(1, 2), pose.linear()(2, 2),
+                rs.hold ? fmt::format(" holding {}", rs.hold->workpiece) : std::string(), why);
+            break;
+          }
+          c.goal.assign(goal->data(), goal->data() + goal->size());
+          rs.joints = c.goal;
+          rs.tcp = tcp_of(arm, rs.joints);
+          if (auto h = held.find(arm.cell); h != held.end()) {
+            model.find_workpiece(h->second.first)->pose = tcp_of(arm, rs.joints) * h->second.second;
+          }
+          break;
+        }
+        case task::PrimitiveKind::kOpen:
+        case task::PrimitiveKind::kClose: {
+          if (p.kind == task::PrimitiveKind::kOpen) {
+            closed.erase(arm.cell);
+          } else {
+            closed[arm.cell] = 0.0;
+          }
+          if (p.workpiece.empty()) break;
+          const bool of_class = task::find_class(prog, p.workpiece) != nullptr;
+          const std::string w = of_class ? bind_class(arm.cell, p.workpiece) : s.workpiece_of(p.workpiece);
+          if (w.empty()) break;
+          if (of_class && p.kind == task::PrimitiveKind::kOpen) instance[arm.cell].erase(p.workpiece);
+          runtime::WorkpieceState& ws = *model.find_workpiece(w);
+          const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
+          c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)
+          if (p.kind == task::PrimitiveKind::kClose) closed[arm.cell] = *c.contact;
+          if (p.kind == task::PrimitiveKind::kClose) {
+            rs.released_tcp.reset();
+            held[arm.cell] = {w, tcp.inverse() * ws.pose};
+            ws.held_by = arm.cell;
+            // As robot control records it: held from above when the tool points down, else from the side.
+            const bool down = tcp.linear().col(2).z() < -0.7;
+            const double bottom = ws.pose.translation().z() - ws.size().z() / 2;
+            rs.hold = runtime::Hold{w, down ? models::Approach::kDown : models::Approach::kSide,
+                                    tcp.translation().z() - bottom};
+          } else {
+            // As robot control records it: the hand departs straight up from where it let go (resolve_target).
+            if (rs.hold) rs.released_tcp = tcp;
+            // A body of the shift let go of over an exit conveyor rides out of the cell and is fed again.
+            for (const sim::BeltExit& e : exits) {
+              const std::optional<double> at = e.along(ws.pose.translation());
+              if (!at || e.conveyor().speed <= 0 || !s.feed->feeds(w)) continue;
+              const double distance = std::max(0.0, e.out_at() - *at);
+              plan.deliveries.push_back({t, r, k, e.conveyor().name, distance, distance / e.conveyor().speed});
+              break;
+            }
+            held.erase(arm.cell);
+            rs.hold.reset();
+            if (ws.held_by == arm.cell) ws.held_by.clear();
+          }
+          break;
+        }
+        case task::PrimitiveKind::kSignal:
+        case task::PrimitiveKind::kWait:
+        case task::PrimitiveKind::kLoop:
+          break;
+      }
+    }
+    petri::fire_chosen(net, m, arbiter, chosen);
+  }
+  return plan;
+}
+
+Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const EstimateOptions& options) {
+  Estimate est;
+  const task::CompiledProgram& prog = s.program;
+  std::vector<const RobotTiming*> timing;
+  for (const std::string& label : prog.robots) {
+    const std::string& cell_name = s.robot_of(label);
+    auto it = options.robots.find(cell_name);
+    CW_CHECK(it != options.robots.end(), "no timing for robot {}", cell_name);
+    timing.push_back(&it->second);
+  }
+  MotionPlan plan = plan_motions(s, net, options.targets);
+  est.notes = plan.problems();
+
+  const double period = options.control_period, step = options.physics_step;
+  CW_CHECK(period > 0 && step > 0, "control period {} s, physics step {} s", period, step);
+  std::vector<double> durations(net.num_places(), 0.0);
+  // A shift's deliveries: from the start of the open to the end of the period in which the world takes the part out.
+  std::vector<double> delivered(plan.deliveries.size(), 0.0);
+  std::map<std::pair<std::size_t, std::size_t>, std::size_t> delivery_of;  // (robot, primitive) -> delivery
+  for (std::size_t d = 0; d < plan.deliveries.size(); ++d) {
+    delivery_of[{plan.deliveries[d].robot, plan.deliveries[d].primitive}] = d;
+  }
+  for (std::size_t r = 0; r < plan.commands.size(); ++r) {
+    const RobotTiming& rt = *timing[r];
+    // Bring-up: the driver homes (the arm to its home joints, the fingers opening), then robot control activates it
+    // and takes the first command in the next round.
+    const double home = std::max(rt.min_move_time, sim::kFingerMinTime + sim::kFingerRestWindow);
+    durations[*net.find_place(task::start_place_id(prog.robots[r]))] = lockstep_span(home, false, period, step);
+    double fingers = rt.finger_open;  // where the finger ramp stands (homing opened the fingers)
+    for (const PlannedCommand& c : plan.commands[r]) {
+      CommandEstimate ce;
+      ce.robot = c.robot;
+      ce.primitive = c.primitive;
+      ce.command = c.command;
+      if (c.kind == task::PrimitiveKind::kMove) {
+        if (c.goal.empty()) {
+          ce.motion = rt.min_move_time;
+          ce.basis = c.reached ? "move that cannot be made" : "not reached";
+        } else {
+          CW_CHECK(rt.max_joint_speed.size() == c.goal.size(), "robot {}: {} joint speeds for {} joints", c.cell,
+                   rt.max_joint_speed.size(), c.goal.size());
+          const Eigen::VectorXd from = vec(c.from), goal = vec(c.goal);
+          ce.motion = sim::move_duration(from, goal, vec(rt.max_joint_speed), rt.speed, rt.min_move_time);
+          Eigen::Index j = 0;
+          const double largest = (goal - from).cwiseAbs().maxCoeff(&j);
+          ce.basis = fmt::format("joint move, largest step {:.3f} rad (joint {})", largest, j + 1);
+        }
+        ce.seconds = lockstep_span(ce.motion, true, period, step);
+      } else if (c.kind == task::PrimitiveKind::kOpen) {
+        ce.motion = sim::finger_ramp_duration(fingers, rt.finger_open, rt.finger_speed) + sim::kFingerRestWindow;
+        ce.basis = fmt::format("fingers open from {:.4f} m to {:.4f} m at {:.3f} m/s", fingers, rt.finger_open,
+                               rt.finger_speed);
+        if (auto d = delivery_of.find({r, c.primitive}); d != delivery_of.end()) {
+          // The part rides from when the fingers' ramp passes its faces (at once if they no longer press it), and is
+          // taken out at the end of the period in which it reaches the exit point.
+          const double release =
+              c.contact && *c.contact > fingers
+                  ? sim::finger_ramp_time_to(fingers, rt.finger_open, *c.contact, rt.finger_speed).value_or(ce.motion)
+                  : 0.0;
+          const double out = std::ceil(release / step - 1e-9) * step + plan.deliveries[d->second].ride;
+          delivered[d->second] = (std::floor(out / period + 1e-9) + 1) * period;
+          ce.basis += fmt::format(
+              "; lets go of the part after {:.2f} s, {:.3f} m before it leaves the cell on {}: "
+              "a body free again {:.2f} s after the open starts",
+              release, plan.deliveries[d->second].distance, plan.deliveries[d->second].conveyor, delivered[d->second]);
+        }
+        fingers = rt.finger_open;
+        ce.seconds = lockstep_span(ce.motion, false, period, step);
+      } else if (c.kind == task::PrimitiveKind::kClose) {
+        const std::optional<double> press =
+            c.contact && fingers > rt.finger_closed
+                ? sim::finger_press_time(fingers, rt.finger_closed, *c.contact, rt.finger_squeeze, rt.finger_speed)
+                : std::nullopt;
+        if (press) {
+          ce.motion = *press + sim::kFingerRestWindow;
+          ce.basis = fmt::format("fingers close from {:.4f} m on a part {:.4f} m wide at {:.3f} m/s", fingers,
+                                 2 * *c.contact, rt.finger_speed);
+        } else {
+          ce.motion = sim::finger_ramp_duration(fingers, rt.finger_closed, rt.finger_speed) + sim::kFingerRestWindow;
+          ce.basis = fmt::format("fingers close from {:.4f} m to {:.4f} m at {:.3f} m/s", fingers, rt.finger_closed,
+                                 rt.finger_speed);
+        }
+        fingers = rt.finger_closed;  // the ramp runs on to fully closed (see the top)
+        ce.seconds = lockstep_span(ce.motion, false, period, step);
+      } else {
+        ce.basis = "net only";  // signal, wait, a loop's end
+      }
+      durations[*net.find_place(task::place_id(c.robot, c.primitive))] = ce.seconds;
+      est.commands.push_back(std::move(ce));
+    }
+  }
+  // A part seen at rest is taken in the round after it came to rest.
+  for (ArrivalGate& g : plan.gates) g.ready = std::ceil(g.ready / period - 1e-9) * period;
+  est.timed_net = with_arrivals(net, plan.gates, durations);
+  if (!plan.feed_takes.empty()) est.timed_net = with_feed(est.timed_net, *s.feed, plan, delivered, period, durations);
+  est.place_duration = durations;
+  task::LoopControl loops(est.timed_net, prog);
+  est.run = simulate_timed(est.timed_net, durations, 1'000'000, &loops);
+  // The transitions added to the program's net come after its own.
+  for (auto f = est.run.firings.rbegin(); f != est.run.firings.rend(); ++f) {
+    if (f->transition < net.num_transitions()) {
+      est.cycle_time = f->time;
+      break;
+    }
+  }
+  return est;
+}
+
+}  // namespace cellwright::cell

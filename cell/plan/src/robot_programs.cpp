@@ -1,0 +1,457 @@
+// The post-processors (robot_programs.hpp): the motion plan's tool poses and the program's events, written in the
+// Movemaster EX and VAL II languages.
+#include "cellwright/cell/robot_programs.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+#include <map>
+#include <set>
+
+#include "cellwright/common/files.hpp"
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
+#include "cellwright/cell/estimate.hpp"
+#include "conventions.hpp"
+
+namespace cellwright::cell {
+
+namespace {
+
+using cell::Scenario;
+using task::PrimitiveKind;
+using task::TargetKind;
+
+// The 5-axis rule's tolerance for an approach axis out of the arm's plane (docs/real-robots.md, yaw_tolerance).
+constexpr double kYawToleranceDeg = 0.5;
+// Movemaster line numbers go up in tens, so that a line can be put in by hand.
+constexpr int kLineStep = 10;
+
+std::string file_name(const std::filesystem::path& p) {
+  return p.filename().string();
+}
+
+std::string where_text(const SourceLocation& w) {
+  return fmt::format("{}:{}:{}", file_name(w.file), w.line, w.column);
+}
+
+// How an event or region of the program is carried out.
+struct EventUse {
+  std::vector<std::pair<std::size_t, std::size_t>> signals, waits;  // (program robot, primitive)
+};
+
+// The net's check result, as the headers quote it.
+std::string check_text(const petri::AnalysisResult& a, bool has_regions) {
+  return fmt::format("deadlock-free and bounded, {} reachable markings explored{}{}", a.states,
+                     a.reduction == petri::Reduction::kStubborn ? " (stubborn-set reduction)" : "",
+                     has_regions ? ", every region exclusive" : "");
+}
+
+// The events' wires and the regions left out; refuses what wires cannot do.
+std::vector<IoChannel> assign_channels(const Scenario& s, std::set<std::string>& local_regions) {
+  const task::CompiledProgram& prog = s.program;
+  std::map<std::string, EventUse> uses;
+  for (std::size_t r = 0; r < prog.programs.size(); ++r) {
+    const auto& prims = prog.programs[r].primitives;
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      if (prims[k].kind == PrimitiveKind::kSignal) uses[prims[k].event].signals.emplace_back(r, k);
+      if (prims[k].kind == PrimitiveKind::kWait) uses[prims[k].event].waits.emplace_back(r, k);
+    }
+  }
+  std::vector<IoChannel> channels;
+  for (const task::Semaphore& sem : prog.semaphores) {
+    const EventUse& u = uses[sem.name];
+    std::set<std::size_t> robots;
+    for (const auto& [r, k] : u.signals) robots.insert(r);
+    for (const auto& [r, k] : u.waits) robots.insert(r);
+    if (robots.empty()) continue;
+    const std::string kind = sem.region ? "region" : sem.inserted ? "event" : "semaphore";
+    if (sem.region) {
+      if (robots.size() > 1) {
+        std::string who;
+        for (std::size_t r : robots) who += fmt::format("{}{}", who.empty() ? "" : " and ", s.robot_of(prog.robots[r]));
+        throw InputError(sem.declared,
+                         fmt::format("region '{}' is shared by {}: plain I/O wires between two controllers cannot "
+                                     "arbitrate a critical region (both may find it free at once); order the robots "
+                                     "with semaphores signalled once instead",
+                                     sem.name, who));
+      }
+      local_regions.insert(sem.name);
+      continue;
+    }
+    if (sem.initial != 0 || u.signals.size() != 1 || u.waits.size() != 1 || robots.size() != 2) {
+      throw InputError(sem.declared,
+                       fmt::format("{} '{}' (initial {}, signalled {} times, waited on {} times, by {} robot(s)) "
+                                   "cannot be an I/O wire: a wire carries one event, from one controller's output to "
+                                   "another's input, set once and never counted",
+                                   kind, sem.name, sem.initial, u.signals.size(), u.waits.size(), robots.size()));
+    }
+    IoChannel c;
+    c.channel = static_cast<int>(channels.size()) + 1;
+    c.event = sem.name;
+    c.from = prog.robots[u.signals[0].first];
+    c.to = prog.robots[u.waits[0].first];
+    channels.push_back(std::move(c));
+  }
+  return channels;
+}
+
+// The DriverChoice of a program robot.
+const cell::DriverChoice& driver_of(const Scenario& s, const std::string& cell_robot) {
+  for (const cell::DriverChoice& d : s.drivers) {
+    if (d.robot == cell_robot) return d;
+  }
+  throw InternalError(fmt::format("no driver choice for robot {}", cell_robot));
+}
+
+// One robot's program being written: its locations/positions and lines.
+struct Writer {
+  const Scenario& s;
+  std::size_t r;  // program robot
+  models::DriverKind language;
+  const std::vector<IoChannel>& channels;
+  const std::set<std::string>& local_regions;
+  RobotProgram out;
+
+  // Locations (VAL II) or positions (Movemaster), deduplicated by their text.
+  std::vector<std::pair<std::string, std::string>> locations;  // (name or number, values text)
+  std::map<std::string, std::string> location_by_values;
+  std::set<std::string> location_names;  // upper case (VAL II names are case-insensitive)
+
+  std::vector<std::string> lines;  // program lines, not numbered yet
+
+  bool movemaster() const { return language == models::DriverKind::kMovemaster; }
+
+  const IoChannel* channel_of(const std::string& event) const {
+    for (const IoChannel& c : channels) {
+      if (c.event == event) return &c;
+    }
+    return nullptr;
+  }
+
+  // Adds a program line (numbered later: Movemaster lines after the PD block, VAL II steps after the header); returns
+  // its index. A Movemaster line's "{}" is its own number.
+  int add(const std::string& text) {
+    lines.push_back(text);
+    return static_cast<int>(lines.size()) - 1;
+  }
+
+  // The name (VAL II) or number (Movemaster) of the location with these values, added when new.
+  std::string location(const std::string& values, const task::Target& t) {
+    if (auto it = location_by_values.find(values); it != location_by_values.end()) return it->second;
+    std::string name;
+    if (movemaster()) {
+      name = std::to_string(locations.size() + 1);
+    } else {
+      const char* kind = t.kind == TargetKind::kAbove          ? "above"
+                         : t.kind == TargetKind::kAt           ? "at"
+                         : t.kind == TargetKind::kHandover     ? "hover"
+                         : t.kind == TargetKind::kHandApproach ? "happr"
+                                                               : "hgrasp";
+      std::string object;
+      for (const char c : t.object) object.push_back(std::isalnum(static_cast<unsigned char>(c)) ? c : '.');
+      const std::string base = fmt::format("{}.{}", kind, object);
+      name = base;
+      for (int n = 2;; ++n) {
+        std::string upper = name;
+        for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+        if (location_names.insert(upper).second) break;
+        name = fmt::format("{}.{}", base, n);
+      }
+    }
+    locations.emplace_back(name, values);
+    location_by_values.emplace(values, name);
+    return name;
+  }
+
+  // The line of one primitive (-1: none).
+  int primitive(const task::Primitive& p, const cell::PlannedCommand& planned,
+                const models::KinematicChain& chain) {
+    switch (p.kind) {
+      case PrimitiveKind::kOpen:
+        return add(movemaster() ? "GO" : "OPENI");
+      case PrimitiveKind::kClose:
+        return add(movemaster() ? "GC" : "CLOSEI");
+      case PrimitiveKind::kSignal:
+      case PrimitiveKind::kWait: {
+        if (local_regions.count(p.event) != 0) return -1;
+        const IoChannel& c = *channel_of(p.event);
+        if (p.kind == PrimitiveKind::kSignal) {
+          return add(movemaster() ? fmt::format("OB +{}", c.channel) : fmt::format("SIGNAL {}", c.channel));
+        }
+        if (movemaster()) {
+          // Jumps back onto itself while input n is off: the controller waits here for the other's output.
+          return add(fmt::format("TB -{},{{}}", c.channel));
+        }
+        return add(fmt::format("WAIT SIG({})", 1000 + c.channel));
+      }
+      case PrimitiveKind::kLoop:
+        // A loop needs a counter and a jump in the controller's language (and, with several robots, the leader's
+        // decision wired to the others); not written yet, so refused rather than unrolled or dropped.
+        throw InputError(p.where, fmt::format("robot '{}': '{}' cannot be written as a {} program yet: loops are "
+                                              "run from the cell controller only",
+                                              out.robot, p.task, movemaster() ? "Movemaster EX" : "VAL II"));
+      case PrimitiveKind::kMove:
+        break;
+    }
+    if (p.target.kind == TargetKind::kHome) return add(movemaster() ? "NT" : "READY");
+    CW_CHECK(!planned.goal.empty(), "robot {} primitive {}: no planned goal after a passed preflight", planned.robot,
+             planned.primitive);
+    const Eigen::Isometry3d tool = chain.forward(
+        Eigen::Map<const Eigen::VectorXd>(planned.goal.data(), static_cast<Eigen::Index>(planned.goal.size())));
+    if (movemaster()) {
+      std::string why;
+      const std::optional<MovemasterPose> pose = movemaster_pose(tool, kYawToleranceDeg, why);
+      if (!pose) {
+        throw InputError(p.where, fmt::format("robot '{}' ({}) on a Movemaster cannot make '{}' ('{}'): {}",
+                                              out.cell_robot, out.robot, task::to_string(p), p.task, why));
+      }
+      const std::string values =
+          fmt::format("{},{},{},{},{}", movemaster_number(pose->x), movemaster_number(pose->y),
+                      movemaster_number(pose->z), movemaster_number(pose->p), movemaster_number(pose->r));
+      return add(fmt::format("MO {}", location(values, p.target)));
+    }
+    const std::array<double, 6> v = val2_trans(tool);
+    std::string values;
+    for (const double x : v) values += fmt::format("{}{}", values.empty() ? "" : " ", val2_number(x));
+    return add(fmt::format("MOVE {}", location(values, p.target)));
+  }
+};
+
+std::string language_name(models::DriverKind k) {
+  return k == models::DriverKind::kMovemaster ? "Movemaster EX" : "VAL II";
+}
+
+}  // namespace
+
+void set_language(Scenario& s, const std::string& spec, const SourceLocation& where) {
+  const std::size_t eq = spec.find('=');
+  const std::size_t colon = spec.find(':', eq == std::string::npos ? 0 : eq);
+  if (eq == std::string::npos || eq == 0) {
+    throw InputError(where, fmt::format("'{}': write ROBOT=movemaster, ROBOT=val2 or ROBOT=sim", spec));
+  }
+  const std::string robot = spec.substr(0, eq);
+  const std::string kind = spec.substr(eq + 1, colon == std::string::npos ? std::string::npos : colon - eq - 1);
+  for (cell::DriverChoice& d : s.drivers) {
+    if (d.robot != robot) continue;
+    if (kind == "movemaster") {
+      d.kind = models::DriverKind::kMovemaster;
+    } else if (kind == "val2") {
+      d.kind = models::DriverKind::kVal2;
+    } else if (kind == "sim") {
+      d.kind = models::DriverKind::kSim;
+    } else {
+      throw InputError(where, fmt::format("'{}': the language must be movemaster, val2 or sim, not '{}'", spec, kind));
+    }
+    d.where = where;
+    return;
+  }
+  throw InputError(where, fmt::format("'{}': '{}' is not a robot of the cell {}", spec, robot, file_name(s.cell_file)));
+}
+
+RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& pre) {
+  const task::CompiledProgram& prog = s.program;
+  if (!pre.ok()) {
+    std::string why;
+    for (const std::string& p : pre.problems) why += "\n  " + p;
+    throw InputError(
+        {s.source.string(), 0, 0},
+        fmt::format("refused: the program must pass the preflight before robot programs are written:{}", why));
+  }
+  // Every robot's language first: a simulated robot has none.
+  std::vector<models::DriverKind> languages;
+  for (const std::string& label : prog.robots) {
+    const cell::DriverChoice& d = driver_of(s, s.robot_of(label));
+    if (d.kind == models::DriverKind::kSim) {
+      throw InputError(d.where.file.empty() ? SourceLocation{s.source.string(), 0, 0} : d.where,
+                       fmt::format("robot '{}' ({}) runs on the sim driver: it has no robot language; put it on "
+                                   "movemaster or val2 (the scenario's drivers:, or --driver {}=movemaster|val2)",
+                                   d.robot, label, d.robot));
+    }
+    languages.push_back(d.kind);
+  }
+  std::set<std::string> local_regions;
+  RobotPrograms result;
+  result.channels = assign_channels(s, local_regions);
+  const int highest = static_cast<int>(result.channels.size());
+  for (std::size_t r = 0; r < prog.robots.size(); ++r) {
+    const int limit = languages[r] == models::DriverKind::kMovemaster ? kMovemasterChannels : kVal2Channels;
+    if (highest > limit) {
+      throw InputError({s.program_file.string(), 0, 0},
+                       fmt::format("the program needs {} I/O channels; robot '{}' ({}) on {} has {}", highest,
+                                   s.robot_of(prog.robots[r]), prog.robots[r], language_name(languages[r]), limit));
+    }
+  }
+  result.check = check_text(pre.analysis, !prog.regions.empty());
+
+  // The sensors' inputs are wired to every controller: no event wire may use one's number.
+  for (const models::ConveyorSpec& c : s.cell.conveyors) {
+    if (c.sensor != 0 && c.sensor <= highest) {
+      throw InputError(c.sensor_where,
+                       fmt::format("input {} is the part-present sensor of conveyor '{}', but the program's events "
+                                   "need the wires 1..{}; wire the sensor to a higher input",
+                                   c.sensor, c.name, highest));
+    }
+  }
+
+  runtime::TargetOptions targets;
+  targets.handover_clearance = s.options.handover_clearance;
+  const cell::MotionPlan plan = cell::plan_motions(s, pre.net, targets);
+
+  // A part that comes later on a conveyor (fed, or riding to the stop): the first move to it waits for the
+  // conveyor's part-present sensor, as robot control waits until it sees the part there. Named parts have their
+  // arrival gates; a part of a class that the feed brings is taken by the moves of plan.feed_takes.
+  std::map<std::pair<std::size_t, std::size_t>, const models::ConveyorSpec*> sensor_waits;  // (robot, primitive)
+  auto wait_for_sensor = [&](petri::TransitionId transition, const std::string& part, const std::string& conveyor,
+                             const std::string& when) {
+    const petri::Transition& t = pre.net.transitions()[transition];
+    CW_CHECK(t.starts_robot.has_value(), "arrival of {} on a transition that starts no primitive", part);
+    const std::size_t r = *t.starts_robot;
+    const auto k = static_cast<std::size_t>(t.starts_primitive);
+    const models::ConveyorSpec& c = *s.cell.find_conveyor(conveyor);
+    if (c.sensor == 0) {
+      const task::Primitive& p = prog.programs[r].primitives[k];
+      throw InputError(c.where,
+                       fmt::format("robot '{}' ({}) goes to {} ({} '{}') before it has ridden conveyor '{}' to its "
+                                   "stop{}: its controller must wait for the part, but the conveyor has no "
+                                   "part-present sensor; give it one ('sensor: {{signal: n}}', "
+                                   "docs/cell-description.md)",
+                                   s.robot_of(prog.robots[r]), prog.robots[r], part, where_text(p.where), p.task,
+                                   c.name, when));
+    }
+    sensor_waits.emplace(std::make_pair(r, k), &c);
+  };
+  for (const cell::ArrivalGate& g : plan.gates) {
+    wait_for_sensor(g.transition, fmt::format("workpiece '{}'", g.workpiece), g.conveyor,
+                    fmt::format(" (at {:.1f} s by the plan)", g.ready));
+  }
+  for (const petri::TransitionId t : plan.feed_takes) {
+    CW_CHECK(s.feed.has_value(), "a move takes a fed part, but the scenario has no feed");
+    wait_for_sensor(t, "the next part the feed brings", s.feed->conveyor, "");
+  }
+
+  for (std::size_t r = 0; r < prog.robots.size(); ++r) {
+    const std::string& label = prog.robots[r];
+    const models::RobotSpec& spec = *s.cell.find_robot(s.robot_of(label));
+    const models::KinematicChain chain = models::robot_chain(spec);
+    Writer w{s, r, languages[r], result.channels, local_regions, {}, {}, {}, {}, {}};
+    w.out.robot = label;
+    w.out.cell_robot = spec.name;
+    w.out.language = languages[r];
+    w.out.name = spec.name;
+    w.out.file_name = spec.name + (w.movemaster() ? ".movemaster" : ".val2");
+
+    // Set-up: the speed, and the outputs this controller drives turned off.
+    w.add(w.movemaster() ? fmt::format("SP {}", kMovemasterSpeedLevel) : fmt::format("SPEED {}", kVal2Speed));
+    std::vector<int> outputs;
+    for (const IoChannel& c : result.channels) {
+      if (c.from == label) outputs.push_back(c.channel);
+    }
+    if (w.movemaster()) {
+      for (const int n : outputs) w.add(fmt::format("OB -{}", n));
+    } else if (!outputs.empty()) {
+      std::string list;
+      for (const int n : outputs) list += fmt::format("{}-{}", list.empty() ? "" : ",", n);
+      w.add("SIGNAL " + list);
+    }
+    const auto& prims = prog.programs[r].primitives;
+    std::string last_task;
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      const task::Primitive& p = prims[k];
+      const std::string task_line = fmt::format("; {} {}", where_text(p.where), p.task);
+      if (!w.movemaster() && task_line != last_task) w.add(task_line);
+      last_task = task_line;
+      if (const auto it = sensor_waits.find({r, k}); it != sensor_waits.end()) {
+        const int n = it->second->sensor;
+        w.add(w.movemaster() ? fmt::format("TB -{},{{}}", n) : fmt::format("WAIT SIG({})", 1000 + n));
+      }
+      w.out.primitive_line.push_back(w.primitive(p, plan.commands[r][k], chain));
+    }
+    w.add(w.movemaster() ? "ED" : "; end");
+
+    // The header: what was generated from what.
+    const std::string c = w.movemaster() ? "'" : ";";
+    std::vector<std::string> header = {
+        fmt::format("{} {} ({}), {}: written by twin compile --robot-language; do not edit", c, spec.name, label,
+                    language_name(languages[r])),
+        fmt::format("{} program: {}", c, file_name(s.program_file)),
+        fmt::format("{} scenario: {}", c, file_name(s.source)),
+        fmt::format("{} cell: {} ({}), robot {} as {}", c, s.cell.name, file_name(s.cell_file), spec.name, label),
+        fmt::format("{} net: {}", c, result.check),
+        fmt::format("{} poses: the tool in the robot's base frame, mm and degrees ({})", c,
+                    w.movemaster() ? "x,y,z,p,r, the 5-axis rule" : "TRANS x,y,z,o,a,t"),
+    };
+    for (const IoChannel& ch : result.channels) {
+      const bool out_here = ch.from == label, in_here = ch.to == label;
+      if (!out_here && !in_here) continue;
+      const std::string other = s.robot_of(out_here ? ch.to : ch.from);
+      const std::string io =
+          w.movemaster()
+              ? (out_here ? fmt::format("OB +{}", ch.channel) : fmt::format("TB -{}", ch.channel))
+              : (out_here ? fmt::format("SIGNAL {}", ch.channel) : fmt::format("WAIT SIG({})", 1000 + ch.channel));
+      header.push_back(fmt::format("{} I/O {}: {} = {} {} {} ({})", c, ch.channel, io, ch.event,
+                                   out_here ? "to" : "from", other, out_here ? ch.to : ch.from));
+    }
+    std::set<const models::ConveyorSpec*> sensors_here;
+    for (const auto& [at, conveyor] : sensor_waits) {
+      if (at.first != r || !sensors_here.insert(conveyor).second) continue;
+      const int n = conveyor->sensor;
+      header.push_back(fmt::format("{} I/O {}: {} = a part at the stop of conveyor {} (its sensor)", c, n,
+                                   w.movemaster() ? fmt::format("TB -{}", n) : fmt::format("WAIT SIG({})", 1000 + n),
+                                   conveyor->name));
+    }
+    if (!local_regions.empty()) {
+      std::string names;
+      for (const std::string& z : local_regions) names += " " + z;
+      header.push_back(fmt::format("{} regions used by this robot alone, no wire needed:{}", c, names));
+    }
+    if (w.movemaster()) {
+      header.push_back("' a host sends the numbered lines (not these comments), then RN");
+    }
+
+    std::vector<std::string> file;
+    std::vector<int> number(w.lines.size());  // each program line's number or step
+    if (w.movemaster()) {
+      // The positions first (PD), then the program, every line numbered in tens.
+      file = header;
+      int n = 0;
+      for (const auto& [position, values] : w.locations) {
+        file.push_back(fmt::format("{} PD {},{}", n += kLineStep, position, values));
+      }
+      for (std::size_t i = 0; i < w.lines.size(); ++i) {
+        number[i] = n += kLineStep;
+        file.push_back(fmt::format("{} {}", n, fmt::format(fmt::runtime(w.lines[i]), n)));
+      }
+    } else {
+      file.push_back(fmt::format(".PROGRAM {}", spec.name));
+      for (const std::string& h : header) file.push_back(h);
+      for (std::size_t i = 0; i < w.lines.size(); ++i) {
+        number[i] = static_cast<int>(header.size() + i + 1);
+        file.push_back(w.lines[i].starts_with(';') ? w.lines[i] : "  " + w.lines[i]);
+      }
+      file.push_back(".END");
+      file.push_back(".LOCATIONS");
+      for (const auto& [name, values] : w.locations) file.push_back(fmt::format("{} {}", name, values));
+      file.push_back(".END");
+    }
+    for (int& line : w.out.primitive_line) {
+      if (line >= 0) line = number[static_cast<std::size_t>(line)];
+    }
+    for (const std::string& l : file) {
+      w.out.text += l + "\n";
+      if (!(w.movemaster() && l.starts_with('\''))) w.out.host_lines.push_back(l);
+    }
+    result.robots.push_back(std::move(w.out));
+  }
+  return result;
+}
+
+void write_robot_programs(const RobotPrograms& programs, const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the directory: {}", ec.message()));
+  for (const RobotProgram& p : programs.robots) write_file_atomically(dir / p.file_name, p.text);
+}
+
+}  // namespace cellwright::cell

@@ -1,0 +1,268 @@
+// What a run did, told from its event log (runtime/event_log.hpp) and the workpieces' final poses: the robots'
+// timelines (what the Gantt chart draws), per-robot busy/waiting/blocked/idle time, each workpiece's cycle time and
+// final location against the expected outcome, throughput, collisions, the account of every workpiece (in place,
+// elsewhere, held, lost, not arrived), each injected fault matched to its detection, diagnosis and recovery, and the
+// verdict `twin run` exits with. docs/scenarios.md describes report.json field by field; docs/faults.md sections 5-6
+// the account and the faults.
+//
+// Everything here is computed from values (the log's lines, the poses), so a report can be rebuilt from a saved
+// events.jsonl, and tests feed it synthetic logs.
+//
+// Thread safety: plain values and pure functions; any thread may call them.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include <cstddef>
+#include <iosfwd>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cellwright/models/cell.hpp"
+#include "cellwright/task/compiled.hpp"
+#include "cellwright/cell/scenario.hpp"
+
+namespace cellwright::cell {
+
+// Parses JSON Lines (an events.jsonl). Blank lines are skipped. Throws InputError naming `file` and the line when a
+// line is not a JSON object with a numeric "t" and a string "type". Each event gets "_log_line" (its line number).
+std::vector<nlohmann::json> parse_event_log(std::string_view jsonl, const std::string& file);
+// One line of it (line_no counts from 1): nullopt for a blank line.
+std::optional<nlohmann::json> parse_event_line(std::string_view line, int line_no, const std::string& file);
+
+// --- Timelines -------------------------------------------------------------------------------------------------------
+
+// What a robot is doing during a bar of the Gantt chart.
+enum class Activity {
+  kMove,     // executing a move (from the firing that started it to the robot's report that it is done)
+  kGrip,     // executing an open or close, likewise
+  kWait,     // in a wait place: waiting for an event another robot signals
+  kBlocked,  // its command is done but its next transition has not fired yet
+  kPartWait,  // its move/open/close has started but waits for its part to arrive (a "waiting_for_part" sensor event
+              // until the "part_ready" one): the robot stands still
+};
+
+// "move", "grip", "wait", "blocked", "part_wait".
+const char* to_string(Activity a);
+
+struct Bar {
+  double start = 0, end = 0;  // s of simulation time, end >= start
+  Activity activity = Activity::kMove;
+  int primitive = -1;  // index in the robot's primitive program
+  std::string label;   // the primitive ("move at(A)", "wait put9.r1>r2.ready") or, blocked, what it waits to start
+  std::string task;    // the task-level command it belongs to ("Pick A")
+};
+
+// A moment of a workpiece's journey, marked on the row of the robot that did it.
+enum class JourneyStep {
+  kPicked,      // gripped by a Pick (the "gripped" sensor event of a close of a task "Pick ...")
+  kHandedOver,  // let go by a Put to the robot that took it (the "released" sensor event of a "Put ...")
+  kPlaced,      // let go by a Place (the "released" sensor event of a "Place ...")
+};
+
+// "picked", "handed over", "placed".
+const char* to_string(JourneyStep s);
+
+struct JourneyMark {
+  double t = 0;  // s
+  JourneyStep step = JourneyStep::kPicked;
+  std::string workpiece;  // cell workpiece (as the sensor event names it)
+};
+
+struct RobotTimeline {
+  std::string robot;      // program label
+  std::string cell;       // cell robot name
+  std::vector<Bar> bars;  // in time order, not overlapping
+  std::vector<JourneyMark> marks;  // in time order
+  // Seconds in each activity; idle is the rest of [0, Timeline::end] (before its first command, after its last).
+  // waiting counts the wait and part_wait bars; waiting_for_part only the part_wait ones.
+  double busy = 0, waiting = 0, blocked = 0, idle = 0, waiting_for_part = 0;
+  std::size_t commands = 0;  // move/open/close commands started
+};
+
+struct Timeline {
+  double end = 0;                     // s: the run's end (run_end), else the last event's time
+  std::vector<RobotTimeline> robots;  // in the order of run_start's robots (program order)
+};
+
+// Builds the robots' timelines from the events of a run of `program`. A primitive k of robot r spans the time from
+// the firing of r's transition k (it starts the primitive) to the firing of transition k+1 (or the run's end): a
+// move/open/close is a move/grip bar up to its command_end and blocked after it; a wait is a wait bar; a signal takes
+// no time (a blocked bar if its next transition fired later). A move/open/close during which the robot control logged
+// "waiting_for_part" is a part_wait bar up to its "part_ready" sensor event (or, without one, up to its command_end or
+// the visit's end: the command ended or the run stopped before the part came) and a move/grip bar after it. The
+// journey marks come from the "gripped" and "released" sensor events of Pick, Put and Place commands. Throws InputError naming `file` when the events
+// contradict the program (an unknown robot or primitive), lack run_start, or have a fire or command event before it.
+Timeline build_timeline(const std::vector<nlohmann::json>& events, const task::CompiledProgram& program,
+                        const std::string& file = "events.jsonl");
+
+// --- Where workpieces ended up ---------------------------------------------------------------------------------------
+
+// A workpiece's state at the end of a run (from the runtime's environment model).
+struct FinalPose {
+  std::string name;                                        // cell workpiece
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // the part's centre, world
+  bool present = true;                                     // false: never fed, or carried out of the cell
+  std::string held_by;                                     // cell robot holding it, "" if none
+};
+
+// The named places a workpiece is at, most specific first: cell locations whose point its bottom centre is within
+// `tolerance` of; the conveyor whose belt it rests on (bottom within `tolerance` of the belt's top, centre over the
+// belt); the machine it rests on (its fixture or its top, likewise); "held by <robot>"; "floor" (bottom within
+// `tolerance` of z = 0); "not in the cell" when it is not present. Empty when it is none of these (in the air,
+// on another part, ...).
+std::vector<std::string> places_of(const models::CellDescription& cell, const models::WorkpieceSpec& spec,
+                                   const FinalPose& final, double tolerance);
+
+// --- The report ------------------------------------------------------------------------------------------------------
+
+// What became of a workpiece (docs/faults.md section 5).
+enum class PartStatus {
+  kInPlace,     // where the scenario expects it
+  kElsewhere,   // present, not where expected (or nothing is expected of it): where it is
+  kHeld,        // held by a robot at the end
+  kLost,        // declared lost by the controller (a workpiece_lost event names it)
+  kNotArrived,  // never present in the cell: a fed part never fed, a part taken out before the start
+  kScrapped,    // reserved: nothing sets it yet
+};
+
+// "in_place", "elsewhere", "held", "lost", "not_arrived", "scrapped".
+const char* to_string(PartStatus s);
+
+// A workpiece_lost event: when the controller declared the part lost, why, and where it was last seen.
+struct LostPart {
+  double t = 0;
+  std::string reason;
+  std::optional<Eigen::Vector3d> last_seen;  // world, m; nullopt when it was never seen
+};
+
+struct WorkpieceReport {
+  std::string name;                                    // cell workpiece
+  std::string label;                                   // program label bound to it, "" if the program does not use it
+  std::string final_location;                          // places_of()'s first, else "elsewhere"
+  std::vector<std::string> at;                         // everything places_of() found
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // centre, world
+  std::optional<std::string> expected;                 // the scenario's expectation, if any
+  double tolerance = 0;                                // the one used for `at`
+  std::optional<bool> ok;                              // expected is among `at`; nullopt without an expectation
+  std::optional<double> pick_start;                    // the first command_start of a Pick of it
+  std::optional<double> place_end;   // the end of the last Place that released it (its depart included)
+  std::optional<double> cycle_time;  // place_end - pick_start
+  // The account (docs/faults.md section 5).
+  PartStatus status = PartStatus::kElsewhere;
+  std::string where;             // in_place: the expected place; held: the robot (cell name); otherwise
+                                 // final_location ("not in the cell" when not present)
+  std::optional<LostPart> lost;  // set when a workpiece_lost event names it (the first such event)
+  bool arrived = false;          // a workpiece_arrived event names it
+  // Not where it should be (it has an expectation that does not hold) and not declared lost or not arrived by the
+  // controller (no workpiece_lost event names it), unless the scenario expects it lost.
+  bool unaccounted = false;
+};
+
+// One injected fault (a fault_injected event) and what the controller made of it (docs/faults.md section 5).
+struct FaultReport {
+  std::string kind;       // "drop", "timeout", ...
+  double t = 0;           // s: when it was injected
+  std::string robot;      // cell robot, "" none
+  std::string workpiece;  // cell workpiece, "" none
+  std::string detail;
+  // The first fault_detected at or after the injection not matched to an earlier fault, of the same robot when both
+  // name one (or of the same robot up to two control periods before it: see make_report).
+  bool detected = false;
+  std::optional<double> detected_at;
+  std::string detected_by;  // the detection's robot (program label, "" for the cell)
+  std::string symptom;
+  // The first diagnosis of that robot after the detection, and the first recovery_end after the diagnosis.
+  std::string cause, action;
+  // A recovery_end with ok true followed, and the cell was not stopped before it.
+  bool recovered = false;
+  std::optional<double> recovery_time;  // s: that recovery_end's t minus the injection's t
+  // The run ended "stopped" (cell_stopped) after the injection.
+  bool stopped_safely = false;
+};
+
+// A fault_detected event.
+struct Detection {
+  double t = 0;
+  std::string robot;  // program label, "" for the cell
+  int primitive = -1;
+  std::string symptom;
+  std::string detail;
+};
+
+struct Report {
+  std::string outcome = "timeout";  // run_end's outcome: "finished", "failed", "timeout", "stopped"; "unfinished"
+                                    // when the log has no run_end
+  std::string reason;                          // run_end's reason
+  double end_time = 0;                         // s
+  std::optional<double> finished_at;           // s: when the program reached its final marking (the last firing)
+  std::optional<double> estimated_cycle_time;  // s, from the estimate (estimate.hpp)
+  std::uint64_t firings = 0;
+  std::vector<WorkpieceReport> workpieces;  // cell order
+  std::optional<double> throughput;         // parts per minute: completed parts / (last place end - first pick start)
+  std::size_t parts_completed = 0;          // workpieces with a place end
+  // The flow of parts, for programs with loops and shifts (feed count): a part is placed when a command of a "Place"
+  // releases it (its open ends), fed when it arrives on the feed's conveyor, delivered when it leaves the cell.
+  std::vector<double> placed_at;  // s, in order
+  std::size_t parts_fed = 0;
+  std::size_t parts_delivered = 0;
+  // Steady state: the first placement is left out (it includes the first part's arrival and the filling of the
+  // pipeline); from the second to the last placement, parts per minute and seconds per part. Needs 3 placements.
+  std::optional<double> steady_throughput;
+  std::optional<double> steady_cycle;
+  Timeline timeline;
+  struct CollisionEntry {
+    double t = 0;
+    std::string a, b;
+    double depth = 0;
+  };
+  std::vector<CollisionEntry> collisions;
+  std::optional<double> stopped_at;  // s: the cell_stopped event (else run_end) of a run that ended "stopped"
+  std::vector<FaultReport> faults;    // one per fault_injected event, in log order
+  std::vector<Detection> false_alarms;  // fault_detected events not matched, with no fault_injected before them
+  std::vector<std::string> failures;    // why the run is not ok, one line each; empty when ok
+
+  // The run finished and every expected outcome holds (a lost part counts against it unless expected lost).
+  bool ok() const { return failures.empty(); }
+  // How many workpieces are unaccounted.
+  std::size_t unaccounted() const;
+};
+
+// Builds the report of a run of `scenario` from its event log, the final poses of the cell's workpieces and the
+// estimate made before the run (if any). Failures: the run did not finish (outcome and reason; "stopped": the cell
+// was stopped), an expected workpiece is not where it should be (where it is instead), an expected workpiece has no
+// final pose, a workpiece was declared lost that the scenario does not expect lost, a workpiece expected lost was
+// not. Collisions and faults are reported, not counted as failures (an expectation decides what matters).
+//
+// The account: a part named by a workpiece_lost event is lost, unless it was never present (not_arrived); else one
+// that is not present is not_arrived when no workpiece_arrived event names it (else elsewhere, "not in the cell"); one
+// held by a robot is held; one whose expectation holds is in_place; the rest are elsewhere. Workpieces and robots in
+// the events may be named by their cell name or their program label.
+//
+// Faults: each fault_injected event, in log order, is matched to the first fault_detected in the log not yet matched
+// that comes after it (same robot when both name one, else any) or, of the same robot, at most two control periods
+// (run_start's period) before it: a driver's fault reaches the log a round after the controller saw the command fail.
+// Then the first diagnosis of the detecting robot after the detection, and the first recovery_end of that robot after
+// the diagnosis. Detections that no injection took and with no fault_injected before them are false alarms. Throws
+// InputError as build_timeline, or when a fault event lacks a field.
+Report make_report(const Scenario& scenario, const std::vector<nlohmann::json>& events,
+                   const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time,
+                   const std::string& file = "events.jsonl");
+// The same from an events.jsonl read one line at a time (parse errors as parse_event_log): what it holds grows with
+// the parts, the faults and the chart's bars, not with the log, so a long shift's report never holds its log whole.
+// Throws InputError also when the stream cannot be read.
+Report make_report(const Scenario& scenario, std::istream& jsonl, const std::vector<FinalPose>& finals,
+                   std::optional<double> estimated_cycle_time, const std::string& file = "events.jsonl");
+
+// report.json (docs/scenarios.md). Times in seconds rounded to 4 decimals, so equal runs give equal bytes.
+nlohmann::json to_json(const Scenario& scenario, const Report& report);
+
+// The summary printed at the end of `twin run`: the verdict, estimated vs measured cycle time, throughput, each
+// expectation that failed and why, the account of the parts that are not in place, collisions, the injected faults
+// and what became of them, false alarms. Ends with a newline.
+std::string format_summary(const Report& report);
+
+}  // namespace cellwright::cell

@@ -1,0 +1,974 @@
+// The report of a run, from its event log and the final poses (report.hpp).
+#include "cellwright/cell/report.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <istream>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "cellwright/task/to_net.hpp"
+
+namespace cellwright::cell {
+
+using nlohmann::json;
+
+std::optional<json> parse_event_line(std::string_view line, int line_no, const std::string& file) {
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  if (line.find_first_not_of(" \t") == std::string_view::npos) return std::nullopt;
+  json j = json::parse(line, nullptr, false);
+  if (j.is_discarded()) throw InputError({file, line_no, 0}, "not a JSON value");
+  if (!j.is_object()) throw InputError({file, line_no, 0}, "an event must be a JSON object");
+  if (!j.contains("t") || !j["t"].is_number()) throw InputError({file, line_no, 0}, "the event has no numeric \"t\"");
+  if (!j.contains("type") || !j["type"].is_string()) {
+    throw InputError({file, line_no, 0}, "the event has no string \"type\"");
+  }
+  j["_log_line"] = line_no;  // for errors about this event
+  return j;
+}
+
+std::vector<json> parse_event_log(std::string_view jsonl, const std::string& file) {
+  std::vector<json> out;
+  int line_no = 0;
+  std::size_t pos = 0;
+  while (pos < jsonl.size()) {
+    std::size_t end = jsonl.find('\n', pos);
+    if (end == std::string_view::npos) end = jsonl.size();
+    if (std::optional<json> e = parse_event_line(jsonl.substr(pos, end - pos), ++line_no, file)) {
+      out.push_back(std::move(*e));
+    }
+    pos = end + 1;
+  }
+  return out;
+}
+
+const char* to_string(Activity a) {
+  switch (a) {
+    case Activity::kMove:
+      return "move";
+    case Activity::kGrip:
+      return "grip";
+    case Activity::kWait:
+      return "wait";
+    case Activity::kBlocked:
+      return "blocked";
+    case Activity::kPartWait:
+      return "part_wait";
+  }
+  return "?";
+}
+
+const char* to_string(JourneyStep s) {
+  switch (s) {
+    case JourneyStep::kPicked:
+      return "picked";
+    case JourneyStep::kHandedOver:
+      return "handed over";
+    case JourneyStep::kPlaced:
+      return "placed";
+  }
+  return "?";
+}
+
+namespace {
+
+// A field of an event, with the log position in the error.
+template <typename T>
+T field(const json& e, const char* key, const std::string& file) {
+  const int line = e.value("_log_line", 0);
+  if (!e.contains(key)) {
+    throw InputError({file, line, 0}, fmt::format("{} event has no \"{}\"", e["type"].get<std::string>(), key));
+  }
+  try {
+    return e[key].get<T>();
+  } catch (const json::exception&) {
+    throw InputError({file, line, 0}, fmt::format("{} event: \"{}\" has the wrong type ({})",
+                                                  e["type"].get<std::string>(), key, e[key].dump()));
+  }
+}
+
+double round4(double x) {
+  return std::round(x * 1e4) / 1e4;
+}
+
+// The primitive a command event of `robot` names, refused unless its program (of `count` primitives) has it.
+std::size_t primitive_of(const json& e, const std::string& robot, std::size_t count, const std::string& file) {
+  const auto k = field<std::int64_t>(e, "primitive", file);
+  if (k < 0 || static_cast<std::size_t>(k) >= count) {
+    throw InputError({file, e.value("_log_line", 0), 0},
+                     fmt::format("{} of robot {} names primitive {}, but its program has {} primitives",
+                                 e["type"].get<std::string>(), robot, k, count));
+  }
+  return static_cast<std::size_t>(k);
+}
+
+}  // namespace
+
+namespace {
+
+// A robot's timeline built one event at a time: the robot's path through its program, in firing order. Each firing
+// of one of its transitions starts a visit of the primitive it begins (k for transition k, the body's first for a
+// loop's again; n: the program's end). A visit lasts until the robot's next firing; its command ended at the first
+// command_end of that primitive within it. A visit becomes bars when the next one starts (or at the run's end), so
+// only the current visit is held, however long the run. In a program without loops every primitive is visited at
+// most once.
+class TimelineBuilder {
+ public:
+  TimelineBuilder(const task::CompiledProgram& program, std::string file) : program_(program), file_(std::move(file)) {}
+
+  void add(const json& e) {
+    const std::string& type = e["type"].get_ref<const std::string&>();
+    const double t = e["t"].get<double>();
+    tl_.end = std::max(tl_.end, t);
+    if (type == "run_end") tl_.end = t;
+    if (type == "run_start") {
+      if (!started_) start(e);
+      return;
+    }
+    const bool fire = type == "fire";
+    const bool command = type == "command_start" || type == "command_end";
+    const bool sensor = type == "sensor";
+    if (!fire && !command && !sensor) return;
+    if (!started_) {
+      throw InputError({file_, e.value("_log_line", 0), 0}, fmt::format("a {} event before run_start", type));
+    }
+    if (fire) {
+      auto it = transitions_.find(field<std::string>(e, "transition", file_));
+      if (it == transitions_.end()) return;
+      Robot& r = robots_[it->second.first];
+      if (r.current) close(it->second.first, t, it->second.second);
+      r.current = Visit{it->second.second, t, std::nullopt, false, std::nullopt};
+      return;
+    }
+    auto it = robot_index_.find(field<std::string>(e, "robot", file_));
+    if (it == robot_index_.end()) return;
+    Robot& r = robots_[it->second];
+    const task::RobotProgram& rp = program_.programs[r.program];
+    if (sensor) {  // the timeline's business only when it names one of the robot's primitives
+      const json& k = e.contains("primitive") ? e["primitive"] : json();
+      if (k.is_number_unsigned() && k.get<std::size_t>() < rp.primitives.size()) {
+        this->sensor(e, it->second, rp.primitives[k.get<std::size_t>()], k.get<std::size_t>(), t);
+      }
+      return;
+    }
+    const std::size_t k = primitive_of(e, tl_.robots[it->second].robot, rp.primitives.size(), file_);
+    if (type == "command_start") {
+      ++tl_.robots[it->second].commands;
+    } else if (r.current && r.current->k == k && !r.current->ended) {
+      r.current->ended = t;
+    }
+  }
+
+  Timeline finish() && {
+    if (!started_) throw InputError({file_, 0, 0}, "the event log has no run_start event");
+    for (std::size_t i = 0; i < robots_.size(); ++i) {
+      if (robots_[i].current) close(i, tl_.end, robots_[i].current->k + 1);
+    }
+    for (RobotTimeline& rt : tl_.robots) {
+      for (const Bar& b : rt.bars) {
+        const double d = b.end - b.start;
+        switch (b.activity) {
+          case Activity::kMove:
+          case Activity::kGrip:
+            rt.busy += d;
+            break;
+          case Activity::kWait:
+            rt.waiting += d;
+            break;
+          case Activity::kPartWait:
+            rt.waiting += d;
+            rt.waiting_for_part += d;
+            break;
+          case Activity::kBlocked:
+            rt.blocked += d;
+            break;
+        }
+      }
+      rt.idle = std::max(0.0, tl_.end - rt.busy - rt.waiting - rt.blocked);
+    }
+    return std::move(tl_);
+  }
+
+ private:
+  struct Visit {
+    std::size_t k = 0;
+    double begin = 0;
+    std::optional<double> ended;
+    bool part_wait = false;        // a "waiting_for_part" sensor event of this primitive within the visit
+    std::optional<double> ready;   // its "part_ready" sensor event
+  };
+
+  // A sensor event of robot i about its primitive k (p): the wait for a part, or a step of a part's journey.
+  void sensor(const json& e, std::size_t i, const task::Primitive& p, std::size_t k, double t) {
+    const std::string condition = field<std::string>(e, "condition", file_);
+    Robot& r = robots_[i];
+    const bool in_visit = r.current && r.current->k == k && !r.current->ended;
+    if (condition == "waiting_for_part") {
+      if (in_visit && !r.current->ready) r.current->part_wait = true;
+      return;
+    }
+    if (condition == "part_ready") {
+      if (in_visit && r.current->part_wait && !r.current->ready) r.current->ready = t;
+      return;
+    }
+    std::optional<JourneyStep> step;
+    if (condition == "gripped" && p.task.starts_with("Pick ")) step = JourneyStep::kPicked;
+    if (condition == "released" && p.task.starts_with("Put ")) step = JourneyStep::kHandedOver;
+    if (condition == "released" && p.task.starts_with("Place ")) step = JourneyStep::kPlaced;
+    if (step) tl_.robots[i].marks.push_back({t, *step, field<std::string>(e, "workpiece", file_)});
+  }
+  struct Robot {
+    std::size_t program = 0;  // index in program_.robots
+    std::optional<Visit> current;
+    bool at_end = false;  // it has visited the program's end: later firings draw nothing
+  };
+
+  // Robots as run_start lists them; each must be a robot of the program.
+  void start(const json& e) {
+    started_ = true;
+    for (const json& r : field<json>(e, "robots", file_)) {
+      RobotTimeline rt;
+      rt.robot = field<std::string>(r, "robot", file_);
+      rt.cell = r.value("cell", std::string());
+      auto it = std::find(program_.robots.begin(), program_.robots.end(), rt.robot);
+      if (it == program_.robots.end()) {
+        throw InputError(
+            {file_, e.value("_log_line", 0), 0},
+            fmt::format("run_start names robot '{}', which the program {} does not have", rt.robot, program_.file));
+      }
+      const std::size_t index = robots_.size();
+      const auto program = static_cast<std::size_t>(it - program_.robots.begin());
+      const task::RobotProgram& rp = program_.programs[program];
+      for (std::size_t k = 0; k <= rp.primitives.size(); ++k) {
+        transitions_[task::transition_id(rt.robot, k)] = {index, k};
+      }
+      for (const task::Loop& loop : rp.loops) {
+        transitions_[task::loop_again_transition_id(rt.robot, loop.end)] = {index, loop.begin};
+      }
+      robot_index_[rt.robot] = index;
+      robots_.push_back({program, std::nullopt, false});
+      tl_.robots.push_back(std::move(rt));
+    }
+  }
+
+  // The bars of robot i's current visit, which ends at `finish`, where the visit of primitive `next` starts.
+  void close(std::size_t i, double finish, std::size_t next) {
+    Robot& r = robots_[i];
+    const Visit v = *r.current;
+    r.current.reset();
+    const task::RobotProgram& rp = program_.programs[r.program];
+    const std::size_t n = rp.primitives.size();
+    if (r.at_end) return;
+    if (v.k == n) {
+      r.at_end = true;  // the program's end
+      return;
+    }
+    std::vector<Bar>& bars = tl_.robots[i].bars;
+    const task::Primitive& p = rp.primitives[v.k];
+    Bar bar;
+    bar.primitive = static_cast<int>(v.k);
+    bar.task = p.task;
+    bar.label = task::to_string(p);
+    bar.start = v.begin;
+    switch (p.kind) {
+      case task::PrimitiveKind::kMove:
+      case task::PrimitiveKind::kOpen:
+      case task::PrimitiveKind::kClose: {
+        bar.activity = p.kind == task::PrimitiveKind::kMove ? Activity::kMove : Activity::kGrip;
+        bar.end = std::clamp(v.ended.value_or(finish), v.begin, std::max(v.begin, finish));
+        if (v.part_wait) {  // standing still until the part is ready, then the command proper
+          Bar waiting = bar;
+          waiting.activity = Activity::kPartWait;
+          waiting.end = std::clamp(v.ready.value_or(bar.end), bar.start, bar.end);
+          if (waiting.end > waiting.start || !v.ready) bars.push_back(waiting);
+          bar.start = waiting.end;
+          if (!v.ready) bar.end = bar.start;  // the command ended (or the run stopped) before its part came
+        }
+        if (bar.end > bar.start || (!v.ended && !v.part_wait)) bars.push_back(bar);
+        if (v.ended && finish > bar.end) {
+          Bar blocked = bar;
+          blocked.activity = Activity::kBlocked;
+          blocked.start = bar.end;
+          blocked.end = finish;
+          blocked.label = next < n ? fmt::format("before {}", task::to_string(rp.primitives[next])) : "before done";
+          bars.push_back(std::move(blocked));
+        }
+        break;
+      }
+      case task::PrimitiveKind::kWait:
+        bar.activity = Activity::kWait;
+        bar.end = finish;
+        if (bar.end > bar.start) bars.push_back(std::move(bar));
+        break;
+      case task::PrimitiveKind::kSignal:
+      case task::PrimitiveKind::kLoop:
+        if (finish > v.begin) {
+          bar.activity = Activity::kBlocked;
+          bar.end = finish;
+          bars.push_back(std::move(bar));
+        }
+        break;
+    }
+  }
+
+  const task::CompiledProgram& program_;
+  std::string file_;
+  bool started_ = false;
+  Timeline tl_;
+  std::vector<Robot> robots_;                                                    // as tl_.robots
+  std::map<std::string, std::pair<std::size_t, std::size_t>> transitions_;       // id -> (robot, primitive begun)
+  std::map<std::string, std::size_t> robot_index_;                               // label -> robot
+};
+
+}  // namespace
+
+Timeline build_timeline(const std::vector<json>& events, const task::CompiledProgram& program,
+                        const std::string& file) {
+  TimelineBuilder b(program, file);
+  for (const json& e : events) b.add(e);
+  return std::move(b).finish();
+}
+
+std::vector<std::string> places_of(const models::CellDescription& cell, const models::WorkpieceSpec& spec,
+                                   const FinalPose& final, double tolerance) {
+  std::vector<std::string> out;
+  if (!final.present) {
+    out.push_back("not in the cell");
+    return out;
+  }
+  const Eigen::Vector3d centre = final.pose.translation();
+  // The lowest point of the part's axis: its bottom centre when it stands upright (a part on its side has no bottom
+  // face down, and is at no location).
+  const Eigen::Vector3d bottom = centre - final.pose.linear() * Eigen::Vector3d(0, 0, spec.size.z() / 2);
+  for (const auto& l : cell.locations) {
+    if ((bottom - l.pose.xyz).norm() <= tolerance) out.push_back(l.name);
+  }
+  for (const auto& c : cell.conveyors) {
+    const Eigen::Vector3d local = c.pose.transform().inverse() * bottom;
+    if (std::abs(local.x()) <= c.length / 2 + tolerance && std::abs(local.y()) <= c.width / 2 + tolerance &&
+        std::abs(local.z() - c.height) <= tolerance) {
+      out.push_back(c.name);
+    }
+  }
+  for (const auto& m : cell.machines) {
+    const models::Pose top = m.fixture_top();
+    const Eigen::Vector3d on_fixture = top.transform().inverse() * bottom;
+    const Eigen::Vector3d on_body = m.pose.transform().inverse() * bottom;
+    const bool fixture = std::abs(on_fixture.x()) <= m.fixture_size.x() / 2 + tolerance &&
+                         std::abs(on_fixture.y()) <= m.fixture_size.y() / 2 + tolerance &&
+                         std::abs(on_fixture.z()) <= tolerance;
+    const bool body = std::abs(on_body.x()) <= m.size.x() / 2 + tolerance &&
+                      std::abs(on_body.y()) <= m.size.y() / 2 + tolerance &&
+                      std::abs(on_body.z() - m.size.z()) <= tolerance;
+    if (fixture || body) out.push_back(m.name);
+  }
+  if (!final.held_by.empty()) out.push_back(fmt::format("held by {}", final.held_by));
+  if (std::abs(bottom.z()) <= tolerance && out.empty()) out.push_back("floor");
+  return out;
+}
+
+const char* to_string(PartStatus st) {
+  switch (st) {
+    case PartStatus::kInPlace:
+      return "in_place";
+    case PartStatus::kElsewhere:
+      return "elsewhere";
+    case PartStatus::kHeld:
+      return "held";
+    case PartStatus::kLost:
+      return "lost";
+    case PartStatus::kNotArrived:
+      return "not_arrived";
+    case PartStatus::kScrapped:
+      return "scrapped";
+  }
+  return "?";
+}
+
+std::size_t Report::unaccounted() const {
+  return static_cast<std::size_t>(
+      std::count_if(workpieces.begin(), workpieces.end(), [](const WorkpieceReport& w) { return w.unaccounted; }));
+}
+
+namespace {
+
+// The cell robot a name in the log stands for: a program label's binding, else the name itself (a cell name). For
+// fault_injected, which names cell robots, a cell robot name comes first.
+std::string cell_robot(const Scenario& s, const std::string& name, bool cell_first) {
+  if (name.empty()) return name;
+  if (cell_first && s.cell.find_robot(name) != nullptr) return name;
+  for (const Binding& b : s.robots) {
+    if (b.label == name) return b.name;
+  }
+  return name;
+}
+
+// Likewise for workpieces: a cell workpiece name first, else a program label's binding.
+std::string cell_workpiece(const Scenario& s, const std::string& name) {
+  if (name.empty() || s.cell.find_workpiece(name) != nullptr) return name;
+  for (const Binding& b : s.workpieces) {
+    if (b.label == name) return b.name;
+  }
+  return name;
+}
+
+std::string format_position(const Eigen::Vector3d& p) {
+  return fmt::format("({:.3f}, {:.3f}, {:.3f})", p.x(), p.y(), p.z());
+}
+
+// Whether a fault of this kind can be sensed as this symptom (docs/faults.md section 2): a detection is matched only
+// to an injection it can be the sign of, so that a fault that did nothing does not take another fault's detection.
+bool can_show_as(const std::string& kind, const std::string& symptom) {
+  static const std::map<std::string, std::vector<std::string>> signs = {
+      {"drop", {"grip_lost", "closed_on_nothing", "part_shifted"}},
+      {"slip", {"part_shifted", "grip_lost"}},
+      {"misplace", {"part_misplaced", "closed_on_nothing", "closed_on_wrong_part", "target_unreachable"}},
+      {"unreachable", {"target_unreachable", "part_misplaced"}},
+      {"missing", {"part_not_arrived"}},
+      {"obstacle", {"obstacle_seen", "protective_stop"}},
+      {"timeout", {"driver_timeout"}},
+      {"garbage", {"driver_fault"}},
+      {"hardware", {"driver_fault"}},
+      {"position", {"position_refused", "position_missed"}},
+      {"link_lost", {"link_lost", "driver_fault"}},
+      {"lost_signal", {"wait_timeout"}},
+      {"frame_lost", {"frame_lost"}},
+  };
+  const auto it = signs.find(kind);
+  if (it == signs.end()) return true;  // detection noise, or a kind this table does not know: any symptom
+  return std::find(it->second.begin(), it->second.end(), symptom) != it->second.end();
+}
+
+// The faults (fault_injected matched to fault_detected, diagnosis, recovery_end) and false alarms of a run.
+void match_faults(const Scenario& s, const std::vector<json>& events, const std::string& file, Report& r) {
+  // The index of the event that stopped the cell if the run ended "stopped", else events.size() (a plain index:
+  // GCC 12 warns falsely about an optional one).
+  const std::size_t none = events.size();
+  std::size_t stop = none;
+  for (std::size_t i = 0; i < events.size() && r.outcome == "stopped" && stop == none; ++i) {
+    const std::string type = events[i]["type"].get<std::string>();
+    if (type == "cell_stopped" || (type == "run_end" && events[i].value("outcome", std::string()) == "stopped")) {
+      stop = i;
+    }
+  }
+  if (stop != none) r.stopped_at = events[stop]["t"].get<double>();
+
+  // A fault the simulation thread picks up from a driver is logged up to a round after the controller saw its effect
+  // (the driver failed the command at once; the injection reaches the log at the next step): a detection of the same
+  // robot logged at most two control periods before the injection belongs to it too.
+  double period = 0.01;
+  for (const json& e : events) {
+    if (e["type"] == "run_start" && e.contains("period") && e["period"].is_number()) {
+      period = e["period"].get<double>();
+      break;
+    }
+  }
+  const double slack = 2 * period + 1e-9;
+
+  std::vector<bool> matched(events.size(), false);
+  std::size_t first_injection = none;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const json& e = events[i];
+    if (e["type"] != "fault_injected") continue;
+    if (first_injection == none) first_injection = i;
+    FaultReport f;
+    f.kind = field<std::string>(e, "kind", file);
+    f.t = e["t"].get<double>();
+    f.robot = cell_robot(s, e.value("robot", std::string()), true);
+    f.workpiece = cell_workpiece(s, e.value("workpiece", std::string()));
+    f.detail = e.value("detail", std::string());
+    f.stopped_safely = stop != none && stop > i;
+
+    std::size_t detection = none;
+    for (std::size_t k = 0; k < events.size(); ++k) {
+      if (k == i || matched[k] || events[k]["type"] != "fault_detected") continue;
+      if (!can_show_as(f.kind, field<std::string>(events[k], "symptom", file))) continue;
+      const std::string by = field<std::string>(events[k], "robot", file);
+      const bool same_robot = !f.robot.empty() && !by.empty() && cell_robot(s, by, false) == f.robot;
+      if (k < i) {
+        if (!same_robot || events[k]["t"].get<double>() < f.t - slack) continue;
+      } else if (!f.robot.empty() && !by.empty() && !same_robot) {
+        continue;
+      }
+      detection = k;
+      break;
+    }
+    if (detection != none) {
+      matched[detection] = true;
+      const json& d = events[detection];
+      f.detected = true;
+      f.detected_at = d["t"].get<double>();
+      f.detected_by = field<std::string>(d, "robot", file);
+      f.symptom = field<std::string>(d, "symptom", file);
+      std::size_t after = detection;
+      for (std::size_t k = detection + 1; k < events.size(); ++k) {
+        if (events[k]["type"] == "diagnosis" && field<std::string>(events[k], "robot", file) == f.detected_by) {
+          f.cause = field<std::string>(events[k], "cause", file);
+          f.action = field<std::string>(events[k], "action", file);
+          after = k;
+          break;
+        }
+      }
+      for (std::size_t k = after + 1; k < events.size(); ++k) {
+        if (events[k]["type"] != "recovery_end" || field<std::string>(events[k], "robot", file) != f.detected_by) {
+          continue;
+        }
+        if (f.cause.empty()) f.cause = events[k].value("cause", std::string());
+        if (f.action.empty()) f.action = events[k].value("action", std::string());
+        if (field<bool>(events[k], "ok", file) && !(stop != none && stop < k)) {
+          f.recovered = true;
+          f.recovery_time = events[k]["t"].get<double>() - f.t;
+        }
+        break;
+      }
+    }
+    r.faults.push_back(std::move(f));
+  }
+  // False alarms: detections no injection took, with no injection before them.
+  for (std::size_t k = 0; k < events.size() && k < first_injection; ++k) {
+    const json& e = events[k];
+    if (matched[k] || e["type"] != "fault_detected") continue;
+    r.false_alarms.push_back({e["t"].get<double>(), field<std::string>(e, "robot", file),
+                              static_cast<int>(e.value("primitive", std::int64_t{-1})),
+                              field<std::string>(e, "symptom", file), e.value("detail", std::string())});
+  }
+}
+
+// The report of a run built one event at a time: what it keeps grows with the parts and the robots' bars, never with
+// the log itself, so the report of a thousand-part shift is built from its file without holding the file.
+class ReportBuilder {
+ public:
+  ReportBuilder(const Scenario& s, std::string file) : s_(s), file_(std::move(file)), timeline_(s.program, file_) {}
+
+  void add(const json& e) {
+    timeline_.add(e);
+    const std::string& type = e["type"].get_ref<const std::string&>();
+    const double t = e["t"].get<double>();
+    if (type == "run_start" || type == "fault_injected" || type == "fault_detected" || type == "diagnosis" ||
+        type == "recovery_end" || type == "cell_stopped" || type == "run_end") {
+      fault_events_.push_back(e);  // few: match_faults looks back and forth among them
+    }
+    if (type == "run_end") {
+      ended_ = true;
+      r_.outcome = field<std::string>(e, "outcome", file_);
+      r_.reason = field<std::string>(e, "reason", file_);
+      r_.firings = field<std::uint64_t>(e, "firings", file_);
+    } else if (type == "fire") {
+      last_fire_ = t;
+    } else if (type == "collision") {
+      r_.collisions.push_back({t, field<std::string>(e, "a", file_), field<std::string>(e, "b", file_),
+                               field<double>(e, "depth", file_)});
+    } else if (type == "workpiece_arrived") {
+      arrived_.insert(cell_workpiece(s_, field<std::string>(e, "workpiece", file_)));
+      ++r_.parts_fed;
+    } else if (type == "workpiece_left") {
+      ++r_.parts_delivered;
+    } else if (type == "workpiece_lost") {  // the first declaration of each part counts
+      LostPart l;
+      l.t = t;
+      l.reason = field<std::string>(e, "reason", file_);
+      if (e.contains("x") && e["x"].is_number() && e.contains("y") && e["y"].is_number() && e.contains("z") &&
+          e["z"].is_number()) {
+        l.last_seen = Eigen::Vector3d(e["x"].get<double>(), e["y"].get<double>(), e["z"].get<double>());
+      }
+      lost_.try_emplace(cell_workpiece(s_, field<std::string>(e, "workpiece", file_)), std::move(l));
+    } else if (type == "skipped") {
+      skipped_.insert({e.value("robot", std::string()), e.value("primitive", std::int64_t{-1})});
+    } else if (type == "command_start" || type == "command_end") {
+      command(e, type == "command_start", t);
+    }
+  }
+
+  Report finish(const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time) && {
+    Report r = std::move(r_);
+    r.timeline = std::move(timeline_).finish();
+    r.estimated_cycle_time = estimated_cycle_time;
+    r.end_time = r.timeline.end;
+    if (!ended_) {
+      r.outcome = "unfinished";
+      r.reason = "the event log has no run_end: the run was cut short";
+    }
+    if (r.outcome == "finished") r.finished_at = last_fire_;
+    if (r.outcome == "stopped") {
+      r.failures.push_back(
+          fmt::format("the run did not finish: the cell was stopped{}", r.reason.empty() ? "" : ": " + r.reason));
+    } else if (r.outcome != "finished") {
+      r.failures.push_back(
+          fmt::format("the run did not finish: {}{}", r.outcome, r.reason.empty() ? "" : ": " + r.reason));
+    }
+    match_faults(s_, fault_events_, file_, r);
+    // A workpiece is done when the last Place that released it has ended (its depart included).
+    std::map<std::string, double> place_end;  // by label
+    for (const auto& [w, robot_primitive] : last_release_) {
+      if (auto it = end_of_.find(robot_primitive); it != end_of_.end()) place_end[w] = it->second;
+    }
+    account(r, finals, place_end);
+    if (r.placed_at.size() >= 3) {
+      const double span = r.placed_at.back() - r.placed_at[1];
+      const auto parts = static_cast<double>(r.placed_at.size() - 2);
+      if (span > 0) {
+        r.steady_throughput = parts * 60.0 / span;
+        r.steady_cycle = span / parts;
+      }
+    }
+    return r;
+  }
+
+ private:
+  // Cycle times: a workpiece (program label W) is picked when the first command of a "Pick W" starts, and done when
+  // the last command of the "Place X" that released it ("open W") has ended. Placements: an open of a Place command
+  // that ended well and was not skipped (a skipped open, of a part declared lost, placed nothing).
+  void command(const json& e, bool start, double t) {
+    const std::string robot = field<std::string>(e, "robot", file_);
+    const auto it = std::find(s_.program.robots.begin(), s_.program.robots.end(), robot);
+    if (it == s_.program.robots.end()) return;  // the timeline has refused robots of run_start it does not know
+    const auto& prims = s_.program.programs[static_cast<std::size_t>(it - s_.program.robots.begin())].primitives;
+    const std::size_t k = primitive_of(e, robot, prims.size(), file_);
+    const task::Primitive& p = prims[k];
+    if (start) {
+      if (p.task.starts_with("Pick ")) pick_start_.try_emplace(p.task.substr(5), t);
+      return;
+    }
+    end_of_[{robot, k}] = t;
+    const bool release = p.kind == task::PrimitiveKind::kOpen && !p.workpiece.empty() && p.task.starts_with("Place ");
+    if (release) {
+      std::size_t last = k;
+      while (last + 1 < prims.size() && prims[last + 1].task == p.task && prims[last + 1].where.line == p.where.line &&
+             prims[last + 1].where.column == p.where.column) {
+        ++last;
+      }
+      last_release_[p.workpiece] = {robot, last};
+    }
+    if (!e.value("ok", false)) return;
+    if (skipped_.erase({robot, static_cast<std::int64_t>(k)}) != 0) return;
+    if (release) r_.placed_at.push_back(t);
+  }
+
+  void account(Report& r, const std::vector<FinalPose>& finals, const std::map<std::string, double>& place_end);
+
+  const Scenario& s_;
+  std::string file_;
+  TimelineBuilder timeline_;
+  Report r_;
+  bool ended_ = false;
+  std::optional<double> last_fire_;
+  std::vector<json> fault_events_;
+  std::map<std::string, LostPart> lost_;  // by cell workpiece
+  std::set<std::string> arrived_;         // cell workpieces
+  std::map<std::string, double> pick_start_;                              // by label
+  std::map<std::pair<std::string, std::size_t>, double> end_of_;          // (robot, primitive) -> command_end time
+  std::map<std::string, std::pair<std::string, std::size_t>> last_release_;  // label -> (robot, last primitive)
+  std::set<std::pair<std::string, std::int64_t>> skipped_;  // (robot, primitive) skipped and not yet ended
+};
+void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
+                            const std::map<std::string, double>& place_end) {
+  const Scenario& s = s_;
+  std::map<std::string, std::string> label_of;  // cell workpiece -> label
+  for (const auto& b : s.workpieces) label_of[b.name] = b.label;
+  std::vector<double> picks, places;
+  for (const models::WorkpieceSpec& w : s.cell.workpieces) {
+    WorkpieceReport wr;
+    wr.name = w.name;
+    if (auto it = label_of.find(w.name); it != label_of.end()) wr.label = it->second;
+    const Expectation* expect = nullptr;
+    for (const auto& e : s.expect) {
+      if (e.workpiece == w.name) expect = &e;
+    }
+    wr.tolerance = expect != nullptr ? expect->tolerance : (s.expect.empty() ? 0.02 : s.expect.front().tolerance);
+    auto fp = std::find_if(finals.begin(), finals.end(), [&](const FinalPose& f) { return f.name == w.name; });
+    if (fp != finals.end()) {
+      wr.position = fp->pose.translation();
+      wr.at = places_of(s.cell, w, *fp, wr.tolerance);
+      wr.final_location = wr.at.empty() ? "elsewhere" : wr.at.front();
+    } else {
+      wr.final_location = "unknown";
+    }
+    if (auto it = lost_.find(w.name); it != lost_.end()) wr.lost = it->second;
+    wr.arrived = arrived_.count(w.name) > 0;
+    const bool expect_lost = expect != nullptr && expect->lost();
+    if (wr.lost && !expect_lost) {
+      r.failures.push_back(fmt::format(
+          "workpiece {}{} was declared lost at t = {:.2f} s{}; last seen {}", w.name,
+          expect != nullptr ? fmt::format(" (expected at {})", expect->place) : std::string(), wr.lost->t,
+          wr.lost->reason.empty() ? std::string() : " (" + wr.lost->reason + ")",
+          wr.lost->last_seen ? "at " + format_position(*wr.lost->last_seen) : std::string("nowhere: it was never seen")));
+    }
+    if (expect_lost) {
+      wr.expected = expect->place;
+      wr.ok = wr.lost.has_value();
+      if (!*wr.ok) {
+        r.failures.push_back(fmt::format("workpiece {} is expected to be lost, but the controller did not declare it "
+                                         "lost; it is {}",
+                                         w.name,
+                                         wr.at.empty() ? wr.final_location
+                                                       : "at " + fmt::format("{}", fmt::join(wr.at, ", "))));
+      }
+    } else if (expect != nullptr) {
+      wr.expected = expect->place;
+      wr.ok = std::find(wr.at.begin(), wr.at.end(), expect->place) != wr.at.end();
+      if (!*wr.ok && !wr.lost) {
+        r.failures.push_back(
+            fp == finals.end()
+                ? fmt::format("workpiece {} must end at {}, but its final pose is unknown", w.name, expect->place)
+                : fmt::format(
+                      "workpiece {} must end at {} (within {} m) but is {} at ({:.3f}, {:.3f}, {:.3f})", w.name,
+                      expect->place, expect->tolerance,
+                      wr.at.empty() ? std::string("elsewhere") : "at " + fmt::format("{}", fmt::join(wr.at, ", ")),
+                      wr.position.x(), wr.position.y(), wr.position.z()));
+      }
+    }
+    // The account.
+    const bool present = fp != finals.end() && fp->present;
+    const bool never_present = fp != finals.end() && !fp->present && !wr.arrived;
+    if (wr.lost && !never_present) {
+      wr.status = PartStatus::kLost;
+      wr.where = wr.final_location;
+    } else if (never_present) {
+      wr.status = PartStatus::kNotArrived;
+      wr.where = wr.final_location;
+    } else if (present && !fp->held_by.empty()) {
+      wr.status = PartStatus::kHeld;
+      wr.where = fp->held_by;
+    } else if (expect != nullptr && !expect_lost && *wr.ok) {
+      wr.status = PartStatus::kInPlace;
+      wr.where = expect->place;
+    } else {
+      wr.status = PartStatus::kElsewhere;
+      wr.where = wr.final_location;
+    }
+    // In a cell stopped safely, a part not yet where it should be is accounted where it is found (held, or
+    // elsewhere, named): the run says so. Otherwise a part not where the program put it, that the controller did not
+    // declare lost, is unaccounted for.
+    wr.unaccounted = expect != nullptr && !expect_lost && !*wr.ok && !wr.lost && r.outcome != "stopped";
+    if (!wr.label.empty()) {
+      if (auto it = pick_start_.find(wr.label); it != pick_start_.end()) wr.pick_start = it->second;
+      if (auto it = place_end.find(wr.label); it != place_end.end()) wr.place_end = it->second;
+      if (wr.pick_start && wr.place_end && *wr.place_end >= *wr.pick_start) {
+        wr.cycle_time = *wr.place_end - *wr.pick_start;
+        ++r.parts_completed;
+        picks.push_back(*wr.pick_start);
+        places.push_back(*wr.place_end);
+      }
+    }
+    r.workpieces.push_back(std::move(wr));
+  }
+  if (!picks.empty()) {
+    const double span = *std::max_element(places.begin(), places.end()) - *std::min_element(picks.begin(), picks.end());
+    if (span > 0) r.throughput = static_cast<double>(r.parts_completed) * 60.0 / span;
+  }
+}
+
+}  // namespace
+
+Report make_report(const Scenario& s, const std::vector<json>& events, const std::vector<FinalPose>& finals,
+                   std::optional<double> estimated_cycle_time, const std::string& file) {
+  ReportBuilder b(s, file);
+  for (const json& e : events) b.add(e);
+  return std::move(b).finish(finals, estimated_cycle_time);
+}
+
+Report make_report(const Scenario& s, std::istream& jsonl, const std::vector<FinalPose>& finals,
+                   std::optional<double> estimated_cycle_time, const std::string& file) {
+  ReportBuilder b(s, file);
+  std::string line;
+  int line_no = 0;
+  while (std::getline(jsonl, line)) {
+    if (std::optional<json> e = parse_event_line(line, ++line_no, file)) b.add(*e);
+  }
+  if (jsonl.bad()) throw InputError({file, line_no, 0}, "the event log could not be read");
+  return std::move(b).finish(finals, estimated_cycle_time);
+}
+
+namespace {
+
+json opt(const std::optional<double>& v) {
+  return v ? json(round4(*v)) : json();
+}
+
+}  // namespace
+
+json to_json(const Scenario& s, const Report& r) {
+  json j;
+  j["scenario"] = s.source.filename().string();
+  j["program"] = s.program_file.filename().string();
+  j["cell"] = s.cell_file.filename().string();
+  j["seed"] = s.seed;
+  j["result"] = r.ok() ? "ok" : "failed";
+  j["failures"] = r.failures;
+  j["outcome"] = r.outcome;
+  j["reason"] = r.reason;
+  j["end_time"] = round4(r.end_time);
+  j["firings"] = r.firings;
+  j["cycle_time"] = {{"estimated", opt(r.estimated_cycle_time)}, {"measured", opt(r.finished_at)}};
+  j["throughput_parts_per_min"] = opt(r.throughput);
+  j["parts_completed"] = r.parts_completed;
+  j["flow"] = {{"placed", r.placed_at.size()},
+               {"fed", r.parts_fed},
+               {"delivered", r.parts_delivered},
+               {"steady_throughput_parts_per_min", opt(r.steady_throughput)},
+               {"steady_cycle_s", opt(r.steady_cycle)}};
+  json wps = json::array();
+  for (const WorkpieceReport& w : r.workpieces) {
+    json wj;
+    wj["name"] = w.name;
+    wj["label"] = w.label.empty() ? json() : json(w.label);
+    wj["final_location"] = w.final_location;
+    wj["at"] = w.at;
+    wj["position"] = {round4(w.position.x()), round4(w.position.y()), round4(w.position.z())};
+    wj["expected"] = w.expected ? json(*w.expected) : json();
+    wj["tolerance"] = w.tolerance;
+    wj["ok"] = w.ok ? json(*w.ok) : json();
+    wj["pick_start"] = opt(w.pick_start);
+    wj["place_end"] = opt(w.place_end);
+    wj["cycle_time"] = opt(w.cycle_time);
+    wps.push_back(std::move(wj));
+  }
+  j["workpieces"] = std::move(wps);
+  json robots = json::array();
+  for (const RobotTimeline& t : r.timeline.robots) {
+    robots.push_back({{"robot", t.robot},
+                      {"cell", t.cell},
+                      {"commands", t.commands},
+                      {"busy", round4(t.busy)},
+                      {"waiting", round4(t.waiting)},
+                      {"waiting_for_part", round4(t.waiting_for_part)},
+                      {"blocked", round4(t.blocked)},
+                      {"idle", round4(t.idle)}});
+  }
+  j["robots"] = std::move(robots);
+  json collisions = json::array();
+  for (const auto& c : r.collisions) {
+    collisions.push_back({{"t", round4(c.t)}, {"a", c.a}, {"b", c.b}, {"depth", c.depth}});
+  }
+  j["collisions"] = std::move(collisions);
+
+  json account = json::array();
+  for (const WorkpieceReport& w : r.workpieces) {
+    json a;
+    a["workpiece"] = w.name;
+    a["status"] = to_string(w.status);
+    a["where"] = w.where;
+    a["expected"] = w.expected ? json(*w.expected) : json();
+    a["unaccounted"] = w.unaccounted;
+    if (w.lost) {
+      a["lost"] = {{"t", round4(w.lost->t)},
+                   {"reason", w.lost->reason},
+                   {"last_seen", w.lost->last_seen ? json::array({round4(w.lost->last_seen->x()),
+                                                                  round4(w.lost->last_seen->y()),
+                                                                  round4(w.lost->last_seen->z())})
+                                                   : json()}};
+    } else {
+      a["lost"] = json();
+    }
+    account.push_back(std::move(a));
+  }
+  j["account"] = std::move(account);
+  j["unaccounted"] = r.unaccounted();
+  j["stopped_at"] = opt(r.stopped_at);
+  json faults = json::array();
+  for (const FaultReport& f : r.faults) {
+    json fj;
+    fj["kind"] = f.kind;
+    fj["t"] = round4(f.t);
+    fj["robot"] = f.robot;
+    fj["workpiece"] = f.workpiece;
+    fj["detail"] = f.detail;
+    fj["detected"] = f.detected;
+    fj["detected_at"] = opt(f.detected_at);
+    fj["detected_by"] = f.detected_by;
+    fj["symptom"] = f.symptom;
+    fj["cause"] = f.cause;
+    fj["action"] = f.action;
+    fj["recovered"] = f.recovered;
+    fj["recovery_time"] = opt(f.recovery_time);
+    fj["stopped_safely"] = f.stopped_safely;
+    faults.push_back(std::move(fj));
+  }
+  j["faults"] = std::move(faults);
+  j["false_alarms"] = r.false_alarms.size();
+  json alarms = json::array();
+  for (const Detection& d : r.false_alarms) {
+    alarms.push_back({{"t", round4(d.t)},
+                      {"robot", d.robot},
+                      {"primitive", d.primitive},
+                      {"symptom", d.symptom},
+                      {"detail", d.detail}});
+  }
+  j["false_alarm_detections"] = std::move(alarms);
+  return j;
+}
+
+std::string format_summary(const Report& r) {
+  std::string out;
+  out += fmt::format("{}: {} at t = {:.2f} s, {} firings{}\n", r.ok() ? "OK" : "FAILED", r.outcome, r.end_time,
+                     r.firings, r.reason.empty() ? "" : " (" + r.reason + ")");
+  out += fmt::format("estimated cycle time {} s, measured {} s\n",
+                     r.estimated_cycle_time ? fmt::format("{:.2f}", *r.estimated_cycle_time) : std::string("n/a"),
+                     r.finished_at ? fmt::format("{:.2f}", *r.finished_at) : std::string("n/a"));
+  if (r.parts_completed > 0) {
+    out += fmt::format("parts completed {}, throughput {} parts/min\n", r.parts_completed,
+                       r.throughput ? fmt::format("{:.2f}", *r.throughput) : std::string("n/a"));
+  }
+  if (r.steady_throughput) {
+    out += fmt::format("parts placed {} (fed {}, delivered {}); steady state from the 2nd: {:.2f} parts/min, {:.2f} s "
+                       "per part\n",
+                       r.placed_at.size(), r.parts_fed, r.parts_delivered, *r.steady_throughput, *r.steady_cycle);
+  }
+  for (const RobotTimeline& t : r.timeline.robots) {
+    out += fmt::format("  {} ({}): busy {:.2f} s, waiting {:.2f} s (for parts {:.2f} s), blocked {:.2f} s, idle {:.2f} s\n",
+                       t.robot, t.cell, t.busy, t.waiting, t.waiting_for_part, t.blocked, t.idle);
+  }
+  for (const WorkpieceReport& w : r.workpieces) {
+    if (!w.expected) continue;
+    out +=
+        fmt::format("  {} {}: expected {}, is {}{}\n", *w.ok ? "ok  " : "FAIL", w.name, *w.expected, w.final_location,
+                    w.cycle_time ? fmt::format(" (cycle {:.2f} s)", *w.cycle_time) : std::string());
+  }
+  // The account of the parts that are not simply in place, or that are unaccounted.
+  for (const WorkpieceReport& w : r.workpieces) {
+    if (w.status == PartStatus::kInPlace || (!w.expected && w.status == PartStatus::kElsewhere && !w.unaccounted)) {
+      continue;
+    }
+    std::string line = fmt::format("  part {}: {}", w.name, to_string(w.status));
+    if (w.lost) {
+      line += fmt::format(" at t = {:.2f} s{}, last seen {}", w.lost->t,
+                          w.lost->reason.empty() ? std::string() : " (" + w.lost->reason + ")",
+                          w.lost->last_seen ? "at " + format_position(*w.lost->last_seen) : std::string("nowhere"));
+    } else if (!w.where.empty()) {
+      line += fmt::format(" ({})", w.where);
+    }
+    if (w.unaccounted) line += ": UNACCOUNTED";
+    out += line + "\n";
+  }
+  out += fmt::format("collisions: {}\n", r.collisions.size());
+  for (const auto& c : r.collisions) out += fmt::format("  t = {:.3f} s: {} - {} ({:.4f} m)\n", c.t, c.a, c.b, c.depth);
+  if (!r.faults.empty() || !r.false_alarms.empty()) {
+    out += fmt::format("faults injected: {}, false alarms: {}\n", r.faults.size(), r.false_alarms.size());
+  }
+  for (const FaultReport& f : r.faults) {
+    std::string line = fmt::format("  {} at t = {:.2f} s", f.kind, f.t);
+    if (!f.robot.empty()) line += " on " + f.robot;
+    if (!f.workpiece.empty()) line += " of " + f.workpiece;
+    if (!f.detected) {
+      line += ": not detected";
+    } else {
+      line += fmt::format(": detected at t = {:.2f} s ({}{})", *f.detected_at, f.symptom,
+                          f.detected_by.empty() ? std::string() : " by " + f.detected_by);
+      if (!f.cause.empty() || !f.action.empty()) line += fmt::format(", cause {}, action {}", f.cause, f.action);
+      if (f.recovered) line += fmt::format(", recovered in {:.2f} s", *f.recovery_time);
+    }
+    if (f.stopped_safely) line += ", cell stopped safely";
+    out += line + "\n";
+  }
+  for (const Detection& d : r.false_alarms) {
+    out += fmt::format("  false alarm at t = {:.2f} s: {}{}\n", d.t, d.symptom,
+                       d.robot.empty() ? std::string() : " by " + d.robot);
+  }
+  for (const std::string& f : r.failures) out += fmt::format("  failure: {}\n", f);
+  return out;
+}
+
+}  // namespace cellwright::cell

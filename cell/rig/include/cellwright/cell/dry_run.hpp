@@ -1,0 +1,61 @@
+// The dry run for hardware bring-up (`twin run SCENARIO --driver melfa=movemaster:PORT --dry`, docs/real-robots.md):
+// for every robot of the program on a real driver, connect, home, read the position, and check every target of the
+// program without moving anything else.
+//
+// The targets are the program's moves as the runtime would make them, planned on the cell description (the
+// estimator's motion plan, plan_motions: parts at their stops, held parts moving with the hand). Each is checked:
+//  - against the project's kinematics of the robot (a joint configuration within the limits reaches it), and
+//  - against what the controller can be told: the Movemaster's x,y,z,p,r must express it (the 5-axis rule, with the
+//    driver's yaw tolerance); VAL II locations express every pose.
+// Neither controller has a reach query that this project knows of (docs/real-robots.md), so the controller's own
+// opinion of a target is only had by moving to it, which a dry run does not do.
+//
+// Robots on the sim driver are listed and left alone.
+#pragma once
+
+#include <chrono>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/drivers/robot_driver.hpp"
+#include "cellwright/petri/net.hpp"
+#include "cellwright/cell/scenario.hpp"
+
+namespace cellwright::cell {
+
+struct DryTarget {
+  std::string command;     // "move above(A)"
+  std::string source;      // the task-level command: "exchange.task:8:3 'Pick A'"
+  std::string controller;  // what the controller would be sent: "MP 250.0,0.0,180.0,-90.0,0.0", "TRANS(...)"
+  std::string problem;     // "" when the target can be reached and expressed
+};
+
+struct DryRobot {
+  std::string label, robot;  // program label, cell robot
+  std::string driver;        // "movemaster /dev/ttyUSB0", "sim"
+  bool real = false;
+  bool homed = false;
+  std::optional<drivers::PositionReading> position;  // after homing
+  std::string problem;                               // a step that failed: connect, home, read
+  std::vector<DryTarget> targets;
+};
+
+struct DryRunReport {
+  std::vector<DryRobot> robots;
+  bool ok() const;  // every real robot homed and read, every target of theirs without a problem
+};
+
+struct DryRunOptions {
+  std::chrono::nanoseconds home_timeout = std::chrono::seconds(60);
+  std::chrono::nanoseconds read_timeout = std::chrono::seconds(5);
+};
+
+// Runs the dry run. `net` is preflight's net of the program. Throws InputError when a real driver cannot be made or
+// connected (the port does not exist, the controller does not answer), naming the driver's place and the problem.
+DryRunReport dry_run(const Scenario& scenario, const petri::Net& net, const DryRunOptions& options = {});
+
+// The report as text: per robot, what was done and each target with its verdict.
+std::string format_dry_run(const DryRunReport& report);
+
+}  // namespace cellwright::cell

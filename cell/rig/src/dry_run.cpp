@@ -1,0 +1,174 @@
+// The dry run for hardware bring-up (dry_run.hpp).
+#include "cellwright/cell/dry_run.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <condition_variable>
+#include <mutex>
+
+#include "cellwright/drivers/movemaster/movemaster_driver.hpp"
+#include "cellwright/drivers/movemaster/movemaster_protocol.hpp"
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
+#include "cellwright/cell/estimate.hpp"
+#include "cellwright/cell/real_drivers.hpp"
+
+namespace cellwright::cell {
+
+namespace {
+
+// Waits for command `id` of `driver` to end, at most `timeout`; its status then.
+drivers::CommandStatus wait_for(drivers::RobotDriver& driver, drivers::CommandId id, std::chrono::nanoseconds timeout) {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::uint64_t events = 0;
+  driver.set_notifier([&] {
+    {
+      std::lock_guard lock(mutex);
+      ++events;
+    }
+    cv.notify_all();
+  });
+  const auto until = std::chrono::steady_clock::now() + timeout;
+  drivers::CommandStatus st;
+  for (;;) {
+    std::uint64_t seen = 0;
+    {
+      std::lock_guard lock(mutex);
+      seen = events;
+    }
+    st = driver.poll(id);
+    if (st.phase == drivers::CommandPhase::done || st.phase == drivers::CommandPhase::failed) break;
+    std::unique_lock lock(mutex);
+    if (!cv.wait_until(lock, until, [&] { return events != seen; })) {
+      st.message = "no answer in time";
+      break;
+    }
+  }
+  driver.set_notifier({});
+  return st;
+}
+
+std::string failed(const char* step, const drivers::CommandStatus& st) {
+  return fmt::format("{} did not finish: {} {}", step, drivers::to_string(st.phase),
+                     st.phase == drivers::CommandPhase::failed
+                         ? fmt::format("({}: {})", drivers::to_string(st.error), st.message)
+                         : st.message);
+}
+
+}  // namespace
+
+bool DryRunReport::ok() const {
+  for (const DryRobot& r : robots) {
+    if (!r.real) continue;
+    if (!r.problem.empty() || !r.homed || !r.position) return false;
+    for (const DryTarget& t : r.targets) {
+      if (!t.problem.empty()) return false;
+    }
+  }
+  return true;
+}
+
+DryRunReport dry_run(const Scenario& s, const petri::Net& net, const DryRunOptions& options) {
+  DryRunReport report;
+  runtime::TargetOptions targets;
+  targets.handover_clearance = s.options.handover_clearance;
+  const MotionPlan plan = plan_motions(s, net, targets);
+  for (std::size_t i = 0; i < s.robots.size(); ++i) {
+    const Binding& b = s.robots[i];
+    DryRobot r;
+    r.label = b.label;
+    r.robot = b.name;
+    const DriverChoice* choice = nullptr;
+    for (const DriverChoice& d : s.drivers) {
+      if (d.robot == b.name) choice = &d;
+    }
+    r.real = choice != nullptr && choice->real();
+    r.driver = r.real ? fmt::format("{} {}", to_string(choice->kind), choice->serial->port) : "sim";
+    if (!r.real) {
+      report.robots.push_back(std::move(r));
+      continue;
+    }
+    const models::RobotSpec& spec = *s.cell.find_robot(b.name);
+    std::unique_ptr<drivers::SerialDriver> driver = make_real_driver(*choice, spec);
+    connect_real_driver(*driver, *choice);
+    const drivers::Submitted home = driver->home();
+    drivers::CommandStatus st = wait_for(*driver, home.id, options.home_timeout);
+    if (st.phase != drivers::CommandPhase::done) {
+      r.problem = failed("homing", st);
+    } else {
+      r.homed = true;
+      const drivers::Submitted read = driver->request_position();
+      st = wait_for(*driver, read.id, options.read_timeout);
+      if (st.phase == drivers::CommandPhase::done) {
+        r.position = driver->last_position();
+      } else {
+        r.problem = failed("reading the position", st);
+      }
+    }
+    driver->disconnect();
+
+    // Every target of the program for this robot.
+    const models::KinematicChain chain = models::robot_chain(spec);
+    const auto* movemaster = dynamic_cast<const drivers::MovemasterDriver*>(driver.get());
+    for (const PlannedCommand& c : plan.commands[i]) {
+      if (c.kind != task::PrimitiveKind::kMove || !c.reached) continue;
+      DryTarget t;
+      t.command = c.command;
+      t.source = c.source;
+      if (!c.problem.empty() || c.goal.size() != chain.dof()) {
+        t.problem = c.problem.empty() ? "no joint goal" : c.problem;
+        r.targets.push_back(std::move(t));
+        continue;
+      }
+      const Eigen::Isometry3d pose =
+          chain.forward(Eigen::Map<const Eigen::VectorXd>(c.goal.data(), static_cast<Eigen::Index>(c.goal.size())));
+      if (movemaster != nullptr) {
+        std::string why;
+        const auto v = drivers::movemaster::to_xyzpr(pose, movemaster->options().yaw_tolerance_deg, &why);
+        if (v) {
+          t.controller = drivers::movemaster::format_mp(*v);
+        } else {
+          t.problem = fmt::format("the Movemaster cannot be told this pose: {}", why);
+        }
+      } else {
+        const Eigen::Vector3d p = pose.translation() * 1000.0;
+        t.controller = fmt::format("tool at ({:.1f}, {:.1f}, {:.1f}) mm", p.x(), p.y(), p.z());
+      }
+      r.targets.push_back(std::move(t));
+    }
+    report.robots.push_back(std::move(r));
+  }
+  return report;
+}
+
+std::string format_dry_run(const DryRunReport& report) {
+  std::string out;
+  for (const DryRobot& r : report.robots) {
+    out += fmt::format("{} ({}) on {}\n", r.label, r.robot, r.driver);
+    if (!r.real) {
+      out += "  simulated: nothing to check on hardware\n";
+      continue;
+    }
+    out += fmt::format("  homed: {}\n", r.homed ? "yes" : "no");
+    if (r.position && r.position->tool_pose) {
+      const Eigen::Vector3d p = r.position->tool_pose->translation() * 1000.0;
+      out += fmt::format("  position after homing: tool at ({:.1f}, {:.1f}, {:.1f}) mm\n", p.x(), p.y(), p.z());
+    } else if (r.position && !r.position->joints.empty()) {
+      std::string q;
+      for (const double v : r.position->joints) q += fmt::format("{}{:.2f}", q.empty() ? "" : ", ", v * 180 / M_PI);
+      out += fmt::format("  position after homing: joints [{}] deg\n", q);
+    }
+    if (!r.problem.empty()) out += fmt::format("  PROBLEM: {}\n", r.problem);
+    for (const DryTarget& t : r.targets) {
+      out += fmt::format("  {} {:<24} {}  {}\n", t.problem.empty() ? "ok  " : "FAIL", t.command,
+                         t.problem.empty() ? t.controller : t.problem, t.source);
+    }
+  }
+  out += report.ok() ? "dry run: every target can be reached and expressed; nothing was moved but homing\n"
+                     : "dry run: problems above; nothing was moved but homing\n";
+  return out;
+}
+
+}  // namespace cellwright::cell

@@ -1,0 +1,156 @@
+// One run of a scenario on the simulated cell: everything `twin run`, `twin step` and the pipeline benchmark share.
+// It builds the MuJoCo scene and World (with the scenario's perturbation of where parts really are), the simulation
+// drivers, the plant (with the scenario's workpiece feed), the detector when the perception is vision, the cycle-time
+// estimate and the Runtime (given the cell description as written: the controller does not know the perturbation);
+// after the run it turns the result into the report and writes the outputs.
+// The scenario's faults (docs/faults.md) are put in place here: the physical ones and the camera's by the plant
+// (sim::FaultInjector; the scene gets the obstacle bodies), the detection noise by a sim::NoisyDetector around the
+// detector, the driver faults by a drivers::FaultyDriver around the robot's simulation driver (each reported through
+// the plant's new_faults() as it is chosen), lost_signal by RunConfig::lost_signals.
+//
+// Order of use (main thread):
+//    Scenario s = load_scenario(file);            // InputError: bad input
+//    Preflight p = preflight(s, &twin_port());   // !p.ok(): refuse, nothing built (preflight.hpp)
+//    ScenarioRun run(s, p.net, options);          // builds, starts no thread
+//    RunResult r = run.runtime().run();           // or runtime().step() ...
+//    Report rep = run.report();
+//    run.write_outputs(dir, rep, run.snapshot(800, 600));
+//
+// Threads: a ScenarioRun is used by one thread, the caller's; the Runtime it holds starts and joins the others.
+// world() and snapshot() may be used only while the runtime's threads are not running (before run(), between
+// steps, after the run).
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/drivers/faulty_driver.hpp"
+#include "cellwright/petri/net.hpp"
+#include "cellwright/runtime/runtime.hpp"
+#include "cellwright/cell/estimate.hpp"
+#include "cellwright/cell/outputs.hpp"
+#include "cellwright/cell/report.hpp"
+#include "cellwright/cell/scenario.hpp"
+#include "cellwright/twin/sim/mirrored_driver.hpp"
+#include "cellwright/twin/sim/world.hpp"
+#include "cellwright/twin/sim/world_plant.hpp"
+#include "cellwright/twin/video.hpp"
+
+namespace cellwright::cell {
+
+namespace sim = twin::sim;  // the simulator's World, drivers and plant
+
+struct RunOptions {
+  std::optional<bool> realtime;  // overrides the scenario's options.realtime when set (`--realtime`)
+  // Called on the simulation thread every `progress_every` of simulation time with the time and the firings so far.
+  // Must be short and must not touch the ScenarioRun.
+  std::function<void(runtime::SimDuration, std::uint64_t)> on_progress;
+  runtime::SimDuration progress_every = std::chrono::seconds(1);
+  // Overrides the scenario's perception when set (`--perception`). Vision without a `vision:` entry in the scenario
+  // looks through the cell's first camera.
+  std::optional<runtime::Perception> perception;
+  // Called on the image-processing thread after each camera frame (`--save-frames`). Must not touch the ScenarioRun.
+  // Without vision perception: called on the simulation thread with plain frames (no sightings, no predictions) of
+  // the scenario's vision camera, else the cell's first, every vision period (`vision.period`, default 0.4 s); the
+  // constructor throws InputError if the cell has no camera.
+  std::function<void(const runtime::VisionFrame&)> on_frame;
+  // If not empty, the event log is streamed to this file as the run writes it (created, or emptied, when the
+  // ScenarioRun is built, with its directory) and kept nowhere else: the run's memory does not grow with its length, report() reads the
+  // file back, and runtime().log().text() is not available. A run that dies leaves every line logged so far in it.
+  // Empty: the log is kept in memory (tests, benchmarks).
+  std::filesystem::path events_file;
+  // A video of the run (`--video`, video.hpp): the file is opened when the ScenarioRun is built (InputError if it
+  // cannot be written), frames are recorded on the simulation thread at multiples of 1/fps of simulation time (the
+  // event log is the same with and without), and finish_video() adds the verdict and closes it.
+  std::optional<twin::VideoOptions> video;
+};
+
+// The scenario's cell as it really is: the World (perturbed parts moved by the scenario's seed, fed parts parked) and
+// the feed events that bring the parked parts in. Throws InputError if MuJoCo rejects the cell.
+struct CellWorld {
+  std::unique_ptr<sim::World> world;
+  std::vector<sim::FeedEvent> feed;
+};
+CellWorld make_cell_world(const Scenario& scenario);
+
+// The cell's workpieces as `world` has them now (ground truth: parked parts are not present, a part both finger pads
+// of a robot touch is held by it). Only while nothing steps the world.
+std::vector<FinalPose> final_poses_of(const sim::World& world);
+
+class ScenarioRun {
+ public:
+  // Builds the scene and World (feed workpieces parked), a simulation driver per program robot, the plant that feeds
+  // workpieces at their times, the estimate and the Runtime. `net` is preflight's net of the scenario's program.
+  // A robot on a real driver (DriverChoice::real) is driven through it, its simulation driver being the copy that
+  // follows it in the twin (sim::MirroredDriver); its driver is connected here, so that a port that cannot be opened
+  // or a controller that does not answer is an error before anything runs. Real drivers need real time.
+  // Throws InputError if MuJoCo rejects the cell, a driver's configuration cannot work, a real driver cannot connect,
+  // or a real driver would run lock-step; nothing runs yet.
+  ScenarioRun(const Scenario& scenario, const petri::Net& net, RunOptions options = {});
+  ~ScenarioRun();
+  ScenarioRun(const ScenarioRun&) = delete;
+  ScenarioRun& operator=(const ScenarioRun&) = delete;
+
+  const Scenario& scenario() const { return scenario_; }
+  const Estimate& estimate() const { return estimate_; }
+  runtime::Runtime& runtime() { return *runtime_; }
+  sim::World& world() { return *world_; }
+  // The robots on real drivers, with their copies in the twin (empty when all are simulated).
+  const std::vector<std::unique_ptr<sim::MirroredDriver>>& mirrors() const { return mirrors_; }
+  bool realtime() const { return realtime_; }
+  runtime::Perception perception() const { return perception_; }
+
+  // The cell's workpieces as the simulation has them now (ground truth: parked parts are not present, a part both
+  // finger pads of a robot touch is held by it). Only while the runtime's threads are not running.
+  std::vector<FinalPose> final_poses() const;
+
+  // The report of the run so far (make_report on the runtime's event log, or its file, final_poses() and the
+  // estimate). Only while the runtime's threads are not running: after run(), or between steps (then the log has no
+  // run_end yet). Throws InputError if the streamed log cannot be written or read back.
+  Report report() const;
+
+  // Where the event log is streamed (RunOptions::events_file; it moves when write_outputs moves it), or empty.
+  const std::filesystem::path& events_file() const { return events_file_; }
+
+  // write_outputs() below with this run's events: the log's text, or the streamed file moved into `dir` as
+  // events.jsonl (copied when `dir` is on another file system); with a video, index.html shows it (by its path
+  // relative to `dir`). Same threads rule as report().
+  void write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image);
+
+  // The overview camera's view of the cell now (a copy of the simulation state is rendered, headless; the camera
+  // frames every visible body, the workpieces wherever they are included), with each workpiece of the scenario's
+  // expectations that is in the picture marked and named with its expected place ("A (output)") at its final pose.
+  cv::Mat snapshot(int width, int height) const;
+
+  // With RunOptions::video, after the run (or when it was quit): the final state held with the report's verdict,
+  // then the file closed. Returns the video's file, or empty without a video (or when called again). Throws
+  // InputError naming the file if recording failed. Same threads rule as report().
+  std::filesystem::path finish_video(const Report& report);
+
+ private:
+  const Scenario& scenario_;
+  std::filesystem::path events_file_;          // the streamed log's file, or empty
+  std::unique_ptr<std::ofstream> events_out_;  // open on events_file_ while the runtime lives
+  bool realtime_ = false;
+  runtime::Perception perception_ = runtime::Perception::kTruth;
+  std::unique_ptr<sim::World> world_;
+  std::vector<std::unique_ptr<sim::MirroredDriver>> mirrors_;  // real robots, with their copies in world_
+  std::vector<std::unique_ptr<drivers::FaultyDriver>> faulty_;  // simulated robots with driver faults
+  std::unique_ptr<runtime::Plant> plant_;
+  sim::WorldPlant* world_plant_ = nullptr;  // plant_, the World's
+  Estimate estimate_;
+  std::unique_ptr<twin::VideoRecorder> video_;  // with RunOptions::video; fed by the simulation thread
+  std::filesystem::path video_file_;      // its file, kept when finish_video() has closed it
+  std::unique_ptr<runtime::Runtime> runtime_;
+};
+
+}  // namespace cellwright::cell

@@ -1,0 +1,416 @@
+// One run of a scenario on the simulated cell (run.hpp).
+#include "cellwright/cell/sim/run.hpp"
+
+#include <malloc.h>
+
+#include <fmt/format.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <system_error>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/common/files.hpp"
+#include "cellwright/twin/render.hpp"
+#include "cellwright/cell/real_drivers.hpp"
+#include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/sim/fault_injector.hpp"
+#include "cellwright/twin/sim/world_plant.hpp"
+#include "cellwright/vision/camera_model.hpp"
+#include "cellwright/vision/cell_detector.hpp"
+#include "cellwright/vision/detector.hpp"
+
+namespace cellwright::cell {
+
+namespace {
+
+runtime::SimDuration seconds(double s) {
+  return std::chrono::duration_cast<runtime::SimDuration>(std::chrono::duration<double>(s));
+}
+
+// The driver faults of robot `robot` as a FaultyDriver's plan (docs/faults.md): `command: move` counts joint and pose
+// moves together, `grip` opens and closes. Empty when it has none.
+drivers::FaultPlan driver_plan(const Scenario& s, const std::string& robot) {
+  drivers::FaultPlan plan;
+  for (const FaultSpec& f : s.faults) {
+    if (!is_driver_fault(f.kind) || f.robot != robot) continue;
+    drivers::KindsRule rule;
+    rule.kinds = f.command == FaultCommand::move
+                     ? std::vector<drivers::CommandKind>{drivers::CommandKind::move_joints, drivers::CommandKind::move_pose}
+                     : std::vector<drivers::CommandKind>{drivers::CommandKind::grip};
+    rule.nth = f.n;
+    switch (f.kind) {
+      case FaultKind::timeout:
+        rule.fault.never_completes = true;
+        break;
+      case FaultKind::garbage:
+        rule.fault.error = drivers::ErrorCode::protocol;
+        rule.fault.message = "garbage reply: the controller answered with bytes that are no reply";
+        break;
+      case FaultKind::hardware:
+        rule.fault.error = drivers::ErrorCode::hardware;
+        rule.fault.message = "ER 1: the controller reports a hardware error";
+        break;
+      case FaultKind::position:
+        rule.fault.error = drivers::ErrorCode::unreachable;
+        rule.fault.message = "ER 2: the controller refuses the position";
+        break;
+      default:
+        rule.fault.error = drivers::ErrorCode::connection_lost;
+        rule.fault.message = "the serial link to the controller dropped";
+        break;
+    }
+    plan.kinds_rules.push_back(std::move(rule));
+  }
+  plan.seed = s.seed;
+  return plan;
+}
+
+}  // namespace
+
+CellWorld make_cell_world(const Scenario& s) {
+  sim::WorldOptions world_options;
+  world_options.where = {s.source.string(), 0, 0};
+  if (s.feed) world_options.parked = s.feed->workpieces;
+  // The world as it really is: perturbed parts stand elsewhere than the cell description says.
+  const std::map<std::string, Eigen::Isometry3d> offsets =
+      s.perturb ? draw_perturbation(*s.perturb, s.seed) : std::map<std::string, Eigen::Isometry3d>{};
+  models::CellDescription real = s.cell;
+  for (models::WorkpieceSpec& w : real.workpieces) {
+    const auto it = offsets.find(w.name);
+    if (it == offsets.end() || (s.feed && s.feed->feeds(w.name))) continue;
+    const Eigen::Isometry3d moved = w.pose.transform() * it->second;
+    w.pose.xyz = moved.translation();
+    w.pose.rpy.z() += std::atan2(it->second.linear()(1, 0), it->second.linear()(0, 0));
+  }
+  CellWorld out;
+  out.world =
+      std::make_unique<sim::World>(twin::build_scene(real, sim::FaultInjector::scene_options(s.faults)), world_options);
+  if (s.feed) {
+    for (std::size_t i = 0; i < s.feed->count; ++i) {
+      const auto it = offsets.find(s.feed->workpiece_at(i));
+      out.feed.push_back({seconds(s.feed->arrival(i)), s.feed->workpiece_at(i), s.feed->conveyor,
+                          it == offsets.end() || i >= s.feed->workpieces.size() ? Eigen::Isometry3d::Identity()
+                                                                                : it->second});
+    }
+  }
+  return out;
+}
+
+
+ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions options)
+    : scenario_(s),
+      realtime_(options.realtime.value_or(s.options.realtime)),
+      perception_(options.perception.value_or(s.perception)) {
+  if (uses_real_drivers(s) && !realtime_) {
+    for (const DriverChoice& d : s.drivers) {
+      if (!d.real()) continue;
+      throw InputError(d.where, fmt::format("robot '{}' is on the real {} driver, and lock-step is refused with a "
+                                            "real driver: a real arm moves on the wall clock and cannot wait for the "
+                                            "simulation's steps; run with --realtime",
+                                            d.robot, to_string(d.kind)));
+    }
+  }
+  for (const FaultSpec& f : s.faults) {
+    if (needs_vision(f.kind) && perception_ != runtime::Perception::kVision) {
+      throw InputError(f.where, fmt::format("a {} fault needs perception vision (the camera), and this run's "
+                                            "perception is {}",
+                                            to_string(f.kind), runtime::to_string(perception_)));
+    }
+  }
+  CellWorld cell = make_cell_world(s);
+  world_ = std::move(cell.world);
+
+  runtime::RunConfig config;
+  config.program = s.program;
+  config.net = net;
+  config.cell = s.cell;
+  config.binding.where = {s.source.string(), 0, 0};
+  for (const Binding& b : s.robots) config.binding.robots[b.label] = {b.name, b.where};
+  for (const Binding& b : s.workpieces) config.binding.objects[b.label] = {b.name, b.where};
+  for (const Binding& b : s.locations) config.binding.objects[b.label] = {b.name, b.where};
+
+  // A simulation driver for each robot the program uses, and the timing the estimate needs from it.
+  EstimateOptions estimate_options;
+  estimate_options.targets.handover_clearance = s.options.handover_clearance;
+  estimate_options.control_period = s.options.control_period;
+  estimate_options.physics_step = s.cell.timestep;
+  for (const Binding& b : s.robots) {
+    sim::SimDriverOptions driver_options;
+    for (const DriverChoice& d : s.drivers) {
+      if (d.robot == b.name) driver_options.where = d.where;
+    }
+    sim::SimDriver& driver = world_->add_sim_driver(b.name, driver_options);
+    config.drivers[b.name] = &driver;
+    const DriverChoice* choice = nullptr;
+    for (const DriverChoice& d : s.drivers) {
+      if (d.robot == b.name) choice = &d;
+    }
+    if (choice != nullptr && choice->real()) {
+      std::unique_ptr<drivers::SerialDriver> real = make_real_driver(*choice, *s.cell.find_robot(b.name));
+      connect_real_driver(*real, *choice);
+      mirrors_.push_back(std::make_unique<sim::MirroredDriver>(b.name, std::move(real), driver, driver.kinematics()));
+      config.drivers[b.name] = mirrors_.back().get();
+    } else if (drivers::FaultPlan plan = driver_plan(s, b.name); !plan.kinds_rules.empty()) {
+      // The controller's and the link's faults: each reported, as it is chosen on the robot's thread, through the plant.
+      plan.on_injection = [this, robot = b.name](drivers::CommandId id, const drivers::Command& command,
+                                                 const drivers::Fault& fault) {
+        const std::string kind =
+            fault.never_completes ? std::string("timeout")
+            : fault.error == drivers::ErrorCode::protocol        ? std::string("garbage")
+            : fault.error == drivers::ErrorCode::hardware        ? std::string("hardware")
+            : fault.error == drivers::ErrorCode::unreachable     ? std::string("position")
+                                                                 : std::string("link_lost");
+        world_plant_->report_fault(
+            {kind, robot, "",
+             fmt::format("command {} ({}): {}", id, drivers::describe(command),
+                         fault.never_completes ? std::string("the controller never answers") : fault.message)});
+      };
+      faulty_.push_back(std::make_unique<drivers::FaultyDriver>(driver, std::move(plan)));
+      config.drivers[b.name] = faulty_.back().get();
+    }
+    RobotTiming timing;
+    timing.max_joint_speed = driver.capabilities().max_joint_speed;
+    timing.speed = config.motion.speed;
+    timing.min_move_time = driver_options.min_move_time;
+    timing.finger_speed = driver_options.finger_speed;
+    const twin::RobotIds& ids = *world_->scene().find_robot(b.name);
+    timing.finger_closed = ids.finger_range[0];
+    timing.finger_open = ids.finger_range[1];
+    // The fingers' servo stiffness (N/m) in the scene: the grip force is reached this far behind the ramp.
+    const double finger_stiffness = world_->scene().model()->actuator_gainprm[ids.finger_actuator[0] * mjNGAIN];
+    timing.finger_squeeze = driver.capabilities().gripper_max_force / finger_stiffness;
+    estimate_options.robots[b.name] = timing;
+  }
+
+  auto plant = std::make_unique<sim::WorldPlant>(*world_, std::move(cell.feed), s.faults, s.seed);
+  world_plant_ = plant.get();
+  if (s.feed && s.feed->recycles()) {
+    // A shift: parts leave the cell at the end of every conveyor but the feed's, and their bodies are fed again.
+    std::vector<std::string> exits;
+    for (const models::ConveyorSpec* c : s.feed->exits(s.cell)) exits.push_back(c->name);
+    plant->recycle_at(std::move(exits));
+  }
+  if (s.perturb) {
+    // The scenario's perturbation misplaces parts on purpose (the controller's model does not know it): logged as
+    // such, so that its detection is matched to it and not taken for a false alarm.
+    for (const auto& [name, offset] : draw_perturbation(*s.perturb, s.seed)) {
+      world_plant_->report_fault(
+          {"misplace", "", name,
+           fmt::format("the scenario's perturbation: workpiece '{}' moved by ({:.3f}, {:.3f}) m in its own frame and "
+                       "turned by {:.1f} degrees",
+                       name, offset.translation().x(), offset.translation().y(),
+                       std::atan2(offset.linear()(1, 0), offset.linear()(0, 0)) * 180.0 / M_PI)});
+    }
+  }
+  plant_ = std::move(plant);
+  for (const FaultSpec& f : s.faults) {
+    if (f.kind == FaultKind::lost_signal) config.lost_signals.push_back(f.n);
+  }
+  estimate_ = estimate_cycle_time(s, net, estimate_options);
+
+  config.plant = plant_.get();
+  config.mode = realtime_ ? runtime::Mode::kRealtime : runtime::Mode::kLockstep;
+  config.period = seconds(s.options.control_period);
+  config.limits.sim_time = seconds(s.limits.sim_time);
+  config.limits.settle = seconds(s.options.settle_time);
+  config.limits.wall_time = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(s.limits.wall_time));
+  config.motion.targets.handover_clearance = s.options.handover_clearance;
+  config.motion.recovery = s.recovery;
+  config.perception = perception_;
+  if (perception_ == runtime::Perception::kVision) {
+    // The scenario's camera (checked when it was loaded), else, when --perception asks for vision, the cell's first.
+    VisionSettings v = s.vision.value_or(VisionSettings{});
+    if (!s.vision) {
+      if (s.cell.cameras.empty()) {
+        throw InputError({s.source.string(), 0, 0}, "perception vision needs a camera, and the cell has none");
+      }
+      v.camera = s.cell.cameras.front().name;
+    }
+    const models::CameraSpec* camera = s.cell.find_camera(v.camera);
+    CW_CHECK(camera != nullptr, "the vision camera '{}' is not in the cell", v.camera);
+    config.vision = runtime::VisionOptions{v.camera, seconds(v.period)};
+    config.detector = std::make_shared<const vision::CellDetector>(
+        std::make_shared<const vision::Detector>(s.cell, vision::CameraModel(*camera)));
+    if (std::any_of(s.faults.begin(), s.faults.end(),
+                    [](const FaultSpec& f) { return f.kind == FaultKind::detection_noise; })) {
+      sim::WorldPlant* frames = world_plant_;
+      config.detector = std::make_shared<const sim::NoisyDetector>(config.detector, s.faults, s.seed,
+                                                                   [frames] { return frames->last_capture(); });
+    }
+    config.on_frame = std::move(options.on_frame);
+  } else if (options.on_frame) {
+    // Plain frames of the camera vision would look through, at its period: for a person to look at, not acted on.
+    const VisionSettings v = s.vision.value_or(VisionSettings{});
+    const std::string camera = s.vision ? v.camera : s.cell.cameras.empty() ? std::string() : s.cell.cameras[0].name;
+    if (camera.empty()) throw InputError({s.source.string(), 0, 0}, "saving camera frames needs a camera, and the cell has none");
+    config.camera_frames = runtime::VisionOptions{camera, seconds(v.period)};
+    config.on_frame = std::move(options.on_frame);
+  }
+  // The event log first: it makes the output directory, where the video may go (-o DIR --video DIR/run.mp4).
+  // The directories this makes for it, innermost first: removed again (when empty) if the video is refused.
+  std::vector<std::filesystem::path> made;
+  if (!options.events_file.empty()) {
+    events_file_ = std::move(options.events_file);
+    std::error_code ec;
+    for (std::filesystem::path d = events_file_.parent_path(); !d.empty() && !std::filesystem::exists(d, ec);
+         d = d.parent_path()) {
+      made.push_back(d);
+      if (d == d.parent_path()) break;
+    }
+    if (events_file_.has_parent_path()) make_output_directory(events_file_.parent_path());
+    events_out_ = std::make_unique<std::ofstream>(events_file_, std::ios::binary | std::ios::trunc);
+    if (!*events_out_) {
+      throw InputError({events_file_.string()}, fmt::format("cannot write the event log: {}", std::strerror(errno)));
+    }
+    config.log_stream = events_out_.get();
+    config.keep_log = false;
+  }
+  config.on_progress = std::move(options.on_progress);
+  config.progress_every = options.progress_every;
+  if (options.video) {
+    video_file_ = options.video->path;
+    try {
+      video_ = std::make_unique<twin::VideoRecorder>(world_->scene().model(), std::move(*options.video));
+    } catch (...) {  // refused before anything ran: leave nothing behind
+      if (events_out_) {
+        events_out_.reset();
+        std::error_code ec;
+        std::filesystem::remove(events_file_, ec);
+        for (const std::filesystem::path& d : made) std::filesystem::remove(d, ec);  // each only if empty
+      }
+      throw;
+    }
+    config.record_every = video_->frame_period();
+    config.on_record = [this](runtime::SimDuration t, const std::vector<runtime::RobotView>& robots) {
+      std::vector<std::string> lines;
+      for (const runtime::RobotView& r : robots) {
+        lines.push_back(r.done ? fmt::format("{}: done", r.robot)
+                               : fmt::format("{}: {} {}", r.robot, runtime::to_string(r.activity), r.command));
+      }
+      if (video_) video_->record(world_->data(), t, std::move(lines));  // copies positions: the World is untouched
+    };
+  }
+  runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
+}
+
+ScenarioRun::~ScenarioRun() {
+  runtime_.reset();  // joins the threads before the plant and the World they use go
+}
+
+std::vector<FinalPose> final_poses_of(const sim::World& world) {
+  std::vector<FinalPose> out;
+  const sim::WorldTruth truth = world.truth();
+  for (const sim::WorkpieceTruth& w : truth.workpieces) {
+    FinalPose f;
+    f.name = w.name;
+    f.pose = w.pose;
+    f.present = !w.parked;
+    if (w.held_by) f.held_by = world.scene().robots().at(*w.held_by).name;
+    out.push_back(std::move(f));
+  }
+  return out;
+}
+
+std::vector<FinalPose> ScenarioRun::final_poses() const {
+  return final_poses_of(*world_);
+}
+
+namespace {
+
+// Every line logged so far in the log's file, or an error naming it (a full disk).
+void flush_streamed_log(const runtime::EventLog& log, const std::filesystem::path& file) {
+  try {
+    log.flush();
+  } catch (const std::runtime_error& e) {
+    throw InputError({file.string()}, e.what());
+  }
+}
+
+}  // namespace
+
+Report ScenarioRun::report() const {
+  if (events_file_.empty()) {
+    return make_report(scenario_, parse_event_log(runtime_->log().text(), kEventsFile), final_poses(),
+                       estimate_.cycle_time, kEventsFile);
+  }
+  flush_streamed_log(runtime_->log(), events_file_);
+  std::ifstream in(events_file_, std::ios::binary);
+  if (!in) throw InputError({events_file_.string()}, "cannot read the event log back");
+  return make_report(scenario_, in, final_poses(), estimate_.cycle_time, events_file_.string());
+}
+
+void ScenarioRun::write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image) {
+  std::optional<std::filesystem::path> video;  // for the page: the file beside it, by its path relative to `dir`
+  if (!video_file_.empty()) {
+    video = std::filesystem::absolute(video_file_).lexically_relative(std::filesystem::absolute(dir));
+  }
+  make_output_directory(dir);
+  if (events_file_.empty()) {
+    write_file_atomically(dir / kEventsFile, runtime_->log().text());
+  } else {
+    flush_streamed_log(runtime_->log(), events_file_);
+    std::error_code ec;
+    const std::filesystem::path target = dir / kEventsFile;
+    if (!std::filesystem::equivalent(events_file_, target, ec)) {
+      move_file(events_file_, target);
+      events_file_ = target;
+    }
+  }
+  write_report_outputs(dir, scenario_, report, final_image, video);
+}
+
+cv::Mat ScenarioRun::snapshot(int width, int height) const {
+  // Render a copy: the renderer's scene update needs a mutable mjData, and the World's stays untouched.
+  const mjModel* model = world_->scene().model();
+  std::unique_ptr<mjData, void (*)(mjData*)> copy(mj_makeData(model), mj_deleteData);
+  mj_copyData(copy.get(), model, world_->data());
+  // Give the heap that the run's threads freed (the camera's renderer, released when the simulation thread ended)
+  // back to the system before this renderer takes its own: 18 MB less at the run's peak with a camera.
+  malloc_trim(0);
+  twin::Renderer renderer(model, width, height);
+  cv::Mat image = renderer.render_overview(copy.get(), width, height);
+  // The workpieces the verdict is about, named where they ended up (the poses the report judges).
+  const vision::CameraModel camera = twin::overview_camera_model(model, copy.get(), width, height);
+  const std::vector<FinalPose> finals = final_poses();
+  for (const Expectation& e : scenario_.expect) {
+    const auto f = std::find_if(finals.begin(), finals.end(), [&](const FinalPose& p) { return p.name == e.workpiece; });
+    if (f == finals.end() || !f->present) continue;
+    const std::optional<cv::Point2d> px = camera.project(f->pose.translation());
+    if (!px) continue;
+    const cv::Point at(static_cast<int>(std::lround(px->x)), static_cast<int>(std::lround(px->y)));
+    if (at.x < 0 || at.y < 0 || at.x >= width || at.y >= height) continue;
+    const std::string text = fmt::format("{} ({})", e.workpiece, e.place);
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &base);
+    const cv::Point corner(std::min(at.x + 8, width - sz.width - 4), std::max(at.y - 10, sz.height + 4));
+    cv::circle(image, at, 5, {0, 0, 0}, 2, cv::LINE_AA);
+    cv::line(image, at, corner + cv::Point(0, -sz.height / 2), {0, 0, 0}, 1, cv::LINE_AA);
+    cv::rectangle(image, corner + cv::Point(-2, -sz.height - 3), corner + cv::Point(sz.width + 2, base + 1),
+                  {255, 255, 255}, cv::FILLED);
+    cv::putText(image, text, corner, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 0}, 1, cv::LINE_AA);
+  }
+  return image;
+}
+
+std::filesystem::path ScenarioRun::finish_video(const Report& report) {
+  if (!video_) return {};
+  const std::string verdict =
+      report.ok() ? fmt::format("PASS: {} in {:.2f} s", report.outcome, report.end_time)
+                  : fmt::format("FAIL: {}{}", report.outcome,
+                                report.failures.empty() ? "" : fmt::format(" ({} failures)", report.failures.size()));
+  std::unique_ptr<twin::VideoRecorder> video = std::move(video_);
+  video->finish(world_->data(), std::chrono::duration_cast<runtime::SimDuration>(
+                                    std::chrono::duration<double>(report.end_time)),
+                verdict, report.ok());
+  return video->options().path;
+}
+
+}  // namespace cellwright::cell

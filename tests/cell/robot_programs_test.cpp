@@ -1,0 +1,365 @@
+// The post-processors: a small program's exact text in both languages, the same bytes every time, poses that read
+// back (with the doc's conventions, written again here) to the tool poses the motion plan gives, and the refusals.
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
+#include "cellwright/cell/robot_programs.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+#include <string>
+
+#include "cellwright/common/files.hpp"
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/cell/estimate.hpp"
+
+namespace cellwright::cell {
+namespace {
+
+namespace fs = std::filesystem;
+using cell::Scenario;
+using ::testing::HasSubstr;
+
+const std::string kScenes = std::string(CW_SOURCE_DIR) + "/scenes";
+constexpr double kDeg = std::numbers::pi / 180;
+
+class RobotProgramsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::path(::testing::TempDir()) /
+           fmt::format("robot_programs_test_{}", ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // A scenario on the repository's cell (or `cell`) running `program` (written as prog.task), r1 the PUMA on VAL II
+  // and r2 the MELFA on the Movemaster.
+  Scenario load(const std::string& program, const std::string& extra = "",
+                const std::string& cell = kScenes + "/cell.yaml") {
+    std::ofstream(dir_ / "prog.task") << program;
+    std::ofstream(dir_ / "s.yaml") << fmt::format(
+        "cell: {}\nprogram: prog.task\nrobots: {{r1: puma, r2: "
+        "melfa}}\n{}",
+        cell, extra);
+    Scenario s = cell::load_scenario(dir_ / "s.yaml");
+    set_language(s, "puma=val2", {"test", 0, 0});
+    set_language(s, "melfa=movemaster", {"test", 0, 0});
+    return s;
+  }
+
+  // Expects generate_robot_programs to refuse with `text`, at `file`:`line`.
+  void expect_refused(const Scenario& s, const std::string& file, int line, const std::string& text) {
+    try {
+      generate_robot_programs(s, cell::preflight(s, &twin_port()));
+      ADD_FAILURE() << "not refused; expected: " << text;
+    } catch (const InputError& e) {
+      EXPECT_EQ(fs::path(e.where().file).filename().string(), file) << e.what();
+      EXPECT_EQ(e.where().line, line) << e.what();
+      EXPECT_THAT(e.what(), HasSubstr(text));
+    }
+  }
+
+  fs::path dir_;
+};
+
+// r1 picks A off the input conveyor (the conveyor's stop: the cell's input_pick), then tells r2, which waits for it.
+constexpr const char* kSmall = R"(robot r1 r2
+workpiece A
+semaphore go
+sequence r1
+  Pick A
+  signal go
+end
+sequence r2
+  wait go
+end
+)";
+
+TEST_F(RobotProgramsTest, SmallProgramExactText) {
+  const Scenario s = load(kSmall);
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  ASSERT_EQ(p.robots.size(), 2u);
+  ASSERT_EQ(p.channels.size(), 1u);
+  EXPECT_EQ(p.channels[0].channel, 1);
+  EXPECT_EQ(p.channels[0].event, "go");
+  EXPECT_EQ(p.channels[0].from, "r1");
+  EXPECT_EQ(p.channels[0].to, "r2");
+
+  const RobotProgram& puma = p.robots[0];
+  EXPECT_EQ(puma.file_name, "puma.val2");
+  EXPECT_EQ(puma.text, fmt::format(R"(.PROGRAM puma
+; puma (r1), VAL II: written by twin compile --robot-language; do not edit
+; program: prog.task
+; scenario: s.yaml
+; cell: yasuda-cell (cell.yaml), robot puma as r1
+; net: {}
+; poses: the tool in the robot's base frame, mm and degrees (TRANS x,y,z,o,a,t)
+; I/O 1: SIGNAL 1 = go to melfa (r2)
+; I/O 16: WAIT SIG(1016) = a part at the stop of conveyor input (its sensor)
+  SPEED 50
+  SIGNAL -1
+; prog.task:5:3 Pick A
+  OPENI
+  WAIT SIG(1016)
+  MOVE above.A
+  MOVE at.A
+  CLOSEI
+  MOVE above.A
+; prog.task:6:3 signal go
+  SIGNAL 1
+; end
+.END
+.LOCATIONS
+above.A 30 -550 630 0 0 0
+at.A 30 -550 550 0 0 0
+.END
+)",
+                                   p.check));
+  // Steps count from 1 after .PROGRAM: 8 header comments, SPEED, SIGNAL -1, a comment, then the Pick, whose first
+  // move waits for A to rest at the input conveyor's stop (its sensor, the cell's input 16).
+  EXPECT_THAT(puma.primitive_line, ::testing::ElementsAre(12, 14, 15, 16, 17, 19));
+  EXPECT_EQ(puma.host_lines.front(), ".PROGRAM puma");
+  EXPECT_EQ(puma.host_lines.size(), 26u);  // every line of the file
+
+  const RobotProgram& melfa = p.robots[1];
+  EXPECT_EQ(melfa.file_name, "melfa.movemaster");
+  EXPECT_EQ(melfa.text,
+            fmt::format(R"(' melfa (r2), Movemaster EX: written by twin compile --robot-language; do not edit
+' program: prog.task
+' scenario: s.yaml
+' cell: yasuda-cell (cell.yaml), robot melfa as r2
+' net: {}
+' poses: the tool in the robot's base frame, mm and degrees (x,y,z,p,r, the 5-axis rule)
+' I/O 1: TB -1 = go from puma (r1)
+' a host sends the numbered lines (not these comments), then RN
+10 SP 4
+20 TB -1,20
+30 ED
+)",
+                        p.check));
+  EXPECT_THAT(melfa.primitive_line, ::testing::ElementsAre(20));
+  EXPECT_THAT(melfa.host_lines, ::testing::ElementsAre("10 SP 4", "20 TB -1,20", "30 ED"));
+  EXPECT_THAT(p.check, HasSubstr("deadlock-free"));
+}
+
+TEST_F(RobotProgramsTest, SameInputSameBytes) {
+  const Scenario s = cell::load_scenario(kScenes + "/exchange.yaml");
+  Scenario a = s;
+  set_language(a, "puma=val2", {"test", 0, 0});
+  set_language(a, "melfa=movemaster", {"test", 0, 0});
+  const RobotPrograms first = generate_robot_programs(a, cell::preflight(a, &twin_port()));
+  const RobotPrograms second = generate_robot_programs(a, cell::preflight(a, &twin_port()));
+  ASSERT_EQ(first.robots.size(), second.robots.size());
+  for (std::size_t i = 0; i < first.robots.size(); ++i) EXPECT_EQ(first.robots[i].text, second.robots[i].text);
+
+  write_robot_programs(first, dir_ / "out");
+  EXPECT_EQ(read_file(dir_ / "out" / "puma.val2"), first.robots[0].text);
+  EXPECT_EQ(read_file(dir_ / "out" / "melfa.movemaster"), first.robots[1].text);
+}
+
+// The numbers of a line after its command word: "PD 3,1.0,..." -> {3, 1, ...}; "above.A 30 -550 ..." -> {30, ...}.
+std::vector<double> numbers_after(const std::string& line, char separator) {
+  std::vector<double> v;
+  std::stringstream in(line.substr(line.find(' ') + 1));
+  std::string field;
+  while (std::getline(in, field, separator)) v.push_back(std::stod(field));
+  return v;
+}
+
+// Every move of the exchange, read back from the programs with the doc's conventions, is the tool pose the motion plan
+// gives, within the languages' resolution.
+TEST_F(RobotProgramsTest, PosesReadBackToThePlan) {
+  Scenario s = cell::load_scenario(kScenes + "/exchange.yaml");
+  set_language(s, "puma=val2", {"test", 0, 0});
+  set_language(s, "melfa=movemaster", {"test", 0, 0});
+  const cell::Preflight pre = cell::preflight(s, &twin_port());
+  const RobotPrograms p = generate_robot_programs(s, pre);
+  runtime::TargetOptions targets;
+  targets.handover_clearance = s.options.handover_clearance;
+  const cell::MotionPlan plan = cell::plan_motions(s, pre.net, targets);
+
+  for (std::size_t r = 0; r < 2; ++r) {
+    const RobotProgram& rp = p.robots[r];
+    const models::RobotSpec& spec = *s.cell.find_robot(rp.cell_robot);
+    const auto chain = models::KinematicChain::from_urdf_file(spec.urdf, "base_link", "tcp");
+    std::map<std::string, Eigen::Isometry3d> located;  // location name / position number -> frame
+    std::map<int, std::string> line_text;              // line number or step -> its text
+    int step = 0;
+    bool in_program = false, in_locations = false;
+    for (const std::string& l : rp.host_lines) {
+      if (rp.language == models::DriverKind::kMovemaster) {
+        const int n = std::stoi(l);
+        const std::string text = l.substr(l.find(' ') + 1);
+        line_text[n] = text;
+        if (text.starts_with("PD ")) {
+          const std::vector<double> v = numbers_after(text, ',');
+          // The 5-axis rule: a = cos p u + sin p z, R = [w x a, w, a] Rz(r).
+          const double th = std::atan2(v[2], v[1]);
+          const Eigen::Vector3d u(std::cos(th), std::sin(th), 0), w(-std::sin(th), std::cos(th), 0);
+          const Eigen::Vector3d a = std::cos(v[4] * kDeg) * u + std::sin(v[4] * kDeg) * Eigen::Vector3d::UnitZ();
+          Eigen::Matrix3d m;
+          m << w.cross(a), w, a;
+          Eigen::Isometry3d f = Eigen::Isometry3d::Identity();
+          f.linear() = m * Eigen::AngleAxisd(v[5] * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+          f.translation() = Eigen::Vector3d(v[1], v[2], v[3]) / 1000;
+          located[fmt::format("{}", static_cast<int>(v[0]))] = f;
+        }
+        continue;
+      }
+      if (l.starts_with(".PROGRAM")) {
+        in_program = true;
+      } else if (l == ".LOCATIONS") {
+        in_locations = true;
+      } else if (l == ".END") {
+        in_program = false;
+      } else if (in_program) {
+        line_text[++step] = l.substr(l.find_first_not_of(' '));
+      } else if (in_locations) {
+        const std::vector<double> v = numbers_after(l, ' ');
+        Eigen::Isometry3d f = Eigen::Isometry3d::Identity();
+        f.linear() = (Eigen::AngleAxisd(v[3] * kDeg, Eigen::Vector3d::UnitZ()) *
+                      Eigen::AngleAxisd(v[4] * kDeg, Eigen::Vector3d::UnitY()) *
+                      Eigen::AngleAxisd(v[5] * kDeg, Eigen::Vector3d::UnitZ()) *
+                      Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX()))
+                         .toRotationMatrix();
+        f.translation() = Eigen::Vector3d(v[0], v[1], v[2]) / 1000;
+        located[l.substr(0, l.find(' '))] = f;
+      }
+    }
+    const auto& prims = s.program.programs[r].primitives;
+    ASSERT_EQ(rp.primitive_line.size(), prims.size());
+    int moves = 0;
+    for (std::size_t k = 0; k < prims.size(); ++k) {
+      const std::string& text = line_text.at(rp.primitive_line[k]);
+      if (prims[k].kind != task::PrimitiveKind::kMove) {
+        EXPECT_FALSE(text.starts_with("MO")) << text;
+        continue;
+      }
+      ++moves;
+      ASSERT_TRUE(text.starts_with("MO")) << text;
+      const Eigen::Isometry3d& f = located.at(text.substr(text.find(' ') + 1));
+      const std::vector<double>& goal = plan.commands[r][k].goal;
+      const Eigen::Isometry3d want =
+          chain.forward(Eigen::Map<const Eigen::VectorXd>(goal.data(), static_cast<Eigen::Index>(goal.size())));
+      EXPECT_LT((f.translation() - want.translation()).norm(), 1e-4) << rp.robot << " " << k << " " << text;
+      EXPECT_LT(Eigen::AngleAxisd(f.linear().transpose() * want.linear()).angle(), 0.15 * kDeg)
+          << rp.robot << " " << k << " " << text;
+    }
+    EXPECT_GT(moves, 2);
+  }
+}
+
+TEST_F(RobotProgramsTest, RefusesARobotOnTheSimDriver) {
+  const Scenario s = cell::load_scenario(kScenes + "/exchange.yaml");  // drivers: {puma: sim, melfa: sim}
+  expect_refused(s, "exchange.yaml", 8, "robot 'puma' (r1) runs on the sim driver");
+}
+
+// The cell's cell.yaml, copied into the test's directory with `from` replaced by `to`.
+std::string cell_with(const fs::path& dir, const std::string& from, const std::string& to) {
+  std::string text = read_file(kScenes + "/cell.yaml");
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  const std::string urdf = "../models/urdf/";
+  for (std::size_t p = text.find(urdf); p != std::string::npos; p = text.find(urdf, p)) {
+    text.replace(p, 3, std::string(CW_SOURCE_DIR) + "/");
+  }
+  std::ofstream(dir / "cell.yaml") << text;
+  return text;
+}
+
+int line_of(const std::string& text, const std::string& needle) {
+  return 1 + static_cast<int>(
+                 std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(text.find(needle)), '\n'));
+}
+
+TEST_F(RobotProgramsTest, RefusesAPartComingOnAConveyorWithoutSensor) {
+  const std::string cell = cell_with(dir_, "    sensor: {signal: 16}\n", "");
+  const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());
+  expect_refused(s, "cell.yaml", line_of(cell, "- name: input"),
+                 "robot 'puma' (r1) goes to workpiece 'A' (prog.task:5:3 'Pick A') before it has ridden conveyor "
+                 "'input' to its stop");
+  expect_refused(s, "cell.yaml", line_of(cell, "- name: input"), "the conveyor has no part-present sensor");
+}
+
+// A part of a class that the feed brings (review of 643c69d: the estimate's feed net took these moves out of the
+// arrival gates, and the programs lost their sensor wait): the move that takes each fed part waits for the sensor.
+// kSmall with A a part of a class that arrives at IN.
+std::string class_program() {
+  std::string p = kSmall;
+  p.replace(p.find("workpiece A"), 11, "workpiece part from IN\nlocation IN");
+  p.replace(p.find("Pick A"), 6, "Pick part");
+  return p;
+}
+
+constexpr const char* kFeed = "bind: {IN: input_pick}\nfeed: {conveyor: input, workpieces: [A], start: 0, period: 4}\n";
+
+TEST_F(RobotProgramsTest, AFedPartOfAClassIsWaitedForAtTheSensor) {
+  const Scenario s = load(class_program(), kFeed);
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  const RobotProgram& puma = p.robots.at(0);
+  EXPECT_THAT(puma.text, HasSubstr("  OPENI\n  WAIT SIG(1016)\n  MOVE above."));
+}
+
+TEST_F(RobotProgramsTest, RefusesAFedPartOfAClassOnAConveyorWithoutSensor) {
+  const std::string cell = cell_with(dir_, "    sensor: {signal: 16}\n", "");
+  const Scenario s = load(class_program(), kFeed, (dir_ / "cell.yaml").string());
+  expect_refused(s, "cell.yaml", line_of(cell, "- name: input"),
+                 "robot 'puma' (r1) goes to the next part the feed brings (prog.task:6:3 'Pick part')");
+}
+
+TEST_F(RobotProgramsTest, RefusesASensorOnAnEventWire) {
+  const std::string cell = cell_with(dir_, "sensor: {signal: 16}", "sensor: {signal: 1}");
+  const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());
+  expect_refused(s, "cell.yaml", line_of(cell, "sensor: {signal: 1}"),
+                 "input 1 is the part-present sensor of conveyor 'input', but the program's events need the wires "
+                 "1..1");
+}
+
+TEST_F(RobotProgramsTest, RefusesARegionSharedByTwoControllers) {
+  const Scenario s = load(
+      "robot r1 r2\nregion zone\nsequence r1\n  enter zone\n  leave zone\nend\n"
+      "sequence r2\n  enter zone\n  leave zone\nend\n");
+  expect_refused(s, "prog.task", 2, "region 'zone' is shared by puma and melfa");
+}
+
+TEST_F(RobotProgramsTest, ARegionOfOneRobotNeedsNoWire) {
+  const Scenario s = load("robot r1 r2\nregion zone\nsequence r1\n  enter zone\n  leave zone\nend\n");
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  EXPECT_TRUE(p.channels.empty());
+  EXPECT_THAT(p.robots[0].primitive_line, ::testing::ElementsAre(-1, -1));
+  EXPECT_THAT(p.robots[0].text, HasSubstr("regions used by this robot alone, no wire needed: zone"));
+}
+
+TEST_F(RobotProgramsTest, RefusesACountedSemaphore) {
+  const Scenario s = load(
+      "robot r1 r2\nsemaphore s\nsequence r1\n  signal s\n  signal s\nend\n"
+      "sequence r2\n  wait s\n  wait s\nend\n");
+  expect_refused(s, "prog.task", 2, "semaphore 's' (initial 0, signalled 2 times, waited on 2 times");
+}
+
+TEST_F(RobotProgramsTest, RefusesAProgramThatFailsThePreflight) {
+  const Scenario s = load(read_file(kScenes + "/deadlock.task"));
+  expect_refused(s, "s.yaml", 0, "must pass the preflight");
+}
+
+TEST_F(RobotProgramsTest, SetLanguageRefusesBadSpecs) {
+  Scenario s = load(kSmall);
+  EXPECT_THROW(set_language(s, "puma", {"x", 0, 0}), InputError);
+  EXPECT_THROW(set_language(s, "puma=cobol", {"x", 0, 0}), InputError);
+  EXPECT_THROW(set_language(s, "kuka=val2", {"x", 0, 0}), InputError);
+  set_language(s, "puma=sim:/dev/ttyS0", {"x", 0, 0});
+  expect_refused(s, "x", 0, "robot 'puma' (r1) runs on the sim driver");
+}
+
+}  // namespace
+}  // namespace cellwright::cell

@@ -12,9 +12,11 @@ cd "$(dirname "$0")/.."
 mode=${1:-}
 case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exit 2 ;; esac
 
+# ccache: several build directories (CI's sanitizer legs and the build without the simulator, people working side by
+# side) compile the same files; CMake uses it when it is there.
 # libqhull-dev: MuJoCo's CMake config names /usr/include/libqhull_r, and CMake refuses to generate without it.
 packages=(
-  build-essential cmake pkg-config git
+  build-essential cmake pkg-config git ccache
   libmujoco-dev libqhull-dev libeigen3-dev libopencv-dev libosmesa6-dev liburdfdom-dev libyaml-cpp-dev libtinyxml2-dev libpng-dev
   libgtest-dev libgmock-dev libbenchmark-dev libfmt-dev libcli11-dev nlohmann-json3-dev graphviz libglpk-dev
   libassimp-dev ffmpeg libavcodec-dev libavformat-dev libswscale-dev libavutil-dev
@@ -34,7 +36,7 @@ fi
 build=${BUILD_DIR:-build}
 jobs=${JOBS:-$(nproc)}
 # Optimised, with line tables only (-g1): backtraces, sanitizer reports and gdb's `bt` keep their file:line, and the
-# build takes about a quarter less time than with -g (one core: twin/src/scenario/run.cpp 15.3 s against 19.1 s,
+# build takes about a quarter less time than with -g (one core: cell/sim/src/run.cpp 15.3 s against 19.1 s,
 # tests/twin/sim/world_test.cpp 9.5 s against 13.8 s). For a debugger that shows variables, configure a build of your
 # own with -DCMAKE_BUILD_TYPE=RelWithDebInfo or Debug (docs/CONTRIBUTING.md).
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \

@@ -1,4 +1,4 @@
-// libFuzzer harness: fault specs as the command line gives them (`--fault KIND:key=value,...`, twin/scenario/faults).
+// libFuzzer harness: fault specs as the command line gives them (`--fault KIND:key=value,...`, twin/model/faults).
 // Text -> parse_fault_text against scenes/cell.yaml; an accepted spec is written back with to_text and must read as
 // the same spec. Only InputError may refuse it. Seeds: the specs of docs/faults.md and the tests.
 #include "cellwright/models/cell.hpp"

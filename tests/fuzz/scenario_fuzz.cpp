@@ -1,4 +1,4 @@
-// libFuzzer harness: scenarios (twin/scenario). YAML text -> parse_scenario, named as if it were in scenes/ so that
+// libFuzzer harness: scenarios (cell/). YAML text -> parse_scenario, named as if it were in scenes/ so that
 // the cell, program and recovery files it names resolve to the repository's. Only InputError may refuse it. Seeds:
 // scenes/*.yaml but cell.yaml and recovery.yaml.
 #include "cellwright/cell/scenario.hpp"

@@ -7,7 +7,7 @@
 //    driver's await does) and each line's numbers (parse_numbers); a complete answer converts to finite joints and a
 //    finite pose under both orientation conventions.
 // These readers refuse by returning nullopt or false (the driver's protocol fault); nothing may throw. Seeds: the
-// answers of docs/real-robots.md and the emulators (twin/emulate).
+// answers of docs/real-robots.md and the emulators (emulate/).
 #include <cmath>
 #include <string>
 #include <string_view>

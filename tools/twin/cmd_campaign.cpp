@@ -2,6 +2,7 @@
 // run N seeded variants of a scenario, each with a fault drawn from the kinds that apply, as `twin run` child
 // processes, and add up what the controller made of them (docs/faults.md section 6). Exit 0 when the campaign ran
 // (the figures are the verdict), 2 on bad input (refused before anything is written).
+#if CW_SIM
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -113,3 +114,17 @@ void add_campaign(CLI::App& app, Command* run) {
 }
 
 }  // namespace cellwright::tools
+
+#else  // a twin for real robots only: the command needs the simulator
+
+#include "simulator.hpp"
+
+namespace cellwright::tools {
+
+void add_campaign(CLI::App& app, Command* run) {
+  add_unavailable(app, run, "campaign", "Run many seeded variants of a scenario with faults");
+}
+
+}  // namespace cellwright::tools
+
+#endif  // CW_SIM

@@ -1,7 +1,7 @@
 // `twin compile <program> [--json] [--dot] [--pnml FILE]`: compile a task-level program and print the primitive
 // programs per robot (or their JSON form, or the Petri net as Graphviz DOT), optionally writing the net as PNML.
 // `twin compile <program> --scenario SCENARIO --robot-language -o DIR [--driver ROBOT=movemaster|val2]...`: write
-// each robot's program in its controller's language (twin/programs/robot_programs.hpp), once the net passed the
+// each robot's program in its controller's language (cell/plan/robot_programs.hpp), once the net passed the
 // preflight. Exit 0 on success, 2 on bad input (the message names file, line and column).
 #include <cstdio>
 #include <filesystem>
@@ -12,7 +12,6 @@
 #include <fmt/format.h>
 
 #include "cellwright/cell/preflight.hpp"
-#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/dot.hpp"
@@ -22,6 +21,7 @@
 #include "cellwright/cell/robot_programs.hpp"
 #include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
+#include "simulator.hpp"
 
 namespace cellwright::tools {
 
@@ -39,7 +39,7 @@ int write_robot_programs(const Options& o) {
                      fmt::format("the scenario runs {}, not {}", s.program_file.string(), o.program));
   }
   for (const std::string& d : o.drivers) cell::set_language(s, d, {"--driver", 0, 0});
-  const Preflight pre = preflight(s, &twin_port());
+  const Preflight pre = preflight(s, simulator());
   if (!pre.ok()) {
     std::fprintf(stderr, "%s: refused, no robot program was written:\n", o.scenario.c_str());
     for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
@@ -52,6 +52,7 @@ int write_robot_programs(const Options& o) {
   const cell::RobotPrograms programs = cell::generate_robot_programs(s, pre);
   cell::write_robot_programs(programs, o.out);
   std::printf("net: %s\n", programs.check.c_str());
+  if (simulator() == nullptr) std::printf("%s\n", pre.sweep_summary.c_str());  // nothing swept: say so
   for (const cell::RobotProgram& p : programs.robots) {
     std::printf("%s (%s): %s/%s\n", p.cell_robot.c_str(), p.robot.c_str(), o.out.c_str(), p.file_name.c_str());
   }

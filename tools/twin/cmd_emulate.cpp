@@ -2,6 +2,7 @@
 // project's kinematics behind it; `twin emulate --scenario SCENARIO --robot ROBOT=LANGUAGE:LINK ...`: the controllers
 // of a cell, each driving the twin's MuJoCo arm (virtual commissioning). Runs until SIGINT or SIGTERM; exit 0 then,
 // 2 on bad input. docs/real-robots.md says what each emulator speaks and how it can be told to misbehave.
+#if CW_SIM
 #include <fmt/format.h>
 #include <signal.h>
 #include <unistd.h>
@@ -182,3 +183,17 @@ void add_emulate(CLI::App& app, Command* run) {
 }
 
 }  // namespace cellwright::tools
+
+#else  // a twin for real robots only: the command needs the simulator
+
+#include "simulator.hpp"
+
+namespace cellwright::tools {
+
+void add_emulate(CLI::App& app, Command* run) {
+  add_unavailable(app, run, "emulate", "Emulate the cell's robot controllers on pseudo-terminals");
+}
+
+}  // namespace cellwright::tools
+
+#endif  // CW_SIM

@@ -17,23 +17,25 @@
 #include <optional>
 #include <string>
 
+#include "cellwright/cell/dry_run.hpp"
 #include "cellwright/cell/preflight.hpp"
-#include "cellwright/cell/sim/sweep.hpp"
+#include "cellwright/cell/scenario.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/petri/analysis.hpp"
-#include "cellwright/twin/render.hpp"
-#include "cellwright/cell/dry_run.hpp"
-#include "cellwright/cell/sim/run.hpp"
-#include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
 #include "run_args.hpp"
+#include "simulator.hpp"
 #include "until_signal.hpp"
+#if CW_SIM
+#include "cellwright/cell/sim/run.hpp"
+#endif
 
 namespace cellwright::tools {
 
 namespace {
 
+#if CW_SIM
 using runtime::SimDuration;
 
 // The progress line: sim time, firings and what each robot is doing. Robot commands are taken from the runtime's view
@@ -89,6 +91,8 @@ class Progress {
   std::size_t width_ = 0;
 };
 
+#endif  // CW_SIM
+
 }  // namespace
 
 void add_run(CLI::App& app, Command* run) {
@@ -122,7 +126,7 @@ void add_run(CLI::App& app, Command* run) {
       }
       const RunArgs& a = args->run;
       Scenario s = load_scenario_with(a);
-      const Preflight pre = preflight(s, &twin_port());
+      const Preflight pre = preflight(s, simulator());
       if (!pre.ok(a.allow_collisions)) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", a.scenario.c_str());
         for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
@@ -149,6 +153,9 @@ void add_run(CLI::App& app, Command* run) {
         return dry.ok() ? 0 : 1;
       }
 
+#if !CW_SIM
+      needs_simulator("twin run without --dry");
+#else
       block_stop_signals();  // a stop from now on ends the run safely (run_until_signal below), never mid-write
       auto progress = std::make_shared<Progress>(args->quiet);
       RunOptions options = run_options_for(a, s);
@@ -208,6 +215,7 @@ void add_run(CLI::App& app, Command* run) {
       if (!a.output.empty()) std::printf("outputs in %s\n", a.output.c_str());
       if (!video.empty()) std::printf("video in %s\n", video.c_str());
       return report.ok() ? 0 : 1;
+#endif  // CW_SIM
     };
   });
 }

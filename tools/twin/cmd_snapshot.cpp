@@ -3,6 +3,7 @@
 // optionally after simulating it for a while, and/or save the generated MJCF. With --detections (a cell camera
 // only), find the workpieces in the picture (vision/detector.hpp), draw them on it and print one line per workpiece.
 // Exit 0 on success, 2 on bad input.
+#if CW_SIM
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -84,3 +85,17 @@ void add_snapshot(CLI::App& app, Command* run) {
 }
 
 }  // namespace cellwright::tools
+
+#else  // a twin for real robots only: the command needs the simulator
+
+#include "simulator.hpp"
+
+namespace cellwright::tools {
+
+void add_snapshot(CLI::App& app, Command* run) {
+  add_unavailable(app, run, "snapshot", "Draw the cell (or a camera's view) to a PNG file");
+}
+
+}  // namespace cellwright::tools
+
+#endif  // CW_SIM

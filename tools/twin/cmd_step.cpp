@@ -4,6 +4,7 @@
 // `q` quit (the cell is stopped safely; with -o the outputs so far are written), `h` help. It takes the options of
 // `twin run` but --realtime, --quiet and --dry (run_args.hpp). Exit status as `twin run` once the run has ended; 0
 // when quit before; 2 on bad input.
+#if CW_SIM
 #include <unistd.h>
 
 #include <cstdio>
@@ -197,3 +198,17 @@ void add_step(CLI::App& app, Command* run) {
 }
 
 }  // namespace cellwright::tools
+
+#else  // a twin for real robots only: the command needs the simulator
+
+#include "simulator.hpp"
+
+namespace cellwright::tools {
+
+void add_step(CLI::App& app, Command* run) {
+  add_unavailable(app, run, "step", "Run a scenario one firing at a time");
+}
+
+}  // namespace cellwright::tools
+
+#endif  // CW_SIM

@@ -4,6 +4,7 @@
 // a time; one line per scenario, a closing "N passed, N failed", JUnit XML with --junit; with --video, each failed
 // scenario is run again with a video that joins its kept outputs. Exit 0 when all pass, 1 when one does not, 2 on
 // bad input (refused before anything runs).
+#if CW_SIM
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -173,3 +174,17 @@ void add_test(CLI::App& app, Command* run) {
 }
 
 }  // namespace cellwright::tools
+
+#else  // a twin for real robots only: the command needs the simulator
+
+#include "simulator.hpp"
+
+namespace cellwright::tools {
+
+void add_test(CLI::App& app, Command* run) {
+  add_unavailable(app, run, "test", "Run a folder of scenarios as a regression suite");
+}
+
+}  // namespace cellwright::tools
+
+#endif  // CW_SIM

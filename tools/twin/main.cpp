@@ -1,6 +1,4 @@
 // `twin`: the Cellwright command line. Thin: it dispatches to the subcommands in cmd_*.cpp.
-#include <mujoco/mujoco.h>
-
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -8,14 +6,15 @@
 
 #include "cellwright/common/error.hpp"
 #include "commands.hpp"
+#include "simulator.hpp"
 #include "version.hpp"
 
 namespace {
 
-// "twin 0.1.0 (MuJoCo 2.2.2)": the project's version from CMake, and the MuJoCo library's, which decides the physics.
+// "twin 0.1.0 (MuJoCo 2.2.2)": the project's version from CMake, and the MuJoCo library's, which decides the physics
+// ("no simulator (CW_SIM=OFF)" in a build for real robots only).
 std::string version_text() {
-  const int mj = mj_version();
-  return fmt::format("twin {} (MuJoCo {}.{}.{})", CELLWRIGHT_VERSION, mj / 100, mj / 10 % 10, mj % 10);
+  return fmt::format("twin {} ({})", CELLWRIGHT_VERSION, cellwright::tools::simulator_version());
 }
 
 }  // namespace

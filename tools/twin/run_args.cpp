@@ -8,15 +8,17 @@
 #include <filesystem>
 #include <system_error>
 
-#include "cellwright/cell/preflight.hpp"
-#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
-#include "cellwright/twin/render.hpp"
-#include "cellwright/vision/png.hpp"
 #include "cellwright/twin/faults.hpp"
+#if CW_SIM
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
+#include "cellwright/twin/render.hpp"
 #include "cellwright/vision/cell_detector.hpp"
 #include "cellwright/vision/draw.hpp"
+#include "cellwright/vision/png.hpp"
+#endif
 
 namespace cellwright::tools {
 
@@ -67,6 +69,7 @@ cell::Scenario load_scenario_with(const RunArgs& args) {
   return s;
 }
 
+#if CW_SIM
 namespace {
 
 // "800x600" as width and height; InputError naming --video-size otherwise (the sizes themselves are checked by the
@@ -130,6 +133,8 @@ twin::VideoOptions video_options_for(const RunArgs& args) {
   return video;
 }
 
+#endif  // CW_SIM
+
 void add_video_flag(CLI::App& cmd, VideoFlag& video, const std::string& help) {
   CLI::Option* flag = cmd.add_flag("--video", video.on, help);
   cmd.add_option("--video-fps", video.fps, "with --video: frames per second of simulated time (default 20)")
@@ -139,6 +144,7 @@ void add_video_flag(CLI::App& cmd, VideoFlag& video, const std::string& help) {
       ->needs(flag);
 }
 
+#if CW_SIM
 void check_video_flag(const VideoFlag& video) {
   if (!video.on) return;
   RunArgs args;
@@ -160,5 +166,7 @@ cell::Report run_for_video(const RunArgs& args) {
   sr.finish_video(report);
   return report;
 }
+
+#endif  // CW_SIM
 
 }  // namespace cellwright::tools

@@ -11,8 +11,11 @@
 #include <string>
 #include <vector>
 
-#include "cellwright/cell/sim/run.hpp"
+#include "cellwright/cell/report.hpp"
 #include "cellwright/cell/scenario.hpp"
+#if CW_SIM
+#include "cellwright/cell/sim/run.hpp"
+#endif
 
 namespace cellwright::tools {
 
@@ -40,6 +43,7 @@ void add_run_options(CLI::App& cmd, RunArgs& args);
 // (as check_writable_dir, load_scenario, set_driver, parse_fault_text) on bad input.
 cell::Scenario load_scenario_with(const RunArgs& args);
 
+#if CW_SIM
 // The run's options from the shared options, for scenario `s`: perception, the frames callback (its directory
 // made), the video (checked: InputError naming the option), and the event log streamed into the output directory
 // when there is one. Throws InputError when --save-frames is given and the cell has no camera.
@@ -48,6 +52,8 @@ cell::RunOptions run_options_for(const RunArgs& args, const cell::Scenario& s);
 // The video's options from --video, --video-fps and --video-size, the size and rate checked (InputError naming
 // the option); the file is checked when the video opens.
 twin::VideoOptions video_options_for(const RunArgs& args);
+
+#endif  // CW_SIM
 
 // `--video` as a flag, for the commands that record the runs that failed after the fact (`twin campaign`, `twin
 // test`): the flag and the rate and size of the videos.
@@ -61,6 +67,7 @@ struct VideoFlag {
 // outlive the parse).
 void add_video_flag(CLI::App& cmd, VideoFlag& video, const std::string& help);
 
+#if CW_SIM
 // With --video given: the size and rate checked (as video_options_for) and ffmpeg found (VideoWriter::check_encoder),
 // before anything runs. InputError naming the option otherwise; nothing without --video.
 void check_video_flag(const VideoFlag& video);
@@ -69,5 +76,6 @@ void check_video_flag(const VideoFlag& video);
 // (args.video must be set): `twin campaign --video` re-runs a failed run this way, which gives the run it had (the
 // same events, lock-step). Returns the report. InputError as `twin run`, or when preflight refuses the scenario.
 cell::Report run_for_video(const RunArgs& args);
+#endif  // CW_SIM
 
 }  // namespace cellwright::tools

@@ -1,6 +1,6 @@
 // The image-processing thread's unit (ImageProcessing) with a scripted detector: frames in, environment model
 // corrected by the rules of image_processing.hpp, one vision event per frame, the processed frame handed on. What a
-// real detector makes of real pictures is tested with the cell's detector in tests/twin/vision.
+// real detector makes of real pictures is tested with the cell's detector in tests/vision.
 #include "cellwright/runtime/image_processing.hpp"
 
 #include <gmock/gmock.h>

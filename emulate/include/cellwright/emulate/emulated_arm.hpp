@@ -1,4 +1,4 @@
-// EmulatedArm: the arm behind an emulated robot controller (twin/emulate). A controller emulator (Movemaster EX,
+// EmulatedArm: the arm behind an emulated robot controller (emulate/). A controller emulator (Movemaster EX,
 // VAL II) parses the bytes a host sends, does what the real controller would do with the arm, and answers in the
 // controller's language; this interface is the arm it does it with. Two arms implement it:
 //  - KinematicArm (kinematic_arm.hpp): the standalone emulator's arm, the project's kinematics and nothing else; a

@@ -1,6 +1,6 @@
 // Where a part leaves the cell on an exit conveyor in a shift (a feed of more parts than bodies, scenario Feed::count):
 // the rule by which the WorldPlant takes delivered parts out and feeds their bodies again (world_plant.hpp,
-// recycle_at), and by which the cycle-time estimate times a body's ride out (twin/scenario/estimate.hpp).
+// recycle_at), and by which the cycle-time estimate times a body's ride out (cell/plan/estimate.hpp).
 //
 // A point is over the belt's line when it lies within half the belt's width + 5 cm of its centre line across it
 // (horizontally), above the belt's base (the floor), and between the belt's upstream end and 0.5 m past its downstream

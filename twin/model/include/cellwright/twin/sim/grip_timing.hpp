@@ -1,6 +1,6 @@
 // How long the simulated gripper takes: the finger ramp the SimDriver drives the fingers along and the rules by which
 // it ends a grip, as durations. The SimDriver moves its fingers with finger_ramp_duration(); the cycle-time estimate
-// (twin/scenario/estimate.hpp) uses the same functions to predict open and close commands.
+// (cell/plan/estimate.hpp) uses the same functions to predict open and close commands.
 //
 // A grip moves both fingers' targets along a quintic ramp (trajectory.hpp) from where the ramp last stopped to the
 // goal. An open (or a close on nothing) is done when the ramp is over and the fingers are at the goal and still; a

@@ -273,8 +273,12 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     config.log_stream = events_out_.get();
     config.keep_log = false;
   }
-  config.on_progress = std::move(options.on_progress);
-  config.progress_every = options.progress_every;
+  if (options.on_progress) {
+    config.observers.push_back({options.progress_every, false, [progress = std::move(options.on_progress)](
+                                                                   const runtime::Observation& o) {
+                                  progress(o.time, o.firings);
+                                }});
+  }
   if (options.video) {
     video_file_ = options.video->path;
     try {
@@ -288,15 +292,17 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
       }
       throw;
     }
-    config.record_every = video_->frame_period();
-    config.on_record = [this](runtime::SimDuration t, const std::vector<runtime::RobotView>& robots) {
-      std::vector<std::string> lines;
-      for (const runtime::RobotView& r : robots) {
-        lines.push_back(r.done ? fmt::format("{}: done", r.robot)
-                               : fmt::format("{}: {} {}", r.robot, runtime::to_string(r.activity), r.command));
-      }
-      if (video_) video_->record(world_->data(), t, std::move(lines));  // copies positions: the World is untouched
-    };
+    // The video watches the run: an observer of the runtime's, which knows nothing of videos.
+    config.observers.push_back({video_->frame_period(), true, [this](const runtime::Observation& o) {
+                                  std::vector<std::string> lines;
+                                  for (const runtime::RobotView& r : o.robots) {
+                                    lines.push_back(r.done ? fmt::format("{}: done", r.robot)
+                                                           : fmt::format("{}: {} {}", r.robot,
+                                                                         runtime::to_string(r.activity), r.command));
+                                  }
+                                  // copies positions: the World is untouched
+                                  if (video_) video_->record(world_->data(), o.time, std::move(lines));
+                                }});
   }
   runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
 }

@@ -190,11 +190,11 @@ struct Runtime::Impl {
   Outcome outcome = Outcome::kTimeout;
   std::string reason;
   std::vector<Collision> collisions;
-  SimDuration next_progress{0};
-  SimDuration next_record{0};
-  // Task control's robots after its last step, for on_record (the task participant writes, the simulation reads).
-  std::mutex record_mutex;
-  std::vector<RobotView> record_robots;
+  std::vector<SimDuration> next_observation;  // per observer
+  bool observed_robots = false;  // some observer wants task control's robots
+  // Task control's robots after its last step, for the observers (the task participant writes, the simulation reads).
+  std::mutex observed_mutex;
+  std::vector<RobotView> observed_robots_view;
 
   // Stepping (lock-step): the simulation thread parks at the start of its turn after a period with firings.
   std::mutex m;
@@ -334,18 +334,16 @@ struct Runtime::Impl {
       }
       next_frame += cfg.camera_frames->period;
     }
-    if (cfg.on_progress && t >= next_progress) {
-      cfg.on_progress(t, task_firings.load());
-      next_progress = t + cfg.progress_every;
-    }
-    if (cfg.on_record && cfg.record_every.count() > 0 && t >= next_record) {
-      std::lock_guard lock(record_mutex);
-      const auto recording = std::chrono::steady_clock::now();
-      cfg.on_record(t, record_robots);
-      // Time spent recording (a video's encoder catching up) is not run time: a run ends on its wall-time limit
-      // where it would without the recording, so that the event log is the same with and without.
-      wall_start += std::chrono::steady_clock::now() - recording;
-      while (next_record <= t) next_record += cfg.record_every;  // multiples of record_every: fixed frame times
+    for (std::size_t k = 0; k < cfg.observers.size(); ++k) {
+      const RunObserver& o = cfg.observers[k];
+      if (o.every.count() <= 0 || !o.observe || t < next_observation[k]) continue;
+      std::lock_guard lock(observed_mutex);
+      const auto observing = std::chrono::steady_clock::now();
+      o.observe(Observation{t, task_firings.load(), observed_robots_view});
+      // Time spent observing (a video's encoder catching up) is not run time: a run ends on its wall-time limit
+      // where it would without the observer, so that the event log is the same with and without.
+      wall_start += std::chrono::steady_clock::now() - observing;
+      while (next_observation[k] <= t) next_observation[k] += o.every;  // multiples of `every`: fixed times
     }
     return true;
   }
@@ -357,10 +355,10 @@ struct Runtime::Impl {
       finished_at_ns = task->finished_at()->count();
     }
     task_state = static_cast<int>(s);
-    if (cfg.on_record && cfg.record_every.count() > 0) {
+    if (observed_robots) {
       TaskView v = task->view();
-      std::lock_guard lock(record_mutex);
-      record_robots = std::move(v.robots);
+      std::lock_guard lock(observed_mutex);
+      observed_robots_view = std::move(v.robots);
     }
   }
 
@@ -628,7 +626,9 @@ void Runtime::start() {
   }
   log_->run_start(im.clock.now(), config_.program.file, config_.cell.name, to_string(config_.mode), config_.period,
                   names);
-  if (config_.on_record) im.record_robots = im.task->view().robots;  // the first frame's, before any step
+  im.next_observation.assign(config_.observers.size(), SimDuration{0});
+  for (const RunObserver& o : config_.observers) im.observed_robots = im.observed_robots || o.robots;
+  if (im.observed_robots) im.observed_robots_view = im.task->view().robots;  // the first observation's, before any step
   const std::size_t participants = im.participants();
   im.started = true;
   im.wall_start = std::chrono::steady_clock::now();

@@ -180,12 +180,12 @@ TEST(RuntimeRun, TimeSpentRecordingDoesNotCountTowardsTheWallTimeLimit) {
 
   ScriptedCell cell;
   cell.config.limits.wall_time = std::chrono::milliseconds(500);
-  cell.config.record_every = expected.end_time / 20;
   int frames = 0;
-  cell.config.on_record = [&frames](SimDuration, const std::vector<RobotView>&) {
-    ++frames;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the slow consumer, not a wait for another thread
-  };
+  cell.config.observers.push_back({expected.end_time / 20, true, [&frames](const Observation&) {
+                                     ++frames;
+                                     // the slow consumer, not a wait for another thread
+                                     std::this_thread::sleep_for(std::chrono::milliseconds(50));
+                                   }});
   Runtime with(cell.config);
   const RunResult r = with.run();
   EXPECT_EQ(r.outcome, Outcome::kFinished) << r.reason;
@@ -294,11 +294,12 @@ TEST(RuntimeRun, WithRecoveryAGripOnNothingIsTriedAgainThenThePartIsSetAsideAndT
 TEST(RuntimeRun, AStopAskedForFromAnotherThreadStopsTheCellAndKeepsTheLog) {
   ScriptedCell cell;
   Runtime* self = nullptr;
-  cell.config.progress_every = std::chrono::milliseconds(300);
   // Called by the simulation thread: as a signal-handling thread would, it asks for the stop while the run goes on.
-  cell.config.on_progress = [&](SimDuration t, std::uint64_t) {
-    if (self != nullptr && t >= std::chrono::milliseconds(300)) self->request_stop("stopped by the user (SIGINT)");
-  };
+  cell.config.observers.push_back({std::chrono::milliseconds(300), false, [&](const Observation& o) {
+                                     if (self != nullptr && o.time >= std::chrono::milliseconds(300)) {
+                                       self->request_stop("stopped by the user (SIGINT)");
+                                     }
+                                   }});
   Runtime rt(cell.config);
   self = &rt;
   const RunResult r = rt.run();

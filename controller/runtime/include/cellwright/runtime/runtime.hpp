@@ -90,6 +90,25 @@ struct Limits {
   std::chrono::steady_clock::duration wall_time{0};
 };
 
+// What an observer is shown: the simulation time, the transitions fired so far and task control's view of each robot
+// as of its last step (the command it is on; empty unless the observer asked for it).
+struct Observation {
+  SimDuration time{0};
+  std::uint64_t firings = 0;
+  const std::vector<RobotView>& robots;
+};
+
+// A watcher of the run (`twin run`'s progress line, a video): called by the simulation thread at each multiple of
+// `every` of simulation time (in the first period that reaches it, after the plant has advanced and the period's
+// events are logged). It must not change the plant or call the Runtime; it may block (a video encoder that is
+// behind), and the time it takes does not count towards limits.wall_time, so that a run ends where it would without
+// it and the event log is the same. Not called when `every` is zero.
+struct RunObserver {
+  SimDuration every{0};
+  bool robots = false;  // wants Observation::robots (task control's view is copied after each of its steps)
+  std::function<void(const Observation&)> observe;
+};
+
 struct RunConfig {
   task::CompiledProgram program;  // compiled and checked
   petri::Net net;                 // task::to_net(program)
@@ -125,17 +144,9 @@ struct RunConfig {
   // false: the log keeps no lines in memory, only log_stream has them (needs log_stream): a long shift's memory stays
   // flat, and log().text() is not available.
   bool keep_log = true;
-  // Called by the simulation thread every `progress_every` of simulation time with the time and the firings so far
-  // (for `twin run`'s progress line). Must be short and must not call the Runtime.
-  std::function<void(SimDuration, std::uint64_t)> on_progress;
-  SimDuration progress_every = std::chrono::seconds(1);
-  // Called by the simulation thread at each multiple of `record_every` of simulation time (in the first period that
-  // reaches it, after the plant has advanced and the period's events are logged), with the time and task control's
-  // view of each robot as of its last step (the command it is on): `twin run --video` copies the plant's state here
-  // for a frame. Must not change the plant or call the Runtime; it may block (a video encoder that is behind), and
-  // the time it takes does not count towards limits.wall_time. Not called when record_every is zero.
-  std::function<void(SimDuration, const std::vector<RobotView>&)> on_record;
-  SimDuration record_every{0};
+  // Who watches the run as it goes (a progress line, a video): the runtime calls each observer and knows nothing of
+  // what it does (RunObserver below).
+  std::vector<RunObserver> observers;
   // Program faults injected on purpose (docs/faults.md, kind lost_signal): the n-th signal task control fires (counting
   // from 1, over all robots) loses its event, so that the wait for it is never signalled. Logged as fault_injected.
   std::vector<std::uint64_t> lost_signals;

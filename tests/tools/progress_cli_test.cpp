@@ -6,6 +6,8 @@
 //  - a three-robot relay (tests/data/relay) whose part is dropped by the first robot and set aside: the second and
 //    third robots wait for a part of their class that will never come. Before, idle until the 150 s limit; now each
 //    waits progress_timeout, the tree skips its work for the lost part, and the run ends.
+//  - the relay without its part (--fault missing): the first robot waits for a part of its class that never comes; now
+//    no_progress after progress_timeout, nothing lost upstream, the cell stopped safely, the missing part detected.
 //  - the same relay with the second robot's fingers closing along the belt at the stop bar (blocked.yaml): the grip
 //    never ends. Before, "controller_not_answering"; now an obstruction, from what the robot senses.
 #include <gmock/gmock.h>
@@ -93,6 +95,25 @@ TEST(ProgressCli, ARelayWhosePartWasSetAsideUpstreamGoesOnInsteadOfWaitingForThe
   for (const auto& s : events_of(out, "skipped")) skippers.push_back(s["robot"]);
   EXPECT_THAT(skippers, ::testing::Contains("r2"));
   EXPECT_THAT(skippers, ::testing::Contains("r3"));
+}
+
+TEST(ProgressCli, APartThatNeverComesForAClassStopsTheCellAndIsTheMissingFaultsDetection) {
+  TwinCli cli("cw-progress-missing");
+  const fs::path out = cli.dir() / "missing";
+  const Outcome r = cli.run("run " + shell_quote(source_path("tests/data/relay/relay.yaml")) +
+                            " --fault missing:workpiece=A --quiet -o " + shell_quote(out.string()));
+  ASSERT_EQ(r.status, 1) << r.out << r.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(report["outcome"], "stopped") << r.out;
+  EXPECT_LT(report["end_time"].get<double>(), 60.0) << "the limit is 150 s";
+  ASSERT_EQ(report["faults"].size(), 1u);
+  const nlohmann::json& f = report["faults"][0];
+  EXPECT_EQ(f["kind"], "missing");
+  EXPECT_EQ(f["detected"], true);
+  EXPECT_EQ(f["symptom"], "no_progress");
+  EXPECT_EQ(f["cause"], "part_never_ready");
+  EXPECT_EQ(f["action"], "stop_cell");
+  EXPECT_EQ(f["stopped_safely"], true);
 }
 
 TEST(ProgressCli, FingersBlockedAtAStopBarAreAnObstructionNotASilentController) {

@@ -49,6 +49,14 @@ bool straight_from(const std::optional<task::Target>& previous, const task::Targ
   return pair(K::kAbove, K::kAt) || pair(K::kHandApproach, K::kHandGrasp);
 }
 
+bool contains(const std::vector<std::string>& names, const std::string& name) {
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+void add_once(std::vector<std::string>& names, const std::string& name) {
+  if (!contains(names, name)) names.push_back(name);
+}
+
 }  // namespace
 
 RobotControl::RobotControl(std::size_t index, std::string label, std::string cell_name, drivers::RobotDriver& driver,
@@ -833,7 +841,7 @@ bool RobotControl::answer(Question q) const {
     case Question::waiting_for_part:
       return recovery_->waiting;
     case Question::part_lost:
-      return !part.empty() && std::find(excused_.begin(), excused_.end(), part) == excused_.end() &&
+      return !part.empty() && !contains(excused_, part) &&
              env_.read([&](const EnvironmentModel& m) {
                const WorkpieceState* w = m.find_workpiece(part);
                return w != nullptr && w->lost;
@@ -1075,7 +1083,7 @@ void RobotControl::set_aside(SimDuration now, const std::string& workpiece, cons
   });
   if (lost.now) log_.workpiece_lost(now, workpiece, reason, lost.last_seen);
   carrying_lost_ = workpiece;
-  if (std::find(excused_.begin(), excused_.end(), workpiece) == excused_.end()) excused_.push_back(workpiece);
+  add_once(excused_, workpiece);
 }
 
 bool RobotControl::motion_blocked() const {
@@ -1116,7 +1124,7 @@ void RobotControl::watch_wait(SimDuration now, const std::string& why) {
   // lost that this robot has skipped no work for is the one the tree asks about (part_lost).
   const std::string lost = env_.read([&](const EnvironmentModel& m) {
     for (const WorkpieceState& w : m.workpieces) {
-      if (w.lost && std::find(excused_.begin(), excused_.end(), w.name) == excused_.end()) return w.name;
+      if (w.lost && !contains(excused_, w.name)) return w.name;
     }
     return std::string();
   });
@@ -1149,7 +1157,7 @@ void RobotControl::skip_current(SimDuration now, const std::string& reason) {
     // This robot has now skipped work for the lost part (Question::part_lost asks about the others).
     std::string part = carrying_lost_;
     if (part.empty()) part = bound(p.kind == task::PrimitiveKind::kMove ? p.target.object : p.workpiece);
-    if (!part.empty() && std::find(excused_.begin(), excused_.end(), part) == excused_.end()) excused_.push_back(part);
+    if (!part.empty()) add_once(excused_, part);
   }
   if (p.kind == task::PrimitiveKind::kClose && !p.workpiece.empty() && carrying_lost_.empty()) {
     carrying_lost_ = bound(p.workpiece);  // it would carry it: skip until it releases it

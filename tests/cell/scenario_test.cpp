@@ -540,7 +540,8 @@ TEST_F(ScenarioRecovery, ATreeFileAndTheWatchdogTimesAreRead) {
   write("tree.yaml", "closed_on_nothing: {cause: operator_needed, action: stop_cell}\n");
   const Scenario s = load_scenario(scenario(
       "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"
-      "recovery: {tree: tree.yaml, max_attempts: 2, part_wait: 5, wait_timeout: 12.5, command_timeout: 4}\n"));
+      "recovery: {tree: tree.yaml, max_attempts: 2, part_wait: 5, wait_timeout: 12.5, command_timeout: 4,\n"
+      "           progress_limit: 7, progress_timeout: 45}\n"));
   ASSERT_NE(s.recovery.tree, nullptr);
   EXPECT_EQ(s.recovery_file, dir_ / "tree.yaml");
   const runtime::Diagnosis d =
@@ -550,6 +551,8 @@ TEST_F(ScenarioRecovery, ATreeFileAndTheWatchdogTimesAreRead) {
   EXPECT_EQ(s.recovery.part_wait, std::chrono::seconds(5));
   EXPECT_EQ(s.recovery.wait_timeout, std::chrono::milliseconds(12500));
   EXPECT_EQ(s.recovery.command_timeout, std::chrono::seconds(4));
+  EXPECT_EQ(s.recovery.progress_limit, 7);
+  EXPECT_EQ(s.recovery.progress_timeout, std::chrono::seconds(45));
   // The plain form names the file only.
   const Scenario plain = load_scenario(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n"
                                                 "recovery: tree.yaml\n"));
@@ -564,6 +567,8 @@ TEST_F(ScenarioRecovery, BadRecoverySettingsNameTheFieldOrTheTreeFile) {
   expect_error(scenario(head + "recovery: {tree: t.yaml, retries: 2}\n"), 5, "unknown field 'retries'");
   expect_error(scenario(head + "recovery: {max_attempts: 1.5}\n"), 5, "must be a whole number from 1 to 100");
   expect_error(scenario(head + "recovery: {part_wait: -1}\n"), 5, "part_wait");
+  expect_error(scenario(head + "recovery: {progress_limit: 0}\n"), 5, "progress_limit");
+  expect_error(scenario(head + "recovery: {progress_timeout: 0}\n"), 5, "progress_timeout");
   // A tree file that is missing or wrong is named itself.
   try {
     load_scenario(scenario(head + "recovery: nowhere.yaml\n"));

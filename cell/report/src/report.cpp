@@ -426,8 +426,8 @@ bool can_show_as(const std::string& kind, const std::string& symptom) {
       {"drop", {"grip_lost", "closed_on_nothing", "part_shifted"}},
       {"slip", {"part_shifted", "grip_lost"}},
       {"misplace", {"part_misplaced", "closed_on_nothing", "closed_on_wrong_part", "target_unreachable"}},
-      {"unreachable", {"target_unreachable", "part_misplaced"}},
-      {"missing", {"part_not_arrived"}},
+      {"unreachable", {"target_unreachable", "part_misplaced", "no_progress"}},
+      {"missing", {"part_not_arrived", "no_progress"}},  // no_progress: a class whose part never comes
       {"obstacle", {"obstacle_seen", "protective_stop"}},
       {"timeout", {"driver_timeout"}},
       {"garbage", {"driver_fault"}},

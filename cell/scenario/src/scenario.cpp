@@ -541,24 +541,28 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     s.vision = v;
   }
   if (f.has("recovery")) {
-    // A decision tree file, or {tree, enabled, max_attempts, part_wait, wait_timeout, command_timeout}.
+    // A decision tree file, or {tree, enabled, max_attempts, part_wait, wait_timeout, command_timeout,
+    // progress_limit, progress_timeout}.
     const YAML::Node& n = f.node("recovery");
     std::string tree;
     if (n.IsScalar()) {
       tree = f.word("recovery");
     } else {
       const Fields rf(doc, n, "field 'recovery'",
-                      {"tree", "enabled", "max_attempts", "part_wait", "wait_timeout", "command_timeout"});
+                      {"tree", "enabled", "max_attempts", "part_wait", "wait_timeout", "command_timeout",
+                       "progress_limit", "progress_timeout"});
       if (rf.has("tree")) tree = rf.word("tree");
       s.recovery.enabled = rf.boolean_or("enabled", true);
-      if (rf.has("max_attempts")) {
-        const double a = rf.positive("max_attempts");
+      const auto count = [&](const char* key, int& out) {
+        if (!rf.has(key)) return;
+        const double a = rf.positive(key);
         if (a != std::floor(a) || a > 100) {
-          doc.fail(rf.node("max_attempts"),
-                   fmt::format("{} must be a whole number from 1 to 100, got {}", rf.field("max_attempts"), a));
+          doc.fail(rf.node(key), fmt::format("{} must be a whole number from 1 to 100, got {}", rf.field(key), a));
         }
-        s.recovery.max_attempts = static_cast<int>(a);
-      }
+        out = static_cast<int>(a);
+      };
+      count("max_attempts", s.recovery.max_attempts);
+      count("progress_limit", s.recovery.progress_limit);
       const auto duration = [&](const char* key, runtime::SimDuration& out) {
         if (rf.has(key)) out = std::chrono::duration_cast<runtime::SimDuration>(
                               std::chrono::duration<double>(rf.within(key, kDuration)));
@@ -566,6 +570,7 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       duration("part_wait", s.recovery.part_wait);
       duration("wait_timeout", s.recovery.wait_timeout);
       duration("command_timeout", s.recovery.command_timeout);
+      duration("progress_timeout", s.recovery.progress_timeout);
     }
     if (!tree.empty()) {
       s.recovery_file = resolve(dir, tree);

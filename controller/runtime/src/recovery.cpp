@@ -17,10 +17,10 @@ constexpr std::array<std::string_view, kSymptoms> kSymptomNames = {
     "grip_lost",        "closed_on_nothing",  "closed_on_wrong_part", "part_shifted", "part_misplaced",
     "part_not_arrived", "target_unreachable", "driver_timeout",       "driver_fault", "link_lost",
     "position_refused", "position_missed",    "protective_stop",      "wait_timeout", "frame_lost",
-    "obstacle_seen"};
-constexpr std::array<std::string_view, 9> kQuestionNames = {
-    "part_seen",       "part_at_rest", "part_upright",  "part_reachable", "part_in_hand",
-    "driver_in_fault", "retries_left", "obstacle_near", "signal_fired"};
+    "obstacle_seen",    "no_progress"};
+constexpr std::array<std::string_view, 12> kQuestionNames = {
+    "part_seen",          "part_at_rest",     "part_upright", "part_reachable", "part_in_hand", "driver_in_fault",
+    "retries_left",       "obstacle_near",    "signal_fired", "motion_blocked", "waiting_for_part", "part_lost"};
 constexpr std::array<std::string_view, 9> kActionNames = {"retry",  "reset_rehome", "pick_again",
                                                           "adopt_hold", "go_on", "wait_clear",
                                                           "set_aside",  "resignal",     "stop_cell"};
@@ -86,9 +86,15 @@ driver_timeout:
   ask: driver_in_fault
   yes: {cause: controller_error, action: reset_rehome}
   no:
-    ask: retries_left
-    yes: {cause: controller_timeout, action: retry}
-    no: {cause: controller_not_answering, action: stop_cell}
+    ask: motion_blocked
+    yes:
+      ask: retries_left
+      yes: {cause: obstructed, action: retry}
+      no: {cause: obstruction, action: stop_cell}
+    no:
+      ask: retries_left
+      yes: {cause: controller_timeout, action: retry}
+      no: {cause: controller_not_answering, action: stop_cell}
 driver_fault:
   ask: retries_left
   yes: {cause: controller_error, action: reset_rehome}
@@ -118,6 +124,13 @@ obstacle_seen:
   ask: obstacle_near
   yes: {cause: obstacle, action: go_on}
   no: {cause: obstacle_far_away, action: go_on}
+no_progress:
+  ask: waiting_for_part
+  yes:
+    ask: part_lost
+    yes: {cause: part_lost_upstream, action: set_aside}
+    no: {cause: part_never_ready, action: stop_cell}
+  no: {cause: livelock, action: stop_cell}
 )TREE";
 
 }  // namespace

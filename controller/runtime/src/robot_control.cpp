@@ -49,6 +49,14 @@ bool straight_from(const std::optional<task::Target>& previous, const task::Targ
   return pair(K::kAbove, K::kAt) || pair(K::kHandApproach, K::kHandGrasp);
 }
 
+bool contains(const std::vector<std::string>& names, const std::string& name) {
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+void add_once(std::vector<std::string>& names, const std::string& name) {
+  if (!contains(names, name)) names.push_back(name);
+}
+
 }  // namespace
 
 RobotControl::RobotControl(std::size_t index, std::string label, std::string cell_name, drivers::RobotDriver& driver,
@@ -290,6 +298,7 @@ bool RobotControl::submit_current(SimDuration now) {
       log_.sensor(now, label_, current_->command.index, "waiting_for_part", cls);
       current_->wait_logged = true;
     }
+    watch_wait(now, current_->waiting_for);
     return false;
   }
   if (!current_->step && !recovery_ && about_lost_part()) {  // the class's part just bound is one declared lost
@@ -337,7 +346,9 @@ bool RobotControl::submit_current(SimDuration now) {
                 fmt::format("{} has not been in the cell for {} s: {}", target.object,
                             format_sim_time(now - *current_->waiting_since), seen.target.reason),
                 target.object);
+        return false;
       }
+      watch_wait(now, seen.target.reason);
       return false;
     }
     current_->waiting_since.reset();
@@ -402,6 +413,17 @@ bool RobotControl::submit_current(SimDuration now) {
   }
   current_->id = s.id;
   current_->submitted_at = now;
+  current_->reads_at_submit = reads_asked_;
+  current_->stalled_since.reset();
+  if (!current_->baseline_taken && !current_->step) {
+    current_->baseline_taken = true;
+    env_.read([&](const EnvironmentModel& m) {
+      if (const RobotState* r = m.find_robot(cell_)) {
+        current_->joints_at_start = r->joints;
+        current_->force_at_start = r->wrist_force;
+      }
+    });
+  }
   phase_ = RobotPhase::kExecuting;
   log_start(now);
   if (current_->wait_logged && !current_->ready_logged) {  // the part it waited for is there: the wait ends now
@@ -614,6 +636,7 @@ void RobotControl::poll_current(SimDuration now) {
   switch (st.phase) {
     case drivers::CommandPhase::pending:
     case drivers::CommandPhase::running:
+      if (st.phase == drivers::CommandPhase::running) current_->seen_running = true;
       if (options_.recovery.enabled && !halted_ && now - current_->submitted_at >= options_.recovery.command_timeout) {
         driver_.stop();  // what it was doing is abandoned
         return symptom(now, Symptom::driver_timeout,
@@ -721,14 +744,25 @@ void RobotControl::reset_submission() {
   current_->pose_command = false;
   current_->target.reset();
   current_->waiting_since.reset();
+  current_->seen_running = false;
+  current_->stalled_since.reset();
 }
 
 void RobotControl::symptom(SimDuration now, Symptom s, std::string detail, std::string workpiece) {
   if (!options_.recovery.enabled) return fail(now, std::move(detail));
   const int primitive = current_ ? static_cast<int>(current_->command.index) : -1;
+  if (current_ && s != Symptom::no_progress && current_->attempts + 1 >= options_.recovery.progress_limit) {
+    // Interrupted again and again: the robot makes no progress with this command.
+    detail = fmt::format("'{}' interrupted {} times and not done; this time {}: {}",
+                         task::to_string(current_->command.primitive), current_->attempts + 1, to_string(s), detail);
+    s = Symptom::no_progress;
+  }
   ++symptoms_;
   log_.fault_detected(now, label_, primitive, to_string(s), detail);
+  bool blocked = false, waiting = false;
   if (current_) {
+    blocked = motion_blocked();
+    waiting = current_->id == 0 && current_->stalled_since.has_value();
     log_start(now);
     ++current_->attempts;
     current_->step.reset();
@@ -736,6 +770,8 @@ void RobotControl::symptom(SimDuration now, Symptom s, std::string detail, std::
   }
   const SimDuration detected = recovery_ ? recovery_->detected : now;
   recovery_ = Recovery{};
+  recovery_->motion_blocked = blocked;
+  recovery_->waiting = waiting;
   recovery_->diagnosis.symptom = s;
   recovery_->detected = detected;
   recovery_->workpiece = std::move(workpiece);
@@ -800,6 +836,16 @@ bool RobotControl::answer(Question q) const {
       });
     case Question::signal_fired:
       return false;  // task control's question
+    case Question::motion_blocked:
+      return recovery_->motion_blocked;
+    case Question::waiting_for_part:
+      return recovery_->waiting;
+    case Question::part_lost:
+      return !part.empty() && !contains(excused_, part) &&
+             env_.read([&](const EnvironmentModel& m) {
+               const WorkpieceState* w = m.find_workpiece(part);
+               return w != nullptr && w->lost;
+             });
   }
   return false;
 }
@@ -1037,6 +1083,55 @@ void RobotControl::set_aside(SimDuration now, const std::string& workpiece, cons
   });
   if (lost.now) log_.workpiece_lost(now, workpiece, reason, lost.last_seen);
   carrying_lost_ = workpiece;
+  add_once(excused_, workpiece);
+}
+
+bool RobotControl::motion_blocked() const {
+  // The controller took the command and has answered a position request asked after it was sent.
+  if (current_->id == 0 || !current_->seen_running || reading_number_ <= current_->reads_at_submit) return false;
+  struct Seen {
+    std::vector<double> joints;
+    std::optional<Eigen::Vector3d> force;
+  };
+  const Seen seen = env_.read([&](const EnvironmentModel& m) {
+    const RobotState* r = m.find_robot(cell_);
+    return r == nullptr ? Seen{} : Seen{r->joints, r->wrist_force};
+  });
+  const auto farthest = [](const std::vector<double>& a, const std::vector<double>& b) {
+    double d = 0;
+    for (std::size_t j = 0; j < a.size(); ++j) d = std::max(d, std::abs(a[j] - b[j]));
+    return d;
+  };
+  const bool move = active().kind == task::PrimitiveKind::kMove;
+  const std::vector<double>& from = current_->joints_at_start;
+  if (move && !current_->goal.empty() && seen.joints.size() == current_->goal.size() &&
+      from.size() == seen.joints.size() && farthest(seen.joints, from) > options_.position_tolerance &&
+      farthest(seen.joints, current_->goal) > options_.position_tolerance) {
+    return true;  // it moved, and stands short of its goal
+  }
+  return seen.force && current_->force_at_start &&
+         (*seen.force - *current_->force_at_start).norm() > options_.recovery.contact_force;
+}
+
+void RobotControl::watch_wait(SimDuration now, const std::string& why) {
+  if (!options_.recovery.enabled || !current_) return;
+  if (!current_->stalled_since) {
+    current_->stalled_since = now;
+    return;
+  }
+  if (now - *current_->stalled_since < options_.recovery.progress_timeout) return;
+  // The part it waits for may be one set aside upstream (a class whose part never comes): the first part declared
+  // lost that this robot has skipped no work for is the one the tree asks about (part_lost).
+  const std::string lost = env_.read([&](const EnvironmentModel& m) {
+    for (const WorkpieceState& w : m.workpieces) {
+      if (w.lost && !contains(excused_, w.name)) return w.name;
+    }
+    return std::string();
+  });
+  symptom(now, Symptom::no_progress,
+          fmt::format("'{}' has waited {} s for its part: {}", task::to_string(active()),
+                      format_sim_time(now - *current_->stalled_since), why),
+          lost);
 }
 
 bool RobotControl::about_lost_part() const {
@@ -1058,6 +1153,12 @@ bool RobotControl::about_lost_part() const {
 void RobotControl::skip_current(SimDuration now, const std::string& reason) {
   const task::Primitive& p = current_->command.primitive;
   const std::size_t index = current_->command.index;
+  {
+    // This robot has now skipped work for the lost part (Question::part_lost asks about the others).
+    std::string part = carrying_lost_;
+    if (part.empty()) part = bound(p.kind == task::PrimitiveKind::kMove ? p.target.object : p.workpiece);
+    if (!part.empty()) add_once(excused_, part);
+  }
   if (p.kind == task::PrimitiveKind::kClose && !p.workpiece.empty() && carrying_lost_.empty()) {
     carrying_lost_ = bound(p.workpiece);  // it would carry it: skip until it releases it
   } else if (p.kind == task::PrimitiveKind::kOpen) {

@@ -120,13 +120,14 @@ TEST(RuntimeRecovery, QuestionAndActionNamesGoBothWays) {
 TEST(RuntimeRecovery, DiagnoseWalksTheTreeAndReportsTheAnswersOnTheWay) {
   const DecisionTree& tree = DecisionTree::standard();
   Answers answers;
-  answers.table = {{Question::driver_in_fault, false}, {Question::retries_left, true}};
+  answers.table = {{Question::driver_in_fault, false}, {Question::motion_blocked, false}, {Question::retries_left, true}};
   const Diagnosis d = tree.diagnose(Symptom::driver_timeout, answers.fn());
   EXPECT_EQ(d.symptom, Symptom::driver_timeout);
   EXPECT_EQ(d.cause, "controller_timeout");
   EXPECT_EQ(d.action, Action::retry);
-  EXPECT_EQ(d.path, "driver_in_fault=no retries_left=yes");
-  EXPECT_EQ(answers.asked, (std::vector<Question>{Question::driver_in_fault, Question::retries_left}));
+  EXPECT_EQ(d.path, "driver_in_fault=no motion_blocked=no retries_left=yes");
+  EXPECT_EQ(answers.asked,
+            (std::vector<Question>{Question::driver_in_fault, Question::motion_blocked, Question::retries_left}));
 }
 
 TEST(RuntimeRecovery, DiagnoseAsksOnlyTheQuestionsOnItsPath) {

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -108,6 +109,7 @@ class RobotControlTest : public ::testing::Test {
   // faults_ is set); connected unless told not to. Without recovery unless recovery_ is set: these tests check the
   // contract of one command (robot_recovery_test.cpp checks what recovery does instead of failing).
   bool recovery_ = false;
+  std::map<std::string, std::string> classes_;  // workpiece classes of the program: label -> cell location
   void make(drivers::ScriptedDriverConfig config, MotionOptions options = {}, bool connect = true) {
     options.recovery.enabled = recovery_;
     scripted_ = std::make_unique<drivers::ScriptedDriver>(std::move(config));
@@ -120,6 +122,7 @@ class RobotControlTest : public ::testing::Test {
     NameMap names;
     names.robots = {{"r1", "puma"}, {"r2", "melfa"}};
     names.objects = {{"A", "A"}, {"B", "output_drop"}};
+    names.classes = classes_;
     control_ = std::make_unique<RobotControl>(0, "r1", "puma", *owner, chain_, spec_.grip_force, names, env_, inbox_,
                                               statuses_, log_, options, await_fresh_truth_);
     if (connect) control_->connect();

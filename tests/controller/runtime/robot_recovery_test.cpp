@@ -4,12 +4,14 @@
 // RobotStatus::stop_cell. Faults come from a FaultyDriver around the scripted PUMA, and from the environment model
 // (grip sensor, parts absent or elsewhere). What is checked is what a user sees: statuses, the event log, the driver
 // commands, the model.
+#include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <variant>
 #include <vector>
@@ -61,6 +63,17 @@ class RobotRecoveryTest : public test::RobotControlTest {
     return all_statuses();
   }
 
+  // Turns (`one_turn` each) until robot control reports a status, at most `max_turns`.
+  template <typename Turn>
+  std::optional<RobotStatus> status_after(Turn one_turn, int max_turns = 20000) {
+    std::optional<RobotStatus> s;
+    for (int i = 0; i < max_turns && !s; ++i) {
+      one_turn();
+      s = status();
+    }
+    return s;
+  }
+
   std::vector<std::string> kinds_sent() const {
     std::vector<std::string> out;
     for (const drivers::Command& c : sent()) {
@@ -97,7 +110,7 @@ TEST_F(RobotRecoveryTest, AMoveThatTimesOutIsRetriedAndDone) {
   EXPECT_EQ(diagnoses[0]["symptom"], "driver_timeout");
   EXPECT_EQ(diagnoses[0]["cause"], "controller_timeout");
   EXPECT_EQ(diagnoses[0]["action"], "retry");
-  EXPECT_EQ(diagnoses[0]["path"], "driver_in_fault=no retries_left=yes");
+  EXPECT_EQ(diagnoses[0]["path"], "driver_in_fault=no motion_blocked=no retries_left=yes");
   const auto ends = events("recovery_end");
   ASSERT_EQ(ends.size(), 1u);
   EXPECT_EQ(ends[0]["ok"], true);
@@ -365,6 +378,216 @@ TEST_F(RobotRecoveryTest, ACloseOnNothingWithThePartUnseenSetsItAside) {
   EXPECT_EQ(field_of("skipped", "command"), std::vector<std::string>{"close A"});
   EXPECT_TRUE(part("A").lost);
   EXPECT_EQ(kinds_sent(), std::vector<std::string>{"close"});
+}
+
+// ---- No progress (docs/faults.md: no_progress) ----
+
+// The arm pushes against something whenever it moves (a part jammed in the fingers dragged along the belt): the wrist
+// force is over the limit while the arm moves, and falls back when the safety layer has stopped it.
+class PushingArmTest : public RobotRecoveryTest {
+ protected:
+  void push_turn() {
+    scripted_->advance(1);
+    now_ += milliseconds(1);
+    const auto accepted = scripted_->accepted();
+    const bool moving = !accepted.empty() && std::holds_alternative<drivers::MoveJoints>(accepted.back().second) &&
+                        scripted_->poll(accepted.back().first).phase == drivers::CommandPhase::running;
+    env_.write([&](EnvironmentModel& m) {
+      m.time = now_;
+      m.find_robot("puma")->wrist_force = Eigen::Vector3d(0, 0, moving ? 400.0 : 10.0);
+    });
+    control_->step(now_);
+  }
+};
+
+TEST_F(PushingArmTest, AForceTripAgainAndAgainIsNoProgressAndTheTreeStopsTheCell) {
+  make(joint_arm());
+  bring_up();
+  send(7, move(K::kAbove, "A"));
+  const std::optional<RobotStatus> s = status_after([&] { push_turn(); });
+  ASSERT_TRUE(s.has_value()) << "a livelock: " << events("protective_stop").size() << " protective stops";
+  EXPECT_EQ(s->outcome, CommandOutcome::kFailed);
+  EXPECT_TRUE(s->stop_cell);
+  EXPECT_EQ(s->index, 7u);
+  EXPECT_THAT(s->reason, HasSubstr("livelock"));
+  const int limit = MotionOptions{}.recovery.progress_limit;
+  // Stopped, released and stopped again, until the limit-th interruption, which is named for what it is.
+  std::vector<std::string> symptoms(static_cast<std::size_t>(limit - 1), "protective_stop");
+  symptoms.emplace_back("no_progress");
+  EXPECT_EQ(field_of("fault_detected", "symptom"), symptoms);
+  const auto detected = events("fault_detected");
+  EXPECT_THAT(detected.back()["detail"].get<std::string>(),
+              HasSubstr(fmt::format("'move above(A)' interrupted {} times and not done", limit)));
+  EXPECT_THAT(detected.back()["detail"].get<std::string>(), HasSubstr("wrist force"));
+  const auto diagnoses = events("diagnosis");
+  ASSERT_EQ(diagnoses.size(), static_cast<std::size_t>(limit));
+  EXPECT_EQ(diagnoses.back()["symptom"], "no_progress");
+  EXPECT_EQ(diagnoses.back()["cause"], "livelock");
+  EXPECT_EQ(diagnoses.back()["action"], "stop_cell");
+  EXPECT_EQ(diagnoses.back()["path"], "waiting_for_part=no");
+  EXPECT_EQ(events("protective_stop").size(), static_cast<std::size_t>(limit));
+  EXPECT_EQ(control_->phase(), RobotPhase::kFailed);
+}
+
+TEST_F(PushingArmTest, TheLimitIsTheScenariosToSet) {
+  MotionOptions options;
+  options.recovery.progress_limit = 2;
+  make(joint_arm(), options);
+  bring_up();
+  send(7, move(K::kAbove, "A"));
+  const std::optional<RobotStatus> s = status_after([&] { push_turn(); });
+  ASSERT_TRUE(s.has_value());
+  EXPECT_TRUE(s->stop_cell);
+  EXPECT_EQ(field_of("fault_detected", "symptom"), (std::vector<std::string>{"protective_stop", "no_progress"}));
+}
+
+TEST_F(RobotRecoveryTest, AWaitForAPartOfAClassSetAsideUpstreamIsNoProgressAndItsWorkIsSkipped) {
+  classes_ = {{"p", "output_drop"}};  // nothing there: the part for it was lost before it got there
+  MotionOptions options;
+  options.recovery.progress_timeout = milliseconds(200);
+  make(joint_arm(), options);
+  bring_up();
+  env_.write([](EnvironmentModel& m) {
+    m.find_workpiece("B")->lost = true;  // set aside by a robot upstream
+    m.find_workpiece("B")->lost_reason = "dropped_out_of_reach";
+  });
+  send(1, move(K::kAbove, "p"));
+  for (int i = 0; i < 150; ++i) turn();
+  ASSERT_FALSE(status().has_value()) << "still waiting before progress_timeout";
+  const RobotStatus s = next_status();
+  EXPECT_EQ(s.outcome, CommandOutcome::kDone) << s.reason;
+  EXPECT_FALSE(s.stop_cell);
+  EXPECT_GE(now_, milliseconds(200));
+  const auto detected = events("fault_detected");
+  ASSERT_EQ(detected.size(), 1u);
+  EXPECT_EQ(detected[0]["symptom"], "no_progress");
+  EXPECT_THAT(detected[0]["detail"].get<std::string>(), HasSubstr("'move above(p)' has waited"));
+  EXPECT_THAT(detected[0]["detail"].get<std::string>(), HasSubstr("no part of p has arrived at output_drop"));
+  const auto diagnoses = events("diagnosis");
+  ASSERT_EQ(diagnoses.size(), 1u);
+  EXPECT_EQ(diagnoses[0]["cause"], "part_lost_upstream");
+  EXPECT_EQ(diagnoses[0]["action"], "set_aside");
+  EXPECT_EQ(diagnoses[0]["path"], "waiting_for_part=yes part_lost=yes");
+  EXPECT_TRUE(events("workpiece_lost").empty()) << "it was declared lost upstream, once";
+  // Its work for that part is skipped up to the open that would have released it; then it goes on.
+  EXPECT_EQ(run(2, close_on("p")).outcome, CommandOutcome::kDone);
+  EXPECT_EQ(run(3, move(K::kAbove, "B")).outcome, CommandOutcome::kDone);
+  EXPECT_EQ(run(4, open_from("p")).outcome, CommandOutcome::kDone);
+  EXPECT_EQ(field_of("skipped", "command"),
+            (std::vector<std::string>{"move above(p)", "close p", "move above(B)", "open p"}));
+  EXPECT_EQ(scripted_->calls().submit, 0);
+  EXPECT_EQ(run(5, move(K::kHome)).outcome, CommandOutcome::kDone);
+  EXPECT_EQ(scripted_->calls().submit, 1);
+  // The next wait for the class is not blamed on the same lost part again.
+  send(6, move(K::kAbove, "p"));
+  const RobotStatus again = next_status();
+  EXPECT_TRUE(again.stop_cell);
+  EXPECT_EQ(field_of("diagnosis", "cause"), (std::vector<std::string>{"part_lost_upstream", "part_never_ready"}));
+}
+
+TEST_F(RobotRecoveryTest, AWaitForAPartThatNeverComesWithNothingLostStopsTheCell) {
+  classes_ = {{"p", "output_drop"}};
+  MotionOptions options;
+  options.recovery.progress_timeout = milliseconds(200);
+  make(joint_arm(), options);
+  bring_up();
+  const RobotStatus s = run(1, move(K::kAbove, "p"));
+  EXPECT_EQ(s.outcome, CommandOutcome::kFailed);
+  EXPECT_TRUE(s.stop_cell);
+  EXPECT_THAT(s.reason, HasSubstr("part_never_ready"));
+  EXPECT_EQ(field_of("fault_detected", "symptom"), std::vector<std::string>{"no_progress"});
+  const auto diagnoses = events("diagnosis");
+  ASSERT_EQ(diagnoses.size(), 1u);
+  EXPECT_EQ(diagnoses[0]["path"], "waiting_for_part=yes part_lost=no");
+  EXPECT_EQ(diagnoses[0]["action"], "stop_cell");
+}
+
+// ---- A blocked gripper is not a silent controller ----
+
+// A controller that runs every grip it is sent and never ends it (fingers blocked short of their goal, as at a belt's
+// stop bar, pressing on it: the wrist force changes), while it goes on answering position requests
+// (reads_while_moving): robot control's command_timeout fires.
+class BlockedGripperTest : public RobotRecoveryTest {
+ protected:
+  drivers::ScriptedDriverConfig answering_arm() const {
+    drivers::ScriptedDriverConfig c = joint_arm();
+    c.capabilities.reads_while_moving = true;
+    return c;
+  }
+  MotionOptions quick() const {
+    MotionOptions o;
+    o.recovery.command_timeout = milliseconds(300);
+    return o;
+  }
+  void wrist(double newtons) {
+    env_.write([&](EnvironmentModel& m) { m.find_robot("puma")->wrist_force = Eigen::Vector3d(0, 0, newtons); });
+  }
+  // One turn; every grip the controller has taken is blocked, its fingers pressing on what blocks them.
+  void blocked_turn() {
+    turn();
+    for (const auto& [id, c] : scripted_->accepted()) {
+      if (std::holds_alternative<drivers::Grip>(c) && blocked_.insert(id).second) {
+        scripted_->never_complete(id);
+        wrist(18.0);
+      }
+    }
+  }
+  std::set<drivers::CommandId> blocked_;
+};
+
+TEST_F(BlockedGripperTest, AGripThatNeverEndsWhileTheControllerAnswersIsAnObstruction) {
+  make(answering_arm(), quick());
+  bring_up();
+  set_fingers("A");
+  wrist(10.0);  // the hand's weight
+  send(2, close_on("A"));
+  const std::optional<RobotStatus> s = status_after([&] { blocked_turn(); });
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->outcome, CommandOutcome::kFailed);
+  EXPECT_TRUE(s->stop_cell);
+  EXPECT_THAT(s->reason, HasSubstr("obstruction"));
+  EXPECT_THAT(s->reason, ::testing::Not(HasSubstr("controller_not_answering")));
+  const int max = MotionOptions{}.recovery.max_attempts;
+  std::vector<std::string> causes(static_cast<std::size_t>(max), "obstructed");
+  causes.emplace_back("obstruction");
+  EXPECT_EQ(field_of("diagnosis", "cause"), causes);
+  EXPECT_EQ(events("diagnosis").back()["path"], "driver_in_fault=no motion_blocked=yes retries_left=no");
+  EXPECT_EQ(field_of("fault_detected", "symptom"),
+            std::vector<std::string>(static_cast<std::size_t>(max + 1), "driver_timeout"));
+  EXPECT_EQ(kinds_sent(), std::vector<std::string>(static_cast<std::size_t>(max + 1), "close"));
+}
+
+TEST_F(BlockedGripperTest, AnArmThatStopsShortOfItsGoalWhileTheControllerAnswersIsAnObstruction) {
+  make(answering_arm(), quick());
+  bring_up();
+  send(4, move(K::kAbove, "A"));
+  // The move never ends, and the read-backs show the arm standing 0.2 rad short of the goal in its first joint.
+  ASSERT_TRUE(turn_until([&] { return !scripted_->accepted().empty(); }));
+  scripted_->never_complete(scripted_->accepted().front().first);
+  driver_->misread_joint(0, 0.2);
+  ASSERT_TRUE(turn_until([&] { return !events("diagnosis").empty(); }));
+  const auto diagnoses = events("diagnosis");
+  EXPECT_EQ(diagnoses[0]["cause"], "obstructed");
+  EXPECT_EQ(diagnoses[0]["action"], "retry");
+  EXPECT_EQ(diagnoses[0]["path"], "driver_in_fault=no motion_blocked=yes retries_left=yes");
+}
+
+TEST_F(BlockedGripperTest, AControllerThatNeverEndsACommandWithNothingHeldBackIsStillNotAnswering) {
+  // The controller never ends the grip (the injected timeout) but answers reads all along; nothing presses on the
+  // hand.
+  drivers::FaultPlan plan;
+  for (std::uint64_t n = 1; n <= 4; ++n) plan.rules.push_back({drivers::CommandKind::grip, n, {drivers::ErrorCode::timeout, true, ""}});
+  faults_ = plan;
+  make(answering_arm(), quick());
+  bring_up();
+  set_fingers("A");
+  wrist(10.0);
+  const RobotStatus s = run(2, close_on("A"));
+  EXPECT_TRUE(s.stop_cell);
+  EXPECT_THAT(s.reason, HasSubstr("controller_not_answering"));
+  EXPECT_EQ(field_of("diagnosis", "cause"),
+            (std::vector<std::string>{"controller_timeout", "controller_timeout", "controller_timeout",
+                                      "controller_not_answering"}));
 }
 
 // ---- A tree of one's own ----

@@ -56,8 +56,11 @@ enum class Symptom : std::uint8_t {
   wait_timeout,          // a robot waited too long for an event
   frame_lost,            // the camera delivered no frame
   obstacle_seen,         // the safety sensor sees an object that is not in the cell model
+  // a robot makes no progress: one command interrupted RecoveryOptions::progress_limit times (the same protective
+  // stop, force trip or retry again and again), or waiting progress_timeout for a part that is never ready
+  no_progress,
 };
-inline constexpr std::size_t kSymptoms = 16;
+inline constexpr std::size_t kSymptoms = 17;
 std::string_view to_string(Symptom s);
 std::optional<Symptom> symptom_from(std::string_view name);
 
@@ -72,6 +75,13 @@ enum class Question : std::uint8_t {
   retries_left,     // the command has been recovered fewer than max_attempts times
   obstacle_near,    // the safety sensor sees an object near the robot
   signal_fired,     // the event waited for was signalled (and so was lost on the way)
+  // the command that did not end is held back by something: the controller took it (its driver reported it running)
+  // and still answers position requests, and what the robot senses shows the motion blocked (the arm moved and
+  // stands short of its goal, or the wrist force changed by more than RecoveryOptions::contact_force since the
+  // command was first sent: fingers pressing on something); a silent controller shows neither
+  motion_blocked,
+  waiting_for_part,  // the command waits for its part and was never sent to the driver
+  part_lost,         // a part was declared lost (set aside) for which this robot has skipped no work yet
 };
 std::string_view to_string(Question q);
 std::optional<Question> question_from(std::string_view name);
@@ -143,6 +153,16 @@ struct RecoveryOptions {
   // stop and the part before it decide) ...
   double misplace_offset = 0.02;
   double misplace_yaw = 0.1745;    // rad: ... or turned this much (10 degrees; a box's quarter turns are alike)
+  // no_progress (docs/faults.md section 2): the progress_limit-th interruption of one command (a symptom sensed while
+  // it runs or recovers) is reported as no_progress instead of its own symptom; with max_attempts below it, the
+  // trees that ask retries_left have given up before. A command that has waited progress_timeout for its part (a
+  // class with no part at its location, a part that is there but never ready) is no_progress too; a part absent from
+  // the cell is part_not_arrived after part_wait first.
+  int progress_limit = 5;
+  SimDuration progress_timeout = std::chrono::seconds(30);
+  // N: a change of the wrist force this large during a command that does not end is something pressing on the hand
+  // (Question::motion_blocked)
+  double contact_force = 3.0;
 };
 
 struct SafetyOptions {

@@ -44,6 +44,10 @@
 // and retry; adopt the shifted hold; wait for the safety layer's release and retry; set the part aside as lost
 // (workpiece_lost; every command about it is then skipped, logged as `skipped`, and reported done); or stop the cell
 // (reported as a failure with RobotStatus::stop_cell). recovery_end closes each recovery when the command is done.
+// A robot that makes no progress is a symptom of its own (no_progress, diagnosed by the same tree): the
+// RecoveryOptions::progress_limit-th interruption of one command (the same protective stop, force trip or retry again
+// and again), or a wait of progress_timeout for a part that is never ready (a class whose part was set aside
+// upstream: the tree's part_lost then skips the work for it, as set_aside does).
 // The safety layer (safety.hpp) is asked every period before any command is sent: while it says stop, the driver is
 // stopped (protective_stop) and nothing is sent; the command is done again once it releases.
 //
@@ -169,6 +173,12 @@ class RobotControl {
     std::optional<SimDuration> waiting_since;  // when the wait for its target began
     int attempts = 0;                          // recoveries of this command so far
     SimDuration submitted_at{0};               // when the active primitive was sent to the driver
+    bool seen_running = false;                 // the driver reported the active primitive running
+    std::uint64_t reads_at_submit = 0;         // position reads asked for when it was sent
+    bool baseline_taken = false;               // the arm and wrist force when the command was first sent:
+    std::vector<double> joints_at_start;       // what Question::motion_blocked compares with
+    std::optional<Eigen::Vector3d> force_at_start;
+    std::optional<SimDuration> stalled_since;  // since when it has waited for its part (no_progress)
   };
   // A recovery under way for the current command (docs/faults.md).
   struct Recovery {
@@ -182,6 +192,8 @@ class RobotControl {
     bool settle = false;                  // the diagnosis waits for the part to come to rest (a drop)
     std::string detail;                   // the symptom's detail (for a deferred diagnosis)
     drivers::CommandId home_id = 0;       // re-homing: the home command
+    bool motion_blocked = false;          // Question::motion_blocked, as sensed when the symptom came
+    bool waiting = false;                 // Question::waiting_for_part, as sensed when the symptom came
   };
 
   void bring_up(SimDuration now);
@@ -245,6 +257,10 @@ class RobotControl {
   bool note(SimDuration now, Symptom s, const std::string& detail, const std::string& workpiece);
   // A part to be picked resting off its place: part_misplaced (once per part).
   void check_misplaced(SimDuration now, const task::Target& target);
+  // The command waits for its part (`why`): no_progress once it has waited RecoveryOptions::progress_timeout.
+  void watch_wait(SimDuration now, const std::string& why);
+  // Question::motion_blocked for the active primitive, before its submission is forgotten.
+  bool motion_blocked() const;
   // Whether some pose of `target` is reachable (IK, the 5-axis rule), from the model now.
   bool reachable(const task::Target& target) const;
   // The best IK solution among a resolved target's poses; nullopt with *why when none is reachable.
@@ -285,6 +301,7 @@ class RobotControl {
 
   std::optional<Recovery> recovery_;
   std::string carrying_lost_;  // the lost part this robot would be carrying: skip until the open that releases it
+  std::vector<std::string> excused_;  // lost parts this robot set aside or skipped work for (Question::part_lost)
   int grip_missing_ = 0;       // periods the grip sensor has missed the held part
   bool shift_reported_ = false;  // part_shifted logged for the current hold
   std::vector<std::string> misplace_checked_;  // parts checked for misplacement

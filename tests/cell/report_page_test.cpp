@@ -237,7 +237,7 @@ TEST_F(ReportPageTest, CollisionsAndFaultsAreListedAndTheirAbsenceSaid) {
   EXPECT_THAT(collisions, HasSubstr("<td class=\"num\">12.500&nbsp;s</td><td>puma/link5</td><td>melfa/base</td>"
                                     "<td class=\"num\">2.1&nbsp;mm</td>"));
   const std::string faults = between(html, "<section id=\"faults\">", "</section>");
-  EXPECT_THAT(faults, HasSubstr("<h2>Faults (1 injected, 0 false alarms)</h2>"));
+  EXPECT_THAT(faults, HasSubstr("<h2>Faults (1 injected, 0 unexplained, 0 false alarms)</h2>"));
   EXPECT_THAT(faults, HasSubstr("<td><b>drop</b> on puma of A<br><span class=\"small\">released 0.10 s into the "
                                 "move</span></td><td class=\"num\">8.00&nbsp;s</td>"));
   EXPECT_THAT(faults, HasSubstr("<span class=\"badge ok\">yes</span> at t = 8.20&nbsp;s: part_lost_in_transit by r1"));
@@ -247,11 +247,19 @@ TEST_F(ReportPageTest, CollisionsAndFaultsAreListedAndTheirAbsenceSaid) {
   report_.faults[0].detected = false;
   report_.faults[0].recovered = false;
   report_.faults[0].stopped_safely = true;
-  report_.false_alarms.push_back({14.0, "r1", 3, "timeout", "no reply in 2 s"});
+  Detection alarm;
+  alarm.t = 14.0;
+  alarm.robot = "r1";
+  alarm.primitive = 3;
+  alarm.symptom = "grip_lost";
+  alarm.detail = "no part between the fingers";
+  alarm.truth = "the twin has A between the fingers of puma";
+  report_.false_alarms.push_back(alarm);
   html = page();
   EXPECT_THAT(html, HasSubstr("<span class=\"badge fail\">not detected</span>"));
   EXPECT_THAT(html, HasSubstr("<td>no</td><td>yes</td></tr>"));
-  EXPECT_THAT(html, HasSubstr("<td class=\"num\">14.00&nbsp;s</td><td>r1</td><td>timeout</td><td>no reply in 2 s</td>"));
+  EXPECT_THAT(html, HasSubstr("<td class=\"num\">14.00&nbsp;s</td><td>r1</td><td>grip_lost</td><td>no part between the "
+                              "fingers</td><td>the twin has A between the fingers of puma</td>"));
 
   report_.collisions.clear();
   report_.faults.clear();
@@ -259,6 +267,44 @@ TEST_F(ReportPageTest, CollisionsAndFaultsAreListedAndTheirAbsenceSaid) {
   html = page();
   EXPECT_THAT(html, HasSubstr("<h2>Collisions (0)</h2>\n<p class=\"none\">No unintended contact.</p>"));
   EXPECT_THAT(html, HasSubstr("<p class=\"none\">No fault injected, none detected.</p>"));
+}
+
+// A fault the controller detected that no injection explains is listed as such, with its diagnosis: not a false alarm.
+TEST_F(ReportPageTest, UnexplainedFaultsAreListedWithTheirDiagnosis) {
+  Detection d;
+  d.t = 21.0;
+  d.robot = "r1";
+  d.symptom = "driver_fault";
+  d.detail = "the link closed";
+  d.cause = "controller_fault";
+  d.action = "reset_rehome";
+  report_.unexplained.push_back(d);
+  const std::string html = page();
+  const std::string faults = between(html, "<section id=\"faults\">", "</section>");
+  EXPECT_THAT(faults, HasSubstr("<h2>Faults (1 injected, 1 unexplained, 0 false alarms)</h2>"));
+  EXPECT_THAT(faults, HasSubstr("<h3>Unexplained faults</h3>"));
+  EXPECT_THAT(faults, HasSubstr("<td class=\"num\">21.00&nbsp;s</td><td>r1</td><td>driver_fault</td><td>the link "
+                                "closed</td><td>cause controller_fault, action reset_rehome</td><td>no</td>"));
+  EXPECT_THAT(faults, Not(HasSubstr("False alarms")));
+  EXPECT_THAT(between(html, "<section class=\"verdict ", "</section>"), HasSubstr("1 unexplained fault(s)."));
+}
+
+// The header says what the run used (the report's setup: --perception and --driver included), not what the scenario
+// file says: single.yaml's perception is truth.
+TEST_F(ReportPageTest, ShowsThePerceptionDriversAndFaultsTheRunUsed) {
+  report_.setup.perception = "cad";
+  report_.setup.drivers = {{"puma", "val2", "/dev/ttyUSB1", false}};
+  report_.setup.faults = {"drop:robot=puma,carry=1,after=0.3"};
+  const std::string header = between(page(), "<header>", "</header>");
+  EXPECT_THAT(header, HasSubstr("perception cad"));
+  EXPECT_THAT(header, Not(HasSubstr("perception truth")));
+  EXPECT_THAT(header, HasSubstr("drivers: puma real val2 on /dev/ttyUSB1"));
+  EXPECT_THAT(header, HasSubstr("faults asked for: <code>drop:robot=puma,carry=1,after=0.3</code>"));
+  report_.setup.drivers = {{"puma", "movemaster", "/tmp/link", true}};
+  report_.setup.faults.clear();
+  const std::string emulated = between(page(), "<header>", "</header>");
+  EXPECT_THAT(emulated, HasSubstr("drivers: puma emulated movemaster on /tmp/link"));
+  EXPECT_THAT(emulated, HasSubstr("faults asked for: none"));
 }
 
 TEST_F(ReportPageTest, EscapesEveryNameAndMessageFromTheUsersFiles) {
@@ -280,7 +326,7 @@ TEST_F(ReportPageTest, EscapesEveryNameAndMessageFromTheUsersFiles) {
   report_.faults[0].detail = evil;
   report_.faults[0].symptom = evil;
   report_.faults[0].cause = evil;
-  report_.false_alarms.push_back({14.0, evil, 3, evil, evil});
+  report_.false_alarms.push_back({14.0, evil, 3, evil, evil, "", "", false, evil});
   ReportPageMedia media;
   media.video = "run " + evil + ".mp4";
   const std::string html = page(media);
@@ -292,10 +338,10 @@ TEST_F(ReportPageTest, EscapesEveryNameAndMessageFromTheUsersFiles) {
   EXPECT_THAT(html, HasSubstr("<video controls preload=\"metadata\" src=\"run " + escaped + ".mp4\">"));
   // Each escaped occurrence: the source (title, heading, path), cell name, reason, failure, part name, label,
   // expected, actual twice, lost reason, robot, its cell, collision, fault detail, symptom, cause, false alarm's
-  // robot, symptom and detail, the video's src, its fallback link (href and text), the link below it (href and text).
+  // robot, symptom, detail and the twin's truth, the video's src, its fallback link (href and text), the link below it (href and text).
   std::size_t n = 0;
   for (auto at = html.find(escaped); at != std::string::npos; at = html.find(escaped, at + 1)) ++n;
-  EXPECT_EQ(n, 26u);
+  EXPECT_EQ(n, 27u);
   EXPECT_EQ(escape_html("a<b>&\"c\"\n"), "a&lt;b&gt;&amp;&quot;c&quot;&#10;");
 }
 

@@ -9,6 +9,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -581,7 +583,7 @@ TEST(ReportFaults, StoppedRunIsAKnownOutcomeAndTheFaultWasStoppedSafely) {
   EXPECT_THAT(format_summary(r), HasSubstr("cell stopped safely"));
 }
 
-TEST(ReportFaults, DetectionsBeforeAnyInjectionAreFalseAlarms) {
+TEST(ReportFaults, DetectionsBeforeAnyInjectionAreUnexplainedFaults) {
   const Scenario s = exchange_scenario();
   LogWriter w;
   w.start();
@@ -597,11 +599,13 @@ TEST(ReportFaults, DetectionsBeforeAnyInjectionAreFalseAlarms) {
   w.event(5.0, "fault_injected", R"("kind":"timeout","robot":"melfa","workpiece":"","detail":"grip 1")");
   w.end(10, "failed", "r2: driver_timeout", 10);
   const Report r = make_report(s, parse_event_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
-  ASSERT_EQ(r.false_alarms.size(), 1u);
-  EXPECT_DOUBLE_EQ(r.false_alarms[0].t, 1.0);
-  EXPECT_EQ(r.false_alarms[0].robot, "r2");
-  EXPECT_EQ(r.false_alarms[0].primitive, 3);
-  EXPECT_EQ(r.false_alarms[0].symptom, "driver_timeout");
+  // A driver's timeout is real whatever the twin shows: not a false alarm.
+  EXPECT_TRUE(r.false_alarms.empty());
+  ASSERT_EQ(r.unexplained.size(), 1u);
+  EXPECT_DOUBLE_EQ(r.unexplained[0].t, 1.0);
+  EXPECT_EQ(r.unexplained[0].robot, "r2");
+  EXPECT_EQ(r.unexplained[0].primitive, 3);
+  EXPECT_EQ(r.unexplained[0].symptom, "driver_timeout");
   ASSERT_EQ(r.faults.size(), 2u);
   EXPECT_TRUE(r.faults[0].detected);
   EXPECT_DOUBLE_EQ(*r.faults[0].detected_at, 3.0);
@@ -610,9 +614,9 @@ TEST(ReportFaults, DetectionsBeforeAnyInjectionAreFalseAlarms) {
   EXPECT_FALSE(r.faults[0].recovery_time);
   EXPECT_FALSE(r.faults[1].detected);
   const nlohmann::json j = to_json(s, r);
-  EXPECT_EQ(j["false_alarms"], 1);
-  EXPECT_EQ(j["false_alarm_detections"][0]["symptom"], "driver_timeout");
-  EXPECT_THAT(format_summary(r), HasSubstr("false alarm at t = 1.00 s: driver_timeout by r2"));
+  EXPECT_EQ(j["false_alarms"], 0);
+  EXPECT_EQ(j["unexplained_faults"][0]["symptom"], "driver_timeout");
+  EXPECT_THAT(format_summary(r), HasSubstr("unexplained fault at t = 1.00 s: driver_timeout by r2 (no answer)"));
 }
 
 // A driver's fault is logged by the simulation thread a round after robot control saw the command fail.
@@ -637,10 +641,258 @@ TEST(ReportFaults, ADetectionOfTheSameRobotARoundBeforeItsDriverFaultIsItsDetect
   EXPECT_TRUE(r.faults[0].recovered);
   EXPECT_NEAR(*r.faults[0].recovery_time, 24.0 - 22.06, 1e-9);
   EXPECT_FALSE(r.faults[1].detected);
-  // The detection at 3 s came before every injection and nothing took it; the one at 30 s is no false alarm (a fault
-  // had been injected before it).
-  ASSERT_EQ(r.false_alarms.size(), 1u);
-  EXPECT_DOUBLE_EQ(r.false_alarms[0].t, 3.0);
+  // The detection at 3 s came before every injection and nothing took it (unexplained); the one at 30 s is not
+  // counted (a fault had been injected before it).
+  EXPECT_TRUE(r.false_alarms.empty());
+  ASSERT_EQ(r.unexplained.size(), 1u);
+  EXPECT_DOUBLE_EQ(r.unexplained[0].t, 3.0);
+}
+
+// --- Where parts are, what completed, what went wrong unexplained (issue 24) -----------------------------------------
+
+// The controller declared A lost, but physically the PUMA still holds it (it was never released): the account says
+// where it is, "held", and keeps the declaration beside it; likewise a part declared lost that is in fact where it is
+// expected is in place.
+TEST(ReportAccount, APartDeclaredLostIsAccountedWhereItPhysicallyIs) {
+  const Scenario s = exchange_scenario();
+  FinalPose held = on_floor("A");
+  held.held_by = "puma";
+  held.pose.translation() = Eigen::Vector3d(0.4, -0.3, 0.4);
+  const Report r = make_report(s, parse_event_log(drop_log("lose"), "e"), {held}, std::nullopt);
+  const WorkpieceReport& a = part(r, "A");
+  EXPECT_EQ(a.status, PartStatus::kHeld);
+  EXPECT_EQ(a.where, "puma");
+  ASSERT_TRUE(a.lost);  // the declaration stays visible
+  EXPECT_EQ(a.lost->reason, "dropped out of reach");
+  EXPECT_FALSE(r.ok());
+  EXPECT_THAT(r.failures[0], HasSubstr("was declared lost at t = 5.60 s"));
+  EXPECT_THAT(r.failures[0], HasSubstr("but it is held by puma"));
+  const nlohmann::json j = to_json(s, r);
+  EXPECT_EQ(j["account"][0]["status"], "held");
+  EXPECT_EQ(j["account"][0]["where"], "puma");
+  EXPECT_EQ(j["account"][0]["lost"]["reason"], "dropped out of reach");
+  EXPECT_THAT(format_summary(r), HasSubstr("part A: held (puma); declared lost at t = 5.60 s (dropped out of reach)"));
+
+  const Report placed = make_report(s, parse_event_log(drop_log("lose"), "e"), {on_output(s, 0.1)}, std::nullopt);
+  EXPECT_EQ(part(placed, "A").status, PartStatus::kInPlace);
+  EXPECT_EQ(part(placed, "A").where, "output");
+  EXPECT_TRUE(part(placed, "A").lost);
+  EXPECT_EQ(to_json(s, placed)["account"][0]["status"], "in_place");
+}
+
+// A part that never existed (a `missing` fault) was "picked" and "placed" by commands that did nothing: it is not
+// completed, and there is no throughput of it.
+TEST(ReportParts, APartThatNeverArrivedIsNotCompleted) {
+  const Scenario s = exchange_scenario();
+  FinalPose a;
+  a.name = "A";
+  a.present = false;
+  const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {a}, 14.0);
+  EXPECT_EQ(r.parts_completed, 0u);
+  EXPECT_FALSE(r.throughput);
+  EXPECT_FALSE(part(r, "A").completed);
+  EXPECT_FALSE(part(r, "A").cycle_time);
+  EXPECT_EQ(to_json(s, r)["parts_completed"], 0);
+  EXPECT_TRUE(to_json(s, r)["throughput_parts_per_min"].is_null());
+  EXPECT_THAT(format_summary(r), ::testing::Not(HasSubstr("parts completed")));
+  // On the output belt it is completed.
+  const Report done = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1)}, 14.0);
+  EXPECT_EQ(done.parts_completed, 1u);
+  EXPECT_TRUE(part(done, "A").completed);
+  EXPECT_EQ(to_json(s, done)["workpieces"][0]["completed"], true);
+}
+
+// A relay: the PUMA picks A and places it on the mill's fixture, the MELFA picks it from there and places it on the
+// output. The part is placed once (where it belongs), its cycle runs from the PUMA's pick to the end of the MELFA's
+// Place; when the run stops before the final Place, nothing is completed.
+class RelayReport : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() / ("cw-report-relay-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+    std::ofstream(dir_ / "relay.task") << "robot r1 r2\nworkpiece A\nlocation M OUT\n\nsteps\n  r1      | r2\n"
+                                          "  Pick A  |\n  Place M |\n          | Pick A\n          | Place OUT\nend\n";
+    s_ = parse_scenario("cell: " + kScenes + "/cell.yaml\nprogram: relay.task\nrobots: {r1: puma, r2: melfa}\n"
+                        "bind: {M: machine_fixture, OUT: output_drop}\nexpect: {A: output}\ntolerance: 0.03\n",
+                        dir_ / "relay.yaml");
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  // Each robot's primitives one after the other, 1 s per command, r1's first; a close of a Pick grips A, an open of
+  // a Place releases it. Up to `until` s of commands.
+  std::string log(double until) const {
+    LogWriter w;
+    w.start();
+    double t = 0;
+    for (std::size_t i = 0; i < s_.program.robots.size(); ++i) {
+      const std::string& robot = s_.program.robots[i];
+      const auto& prims = s_.program.programs[i].primitives;
+      for (std::size_t k = 0; k < prims.size() && t < until; ++k) {
+        const task::Primitive& p = prims[k];
+        w.fire(t, robot, static_cast<int>(k));
+        if (p.kind != task::PrimitiveKind::kMove && p.kind != task::PrimitiveKind::kOpen &&
+            p.kind != task::PrimitiveKind::kClose) {
+          continue;
+        }
+        w.command(t, t + 1, robot, static_cast<int>(k), task::to_string(p), p.task);
+        const char* condition = p.kind == task::PrimitiveKind::kClose && p.task.starts_with("Pick ") ? "gripped"
+                                : p.kind == task::PrimitiveKind::kOpen && p.task.starts_with("Place ")
+                                    ? "released"
+                                    : nullptr;
+        if (condition != nullptr && !p.workpiece.empty()) {
+          w.event(t + 1, "sensor",
+                  fmt::format(R"("robot":"{}","primitive":{},"condition":"{}","workpiece":"A")", robot, k, condition));
+        }
+        t += 1;
+      }
+    }
+    w.end(t + 1, t < until ? "finished" : "stopped", "", 20);
+    return w.text();
+  }
+
+  std::filesystem::path dir_;
+  Scenario s_;
+};
+
+TEST_F(RelayReport, ThePartIsPlacedOnceAndItsCycleEndsWithTheFinalPlace) {
+  const std::string text = log(1e9);
+  const Report r = make_report(s_, parse_event_log(text, "e"), {on_output(s_, 0.1)}, std::nullopt);
+  // The end of the MELFA's Place: the last command of the log.
+  double last_end = 0;
+  for (const nlohmann::json& e : parse_event_log(text, "e")) {
+    if (e["type"] == "command_end") last_end = e["t"].get<double>();
+  }
+  const WorkpieceReport& a = part(r, "A");
+  ASSERT_TRUE(a.completed);
+  EXPECT_DOUBLE_EQ(*a.pick_start, 0.0);
+  EXPECT_DOUBLE_EQ(*a.place_end, last_end);
+  EXPECT_DOUBLE_EQ(*a.cycle_time, last_end);
+  EXPECT_EQ(r.parts_completed, 1u);
+  // Two Places released A; only the MELFA's, on the output, is its placement.
+  ASSERT_EQ(r.placed_at.size(), 1u);
+  EXPECT_GT(r.placed_at[0], last_end - 3);
+  EXPECT_EQ(to_json(s_, r)["flow"]["placed"], 1);
+}
+
+TEST_F(RelayReport, AStopBeforeTheFinalPlaceCompletesNothing) {
+  // Stopped in the MELFA's Pick: A rests on the mill's fixture, where the PUMA's Place put it.
+  const std::string text = log(7.5);
+  FinalPose a;
+  a.name = "A";
+  const models::LocationSpec& fixture = *s_.cell.find_location("machine_fixture");
+  a.pose.translation() = fixture.pose.xyz + Eigen::Vector3d(0, 0, 0.03);
+  const Report r = make_report(s_, parse_event_log(text, "e"), {a}, std::nullopt);
+  EXPECT_EQ(r.parts_completed, 0u);
+  EXPECT_FALSE(r.throughput);
+  EXPECT_FALSE(part(r, "A").cycle_time);
+  EXPECT_THAT(format_summary(r), ::testing::Not(HasSubstr("parts completed")));
+}
+
+// What the controller detected and no injection explains: an unexplained fault, with its diagnosis, in report.json
+// and the summary. A driver's fault is always real; on a real (or emulated) driver there is no twin truth to call a
+// detection a false alarm.
+TEST(ReportFaults, DetectionsNoInjectionExplainsAreUnexplainedFaultsWithTheirDiagnosis) {
+  const Scenario s = exchange_scenario();
+  LogWriter w;
+  w.start();
+  w.event(2.0, "fault_detected", R"("robot":"r2","primitive":3,"symptom":"driver_fault","detail":"EOF on the link")");
+  w.event(2.0, "diagnosis",
+          R"("robot":"r2","symptom":"driver_fault","cause":"controller_fault","action":"reset_rehome","path":"")");
+  w.event(2.01, "physical", R"("held":[{"robot":"puma","workpiece":""},{"robot":"melfa","workpiece":""}],"obstacles":0)");
+  w.event(4.0, "recovery_end",
+          R"("robot":"r2","cause":"controller_fault","action":"reset_rehome","ok":false,"detail":"","duration":2.0)");
+  w.end(5, "failed", "r2: driver_fault", 10);
+  const Report r = make_report(s, parse_event_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
+  EXPECT_TRUE(r.false_alarms.empty());
+  ASSERT_EQ(r.unexplained.size(), 1u);
+  const Detection& d = r.unexplained[0];
+  EXPECT_DOUBLE_EQ(d.t, 2.0);
+  EXPECT_EQ(d.robot, "r2");
+  EXPECT_EQ(d.symptom, "driver_fault");
+  EXPECT_EQ(d.cause, "controller_fault");
+  EXPECT_EQ(d.action, "reset_rehome");
+  EXPECT_FALSE(d.recovered);
+  const nlohmann::json j = to_json(s, r);
+  EXPECT_EQ(j["false_alarms"], 0);
+  ASSERT_EQ(j["unexplained_faults"].size(), 1u);
+  EXPECT_EQ(j["unexplained_faults"][0]["symptom"], "driver_fault");
+  EXPECT_EQ(j["unexplained_faults"][0]["robot"], "r2");
+  EXPECT_EQ(j["unexplained_faults"][0]["cause"], "controller_fault");
+  EXPECT_EQ(j["unexplained_faults"][0]["action"], "reset_rehome");
+  EXPECT_EQ(j["unexplained_faults"][0]["recovered"], false);
+  const std::string text = format_summary(r);
+  EXPECT_THAT(text, HasSubstr("unexplained faults: 1, false alarms: 0"));
+  EXPECT_THAT(text, HasSubstr("unexplained fault at t = 2.00 s: driver_fault by r2 (EOF on the link), cause "
+                              "controller_fault, action reset_rehome, not recovered"));
+  EXPECT_THAT(text, ::testing::Not(HasSubstr("false alarm at")));
+}
+
+// A grip_lost while the twin has the part between the robot's fingers: nothing physically wrong, a false alarm. The
+// same detection with the fingers empty is a real fault, unexplained; and on a real driver (no twin truth of it) it
+// is unexplained whatever the twin's copy holds.
+TEST(ReportFaults, AFalseAlarmIsADetectionTheTwinsTruthRefutes) {
+  const Scenario s = exchange_scenario();
+  auto log = [](const std::string& held) {
+    LogWriter w;
+    w.start();
+    w.event(3.0, "fault_detected", R"("robot":"r1","primitive":7,"symptom":"grip_lost","detail":"A left the fingers")");
+    w.event(3.0, "diagnosis", R"("robot":"r1","symptom":"grip_lost","cause":"dropped","action":"pick_again","path":"")");
+    w.event(3.01, "physical",
+            fmt::format(R"("held":[{{"robot":"puma","workpiece":"{}"}},{{"robot":"melfa","workpiece":""}}],"obstacles":0)",
+                        held));
+    w.event(5.0, "recovery_end", R"("robot":"r1","cause":"dropped","action":"pick_again","ok":true,"detail":"","duration":2.0)");
+    w.end(20, "finished", "", 32);
+    return parse_event_log(w.text(), "e");
+  };
+  const Report still_held = make_report(s, log("A"), {on_output(s, 0.1)}, std::nullopt);
+  ASSERT_EQ(still_held.false_alarms.size(), 1u);
+  EXPECT_TRUE(still_held.unexplained.empty());
+  EXPECT_THAT(still_held.false_alarms[0].truth, HasSubstr("A between the fingers of puma"));
+  EXPECT_EQ(still_held.false_alarms[0].cause, "dropped");
+  EXPECT_TRUE(still_held.false_alarms[0].recovered);
+  EXPECT_EQ(to_json(s, still_held)["false_alarms"], 1);
+  EXPECT_THAT(format_summary(still_held), HasSubstr("false alarm at t = 3.00 s: grip_lost by r1: the twin has A"));
+
+  const Report dropped = make_report(s, log(""), {on_output(s, 0.1)}, std::nullopt);
+  EXPECT_TRUE(dropped.false_alarms.empty());
+  ASSERT_EQ(dropped.unexplained.size(), 1u);
+  EXPECT_TRUE(dropped.unexplained[0].recovered);
+
+  RunSetup real = setup_of(s);
+  ASSERT_EQ(real.drivers.size(), 2u);
+  EXPECT_EQ(real.drivers[0].robot, "puma");
+  real.drivers[0].kind = "val2";
+  real.drivers[0].port = "/dev/ttyUSB0";
+  const Report on_real = make_report(s, log("A"), {on_output(s, 0.1)}, std::nullopt, "e", real);
+  EXPECT_TRUE(on_real.false_alarms.empty());
+  EXPECT_EQ(on_real.unexplained.size(), 1u);
+  RunSetup no_twin = setup_of(s);
+  no_twin.twin_truth = false;
+  EXPECT_EQ(make_report(s, log("A"), {on_output(s, 0.1)}, std::nullopt, "e", no_twin).unexplained.size(), 1u);
+}
+
+// What the run used is what the report says: the perception, each robot's driver and the faults asked for, from the
+// run's setup (the command line's overrides included), not from the scenario file.
+TEST(ReportSetup, TheRunsPerceptionDriversAndFaultsAreInTheReport) {
+  const Scenario s = exchange_scenario();
+  RunSetup setup = setup_of(s);
+  EXPECT_EQ(setup.perception, "truth");
+  setup.perception = "cad";
+  setup.drivers[1].kind = "movemaster";
+  setup.drivers[1].port = "/tmp/melfa";
+  setup.drivers[1].emulated = true;
+  setup.faults = {"missing:workpiece=A"};
+  const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1)}, 14.0, "e", setup);
+  const nlohmann::json j = to_json(s, r);
+  EXPECT_EQ(j["perception"], "cad");
+  ASSERT_EQ(j["drivers"].size(), 2u);
+  EXPECT_EQ(j["drivers"][0], (nlohmann::json{{"robot", "puma"}, {"kind", "sim"}, {"port", ""}, {"emulated", false}}));
+  EXPECT_EQ(j["drivers"][1]["kind"], "movemaster");
+  EXPECT_EQ(j["drivers"][1]["port"], "/tmp/melfa");
+  EXPECT_EQ(j["drivers"][1]["emulated"], true);
+  EXPECT_EQ(j["requested_faults"], nlohmann::json::array({"missing:workpiece=A"}));
+  EXPECT_THAT(format_summary(r), HasSubstr("perception cad; drivers: puma simulated, melfa emulated movemaster on "
+                                           "/tmp/melfa; faults asked for: missing:workpiece=A"));
 }
 
 // A long run's report is built from its file one line at a time (the log is never held whole): the same report as

@@ -106,4 +106,25 @@ TEST(TwinRunSafety, AnObstacleInTheWayStopsTheRobotUntilItIsGone) {
   EXPECT_EQ(report["outcome"], "finished");
 }
 
+// A part that never existed (`missing`): the commands of its Pick and Place were skipped, and it is neither a completed
+// part nor throughput; the page and report.json say which fault the run was asked for.
+TEST(TwinRunAccount, AMissingPartIsNotCompletedAndTheRunSaysWhichFaultItUsed) {
+  TwinCli cli("cw-fault-missing");
+  const fs::path out = cli.dir() / "out";
+  const Outcome r = cli.run("run " + shell_quote(source_path("scenes/exchange.yaml")) +
+                            " --quiet --fault missing:workpiece=A -o " + shell_quote(out.string()));
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, ::testing::Not(::testing::HasSubstr("parts completed")));
+  EXPECT_THAT(r.out, ::testing::HasSubstr("perception truth; drivers: puma simulated, melfa simulated; faults asked "
+                                          "for: missing:workpiece=A"));
+  const nlohmann::json report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(report["parts_completed"], 0);
+  EXPECT_TRUE(report["throughput_parts_per_min"].is_null());
+  EXPECT_EQ(report["workpieces"][0]["completed"], false);
+  EXPECT_TRUE(report["workpieces"][0]["cycle_time"].is_null());
+  EXPECT_EQ(report["account"][0]["status"], "not_arrived");
+  EXPECT_EQ(report["requested_faults"], nlohmann::json::array({"missing:workpiece=A"}));
+  EXPECT_THAT(slurp(out / "index.html"), ::testing::HasSubstr("faults asked for: <code>missing:workpiece=A</code>"));
+}
+
 }  // namespace

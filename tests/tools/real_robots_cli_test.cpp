@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -118,6 +119,26 @@ TEST(RealRobotsCli, AHardwareErrorMidRunIsResetAndRehomedAndTheRunGoesOn) {
   EXPECT_THAT(events, HasSubstr("\"outcome\":\"finished\""));
   EXPECT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_EQ(cell.process->stop(), 0) << cell.process->output();
+  // Nothing was injected, and the error was real: an unexplained fault with its diagnosis, not a false alarm (there is
+  // no twin truth of a real or emulated robot). The report names the drivers the run used.
+  const nlohmann::json report = nlohmann::json::parse(cellwright::testing::slurp(cli.dir() / "out" / "report.json"));
+  EXPECT_EQ(report["false_alarms"], 0);
+  ASSERT_GE(report["unexplained_faults"].size(), 1u) << report.dump(1);
+  const nlohmann::json& f = report["unexplained_faults"][0];
+  EXPECT_EQ(f["symptom"], "driver_fault");
+  EXPECT_EQ(f["robot"], "r2");
+  EXPECT_EQ(f["cause"], "controller_error");
+  EXPECT_EQ(f["action"], "reset_rehome");
+  EXPECT_EQ(f["recovered"], true);
+  EXPECT_THAT(r.out, HasSubstr("unexplained fault at t = "));
+  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("false alarm at")));
+  ASSERT_EQ(report["drivers"].size(), 2u);
+  EXPECT_EQ(report["drivers"][0]["robot"], "puma");
+  EXPECT_EQ(report["drivers"][0]["kind"], "val2");
+  EXPECT_EQ(report["drivers"][0]["emulated"], true);
+  EXPECT_EQ(report["drivers"][1]["port"], (cli.dir() / "melfa").string());
+  EXPECT_THAT(cellwright::testing::slurp(cli.dir() / "out" / "index.html"),
+              HasSubstr("melfa emulated movemaster on " + (cli.dir() / "melfa").string()));
 }
 
 TEST(RealRobotsCli, DryRunHomesReadsAndChecksEveryTargetMovingNothingElse) {

@@ -101,6 +101,27 @@ TEST(VisionCli, PicksThePerturbedPartWhereTheCameraSeesItAndMissesItWithoutTheCa
   run_vision(cli, cli.dir() / "cad", "--perception cad", blind);
   EXPECT_EQ(blind.status, 1) << blind.out << blind.err;
   EXPECT_THAT(blind.out, HasSubstr("FAIL A: expected mill_side"));
+  // The report says what this run used (--perception cad, not the scenario's vision), and every part's state is where
+  // it physically is: a part a robot holds at the end is "held", whatever the controller declared.
+  const nlohmann::json cad = nlohmann::json::parse(slurp(cli.dir() / "cad" / "report.json"));
+  EXPECT_EQ(cad["perception"], "cad");
+  EXPECT_THAT(blind.out, HasSubstr("perception cad; drivers: puma simulated"));
+  const std::string page = slurp(cli.dir() / "cad" / "index.html");
+  EXPECT_THAT(page, HasSubstr("perception cad"));
+  EXPECT_THAT(page, ::testing::Not(HasSubstr("perception vision")));
+  for (std::size_t i = 0; i < cad["workpieces"].size(); ++i) {
+    const nlohmann::json& w = cad["workpieces"][i];
+    const nlohmann::json& account = cad["account"][i];
+    ASSERT_EQ(account["workpiece"], w["name"]);
+    const std::string where = w["final_location"];
+    if (where.starts_with("held by ")) {
+      EXPECT_EQ(account["status"], "held") << account.dump();
+      EXPECT_EQ(account["where"], where.substr(8)) << account.dump();
+    }
+    if (w["ok"] == true) {
+      EXPECT_EQ(account["status"], "in_place") << account.dump();
+    }
+  }
 }
 
 // Without vision, --save-frames writes the camera's plain frames every vision period (0.4 s), stamped with their

@@ -5,10 +5,12 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
-#include <istream>
 #include <cmath>
+#include <filesystem>
+#include <istream>
 #include <map>
 #include <set>
+#include <system_error>
 
 #include "cellwright/task/to_net.hpp"
 
@@ -393,6 +395,28 @@ std::size_t Report::unaccounted() const {
       std::count_if(workpieces.begin(), workpieces.end(), [](const WorkpieceReport& w) { return w.unaccounted; }));
 }
 
+RunSetup setup_of(const Scenario& s) {
+  RunSetup setup;
+  setup.perception = runtime::to_string(s.perception);
+  for (const Binding& b : s.robots) {
+    DriverUse d;
+    d.robot = b.name;
+    d.kind = to_string(models::DriverKind::kSim);
+    for (const DriverChoice& c : s.drivers) {
+      if (c.robot != b.name || !c.real()) continue;
+      d.kind = to_string(c.kind);
+      if (c.serial) d.port = c.serial->port;
+      // A pseudo-terminal has no arm behind it: it is what `twin emulate` publishes its controller on.
+      std::error_code ec;
+      const std::filesystem::path target = std::filesystem::canonical(d.port, ec);
+      d.emulated = !ec && (target.string().starts_with("/dev/pts/") || target == "/dev/ptmx");
+    }
+    setup.drivers.push_back(std::move(d));
+  }
+  for (const FaultSpec& f : s.faults) setup.faults.push_back(to_text(f));
+  return setup;
+}
+
 namespace {
 
 // The cell robot a name in the log stands for: a program label's binding, else the name itself (a cell name). For
@@ -442,7 +466,58 @@ bool can_show_as(const std::string& kind, const std::string& symptom) {
   return std::find(it->second.begin(), it->second.end(), symptom) != it->second.end();
 }
 
-// The faults (fault_injected matched to fault_detected, diagnosis, recovery_end) and false alarms of a run.
+// What the controller made of detection events[detection], of `by`: the first diagnosis of that robot after it (its
+// index, or the detection's), its cause and action, and the first recovery_end of that robot after the diagnosis
+// (cause and action from it when there was no diagnosis; recovered when ok and before `stop`).
+struct Aftermath {
+  std::string cause, action;
+  std::optional<double> recovered_at;
+};
+Aftermath aftermath_of(const std::vector<json>& events, std::size_t detection, const std::string& by,
+                       std::size_t stop, const std::string& file) {
+  Aftermath a;
+  std::size_t after = detection;
+  for (std::size_t k = detection + 1; k < events.size(); ++k) {
+    if (events[k]["type"] == "diagnosis" && field<std::string>(events[k], "robot", file) == by) {
+      a.cause = field<std::string>(events[k], "cause", file);
+      a.action = field<std::string>(events[k], "action", file);
+      after = k;
+      break;
+    }
+  }
+  for (std::size_t k = after + 1; k < events.size(); ++k) {
+    if (events[k]["type"] != "recovery_end" || field<std::string>(events[k], "robot", file) != by) continue;
+    if (a.cause.empty()) a.cause = events[k].value("cause", std::string());
+    if (a.action.empty()) a.action = events[k].value("action", std::string());
+    if (field<bool>(events[k], "ok", file) && !(stop < k)) a.recovered_at = events[k]["t"].get<double>();
+    break;
+  }
+  return a;
+}
+
+// Why the twin's truth shows nothing physically wrong for detection events[k] of the simulated cell robot `robot`
+// (the first `physical` event at or after it), or "" when it does not (or cannot tell).
+std::string refuted_by_truth(const std::vector<json>& events, std::size_t k, const std::string& robot,
+                             const std::string& symptom, const std::string& file) {
+  const auto physical = std::find_if(events.begin() + static_cast<std::ptrdiff_t>(k), events.end(),
+                                     [](const json& e) { return e["type"] == "physical"; });
+  if (physical == events.end()) return "";
+  if (symptom == "grip_lost" || symptom == "closed_on_nothing") {
+    for (const json& h : field<json>(*physical, "held", file)) {
+      if (field<std::string>(h, "robot", file) != robot) continue;
+      const std::string held = field<std::string>(h, "workpiece", file);
+      if (!held.empty()) return fmt::format("the twin has {} between the fingers of {}", held, robot);
+    }
+    return "";
+  }
+  if (symptom == "obstacle_seen" && field<std::size_t>(*physical, "obstacles", file) == 0) {
+    return "the twin has no object in the cell that the cell description lacks";
+  }
+  return "";
+}
+
+// The faults (fault_injected matched to fault_detected, diagnosis, recovery_end), the unexplained faults and false
+// alarms of a run.
 void match_faults(const Scenario& s, const std::vector<json>& events, const std::string& file, Report& r) {
   // The index of the event that stopped the cell if the run ended "stopped", else events.size() (a plain index:
   // GCC 12 warns falsely about an optional one).
@@ -503,37 +578,35 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
       f.detected_at = d["t"].get<double>();
       f.detected_by = field<std::string>(d, "robot", file);
       f.symptom = field<std::string>(d, "symptom", file);
-      std::size_t after = detection;
-      for (std::size_t k = detection + 1; k < events.size(); ++k) {
-        if (events[k]["type"] == "diagnosis" && field<std::string>(events[k], "robot", file) == f.detected_by) {
-          f.cause = field<std::string>(events[k], "cause", file);
-          f.action = field<std::string>(events[k], "action", file);
-          after = k;
-          break;
-        }
-      }
-      for (std::size_t k = after + 1; k < events.size(); ++k) {
-        if (events[k]["type"] != "recovery_end" || field<std::string>(events[k], "robot", file) != f.detected_by) {
-          continue;
-        }
-        if (f.cause.empty()) f.cause = events[k].value("cause", std::string());
-        if (f.action.empty()) f.action = events[k].value("action", std::string());
-        if (field<bool>(events[k], "ok", file) && !(stop != none && stop < k)) {
-          f.recovered = true;
-          f.recovery_time = events[k]["t"].get<double>() - f.t;
-        }
-        break;
-      }
+      const Aftermath a = aftermath_of(events, detection, f.detected_by, stop, file);
+      f.cause = a.cause;
+      f.action = a.action;
+      f.recovered = a.recovered_at.has_value();
+      if (a.recovered_at) f.recovery_time = *a.recovered_at - f.t;
     }
     r.faults.push_back(std::move(f));
   }
-  // False alarms: detections no injection took, with no injection before them.
+  // Detections no injection took, with no injection before them: false alarms when the twin's truth shows nothing
+  // wrong, else unexplained faults.
   for (std::size_t k = 0; k < events.size() && k < first_injection; ++k) {
     const json& e = events[k];
     if (matched[k] || e["type"] != "fault_detected") continue;
-    r.false_alarms.push_back({e["t"].get<double>(), field<std::string>(e, "robot", file),
-                              static_cast<int>(e.value("primitive", std::int64_t{-1})),
-                              field<std::string>(e, "symptom", file), e.value("detail", std::string())});
+    Detection d;
+    d.t = e["t"].get<double>();
+    d.robot = field<std::string>(e, "robot", file);
+    d.primitive = static_cast<int>(e.value("primitive", std::int64_t{-1}));
+    d.symptom = field<std::string>(e, "symptom", file);
+    d.detail = e.value("detail", std::string());
+    const Aftermath a = aftermath_of(events, k, d.robot, stop, file);
+    d.cause = a.cause;
+    d.action = a.action;
+    d.recovered = a.recovered_at.has_value();
+    const std::string robot = cell_robot(s, d.robot, false);
+    const auto driver = std::find_if(r.setup.drivers.begin(), r.setup.drivers.end(),
+                                     [&](const DriverUse& u) { return u.robot == robot; });
+    const bool simulated = !d.robot.empty() && (driver == r.setup.drivers.end() || !driver->real());
+    if (r.setup.twin_truth && simulated) d.truth = refuted_by_truth(events, k, robot, d.symptom, file);
+    (d.truth.empty() ? r.unexplained : r.false_alarms).push_back(std::move(d));
   }
 }
 
@@ -548,7 +621,7 @@ class ReportBuilder {
     const std::string& type = e["type"].get_ref<const std::string&>();
     const double t = e["t"].get<double>();
     if (type == "run_start" || type == "fault_injected" || type == "fault_detected" || type == "diagnosis" ||
-        type == "recovery_end" || type == "cell_stopped" || type == "run_end") {
+        type == "recovery_end" || type == "cell_stopped" || type == "run_end" || type == "physical") {
       fault_events_.push_back(e);  // few: match_faults looks back and forth among them
     }
     if (type == "run_end") {
@@ -562,10 +635,15 @@ class ReportBuilder {
       r_.collisions.push_back({t, field<std::string>(e, "a", file_), field<std::string>(e, "b", file_),
                                field<double>(e, "depth", file_)});
     } else if (type == "workpiece_arrived") {
-      arrived_.insert(cell_workpiece(s_, field<std::string>(e, "workpiece", file_)));
+      const std::string w = cell_workpiece(s_, field<std::string>(e, "workpiece", file_));
+      arrived_.insert(w);
+      placement_of_.erase(w);  // a body fed anew is a new part
       ++r_.parts_fed;
     } else if (type == "workpiece_left") {
+      placement_of_.erase(cell_workpiece(s_, field<std::string>(e, "workpiece", file_)));
       ++r_.parts_delivered;
+    } else if (type == "sensor") {
+      sensor(e);
     } else if (type == "workpiece_lost") {  // the first declaration of each part counts
       LostPart l;
       l.t = t;
@@ -582,8 +660,10 @@ class ReportBuilder {
     }
   }
 
-  Report finish(const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time) && {
+  Report finish(const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time,
+                std::optional<RunSetup> setup) && {
     Report r = std::move(r_);
+    r.setup = setup ? std::move(*setup) : setup_of(s_);
     r.timeline = std::move(timeline_).finish();
     r.estimated_cycle_time = estimated_cycle_time;
     r.end_time = r.timeline.end;
@@ -606,6 +686,9 @@ class ReportBuilder {
       if (auto it = end_of_.find(robot_primitive); it != end_of_.end()) place_end[w] = it->second;
     }
     account(r, finals, place_end);
+    for (const auto& [t, last] : placed_) {
+      if (last) r.placed_at.push_back(t);
+    }
     if (r.placed_at.size() >= 3) {
       const double span = r.placed_at.back() - r.placed_at[1];
       const auto parts = static_cast<double>(r.placed_at.size() - 2);
@@ -644,7 +727,35 @@ class ReportBuilder {
     }
     if (!e.value("ok", false)) return;
     if (skipped_.erase({robot, static_cast<std::int64_t>(k)}) != 0) return;
-    if (release) r_.placed_at.push_back(t);
+    if (release) {
+      const auto body = released_.find({robot, k});
+      const std::string w = body != released_.end() ? body->second : cell_workpiece(s_, p.workpiece);
+      placement_of_[w] = placed_.size();
+      placed_.push_back({t, true});
+      placed_last_[w] = true;
+    }
+  }
+
+  // The part a Place lets go of (its "released" sensor event), and a Pick that grips a part placed before: that
+  // placement was not the part's last (a relay: another robot picks it from there).
+  void sensor(const json& e) {
+    const std::string robot = e.value("robot", std::string());
+    const auto it = std::find(s_.program.robots.begin(), s_.program.robots.end(), robot);
+    const json& k = e.contains("primitive") ? e["primitive"] : json();
+    if (it == s_.program.robots.end() || !k.is_number_unsigned()) return;
+    const auto& prims = s_.program.programs[static_cast<std::size_t>(it - s_.program.robots.begin())].primitives;
+    if (k.get<std::size_t>() >= prims.size()) return;
+    const task::Primitive& p = prims[k.get<std::size_t>()];
+    const std::string condition = field<std::string>(e, "condition", file_);
+    const std::string w = cell_workpiece(s_, field<std::string>(e, "workpiece", file_));
+    if (condition == "released" && p.task.starts_with("Place ")) released_[{robot, k.get<std::size_t>()}] = w;
+    if (condition == "gripped" && p.task.starts_with("Pick ")) {
+      placed_last_[w] = false;
+      if (auto placed = placement_of_.find(w); placed != placement_of_.end()) {
+        placed_[placed->second].second = false;
+        placement_of_.erase(placed);
+      }
+    }
   }
 
   void account(Report& r, const std::vector<FinalPose>& finals, const std::map<std::string, double>& place_end);
@@ -662,6 +773,11 @@ class ReportBuilder {
   std::map<std::pair<std::string, std::size_t>, double> end_of_;          // (robot, primitive) -> command_end time
   std::map<std::string, std::pair<std::string, std::size_t>> last_release_;  // label -> (robot, last primitive)
   std::set<std::pair<std::string, std::int64_t>> skipped_;  // (robot, primitive) skipped and not yet ended
+  // Placements (time, still the part's last) and, by cell workpiece, its latest one that may yet be retracted.
+  std::vector<std::pair<double, bool>> placed_;
+  std::map<std::string, std::size_t> placement_of_;
+  std::map<std::pair<std::string, std::size_t>, std::string> released_;  // (robot, Place's open) -> the part let go
+  std::map<std::string, bool> placed_last_;  // by cell workpiece: a Place let it go after its last Pick gripped it
 };
 void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
                             const std::map<std::string, double>& place_end) {
@@ -695,6 +811,13 @@ void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
           expect != nullptr ? fmt::format(" (expected at {})", expect->place) : std::string(), wr.lost->t,
           wr.lost->reason.empty() ? std::string() : " (" + wr.lost->reason + ")",
           wr.lost->last_seen ? "at " + format_position(*wr.lost->last_seen) : std::string("nowhere: it was never seen")));
+      // Where it physically is, when that is not what "lost" suggests.
+      if (fp != finals.end() && fp->present && !fp->held_by.empty()) {
+        r.failures.back() += fmt::format(", but it is held by {}", fp->held_by);
+      } else if (expect != nullptr && fp != finals.end() &&
+                 std::find(wr.at.begin(), wr.at.end(), expect->place) != wr.at.end()) {
+        r.failures.back() += fmt::format(", but it is at {}", expect->place);
+      }
     }
     if (expect_lost) {
       wr.expected = expect->place;
@@ -723,10 +846,8 @@ void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
     // The account.
     const bool present = fp != finals.end() && fp->present;
     const bool never_present = fp != finals.end() && !fp->present && !wr.arrived;
-    if (wr.lost && !never_present) {
-      wr.status = PartStatus::kLost;
-      wr.where = wr.final_location;
-    } else if (never_present) {
+    // Where it physically is first; the controller's declaration (wr.lost) only for a part found nowhere else.
+    if (never_present) {
       wr.status = PartStatus::kNotArrived;
       wr.where = wr.final_location;
     } else if (present && !fp->held_by.empty()) {
@@ -735,6 +856,9 @@ void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
     } else if (expect != nullptr && !expect_lost && *wr.ok) {
       wr.status = PartStatus::kInPlace;
       wr.where = expect->place;
+    } else if (wr.lost) {
+      wr.status = PartStatus::kLost;
+      wr.where = wr.final_location;
     } else {
       wr.status = PartStatus::kElsewhere;
       wr.where = wr.final_location;
@@ -746,7 +870,15 @@ void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
     if (!wr.label.empty()) {
       if (auto it = pick_start_.find(wr.label); it != pick_start_.end()) wr.pick_start = it->second;
       if (auto it = place_end.find(wr.label); it != place_end.end()) wr.place_end = it->second;
-      if (wr.pick_start && wr.place_end && *wr.place_end >= *wr.pick_start) {
+      // Completed: it reached its final place (report.hpp), picked and placed.
+      const auto placed_last = placed_last_.find(w.name);
+      const bool final_place =
+          expect != nullptr
+              ? !expect_lost && *wr.ok
+              : !wr.lost && placed_last != placed_last_.end() && placed_last->second &&
+                    (present ? fp->held_by.empty() && !wr.at.empty() : wr.arrived);
+      wr.completed = final_place && wr.pick_start && wr.place_end && *wr.place_end >= *wr.pick_start;
+      if (wr.completed) {
         wr.cycle_time = *wr.place_end - *wr.pick_start;
         ++r.parts_completed;
         picks.push_back(*wr.pick_start);
@@ -764,14 +896,14 @@ void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
 }  // namespace
 
 Report make_report(const Scenario& s, const std::vector<json>& events, const std::vector<FinalPose>& finals,
-                   std::optional<double> estimated_cycle_time, const std::string& file) {
+                   std::optional<double> estimated_cycle_time, const std::string& file, std::optional<RunSetup> setup) {
   ReportBuilder b(s, file);
   for (const json& e : events) b.add(e);
-  return std::move(b).finish(finals, estimated_cycle_time);
+  return std::move(b).finish(finals, estimated_cycle_time, std::move(setup));
 }
 
 Report make_report(const Scenario& s, std::istream& jsonl, const std::vector<FinalPose>& finals,
-                   std::optional<double> estimated_cycle_time, const std::string& file) {
+                   std::optional<double> estimated_cycle_time, const std::string& file, std::optional<RunSetup> setup) {
   ReportBuilder b(s, file);
   std::string line;
   int line_no = 0;
@@ -779,7 +911,7 @@ Report make_report(const Scenario& s, std::istream& jsonl, const std::vector<Fin
     if (std::optional<json> e = parse_event_line(line, ++line_no, file)) b.add(*e);
   }
   if (jsonl.bad()) throw InputError({file, line_no, 0}, "the event log could not be read");
-  return std::move(b).finish(finals, estimated_cycle_time);
+  return std::move(b).finish(finals, estimated_cycle_time, std::move(setup));
 }
 
 namespace {
@@ -796,6 +928,13 @@ json to_json(const Scenario& s, const Report& r) {
   j["program"] = s.program_file.filename().string();
   j["cell"] = s.cell_file.filename().string();
   j["seed"] = s.seed;
+  j["perception"] = r.setup.perception;
+  json drivers = json::array();
+  for (const DriverUse& d : r.setup.drivers) {
+    drivers.push_back({{"robot", d.robot}, {"kind", d.kind}, {"port", d.port}, {"emulated", d.emulated}});
+  }
+  j["drivers"] = std::move(drivers);
+  j["requested_faults"] = r.setup.faults;
   j["result"] = r.ok() ? "ok" : "failed";
   j["failures"] = r.failures;
   j["outcome"] = r.outcome;
@@ -824,6 +963,7 @@ json to_json(const Scenario& s, const Report& r) {
     wj["pick_start"] = opt(w.pick_start);
     wj["place_end"] = opt(w.place_end);
     wj["cycle_time"] = opt(w.cycle_time);
+    wj["completed"] = w.completed;
     wps.push_back(std::move(wj));
   }
   j["workpieces"] = std::move(wps);
@@ -888,23 +1028,49 @@ json to_json(const Scenario& s, const Report& r) {
     faults.push_back(std::move(fj));
   }
   j["faults"] = std::move(faults);
+  const auto detections = [](const std::vector<Detection>& list) {
+    json out = json::array();
+    for (const Detection& d : list) {
+      out.push_back({{"t", round4(d.t)},
+                     {"robot", d.robot},
+                     {"primitive", d.primitive},
+                     {"symptom", d.symptom},
+                     {"detail", d.detail},
+                     {"cause", d.cause},
+                     {"action", d.action},
+                     {"recovered", d.recovered},
+                     {"truth", d.truth}});
+    }
+    return out;
+  };
+  j["unexplained_faults"] = detections(r.unexplained);
   j["false_alarms"] = r.false_alarms.size();
-  json alarms = json::array();
-  for (const Detection& d : r.false_alarms) {
-    alarms.push_back({{"t", round4(d.t)},
-                      {"robot", d.robot},
-                      {"primitive", d.primitive},
-                      {"symptom", d.symptom},
-                      {"detail", d.detail}});
-  }
-  j["false_alarm_detections"] = std::move(alarms);
+  j["false_alarm_detections"] = detections(r.false_alarms);
   return j;
 }
+
+std::string describe_driver(const DriverUse& d) {
+  if (!d.real()) return fmt::format("{} simulated", d.robot);
+  return fmt::format("{} {} {} on {}", d.robot, d.emulated ? "emulated" : "real", d.kind, d.port);
+}
+
+namespace {
+
+std::string describe_drivers(const RunSetup& setup) {
+  std::vector<std::string> each;
+  for (const DriverUse& d : setup.drivers) each.push_back(describe_driver(d));
+  return fmt::format("drivers: {}", each.empty() ? std::string("none") : fmt::format("{}", fmt::join(each, ", ")));
+}
+
+}  // namespace
 
 std::string format_summary(const Report& r) {
   std::string out;
   out += fmt::format("{}: {} at t = {:.2f} s, {} firings{}\n", r.ok() ? "OK" : "FAILED", r.outcome, r.end_time,
                      r.firings, r.reason.empty() ? "" : " (" + r.reason + ")");
+  out += fmt::format("perception {}; {}{}\n", r.setup.perception, describe_drivers(r.setup),
+                     r.setup.faults.empty() ? std::string()
+                                            : fmt::format("; faults asked for: {}", fmt::join(r.setup.faults, ", ")));
   out += fmt::format("estimated cycle time {} s, measured {} s\n",
                      r.estimated_cycle_time ? fmt::format("{:.2f}", *r.estimated_cycle_time) : std::string("n/a"),
                      r.finished_at ? fmt::format("{:.2f}", *r.finished_at) : std::string("n/a"));
@@ -933,6 +1099,7 @@ std::string format_summary(const Report& r) {
       continue;
     }
     std::string line = fmt::format("  part {}: {}", w.name, to_string(w.status));
+    if (w.lost && w.status != PartStatus::kLost) line += fmt::format(" ({}); declared lost", w.where);
     if (w.lost) {
       line += fmt::format(" at t = {:.2f} s{}, last seen {}", w.lost->t,
                           w.lost->reason.empty() ? std::string() : " (" + w.lost->reason + ")",
@@ -945,8 +1112,9 @@ std::string format_summary(const Report& r) {
   }
   out += fmt::format("collisions: {}\n", r.collisions.size());
   for (const auto& c : r.collisions) out += fmt::format("  t = {:.3f} s: {} - {} ({:.4f} m)\n", c.t, c.a, c.b, c.depth);
-  if (!r.faults.empty() || !r.false_alarms.empty()) {
-    out += fmt::format("faults injected: {}, false alarms: {}\n", r.faults.size(), r.false_alarms.size());
+  if (!r.faults.empty() || !r.false_alarms.empty() || !r.unexplained.empty()) {
+    out += fmt::format("faults injected: {}, unexplained faults: {}, false alarms: {}\n", r.faults.size(),
+                       r.unexplained.size(), r.false_alarms.size());
   }
   for (const FaultReport& f : r.faults) {
     std::string line = fmt::format("  {} at t = {:.2f} s", f.kind, f.t);
@@ -963,9 +1131,17 @@ std::string format_summary(const Report& r) {
     if (f.stopped_safely) line += ", cell stopped safely";
     out += line + "\n";
   }
+  for (const Detection& d : r.unexplained) {
+    out += fmt::format("  unexplained fault at t = {:.2f} s: {} by {}{}{}{}\n", d.t, d.symptom,
+                       d.robot.empty() ? std::string("the cell") : d.robot,
+                       d.detail.empty() ? std::string() : " (" + d.detail + ")",
+                       d.cause.empty() && d.action.empty() ? std::string()
+                                                           : fmt::format(", cause {}, action {}", d.cause, d.action),
+                       d.recovered ? ", recovered" : ", not recovered");
+  }
   for (const Detection& d : r.false_alarms) {
-    out += fmt::format("  false alarm at t = {:.2f} s: {}{}\n", d.t, d.symptom,
-                       d.robot.empty() ? std::string() : " by " + d.robot);
+    out += fmt::format("  false alarm at t = {:.2f} s: {}{}: {}\n", d.t, d.symptom,
+                       d.robot.empty() ? std::string() : " by " + d.robot, d.truth);
   }
   for (const std::string& f : r.failures) out += fmt::format("  failure: {}\n", f);
   return out;

@@ -105,12 +105,19 @@ void header(std::string& out, const Scenario& s, const Report& r) {
       "<title>{} &ndash; {} &ndash; twin run report</title>\n<style>{}</style>\n</head>\n<body>\n",
       esc(name), r.ok() ? "OK" : "FAILED", kStyle);
   out += fmt::format("<header>\n<h1>{}</h1>\n", esc(name));
+  // What the run used (the command line's overrides included), from the report, not from the scenario file.
+  std::string drivers;
+  for (const DriverUse& d : r.setup.drivers) drivers += (drivers.empty() ? "" : ", ") + esc(describe_driver(d));
+  std::string faults;
+  for (const std::string& f : r.setup.faults) faults += (faults.empty() ? "" : ", ") + fmt::format("<code>{}</code>", esc(f));
+  if (drivers.empty()) drivers = "none";
+  if (faults.empty()) faults = "none";
   out += fmt::format(
       "<p class=\"meta\">scenario <code>{}</code><br>program <code>{}</code> &middot; cell <code>{}</code>{} &middot; "
-      "seed {} &middot; perception {}</p>\n</header>\n",
+      "seed {} &middot; perception {}<br>drivers: {}<br>faults asked for: {}</p>\n</header>\n",
       esc(s.source.string()), esc(s.program_file.filename().string()), esc(s.cell_file.filename().string()),
-      s.cell.name.empty() ? std::string() : fmt::format(" ({})", esc(s.cell.name)), s.seed,
-      runtime::to_string(s.perception));
+      s.cell.name.empty() ? std::string() : fmt::format(" ({})", esc(s.cell.name)), s.seed, esc(r.setup.perception),
+      drivers, faults);
 }
 
 void verdict(std::string& out, const Report& r) {
@@ -132,10 +139,11 @@ void verdict(std::string& out, const Report& r) {
     out += "</ul>\n";
   }
   const std::size_t unaccounted = r.unaccounted();
-  if (!r.collisions.empty() || !r.faults.empty() || unaccounted > 0 || r.stopped_at) {
+  if (!r.collisions.empty() || !r.faults.empty() || !r.unexplained.empty() || unaccounted > 0 || r.stopped_at) {
     std::string notes;
     if (!r.collisions.empty()) notes += fmt::format(" {} collision(s).", r.collisions.size());
     if (!r.faults.empty()) notes += fmt::format(" {} injected fault(s).", r.faults.size());
+    if (!r.unexplained.empty()) notes += fmt::format(" {} unexplained fault(s).", r.unexplained.size());
     if (unaccounted > 0) notes += fmt::format(" {} part(s) unaccounted.", unaccounted);
     if (r.stopped_at) notes += fmt::format(" The cell was stopped at t = {}.", seconds(*r.stopped_at));
     out += fmt::format("<p class=\"small\">{}</p>\n", notes.substr(1));
@@ -171,7 +179,7 @@ void cycle(std::string& out, const Report& r) {
 }
 
 std::string state_cell(const WorkpieceReport& w) {
-  const bool good = w.status == PartStatus::kInPlace || (w.status == PartStatus::kLost && w.ok && *w.ok);
+  const bool good = w.status == PartStatus::kInPlace || (w.expected == kLostPlace && w.ok && *w.ok);
   std::string s = fmt::format("<span class=\"badge{}\">{}</span>",
                               good ? " ok" : (w.ok && !*w.ok ? " fail" : ""), to_string(w.status));
   if (w.unaccounted) s += " <span class=\"badge fail\">unaccounted</span>";
@@ -268,9 +276,9 @@ void collisions(std::string& out, const Report& r) {
 }
 
 void faults(std::string& out, const Report& r) {
-  out += fmt::format("<section id=\"faults\">\n<h2>Faults ({} injected, {} false alarms)</h2>\n", r.faults.size(),
-                     r.false_alarms.size());
-  if (r.faults.empty() && r.false_alarms.empty()) {
+  out += fmt::format("<section id=\"faults\">\n<h2>Faults ({} injected, {} unexplained, {} false alarms)</h2>\n",
+                     r.faults.size(), r.unexplained.size(), r.false_alarms.size());
+  if (r.faults.empty() && r.false_alarms.empty() && r.unexplained.empty()) {
     out += "<p class=\"none\">No fault injected, none detected.</p>\n</section>\n";
     return;
   }
@@ -297,12 +305,28 @@ void faults(std::string& out, const Report& r) {
     }
     out += "</table>\n";
   }
+  if (!r.unexplained.empty()) {
+    out += "<h3>Unexplained faults</h3>\n<p class=\"small\">Detected by the controller, explained by no injected "
+           "fault: something really went wrong.</p>\n<table>\n<tr><th class=\"num\">t</th><th>detected by</th>"
+           "<th>symptom</th><th>detail</th><th>diagnosis</th><th>recovered</th></tr>\n";
+    for (const Detection& d : r.unexplained) {
+      out += fmt::format(
+          "<tr class=\"fail\"><td class=\"num\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+          seconds(d.t), d.robot.empty() ? std::string("the cell") : esc(d.robot), esc(d.symptom), esc(d.detail),
+          d.cause.empty() && d.action.empty() ? std::string(none_cell())
+                                              : fmt::format("cause {}, action {}", esc(d.cause), esc(d.action)),
+          d.recovered ? "<span class=\"badge ok\">yes</span>" : "no");
+    }
+    out += "</table>\n";
+  }
   if (!r.false_alarms.empty()) {
-    out += "<h3>False alarms</h3>\n<table>\n<tr><th class=\"num\">t</th><th>robot</th><th>symptom</th><th>detail</th>"
-           "</tr>\n";
+    out += "<h3>False alarms</h3>\n<p class=\"small\">Detected by the controller while the twin's truth shows "
+           "nothing physically wrong.</p>\n<table>\n<tr><th class=\"num\">t</th><th>robot</th><th>symptom</th>"
+           "<th>detail</th><th>the twin's truth</th></tr>\n";
     for (const Detection& d : r.false_alarms) {
-      out += fmt::format("<tr><td class=\"num\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n", seconds(d.t),
-                         d.robot.empty() ? std::string("the cell") : esc(d.robot), esc(d.symptom), esc(d.detail));
+      out += fmt::format("<tr><td class=\"num\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+                         seconds(d.t), d.robot.empty() ? std::string("the cell") : esc(d.robot), esc(d.symptom),
+                         esc(d.detail), esc(d.truth));
     }
     out += "</table>\n";
   }

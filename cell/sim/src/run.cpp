@@ -343,14 +343,17 @@ void flush_streamed_log(const runtime::EventLog& log, const std::filesystem::pat
 }  // namespace
 
 Report ScenarioRun::report() const {
+  // What this run used: the scenario's drivers and faults (the command line's already in it), its perception.
+  RunSetup setup = setup_of(scenario_);
+  setup.perception = runtime::to_string(perception_);
   if (events_file_.empty()) {
     return make_report(scenario_, parse_event_log(runtime_->log().text(), kEventsFile), final_poses(),
-                       estimate_.cycle_time, kEventsFile);
+                       estimate_.cycle_time, kEventsFile, std::move(setup));
   }
   flush_streamed_log(runtime_->log(), events_file_);
   std::ifstream in(events_file_, std::ios::binary);
   if (!in) throw InputError({events_file_.string()}, "cannot read the event log back");
-  return make_report(scenario_, in, final_poses(), estimate_.cycle_time, events_file_.string());
+  return make_report(scenario_, in, final_poses(), estimate_.cycle_time, events_file_.string(), std::move(setup));
 }
 
 void ScenarioRun::write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image) {

@@ -115,6 +115,21 @@ void EventLog::fault_detected(SimDuration t, std::string_view robot, int primiti
                               std::string_view detail) {
   append(fmt::format("{},\"robot\":{},\"primitive\":{},\"symptom\":{},\"detail\":{}}}", head(t, "fault_detected"),
                      q(robot), primitive, q(symptom), q(detail)));
+  std::lock_guard lock(mutex_);
+  ++detections_;
+}
+
+void EventLog::physical(SimDuration t, const std::vector<Held>& held, std::size_t obstacles) {
+  std::string list;
+  for (const Held& h : held) {
+    list += fmt::format("{}{{\"robot\":{},\"workpiece\":{}}}", list.empty() ? "" : ",", q(h.robot), q(h.workpiece));
+  }
+  append(fmt::format("{},\"held\":[{}],\"obstacles\":{}}}", head(t, "physical"), list, obstacles));
+}
+
+std::size_t EventLog::detections() const {
+  std::lock_guard lock(mutex_);
+  return detections_;
 }
 
 void EventLog::diagnosis(SimDuration t, std::string_view robot, std::string_view symptom, std::string_view cause,

@@ -190,6 +190,7 @@ struct Runtime::Impl {
   Outcome outcome = Outcome::kTimeout;
   std::string reason;
   std::vector<Collision> collisions;
+  std::size_t detections_seen = 0;  // fault_detected lines the simulation thread has logged the physical state after
   std::vector<SimDuration> next_observation;  // per observer
   bool observed_robots = false;  // some observer wants task control's robots
   // Task control's robots after its last step, for the observers (the task participant writes, the simulation reads).
@@ -308,6 +309,15 @@ struct Runtime::Impl {
       }
       for (const InjectedFault& f : cfg.plant->new_faults()) {
         log.fault_injected(t, f.kind, f.robot, f.workpiece, f.detail);
+      }
+      // A detection since the previous period: the plant's physical state with it, for the report to judge it by.
+      if (const std::size_t d = log.detections(); d != detections_seen) {
+        detections_seen = d;
+        std::vector<EventLog::Held> held;
+        for (const RobotTruth& r : truth.robots) {
+          if (r.between_fingers) held.push_back({r.name, *r.between_fingers});
+        }
+        log.physical(t, held, truth.obstacles.size());
       }
       clock.advance(cfg.period);  // after the model is written, so a reader at time t sees t's truth (real-time)
     }

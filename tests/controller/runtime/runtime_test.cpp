@@ -276,6 +276,14 @@ TEST(RuntimeRun, WithRecoveryAGripOnNothingIsTriedAgainThenThePartIsSetAsideAndT
   // Sensed, diagnosed as a part not where expected, picked again where the model has it: max_attempts times.
   const long first = find(events, {{"type", "fault_detected"}, {"robot", "r1"}, {"symptom", "closed_on_nothing"}});
   ASSERT_NE(first, -1);
+  // The simulation thread logged the plant's physical state with it, in the next period: what a report judges a
+  // detection by (a false alarm or a real fault).
+  const long physical = find(events, {{"type", "physical"}});
+  ASSERT_GT(physical, first);
+  EXPECT_LE(events[static_cast<std::size_t>(physical)]["t"].get<double>() -
+                events[static_cast<std::size_t>(first)]["t"].get<double>(),
+            0.0101);
+  EXPECT_TRUE(events[static_cast<std::size_t>(physical)]["held"].is_array());
   int picks = 0, asides = 0;
   for (const auto& e : events) {
     if (e["type"] == "diagnosis" && e["action"] == "pick_again") ++picks;

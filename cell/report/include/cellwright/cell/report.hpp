@@ -1,8 +1,10 @@
-// What a run did, told from its event log (runtime/event_log.hpp) and the workpieces' final poses: the robots'
-// timelines (what the Gantt chart draws), per-robot busy/waiting/blocked/idle time, each workpiece's cycle time and
-// final location against the expected outcome, throughput, collisions, the account of every workpiece (in place,
-// elsewhere, held, lost, not arrived), each injected fault matched to its detection, diagnosis and recovery, and the
-// verdict `twin run` exits with. docs/scenarios.md describes report.json field by field; docs/faults.md sections 5-6
+// What a run did, told from its event log (runtime/event_log.hpp) and the workpieces' final poses: what the run used
+// (perception, drivers, faults asked for), the robots' timelines (what the Gantt chart draws), per-robot
+// busy/waiting/blocked/idle time, each workpiece's cycle time and final location against the expected outcome,
+// throughput, collisions, the account of every workpiece (in place, elsewhere, held, lost, not arrived), each
+// injected fault matched to its detection, diagnosis and recovery, the faults detected that no injection explains
+// (unexplained faults) and the detections with nothing physically wrong (false alarms), and the verdict `twin run`
+// exits with. docs/scenarios.md describes report.json field by field; docs/faults.md sections 5-6
 // the account and the faults.
 //
 // Everything here is computed from values (the log's lines, the poses), so a report can be rebuilt from a saved
@@ -117,14 +119,48 @@ struct FinalPose {
 std::vector<std::string> places_of(const models::CellDescription& cell, const models::WorkpieceSpec& spec,
                                    const FinalPose& final, double tolerance);
 
+// --- What the run used ------------------------------------------------------------------------------------------------
+
+// The driver one program robot ran on.
+struct DriverUse {
+  std::string robot;  // cell robot
+  std::string kind;   // "sim", "movemaster", "val2"
+  std::string port;   // the serial port of a real driver; "" for sim
+  // A real driver whose port is a pseudo-terminal (what `twin emulate` publishes): an emulated controller, no arm.
+  bool emulated = false;
+  bool real() const { return kind != "sim"; }
+};
+
+// The run's effective settings (the scenario's, with the command line's overrides), carried into the report so that
+// it says what the run used, not what the scenario file says.
+struct RunSetup {
+  std::string perception = "truth";  // "truth", "vision", "cad"
+  std::vector<DriverUse> drivers;    // one per program robot, in program order
+  std::vector<std::string> faults;   // the faults asked for (`--fault` text, faults.hpp to_text), in scenario order
+  // The run has a twin whose physics is the truth of its simulated robots (a `twin run`): a detection of a simulated
+  // robot is judged against the twin's `physical` events. false: no twin truth (every detection that no injection
+  // explains is an unexplained fault).
+  bool twin_truth = true;
+};
+
+// The setup of a run of `scenario` as its file and bindings say: its perception, each program robot's driver (a
+// real driver's port a pseudo-terminal: emulated), its faults, with a twin.
+RunSetup setup_of(const Scenario& scenario);
+
+// One driver for a person: "puma simulated", "melfa real movemaster on /dev/ttyUSB0", "melfa emulated movemaster on
+// /tmp/melfa".
+std::string describe_driver(const DriverUse& driver);
+
 // --- The report ------------------------------------------------------------------------------------------------------
 
-// What became of a workpiece (docs/faults.md section 5).
+// What became of a workpiece (docs/faults.md section 5): where it physically is. A controller's declaration that it is
+// lost is kept beside (WorkpieceReport::lost) and never overrides a physical state.
 enum class PartStatus {
-  kInPlace,     // where the scenario expects it
+  kInPlace,     // where the scenario expects it (declared lost or not)
   kElsewhere,   // present, not where expected (or nothing is expected of it): where it is
-  kHeld,        // held by a robot at the end
-  kLost,        // declared lost by the controller (a workpiece_lost event names it)
+  kHeld,        // held by a robot at the end (declared lost or not)
+  kLost,        // declared lost by the controller (a workpiece_lost event names it), and neither held, in place, nor
+                // never present
   kNotArrived,  // never present in the cell: a fed part never fed, a part taken out before the start
   kScrapped,    // reserved: nothing sets it yet
 };
@@ -150,7 +186,11 @@ struct WorkpieceReport {
   std::optional<bool> ok;                              // expected is among `at`; nullopt without an expectation
   std::optional<double> pick_start;                    // the first command_start of a Pick of it
   std::optional<double> place_end;   // the end of the last Place that released it (its depart included)
-  std::optional<double> cycle_time;  // place_end - pick_start
+  // It reached its final place: with an expectation, the expectation holds (never for one expected lost); without,
+  // a Place released it last, it was not declared lost, and it rests in the cell at a named place (`at` not empty),
+  // held by no robot. Picked and placed (pick_start, place_end) either way.
+  bool completed = false;
+  std::optional<double> cycle_time;  // place_end - pick_start, for a completed part only
   // The account (docs/faults.md section 5).
   PartStatus status = PartStatus::kElsewhere;
   std::string where;             // in_place: the expected place; held: the robot (cell name); otherwise
@@ -184,16 +224,22 @@ struct FaultReport {
   bool stopped_safely = false;
 };
 
-// A fault_detected event.
+// A fault_detected event that no injection took, with what the controller made of it.
 struct Detection {
   double t = 0;
-  std::string robot;  // program label, "" for the cell
+  std::string robot;  // program label, "" for the cell: who detected it
   int primitive = -1;
   std::string symptom;
   std::string detail;
+  // The first diagnosis of that robot after it, and the first recovery_end of that robot after the diagnosis.
+  std::string cause, action;
+  bool recovered = false;  // that recovery_end has ok true and came before the cell was stopped
+  // Why it is a false alarm (what the twin's truth showed), "" for an unexplained fault.
+  std::string truth;
 };
 
 struct Report {
+  RunSetup setup;                   // what the run used
   std::string outcome = "timeout";  // run_end's outcome: "finished", "failed", "timeout", "stopped"; "unfinished"
                                     // when the log has no run_end
   std::string reason;                          // run_end's reason
@@ -202,10 +248,13 @@ struct Report {
   std::optional<double> estimated_cycle_time;  // s, from the estimate (estimate.hpp)
   std::uint64_t firings = 0;
   std::vector<WorkpieceReport> workpieces;  // cell order
-  std::optional<double> throughput;         // parts per minute: completed parts / (last place end - first pick start)
-  std::size_t parts_completed = 0;          // workpieces with a place end
+  // parts per minute: completed parts / (last place end - first pick start) of the completed parts
+  std::optional<double> throughput;
+  std::size_t parts_completed = 0;  // workpieces completed (WorkpieceReport::completed)
   // The flow of parts, for programs with loops and shifts (feed count): a part is placed when a command of a "Place"
-  // releases it (its open ends), fed when it arrives on the feed's conveyor, delivered when it leaves the cell.
+  // releases it (its open ends) and it is not picked again before it leaves the cell or is fed anew (the Place of a
+  // relay that another robot picks from is no placement), fed when it arrives on the feed's conveyor, delivered when
+  // it leaves the cell.
   std::vector<double> placed_at;  // s, in order
   std::size_t parts_fed = 0;
   std::size_t parts_delivered = 0;
@@ -222,7 +271,10 @@ struct Report {
   std::vector<CollisionEntry> collisions;
   std::optional<double> stopped_at;  // s: the cell_stopped event (else run_end) of a run that ended "stopped"
   std::vector<FaultReport> faults;    // one per fault_injected event, in log order
-  std::vector<Detection> false_alarms;  // fault_detected events not matched, with no fault_injected before them
+  // fault_detected events not matched, with no fault_injected before them: a false alarm when the twin's truth shows
+  // nothing physically wrong (make_report), else an unexplained fault. In log order.
+  std::vector<Detection> unexplained;
+  std::vector<Detection> false_alarms;
   std::vector<std::string> failures;    // why the run is not ok, one line each; empty when ok
 
   // The run finished and every expected outcome holds (a lost part counts against it unless expected lost).
@@ -237,32 +289,40 @@ struct Report {
 // final pose, a workpiece was declared lost that the scenario does not expect lost, a workpiece expected lost was
 // not. Collisions and faults are reported, not counted as failures (an expectation decides what matters).
 //
-// The account: a part named by a workpiece_lost event is lost, unless it was never present (not_arrived); else one
-// that is not present is not_arrived when no workpiece_arrived event names it (else elsewhere, "not in the cell"); one
-// held by a robot is held; one whose expectation holds is in_place; the rest are elsewhere. Workpieces and robots in
-// the events may be named by their cell name or their program label.
+// The account, where each part physically is: one never present (not present and no workpiece_arrived event names
+// it) is not_arrived; one held by a robot is held; one whose expectation holds is in_place; else one named by a
+// workpiece_lost event is lost; the rest are elsewhere (a part that left the cell: "not in the cell"). A
+// workpiece_lost event's entry is kept whatever the state. Workpieces and robots in the events may be named by their
+// cell name or their program label.
 //
 // Faults: each fault_injected event, in log order, is matched to the first fault_detected in the log not yet matched
 // that comes after it (same robot when both name one, else any) or, of the same robot, at most two control periods
 // (run_start's period) before it: a driver's fault reaches the log a round after the controller saw the command fail.
 // Then the first diagnosis of the detecting robot after the detection, and the first recovery_end of that robot after
-// the diagnosis. Detections that no injection took and with no fault_injected before them are false alarms. Throws
-// InputError as build_timeline, or when a fault event lacks a field.
+// the diagnosis. A detection that no injection took and with no fault_injected before it is a false alarm only when
+// the twin's truth shows nothing physically wrong: the setup has twin truth, the detecting robot is simulated (not a
+// real or emulated driver, not the cell), and the first `physical` event at or after it refutes its symptom
+// (grip_lost, closed_on_nothing: the robot holds a part; obstacle_seen: the safety sensor sees nothing); every other
+// such detection is an unexplained fault (a driver's fault, a lost link, a timeout are always real). `setup`: what
+// the run used (setup_of(scenario) when nullopt). Throws InputError as build_timeline, or when a fault event lacks a
+// field.
 Report make_report(const Scenario& scenario, const std::vector<nlohmann::json>& events,
                    const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time,
-                   const std::string& file = "events.jsonl");
+                   const std::string& file = "events.jsonl", std::optional<RunSetup> setup = std::nullopt);
 // The same from an events.jsonl read one line at a time (parse errors as parse_event_log): what it holds grows with
 // the parts, the faults and the chart's bars, not with the log, so a long shift's report never holds its log whole.
 // Throws InputError also when the stream cannot be read.
 Report make_report(const Scenario& scenario, std::istream& jsonl, const std::vector<FinalPose>& finals,
-                   std::optional<double> estimated_cycle_time, const std::string& file = "events.jsonl");
+                   std::optional<double> estimated_cycle_time, const std::string& file = "events.jsonl",
+                   std::optional<RunSetup> setup = std::nullopt);
 
 // report.json (docs/scenarios.md). Times in seconds rounded to 4 decimals, so equal runs give equal bytes.
 nlohmann::json to_json(const Scenario& scenario, const Report& report);
 
-// The summary printed at the end of `twin run`: the verdict, estimated vs measured cycle time, throughput, each
-// expectation that failed and why, the account of the parts that are not in place, collisions, the injected faults
-// and what became of them, false alarms. Ends with a newline.
+// The summary printed at the end of `twin run`: the verdict, what the run used (perception, drivers, faults asked
+// for), estimated vs measured cycle time, throughput, each expectation that failed and why, the account of the parts
+// that are not in place, collisions, the injected faults and what became of them, the unexplained faults with their
+// diagnosis, false alarms. Ends with a newline.
 std::string format_summary(const Report& report);
 
 }  // namespace cellwright::cell

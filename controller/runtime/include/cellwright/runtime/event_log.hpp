@@ -30,6 +30,10 @@
 //   workpiece_lost    workpiece, reason, x, y, z (m, 4 decimals: where it was last seen; null when never seen)
 //   skipped           robot, primitive, command, reason: a command not carried out (its workpiece is lost)
 //   cell_stopped      reason: nothing else applied; every robot was stopped
+//   physical          held [{robot (cell name), workpiece ("" none)}] (the robots whose plant can tell what is between
+//                     their fingers), obstacles (how many objects the safety sensor sees): the plant's physical state,
+//                     logged by the simulation thread in the period after a fault_detected, so that a report can tell
+//                     a detection with nothing physically wrong (a false alarm) from a real fault
 //   run_end           outcome ("finished"|"failed"|"timeout"|"stopped"), reason, firings
 // Strings are JSON-escaped (nlohmann::json). Numbers other than "t", period, depth and the vision event's are
 // integers.
@@ -106,6 +110,11 @@ class EventLog {
   void skipped(SimDuration t, std::string_view robot, std::size_t primitive, std::string_view command,
                std::string_view reason);
   void cell_stopped(SimDuration t, std::string_view reason);
+  struct Held {
+    std::string robot;      // cell robot name
+    std::string workpiece;  // cell workpiece between its fingers, "" none
+  };
+  void physical(SimDuration t, const std::vector<Held>& held, std::size_t obstacles);
   void run_end(SimDuration t, std::string_view outcome, std::string_view reason, std::uint64_t firings);
 
   // One camera frame processed by the image-processing thread: taken at `frame_time`, what it saw (each part's
@@ -126,6 +135,8 @@ class EventLog {
   std::string text() const;
   // How many lines were logged (either Keep).
   std::size_t size() const;
+  // How many fault_detected lines were logged.
+  std::size_t detections() const;
   bool keeps_lines() const { return keep_ == Keep::kLines; }
   // Flushes the sink, so that a reader of its file sees every line logged so far. Throws std::runtime_error if the
   // sink has failed (a write error, a full disk): lines were lost.
@@ -139,6 +150,7 @@ class EventLog {
   Keep keep_;
   std::vector<std::string> lines_;
   std::size_t count_ = 0;
+  std::size_t detections_ = 0;
 };
 
 }  // namespace cellwright::runtime

@@ -94,7 +94,7 @@ TEST(Cli, AFolderGivenAsAFileIsCalledAFolderNotMissing) {
   const std::string puma_urdf = "urdf: ../models/urdf/puma560.urdf";
   ASSERT_NE(cell.find(puma_urdf), std::string::npos);
   cell.replace(cell.find(puma_urdf), puma_urdf.size(), "urdf: " + folder.string());
-  std::ofstream(cli.dir() / "cell.yaml") << cell;
+  std::ofstream(cli.dir() / "urdf-cell.yaml") << cell;
 
   const std::string words = folder.string() + ": error: ";
   struct Case {
@@ -104,7 +104,7 @@ TEST(Cli, AFolderGivenAsAFileIsCalledAFolderNotMissing) {
                         Case{"run " + scenario_with("cell"), words + "cannot read the cell description: is a directory, not a file"},
                         Case{"run " + scenario_with("program"), words + "cannot read the program: is a directory, not a file"},
                         Case{"run " + scenario_with("recovery"), words + "cannot read the decision tree file: is a directory, not a file"},
-                        Case{"snapshot " + shell_quote((cli.dir() / "cell.yaml").string()) + " -o x.png",
+                        Case{"snapshot " + shell_quote((cli.dir() / "urdf-cell.yaml").string()) + " -o x.png",
                              "URDF file '" + folder.string() + "' is a directory, not a file"},
                         Case{"snapshot " + shell_quote(folder.string()) + " -o x.png",
                              words + "cannot read the cell description: is a directory, not a file"},

@@ -41,9 +41,16 @@ void check_writable_dir(const std::filesystem::path& dir) {
   }
 }
 
-std::string read_file(const std::filesystem::path& path) {
+std::string not_a_file(const std::filesystem::path& path) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw InputError({path.string()}, "is a directory, not a file");
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (std::filesystem::is_directory(status)) return "is a directory, not a file";
+  if (status.type() == std::filesystem::file_type::not_found) return "no such file";
+  return {};
+}
+
+std::string read_file(const std::filesystem::path& path) {
+  if (const std::string problem = not_a_file(path); !problem.empty()) throw InputError({path.string()}, problem);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError({path.string()}, fmt::format("cannot open: {}", std::strerror(errno)));
   std::ostringstream s;

@@ -6,6 +6,7 @@
 #include "cellwright/models/kinematics.hpp"
 #include "cellwright/models/robot_model.hpp"
 #include "cellwright/models/yaml_fields.hpp"
+#include "cellwright/common/files.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -42,6 +43,18 @@ bool valid_name(const std::string& s) {
                      [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-'; });
 }
 
+// A name as an error shows it: at most 64 characters, bytes that are not printable ASCII as \xNN, so that a name of
+// 100,000 characters or of bytes that are not UTF-8 neither floods the terminal nor garbles it.
+std::string shown_name(const std::string& s) {
+  std::string out;
+  for (std::size_t i = 0; i < s.size() && i < 64; ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    out += c >= 0x20 && c < 0x7f ? std::string(1, s[i]) : fmt::format("\\x{:02x}", c);
+  }
+  if (s.size() > 64) out += fmt::format("... ({} characters)", s.size());
+  return out;
+}
+
 // Every object in the cell has a name unique in the whole cell, so that `on:`/`at:` references are unambiguous.
 class Names {
  public:
@@ -52,7 +65,7 @@ class Names {
     if (!valid_name(name)) {
       doc_.fail(n, fmt::format("{} name '{}' is not valid: use letters, digits, '_' and '-', starting with a letter "
                                "or '_', at most 64 characters",
-                               kind, name));
+                               kind, shown_name(name)));
     }
     // The scene names a robot's bodies, joints and sites "<robot>/<link>", and the others "conveyor/<name>",
     // "machine/<name>", "workpiece/<name>", "location/<name>", "handover/<name>": a robot named like one of those
@@ -237,10 +250,9 @@ RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const st
   const std::string urdf = f.text("urdf");
   r.urdf = std::filesystem::path(urdf).is_absolute() ? std::filesystem::path(urdf) : base_dir / urdf;
   r.urdf = r.urdf.lexically_normal();
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(r.urdf, ec)) {
-    doc.fail(f.node("urdf"),
-             fmt::format("unknown robot model for robot '{}': URDF file '{}' not found", r.name, r.urdf.string()));
+  if (const std::string problem = not_a_file(r.urdf); !problem.empty()) {
+    doc.fail(f.node("urdf"), fmt::format("unknown robot model for robot '{}': URDF file '{}' {}", r.name,
+                                         r.urdf.string(), problem));
   }
   r.base = read_pose(doc, f.node("base"), f.field("base"));
   for (double deg : f.numbers("home")) r.home.push_back(deg * kDeg);
@@ -669,6 +681,12 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
   CellDescription cell;
   cell.source = source;
   cell.name = top.has("name") ? top.text("name") : source.stem().string();
+  // The cell's name becomes the MJCF model's name and goes on the report page: the rule of every other name.
+  if (top.has("name") && !valid_name(cell.name)) {
+    doc.fail(top.node("name"), fmt::format("the cell's name '{}' is not valid: use letters, digits, '_' and '-', "
+                                           "starting with a letter or '_', at most 64 characters",
+                                           shown_name(cell.name)));
+  }
   cell.timestep = top.number_or("timestep", cell.timestep);
   if (!(cell.timestep >= 1e-4 && cell.timestep <= 0.01)) {
     doc.fail(top.node("timestep"), fmt::format("'timestep' must be within 0.0001..0.01 s, got {}", cell.timestep));
@@ -848,13 +866,13 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
 CellDescription load_cell(const std::filesystem::path& yaml_file) {
   std::error_code ec;
   const std::filesystem::path abs = std::filesystem::absolute(yaml_file, ec).lexically_normal();
-  std::ifstream in(abs, std::ios::binary);
-  if (!in || std::filesystem::is_directory(abs, ec)) {
-    throw InputError({yaml_file.string(), 0, 0}, "cannot read the cell description: file not found or unreadable");
+  std::string text;
+  try {
+    text = read_file(abs);
+  } catch (const InputError& e) {
+    throw InputError({yaml_file.string(), 0, 0}, fmt::format("cannot read the cell description: {}", e.problem()));
   }
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_cell(text.str(), abs);
+  return parse_cell(text, abs);
 }
 
 namespace {

@@ -6,11 +6,14 @@
 #include <tinyxml2.h>
 #include <urdf_parser/urdf_parser.h>
 
-#include <fstream>
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
 #include <map>
 #include <mutex>
-#include <sstream>
 #include <vector>
+
+#include "cellwright/common/files.hpp"
 
 namespace cellwright::models {
 namespace {
@@ -20,8 +23,10 @@ class CapturingHandler : public console_bridge::OutputHandler {
  public:
   void log(const std::string& text, console_bridge::LogLevel level, const char* /*filename*/, int /*line*/) override {
     if (level >= console_bridge::CONSOLE_BRIDGE_LOG_WARN) messages.push_back(text);
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR) errors.push_back(text);
   }
   std::vector<std::string> messages;
+  std::vector<std::string> errors;  // urdfdom may log an error and still return a robot (a number it cannot read)
 };
 
 // urdfdom logs through console_bridge's process-wide handler, so parses take turns.
@@ -158,6 +163,48 @@ void check_tree(const tinyxml2::XMLElement* robot, const std::string& file) {
   }
 }
 
+// A link's <inertial> must describe a body that can exist: a mass that is finite and not negative (urdfdom reads
+// "-40" as it is, and MuJoCo would take it), and an inertia tensor whose entries are finite and whose principal
+// moments are not negative and satisfy the triangle inequality (each at most the sum of the other two), as every
+// rigid body's do. The moments are compared with a tolerance of 1e-6 of their sum, for the rounding of CAD exports.
+void check_inertials(const urdf::ModelInterface& robot, const std::map<std::string, int>& links,
+                     const std::string& file) {
+  for (const auto& [name, link] : robot.links_) {
+    if (!link || !link->inertial) continue;
+    const urdf::Inertial& in = *link->inertial;
+    const SourceLocation at{file, line_in(links, name)};
+    if (!std::isfinite(in.mass) || in.mass < 0) {
+      throw InputError(at, fmt::format("link '{}': mass {} kg is not physical: a mass must be finite and not negative",
+                                       name, in.mass));
+    }
+    const double entries[] = {in.ixx, in.ixy, in.ixz, in.iyy, in.iyz, in.izz};
+    const auto tensor = [&] {
+      return fmt::format("ixx {} ixy {} ixz {} iyy {} iyz {} izz {}", in.ixx, in.ixy, in.ixz, in.iyy, in.iyz, in.izz);
+    };
+    for (const double e : entries) {
+      if (!std::isfinite(e)) {
+        throw InputError(at, fmt::format("link '{}': the inertia ({}) is not finite", name, tensor()));
+      }
+    }
+    Eigen::Matrix3d inertia;
+    inertia << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+    const Eigen::Vector3d m = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(inertia, Eigen::EigenvaluesOnly)
+                                  .eigenvalues();  // ascending
+    const double tolerance = 1e-6 * std::abs(m.sum()) + 1e-12;
+    if (m[0] < -tolerance) {
+      throw InputError(at, fmt::format("link '{}': the inertia ({}) is not physical: its principal moments {:.6g}, "
+                                       "{:.6g}, {:.6g} must not be negative",
+                                       name, tensor(), m[0], m[1], m[2]));
+    }
+    if (m[2] > m[0] + m[1] + tolerance) {
+      throw InputError(at, fmt::format("link '{}': the inertia ({}) is not physical: its principal moments {:.6g}, "
+                                       "{:.6g}, {:.6g} break the triangle inequality ({:.6g} is more than the sum of "
+                                       "the other two)",
+                                       name, tensor(), m[0], m[1], m[2], m[2]));
+    }
+  }
+}
+
 }  // namespace
 
 SourceLocation UrdfModel::link_at(const std::string& name) const {
@@ -173,12 +220,13 @@ SourceLocation UrdfModel::mesh_at(const std::string& filename) const {
 }
 
 UrdfModel load_urdf_file(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw InputError({file.string()}, "cannot open the URDF file (missing or unreadable)");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InputError({file.string()}, "cannot read the URDF file");
-  return parse_urdf(text.str(), file.string());
+  std::string text;
+  try {
+    text = read_file(file);
+  } catch (const InputError& e) {
+    throw InputError({file.string()}, fmt::format("cannot read the URDF file: {}", e.problem()));
+  }
+  return parse_urdf(text, file.string());
 }
 
 UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {
@@ -199,7 +247,7 @@ UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {
   check_tree(root, file_label);
 
   urdf::ModelInterfaceSharedPtr model;
-  std::vector<std::string> messages;
+  std::vector<std::string> messages, errors;
   {
     std::lock_guard lock(parse_mutex());
     CapturingHandler handler;
@@ -212,18 +260,28 @@ UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {
     }
     console_bridge::restorePreviousOutputHandler();
     messages = std::move(handler.messages);
+    errors = std::move(handler.errors);
+  }
+  // urdfdom drops an <inertial> whose numbers it cannot read ("mass [nan] is not a float"), logs an error and returns
+  // the robot without it: a robot that is not the file's, so it is refused as one it could not read.
+  if (model && !errors.empty()) {
+    model.reset();
+    messages = errors;
   }
   if (!model) {
     std::string problem = messages.empty() ? std::string("urdfdom rejected the file") : messages.back();
     int line = 0;
-    for (const std::string& m : messages) {
-      if ((line = line_of_message(m, out.link_lines_, out.joint_lines_)) != 0) {
-        problem = m;
+    for (std::size_t i = 0; i < messages.size(); ++i) {
+      if ((line = line_of_message(messages[i], out.link_lines_, out.joint_lines_)) != 0) {
+        // The message that names the element, after the one that says what is wrong in it, if that came first
+        // ("Inertial: mass [nan] is not a float", then "Could not parse inertial element for Link [l1]").
+        problem = i > 0 ? fmt::format("{}: {}", messages[i], messages[i - 1]) : messages[i];
         break;
       }
     }
     throw InputError({file_label, line}, fmt::format("invalid URDF: {}", problem));
   }
+  check_inertials(*model, out.link_lines_, file_label);
   out.robot_ = std::move(model);
   return out;
 }

@@ -258,8 +258,39 @@ TEST(CellErrors, MissingFile) {
     FAIL() << "accepted a missing file";
   } catch (const InputError& e) {
     EXPECT_EQ(e.where().file, "/nonexistent/cell.yaml");
-    EXPECT_THAT(e.what(), HasSubstr("file not found"));
+    EXPECT_EQ(e.problem(), "cannot read the cell description: no such file");
   }
+}
+
+// A folder given as the cell file, or as a robot's URDF, is called a folder, not a missing file.
+TEST(CellErrors, AFolderIsCalledAFolderNotAMissingFile) {
+  const std::string dir = std::filesystem::temp_directory_path().string();
+  try {
+    models::load_cell(dir);
+    FAIL() << "accepted a folder";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, dir);
+    EXPECT_EQ(e.problem(), "cannot read the cell description: is a directory, not a file");
+  }
+  const std::string text = with(base_yaml(), urdf("melfa_rve2.urdf"), dir);
+  expect_error(text, fmt::format("URDF file '{}' is a directory, not a file", dir), line_of(text, "urdf: " + dir));
+}
+
+// The cell's own name follows the rule of every other name: it becomes the MJCF model's name and goes on the report
+// page. Shown in the error cut to 64 characters, its bytes that are not printable ASCII escaped.
+TEST(CellErrors, TheCellsNameFollowsTheNameRule) {
+  const std::string long_name = with(base_yaml(), "name: test-cell", "name: " + std::string(100000, 'x'));
+  const InputError e = error_of(long_name);
+  EXPECT_THAT(e.problem(), HasSubstr("the cell's name 'xxxx"));
+  EXPECT_THAT(e.problem(), HasSubstr("... (100000 characters)' is not valid"));
+  EXPECT_LT(e.problem().size(), 300u);
+  EXPECT_EQ(e.where().line, 1);
+  const std::string markup = with(base_yaml(), "name: test-cell", "name: \"</mujoco><x a='1'>\"");
+  expect_error(markup, "the cell's name '</mujoco><x a='1'>' is not valid", line_of(markup, "</mujoco>"));
+  const std::string latin1 = with(base_yaml(), "name: test-cell", "name: caf\xe9");
+  const InputError bytes = error_of(latin1);
+  EXPECT_THAT(bytes.problem(), HasSubstr("the cell's name 'caf\\xe9' is not valid"));
+  EXPECT_EQ(parse(base_yaml()).name, "test-cell");
 }
 
 TEST(CellErrors, NotYaml) {

@@ -147,7 +147,65 @@ TEST(Urdf, ALoopWithoutARootIsRefusedAsALoop) {
 TEST(Urdf, MissingFileNamesIt) {
   const InputError e = input_error([] { (void)load_urdf_file("/nonexistent/arm.urdf"); });
   EXPECT_EQ(e.where().file, "/nonexistent/arm.urdf");
-  EXPECT_EQ(e.problem(), "cannot open the URDF file (missing or unreadable)");
+  EXPECT_EQ(e.problem(), "cannot read the URDF file: no such file");
+}
+
+// A folder given as the URDF is called a folder, not a missing file.
+TEST(Urdf, AFolderIsCalledAFolder) {
+  const std::string dir = std::filesystem::temp_directory_path().string();
+  const InputError e = input_error([&] { (void)load_urdf_file(dir); });
+  EXPECT_EQ(e.where().file, dir);
+  EXPECT_EQ(e.problem(), "cannot read the URDF file: is a directory, not a file");
+}
+
+// The toy robot with link l1 (line 8) given an <inertial>.
+std::string with_inertial(const std::string& mass, const std::string& inertia) {
+  std::string s = toy();
+  const std::string l1 = "<link name=\"l1\"/>";
+  s.replace(s.find(l1), l1.size(),
+            "<link name=\"l1\"><inertial><mass value=\"" + mass + "\"/><inertia " + inertia + "/></inertial></link>");
+  return s;
+}
+
+constexpr const char* kUnitInertia = R"(ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1")";
+
+TEST(Urdf, APhysicalInertialIsAccepted) {
+  EXPECT_NO_THROW((void)parse_urdf(with_inertial("2.5", kUnitInertia), "toy.urdf"));
+  // A massless link with no inertia (vendors' fixed links): nothing that cannot exist.
+  EXPECT_NO_THROW((void)parse_urdf(with_inertial("0", R"(ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0")"),
+                                   "toy.urdf"));
+  // A rod along z: two equal moments, the third near zero, within the triangle inequality.
+  EXPECT_NO_THROW((void)parse_urdf(with_inertial("1", R"(ixx="0.5" ixy="0" ixz="0" iyy="0.5" iyz="0" izz="0")"),
+                                   "toy.urdf"));
+}
+
+// urdfdom reads any number as a mass, and MuJoCo simulated a link of -40 kg: the URDF is refused at the link.
+TEST(Urdf, ANegativeOrNonFiniteMassIsRefusedAtTheLink) {
+  const InputError e = input_error([&] { (void)parse_urdf(with_inertial("-40", kUnitInertia), "toy.urdf"); });
+  EXPECT_EQ(e.where().str(), "toy.urdf:8");
+  EXPECT_EQ(e.problem(), "link 'l1': mass -40 kg is not physical: a mass must be finite and not negative");
+  // A number urdfdom cannot read: it logged an error, dropped the <inertial> and returned the link without it.
+  for (const std::string mass : {"nan", "inf", "heavy"}) {
+    const InputError n = input_error([&] { (void)parse_urdf(with_inertial(mass, kUnitInertia), "toy.urdf"); });
+    EXPECT_EQ(n.where().str(), "toy.urdf:8") << mass;
+    EXPECT_THAT(n.problem(), HasSubstr("invalid URDF: Could not parse inertial element for Link [l1]")) << mass;
+    EXPECT_THAT(n.problem(), HasSubstr("mass [" + mass + "] is not a float")) << mass;
+  }
+}
+
+TEST(Urdf, AnInertiaThatNoBodyHasIsRefusedAtTheLink) {
+  struct Case {
+    const char* inertia;
+    const char* why;
+  };
+  for (const Case& c : {Case{R"(ixx="-1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1")", "must not be negative"},
+                        Case{R"(ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="3")", "break the triangle inequality"},
+                        Case{R"(ixx="1" ixy="2" ixz="0" iyy="1" iyz="0" izz="1")", "must not be negative"}}) {
+    const InputError e = input_error([&] { (void)parse_urdf(with_inertial("1", c.inertia), "toy.urdf"); });
+    EXPECT_EQ(e.where().str(), "toy.urdf:8") << c.inertia;
+    EXPECT_THAT(e.problem(), HasSubstr("link 'l1': the inertia")) << c.inertia;
+    EXPECT_THAT(e.problem(), HasSubstr(c.why)) << c.inertia;
+  }
 }
 
 }  // namespace

@@ -67,6 +67,56 @@ TEST(Cli, OutputDirectoryIsCheckedBeforeAnythingRuns) {
 
 // Options that would be ignored are refused instead: the old --out beside -o/--output (which one was meant?), and a
 // run's outputs or pace with --dry, a bring-up that runs no program and writes nothing. Exit 2, nothing written.
+// A folder given where a file belongs is called a folder, with its path, by every reader a user reaches: the
+// scenario, the cell, a robot's URDF, the program, the recovery tree and a PNML net.
+TEST(Cli, AFolderGivenAsAFileIsCalledAFolderNotMissing) {
+  TwinCli cli("cw-cli-folder");
+  const fs::path folder = cli.dir() / "a-folder";
+  fs::create_directories(folder);
+  const std::string scenes = source_path("scenes");
+  // A scenario naming `field: a-folder`, the rest as scenes/single.yaml (paths absolute).
+  const auto scenario_with = [&](const std::string& field) {
+    std::string text = "cell: " + scenes + "/cell.yaml\nprogram: " + scenes + "/single.task\n" +
+                       "locations:\n  - {name: mill_side, at: mill.fixture, offset: [0.14, 0, -0.03]}\n" +
+                       "robots: {r1: puma}\nbind: {P: mill_side}\nexpect: {A: mill_side}\n";
+    const std::string line = field + ": " + folder.string() + "\n";
+    const auto at = text.find(field + ": ");
+    if (at != std::string::npos) {
+      text.replace(at, text.find('\n', at) + 1 - at, line);
+    } else {
+      text += line;
+    }
+    const fs::path file = cli.dir() / (field + ".yaml");
+    std::ofstream(file) << text;
+    return shell_quote(file.string());
+  };
+  std::string cell = slurp(source_path("scenes/cell.yaml"));
+  const std::string puma_urdf = "urdf: ../models/urdf/puma560.urdf";
+  ASSERT_NE(cell.find(puma_urdf), std::string::npos);
+  cell.replace(cell.find(puma_urdf), puma_urdf.size(), "urdf: " + folder.string());
+  std::ofstream(cli.dir() / "urdf-cell.yaml") << cell;
+
+  const std::string words = folder.string() + ": error: ";
+  struct Case {
+    std::string args, expected;
+  };
+  for (const Case& c : {Case{"run " + shell_quote(folder.string()), words + "cannot read the scenario: is a directory, not a file"},
+                        Case{"run " + scenario_with("cell"), words + "cannot read the cell description: is a directory, not a file"},
+                        Case{"run " + scenario_with("program"), words + "cannot read the program: is a directory, not a file"},
+                        Case{"run " + scenario_with("recovery"), words + "cannot read the decision tree file: is a directory, not a file"},
+                        Case{"snapshot " + shell_quote((cli.dir() / "urdf-cell.yaml").string()) + " -o x.png",
+                             "URDF file '" + folder.string() + "' is a directory, not a file"},
+                        Case{"snapshot " + shell_quote(folder.string()) + " -o x.png",
+                             words + "cannot read the cell description: is a directory, not a file"},
+                        Case{"check " + shell_quote(folder.string()), words + "cannot read the program: is a directory, not a file"},
+                        Case{"analyze " + shell_quote(folder.string()), words + "cannot read: is a directory, not a file"}}) {
+    const Outcome r = cli.run(c.args);
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.err;
+    EXPECT_THAT(r.err, HasSubstr(c.expected)) << c.args;
+    EXPECT_THAT(r.err, Not(HasSubstr("not found"))) << c.args;
+  }
+}
+
 TEST(Cli, OptionsThatWouldBeIgnoredAreRefused) {
   TwinCli cli("cw-cli");
   const std::string scenario = shell_quote(source_path("scenes/exchange.yaml"));

@@ -746,8 +746,8 @@ Scenario load_scenario(const std::filesystem::path& yaml_file) {
   std::string text;
   try {
     text = read_file(abs);
-  } catch (const InputError&) {
-    throw InputError({yaml_file.string(), 0, 0}, "cannot read the scenario: file not found or unreadable");
+  } catch (const InputError& e) {
+    throw InputError({yaml_file.string(), 0, 0}, fmt::format("cannot read the scenario: {}", e.problem()));
   }
   return parse_scenario(text, abs);
 }

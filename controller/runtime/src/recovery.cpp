@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "cellwright/common/files.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/models/yaml_fields.hpp"
 
@@ -194,11 +195,13 @@ DecisionTree DecisionTree::parse(std::string_view yaml_text, const std::string& 
 }
 
 DecisionTree DecisionTree::load(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw InputError({file.string(), 0, 0}, "cannot read the decision tree file");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parse(text.str(), file.string());
+  std::string text;
+  try {
+    text = read_file(file);
+  } catch (const InputError& e) {
+    throw InputError({file.string(), 0, 0}, fmt::format("cannot read the decision tree file: {}", e.problem()));
+  }
+  return parse(text, file.string());
 }
 
 std::string_view DecisionTree::standard_text() { return kStandard; }

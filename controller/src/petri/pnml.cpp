@@ -20,6 +20,7 @@
 #include <utility>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/common/files.hpp"
 #include "cellwright/common/xml.hpp"
 
 namespace cellwright::petri {
@@ -745,14 +746,13 @@ Net parse_pnml(std::string_view xml, const std::string& file, const PnmlReadOpti
 
 PnmlDocument read_pnml_document(const std::filesystem::path& path, const PnmlReadOptions& options) {
   const std::string file = path.string();
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw InputError({file, 0, 0}, "cannot read: it is a directory");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError({file, 0, 0}, fmt::format("cannot open: {}", os_error(errno)));
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InputError({file, 0, 0}, fmt::format("cannot read: {}", os_error(errno)));
-  return parse_pnml_document(text.str(), file, options);
+  std::string text;
+  try {
+    text = read_file(path);
+  } catch (const InputError& e) {
+    throw InputError({file, 0, 0}, fmt::format("cannot read: {}", e.problem()));
+  }
+  return parse_pnml_document(text, file, options);
 }
 
 Net read_pnml(const std::filesystem::path& path, const PnmlReadOptions& options) {

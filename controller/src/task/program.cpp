@@ -3,6 +3,7 @@
 // declared.
 #include "cellwright/task/program.hpp"
 
+#include "cellwright/common/files.hpp"
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -795,20 +796,13 @@ Program parse_program(std::string_view text, const std::string& file) {
 
 Program load_program(const std::filesystem::path& path) {
   const std::string name = path.string();
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) {
-    throw InputError({name, 0, 0}, "cannot read the program: no such file");
+  std::string text;
+  try {
+    text = read_file(path);
+  } catch (const InputError& e) {
+    throw InputError({name, 0, 0}, fmt::format("cannot read the program: {}", e.problem()));
   }
-  if (std::filesystem::is_directory(status)) {
-    throw InputError({name, 0, 0}, "cannot read the program: it is a directory");
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError({name, 0, 0}, "cannot read the program: the file cannot be opened");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InputError({name, 0, 0}, "cannot read the program: read error");
-  return parse_program(text.str(), name);
+  return parse_program(text, name);
 }
 
 }  // namespace cellwright::task

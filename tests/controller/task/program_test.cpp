@@ -526,7 +526,7 @@ TEST(LoadProgram, MissingFileAndDirectory) {
     load_program(std::filesystem::temp_directory_path());
     FAIL() << "no error";
   } catch (const InputError& e) {
-    EXPECT_EQ(e.problem(), "cannot read the program: it is a directory");
+    EXPECT_EQ(e.problem(), "cannot read the program: is a directory, not a file");
   }
 }
 

@@ -7,7 +7,14 @@
 
 namespace cellwright {
 
-// The whole file as bytes. Throws InputError naming the path when it is missing, a directory or unreadable.
+// Why `path` cannot be read as a file, in words for an error after its path: "is a directory, not a file", "no
+// such file"; empty when it is a file (or something else that opening it will judge). Every reader of a
+// user's file (cell, scenario, program, URDF, decision tree, PNML, suite) says this, so that a folder given where a
+// file is expected is never called missing.
+std::string not_a_file(const std::filesystem::path& path);
+
+// The whole file as bytes. Throws InputError({path}) with not_a_file's words when it is a directory or missing,
+// "cannot open: <reason>" or "read failed" otherwise.
 std::string read_file(const std::filesystem::path& path);
 
 // Writes `bytes` to a temporary file beside `path`, then renames it over `path`: readers see the old file or the

@@ -38,14 +38,17 @@ class UrdfModel {
   std::map<std::string, int> link_lines_, joint_lines_, mesh_lines_;
 };
 
-// Reads and parses a URDF file (see parse_urdf). Throws InputError({file}, "cannot open the URDF file (missing or
-// unreadable)") or ({file}, "cannot read the URDF file") if the file cannot be read.
+// Reads and parses a URDF file (see parse_urdf). Throws InputError({file}, "cannot read the URDF file: <why>") if it
+// cannot be read (read_file's words: "no such file", "is a directory, not a file", "cannot open: <reason>").
 UrdfModel load_urdf_file(const std::filesystem::path& file);
 
 // Parses URDF text; errors name `file_label` as the file. Throws InputError:
 //  - at the line tinyxml2 reports: "malformed XML: <what is broken>[ in <element>]" ("the file is empty" if so);
 //  - at the root element: "the root element is <name>, a URDF needs <robot>";
 //  - at the first link or joint urdfdom's message names (line 0 if none): "invalid URDF: <urdfdom's message>".
+//  - at the <link> whose <inertial> is not physical: "link '<name>': mass <m> kg is not physical: ...", or "the
+//    inertia (<the six values>) is not finite / is not physical: its principal moments ... must not be negative /
+//    break the triangle inequality ...". urdfdom takes any numbers, and MuJoCo would simulate a body of -40 kg.
 // urdfdom's log messages never reach stderr: they go into the error.
 UrdfModel parse_urdf(const std::string& xml, const std::string& file_label);
 

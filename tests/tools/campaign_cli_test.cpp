@@ -75,6 +75,9 @@ TEST(CampaignCli, TwoRunsOfTheExchangeWithADropEach) {
     EXPECT_TRUE(j.contains("faults"));
     EXPECT_TRUE(fs::exists(dir / "stdout.txt"));
     EXPECT_TRUE(fs::exists(dir / "events.jsonl"));
+    // Nobody opens a campaign run's picture: its child renders none (the page says so).
+    EXPECT_FALSE(fs::exists(dir / "final.png")) << run;
+    EXPECT_THAT(slurp(dir / "index.html"), HasSubstr("No final snapshot was made for this run."));
   }
   const std::string csv = slurp(out / "campaign.csv");
   EXPECT_THAT(csv, HasSubstr("\ndrop,2,"));

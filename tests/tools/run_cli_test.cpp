@@ -274,6 +274,45 @@ TEST(StepCli, QuitBeforeAnyStepLeavesNothingBehind) {
   EXPECT_THAT(left, ::testing::IsEmpty());
 }
 
+// `--final-png failed` (what `twin test` asks of its runs) renders final.png only for a run that fails: a passing run
+// writes its other outputs and a page that says no final snapshot was made; without -o the option is refused.
+TEST(RunCli, FinalPngOnlyWhenFailedLeavesAPassingRunWithoutThePicture) {
+  TwinCli cli("cw-run-final-png");
+  const fs::path out = cli.dir() / "out";
+  const Outcome r = cli.run("run " + shell_quote(source_path("scenes/exchange.yaml")) + " --quiet --final-png failed -o " +
+                            shell_quote(out.string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  for (const char* f : {"events.jsonl", "report.json", "gantt.png", "index.html"}) {
+    EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
+  }
+  EXPECT_FALSE(fs::exists(out / "final.png"));
+  EXPECT_THAT(slurp(out / "index.html"), HasSubstr("No final snapshot was made for this run."));
+  const Outcome alone = cli.run("run " + shell_quote(source_path("scenes/exchange.yaml")) + " --final-png never");
+  EXPECT_EQ(alone.status, 2) << alone.out << alone.err;
+  EXPECT_THAT(alone.err, HasSubstr("--final-png"));
+}
+
+// Ctrl-C at the prompt does what `q` does: the cell stopped safely and the outputs so far written (not an event log
+// left as events.jsonl.part and nothing else), with the status of an interrupted command. A real SIGINT to the process.
+TEST(StepCli, CtrlCAtThePromptWritesWhatQuitWrites) {
+  TwinCli cli("cw-step-sigint");
+  const fs::path out = cli.dir() / "out";
+  cellwright::testing::BackgroundTwin step({"step", source_path("scenes/exchange.yaml"), "-o", out.string()}, true);
+  ASSERT_TRUE(step.send("n\nn\n"));
+  // The second step's firing printed: it waits at the prompt, its input still open.
+  ASSERT_TRUE(step.wait_for("fired r1.t1", std::chrono::seconds(60))) << step.output();
+  EXPECT_EQ(step.stop(SIGINT), 130) << step.output();
+  EXPECT_THAT(step.output(), HasSubstr("interrupted by the user (signal): quit at t = 0.360 s"));
+  EXPECT_THAT(step.output(), HasSubstr("the cell was stopped: stopped by the user (signal)"));
+  for (const char* f : {"events.jsonl", "report.json", "gantt.png", "final.png", "index.html"}) {
+    EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
+  }
+  EXPECT_FALSE(fs::exists(out / "events.jsonl.part"));
+  const auto events = read_events(out / "events.jsonl");
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.back()["outcome"], "stopped");
+}
+
 // A real robot keeps its own time, so it cannot be stepped: refused with what to run instead.
 TEST(StepCli, RealDriversAreRefusedWithWhatToRunInstead) {
   TwinCli cli("cw-step-cli-real");

@@ -72,19 +72,27 @@ class TwinCli {
   std::filesystem::path dir_;
 };
 
-// `twin <args...>` started in the background (e.g. `twin emulate`), its standard output read through a pipe. The
+// `twin <args...>` started in the background (e.g. `twin emulate`), its standard output read through a pipe; with
+// `with_stdin`, its standard input a pipe that send() writes to (kept open until it ends), else the test's. The
 // destructor stops it (SIGTERM) and reaps it.
 class BackgroundTwin {
  public:
-  explicit BackgroundTwin(const std::vector<std::string>& args) {
+  explicit BackgroundTwin(const std::vector<std::string>& args, bool with_stdin = false) {
     int fds[2];
     if (::pipe(fds) != 0) return;
+    int in[2] = {-1, -1};
+    if (with_stdin && ::pipe(in) != 0) return;
     pid_ = ::fork();
     if (pid_ == 0) {
       ::dup2(fds[1], STDOUT_FILENO);
       ::dup2(fds[1], STDERR_FILENO);
       ::close(fds[0]);
       ::close(fds[1]);
+      if (with_stdin) {
+        ::dup2(in[0], STDIN_FILENO);
+        ::close(in[0]);
+        ::close(in[1]);
+      }
       std::vector<char*> argv;
       std::string exe = CW_TWIN_EXE;
       argv.push_back(exe.data());
@@ -96,10 +104,20 @@ class BackgroundTwin {
     }
     ::close(fds[1]);
     out_ = fds[0];
+    if (with_stdin) {
+      ::close(in[0]);
+      in_ = in[1];
+    }
   }
   ~BackgroundTwin() {
     stop();
     if (out_ >= 0) ::close(out_);
+    if (in_ >= 0) ::close(in_);
+  }
+
+  // Writes `text` to its standard input (with_stdin); false if it could not.
+  bool send(const std::string& text) {
+    return in_ >= 0 && ::write(in_, text.data(), text.size()) == static_cast<ssize_t>(text.size());
   }
   BackgroundTwin(const BackgroundTwin&) = delete;
   BackgroundTwin& operator=(const BackgroundTwin&) = delete;
@@ -119,10 +137,11 @@ class BackgroundTwin {
     }
     return true;
   }
-  // Sends SIGTERM, waits for the exit and reads the rest of the output; the exit status (-1 if killed by a signal).
-  int stop() {
+  // Sends `sig` (SIGTERM; SIGINT is Ctrl-C), waits for the exit and reads the rest of the output; the exit status (-1
+  // if killed by a signal).
+  int stop(int sig = SIGTERM) {
     if (pid_ <= 0) return status_;
-    ::kill(pid_, SIGTERM);
+    ::kill(pid_, sig);
     char buf[4096];
     ssize_t n;
     while (out_ >= 0 && (n = ::read(out_, buf, sizeof buf)) > 0) output_.append(buf, static_cast<std::size_t>(n));
@@ -137,6 +156,7 @@ class BackgroundTwin {
  private:
   pid_t pid_ = -1;
   int out_ = -1;
+  int in_ = -1;
   int status_ = -1;
   std::string output_;
 };

@@ -38,6 +38,7 @@ void record_failed_runs(const cell::CampaignOptions& options,
     for (const cell::DrawnFault& f : r.variant.faults) a.faults.push_back(f.spec);
     a.seed = r.variant.seed;
     a.video = (r.dir / "video.mp4").string();
+    a.output = r.dir.string();  // all of its outputs again, final.png (which its child did not make) and the page
     a.video_fps = video.fps;
     a.video_size = video.size;
     const auto start = std::chrono::steady_clock::now();

@@ -106,11 +106,17 @@ void add_run(CLI::App& app, Command* run) {
     bool realtime = false;
     bool quiet = false;
     bool dry = false;
+    std::string final_png = "always";
   };
   auto args = std::make_shared<Args>();
   add_run_options(*cmd, args->run);
   cmd->add_flag("--realtime", args->realtime, "pace the simulation to the wall clock instead of lock-step");
   cmd->add_flag("--quiet", args->quiet, "no progress line");
+  cmd->add_option("--final-png", args->final_png,
+                  "with -o: when to render final.png, the cell at the end: always (default), failed (only when the "
+                  "run fails: what `twin test` asks of its runs, whose passing outputs are removed) or never (what "
+                  "`twin campaign` asks of its runs); without it the page says no final snapshot was made")
+      ->check(CLI::IsMember({"always", "failed", "never"}));
   cmd->add_flag("--dry", args->dry,
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
                 "program; nothing else moves and nothing is written. Exit 0 when all is well, 1 when not");
@@ -118,13 +124,16 @@ void add_run(CLI::App& app, Command* run) {
     *run = [args, cmd] {
       using namespace cellwright::cell;
       // A bring-up runs no program: an option for a run's outputs or pace would be ignored, so it is refused.
-      for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime"}) {
+      for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime", "--final-png"}) {
         if (args->dry && cmd->count(name) > 0) {
           throw InputError({"--dry", 0, 0},
                            fmt::format("a bring-up runs no program and writes nothing: {} would be ignored", name));
         }
       }
       const RunArgs& a = args->run;
+      if (a.output.empty() && cmd->count("--final-png") > 0) {
+        throw InputError({"--final-png", 0, 0}, "it chooses what -o DIR gets, and without -o nothing is written");
+      }
       Scenario s = load_scenario_with(a);
       const Preflight pre = preflight(s, simulator());
       if (!pre.ok(a.allow_collisions)) {
@@ -201,7 +210,9 @@ void add_run(CLI::App& app, Command* run) {
 
       const Report report = sr.report();
       if (!a.output.empty()) {
-        sr.write_outputs(a.output, report, sr.snapshot(800, 600));
+        // The picture costs a renderer (its shaders compiled) and an encoding: made only when someone may look.
+        const bool picture = args->final_png == "always" || (args->final_png == "failed" && !report.ok());
+        sr.write_outputs(a.output, report, picture ? sr.snapshot(800, 600) : cv::Mat());
       }
       const std::filesystem::path video = sr.finish_video(report);
       std::printf("%s", format_summary(report).c_str());

@@ -1,11 +1,15 @@
 // `twin step <scenario.yaml>`: step the concurrent processes one firing at a time from the terminal, as the paper's
 // simulator does for debugging. Commands are read from standard input, one per line (a pipe works as well as a
 // terminal): Enter or `n` next firing, `c` continue to the end, `s FILE` save a snapshot PNG, `m` show the marking,
-// `q` quit (the cell is stopped safely; with -o the outputs so far are written), `h` help. It takes the options of
-// `twin run` but --realtime, --quiet and --dry (run_args.hpp). Exit status as `twin run` once the run has ended; 0
-// when quit before; 2 on bad input.
+// `q` quit (the cell is stopped safely; with -o the outputs so far are written), `h` help. Ctrl-C (SIGINT) or SIGTERM,
+// at the prompt or while a step or `c` runs, does what `q` does. It takes the options of `twin run` but --realtime,
+// --quiet and --dry (run_args.hpp). Exit status as `twin run` once the run has ended; 0 when quit before; 130 when
+// interrupted by a signal; 2 on bad input.
 #if CW_SIM
+#include <poll.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <cstdio>
 #include <filesystem>
@@ -26,6 +30,7 @@
 #include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
 #include "run_args.hpp"
+#include "until_signal.hpp"
 
 namespace cellwright::tools {
 
@@ -71,13 +76,43 @@ void print_state(const petri::Net& net, const runtime::StepState& st, bool with_
   std::fflush(stdout);
 }
 
+// Reads one command line from standard input (the file descriptor itself, not std::cin, so that a signal can end the
+// wait): true with the line, false at the end of the input or once `stop` (StopWatcher::wake_fd) is readable.
+// `pending` keeps what was read past the line.
+bool read_command(int stop, std::string& pending, std::string& line) {
+  for (;;) {
+    if (const auto end = pending.find('\n'); end != std::string::npos) {
+      line = pending.substr(0, end);
+      pending.erase(0, end + 1);
+      return true;
+    }
+    pollfd fds[2] = {{STDIN_FILENO, POLLIN, 0}, {stop, POLLIN, 0}};
+    if (::poll(fds, 2, -1) < 0) {
+      if (errno == EINTR) continue;
+      return false;
+    }
+    if (fds[1].revents != 0) return false;
+    char buf[4096];
+    const ssize_t n = ::read(STDIN_FILENO, buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {  // the end of the input: a last line without its newline still counts
+      if (pending.empty()) return false;
+      line = std::move(pending);
+      pending.clear();
+      return true;
+    }
+    pending.append(buf, static_cast<std::size_t>(n));
+  }
+}
+
 }  // namespace
 
 void add_step(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand("step",
                                  "Step a scenario one firing at a time, reading commands from standard input: Enter/n "
-                                 "next firing, c continue, s FILE snapshot, m marking, q quit. Exit 0 when the run "
-                                 "ended with every expected outcome holding or was quit; 1 if not; 2 on bad input.");
+                                 "next firing, c continue, s FILE snapshot, m marking, q quit (Ctrl-C does what q does). "
+                                 "Exit 0 when the run ended with every expected outcome holding or was quit; 1 if not; "
+                                 "130 when interrupted by Ctrl-C; 2 on bad input.");
   auto args = std::make_shared<RunArgs>();
   add_run_options(*cmd, *args);
   cmd->callback([run, args] {
@@ -114,7 +149,11 @@ void add_step(CLI::App& app, Command* run) {
           for (const std::filesystem::path& f : files) std::filesystem::remove(f, ec);
         }
       } unrun;
+      block_stop_signals();  // before any thread starts (a video's encoder): each inherits the mask
       ScenarioRun sr(s, pre.net, options);
+      // Ctrl-C or SIGTERM: a step or `c` under way stops at the next period (the cell stopped safely), and the prompt
+      // takes it as `q`.
+      const StopWatcher watcher([&sr] { sr.runtime().request_stop("stopped by the user (signal)"); });
       const petri::Net& net = sr.runtime().config().net;
       const bool interactive = isatty(STDIN_FILENO) == 1;
 
@@ -134,15 +173,15 @@ void add_step(CLI::App& app, Command* run) {
         std::printf("%s", format_summary(report).c_str());
         if (!out.empty()) std::printf("outputs in %s\n", out.c_str());
         if (!video.empty()) std::printf("video in %s\n", video.c_str());
-        return report.ok() ? 0 : 1;
+        return watcher.stopped() ? kInterrupted : report.ok() ? 0 : 1;
       };
-      std::string line;
+      std::string line, pending;
       for (;;) {
         if (interactive) {
           std::printf("(step) ");
           std::fflush(stdout);
         }
-        if (!std::getline(std::cin, line)) line = "q";  // end of input quits
+        if (watcher.stopped() || !read_command(watcher.wake_fd(), pending, line)) line = "q";  // end of input quits
         if (!line.empty() && line.back() == '\r') line.pop_back();
         const std::string word = line.substr(0, line.find(' '));
         const std::string rest = line.find(' ') == std::string::npos ? "" : line.substr(line.find(' ') + 1);
@@ -174,18 +213,19 @@ void add_step(CLI::App& app, Command* run) {
           }
           std::fflush(stdout);
         } else if (word == "q") {
+          if (watcher.stopped()) std::printf("interrupted by the user (signal): ");
           std::printf("quit at t = %.3f s\n", last ? std::chrono::duration<double>(last->time).count() : 0.0);
           if (!last) {  // nothing ran: nothing to write, and neither the log begun nor the video left behind
             for (const std::filesystem::path& f : {sr.events_file(), std::filesystem::path(args->video)}) {
               if (!f.empty()) unrun.files.push_back(f);
             }
-            return 0;
+            return watcher.stopped() ? kInterrupted : 0;
           }
           // The cell is stopped safely at the next period; what was logged so far is kept and written.
           sr.runtime().request_stop("quit by the user (twin step)");
           last = sr.runtime().step();
           (void)finish(*last);
-          return 0;
+          return watcher.stopped() ? kInterrupted : 0;
         } else if (word == "h" || word == "?") {
           std::printf("%s", kHelp);
         } else {

@@ -163,6 +163,7 @@ cell::Report run_for_video(const RunArgs& args) {
   ScenarioRun sr(s, pre.net, run_options_for(args, s));
   sr.runtime().run();
   const Report report = sr.report();
+  if (!args.output.empty()) sr.write_outputs(args.output, report, sr.snapshot(800, 600));
   sr.finish_video(report);
   return report;
 }

@@ -72,9 +72,10 @@ void add_video_flag(CLI::App& cmd, VideoFlag& video, const std::string& help);
 // before anything runs. InputError naming the option otherwise; nothing without --video.
 void check_video_flag(const VideoFlag& video);
 
-// Runs the scenario of `args` (with its faults and seed) lock-step, quietly, with no outputs but its video
-// (args.video must be set): `twin campaign --video` re-runs a failed run this way, which gives the run it had (the
-// same events, lock-step). Returns the report. InputError as `twin run`, or when preflight refuses the scenario.
+// Runs the scenario of `args` (with its faults and seed) lock-step, quietly, with its video (args.video must be set)
+// and, with args.output, the outputs of `twin run -o` (final.png included, the page showing the video): `twin
+// campaign --video` re-runs a failed run this way into its directory, whose child wrote no final.png, which gives the
+// run it had (the same events, lock-step). Returns the report. InputError as `twin run`, or when preflight refuses the scenario.
 cell::Report run_for_video(const RunArgs& args);
 #endif  // CW_SIM
 

@@ -5,6 +5,8 @@
 
 #include <fmt/format.h>
 
+#include <memory>
+
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -23,15 +25,17 @@ std::vector<unsigned char> encode_png(const cv::Mat& image) {
   png.height = static_cast<png_uint_32>(image.rows);
   png.format = PNG_FORMAT_BGR;
   const auto stride = static_cast<png_int_32>(image.step / image.elemSize1());
-  // First the size, then the bytes (libpng's simplified API).
-  png_alloc_size_t size = 0;
-  std::vector<unsigned char> out;
-  if (png_image_write_to_memory(&png, nullptr, &size, 0, image.data, stride, nullptr) != 0) {
-    out.resize(size);
-    if (png_image_write_to_memory(&png, out.data(), &size, 0, image.data, stride, nullptr) != 0) {
-      out.resize(size);
-      return out;
+  // One pass of the encoder into a buffer of libpng's bound on the stream's size (PNG_IMAGE_PNG_SIZE_MAX): asking
+  // for the size first would compress the image twice. Should the bound ever be short, libpng says how much it needs
+  // and the second pass has that.
+  png_alloc_size_t size = PNG_IMAGE_PNG_SIZE_MAX(png);
+  for (int pass = 0; pass < 2; ++pass) {
+    auto buffer = std::make_unique_for_overwrite<unsigned char[]>(size);
+    const png_alloc_size_t room = size;
+    if (png_image_write_to_memory(&png, buffer.get(), &size, 0, image.data, stride, nullptr) != 0) {
+      return std::vector<unsigned char>(buffer.get(), buffer.get() + size);
     }
+    if (size <= room) break;  // an error, not a short buffer
   }
   const std::string why = png.message;
   png_image_free(&png);

@@ -311,8 +311,10 @@ std::vector<RunRecord> run_campaign(const CampaignOptions& o,
       c.args.push_back("--fault");
       c.args.push_back(f.spec);
     }
+    // No final.png: nobody opens a campaign run's picture (`--video` re-runs a failed one with all of its outputs).
     for (const std::string& a : {std::string("--seed"), std::to_string(rec.variant.seed), std::string("--quiet"),
-                                 std::string("-o"), rec.dir.string()}) {
+                                 std::string("-o"), rec.dir.string(), std::string("--final-png"),
+                                 std::string("never")}) {
       c.args.push_back(a);
     }
     c.dir = rec.dir;

@@ -334,7 +334,10 @@ unsigned jobs_of(const SuiteOptions& options) {
 std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const SuiteOptions& options,
                                   const SuiteCallbacks& callbacks) {
   std::vector<ChildSpec> children;
-  for (const SuiteCase& c : cases) children.push_back(run_child(c, c.dir, options));
+  // final.png only for a failed scenario, whose outputs are kept, unless every scenario's outputs are kept.
+  const std::vector<std::string> final_png =
+      options.keep ? std::vector<std::string>{} : std::vector<std::string>{"--final-png", "failed"};
+  for (const SuiteCase& c : cases) children.push_back(run_child(c, c.dir, options, final_png));
   std::vector<CaseResult> results(cases.size());
   SuiteProgress progress;
   progress.total = cases.size();

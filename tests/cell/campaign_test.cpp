@@ -26,6 +26,7 @@
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/twin/faults.hpp"
+#include "cell/report_files.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -271,9 +272,13 @@ TEST(CampaignVariants, CameraFaultsComeAtAMomentWithinTheCycle) {
 
 // --- Adding up -------------------------------------------------------------------------------------------------------
 
-// A record of a run that drew `specs` (kind:...) and whose report has these faults.
+using test_reports::fault_report;
+using test_reports::part_report;
+using test_reports::run_report;
+
+// A record of a run that drew `specs` (kind:...) and whose report is `report`.
 RunRecord record(std::size_t index, const std::vector<std::string>& specs, RunStatus status,
-                 std::optional<nlohmann::json> report) {
+                 std::optional<Report> report) {
   RunRecord r;
   r.variant.index = index;
   r.variant.seed = 100 + index;
@@ -286,39 +291,33 @@ RunRecord record(std::size_t index, const std::vector<std::string>& specs, RunSt
   return r;
 }
 
-nlohmann::json fault(const std::string& kind, bool detected, bool recovered, std::optional<double> recovery,
-                     bool stopped = false) {
-  return {{"kind", kind},
-          {"t", 1.0},
-          {"detected", detected},
-          {"recovered", recovered},
-          {"recovery_time", recovery ? nlohmann::json(*recovery) : nlohmann::json()},
-          {"stopped_safely", stopped}};
+// A finished run's report with these faults, `failures` (none: ok) and parts.
+Report report_of(std::vector<FaultReport> faults, std::vector<std::string> failures = {},
+                 std::vector<WorkpieceReport> parts = {}) {
+  Report r = run_report(std::move(failures));
+  r.faults = std::move(faults);
+  r.workpieces = std::move(parts);
+  return r;
 }
 
 std::vector<RunRecord> fabricated_runs() {
-  using nlohmann::json;
   std::vector<RunRecord> runs;
-  // Two drops recovered in 2 s and 4 s; a drop that lost the part unaccounted; a timeout stopped safely with a
-  // false alarm before it; a run with a drop and a timeout, both recovered; a crash and a hang of timeouts.
-  runs.push_back(record(0, {"drop:robot=puma"}, RunStatus::kDone,
-                        json{{"result", "ok"}, {"unaccounted", 0}, {"false_alarms", 0},
-                             {"faults", json::array({fault("drop", true, true, 2.0)})}}));
-  runs.push_back(record(1, {"drop:robot=melfa"}, RunStatus::kDone,
-                        json{{"result", "ok"}, {"unaccounted", 0}, {"false_alarms", 0},
-                             {"account", json::array({json{{"workpiece", "A"}, {"lost", json{{"t", 3.0}}}},
-                                                      json{{"workpiece", "B"}, {"lost", json()}}})},
-                             {"faults", json::array({fault("drop", true, true, 4.0)})}}));
+  // Two drops recovered in 2 s and 4 s (the second's part declared lost); a drop that lost the part unaccounted; a
+  // timeout stopped safely with a false alarm before it; a run with a drop and a timeout, both recovered; a crash and
+  // a hang of timeouts.
+  runs.push_back(record(0, {"drop:robot=puma"}, RunStatus::kDone, report_of({fault_report("drop", true, 2.0)})));
+  runs.push_back(
+      record(1, {"drop:robot=melfa"}, RunStatus::kDone,
+             report_of({fault_report("drop", true, 4.0)}, {}, {part_report("A", true), part_report("B", false)})));
   runs.push_back(record(2, {"drop:robot=puma"}, RunStatus::kDone,
-                        json{{"result", "failed"}, {"unaccounted", 1}, {"false_alarms", 0},
-                             {"faults", json::array({fault("drop", false, false, std::nullopt)})}}));
-  runs.push_back(record(3, {"timeout:robot=puma"}, RunStatus::kDone,
-                        json{{"result", "failed"}, {"unaccounted", 0}, {"false_alarms", 1},
-                             {"faults", json::array({fault("timeout", true, false, std::nullopt, true)})}}));
+                        report_of({fault_report("drop", false, std::nullopt)}, {"workpiece A is elsewhere"},
+                                  {part_report("A", false, true)})));
+  Report stopped = report_of({fault_report("timeout", true, std::nullopt, true)}, {"the cell was stopped"});
+  stopped.outcome = "stopped";
+  stopped.false_alarms.push_back(Detection{0.5, "r1", 2, "controller_not_answering", ""});
+  runs.push_back(record(3, {"timeout:robot=puma"}, RunStatus::kDone, stopped));
   runs.push_back(record(4, {"drop:robot=puma", "timeout:robot=melfa"}, RunStatus::kDone,
-                        json{{"result", "ok"}, {"unaccounted", 0}, {"false_alarms", 0},
-                             {"faults", json::array({fault("drop", true, true, 3.0),
-                                                     fault("timeout", true, true, 1.0)})}}));
+                        report_of({fault_report("drop", true, 3.0), fault_report("timeout", true, 1.0)})));
   runs.push_back(record(5, {"timeout:robot=puma"}, RunStatus::kCrash, std::nullopt));
   runs.push_back(record(6, {"timeout:robot=melfa"}, RunStatus::kHang, std::nullopt));
   return runs;
@@ -362,10 +361,7 @@ TEST(CampaignAggregate, CountsPerKindAndInAll) {
 TEST(CampaignAggregate, AFaultOfAKindNotAskedForGetsItsOwnRow) {
   std::vector<RunRecord> runs;
   runs.push_back(record(0, {"drop:robot=puma"}, RunStatus::kDone,
-                        nlohmann::json{{"result", "ok"},
-                                       {"faults", nlohmann::json::array({fault("drop", true, true, 1.0),
-                                                                         fault("obstacle", false, false,
-                                                                               std::nullopt)})}}));
+                        report_of({fault_report("drop", true, 1.0), fault_report("obstacle", false, std::nullopt)})));
   const CampaignSummary s = aggregate(runs, {"drop"}, "x.yaml", 1);
   ASSERT_EQ(s.kinds.size(), 2u);
   EXPECT_EQ(s.kinds[1].kind, "obstacle");
@@ -374,23 +370,80 @@ TEST(CampaignAggregate, AFaultOfAKindNotAskedForGetsItsOwnRow) {
   EXPECT_FALSE(s.kinds[1].mean_recovery_time);
 }
 
+// A run that ends at its time limit is a stall: a failure, and a fault of it is not recovered, even when its recovery
+// ended well before the run sat idle until the limit (a relay whose part was set aside upstream).
+TEST(CampaignAggregate, AStalledRunIsAFailureAndItsFaultIsNotRecovered) {
+  const std::string limit = "the simulation time limit of 150 s was reached before the program finished";
+  auto stalled_run = [&](std::vector<FaultReport> faults) {
+    Report r = report_of(std::move(faults), {"run outcome timeout: " + limit});
+    r.outcome = "timeout";
+    r.reason = limit;
+    r.end_time = 150;
+    return r;
+  };
+  std::vector<RunRecord> runs;
+  runs.push_back(record(0, {"drop:robot=r1"}, RunStatus::kDone, report_of({fault_report("drop", true, 2.0)})));
+  runs.push_back(record(1, {"drop:robot=r2"}, RunStatus::kDone, stalled_run({fault_report("drop", true, 3.0)})));
+  runs.push_back(record(2, {"drop:robot=r1", "timeout:robot=r3"}, RunStatus::kDone,
+                        stalled_run({fault_report("drop", false, std::nullopt), fault_report("timeout", true, 1.0)})));
+  EXPECT_FALSE(stalled(*runs[0].report));
+  EXPECT_TRUE(stalled(*runs[1].report));
+
+  const CampaignSummary s = aggregate(runs, {"drop", "timeout"}, "relay.yaml", 1);
+  const KindSummary& drop = s.kinds[0];
+  EXPECT_EQ(drop.runs, 3u);
+  EXPECT_EQ(drop.injected, 3u);
+  EXPECT_EQ(drop.detected, 2u);
+  EXPECT_EQ(drop.recovered, 1u);  // run 0's; run 1's recovery was followed by a stall
+  EXPECT_EQ(drop.stalls, 2u);
+  EXPECT_EQ(drop.ok_runs, 1u);
+  ASSERT_TRUE(drop.mean_recovery_time);
+  EXPECT_DOUBLE_EQ(*drop.mean_recovery_time, 2.0);  // the stalled run's 3 s left out
+  const KindSummary& timeout = s.kinds[1];
+  EXPECT_EQ(timeout.detected, 1u);
+  EXPECT_EQ(timeout.recovered, 0u);
+  EXPECT_EQ(timeout.stalls, 1u);
+  EXPECT_FALSE(timeout.mean_recovery_time);
+  EXPECT_EQ(s.total.stalls, 2u);
+  EXPECT_EQ(s.total.recovered, 1u);
+
+  EXPECT_THAT(format_csv(s), HasSubstr("\ndrop,3,3,2,1,0,0,0,0,0,0,2,1,2.0000\n"));
+  EXPECT_THAT(format_csv(s), HasSubstr("\nall,3,4,3,1,0,0,0,0,0,0,2,1,2.0000\n"));
+  const std::string md = format_markdown(s, runs);
+  EXPECT_THAT(md, HasSubstr("1 of 3 runs ok; 4 faults injected, 3 detected, 1 recovered, 0 stopped safely; 2 runs "
+                            "stalled."));
+  EXPECT_THAT(md, HasSubstr("| timeout | 1 | 1 | 1 | 0 | 0 | 0 | 0 | 0 | 0 | 0 | 1 | - |"));
+  EXPECT_THAT(md, HasSubstr("\nRuns that stalled:\n\n- run 0001 (seed 101, drop:robot=r2): timeout at 150.00 s: " +
+                            limit + "; recovered before the stall, not counted: drop at 4.00 s\n"));
+  EXPECT_THAT(md, HasSubstr("- run 0002 (seed 102, drop:robot=r1 + timeout:robot=r3): timeout at 150.00 s: " + limit +
+                            "; recovered before the stall, not counted: timeout at 2.00 s\n"));
+  // The chart has a bar of stalled runs (black) in each kind's group.
+  const cv::Mat img = draw_campaign(s, 1200, 600);
+  int black = 0;
+  for (int y = 80; y < 465; ++y) {
+    for (int x = 82; x < 1165; ++x) black += img.at<cv::Vec3b>(y, x) == cv::Vec3b(0, 0, 0) ? 1 : 0;
+  }
+  EXPECT_GT(black, 1000);
+}
+
 TEST(CampaignAggregate, CsvMarkdownAndChart) {
   const std::vector<RunRecord> runs = fabricated_runs();
   const CampaignSummary s = aggregate(runs, {"drop", "timeout"}, "exchange.yaml", 1);
   const std::string csv = format_csv(s);
   EXPECT_THAT(csv, HasSubstr("kind,runs,injected,detected,recovered,stopped_safely,lost,unaccounted,false_alarms,"
-                             "crashes,hangs,ok_runs,mean_recovery_time_s\n"));
-  EXPECT_THAT(csv, HasSubstr("\ndrop,4,4,3,3,0,1,1,0,0,0,3,3.0000\n"));
-  EXPECT_THAT(csv, HasSubstr("\ntimeout,4,2,2,1,1,0,0,1,1,1,1,1.0000\n"));
-  EXPECT_THAT(csv, HasSubstr("\nall,7,6,5,4,1,1,1,1,1,1,3,2.5000\n"));
+                             "crashes,hangs,stalls,ok_runs,mean_recovery_time_s\n"));
+  EXPECT_THAT(csv, HasSubstr("\ndrop,4,4,3,3,0,1,1,0,0,0,0,3,3.0000\n"));
+  EXPECT_THAT(csv, HasSubstr("\ntimeout,4,2,2,1,1,0,0,1,1,1,0,1,1.0000\n"));
+  EXPECT_THAT(csv, HasSubstr("\nall,7,6,5,4,1,1,1,1,1,1,0,3,2.5000\n"));
   const std::string md = format_markdown(s, runs);
   EXPECT_THAT(md, HasSubstr("# Fault campaign: exchange.yaml, 7 runs, seed 1"));
-  EXPECT_THAT(md, HasSubstr("| drop | 4 | 4 | 3 | 3 | 0 | 1 | 1 | 0 | 0 | 0 | 3.00 |"));
-  EXPECT_THAT(md, HasSubstr("| **all** | 7 | 6 | 5 | 4 | 1 | 1 | 1 | 1 | 1 | 1 | 2.50 |"));
+  EXPECT_THAT(md, HasSubstr("| drop | 4 | 4 | 3 | 3 | 0 | 1 | 1 | 0 | 0 | 0 | 0 | 3.00 |"));
+  EXPECT_THAT(md, HasSubstr("| **all** | 7 | 6 | 5 | 4 | 1 | 1 | 1 | 1 | 1 | 1 | 0 | 2.50 |"));
   EXPECT_THAT(md, HasSubstr("- run 0005 (seed 105, timeout:robot=puma): crash: killed by signal 11"));
   EXPECT_THAT(md, HasSubstr("- run 0006 (seed 106, timeout:robot=melfa): hang:"));
   const std::string runs_csv = format_runs_csv(runs);
-  EXPECT_THAT(runs_csv, HasSubstr("4,104,done,0,,ok,0,drop:robot=puma + timeout:robot=melfa,\n"));
+  EXPECT_THAT(runs_csv, HasSubstr("4,104,done,0,finished,ok,0,drop:robot=puma + timeout:robot=melfa,\n"));
+  EXPECT_THAT(runs_csv, HasSubstr("2,102,done,0,finished,failed,1,drop:robot=puma,\n"));
   EXPECT_THAT(runs_csv, HasSubstr("5,105,crash,-1,,,,timeout:robot=puma,killed by signal 11"));
 
   const cv::Mat img = draw_campaign(s, 1200, 600);
@@ -425,7 +478,9 @@ TEST(CampaignProgressBar, ShowsTheShareDone) {
   p.done = 5;
   p.running = 2;
   p.crashes = 1;
-  EXPECT_EQ(format_progress(p, 10), "[#####.....] 5/10 runs, 2 running, 1 crash, 0 hangs");
+  EXPECT_EQ(format_progress(p, 10), "[#####.....] 5/10 runs, 2 running, 1 crash, 0 hangs, 0 stalls");
+  p.stalls = 3;
+  EXPECT_EQ(format_progress(p, 10), "[#####.....] 5/10 runs, 2 running, 1 crash, 0 hangs, 3 stalls");
 }
 
 // --- Running -----------------------------------------------------------------------------------------------------
@@ -437,6 +492,13 @@ fs::path fake_twin(const fs::path& dir, const std::string& body) {
   std::ofstream(p) << "#!/bin/sh\nfor a; do out=\"$a\"; done\necho \"$@\" > \"$out/args.txt\"\n" << body << "\n";
   fs::permissions(p, fs::perms::owner_all);
   return p;
+}
+
+// A line of the stand-in (fake_twin in `dir`) that writes a whole report.json of a finished run into its directory,
+// copied from beside it.
+std::string copy_report(const fs::path& dir) {
+  test_reports::write_report(dir / "report.full", run_report());
+  return "cp \"$(dirname \"$0\")/report.full\" \"$out/report.json\"";
 }
 
 CampaignOptions fake_options(const fs::path& dir, const fs::path& exe, std::size_t runs) {
@@ -455,14 +517,11 @@ CampaignOptions fake_options(const fs::path& dir, const fs::path& exe, std::size
 
 TEST(CampaignRun, ChildrenGetTheirFaultsSeedAndDirectory) {
   Scratch scratch("run");
-  const fs::path exe = fake_twin(scratch.dir(),
-                                 "echo running\necho 'some warning' >&2\n"
-                                 "printf '{\"result\":\"ok\",\"unaccounted\":0,\"faults\":[]}' > \"$out/report.json\"\n"
-                                 "exit 0");
+  const fs::path exe =
+      fake_twin(scratch.dir(), "echo running\necho 'some warning' >&2\n" + copy_report(scratch.dir()) + "\nexit 0");
   const CampaignOptions o = fake_options(scratch.dir(), exe, 5);
   std::vector<CampaignProgress> progress;
-  const std::vector<RunRecord> runs =
-      run_campaign(o, [&](const CampaignProgress& p) { progress.push_back(p); });
+  const std::vector<RunRecord> runs = run_campaign(o, [&](const CampaignProgress& p) { progress.push_back(p); });
   ASSERT_EQ(runs.size(), 5u);
   for (std::size_t i = 0; i < runs.size(); ++i) {
     const RunRecord& r = runs[i];
@@ -471,7 +530,7 @@ TEST(CampaignRun, ChildrenGetTheirFaultsSeedAndDirectory) {
     EXPECT_EQ(r.exit_code, 0);
     EXPECT_EQ(r.dir, o.out / "runs" / fmt::format("{:04}", i));
     ASSERT_TRUE(r.report);
-    EXPECT_EQ((*r.report)["result"], "ok");
+    EXPECT_TRUE(r.report->ok());
     const Variant v = draw_variant(o.targets, o.kinds, o.seed, i);
     std::string expected = "run " + o.scenario.string();
     for (const DrawnFault& f : v.faults) expected += " --fault " + f.spec;
@@ -521,11 +580,12 @@ TEST(CampaignRun, ACrashAHangAndAMissingReportAreRecorded) {
 
 TEST(CampaignRun, ACampaignOfOneJobRunsOneAtATimeAndTheSameVariants) {
   Scratch scratch("serial");
-  const fs::path exe = fake_twin(scratch.dir(), "printf '{\"result\":\"ok\"}' > \"$out/report.json\"");
+  const fs::path exe = fake_twin(scratch.dir(), copy_report(scratch.dir()));
   CampaignOptions o = fake_options(scratch.dir(), exe, 3);
   o.jobs = 1;
   std::size_t most = 0;
-  const std::vector<RunRecord> one = run_campaign(o, [&](const CampaignProgress& p) { most = std::max(most, p.running); });
+  const std::vector<RunRecord> one =
+      run_campaign(o, [&](const CampaignProgress& p) { most = std::max(most, p.running); });
   EXPECT_EQ(most, 1u);
   o.runs = 6;
   o.jobs = 3;

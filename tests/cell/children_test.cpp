@@ -19,6 +19,8 @@
 #include <vector>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/cell/sim/run.hpp"
+#include "cell/report_files.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -46,14 +48,22 @@ std::string slurp(const fs::path& p) {
   return s.str();
 }
 
-// A shell script taking (DIR, WHAT): does WHAT after listing DIR's files into DIR/seen.txt.
+// A shell script taking (DIR, WHAT): does WHAT after listing DIR's files into DIR/seen.txt. `report` copies a whole
+// report.json (report.full, made here), `partial` one without its faults' "detected" (report.partial).
 fs::path script(const fs::path& dir) {
+  test_reports::write_report(dir / "report.full", test_reports::run_report({"A is elsewhere"}));
+  Report faulted = test_reports::run_report();
+  faulted.faults.push_back(test_reports::fault_report("drop", true, 2.0));
+  nlohmann::json partial = to_json(Scenario{}, faulted);
+  partial["faults"][0].erase("detected");
+  std::ofstream(dir / "report.partial") << partial.dump();
   const fs::path p = dir / "child.sh";
   std::ofstream(p) << "#!/bin/sh\n"
                       "ls \"$1\" > \"$1/seen.txt\"\n"
                       "echo \"out $2\"\necho \"  \" >&2\necho \"err $2\" >&2\n"
                       "case \"$2\" in\n"
-                      "report) printf '{\"result\":\"ok\"}' > \"$1/report.json\"; exit 1;;\n"
+                      "report) cp \"$1/../report.full\" \"$1/report.json\"; exit 1;;\n"
+                      "partial) cp \"$1/../report.partial\" \"$1/report.json\"; exit 0;;\n"
                       "list) printf '[1]' > \"$1/report.json\";;\n"
                       "segv) kill -SEGV $$;;\n"
                       "sleep) exec sleep 30;;\n"
@@ -66,7 +76,7 @@ TEST(Children, EachEndIsToldApartAndTheCallbacksFollowThem) {
   Scratch scratch("ends");
   const fs::path exe = script(scratch.dir());
   std::vector<ChildSpec> specs;
-  for (const char* what : {"report", "list", "segv", "sleep", "nothing"}) {
+  for (const char* what : {"report", "list", "segv", "sleep", "nothing", "partial"}) {
     ChildSpec c;
     c.dir = scratch.dir() / what;
     c.args = {c.dir.string(), what};
@@ -89,22 +99,25 @@ TEST(Children, EachEndIsToldApartAndTheCallbacksFollowThem) {
     --running;
   };
   const std::vector<ChildEnd> ends = run_children(exe, specs, 2, cb);
-  ASSERT_EQ(ends.size(), 5u);
+  ASSERT_EQ(ends.size(), 6u);
   EXPECT_EQ(most, 2u);
-  EXPECT_EQ(events.size(), 10u);
+  EXPECT_EQ(events.size(), 12u);
   EXPECT_EQ(events.front(), "start 0");
 
   EXPECT_EQ(slurp(specs[0].dir / "seen.txt"), "seen.txt\nstderr.txt\nstdout.txt\n");  // old.txt is gone
   EXPECT_EQ(slurp(specs[0].dir / kChildStdout), "out report\n");
-  // Done whatever the exit status, when the report parses.
+  // Done whatever the exit status, when the report reads back.
   EXPECT_EQ(ends[0].status, RunStatus::kDone);
   EXPECT_EQ(ends[0].exit_code, 1);
   ASSERT_TRUE(ends[0].report);
-  EXPECT_EQ((*ends[0].report)["result"], "ok");
+  EXPECT_EQ(ends[0].report->failures, std::vector<std::string>{"A is elsewhere"});
   EXPECT_EQ(ends[0].first_error, "err report");  // the blank line before it says nothing
 
   EXPECT_EQ(ends[1].status, RunStatus::kCrash);  // a report that is not an object
-  EXPECT_EQ(ends[1].problem, "exit 0 without a readable report.json: err list");
+  EXPECT_EQ(ends[1].problem, fmt::format("exit 0 with an unreadable report.json: {}: error: \"the report\" must be a "
+                                         "JSON object, not [1]",
+                                         (specs[1].dir / kReportFile).string()));
+  EXPECT_FALSE(ends[1].report);
 
   EXPECT_EQ(ends[2].status, RunStatus::kCrash);
   EXPECT_EQ(ends[2].signal, SIGSEGV);
@@ -116,6 +129,13 @@ TEST(Children, EachEndIsToldApartAndTheCallbacksFollowThem) {
 
   EXPECT_EQ(ends[4].status, RunStatus::kCrash);
   EXPECT_EQ(ends[4].problem, "exit 0 without report.json: err nothing");
+
+  // A report.json without a field is no result: a crash naming the file and the field, not a run done.
+  EXPECT_EQ(ends[5].status, RunStatus::kCrash);
+  EXPECT_EQ(ends[5].problem, fmt::format("exit 0 with an unreadable report.json: {}: error: \"faults[0].detected\" is "
+                                         "missing",
+                                         (specs[5].dir / kReportFile).string()));
+  EXPECT_FALSE(ends[5].report);
 }
 
 TEST(Children, AnExecutableThatCannotStartIsAnInputError) {

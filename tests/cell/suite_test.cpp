@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "cellwright/common/error.hpp"
+#include "cell/report_files.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -29,6 +30,7 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 const fs::path kScenes = fs::path(CW_SOURCE_DIR) / "scenes";
 
@@ -157,9 +159,6 @@ TEST(SuiteDiscovery, BadInputIsRefusedNamingTheFile) {
   fs::create_directories(d / "none");
   write(d / "none" / "tree.yaml", "grip_lost: {cause: dropped, action: set_aside}\n");
   EXPECT_THAT(input_error([&] { discover({d / "none"}); }), HasSubstr("none: error: no scenario found"));
-  // A YAML file in a folder that does not parse: named with the line of the error.
-  write(d / "broken" / "b.yaml", "cell: x\nprogram: [y\n");
-  EXPECT_THAT(input_error([&] { discover({d / "broken"}); }), HasSubstr("b.yaml:3:1: error: not valid YAML"));
   if (::geteuid() != 0) {  // root reads any folder
     fs::create_directories(d / "locked");
     fs::permissions(d / "locked", fs::perms::none);
@@ -168,13 +167,37 @@ TEST(SuiteDiscovery, BadInputIsRefusedNamingTheFile) {
   }
 }
 
+// A YAML file that does not parse, in a folder or named, is a case of its own that will be an ERROR (it is not run),
+// with the parse error's line; the other scenarios are still found. Only a folder with nothing to run is refused.
+TEST(SuiteDiscovery, AYamlFileThatDoesNotParseIsACaseOfItsOwn) {
+  Scratch scratch("broken");
+  const fs::path d = scratch.dir();
+  write(d / "a.yaml", "cell: x\nprogram: y\n");
+  write(d / "b.yaml", "cell: x\nprogram: [y\n");
+  write(d / "c.yaml", "cell: x\nprogram: y\n");
+  const Discovery found = discover({d});
+  EXPECT_THAT(names(found.scenarios), ElementsAre("a.yaml", "b.yaml", "c.yaml"));
+  EXPECT_EQ(found.scenarios[0].error, "");
+  EXPECT_THAT(found.scenarios[1].error, ::testing::StartsWith((d / "b.yaml").string() + ":3:1: error: not valid YAML"));
+  EXPECT_EQ(found.scenarios[2].error, "");
+  const Discovery named = discover({d / "b.yaml"});
+  ASSERT_EQ(named.scenarios.size(), 1u);
+  EXPECT_THAT(named.scenarios[0].error, HasSubstr("b.yaml:3:1: error: not valid YAML"));
+  // Its case carries the error and reserves its name; it writes nothing, so its output folder is not checked.
+  write(d / "out" / "b" / "precious.txt", "keep me");
+  const std::vector<SuiteCase> cases = plan_suite(found, d / "out", std::nullopt);
+  ASSERT_EQ(cases.size(), 3u);
+  EXPECT_EQ(cases[1].name, "b");
+  EXPECT_EQ(cases[1].error, found.scenarios[1].error);
+}
+
 // --- Planning --------------------------------------------------------------------------------------------------------
 
 TEST(SuitePlan, NamesAreUniqueAndTimeLimitsFollowTheScenarios) {
   Scratch scratch("plan");
   const fs::path out = scratch.dir() / "out";
   Discovery found;
-  found.scenarios = {{"a/x.yaml", 0}, {"b/x.yaml", 100}, {"b/y.yaml", 0}};
+  found.scenarios = {{"a/x.yaml", 0, ""}, {"b/x.yaml", 100, ""}, {"b/y.yaml", 0, ""}};
   const std::vector<SuiteCase> cases = plan_suite(found, out, std::nullopt);
   ASSERT_EQ(cases.size(), 3u);
   EXPECT_EQ(cases[0].name, "x");
@@ -209,31 +232,34 @@ TEST(SuitePlan, TheJunitFileMustBeWritable) {
 // --- Running ---------------------------------------------------------------------------------------------------------
 
 // A stand-in for `twin` (`run SCENARIO -o DIR --quiet [--seed S]`): a shell script that records its arguments and
-// does what the scenario's name says.
+// does what the scenario's name says; "pass" and "fail" copy their report.json from beside it (made here).
 fs::path fake_twin(const fs::path& dir) {
+  test_reports::write_report(dir / "pass.json", test_reports::run_report({}, "finished", 12.5, 2));
+  test_reports::write_report(
+      dir / "fail.json",
+      test_reports::run_report(
+          {"workpiece A: expected on output, is on input <stop> & \"late\"", "run outcome timeout"}, "timeout", 20));
   const fs::path p = dir / "fake-twin.sh";
-  write(
-      p,
-      "#!/bin/sh\n"
-      "out=\"$4\"\n"
-      "echo \"$@\" > \"$out/args.txt\"\n"
-      "case \"$(basename \"$2\" .yaml)\" in\n"
-      "pass)\n"
-      "  printf '{\"result\":\"ok\",\"end_time\":12.5,\"flow\":{\"placed\":2},\"failures\":[]}' > "
-      "\"$out/report.json\"\n"
-      "  echo 'result: ok, 2 parts placed'\n"
-      "  exit 0;;\n"
-      "fail)\n"
-      "  printf '{\"result\":\"failed\",\"end_time\":20,\"flow\":{\"placed\":0},\"failures\":[\"workpiece A: "
-      "expected on output, is on input <stop> & \\\\\"late\\\\\"\",\"run outcome timeout\"]}' > \"$out/report.json\"\n"
-      "  printf 'result: FAILED\\a\\033[0m \\377 end\\n'\n"
-      "  exit 1;;\n"
-      "refused)\n"
-      "  echo \"$2:3:1: error: unknown field 'robts'\" >&2\n"
-      "  exit 2;;\n"
-      "crash) kill -SEGV $$;;\n"
-      "hang) exec sleep 30;;\n"
-      "esac\n");
+  write(p,
+        "#!/bin/sh\n"
+        "reports=$(dirname \"$0\")\n"
+        "out=\"$4\"\n"
+        "echo \"$@\" > \"$out/args.txt\"\n"
+        "case \"$(basename \"$2\" .yaml)\" in\n"
+        "pass)\n"
+        "  cp \"$reports/pass.json\" \"$out/report.json\"\n"
+        "  echo 'result: ok, 2 parts placed'\n"
+        "  exit 0;;\n"
+        "fail)\n"
+        "  cp \"$reports/fail.json\" \"$out/report.json\"\n"
+        "  printf 'result: FAILED\\a\\033[0m \\377 end\\n'\n"
+        "  exit 1;;\n"
+        "refused)\n"
+        "  echo \"$2:3:1: error: unknown field 'robts'\" >&2\n"
+        "  exit 2;;\n"
+        "crash) kill -SEGV $$;;\n"
+        "hang) exec sleep 30;;\n"
+        "esac\n");
   fs::permissions(p, fs::perms::owner_all);
   return p;
 }
@@ -443,18 +469,64 @@ TEST_F(SuiteRun, JunitXmlParsesBackWithEveryVerdict) {
   EXPECT_THAT(cases.at("refused")->FirstChildElement("system-err")->GetText(), HasSubstr("unknown field 'robts'"));
 }
 
+// One YAML file that does not parse costs its own verdict only: an ERROR naming its line, in the lines, the totals and
+// the JUnit XML, without a run or outputs; the other scenarios run.
+TEST(SuiteErrors, AFileThatDoesNotParseIsAnErrorAndTheOthersRun) {
+  Scratch scratch("parse");
+  const fs::path suite = scratch.dir() / "suite", out = scratch.dir() / "out";
+  write(suite / "pass.yaml", "cell: x\nprogram: y\n");
+  write(suite / "broken.yaml", "cell: x\nprogram: [y\n");
+  const std::vector<SuiteCase> cases = plan_suite(discover({suite}), out, std::nullopt);
+  SuiteOptions o;
+  o.executable = fake_twin(scratch.dir());
+  std::vector<std::string> ended;
+  SuiteCallbacks cb;
+  cb.ended = [&](const CaseResult& r) { ended.push_back(r.test.name); };
+  const std::vector<CaseResult> results = run_suite(cases, o, cb);
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_THAT(ended, ElementsAre("broken", "pass"));  // the error is known before anything runs
+  const CaseResult& broken = results[0];
+  EXPECT_EQ(broken.test.name, "broken");
+  EXPECT_EQ(broken.verdict, Verdict::kError);
+  const std::string where = (suite / "broken.yaml").string() + ":3:1: error: not valid YAML";
+  EXPECT_THAT(broken.message, ::testing::StartsWith(where));
+  EXPECT_FALSE(broken.kept);
+  EXPECT_FALSE(fs::exists(out / "broken"));  // nothing ran, nothing was written
+  EXPECT_EQ(results[1].verdict, Verdict::kPass);
+
+  EXPECT_THAT(format_result(broken, 6),
+              ::testing::StartsWith("ERROR  broken  sim        -    wall    0.0 s  placed -  " + where));
+  EXPECT_EQ(format_totals(results), "1 passed, 1 failed (1 refused)");
+  const std::string xml = format_junit(results, 1);
+  tinyxml2::XMLDocument doc;
+  ASSERT_EQ(doc.Parse(xml.c_str(), xml.size()), tinyxml2::XML_SUCCESS) << xml;
+  const tinyxml2::XMLElement* s = doc.FirstChildElement("testsuites")->FirstChildElement("testsuite");
+  EXPECT_STREQ(s->Attribute("tests"), "2");
+  EXPECT_STREQ(s->Attribute("errors"), "1");
+  const tinyxml2::XMLElement* c = s->FirstChildElement("testcase");
+  EXPECT_STREQ(c->Attribute("name"), "broken");
+  const tinyxml2::XMLElement* e = c->FirstChildElement("error");
+  ASSERT_NE(e, nullptr);
+  EXPECT_STREQ(e->Attribute("type"), "error");
+  EXPECT_THAT(e->Attribute("message"), ::testing::StartsWith(where));
+  EXPECT_THAT(e->GetText(), Not(HasSubstr("outputs in")));
+}
+
 // A stand-in for `twin run SCENARIO -o DIR --quiet [--video FILE --video-fps F --video-size WxH] --seed S`: every
 // scenario fails but "pass"; with --video it records its arguments beside DIR (DIR/.. is the first run's directory),
 // writes the video and a page naming it, and an event log that is the first run's ("same"), another ("differs"), or
 // makes no video and says why ("novideo").
 fs::path fake_video_twin(const fs::path& dir) {
+  test_reports::write_report(dir / "pass.json", test_reports::run_report());
+  test_reports::write_report(dir / "fail.json", test_reports::run_report({"A is elsewhere"}));
   const fs::path p = dir / "fake-video-twin.sh";
   write(p,
         "#!/bin/sh\n"
+        "reports=$(dirname \"$0\")\n"
         "name=$(basename \"$2\" .yaml); out=\"$4\"\n"
         "echo \"$@\" > \"$out/args.txt\"\n"
-        "if [ \"$name\" = pass ]; then echo '{\"result\":\"ok\"}' > \"$out/report.json\"; exit 0; fi\n"
-        "echo '{\"result\":\"failed\",\"failures\":[\"A is elsewhere\"]}' > \"$out/report.json\"\n"
+        "if [ \"$name\" = pass ]; then cp \"$reports/pass.json\" \"$out/report.json\"; exit 0; fi\n"
+        "cp \"$reports/fail.json\" \"$out/report.json\"\n"
         "echo 'first run' > \"$out/events.jsonl\"; echo 'page without video' > \"$out/index.html\"\n"
         "if [ \"$6\" = --video ]; then\n"
         "  echo \"$@\" > \"$out/../video-args.txt\"\n"
@@ -570,9 +642,9 @@ TEST(SuiteJudge, ExitStatusAndReportMustAgreeToPass) {
   ChildEnd end;
   end.status = RunStatus::kDone;
   end.exit_code = 0;
-  end.report = nlohmann::json{{"result", "failed"}, {"outcome", "finished"}, {"failures", {"A is elsewhere"}}};
+  end.report = test_reports::run_report({"A is elsewhere"});
   EXPECT_EQ(judge(c, end).verdict, Verdict::kFail);
-  end.report = nlohmann::json{{"result", "ok"}, {"outcome", "finished"}};
+  end.report = test_reports::run_report();
   EXPECT_EQ(judge(c, end).verdict, Verdict::kPass);
   end.exit_code = 1;
   EXPECT_EQ(judge(c, end).verdict, Verdict::kFail);

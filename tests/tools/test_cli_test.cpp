@@ -40,6 +40,22 @@ void tiny(const fs::path& dir, const std::string& name, const std::string& expec
                                         << expect << "}\n";
 }
 
+// A JUnit file read back: its <testsuite> (null when the file does not parse as JUnit) and its test cases by name.
+struct Junit {
+  explicit Junit(const fs::path& file) {
+    const std::string xml = slurp(file);
+    if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS) return;
+    const tinyxml2::XMLElement* suites = doc.FirstChildElement("testsuites");
+    suite = suites ? suites->FirstChildElement("testsuite") : nullptr;
+    for (auto* c = suite ? suite->FirstChildElement("testcase") : nullptr; c; c = c->NextSiblingElement("testcase")) {
+      cases[c->Attribute("name")] = c;
+    }
+  }
+  tinyxml2::XMLDocument doc;
+  const tinyxml2::XMLElement* suite = nullptr;
+  std::map<std::string, const tinyxml2::XMLElement*> cases;
+};
+
 TEST(TestCli, BadInputIsRefusedWithExitTwoBeforeAnythingRuns) {
   TwinCli cli("cw-test-cli-bad");
   const fs::path out = cli.dir() / "out";
@@ -97,18 +113,12 @@ TEST(TestCli, OnePassingOneFailingScenario) {
   }
   EXPECT_FALSE(fs::exists(out / "good"));
 
-  tinyxml2::XMLDocument doc;
-  const std::string xml = slurp(junit);
-  ASSERT_EQ(doc.Parse(xml.c_str(), xml.size()), tinyxml2::XML_SUCCESS) << xml;
-  const tinyxml2::XMLElement* s = doc.FirstChildElement("testsuites")->FirstChildElement("testsuite");
-  ASSERT_NE(s, nullptr);
-  EXPECT_STREQ(s->Attribute("tests"), "2");
-  EXPECT_STREQ(s->Attribute("failures"), "1");
-  EXPECT_STREQ(s->Attribute("errors"), "0");
-  std::map<std::string, const tinyxml2::XMLElement*> cases;
-  for (auto* c = s->FirstChildElement("testcase"); c; c = c->NextSiblingElement("testcase")) {
-    cases[c->Attribute("name")] = c;
-  }
+  const Junit xml(junit);
+  ASSERT_NE(xml.suite, nullptr) << slurp(junit);
+  EXPECT_STREQ(xml.suite->Attribute("tests"), "2");
+  EXPECT_STREQ(xml.suite->Attribute("failures"), "1");
+  EXPECT_STREQ(xml.suite->Attribute("errors"), "0");
+  const auto& cases = xml.cases;
   ASSERT_EQ(cases.size(), 2u);
   EXPECT_EQ(cases.at("good")->FirstChildElement("failure"), nullptr);
   const tinyxml2::XMLElement* failure = cases.at("bad")->FirstChildElement("failure");
@@ -117,6 +127,36 @@ TEST(TestCli, OnePassingOneFailingScenario) {
   // The report's text, as `twin run` printed it.
   ASSERT_NE(cases.at("bad")->FirstChildElement("system-out"), nullptr);
   EXPECT_EQ(cases.at("bad")->FirstChildElement("system-out")->GetText(), slurp(out / "bad" / "stdout.txt"));
+}
+
+// One YAML file that does not parse no longer aborts the suite without a JUnit file: it is an ERROR case naming its
+// line, the others run, and the exit status is 1 (a case did not pass), not 2.
+TEST(TestCli, AYamlFileThatDoesNotParseIsAnErrorCaseAndTheOthersRun) {
+  TwinCli cli("cw-test-cli-parse");
+  const fs::path suite = cli.dir() / "suite", out = cli.dir() / "out", junit = cli.dir() / "junit.xml";
+  tiny(suite, "good", "input");
+  std::ofstream(suite / "broken.yaml") << "cell: cell.yaml\nprogram: [tiny.task\n";
+
+  const Outcome r = cli.run("test " + q(suite) + " -o " + q(out) + " --junit " + q(junit) + " --jobs 2");
+  ASSERT_EQ(r.status, 1) << r.out << r.err;
+  const std::string where = (suite / "broken.yaml").string() + ":3:1: error: not valid YAML";
+  EXPECT_THAT(r.out, HasSubstr("2 scenarios, 2 at a time\n"));
+  EXPECT_THAT(r.out, ::testing::ContainsRegex("ERROR  broken  sim +-    wall +0.0 s  placed -  "));
+  EXPECT_THAT(r.out, HasSubstr(where));
+  EXPECT_THAT(r.out, ::testing::ContainsRegex("PASS   good    sim +[0-9.]+ s"));
+  EXPECT_THAT(r.out, Not(HasSubstr("outputs of broken")));  // it wrote none
+  EXPECT_THAT(r.out, ::testing::EndsWith("1 passed, 1 failed (1 refused)\n"));
+
+  const Junit xml(junit);  // written though a file did not parse
+  ASSERT_NE(xml.suite, nullptr) << slurp(junit);
+  EXPECT_STREQ(xml.suite->Attribute("tests"), "2");
+  EXPECT_STREQ(xml.suite->Attribute("errors"), "1");
+  const auto& cases = xml.cases;
+  ASSERT_EQ(cases.count("broken"), 1u);
+  const tinyxml2::XMLElement* error = cases.at("broken")->FirstChildElement("error");
+  ASSERT_NE(error, nullptr);
+  EXPECT_THAT(error->Attribute("message"), HasSubstr(where));
+  EXPECT_EQ(cases.at("good")->FirstChildElement("error"), nullptr);
 }
 
 TEST(TestCli, APassingSuiteInTheTemporaryFolderLeavesNothingBehind) {

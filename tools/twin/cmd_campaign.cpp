@@ -60,8 +60,8 @@ void add_campaign(CLI::App& app, Command* run) {
       "campaign",
       "Fault campaign: run N seeded variants of a scenario, each with one fault (now and then two) drawn from the "
       "kinds that apply, as `twin run` child processes, and write per fault kind injected, detected, recovered, "
-      "stopped safely, parts unaccounted and mean time to recover to DIR/campaign.csv, .md and .png. Exit 0 when it "
-      "ran, 2 on bad input.");
+      "stopped safely, stalled runs (at their time limit), parts unaccounted and mean time to recover to "
+      "DIR/campaign.csv, .md and .png. Exit 0 when it ran, 2 on bad input.");
   struct Args {
     std::string scenario;
     std::vector<std::string> faults;

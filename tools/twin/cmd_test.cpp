@@ -159,7 +159,7 @@ void add_test(CLI::App& app, Command* run) {
       const bool all_passed =
           std::all_of(results.begin(), results.end(), [](const ts::CaseResult& r) { return r.passed(); });
       for (const ts::CaseResult& r : results) {
-        if (!r.passed()) std::printf("outputs of %s kept in %s\n", r.test.name.c_str(), r.test.dir.c_str());
+        if (!r.passed() && r.kept) std::printf("outputs of %s kept in %s\n", r.test.name.c_str(), r.test.dir.c_str());
       }
       if (temporary && all_passed && !args->keep) {
         std::error_code ec;

@@ -26,8 +26,6 @@
 
 namespace cellwright::cell {
 
-using nlohmann::json;
-
 const std::vector<std::string>& fault_kinds() {
   static const std::vector<std::string> kinds = {
       "drop",     "slip",     "misplace", "unreachable", "missing",     "obstacle",   "timeout",
@@ -292,9 +290,13 @@ std::string format_progress(const CampaignProgress& p, int width) {
   const int filled =
       p.total == 0 ? 0 : static_cast<int>(static_cast<double>(width) * static_cast<double>(p.done) /
                                           static_cast<double>(p.total));
-  return fmt::format("[{}{}] {}/{} runs, {} running, {} crash{}, {} hang{}", std::string(filled, '#'),
+  return fmt::format("[{}{}] {}/{} runs, {} running, {} crash{}, {} hang{}, {} stall{}", std::string(filled, '#'),
                      std::string(static_cast<std::size_t>(width - filled), '.'), p.done, p.total, p.running, p.crashes,
-                     p.crashes == 1 ? "" : "es", p.hangs, p.hangs == 1 ? "" : "s");
+                     p.crashes == 1 ? "" : "es", p.hangs, p.hangs == 1 ? "" : "s", p.stalls, p.stalls == 1 ? "" : "s");
+}
+
+bool stalled(const Report& report) {
+  return report.outcome == "timeout" || report.outcome == "unfinished";
 }
 
 std::vector<RunRecord> run_campaign(const CampaignOptions& o,
@@ -342,6 +344,7 @@ std::vector<RunRecord> run_campaign(const CampaignOptions& o,
     --progress.running;
     if (rec.status == RunStatus::kCrash) ++progress.crashes;
     if (rec.status == RunStatus::kHang) ++progress.hangs;
+    if (rec.report && stalled(*rec.report)) ++progress.stalls;
     report();
   };
   report();
@@ -350,17 +353,6 @@ std::vector<RunRecord> run_campaign(const CampaignOptions& o,
 }
 
 // --- Adding up -------------------------------------------------------------------------------------------------------
-
-namespace {
-
-// A count in a report (a whole number >= 0), or nullopt.
-std::optional<std::size_t> count_of(const json& j, const char* key) {
-  if (!j.contains(key) || !j[key].is_number_integer()) return std::nullopt;
-  const auto n = j[key].get<long long>();
-  return n < 0 ? std::nullopt : std::optional<std::size_t>(static_cast<std::size_t>(n));
-}
-
-}  // namespace
 
 CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<std::string>& kinds,
                           const std::string& scenario, std::uint64_t seed) {
@@ -386,35 +378,26 @@ CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<
     std::set<std::string> drawn;
     for (const DrawnFault& f : rec.variant.faults) drawn.insert(f.kind);
     std::size_t lost = 0, unaccounted = 0, false_alarms = 0;
-    bool ok = false;
+    bool ok = false, stall = false;
     if (rec.report) {
-      const json& j = *rec.report;
-      if (auto n = count_of(j, "unaccounted")) {
-        unaccounted = *n;
-      } else if (j.contains("account") && j["account"].is_array()) {
-        for (const json& a : j["account"]) unaccounted += a.value("unaccounted", false) ? 1 : 0;
-      }
-      false_alarms = count_of(j, "false_alarms").value_or(0);
-      if (j.contains("account") && j["account"].is_array()) {
-        for (const json& a : j["account"]) lost += a.is_object() && a.contains("lost") && a["lost"].is_object() ? 1 : 0;
-      }
-      ok = j.value("result", std::string()) == "ok";
-      if (j.contains("faults") && j["faults"].is_array()) {
-        for (const json& f : j["faults"]) {
-          if (!f.is_object()) continue;
-          KindSummary& k = row_of(f.value("kind", std::string("?")));
-          ++k.injected;
-          ++s.total.injected;
-          if (f.value("detected", false)) ++k.detected, ++s.total.detected;
-          if (f.value("stopped_safely", false)) ++k.stopped_safely, ++s.total.stopped_safely;
-          if (f.value("recovered", false)) {
-            ++k.recovered;
-            ++s.total.recovered;
-            if (f.contains("recovery_time") && f["recovery_time"].is_number()) {
-              times[k.kind].push_back(f["recovery_time"].get<double>());
-              all_times.push_back(f["recovery_time"].get<double>());
-            }
-          }
+      const Report& r = *rec.report;
+      unaccounted = r.unaccounted();
+      false_alarms = r.false_alarms.size();
+      for (const WorkpieceReport& w : r.workpieces) lost += w.lost ? 1 : 0;
+      ok = r.ok();
+      stall = stalled(r);
+      for (const FaultReport& f : r.faults) {
+        KindSummary& k = row_of(f.kind);
+        ++k.injected;
+        ++s.total.injected;
+        if (f.detected) ++k.detected, ++s.total.detected;
+        if (f.stopped_safely) ++k.stopped_safely, ++s.total.stopped_safely;
+        if (f.recovered && !stall) {  // a recovery the run stalled after did not get the work done
+          CW_CHECK(f.recovery_time.has_value(), "a recovered {} fault without its recovery time", f.kind);
+          ++k.recovered;
+          ++s.total.recovered;
+          times[k.kind].push_back(*f.recovery_time);
+          all_times.push_back(*f.recovery_time);
         }
       }
     }
@@ -425,6 +408,7 @@ CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<
       k.false_alarms += false_alarms;
       if (rec.status == RunStatus::kCrash) ++k.crashes;
       if (rec.status == RunStatus::kHang) ++k.hangs;
+      if (stall) ++k.stalls;
       if (ok) ++k.ok_runs;
     };
     for (const std::string& kind : drawn) count_run(row_of(kind));
@@ -451,15 +435,16 @@ std::string csv_field(const std::string& s) {
 }
 
 std::string csv_line(const KindSummary& k) {
-  return fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(k.kind), k.runs, k.injected, k.detected,
-                     k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.crashes, k.hangs, k.ok_runs,
-                     k.mean_recovery_time ? fmt::format("{:.4f}", *k.mean_recovery_time) : std::string());
+  return fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(k.kind), k.runs, k.injected, k.detected,
+                     k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.crashes, k.hangs, k.stalls,
+                     k.ok_runs, k.mean_recovery_time ? fmt::format("{:.4f}", *k.mean_recovery_time) : std::string());
 }
 
 std::string md_line(const KindSummary& k, bool bold) {
   const std::string name = bold ? "**" + k.kind + "**" : k.kind;
-  return fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", name, k.runs, k.injected,
-                     k.detected, k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.crashes, k.hangs,
+  return fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", name, k.runs, k.injected,
+                     k.detected, k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.crashes,
+                     k.hangs, k.stalls,
                      k.mean_recovery_time ? fmt::format("{:.2f}", *k.mean_recovery_time) : std::string("-"));
 }
 
@@ -473,8 +458,8 @@ std::string faults_text(const Variant& v) {
 
 std::string format_csv(const CampaignSummary& s) {
   std::string out =
-      "kind,runs,injected,detected,recovered,stopped_safely,lost,unaccounted,false_alarms,crashes,hangs,ok_runs,"
-      "mean_recovery_time_s\n";
+      "kind,runs,injected,detected,recovered,stopped_safely,lost,unaccounted,false_alarms,crashes,hangs,stalls,"
+      "ok_runs,mean_recovery_time_s\n";
   for (const KindSummary& k : s.kinds) out += csv_line(k);
   out += csv_line(s.total);
   return out;
@@ -485,9 +470,9 @@ std::string format_runs_csv(const std::vector<RunRecord>& runs) {
   for (const RunRecord& r : runs) {
     std::string outcome, result, unaccounted;
     if (r.report) {
-      outcome = r.report->value("outcome", std::string());
-      result = r.report->value("result", std::string());
-      if (r.report->contains("unaccounted")) unaccounted = (*r.report)["unaccounted"].dump();
+      outcome = r.report->outcome;
+      result = r.report->ok() ? "ok" : "failed";
+      unaccounted = std::to_string(r.report->unaccounted());
     }
     out += fmt::format("{},{},{},{},{},{},{},{},{}\n", r.variant.index, r.variant.seed, to_string(r.status),
                        r.signal != 0 ? std::string() : std::to_string(r.exit_code), csv_field(outcome),
@@ -498,13 +483,14 @@ std::string format_runs_csv(const std::vector<RunRecord>& runs) {
 
 std::string format_markdown(const CampaignSummary& s, const std::vector<RunRecord>& runs) {
   std::string out = fmt::format("# Fault campaign: {}, {} runs, seed {}\n\n", s.scenario, s.total.runs, s.seed);
-  out += fmt::format("{} of {} runs ok; {} faults injected, {} detected, {} recovered, {} stopped safely.\n\n",
-                     s.total.ok_runs, s.total.runs, s.total.injected, s.total.detected, s.total.recovered,
-                     s.total.stopped_safely);
+  out += fmt::format(
+      "{} of {} runs ok; {} faults injected, {} detected, {} recovered, {} stopped safely; {} run{} stalled.\n\n",
+      s.total.ok_runs, s.total.runs, s.total.injected, s.total.detected, s.total.recovered, s.total.stopped_safely,
+      s.total.stalls, s.total.stalls == 1 ? "" : "s");
   out +=
       "| fault | runs | injected | detected | recovered | stopped safely | lost parts | unaccounted parts | "
-      "false alarms | crashes | hangs | mean time to recover (s) |\n";
-  out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+      "false alarms | crashes | hangs | stalls | mean time to recover (s) |\n";
+  out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const KindSummary& k : s.kinds) out += md_line(k, false);
   out += md_line(s.total, true);
   std::string bad;
@@ -514,11 +500,28 @@ std::string format_markdown(const CampaignSummary& s, const std::vector<RunRecor
                        to_string(r.status), r.problem);
   }
   if (!bad.empty()) out += "\nRuns that crashed or hung:\n\n" + bad;
+  std::string stalls;
+  for (const RunRecord& r : runs) {
+    if (!r.report || !stalled(*r.report)) continue;
+    std::string before;  // the faults whose recovery ended well before the stall
+    for (const FaultReport& f : r.report->faults) {
+      if (!f.recovered || !f.recovery_time) continue;
+      before += fmt::format("{}{} at {:.2f} s", before.empty() ? "" : ", ", f.kind, f.t + *f.recovery_time);
+    }
+    stalls += fmt::format("- run {:04} (seed {}, {}): {} at {:.2f} s{}{}\n", r.variant.index, r.variant.seed,
+                          faults_text(r.variant), r.report->outcome, r.report->end_time,
+                          r.report->reason.empty() ? std::string() : ": " + r.report->reason,
+                          before.empty() ? std::string() : "; recovered before the stall, not counted: " + before);
+  }
+  if (!stalls.empty()) out += "\nRuns that stalled:\n\n" + stalls;
   out +=
-      "\nA run's faults count under their kind; its lost and unaccounted parts, false alarms, crash or hang under "
-      "every kind it drew (a run drew one kind, now and then two). Recovered: the recovery ended well (setting a lost "
-      "part aside included); lost parts: declared lost by the controller; unaccounted: neither where expected nor "
-      "declared lost. Mean time to recover: from the injection to the recovery's end, over the recovered faults.\n";
+      "\nA run's faults count under their kind; its lost and unaccounted parts, false alarms, crash, hang or stall "
+      "under every kind it drew (a run drew one kind, now and then two). Recovered: the recovery ended well (setting a "
+      "lost part aside included) and the run did not stall; lost parts: declared lost by the controller; unaccounted: "
+      "neither where expected nor declared lost. Stall: the run reached its time limit with its program unfinished "
+      "(idle, or going round in circles): a failure, and a fault of a stalled run is not recovered even when its "
+      "recovery ended well before the stall. Mean time to recover: from the injection to the recovery's end, over the "
+      "recovered faults.\n";
   return out;
 }
 
@@ -547,6 +550,7 @@ const std::vector<Metric>& metrics() {
       {"detected", {178, 114, 0}, &KindSummary::detected},
       {"recovered", {115, 158, 0}, &KindSummary::recovered},
       {"stopped safely", {0, 159, 230}, &KindSummary::stopped_safely},
+      {"stalled runs", {0, 0, 0}, &KindSummary::stalls},
       {"lost parts", {167, 121, 204}, &KindSummary::lost},
       {"unaccounted parts", {0, 94, 213}, &KindSummary::unaccounted},
   };
@@ -561,8 +565,8 @@ cv::Mat draw_campaign(const CampaignSummary& s, int width, int height) {
   const int left = 80, right = 30, top = 75, bottom = 130;
   const int x0 = left, x1 = width - right, y0 = top, y1 = height - bottom;
   put_text(img,
-           fmt::format("{}: {} runs, seed {}; crashes {}, hangs {}, false alarms {}", s.scenario, s.total.runs, s.seed,
-                       s.total.crashes, s.total.hangs, s.total.false_alarms),
+           fmt::format("{}: {} runs, seed {}; crashes {}, hangs {}, stalls {}, false alarms {}", s.scenario,
+                       s.total.runs, s.seed, s.total.crashes, s.total.hangs, s.total.stalls, s.total.false_alarms),
            {x0, 36}, 0.65, {0, 0, 0}, 2);
 
   std::size_t most = 1;
@@ -624,14 +628,17 @@ cv::Mat draw_campaign(const CampaignSummary& s, int width, int height) {
   put_text(img, "mean time to recover below each kind; crashes (c) and hangs (h) in red", {x0, y1 + 84}, 0.45,
            {90, 90, 90});
 
-  // Legend.
+  // Legend, on one line: the gap between its entries shrinks (from 40 px) to fit the chart's width.
+  int names = 0;
+  for (const Metric& m : metrics()) names += 36 + text_size(m.name, 0.55).width;
+  const int gap = std::clamp((x1 - x0 - names) / std::max(1, n_metrics - 1), 12, 40);
   int lx = x0;
   const int ly = height - 36;
   for (const Metric& m : metrics()) {
     cv::rectangle(img, {lx, ly}, {lx + 28, ly + 20}, m.colour, cv::FILLED);
     cv::rectangle(img, {lx, ly}, {lx + 28, ly + 20}, {60, 60, 60}, 1);
     put_text(img, m.name, {lx + 36, ly + 16}, 0.55, {0, 0, 0});
-    lx += 36 + text_size(m.name, 0.55).width + 40;
+    lx += 36 + text_size(m.name, 0.55).width + gap;
   }
   return img;
 }

@@ -17,12 +17,11 @@
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/cell/outputs.hpp"
+#include "cellwright/cell/report_json.hpp"
 
 extern char** environ;
 
 namespace cellwright::cell {
-
-using nlohmann::json;
 
 const char* to_string(RunStatus st) {
   switch (st) {
@@ -102,17 +101,21 @@ ChildEnd finish(const std::filesystem::path& dir, int raw, bool killed, double w
     end.problem = fmt::format("killed by signal {} ({})", end.signal, strsignal(end.signal));
     return end;
   }
-  const std::string text = slurp_or_empty(dir / kReportFile);
-  json j = json::parse(text, nullptr, false);
-  if (text.empty() || j.is_discarded() || !j.is_object()) {
+  std::error_code ec;
+  if (!std::filesystem::exists(dir / kReportFile, ec)) {
     end.status = RunStatus::kCrash;
-    end.problem = fmt::format("exit {} without {}{}", end.exit_code,
-                              text.empty() ? std::string(kReportFile) : fmt::format("a readable {}", kReportFile),
+    end.problem = fmt::format("exit {} without {}{}", end.exit_code, kReportFile,
                               end.first_error.empty() ? std::string() : ": " + end.first_error);
     return end;
   }
+  try {
+    end.report = read_report(dir / kReportFile);
+  } catch (const InputError& e) {  // not JSON, or a field missing or mistyped: named, never taken as a result
+    end.status = RunStatus::kCrash;
+    end.problem = fmt::format("exit {} with an unreadable {}: {}", end.exit_code, kReportFile, e.what());
+    return end;
+  }
   end.status = RunStatus::kDone;
-  end.report = std::move(j);
   return end;
 }
 

@@ -27,7 +27,6 @@
 namespace cellwright::cell {
 
 namespace fs = std::filesystem;
-using nlohmann::json;
 
 // --- Discovery -------------------------------------------------------------------------------------------------------
 
@@ -98,25 +97,35 @@ bool yaml_name(const fs::path& p) {
 Discovery discover(const std::vector<fs::path>& paths) {
   Discovery d;
   std::set<fs::path> seen;  // canonical paths of the scenarios found
-  auto add = [&](const fs::path& p, double wall_time) {
+  auto add = [&](const fs::path& p, double wall_time, std::string error) {
     std::error_code ec;
     fs::path key = fs::weakly_canonical(p, ec);
     if (ec) key = fs::absolute(p);
-    if (seen.insert(key).second) d.scenarios.push_back({p, wall_time});
+    if (seen.insert(key).second) d.scenarios.push_back({p, wall_time, std::move(error)});
+  };
+  // What the file is; nullopt when it cannot be read or parsed: then it is added as a case with that error.
+  auto classify = [&](const fs::path& p) -> std::optional<YamlClass> {
+    try {
+      return classify_yaml(p);
+    } catch (const InputError& e) {
+      add(p, 0, e.what());
+      return std::nullopt;
+    }
   };
   for (const fs::path& p : paths) {
     std::error_code ec;
     const fs::file_status st = fs::status(p, ec);
     if (p.empty() || !fs::exists(st)) throw InputError({p.string(), 0, 0}, "no such file or folder");
     if (!fs::is_directory(st)) {
-      const YamlClass c = classify_yaml(p);
-      if (c.kind != YamlKind::kScenario) {
+      const std::optional<YamlClass> c = classify(p);
+      if (!c) continue;
+      if (c->kind != YamlKind::kScenario) {
         throw InputError({p.string(), 0, 0},
                          fmt::format("not a scenario: {} (a scenario has the fields `cell` and `program`, "
                                      "docs/scenarios.md)",
-                                     c.what));
+                                     c->what));
       }
-      add(p, c.wall_time);
+      add(p, c->wall_time, "");
       continue;
     }
     std::vector<fs::path> entries;
@@ -131,11 +140,12 @@ Discovery discover(const std::vector<fs::path>& paths) {
         continue;
       }
       if (!yaml_name(e)) continue;
-      const YamlClass c = classify_yaml(e);
-      if (c.kind == YamlKind::kScenario) {
-        add(e, c.wall_time);
+      const std::optional<YamlClass> c = classify(e);
+      if (!c) continue;
+      if (c->kind == YamlKind::kScenario) {
+        add(e, c->wall_time, "");
       } else {
-        d.skipped.push_back({e, c.what + ", not a scenario"});
+        d.skipped.push_back({e, c->what + ", not a scenario"});
       }
     }
   }
@@ -170,8 +180,9 @@ std::vector<SuiteCase> plan_suite(const Discovery& found, const fs::path& out, s
     for (int k = 2; names.count(c.name) != 0; ++k) c.name = fmt::format("{}-{}", stem, k);
     names.insert(c.name);
     c.dir = out / c.name;
+    c.error = s.error;
     std::error_code ec;
-    if (fs::exists(c.dir, ec)) {
+    if (c.error.empty() && fs::exists(c.dir, ec)) {
       const bool earlier_run =
           fs::is_directory(c.dir, ec) && (fs::exists(c.dir / kChildStdout, ec) || fs::is_empty(c.dir, ec));
       if (!earlier_run) {
@@ -249,18 +260,11 @@ CaseResult judge(const SuiteCase& test, const ChildEnd& end) {
   r.errors = slurp_or_empty(test.dir / kChildStderr);
   bool report_ok = false;
   if (end.report) {
-    const json& j = *end.report;
-    if (j.contains("end_time") && j["end_time"].is_number()) r.sim_time = j["end_time"].get<double>();
-    if (j.contains("flow") && j["flow"].is_object() && j["flow"].contains("placed") &&
-        j["flow"]["placed"].is_number_unsigned()) {
-      r.placed = j["flow"]["placed"].get<std::size_t>();
-    }
-    if (j.contains("failures") && j["failures"].is_array()) {
-      for (const json& f : j["failures"]) {
-        if (f.is_string()) r.failures.push_back(f.get<std::string>());
-      }
-    }
-    report_ok = j.value("result", std::string()) == "ok";
+    const Report& rep = *end.report;
+    r.sim_time = rep.end_time;
+    r.placed = rep.placed_at.size();
+    r.failures = rep.failures;
+    report_ok = rep.ok();
   }
   switch (end.status) {
     case RunStatus::kHang:
@@ -284,8 +288,7 @@ CaseResult judge(const SuiteCase& test, const ChildEnd& end) {
         if (!r.failures.empty()) {
           r.message = first_line_of(r.failures.front());
         } else {
-          const json& j = *end.report;
-          r.message = fmt::format("exit {}, outcome {}{}", end.exit_code, j.value("outcome", std::string("?")),
+          r.message = fmt::format("exit {}, outcome {}{}", end.exit_code, end.report->outcome,
                                   report_ok ? std::string(" (the report says ok)") : std::string());
         }
       } else {
@@ -337,19 +340,38 @@ std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const Sui
   // final.png only for a failed scenario, whose outputs are kept, unless every scenario's outputs are kept.
   const std::vector<std::string> final_png =
       options.keep ? std::vector<std::string>{} : std::vector<std::string>{"--final-png", "failed"};
-  for (const SuiteCase& c : cases) children.push_back(run_child(c, c.dir, options, final_png));
+  std::vector<std::size_t> which;  // the case of each child
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    if (!cases[i].error.empty()) continue;
+    children.push_back(run_child(cases[i], cases[i].dir, options, final_png));
+    which.push_back(i);
+  }
   std::vector<CaseResult> results(cases.size());
   SuiteProgress progress;
   progress.total = cases.size();
   auto report = [&] {
     if (callbacks.progress) callbacks.progress(progress);
   };
+  // The files that could not be parsed: errors now, without a run.
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    if (cases[i].error.empty()) continue;
+    CaseResult& r = results[i];
+    r.test = cases[i];
+    r.verdict = Verdict::kError;
+    r.message = cases[i].error;
+    r.failures = {r.message};
+    r.kept = false;
+    ++progress.done;
+    ++progress.failed;
+    if (callbacks.ended) callbacks.ended(r);
+  }
   ChildCallbacks cb;
   cb.started = [&](std::size_t) {
     ++progress.running;
     report();
   };
-  cb.ended = [&](std::size_t i, const ChildEnd& end) {
+  cb.ended = [&](std::size_t k, const ChildEnd& end) {
+    const std::size_t i = which[k];
     CaseResult& r = results[i];
     r = judge(cases[i], end);
     if (r.passed() && !options.keep) {

@@ -944,7 +944,10 @@ json to_json(const Scenario& s, const Report& r) {
   j["cycle_time"] = {{"estimated", opt(r.estimated_cycle_time)}, {"measured", opt(r.finished_at)}};
   j["throughput_parts_per_min"] = opt(r.throughput);
   j["parts_completed"] = r.parts_completed;
+  json placed_at = json::array();
+  for (double t : r.placed_at) placed_at.push_back(round4(t));
   j["flow"] = {{"placed", r.placed_at.size()},
+               {"placed_at", std::move(placed_at)},
                {"fed", r.parts_fed},
                {"delivered", r.parts_delivered},
                {"steady_throughput_parts_per_min", opt(r.steady_throughput)},

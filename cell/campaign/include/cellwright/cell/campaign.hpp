@@ -1,7 +1,16 @@
 // A fault campaign (`twin campaign`, docs/faults.md section 6): N seeded variants of a scenario, each with one fault
 // (or now and then two) drawn from the kinds that apply to it, run as `twin run` child processes a few at a time, and
-// their report.json files added up per fault kind: injected, detected, recovered, stopped safely, parts unaccounted,
-// mean time to recover, and the runs that crashed or hung.
+// their report.json files read back as typed Reports (report_json.hpp) and added up per fault kind: injected,
+// detected, recovered, stopped safely, parts unaccounted, mean time to recover, and the runs that crashed, hung or
+// stalled.
+//
+// A stall (stalled()) is a run that did not end by itself: it reached its simulation-time or wall-time limit with
+// its program unfinished (report.json's outcome "timeout"), e.g. a robot idle, waiting for a part set aside
+// upstream, or going round in circles. Nothing but the limit ends such a run, so "idle with work left" and "at the
+// time limit" are the same runs. A stall is a failure: counted per fault kind and in all, charted, and a fault in a
+// stalled run is never "recovered", even when its recovery ended well before the stall (the cell did not get its
+// work done: the fault counts as detected, its run as a stall, and its recovery time is left out of the mean). A run
+// the controller stopped itself (no progress escalated to a safe stop) ended "stopped": stopped safely, not a stall.
 //
 // The parts, each usable alone (the tests use them so):
 //  1. campaign_targets(): what of a scenario faults can be put on — robots that carry and how often, commands each
@@ -11,14 +20,14 @@
 //     i) alone, so run i is the same whatever the number of runs and jobs.
 //  4. run_campaign(): the child processes (children.hpp: `EXE run SCENARIO --fault ... --seed S --quiet
 //     -o DIR/runs/NNNN`, stdout and stderr to files in the run's directory), at most `jobs` at a time, a child past
-//     its wall-time limit killed (a hang), a child that died by a signal or wrote no report.json a crash.
+//     its wall-time limit killed (a hang), a child that died by a signal or wrote no readable report.json (one that
+//     lacks a field is unreadable: children.hpp) a crash.
 //  5. aggregate() and the writers: campaign.csv, runs.csv, campaign.md, campaign.png.
 //
 // Thread safety: plain values and functions; run_campaign() is for one thread (it waits for its children itself),
 // and its progress callback is called on that thread.
 #pragma once
 
-#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
 #include <cstddef>
@@ -31,6 +40,7 @@
 
 #include "cellwright/common/files.hpp"
 #include "cellwright/cell/children.hpp"
+#include "cellwright/cell/report.hpp"
 #include "cellwright/cell/scenario.hpp"
 #include "cellwright/cell/twin_port.hpp"
 
@@ -136,15 +146,20 @@ struct RunRecord {
   int signal = 0;         // when a signal ended it
   double wall_time = 0;   // s
   std::string problem;    // a crash's or hang's description ("killed by signal 11", "exit 2: <stderr's last line>")
-  std::optional<nlohmann::json> report;  // report.json, when it wrote one that parses
+  std::optional<Report> report;  // its report.json read back, when it wrote one that reads (status done)
 };
 
-// Progress while a campaign runs: how many runs have ended, and of them crashes and hangs, and how many run now.
+// Whether a run's report is a stall (see the top of this file): its outcome is "timeout" (a time limit), or
+// "unfinished" (a log without run_end: the run did not end by itself either).
+bool stalled(const Report& report);
+
+// Progress while a campaign runs: how many runs have ended, and of them crashes, hangs and stalls, and how many run
+// now.
 struct CampaignProgress {
-  std::size_t done = 0, total = 0, running = 0, crashes = 0, hangs = 0;
+  std::size_t done = 0, total = 0, running = 0, crashes = 0, hangs = 0, stalls = 0;
 };
 
-// The progress bar: "[#####.....] 12/40 runs, 2 running, 0 crashes, 0 hangs" with a bar of `width` cells.
+// The progress bar: "[#####.....] 12/40 runs, 2 running, 0 crashes, 0 hangs, 3 stalls" with a bar of `width` cells.
 std::string format_progress(const CampaignProgress& progress, int width = 30);
 
 // Runs every variant (draw_variant for 0..runs-1) as a child process of options.executable:
@@ -163,14 +178,15 @@ struct KindSummary {
   std::size_t runs = 0;            // runs that drew this kind
   std::size_t injected = 0;        // faults of the kind the reports say were injected
   std::size_t detected = 0;        // ... detected
-  std::size_t recovered = 0;       // ... recovered
+  std::size_t recovered = 0;       // ... recovered, in runs that did not stall
   std::size_t stopped_safely = 0;  // ... after which the cell was stopped
   std::size_t lost = 0;            // parts the controller declared lost in the runs that drew the kind
   std::size_t unaccounted = 0;     // parts unaccounted in the runs that drew the kind
   std::size_t false_alarms = 0;    // false alarms in the runs that drew the kind
   std::size_t crashes = 0, hangs = 0;  // of the runs that drew the kind
+  std::size_t stalls = 0;              // runs that drew the kind and stalled (stalled())
   std::size_t ok_runs = 0;         // runs whose report says "ok"
-  std::optional<double> mean_recovery_time;  // s, over the recovered faults of the kind
+  std::optional<double> mean_recovery_time;  // s, over the recovered faults of the kind (none of a stalled run)
 };
 
 struct CampaignSummary {
@@ -182,21 +198,24 @@ struct CampaignSummary {
 
 // Adds up the records' reports. A report's faults are counted under their own kind (a kind the campaign did not ask
 // for, e.g. injected by the scenario itself, gets a row of its own after the others); a run's lost and unaccounted
-// parts, false alarms, crash or hang under every kind it drew.
+// parts, false alarms, crash, hang or stall under every kind it drew. A fault of a stalled run is not recovered.
 CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<std::string>& kinds,
                           const std::string& scenario, std::uint64_t seed);
 
 // campaign.csv: a header line, one line per kind, then "all". Columns: kind, runs, injected, detected, recovered,
-// stopped_safely, lost, unaccounted, false_alarms, crashes, hangs, ok_runs, mean_recovery_time_s (empty when none).
+// stopped_safely, lost, unaccounted, false_alarms, crashes, hangs, stalls, ok_runs, mean_recovery_time_s (empty when
+// none).
 std::string format_csv(const CampaignSummary& summary);
 // runs.csv: one line per run: index, seed, status, exit_code, outcome, result, unaccounted, faults (the --fault
 // texts joined by " + "), problem.
 std::string format_runs_csv(const std::vector<RunRecord>& runs);
 // campaign.md: a title line, the table (kind, runs, injected, detected, recovered, stopped safely, lost parts,
-// unaccounted parts, false alarms, crashes, hangs, mean time to recover) and the runs that crashed or hung.
+// unaccounted parts, false alarms, crashes, hangs, stalls, mean time to recover), the runs that crashed or hung, and
+// the runs that stalled (their outcome's reason, and the faults whose recovery had ended well before the stall).
 std::string format_markdown(const CampaignSummary& summary, const std::vector<RunRecord>& runs);
-// campaign.png: per kind a group of bars (injected, detected, recovered, stopped safely, lost, unaccounted) with a
-// count axis, the mean time to recover under each group, and a legend; in the style of the Gantt chart (gantt.hpp).
+// campaign.png: per kind a group of bars (injected, detected, recovered, stopped safely, stalled runs, lost,
+// unaccounted) with a count axis, the mean time to recover under each group, and a legend; the title line counts the
+// crashes, hangs, stalls and false alarms; in the style of the Gantt chart (gantt.hpp).
 cv::Mat draw_campaign(const CampaignSummary& summary, int width = 1200, int height = 600);
 
 // Checks that `dir` can be created or written, creating nothing (common/files.hpp; every command's -o uses it).

@@ -2,16 +2,17 @@
 // `twin test` (suite.hpp). Each child is an executable started with posix_spawn, stdin /dev/null, its stdout and
 // stderr in files of a directory of its own; at most `jobs` run at a time; a child still running past its wall-time
 // limit is killed (SIGKILL) and is a hang. How a child ended is told apart from what it left in its directory:
-//   done:  it exited and wrote a report.json that parses (a JSON object), whatever its exit status;
+//   done:  it exited and wrote a report.json that reads back as a Report (report_json.hpp: every field there, with
+//          its type), whatever its exit status;
 //   crash: a signal ended it, or it exited without a readable report.json (`twin run` refusing its input exits 2
-//          before it writes anything: that is a "crash" here; the caller may tell it apart by the exit code);
+//          before it writes anything: that is a "crash" here; the caller may tell it apart by the exit code). A
+//          report.json that is not JSON, or lacks a field, is not readable: the problem names the file and the field,
+//          and the run is never counted as done on what it would have said.
 //   hang:  it outlived its limit and was killed.
 //
 // Thread safety: run_children() is for one thread; it waits for its children itself (polling every 20 ms) and calls
 // its callbacks on that thread.
 #pragma once
-
-#include <nlohmann/json.hpp>
 
 #include <cstddef>
 #include <filesystem>
@@ -19,6 +20,8 @@
 #include <optional>
 #include <string>
 #include <vector>
+
+#include "cellwright/cell/report.hpp"
 
 namespace cellwright::cell {
 
@@ -47,11 +50,12 @@ struct ChildEnd {
   int signal = 0;        // when a signal ended it
   double wall_time = 0;  // s from its start to when its end was seen
   // A crash's or hang's description: "killed by signal 11 (Segmentation fault)", "exit 2 without report.json:
-  // <first line of stderr>", "still running after 600 s: killed". Empty when done.
+  // <first line of stderr>", "exit 0 with an unreadable report.json: DIR/report.json: error: "faults[0].detected" is
+  // missing", "still running after 600 s: killed". Empty when done.
   std::string problem;
   // The first line of its stderr that says something (an InputError's message), at most 200 characters; "" if none.
   std::string first_error;
-  std::optional<nlohmann::json> report;  // DIR/report.json when it parses as an object
+  std::optional<Report> report;  // DIR/report.json read back (read_report) when done
 };
 
 struct ChildCallbacks {

@@ -10,6 +10,8 @@
 //  2. discover(): the scenarios among the paths given, and what was skipped and why. A folder contributes its
 //     *.yaml and *.yml files that are scenarios (the others are skipped, saying what they are); its subfolders are
 //     not entered (they are skipped, saying so) unless named themselves. A file named explicitly must be a scenario.
+//     A YAML file that cannot be read or parsed (in a folder, or named) is a case of its own that is an ERROR
+//     without a run, its message the parse error (file:line:column); the other scenarios still run.
 //  3. plan_suite(): each scenario's name, output directory and time limit, checked before anything runs.
 //  4. run_suite(): the children, at most `jobs` at a time, and a verdict for each; a passing scenario's outputs are
 //     removed unless kept, a failing one's stay.
@@ -19,13 +21,15 @@
 //
 // Verdicts: pass (exit 0, report.json says "ok"); fail (the run ended and an expectation does not hold: exit 1 or a
 // report that is not "ok"); error (`twin run` refused the scenario: exit 2 before it wrote a report, e.g. a typo in
-// the file); crash (a signal, or an exit without a report.json); hang (still running at the time limit: killed).
+// the file; or the suite could not parse the file as YAML: not run); crash (a signal, or an exit without a readable
+// report.json: one that lacks a field is named so, children.hpp); hang (still running at the time limit: killed).
 // Only pass counts as passed.
 //
 // Errors: bad input to the suite itself (a path that does not exist, a folder that cannot be read, a file named
-// explicitly that is not a scenario, a YAML file that does not parse, a folder without any scenario, an output
+// explicitly that is not a scenario, a folder without any scenario or YAML file that does not parse, an output
 // directory that cannot be written or would overwrite something that is not an earlier run's outputs) throws
-// InputError naming the file, before any child starts.
+// InputError naming the file, before any child starts. A YAML file that does not parse is not such an error: one
+// broken file must not cost the verdicts of the others, so it is an ERROR case (above).
 //
 // Thread safety: plain values and functions; run_suite() is for one thread (it waits for its children itself), and
 // its callbacks are called on that thread.
@@ -68,6 +72,9 @@ struct Skipped {
 struct FoundScenario {
   std::filesystem::path path;  // as given, or the folder as given joined with the file name
   double wall_time = 0;        // YamlClass::wall_time
+  // Set when the file could not be read or parsed as YAML (classify_yaml's InputError, "FILE:LINE:COLUMN: error:
+  // not valid YAML: ..."): it is not run, its case is an ERROR with this message.
+  std::string error;
 };
 
 struct Discovery {
@@ -76,9 +83,10 @@ struct Discovery {
   std::vector<Skipped> skipped;          // in the same order
 };
 
-// The scenarios among `paths` (files and folders). Throws InputError (naming the path) when a path does not exist or
-// cannot be read, a file named explicitly is not a scenario (saying what it is), a YAML file in a folder does not
-// parse, or no scenario is found at all.
+// The scenarios among `paths` (files and folders), with the YAML files that cannot be read or parsed among them (set
+// `error`, in their place in name order). Throws InputError (naming the path) when a path does not exist or a folder
+// cannot be read, a file named explicitly parses but is not a scenario (saying what it is), or no scenario (nor
+// YAML file that does not parse) is found at all.
 Discovery discover(const std::vector<std::filesystem::path>& paths);
 
 // --- Planning --------------------------------------------------------------------------------------------------------
@@ -88,6 +96,7 @@ struct SuiteCase {
   std::string name;                // the file name without extension, "-2", "-3" ... added when taken already
   std::filesystem::path dir;       // OUT/NAME: the run's outputs, stdout.txt and stderr.txt
   double timeout = 0;              // s of wall time before the child is killed
+  std::string error;               // FoundScenario::error: not run, an ERROR with this message; else empty
 };
 
 // The default time limit of a scenario: its own wall-time limit plus a minute (so that `twin run` judges a slow run
@@ -96,8 +105,8 @@ double default_timeout(double scenario_wall_time);
 
 // One case per scenario of `found`, in its order, outputs under `out`; `timeout` (s, > 0) for every scenario, or
 // default_timeout() of each. Throws InputError when `timeout` is not > 0 (naming --timeout), `out` cannot be
-// written (check_writable_dir), or an OUT/NAME exists and is not the outputs of an earlier run (a directory holding
-// stdout.txt, or an empty one): the suite would replace it.
+// written (check_writable_dir), or an OUT/NAME of a case that runs exists and is not the outputs of an earlier run
+// (a directory holding stdout.txt, or an empty one): the suite would replace it. A case with an error writes nothing.
 std::vector<SuiteCase> plan_suite(const Discovery& found, const std::filesystem::path& out,
                                   std::optional<double> timeout);
 
@@ -133,7 +142,7 @@ struct CaseResult {
   std::vector<std::string> failures;  // every failure of the report (fail), else {message} unless passed
   std::string output;                 // the child's stdout (`twin run`'s summary of the report)
   std::string errors;                 // the child's stderr
-  bool kept = true;                   // its outputs are still in test.dir
+  bool kept = true;                   // its outputs are still in test.dir (false for a case with an error: none)
   std::filesystem::path video;        // test.dir/video.mp4 once record_videos() made it, else empty
   std::string video_note;             // why there is no video, or what to know of it; empty when all went well
   bool passed() const { return verdict == Verdict::kPass; }
@@ -155,8 +164,9 @@ struct SuiteCallbacks {
 };
 
 // Runs every case as `EXE run SCENARIO -o DIR --quiet [--seed S]` (SCENARIO absolute), at most `jobs` at a time, each
-// killed at its time limit, judges each (judge()) and removes a passing one's directory unless options.keep. Results
-// in the order of `cases`. Throws InputError as run_children.
+// killed at its time limit, judges each (judge()) and removes a passing one's directory unless options.keep. A case
+// with an error is not run: its result (ERROR, its message the error, no outputs) is reported first. Results in the
+// order of `cases`. Throws InputError as run_children.
 std::vector<CaseResult> run_suite(const std::vector<SuiteCase>& cases, const SuiteOptions& options,
                                   const SuiteCallbacks& callbacks = {});
 

@@ -314,7 +314,7 @@ std::vector<RunRecord> fabricated_runs() {
                                   {part_report("A", false, true)})));
   Report stopped = report_of({fault_report("timeout", true, std::nullopt, true)}, {"the cell was stopped"});
   stopped.outcome = "stopped";
-  stopped.false_alarms.push_back(Detection{0.5, "r1", 2, "controller_not_answering", ""});
+  stopped.false_alarms.push_back(Detection{0.5, "r1", 2, "grip_lost", "", "grip_lost", "regrasp", false, "a part is between its fingers"});
   runs.push_back(record(3, {"timeout:robot=puma"}, RunStatus::kDone, stopped));
   runs.push_back(record(4, {"drop:robot=puma", "timeout:robot=melfa"}, RunStatus::kDone,
                         report_of({fault_report("drop", true, 3.0), fault_report("timeout", true, 1.0)})));
@@ -534,7 +534,7 @@ TEST(CampaignRun, ChildrenGetTheirFaultsSeedAndDirectory) {
     const Variant v = draw_variant(o.targets, o.kinds, o.seed, i);
     std::string expected = "run " + o.scenario.string();
     for (const DrawnFault& f : v.faults) expected += " --fault " + f.spec;
-    expected += fmt::format(" --seed {} --quiet -o {}\n", v.seed, r.dir.string());
+    expected += fmt::format(" --seed {} --quiet --final-png never -o {}\n", v.seed, r.dir.string());
     EXPECT_EQ(slurp(r.dir / "args.txt"), expected);
     EXPECT_EQ(slurp(r.dir / "stdout.txt"), "running\n");
     EXPECT_EQ(slurp(r.dir / "stderr.txt"), "some warning\n");

@@ -19,7 +19,9 @@
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/twin/faults.hpp"
+#include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/sim/run.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -142,7 +144,14 @@ Report full_report() {
   quiet.kind = "obstacle";
   quiet.t = 8.0;
   r.faults = {f, quiet};
-  r.false_alarms.push_back(Detection{0.5, "r2", 3, "controller_not_answering", "no reply in 8 s"});
+  r.false_alarms.push_back(
+      Detection{0.5, "r2", 3, "grip_lost", "the grip sensor reads open", "dropped", "regrasp", true,
+                "the twin holds workpiece 'B' between its fingers"});
+  r.unexplained.push_back(Detection{1.5, "r1", 4, "controller_not_answering", "no reply in 8 s", "controller_timeout",
+                                    "reset", false, ""});
+  r.setup.perception = "vision";
+  r.setup.drivers = {{"puma", "sim", "", false}, {"melfa", "movemaster", "/dev/pts/7", true}};
+  r.setup.faults = {"drop:robot=puma,carry=1,every=0,after=0.3"};
   r.failures = {"workpiece D must end at output, is elsewhere", "the cell was stopped"};
   return r;
 }
@@ -169,7 +178,7 @@ TEST(ReportJson, SyntheticReportsComeBackAsWritten) {
 
 // Runs a scenario as `twin run` does (lock-step, in this process), checks its report's round trip and returns it.
 Report run_and_round_trip(const Scenario& s) {
-  const Preflight pre = preflight(s);
+  const Preflight pre = preflight(s, &twin_port());
   EXPECT_TRUE(pre.ok()) << pre.problems.front();
   ScenarioRun run(s, pre.net);
   run.runtime().run();

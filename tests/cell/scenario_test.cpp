@@ -129,7 +129,7 @@ TEST_F(ScenarioFiles, MissingScenarioFile) {
     ADD_FAILURE();
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("nope.yaml"));
-    EXPECT_THAT(e.what(), HasSubstr("not found"));
+    EXPECT_THAT(e.what(), HasSubstr("cannot read the scenario: no such file"));
   }
 }
 

@@ -329,7 +329,7 @@ TEST_F(SuiteRun, EachChildGetsItsScenarioOutputAndSeed) {
   ASSERT_EQ(results_->size(), 5u);
   const fs::path out = scratch_->dir() / "out";
   EXPECT_EQ(slurp(out / "fail" / "args.txt"),
-            fmt::format("run {} -o {} --quiet --seed 7\n", fs::absolute("scenes/fail.yaml").string(),
+            fmt::format("run {} -o {} --quiet --final-png failed --seed 7\n", fs::absolute("scenes/fail.yaml").string(),
                         (out / "fail").string()));
   EXPECT_LT(wall_, 20.0);  // the hang was killed at its limit, not waited for
 }
@@ -577,7 +577,7 @@ TEST(SuiteVideos, EachFailedScenarioIsRunAgainAndItsVideoJoinsItsOutputs) {
   EXPECT_EQ(slurp(out / "same" / "video.mp4"), "mp4 bytes\n");
   EXPECT_EQ(slurp(out / "same" / "index.html"), "<video src=\"video.mp4\">\n");  // the page that shows it
   EXPECT_EQ(slurp(out / "same" / "args.txt"),  // the first run's outputs are kept as they were
-            fmt::format("run {} -o {} --quiet --seed 7\n", (kScenes / "same.yaml").string(), (out / "same").string()));
+            fmt::format("run {} -o {} --quiet --final-png failed --seed 7\n", (kScenes / "same.yaml").string(), (out / "same").string()));
   EXPECT_FALSE(fs::exists(out / "same" / ".video"));
   const fs::path rerun = out / "same" / ".video";
   EXPECT_EQ(slurp(out / "same" / "video-args.txt"),

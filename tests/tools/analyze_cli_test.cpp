@@ -125,7 +125,7 @@ TEST_F(AnalyzeCli, BadInputExitsTwoWithFileAndLine) {
 
   const Outcome missing = twin(shell_quote((dir_ / "absent.pnml").string()));
   EXPECT_EQ(missing.status, 2);
-  EXPECT_THAT(missing.err, HasSubstr("absent.pnml: error: cannot open"));
+  EXPECT_THAT(missing.err, HasSubstr("absent.pnml: error: cannot read: no such file"));
 
   const Outcome usage = twin(data("kanban-1.pnml") + " --max-states 0");
   EXPECT_EQ(usage.status, 2);

@@ -315,8 +315,8 @@ std::vector<RunRecord> run_campaign(const CampaignOptions& o,
     }
     // No final.png: nobody opens a campaign run's picture (`--video` re-runs a failed one with all of its outputs).
     for (const std::string& a : {std::string("--seed"), std::to_string(rec.variant.seed), std::string("--quiet"),
-                                 std::string("-o"), rec.dir.string(), std::string("--final-png"),
-                                 std::string("never")}) {
+                                 std::string("--final-png"), std::string("never"), std::string("-o"),
+                                 rec.dir.string()}) {
       c.args.push_back(a);
     }
     c.dir = rec.dir;

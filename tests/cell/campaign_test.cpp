@@ -407,12 +407,12 @@ TEST(CampaignAggregate, AStalledRunIsAFailureAndItsFaultIsNotRecovered) {
   EXPECT_EQ(s.total.stalls, 2u);
   EXPECT_EQ(s.total.recovered, 1u);
 
-  EXPECT_THAT(format_csv(s), HasSubstr("\ndrop,3,3,2,1,0,0,0,0,0,0,2,1,2.0000\n"));
-  EXPECT_THAT(format_csv(s), HasSubstr("\nall,3,4,3,1,0,0,0,0,0,0,2,1,2.0000\n"));
+  EXPECT_THAT(format_csv(s), HasSubstr("\ndrop,3,3,2,1,0,0,0,0,0,0,0,2,1,2.0000\n"));
+  EXPECT_THAT(format_csv(s), HasSubstr("\nall,3,4,3,1,0,0,0,0,0,0,0,2,1,2.0000\n"));
   const std::string md = format_markdown(s, runs);
   EXPECT_THAT(md, HasSubstr("1 of 3 runs ok; 4 faults injected, 3 detected, 1 recovered, 0 stopped safely; 2 runs "
-                            "stalled."));
-  EXPECT_THAT(md, HasSubstr("| timeout | 1 | 1 | 1 | 0 | 0 | 0 | 0 | 0 | 0 | 0 | 1 | - |"));
+                            "stalled; 0 unexplained faults, 0 false alarms."));
+  EXPECT_THAT(md, HasSubstr("| timeout | 1 | 1 | 1 | 0 | 0 | 0 | 0 | 0 | 0 | 0 | 0 | 1 | - |"));
   EXPECT_THAT(md, HasSubstr("\nRuns that stalled:\n\n- run 0001 (seed 101, drop:robot=r2): timeout at 150.00 s: " +
                             limit + "; recovered before the stall, not counted: drop at 4.00 s\n"));
   EXPECT_THAT(md, HasSubstr("- run 0002 (seed 102, drop:robot=r1 + timeout:robot=r3): timeout at 150.00 s: " + limit +
@@ -426,19 +426,48 @@ TEST(CampaignAggregate, AStalledRunIsAFailureAndItsFaultIsNotRecovered) {
   EXPECT_GT(black, 1000);
 }
 
+// A detection no injection explains is a real fault the campaign did not ask for (on real robots, every fault is one):
+// counted as an unexplained fault under each kind its run drew, apart from the false alarms, in every output.
+TEST(CampaignAggregate, UnexplainedFaultsAreCountedApartFromFalseAlarms) {
+  std::vector<RunRecord> runs;
+  Report blocked = report_of({fault_report("drop", true, 2.0)});
+  blocked.unexplained.push_back(
+      Detection{7.5, "r2", 4, "motion_blocked", "short of its goal", "obstruction", "retry", true, ""});
+  blocked.unexplained.push_back(
+      Detection{9.0, "r2", 6, "no_progress", "stopped 5 times", "livelock", "stop_cell", false, ""});
+  runs.push_back(record(0, {"drop:robot=r1"}, RunStatus::kDone, blocked));
+  Report alarm = report_of({fault_report("timeout", true, 1.0)});
+  alarm.false_alarms.push_back(
+      Detection{3.0, "r1", 2, "grip_lost", "", "dropped", "regrasp", true, "A between the fingers of r1"});
+  runs.push_back(record(1, {"timeout:robot=r1"}, RunStatus::kDone, alarm));
+
+  const CampaignSummary s = aggregate(runs, {"drop", "timeout"}, "relay.yaml", 1);
+  EXPECT_EQ(s.kinds[0].unexplained, 2u);
+  EXPECT_EQ(s.kinds[0].false_alarms, 0u);
+  EXPECT_EQ(s.kinds[1].unexplained, 0u);
+  EXPECT_EQ(s.kinds[1].false_alarms, 1u);
+  EXPECT_EQ(s.total.unexplained, 2u);
+  EXPECT_EQ(s.total.false_alarms, 1u);
+  EXPECT_THAT(format_csv(s), HasSubstr("\ndrop,1,1,1,1,0,0,0,0,2,0,0,0,1,2.0000\n"));
+  EXPECT_THAT(format_csv(s), HasSubstr("\nall,2,2,2,2,0,0,0,1,2,0,0,0,2,1.5000\n"));
+  const std::string md = format_markdown(s, runs);
+  EXPECT_THAT(md, HasSubstr("2 unexplained faults, 1 false alarm."));
+  EXPECT_THAT(md, HasSubstr("| drop | 1 | 1 | 1 | 1 | 0 | 0 | 0 | 0 | 2 | 0 | 0 | 0 | 2.00 |"));
+}
+
 TEST(CampaignAggregate, CsvMarkdownAndChart) {
   const std::vector<RunRecord> runs = fabricated_runs();
   const CampaignSummary s = aggregate(runs, {"drop", "timeout"}, "exchange.yaml", 1);
   const std::string csv = format_csv(s);
   EXPECT_THAT(csv, HasSubstr("kind,runs,injected,detected,recovered,stopped_safely,lost,unaccounted,false_alarms,"
-                             "crashes,hangs,stalls,ok_runs,mean_recovery_time_s\n"));
-  EXPECT_THAT(csv, HasSubstr("\ndrop,4,4,3,3,0,1,1,0,0,0,0,3,3.0000\n"));
-  EXPECT_THAT(csv, HasSubstr("\ntimeout,4,2,2,1,1,0,0,1,1,1,0,1,1.0000\n"));
-  EXPECT_THAT(csv, HasSubstr("\nall,7,6,5,4,1,1,1,1,1,1,0,3,2.5000\n"));
+                             "unexplained,crashes,hangs,stalls,ok_runs,mean_recovery_time_s\n"));
+  EXPECT_THAT(csv, HasSubstr("\ndrop,4,4,3,3,0,1,1,0,0,0,0,0,3,3.0000\n"));
+  EXPECT_THAT(csv, HasSubstr("\ntimeout,4,2,2,1,1,0,0,1,0,1,1,0,1,1.0000\n"));
+  EXPECT_THAT(csv, HasSubstr("\nall,7,6,5,4,1,1,1,1,0,1,1,0,3,2.5000\n"));
   const std::string md = format_markdown(s, runs);
   EXPECT_THAT(md, HasSubstr("# Fault campaign: exchange.yaml, 7 runs, seed 1"));
-  EXPECT_THAT(md, HasSubstr("| drop | 4 | 4 | 3 | 3 | 0 | 1 | 1 | 0 | 0 | 0 | 0 | 3.00 |"));
-  EXPECT_THAT(md, HasSubstr("| **all** | 7 | 6 | 5 | 4 | 1 | 1 | 1 | 1 | 1 | 1 | 0 | 2.50 |"));
+  EXPECT_THAT(md, HasSubstr("| drop | 4 | 4 | 3 | 3 | 0 | 1 | 1 | 0 | 0 | 0 | 0 | 0 | 3.00 |"));
+  EXPECT_THAT(md, HasSubstr("| **all** | 7 | 6 | 5 | 4 | 1 | 1 | 1 | 1 | 0 | 1 | 1 | 0 | 2.50 |"));
   EXPECT_THAT(md, HasSubstr("- run 0005 (seed 105, timeout:robot=puma): crash: killed by signal 11"));
   EXPECT_THAT(md, HasSubstr("- run 0006 (seed 106, timeout:robot=melfa): hang:"));
   const std::string runs_csv = format_runs_csv(runs);

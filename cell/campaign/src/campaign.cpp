@@ -377,12 +377,13 @@ CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<
   for (const RunRecord& rec : runs) {
     std::set<std::string> drawn;
     for (const DrawnFault& f : rec.variant.faults) drawn.insert(f.kind);
-    std::size_t lost = 0, unaccounted = 0, false_alarms = 0;
+    std::size_t lost = 0, unaccounted = 0, false_alarms = 0, unexplained = 0;
     bool ok = false, stall = false;
     if (rec.report) {
       const Report& r = *rec.report;
       unaccounted = r.unaccounted();
       false_alarms = r.false_alarms.size();
+      unexplained = r.unexplained.size();
       for (const WorkpieceReport& w : r.workpieces) lost += w.lost ? 1 : 0;
       ok = r.ok();
       stall = stalled(r);
@@ -406,6 +407,7 @@ CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<
       k.lost += lost;
       k.unaccounted += unaccounted;
       k.false_alarms += false_alarms;
+      k.unexplained += unexplained;
       if (rec.status == RunStatus::kCrash) ++k.crashes;
       if (rec.status == RunStatus::kHang) ++k.hangs;
       if (stall) ++k.stalls;
@@ -435,15 +437,17 @@ std::string csv_field(const std::string& s) {
 }
 
 std::string csv_line(const KindSummary& k) {
-  return fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(k.kind), k.runs, k.injected, k.detected,
-                     k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.crashes, k.hangs, k.stalls,
+  return fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(k.kind), k.runs, k.injected,
+                     k.detected, k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.unexplained,
+                     k.crashes, k.hangs, k.stalls,
                      k.ok_runs, k.mean_recovery_time ? fmt::format("{:.4f}", *k.mean_recovery_time) : std::string());
 }
 
 std::string md_line(const KindSummary& k, bool bold) {
   const std::string name = bold ? "**" + k.kind + "**" : k.kind;
-  return fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", name, k.runs, k.injected,
-                     k.detected, k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms, k.crashes,
+  return fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", name, k.runs,
+                     k.injected, k.detected, k.recovered, k.stopped_safely, k.lost, k.unaccounted, k.false_alarms,
+                     k.unexplained, k.crashes,
                      k.hangs, k.stalls,
                      k.mean_recovery_time ? fmt::format("{:.2f}", *k.mean_recovery_time) : std::string("-"));
 }
@@ -458,7 +462,8 @@ std::string faults_text(const Variant& v) {
 
 std::string format_csv(const CampaignSummary& s) {
   std::string out =
-      "kind,runs,injected,detected,recovered,stopped_safely,lost,unaccounted,false_alarms,crashes,hangs,stalls,"
+      "kind,runs,injected,detected,recovered,stopped_safely,lost,unaccounted,false_alarms,unexplained,crashes,hangs,"
+      "stalls,"
       "ok_runs,mean_recovery_time_s\n";
   for (const KindSummary& k : s.kinds) out += csv_line(k);
   out += csv_line(s.total);
@@ -484,13 +489,15 @@ std::string format_runs_csv(const std::vector<RunRecord>& runs) {
 std::string format_markdown(const CampaignSummary& s, const std::vector<RunRecord>& runs) {
   std::string out = fmt::format("# Fault campaign: {}, {} runs, seed {}\n\n", s.scenario, s.total.runs, s.seed);
   out += fmt::format(
-      "{} of {} runs ok; {} faults injected, {} detected, {} recovered, {} stopped safely; {} run{} stalled.\n\n",
+      "{} of {} runs ok; {} faults injected, {} detected, {} recovered, {} stopped safely; {} run{} stalled; {} "
+      "unexplained fault{}, {} false alarm{}.\n\n",
       s.total.ok_runs, s.total.runs, s.total.injected, s.total.detected, s.total.recovered, s.total.stopped_safely,
-      s.total.stalls, s.total.stalls == 1 ? "" : "s");
+      s.total.stalls, s.total.stalls == 1 ? "" : "s", s.total.unexplained, s.total.unexplained == 1 ? "" : "s",
+      s.total.false_alarms, s.total.false_alarms == 1 ? "" : "s");
   out +=
       "| fault | runs | injected | detected | recovered | stopped safely | lost parts | unaccounted parts | "
-      "false alarms | crashes | hangs | stalls | mean time to recover (s) |\n";
-  out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+      "false alarms | unexplained faults | crashes | hangs | stalls | mean time to recover (s) |\n";
+  out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const KindSummary& k : s.kinds) out += md_line(k, false);
   out += md_line(s.total, true);
   std::string bad;
@@ -515,13 +522,16 @@ std::string format_markdown(const CampaignSummary& s, const std::vector<RunRecor
   }
   if (!stalls.empty()) out += "\nRuns that stalled:\n\n" + stalls;
   out +=
-      "\nA run's faults count under their kind; its lost and unaccounted parts, false alarms, crash, hang or stall "
+      "\nA run's faults count under their kind; its lost and unaccounted parts, false alarms, unexplained faults, crash, "
+      "hang or stall "
       "under every kind it drew (a run drew one kind, now and then two). Recovered: the recovery ended well (setting a "
       "lost part aside included) and the run did not stall; lost parts: declared lost by the controller; unaccounted: "
       "neither where expected nor declared lost. Stall: the run reached its time limit with its program unfinished "
       "(idle, or going round in circles): a failure, and a fault of a stalled run is not recovered even when its "
       "recovery ended well before the stall. Mean time to recover: from the injection to the recovery's end, over the "
-      "recovered faults.\n";
+      "recovered faults. False alarm: a detection the twin's truth refutes (nothing was physically wrong); "
+      "unexplained fault: a detection no injected fault explains, with something physically wrong (a real fault the "
+      "campaign did not ask for).\n";
   return out;
 }
 
@@ -565,8 +575,9 @@ cv::Mat draw_campaign(const CampaignSummary& s, int width, int height) {
   const int left = 80, right = 30, top = 75, bottom = 130;
   const int x0 = left, x1 = width - right, y0 = top, y1 = height - bottom;
   put_text(img,
-           fmt::format("{}: {} runs, seed {}; crashes {}, hangs {}, stalls {}, false alarms {}", s.scenario,
-                       s.total.runs, s.seed, s.total.crashes, s.total.hangs, s.total.stalls, s.total.false_alarms),
+           fmt::format("{}: {} runs, seed {}; crashes {}, hangs {}, stalls {}, false alarms {}, unexplained {}",
+                       s.scenario, s.total.runs, s.seed, s.total.crashes, s.total.hangs, s.total.stalls,
+                       s.total.false_alarms, s.total.unexplained),
            {x0, 36}, 0.65, {0, 0, 0}, 2);
 
   std::size_t most = 1;

@@ -183,6 +183,8 @@ struct KindSummary {
   std::size_t lost = 0;            // parts the controller declared lost in the runs that drew the kind
   std::size_t unaccounted = 0;     // parts unaccounted in the runs that drew the kind
   std::size_t false_alarms = 0;    // false alarms in the runs that drew the kind
+  std::size_t unexplained = 0;     // detections no injection explains (Report::unexplained): a real fault the
+                                   // run did not ask for, in the runs that drew the kind
   std::size_t crashes = 0, hangs = 0;  // of the runs that drew the kind
   std::size_t stalls = 0;              // runs that drew the kind and stalled (stalled())
   std::size_t ok_runs = 0;         // runs whose report says "ok"
@@ -198,7 +200,7 @@ struct CampaignSummary {
 
 // Adds up the records' reports. A report's faults are counted under their own kind (a kind the campaign did not ask
 // for, e.g. injected by the scenario itself, gets a row of its own after the others); a run's lost and unaccounted
-// parts, false alarms, crash, hang or stall under every kind it drew. A fault of a stalled run is not recovered.
+// parts, false alarms, unexplained faults, crash, hang or stall under every kind it drew. A fault of a stalled run is not recovered.
 CampaignSummary aggregate(const std::vector<RunRecord>& runs, const std::vector<std::string>& kinds,
                           const std::string& scenario, std::uint64_t seed);
 

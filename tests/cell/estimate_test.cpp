@@ -291,8 +291,10 @@ std::vector<std::string> shipped_scenarios() {
 std::string comparison(const Estimate& e, const std::string& events_text) {
   std::map<std::string, double> est_fire, fire;
   for (const TimedFiring& f : e.run.firings) est_fire.emplace(e.timed_net.transitions()[f.transition].id, f.time);
-  for (const auto& ev : parse_event_log(events_text, "events.jsonl")) {
-    if (ev["type"] == "fire") fire.emplace(ev["transition"].get<std::string>(), ev["t"].get<double>());
+  for (const runtime::LoggedEvent& ev : runtime::decode_log(events_text, "events.jsonl")) {
+    if (const auto* f = std::get_if<runtime::events::Fire>(&ev.event)) {
+      fire.emplace(f->transition, std::chrono::duration<double>(f->t).count());
+    }
   }
   std::string out = "robot primitive command: started estimated / measured, lasted estimated / measured (s)\n";
   for (std::size_t i = 0; i < e.commands.size(); ++i) {

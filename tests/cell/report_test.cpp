@@ -8,6 +8,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -167,22 +168,9 @@ FinalPose on_output(const Scenario& s, double along) {
   return f;
 }
 
-TEST(EventLogParse, RejectsBadLinesWithTheirLineNumber) {
-  EXPECT_EQ(parse_event_log("{\"t\":0,\"type\":\"a\"}\n\n{\"t\":1,\"type\":\"b\"}\n", "e.jsonl").size(), 2u);
-  try {
-    parse_event_log("{\"t\":0,\"type\":\"a\"}\n{\"t\":1,\"type\":\n", "e.jsonl");
-    ADD_FAILURE();
-  } catch (const InputError& e) {
-    EXPECT_EQ(e.where().line, 2);
-    EXPECT_EQ(e.where().file, "e.jsonl");
-  }
-  EXPECT_THROW(parse_event_log("{\"type\":\"a\"}\n", "e.jsonl"), InputError);
-  EXPECT_THROW(parse_event_log("[1,2]\n", "e.jsonl"), InputError);
-}
-
 TEST(Timeline, BarsFollowTheFiringsAndCommands) {
   const Scenario s = exchange_scenario();
-  const Timeline tl = build_timeline(parse_event_log(exchange_log(), "e"), s.program);
+  const Timeline tl = build_timeline(runtime::decode_log(exchange_log(), "e"), s.program);
   EXPECT_DOUBLE_EQ(tl.end, 16.5);
   ASSERT_EQ(tl.robots.size(), 2u);
   const RobotTimeline& r1 = tl.robots[0];
@@ -214,7 +202,7 @@ TEST(Timeline, BarsFollowTheFiringsAndCommands) {
 // come from the sensor events of the Pick, the Put and the Place.
 TEST(Timeline, AWaitForThePartIsWaitingNotAMoveAndTheJourneyIsMarked) {
   const Scenario s = exchange_scenario();
-  const Timeline tl = build_timeline(parse_event_log(exchange_log(true, true), "e"), s.program);
+  const Timeline tl = build_timeline(runtime::decode_log(exchange_log(true, true), "e"), s.program);
   const RobotTimeline& r1 = tl.robots[0];
   std::vector<std::string> kinds;
   for (const Bar& b : r1.bars) kinds.push_back(fmt::format("{} {}-{}", to_string(b.activity), b.start, b.end));
@@ -233,7 +221,7 @@ TEST(Timeline, AWaitForThePartIsWaitingNotAMoveAndTheJourneyIsMarked) {
   std::string log = exchange_log(true, true);
   log.erase(log.find(R"({"t":1.6000,"type":"sensor")"), log.find('\n', log.find(R"({"t":1.6000,"type":"sensor")")) -
                                                                 log.find(R"({"t":1.6000,"type":"sensor")") + 1);
-  const Timeline no_ready = build_timeline(parse_event_log(log, "e"), s.program);
+  const Timeline no_ready = build_timeline(runtime::decode_log(log, "e"), s.program);
   EXPECT_EQ(fmt::format("{} {}-{}", to_string(no_ready.robots[0].bars[1].activity), no_ready.robots[0].bars[1].start,
                         no_ready.robots[0].bars[1].end),
             "part_wait 1-2");
@@ -248,18 +236,18 @@ TEST(Timeline, EventsOfAnotherProgramAreRefused) {
       R"({"t":17.0000,"type":"command_start","robot":"r2","primitive":40,"command":"open","task":"","motion":"","detail":""})"
       "\n";
   try {
-    build_timeline(parse_event_log(log, "e.jsonl"), s.program, "e.jsonl");
+    build_timeline(runtime::decode_log(log, "e.jsonl"), s.program, "e.jsonl");
     ADD_FAILURE();
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("primitive 40"));
     EXPECT_GT(e.where().line, 1);
   }
-  EXPECT_THROW(build_timeline(parse_event_log("{\"t\":0,\"type\":\"fire\"}\n", "e"), s.program), InputError);
+  EXPECT_THROW(build_timeline(runtime::decode_log("{\"t\":0,\"type\":\"fire\"}\n", "e"), s.program), InputError);
 }
 
 TEST(Report, FinishedRunWithThePartOnTheOutputBeltIsOk) {
   const Scenario s = exchange_scenario();
-  const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1)}, 14.25);
+  const Report r = make_report(s, runtime::decode_log(exchange_log(), "e"), {on_output(s, 0.1)}, 14.25);
   EXPECT_TRUE(r.ok()) << (r.failures.empty() ? "" : r.failures.front());
   EXPECT_EQ(r.outcome, "finished");
   EXPECT_EQ(r.firings, 32u);
@@ -307,7 +295,7 @@ TEST(Report, WrongPlaceFailsNamingWhereThePartIs) {
   f.name = "A";
   const models::LocationSpec& fixture = *s.cell.find_location("machine_fixture");
   f.pose.translation() = fixture.pose.xyz + Eigen::Vector3d(0, 0, 0.03);
-  const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {f}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(exchange_log(), "e"), {f}, std::nullopt);
   EXPECT_FALSE(r.ok());
   ASSERT_EQ(r.failures.size(), 1u);
   EXPECT_THAT(r.failures[0], HasSubstr("workpiece A must end at output"));
@@ -325,7 +313,7 @@ TEST(Report, PartLyingOnItsSideIsNowhere) {
 
 TEST(Report, UnfinishedRunFailsEvenWithThePartInPlace) {
   const Scenario s = exchange_scenario();
-  const Report r = make_report(s, parse_event_log(exchange_log(false), "e"), {on_output(s, 0.0)}, 14.0);
+  const Report r = make_report(s, runtime::decode_log(exchange_log(false), "e"), {on_output(s, 0.0)}, 14.0);
   EXPECT_FALSE(r.ok());
   EXPECT_THAT(r.failures[0], HasSubstr("did not finish: timeout: sim time limit"));
   EXPECT_FALSE(r.finished_at);
@@ -338,7 +326,7 @@ TEST(Report, LogWithoutRunEndIsUnfinished) {
   const Scenario s = exchange_scenario();
   std::string log = exchange_log();
   log = log.substr(0, log.rfind("{\"t\":16.5000"));
-  const Report r = make_report(s, parse_event_log(log, "e"), {on_output(s, 0.1)}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(log, "e"), {on_output(s, 0.1)}, std::nullopt);
   EXPECT_EQ(r.outcome, "unfinished");
   EXPECT_FALSE(r.ok());
 }
@@ -410,7 +398,7 @@ TEST(ReportAccount, EachStatusFromTheFinalPosesAndTheEvents) {
   d.name = "D";
   const models::LocationSpec& fixture = *s.cell.find_location("machine_fixture");
   d.pose.translation() = fixture.pose.xyz + Eigen::Vector3d(0, 0, s.cell.find_workpiece("D")->size.z() / 2);
-  const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1), b, c, d}, 14.0);
+  const Report r = make_report(s, runtime::decode_log(exchange_log(), "e"), {on_output(s, 0.1), b, c, d}, 14.0);
   EXPECT_TRUE(r.ok()) << (r.failures.empty() ? "" : r.failures.front());
   EXPECT_EQ(part(r, "A").status, PartStatus::kInPlace);
   EXPECT_EQ(part(r, "A").where, "output");
@@ -442,7 +430,7 @@ TEST(ReportAccount, EachStatusFromTheFinalPosesAndTheEvents) {
 
 TEST(ReportAccount, PartNotWhereItShouldBeAndNotDeclaredLostIsUnaccounted) {
   const Scenario s = exchange_scenario();
-  const Report r = make_report(s, parse_event_log(drop_log("none"), "e"), {on_floor("A")}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(drop_log("none"), "e"), {on_floor("A")}, std::nullopt);
   EXPECT_FALSE(r.ok());
   const WorkpieceReport& a = part(r, "A");
   EXPECT_EQ(a.status, PartStatus::kElsewhere);
@@ -461,7 +449,7 @@ TEST(ReportAccount, PartNotWhereItShouldBeAndNotDeclaredLostIsUnaccounted) {
 
 TEST(ReportAccount, PartDeclaredLostIsAFailureButAccountedFor) {
   const Scenario s = exchange_scenario();
-  const Report r = make_report(s, parse_event_log(drop_log("lose"), "e"), {on_floor("A")}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(drop_log("lose"), "e"), {on_floor("A")}, std::nullopt);
   const WorkpieceReport& a = part(r, "A");
   EXPECT_EQ(a.status, PartStatus::kLost);
   ASSERT_TRUE(a.lost);
@@ -488,14 +476,14 @@ TEST(ReportAccount, PartDeclaredLostIsAFailureButAccountedFor) {
 TEST(ReportAccount, PartExpectedLostAndLostIsOk) {
   Scenario s = exchange_scenario();
   s.expect[0].place = std::string(kLostPlace);
-  const Report lost = make_report(s, parse_event_log(drop_log("lose"), "e"), {on_floor("A")}, std::nullopt);
+  const Report lost = make_report(s, runtime::decode_log(drop_log("lose"), "e"), {on_floor("A")}, std::nullopt);
   EXPECT_TRUE(lost.ok()) << (lost.failures.empty() ? "" : lost.failures.front());
   EXPECT_EQ(part(lost, "A").status, PartStatus::kLost);
   EXPECT_EQ(part(lost, "A").ok, true);
   EXPECT_FALSE(part(lost, "A").unaccounted);
   // Expected lost but delivered: the expectation fails, and the part is not unaccounted (the scenario expected it
   // gone, and it is in sight).
-  const Report delivered = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1)}, std::nullopt);
+  const Report delivered = make_report(s, runtime::decode_log(exchange_log(), "e"), {on_output(s, 0.1)}, std::nullopt);
   EXPECT_FALSE(delivered.ok());
   EXPECT_THAT(delivered.failures[0], HasSubstr("workpiece A is expected to be lost"));
   EXPECT_THAT(delivered.failures[0], HasSubstr("at output"));
@@ -516,7 +504,7 @@ TEST(ReportAccount, LostPartThatNeverArrivedIsNotArrivedAndAccounted) {
   FinalPose a;
   a.name = "A";
   a.present = false;
-  const Report r = make_report(s, parse_event_log(w.text(), "e"), {a}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(w.text(), "e"), {a}, std::nullopt);
   const WorkpieceReport& pa = part(r, "A");
   EXPECT_EQ(pa.status, PartStatus::kNotArrived);
   ASSERT_TRUE(pa.lost);
@@ -533,7 +521,7 @@ TEST(ReportAccount, LostPartThatNeverArrivedIsNotArrivedAndAccounted) {
 
 TEST(ReportFaults, InjectionMatchedToDetectionDiagnosisAndRecovery) {
   const Scenario s = exchange_scenario();
-  const Report r = make_report(s, parse_event_log(drop_log("recover"), "e"), {on_output(s, 0.1)}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(drop_log("recover"), "e"), {on_output(s, 0.1)}, std::nullopt);
   EXPECT_TRUE(r.ok()) << (r.failures.empty() ? "" : r.failures.front());
   ASSERT_EQ(r.faults.size(), 1u);
   const FaultReport& f = r.faults[0];
@@ -565,7 +553,7 @@ TEST(ReportFaults, InjectionMatchedToDetectionDiagnosisAndRecovery) {
 
 TEST(ReportFaults, StoppedRunIsAKnownOutcomeAndTheFaultWasStoppedSafely) {
   const Scenario s = exchange_scenario();
-  const Report r = make_report(s, parse_event_log(drop_log("stop", "stopped"), "e"), {on_floor("A")}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(drop_log("stop", "stopped"), "e"), {on_floor("A")}, std::nullopt);
   EXPECT_EQ(r.outcome, "stopped");
   EXPECT_FALSE(r.ok());
   EXPECT_THAT(r.failures[0], HasSubstr("the cell was stopped: grip_lost on r1"));
@@ -598,7 +586,7 @@ TEST(ReportFaults, DetectionsBeforeAnyInjectionAreUnexplainedFaults) {
   // A second injection of the same kind, never detected (the earlier detections are taken).
   w.event(5.0, "fault_injected", R"("kind":"timeout","robot":"melfa","workpiece":"","detail":"grip 1")");
   w.end(10, "failed", "r2: driver_timeout", 10);
-  const Report r = make_report(s, parse_event_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
   // A driver's timeout is real whatever the twin shows: not a false alarm.
   EXPECT_TRUE(r.false_alarms.empty());
   ASSERT_EQ(r.unexplained.size(), 1u);
@@ -633,7 +621,7 @@ TEST(ReportFaults, ADetectionOfTheSameRobotARoundBeforeItsDriverFaultIsItsDetect
   w.event(30.0, "fault_detected", R"("robot":"r1","primitive":9,"symptom":"wait_timeout","detail":"")");
   w.event(30.01, "fault_injected", R"("kind":"timeout","robot":"melfa","workpiece":"","detail":"")");
   w.end(40, "finished", "", 32);
-  const Report r = make_report(s, parse_event_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
   ASSERT_EQ(r.faults.size(), 2u);
   EXPECT_TRUE(r.faults[0].detected);
   EXPECT_DOUBLE_EQ(*r.faults[0].detected_at, 22.05);
@@ -658,7 +646,7 @@ TEST(ReportAccount, APartDeclaredLostIsAccountedWhereItPhysicallyIs) {
   FinalPose held = on_floor("A");
   held.held_by = "puma";
   held.pose.translation() = Eigen::Vector3d(0.4, -0.3, 0.4);
-  const Report r = make_report(s, parse_event_log(drop_log("lose"), "e"), {held}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(drop_log("lose"), "e"), {held}, std::nullopt);
   const WorkpieceReport& a = part(r, "A");
   EXPECT_EQ(a.status, PartStatus::kHeld);
   EXPECT_EQ(a.where, "puma");
@@ -673,7 +661,7 @@ TEST(ReportAccount, APartDeclaredLostIsAccountedWhereItPhysicallyIs) {
   EXPECT_EQ(j["account"][0]["lost"]["reason"], "dropped out of reach");
   EXPECT_THAT(format_summary(r), HasSubstr("part A: held (puma); declared lost at t = 5.60 s (dropped out of reach)"));
 
-  const Report placed = make_report(s, parse_event_log(drop_log("lose"), "e"), {on_output(s, 0.1)}, std::nullopt);
+  const Report placed = make_report(s, runtime::decode_log(drop_log("lose"), "e"), {on_output(s, 0.1)}, std::nullopt);
   EXPECT_EQ(part(placed, "A").status, PartStatus::kInPlace);
   EXPECT_EQ(part(placed, "A").where, "output");
   EXPECT_TRUE(part(placed, "A").lost);
@@ -687,7 +675,7 @@ TEST(ReportParts, APartThatNeverArrivedIsNotCompleted) {
   FinalPose a;
   a.name = "A";
   a.present = false;
-  const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {a}, 14.0);
+  const Report r = make_report(s, runtime::decode_log(exchange_log(), "e"), {a}, 14.0);
   EXPECT_EQ(r.parts_completed, 0u);
   EXPECT_FALSE(r.throughput);
   EXPECT_FALSE(part(r, "A").completed);
@@ -696,7 +684,7 @@ TEST(ReportParts, APartThatNeverArrivedIsNotCompleted) {
   EXPECT_TRUE(to_json(s, r)["throughput_parts_per_min"].is_null());
   EXPECT_THAT(format_summary(r), ::testing::Not(HasSubstr("parts completed")));
   // On the output belt it is completed.
-  const Report done = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1)}, 14.0);
+  const Report done = make_report(s, runtime::decode_log(exchange_log(), "e"), {on_output(s, 0.1)}, 14.0);
   EXPECT_EQ(done.parts_completed, 1u);
   EXPECT_TRUE(part(done, "A").completed);
   EXPECT_EQ(to_json(s, done)["workpieces"][0]["completed"], true);
@@ -756,11 +744,13 @@ class RelayReport : public ::testing::Test {
 
 TEST_F(RelayReport, ThePartIsPlacedOnceAndItsCycleEndsWithTheFinalPlace) {
   const std::string text = log(1e9);
-  const Report r = make_report(s_, parse_event_log(text, "e"), {on_output(s_, 0.1)}, std::nullopt);
+  const Report r = make_report(s_, runtime::decode_log(text, "e"), {on_output(s_, 0.1)}, std::nullopt);
   // The end of the MELFA's Place: the last command of the log.
   double last_end = 0;
-  for (const nlohmann::json& e : parse_event_log(text, "e")) {
-    if (e["type"] == "command_end") last_end = e["t"].get<double>();
+  for (const runtime::LoggedEvent& e : runtime::decode_log(text, "e")) {
+    if (const auto* end = std::get_if<runtime::events::CommandEnd>(&e.event)) {
+      last_end = std::chrono::duration<double>(end->t).count();
+    }
   }
   const WorkpieceReport& a = part(r, "A");
   ASSERT_TRUE(a.completed);
@@ -781,7 +771,7 @@ TEST_F(RelayReport, AStopBeforeTheFinalPlaceCompletesNothing) {
   a.name = "A";
   const models::LocationSpec& fixture = *s_.cell.find_location("machine_fixture");
   a.pose.translation() = fixture.pose.xyz + Eigen::Vector3d(0, 0, 0.03);
-  const Report r = make_report(s_, parse_event_log(text, "e"), {a}, std::nullopt);
+  const Report r = make_report(s_, runtime::decode_log(text, "e"), {a}, std::nullopt);
   EXPECT_EQ(r.parts_completed, 0u);
   EXPECT_FALSE(r.throughput);
   EXPECT_FALSE(part(r, "A").cycle_time);
@@ -802,7 +792,7 @@ TEST(ReportFaults, DetectionsNoInjectionExplainsAreUnexplainedFaultsWithTheirDia
   w.event(4.0, "recovery_end",
           R"("robot":"r2","cause":"controller_fault","action":"reset_rehome","ok":false,"detail":"","duration":2.0)");
   w.end(5, "failed", "r2: driver_fault", 10);
-  const Report r = make_report(s, parse_event_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
+  const Report r = make_report(s, runtime::decode_log(w.text(), "e"), {on_output(s, 0.1)}, std::nullopt);
   EXPECT_TRUE(r.false_alarms.empty());
   ASSERT_EQ(r.unexplained.size(), 1u);
   const Detection& d = r.unexplained[0];
@@ -842,7 +832,7 @@ TEST(ReportFaults, AFalseAlarmIsADetectionTheTwinsTruthRefutes) {
                         held));
     w.event(5.0, "recovery_end", R"("robot":"r1","cause":"dropped","action":"pick_again","ok":true,"detail":"","duration":2.0)");
     w.end(20, "finished", "", 32);
-    return parse_event_log(w.text(), "e");
+    return runtime::decode_log(w.text(), "e");
   };
   const Report still_held = make_report(s, log("A"), {on_output(s, 0.1)}, std::nullopt);
   ASSERT_EQ(still_held.false_alarms.size(), 1u);
@@ -882,7 +872,7 @@ TEST(ReportSetup, TheRunsPerceptionDriversAndFaultsAreInTheReport) {
   setup.drivers[1].port = "/tmp/melfa";
   setup.drivers[1].emulated = true;
   setup.faults = {"missing:workpiece=A"};
-  const Report r = make_report(s, parse_event_log(exchange_log(), "e"), {on_output(s, 0.1)}, 14.0, "e", setup);
+  const Report r = make_report(s, runtime::decode_log(exchange_log(), "e"), {on_output(s, 0.1)}, 14.0, "e", setup);
   const nlohmann::json j = to_json(s, r);
   EXPECT_EQ(j["perception"], "cad");
   ASSERT_EQ(j["drivers"].size(), 2u);
@@ -902,7 +892,7 @@ TEST(ReportFromStream, IsTheReportOfTheParsedLog) {
   for (const std::string& log : {exchange_log(), exchange_log(false), drop_log("recover"), drop_log("stop", "stopped")}) {
     std::istringstream in(log);
     const Report streamed = make_report(s, in, {on_output(s, 0.1)}, 14.0);
-    const Report parsed = make_report(s, parse_event_log(log, "events.jsonl"), {on_output(s, 0.1)}, 14.0);
+    const Report parsed = make_report(s, runtime::decode_log(log, "events.jsonl"), {on_output(s, 0.1)}, 14.0);
     EXPECT_EQ(to_json(s, streamed).dump(1), to_json(s, parsed).dump(1));
     EXPECT_EQ(format_summary(streamed), format_summary(parsed));
     ASSERT_EQ(streamed.timeline.robots.size(), parsed.timeline.robots.size());
@@ -927,13 +917,55 @@ TEST(ReportFromStream, ABadLineOrAFiringBeforeRunStartIsRefusedWithItsLineNumber
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("run/events.jsonl:3"));
   }
-  std::istringstream early("{\"t\":0,\"type\":\"fire\",\"transition\":\"r1.t0\"}\n" + exchange_log());
+  std::istringstream early(
+      R"({"t":0,"type":"fire","transition":"r1.t0","robot":"r1","primitive":0,"line":1,"task":"","motion":""})"
+      "\n" +
+      exchange_log());
   try {
     (void)make_report(s, early, {}, std::nullopt, "e.jsonl");
     FAIL() << "a firing before run_start was accepted";
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("e.jsonl:1"));
     EXPECT_THAT(e.what(), HasSubstr("before run_start"));
+  }
+}
+
+// A log whose event lacks a field, or has one of the wrong type, is refused with the file, the line and the key:
+// never read as a default ("" for a missing detail, no position for a mistyped one, no primitive for a sensor event).
+TEST(ReportFromStream, AFieldMissingOrOfTheWrongTypeIsRefusedWithItsLineAndKey) {
+  const Scenario s = exchange_scenario();
+  const std::string drop = drop_log("lose");
+  const std::string journey = exchange_log(true, true);
+  struct Broken {
+    const std::string& intact;  // a log that reads
+    std::string from, to;       // the change of one of its lines
+    std::string what;           // what the error must say
+  };
+  const std::vector<Broken> cases = {
+      {drop, R"(,"detail":"carry 1 after 0.5 s")", "", R"(fault_injected event has no "detail")"},
+      {drop, R"("x":0.5,)", "", R"(workpiece_lost event has no "x")"},
+      {drop, R"("y":-0.25)", R"("y":null)", "must be all numbers or all null"},
+      {journey, R"("robot":"r1","primitive":3,"condition":"gripped")", R"("robot":"r1","condition":"gripped")",
+       R"(sensor event has no "primitive")"},
+      {journey, R"("ok":true)", R"("ok":"yes")", R"(command_end event: "ok" is a string ("yes"), not true or false)"},
+      {journey, R"({"robot":"r2","cell":"melfa"})", R"({"robot":"r2"})", R"(run_start event has no "robots[1].cell")"},
+      {journey, R"("type":"collision")", R"("type":"collission")", R"(unknown event type "collission")"},
+  };
+  for (const Broken& c : cases) {
+    const std::size_t at = c.intact.find(c.from);
+    ASSERT_NE(at, std::string::npos) << c.from;
+    const std::string log = std::string(c.intact).replace(at, c.from.size(), c.to);
+    const auto line = 1 + std::count(c.intact.begin(), c.intact.begin() + static_cast<std::ptrdiff_t>(at), '\n');
+    std::istringstream in(log);
+    try {
+      (void)make_report(s, in, {on_output(s, 0.1)}, std::nullopt, "run/events.jsonl");
+      ADD_FAILURE() << "accepted a log where " << c.what;
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), HasSubstr(fmt::format("run/events.jsonl:{}: error: ", line))) << e.what();
+      EXPECT_THAT(e.what(), HasSubstr(c.what));
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "not an InputError: " << e.what();
+    }
   }
 }
 
@@ -947,7 +979,7 @@ TEST(Gantt, TickStepsAreOneTwoOrFiveTimesAPowerOfTen) {
 
 TEST(Gantt, DrawsOneRowPerRobotWithBarsInTheirColours) {
   const Scenario s = exchange_scenario();
-  const Timeline tl = build_timeline(parse_event_log(exchange_log(), "e"), s.program);
+  const Timeline tl = build_timeline(runtime::decode_log(exchange_log(), "e"), s.program);
   GanttOptions o;
   o.title = "exchange";
   const cv::Mat img = draw_gantt(tl, o);

@@ -94,12 +94,14 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
     run.runtime().run();
     const cell::Report report = run.report();
     ASSERT_TRUE(report.ok()) << cell::format_summary(report);
-    for (const nlohmann::json& e : cell::parse_event_log(run.runtime().log().text(), "events")) {
-      if (e["type"] != "fire") continue;
-      const auto it = std::find(prog.robots.begin(), prog.robots.end(), e["robot"].get<std::string>());
+    for (const runtime::LoggedEvent& e : runtime::decode_log(run.runtime().log().text(), "events")) {
+      const auto* fire = std::get_if<runtime::events::Fire>(&e.event);
+      if (fire == nullptr) continue;
+      const auto it = std::find(prog.robots.begin(), prog.robots.end(), fire->robot);
       const auto r = static_cast<std::size_t>(it - prog.robots.begin());
-      const auto k = e["primitive"].get<std::size_t>();
-      if (k < prog.programs[r].primitives.size()) twin_order.emplace_back(r, k);
+      if (fire->primitive >= 0 && static_cast<std::size_t>(fire->primitive) < prog.programs[r].primitives.size()) {
+        twin_order.emplace_back(r, static_cast<std::size_t>(fire->primitive));
+      }
     }
   }
 

@@ -17,35 +17,8 @@
 namespace cellwright::cell {
 
 using nlohmann::json;
-
-std::optional<json> parse_event_line(std::string_view line, int line_no, const std::string& file) {
-  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-  if (line.find_first_not_of(" \t") == std::string_view::npos) return std::nullopt;
-  json j = json::parse(line, nullptr, false);
-  if (j.is_discarded()) throw InputError({file, line_no, 0}, "not a JSON value");
-  if (!j.is_object()) throw InputError({file, line_no, 0}, "an event must be a JSON object");
-  if (!j.contains("t") || !j["t"].is_number()) throw InputError({file, line_no, 0}, "the event has no numeric \"t\"");
-  if (!j.contains("type") || !j["type"].is_string()) {
-    throw InputError({file, line_no, 0}, "the event has no string \"type\"");
-  }
-  j["_log_line"] = line_no;  // for errors about this event
-  return j;
-}
-
-std::vector<json> parse_event_log(std::string_view jsonl, const std::string& file) {
-  std::vector<json> out;
-  int line_no = 0;
-  std::size_t pos = 0;
-  while (pos < jsonl.size()) {
-    std::size_t end = jsonl.find('\n', pos);
-    if (end == std::string_view::npos) end = jsonl.size();
-    if (std::optional<json> e = parse_event_line(jsonl.substr(pos, end - pos), ++line_no, file)) {
-      out.push_back(std::move(*e));
-    }
-    pos = end + 1;
-  }
-  return out;
-}
+namespace ev = runtime::events;
+using runtime::LoggedEvent;
 
 const char* to_string(Activity a) {
   switch (a) {
@@ -77,34 +50,26 @@ const char* to_string(JourneyStep s) {
 
 namespace {
 
-// A field of an event, with the log position in the error.
-template <typename T>
-T field(const json& e, const char* key, const std::string& file) {
-  const int line = e.value("_log_line", 0);
-  if (!e.contains(key)) {
-    throw InputError({file, line, 0}, fmt::format("{} event has no \"{}\"", e["type"].get<std::string>(), key));
-  }
-  try {
-    return e[key].get<T>();
-  } catch (const json::exception&) {
-    throw InputError({file, line, 0}, fmt::format("{} event: \"{}\" has the wrong type ({})",
-                                                  e["type"].get<std::string>(), key, e[key].dump()));
-  }
+// Seconds of simulation time, as the log's text reads (a time on the log's 0.1 ms grid gives the double that its
+// 4 decimals parse to).
+double seconds(runtime::SimDuration t) {
+  return static_cast<double>(t.count()) / 1e9;
 }
 
 double round4(double x) {
   return std::round(x * 1e4) / 1e4;
 }
 
-// The primitive a command event of `robot` names, refused unless its program (of `count` primitives) has it.
-std::size_t primitive_of(const json& e, const std::string& robot, std::size_t count, const std::string& file) {
-  const auto k = field<std::int64_t>(e, "primitive", file);
-  if (k < 0 || static_cast<std::size_t>(k) >= count) {
-    throw InputError({file, e.value("_log_line", 0), 0},
-                     fmt::format("{} of robot {} names primitive {}, but its program has {} primitives",
-                                 e["type"].get<std::string>(), robot, k, count));
+// The primitive a command event (on `line`) of `robot` names, refused unless its program (of `count` primitives) has
+// it.
+std::size_t primitive_of(std::size_t k, std::string_view type, const std::string& robot, std::size_t count,
+                         const std::string& file, int line) {
+  if (k >= count) {
+    throw InputError(
+        {file, line, 0},
+        fmt::format("{} of robot {} names primitive {}, but its program has {} primitives", type, robot, k, count));
   }
-  return static_cast<std::size_t>(k);
+  return k;
 }
 
 }  // namespace
@@ -121,43 +86,47 @@ class TimelineBuilder {
  public:
   TimelineBuilder(const task::CompiledProgram& program, std::string file) : program_(program), file_(std::move(file)) {}
 
-  void add(const json& e) {
-    const std::string& type = e["type"].get_ref<const std::string&>();
-    const double t = e["t"].get<double>();
+  void add(const LoggedEvent& le) {
+    const double t = seconds(runtime::time_of(le.event));
     tl_.end = std::max(tl_.end, t);
-    if (type == "run_end") tl_.end = t;
-    if (type == "run_start") {
-      if (!started_) start(e);
+    if (std::holds_alternative<ev::RunEnd>(le.event)) tl_.end = t;
+    if (const auto* run_start = std::get_if<ev::RunStart>(&le.event)) {
+      if (!started_) start(*run_start, le.line);
       return;
     }
-    const bool fire = type == "fire";
-    const bool command = type == "command_start" || type == "command_end";
-    const bool sensor = type == "sensor";
-    if (!fire && !command && !sensor) return;
+    const auto* fire = std::get_if<ev::Fire>(&le.event);
+    const auto* command_start = std::get_if<ev::CommandStart>(&le.event);
+    const auto* command_end = std::get_if<ev::CommandEnd>(&le.event);
+    const auto* sensor = std::get_if<ev::Sensor>(&le.event);
+    if (fire == nullptr && command_start == nullptr && command_end == nullptr && sensor == nullptr) return;
     if (!started_) {
-      throw InputError({file_, e.value("_log_line", 0), 0}, fmt::format("a {} event before run_start", type));
+      throw InputError({file_, le.line, 0}, fmt::format("a {} event before run_start", runtime::type_of(le.event)));
     }
-    if (fire) {
-      auto it = transitions_.find(field<std::string>(e, "transition", file_));
+    if (fire != nullptr) {
+      auto it = transitions_.find(fire->transition);
       if (it == transitions_.end()) return;
       Robot& r = robots_[it->second.first];
       if (r.current) close(it->second.first, t, it->second.second);
       r.current = Visit{it->second.second, t, std::nullopt, false, std::nullopt};
       return;
     }
-    auto it = robot_index_.find(field<std::string>(e, "robot", file_));
+    const std::string& robot = sensor != nullptr          ? sensor->robot
+                               : command_start != nullptr ? command_start->robot
+                                                          : command_end->robot;
+    auto it = robot_index_.find(robot);
     if (it == robot_index_.end()) return;
     Robot& r = robots_[it->second];
     const task::RobotProgram& rp = program_.programs[r.program];
-    if (sensor) {  // the timeline's business only when it names one of the robot's primitives
-      const json& k = e.contains("primitive") ? e["primitive"] : json();
-      if (k.is_number_unsigned() && k.get<std::size_t>() < rp.primitives.size()) {
-        this->sensor(e, it->second, rp.primitives[k.get<std::size_t>()], k.get<std::size_t>(), t);
+    if (sensor != nullptr) {  // the timeline's business only when it names one of the robot's primitives
+      if (sensor->primitive < rp.primitives.size()) {
+        this->sensor(*sensor, it->second, rp.primitives[sensor->primitive], sensor->primitive, t);
       }
       return;
     }
-    const std::size_t k = primitive_of(e, tl_.robots[it->second].robot, rp.primitives.size(), file_);
-    if (type == "command_start") {
+    const std::size_t k =
+        primitive_of(command_start != nullptr ? command_start->primitive : command_end->primitive,
+                     runtime::type_of(le.event), tl_.robots[it->second].robot, rp.primitives.size(), file_, le.line);
+    if (command_start != nullptr) {
       ++tl_.robots[it->second].commands;
     } else if (r.current && r.current->k == k && !r.current->ended) {
       r.current->ended = t;
@@ -204,8 +173,8 @@ class TimelineBuilder {
   };
 
   // A sensor event of robot i about its primitive k (p): the wait for a part, or a step of a part's journey.
-  void sensor(const json& e, std::size_t i, const task::Primitive& p, std::size_t k, double t) {
-    const std::string condition = field<std::string>(e, "condition", file_);
+  void sensor(const ev::Sensor& e, std::size_t i, const task::Primitive& p, std::size_t k, double t) {
+    const std::string& condition = e.condition;
     Robot& r = robots_[i];
     const bool in_visit = r.current && r.current->k == k && !r.current->ended;
     if (condition == "waiting_for_part") {
@@ -220,7 +189,7 @@ class TimelineBuilder {
     if (condition == "gripped" && p.task.starts_with("Pick ")) step = JourneyStep::kPicked;
     if (condition == "released" && p.task.starts_with("Put ")) step = JourneyStep::kHandedOver;
     if (condition == "released" && p.task.starts_with("Place ")) step = JourneyStep::kPlaced;
-    if (step) tl_.robots[i].marks.push_back({t, *step, field<std::string>(e, "workpiece", file_)});
+    if (step) tl_.robots[i].marks.push_back({t, *step, e.workpiece});
   }
   struct Robot {
     std::size_t program = 0;  // index in program_.robots
@@ -229,17 +198,16 @@ class TimelineBuilder {
   };
 
   // Robots as run_start lists them; each must be a robot of the program.
-  void start(const json& e) {
+  void start(const ev::RunStart& e, int line) {
     started_ = true;
-    for (const json& r : field<json>(e, "robots", file_)) {
+    for (const ev::RobotName& r : e.robots) {
       RobotTimeline rt;
-      rt.robot = field<std::string>(r, "robot", file_);
-      rt.cell = r.value("cell", std::string());
+      rt.robot = r.robot;
+      rt.cell = r.cell;
       auto it = std::find(program_.robots.begin(), program_.robots.end(), rt.robot);
       if (it == program_.robots.end()) {
-        throw InputError(
-            {file_, e.value("_log_line", 0), 0},
-            fmt::format("run_start names robot '{}', which the program {} does not have", rt.robot, program_.file));
+        throw InputError({file_, line, 0}, fmt::format("run_start names robot '{}', which the program {} does not have",
+                                                       rt.robot, program_.file));
       }
       const std::size_t index = robots_.size();
       const auto program = static_cast<std::size_t>(it - program_.robots.begin());
@@ -327,10 +295,10 @@ class TimelineBuilder {
 
 }  // namespace
 
-Timeline build_timeline(const std::vector<json>& events, const task::CompiledProgram& program,
+Timeline build_timeline(const std::vector<LoggedEvent>& events, const task::CompiledProgram& program,
                         const std::string& file) {
   TimelineBuilder b(program, file);
-  for (const json& e : events) b.add(e);
+  for (const LoggedEvent& e : events) b.add(e);
   return std::move(b).finish();
 }
 
@@ -473,23 +441,25 @@ struct Aftermath {
   std::string cause, action;
   std::optional<double> recovered_at;
 };
-Aftermath aftermath_of(const std::vector<json>& events, std::size_t detection, const std::string& by,
-                       std::size_t stop, const std::string& file) {
+Aftermath aftermath_of(const std::vector<LoggedEvent>& events, std::size_t detection, const std::string& by,
+                       std::size_t stop) {
   Aftermath a;
   std::size_t after = detection;
   for (std::size_t k = detection + 1; k < events.size(); ++k) {
-    if (events[k]["type"] == "diagnosis" && field<std::string>(events[k], "robot", file) == by) {
-      a.cause = field<std::string>(events[k], "cause", file);
-      a.action = field<std::string>(events[k], "action", file);
+    const auto* d = std::get_if<ev::Diagnosis>(&events[k].event);
+    if (d != nullptr && d->robot == by) {
+      a.cause = d->cause;
+      a.action = d->action;
       after = k;
       break;
     }
   }
   for (std::size_t k = after + 1; k < events.size(); ++k) {
-    if (events[k]["type"] != "recovery_end" || field<std::string>(events[k], "robot", file) != by) continue;
-    if (a.cause.empty()) a.cause = events[k].value("cause", std::string());
-    if (a.action.empty()) a.action = events[k].value("action", std::string());
-    if (field<bool>(events[k], "ok", file) && !(stop < k)) a.recovered_at = events[k]["t"].get<double>();
+    const auto* end = std::get_if<ev::RecoveryEnd>(&events[k].event);
+    if (end == nullptr || end->robot != by) continue;
+    if (a.cause.empty()) a.cause = end->cause;
+    if (a.action.empty()) a.action = end->action;
+    if (end->ok && !(stop < k)) a.recovered_at = seconds(end->t);
     break;
   }
   return a;
@@ -497,20 +467,21 @@ Aftermath aftermath_of(const std::vector<json>& events, std::size_t detection, c
 
 // Why the twin's truth shows nothing physically wrong for detection events[k] of the simulated cell robot `robot`
 // (the first `physical` event at or after it), or "" when it does not (or cannot tell).
-std::string refuted_by_truth(const std::vector<json>& events, std::size_t k, const std::string& robot,
-                             const std::string& symptom, const std::string& file) {
-  const auto physical = std::find_if(events.begin() + static_cast<std::ptrdiff_t>(k), events.end(),
-                                     [](const json& e) { return e["type"] == "physical"; });
-  if (physical == events.end()) return "";
+std::string refuted_by_truth(const std::vector<LoggedEvent>& events, std::size_t k, const std::string& robot,
+                             const std::string& symptom) {
+  const ev::Physical* physical = nullptr;
+  for (std::size_t i = k; i < events.size() && physical == nullptr; ++i) {
+    physical = std::get_if<ev::Physical>(&events[i].event);
+  }
+  if (physical == nullptr) return "";
   if (symptom == "grip_lost" || symptom == "closed_on_nothing") {
-    for (const json& h : field<json>(*physical, "held", file)) {
-      if (field<std::string>(h, "robot", file) != robot) continue;
-      const std::string held = field<std::string>(h, "workpiece", file);
-      if (!held.empty()) return fmt::format("the twin has {} between the fingers of {}", held, robot);
+    for (const ev::Held& h : physical->held) {
+      if (h.robot != robot) continue;
+      if (!h.workpiece.empty()) return fmt::format("the twin has {} between the fingers of {}", h.workpiece, robot);
     }
     return "";
   }
-  if (symptom == "obstacle_seen" && field<std::size_t>(*physical, "obstacles", file) == 0) {
+  if (symptom == "obstacle_seen" && physical->obstacles == 0) {
     return "the twin has no object in the cell that the cell description lacks";
   }
   return "";
@@ -518,26 +489,26 @@ std::string refuted_by_truth(const std::vector<json>& events, std::size_t k, con
 
 // The faults (fault_injected matched to fault_detected, diagnosis, recovery_end), the unexplained faults and false
 // alarms of a run.
-void match_faults(const Scenario& s, const std::vector<json>& events, const std::string& file, Report& r) {
+void match_faults(const Scenario& s, const std::vector<LoggedEvent>& events, Report& r) {
   // The index of the event that stopped the cell if the run ended "stopped", else events.size() (a plain index:
   // GCC 12 warns falsely about an optional one).
   const std::size_t none = events.size();
   std::size_t stop = none;
   for (std::size_t i = 0; i < events.size() && r.outcome == "stopped" && stop == none; ++i) {
-    const std::string type = events[i]["type"].get<std::string>();
-    if (type == "cell_stopped" || (type == "run_end" && events[i].value("outcome", std::string()) == "stopped")) {
+    const auto* end = std::get_if<ev::RunEnd>(&events[i].event);
+    if (std::holds_alternative<ev::CellStopped>(events[i].event) || (end != nullptr && end->outcome == "stopped")) {
       stop = i;
     }
   }
-  if (stop != none) r.stopped_at = events[stop]["t"].get<double>();
+  if (stop != none) r.stopped_at = seconds(runtime::time_of(events[stop].event));
 
   // A fault the simulation thread picks up from a driver is logged up to a round after the controller saw its effect
   // (the driver failed the command at once; the injection reaches the log at the next step): a detection of the same
   // robot logged at most two control periods before the injection belongs to it too.
   double period = 0.01;
-  for (const json& e : events) {
-    if (e["type"] == "run_start" && e.contains("period") && e["period"].is_number()) {
-      period = e["period"].get<double>();
+  for (const LoggedEvent& e : events) {
+    if (const auto* start = std::get_if<ev::RunStart>(&e.event)) {
+      period = seconds(start->period);
       break;
     }
   }
@@ -546,26 +517,26 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
   std::vector<bool> matched(events.size(), false);
   std::size_t first_injection = none;
   for (std::size_t i = 0; i < events.size(); ++i) {
-    const json& e = events[i];
-    if (e["type"] != "fault_injected") continue;
+    const auto* injected = std::get_if<ev::FaultInjected>(&events[i].event);
+    if (injected == nullptr) continue;
     if (first_injection == none) first_injection = i;
     FaultReport f;
-    f.kind = field<std::string>(e, "kind", file);
-    f.t = e["t"].get<double>();
-    f.robot = cell_robot(s, e.value("robot", std::string()), true);
-    f.workpiece = cell_workpiece(s, e.value("workpiece", std::string()));
-    f.detail = e.value("detail", std::string());
+    f.kind = injected->kind;
+    f.t = seconds(injected->t);
+    f.robot = cell_robot(s, injected->robot, true);
+    f.workpiece = cell_workpiece(s, injected->workpiece);
+    f.detail = injected->detail;
     f.stopped_safely = stop != none && stop > i;
 
     std::size_t detection = none;
     for (std::size_t k = 0; k < events.size(); ++k) {
-      if (k == i || matched[k] || events[k]["type"] != "fault_detected") continue;
-      if (!can_show_as(f.kind, field<std::string>(events[k], "symptom", file))) continue;
-      const std::string by = field<std::string>(events[k], "robot", file);
-      const bool same_robot = !f.robot.empty() && !by.empty() && cell_robot(s, by, false) == f.robot;
+      const auto* d = std::get_if<ev::FaultDetected>(&events[k].event);
+      if (k == i || matched[k] || d == nullptr) continue;
+      if (!can_show_as(f.kind, d->symptom)) continue;
+      const bool same_robot = !f.robot.empty() && !d->robot.empty() && cell_robot(s, d->robot, false) == f.robot;
       if (k < i) {
-        if (!same_robot || events[k]["t"].get<double>() < f.t - slack) continue;
-      } else if (!f.robot.empty() && !by.empty() && !same_robot) {
+        if (!same_robot || seconds(d->t) < f.t - slack) continue;
+      } else if (!f.robot.empty() && !d->robot.empty() && !same_robot) {
         continue;
       }
       detection = k;
@@ -573,12 +544,12 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
     }
     if (detection != none) {
       matched[detection] = true;
-      const json& d = events[detection];
+      const auto& d = std::get<ev::FaultDetected>(events[detection].event);
       f.detected = true;
-      f.detected_at = d["t"].get<double>();
-      f.detected_by = field<std::string>(d, "robot", file);
-      f.symptom = field<std::string>(d, "symptom", file);
-      const Aftermath a = aftermath_of(events, detection, f.detected_by, stop, file);
+      f.detected_at = seconds(d.t);
+      f.detected_by = d.robot;
+      f.symptom = d.symptom;
+      const Aftermath a = aftermath_of(events, detection, f.detected_by, stop);
       f.cause = a.cause;
       f.action = a.action;
       f.recovered = a.recovered_at.has_value();
@@ -589,15 +560,15 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
   // Detections no injection took, with no injection before them: false alarms when the twin's truth shows nothing
   // wrong, else unexplained faults.
   for (std::size_t k = 0; k < events.size() && k < first_injection; ++k) {
-    const json& e = events[k];
-    if (matched[k] || e["type"] != "fault_detected") continue;
+    const auto* e = std::get_if<ev::FaultDetected>(&events[k].event);
+    if (matched[k] || e == nullptr) continue;
     Detection d;
-    d.t = e["t"].get<double>();
-    d.robot = field<std::string>(e, "robot", file);
-    d.primitive = static_cast<int>(e.value("primitive", std::int64_t{-1}));
-    d.symptom = field<std::string>(e, "symptom", file);
-    d.detail = e.value("detail", std::string());
-    const Aftermath a = aftermath_of(events, k, d.robot, stop, file);
+    d.t = seconds(e->t);
+    d.robot = e->robot;
+    d.primitive = e->primitive;
+    d.symptom = e->symptom;
+    d.detail = e->detail;
+    const Aftermath a = aftermath_of(events, k, d.robot, stop);
     d.cause = a.cause;
     d.action = a.action;
     d.recovered = a.recovered_at.has_value();
@@ -605,7 +576,7 @@ void match_faults(const Scenario& s, const std::vector<json>& events, const std:
     const auto driver = std::find_if(r.setup.drivers.begin(), r.setup.drivers.end(),
                                      [&](const DriverUse& u) { return u.robot == robot; });
     const bool simulated = !d.robot.empty() && (driver == r.setup.drivers.end() || !driver->real());
-    if (r.setup.twin_truth && simulated) d.truth = refuted_by_truth(events, k, robot, d.symptom, file);
+    if (r.setup.twin_truth && simulated) d.truth = refuted_by_truth(events, k, robot, d.symptom);
     (d.truth.empty() ? r.unexplained : r.false_alarms).push_back(std::move(d));
   }
 }
@@ -616,47 +587,43 @@ class ReportBuilder {
  public:
   ReportBuilder(const Scenario& s, std::string file) : s_(s), file_(std::move(file)), timeline_(s.program, file_) {}
 
-  void add(const json& e) {
-    timeline_.add(e);
-    const std::string& type = e["type"].get_ref<const std::string&>();
-    const double t = e["t"].get<double>();
-    if (type == "run_start" || type == "fault_injected" || type == "fault_detected" || type == "diagnosis" ||
-        type == "recovery_end" || type == "cell_stopped" || type == "run_end" || type == "physical") {
-      fault_events_.push_back(e);  // few: match_faults looks back and forth among them
+  void add(const LoggedEvent& le) {
+    timeline_.add(le);
+    const runtime::LogEvent& e = le.event;
+    const double t = seconds(runtime::time_of(e));
+    if (std::holds_alternative<ev::RunStart>(e) || std::holds_alternative<ev::FaultInjected>(e) ||
+        std::holds_alternative<ev::FaultDetected>(e) || std::holds_alternative<ev::Diagnosis>(e) ||
+        std::holds_alternative<ev::RecoveryEnd>(e) || std::holds_alternative<ev::CellStopped>(e) ||
+        std::holds_alternative<ev::RunEnd>(e) || std::holds_alternative<ev::Physical>(e)) {
+      fault_events_.push_back(le);  // few: match_faults looks back and forth among them
     }
-    if (type == "run_end") {
+    if (const auto* end = std::get_if<ev::RunEnd>(&e)) {
       ended_ = true;
-      r_.outcome = field<std::string>(e, "outcome", file_);
-      r_.reason = field<std::string>(e, "reason", file_);
-      r_.firings = field<std::uint64_t>(e, "firings", file_);
-    } else if (type == "fire") {
+      r_.outcome = end->outcome;
+      r_.reason = end->reason;
+      r_.firings = end->firings;
+    } else if (std::holds_alternative<ev::Fire>(e)) {
       last_fire_ = t;
-    } else if (type == "collision") {
-      r_.collisions.push_back({t, field<std::string>(e, "a", file_), field<std::string>(e, "b", file_),
-                               field<double>(e, "depth", file_)});
-    } else if (type == "workpiece_arrived") {
-      const std::string w = cell_workpiece(s_, field<std::string>(e, "workpiece", file_));
+    } else if (const auto* c = std::get_if<ev::Collision>(&e)) {
+      r_.collisions.push_back({t, c->a, c->b, c->depth});
+    } else if (const auto* arrived = std::get_if<ev::WorkpieceArrived>(&e)) {
+      const std::string w = cell_workpiece(s_, arrived->workpiece);
       arrived_.insert(w);
       placement_of_.erase(w);  // a body fed anew is a new part
       ++r_.parts_fed;
-    } else if (type == "workpiece_left") {
-      placement_of_.erase(cell_workpiece(s_, field<std::string>(e, "workpiece", file_)));
+    } else if (const auto* left = std::get_if<ev::WorkpieceLeft>(&e)) {
+      placement_of_.erase(cell_workpiece(s_, left->workpiece));
       ++r_.parts_delivered;
-    } else if (type == "sensor") {
-      sensor(e);
-    } else if (type == "workpiece_lost") {  // the first declaration of each part counts
-      LostPart l;
-      l.t = t;
-      l.reason = field<std::string>(e, "reason", file_);
-      if (e.contains("x") && e["x"].is_number() && e.contains("y") && e["y"].is_number() && e.contains("z") &&
-          e["z"].is_number()) {
-        l.last_seen = Eigen::Vector3d(e["x"].get<double>(), e["y"].get<double>(), e["z"].get<double>());
-      }
-      lost_.try_emplace(cell_workpiece(s_, field<std::string>(e, "workpiece", file_)), std::move(l));
-    } else if (type == "skipped") {
-      skipped_.insert({e.value("robot", std::string()), e.value("primitive", std::int64_t{-1})});
-    } else if (type == "command_start" || type == "command_end") {
-      command(e, type == "command_start", t);
+    } else if (const auto* sensor = std::get_if<ev::Sensor>(&e)) {
+      this->sensor(*sensor);
+    } else if (const auto* lost = std::get_if<ev::WorkpieceLost>(&e)) {  // the first declaration of each part counts
+      lost_.try_emplace(cell_workpiece(s_, lost->workpiece), LostPart{t, lost->reason, lost->last_seen});
+    } else if (const auto* skipped = std::get_if<ev::Skipped>(&e)) {
+      skipped_.insert({skipped->robot, skipped->primitive});
+    } else if (const auto* start = std::get_if<ev::CommandStart>(&e)) {
+      command(start->robot, start->primitive, le, true, t);
+    } else if (const auto* done = std::get_if<ev::CommandEnd>(&e)) {
+      command(done->robot, done->primitive, le, done->ok, t);
     }
   }
 
@@ -679,7 +646,7 @@ class ReportBuilder {
       r.failures.push_back(
           fmt::format("the run did not finish: {}{}", r.outcome, r.reason.empty() ? "" : ": " + r.reason));
     }
-    match_faults(s_, fault_events_, file_, r);
+    match_faults(s_, fault_events_, r);
     // A workpiece is done when the last Place that released it has ended (its depart included).
     std::map<std::string, double> place_end;  // by label
     for (const auto& [w, robot_primitive] : last_release_) {
@@ -704,12 +671,13 @@ class ReportBuilder {
   // Cycle times: a workpiece (program label W) is picked when the first command of a "Pick W" starts, and done when
   // the last command of the "Place X" that released it ("open W") has ended. Placements: an open of a Place command
   // that ended well and was not skipped (a skipped open, of a part declared lost, placed nothing).
-  void command(const json& e, bool start, double t) {
-    const std::string robot = field<std::string>(e, "robot", file_);
+  // A command event of `robot`'s primitive k (`le`): its start, or its end (`ok`: it ended well).
+  void command(const std::string& robot, std::size_t primitive, const LoggedEvent& le, bool ok, double t) {
+    const bool start = std::holds_alternative<ev::CommandStart>(le.event);
     const auto it = std::find(s_.program.robots.begin(), s_.program.robots.end(), robot);
     if (it == s_.program.robots.end()) return;  // the timeline has refused robots of run_start it does not know
     const auto& prims = s_.program.programs[static_cast<std::size_t>(it - s_.program.robots.begin())].primitives;
-    const std::size_t k = primitive_of(e, robot, prims.size(), file_);
+    const std::size_t k = primitive_of(primitive, runtime::type_of(le.event), robot, prims.size(), file_, le.line);
     const task::Primitive& p = prims[k];
     if (start) {
       if (p.task.starts_with("Pick ")) pick_start_.try_emplace(p.task.substr(5), t);
@@ -725,8 +693,8 @@ class ReportBuilder {
       }
       last_release_[p.workpiece] = {robot, last};
     }
-    if (!e.value("ok", false)) return;
-    if (skipped_.erase({robot, static_cast<std::int64_t>(k)}) != 0) return;
+    if (!ok) return;
+    if (skipped_.erase({robot, k}) != 0) return;
     if (release) {
       const auto body = released_.find({robot, k});
       const std::string w = body != released_.end() ? body->second : cell_workpiece(s_, p.workpiece);
@@ -738,17 +706,17 @@ class ReportBuilder {
 
   // The part a Place lets go of (its "released" sensor event), and a Pick that grips a part placed before: that
   // placement was not the part's last (a relay: another robot picks it from there).
-  void sensor(const json& e) {
-    const std::string robot = e.value("robot", std::string());
-    const auto it = std::find(s_.program.robots.begin(), s_.program.robots.end(), robot);
-    const json& k = e.contains("primitive") ? e["primitive"] : json();
-    if (it == s_.program.robots.end() || !k.is_number_unsigned()) return;
+  void sensor(const ev::Sensor& e) {
+    const auto it = std::find(s_.program.robots.begin(), s_.program.robots.end(), e.robot);
+    if (it == s_.program.robots.end()) return;
     const auto& prims = s_.program.programs[static_cast<std::size_t>(it - s_.program.robots.begin())].primitives;
-    if (k.get<std::size_t>() >= prims.size()) return;
-    const task::Primitive& p = prims[k.get<std::size_t>()];
-    const std::string condition = field<std::string>(e, "condition", file_);
-    const std::string w = cell_workpiece(s_, field<std::string>(e, "workpiece", file_));
-    if (condition == "released" && p.task.starts_with("Place ")) released_[{robot, k.get<std::size_t>()}] = w;
+    if (e.primitive >= prims.size()) return;
+    const task::Primitive& p = prims[e.primitive];
+    const std::string& condition = e.condition;
+    const std::string w = cell_workpiece(s_, e.workpiece);
+    const std::string& robot = e.robot;
+    const std::size_t k = e.primitive;
+    if (condition == "released" && p.task.starts_with("Place ")) released_[{robot, k}] = w;
     if (condition == "gripped" && p.task.starts_with("Pick ")) {
       placed_last_[w] = false;
       if (auto placed = placement_of_.find(w); placed != placement_of_.end()) {
@@ -766,13 +734,13 @@ class ReportBuilder {
   Report r_;
   bool ended_ = false;
   std::optional<double> last_fire_;
-  std::vector<json> fault_events_;
+  std::vector<LoggedEvent> fault_events_;
   std::map<std::string, LostPart> lost_;  // by cell workpiece
   std::set<std::string> arrived_;         // cell workpieces
   std::map<std::string, double> pick_start_;                              // by label
   std::map<std::pair<std::string, std::size_t>, double> end_of_;          // (robot, primitive) -> command_end time
   std::map<std::string, std::pair<std::string, std::size_t>> last_release_;  // label -> (robot, last primitive)
-  std::set<std::pair<std::string, std::int64_t>> skipped_;  // (robot, primitive) skipped and not yet ended
+  std::set<std::pair<std::string, std::size_t>> skipped_;  // (robot, primitive) skipped and not yet ended
   // Placements (time, still the part's last) and, by cell workpiece, its latest one that may yet be retracted.
   std::vector<std::pair<double, bool>> placed_;
   std::map<std::string, std::size_t> placement_of_;
@@ -895,22 +863,17 @@ void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
 
 }  // namespace
 
-Report make_report(const Scenario& s, const std::vector<json>& events, const std::vector<FinalPose>& finals,
+Report make_report(const Scenario& s, const std::vector<LoggedEvent>& events, const std::vector<FinalPose>& finals,
                    std::optional<double> estimated_cycle_time, const std::string& file, std::optional<RunSetup> setup) {
   ReportBuilder b(s, file);
-  for (const json& e : events) b.add(e);
+  for (const LoggedEvent& e : events) b.add(e);
   return std::move(b).finish(finals, estimated_cycle_time, std::move(setup));
 }
 
 Report make_report(const Scenario& s, std::istream& jsonl, const std::vector<FinalPose>& finals,
                    std::optional<double> estimated_cycle_time, const std::string& file, std::optional<RunSetup> setup) {
   ReportBuilder b(s, file);
-  std::string line;
-  int line_no = 0;
-  while (std::getline(jsonl, line)) {
-    if (std::optional<json> e = parse_event_line(line, ++line_no, file)) b.add(*e);
-  }
-  if (jsonl.bad()) throw InputError({file, line_no, 0}, "the event log could not be read");
+  runtime::read_log(jsonl, file, [&](const LoggedEvent& e) { b.add(e); });
   return std::move(b).finish(finals, estimated_cycle_time, std::move(setup));
 }
 

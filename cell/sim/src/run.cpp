@@ -347,7 +347,7 @@ Report ScenarioRun::report() const {
   RunSetup setup = setup_of(scenario_);
   setup.perception = runtime::to_string(perception_);
   if (events_file_.empty()) {
-    return make_report(scenario_, parse_event_log(runtime_->log().text(), kEventsFile), final_poses(),
+    return make_report(scenario_, runtime::decode_log(runtime_->log().text(), kEventsFile), final_poses(),
                        estimate_.cycle_time, kEventsFile, std::move(setup));
   }
   flush_streamed_log(runtime_->log(), events_file_);

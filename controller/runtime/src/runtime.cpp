@@ -515,6 +515,7 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
   CW_CHECK(config_.period.count() > 0, "the control period must be positive, got {} ns", config_.period.count());
   CW_CHECK(config_.realtime_speed > 0.0, "real-time speed must be positive, got {}", config_.realtime_speed);
   CW_CHECK(config_.net.robots() == config_.program.robots, "the net was not made from the program");
+  for (const auto& observer : config_.event_observers) log_->add_observer(observer);
   impl_ = std::make_unique<Impl>(config_, *log_);
   Impl& im = *impl_;
   im.names = check_binding(config_);

@@ -7,8 +7,10 @@
 // exits with. docs/scenarios.md describes report.json field by field; docs/faults.md sections 5-6
 // the account and the faults.
 //
-// Everything here is computed from values (the log's lines, the poses), so a report can be rebuilt from a saved
-// events.jsonl, and tests feed it synthetic logs.
+// Everything here is computed from values (the log's typed events, runtime/log_event.hpp, and the poses), so a report
+// can be rebuilt from a saved events.jsonl read back through the log's one codec (runtime::decode_log, read_log), and
+// tests feed it synthetic logs. A line of the log that the codec refuses (not JSON, an unknown type, a field missing
+// or of the wrong type) is an InputError naming the file and the line: nothing here reads a field by its key.
 //
 // Thread safety: plain values and pure functions; any thread may call them.
 #pragma once
@@ -24,16 +26,11 @@
 #include <vector>
 
 #include "cellwright/models/cell.hpp"
+#include "cellwright/runtime/log_event.hpp"
 #include "cellwright/task/compiled.hpp"
 #include "cellwright/cell/scenario.hpp"
 
 namespace cellwright::cell {
-
-// Parses JSON Lines (an events.jsonl). Blank lines are skipped. Throws InputError naming `file` and the line when a
-// line is not a JSON object with a numeric "t" and a string "type". Each event gets "_log_line" (its line number).
-std::vector<nlohmann::json> parse_event_log(std::string_view jsonl, const std::string& file);
-// One line of it (line_no counts from 1): nullopt for a blank line.
-std::optional<nlohmann::json> parse_event_line(std::string_view line, int line_no, const std::string& file);
 
 // --- Timelines -------------------------------------------------------------------------------------------------------
 
@@ -96,9 +93,10 @@ struct Timeline {
 // no time (a blocked bar if its next transition fired later). A move/open/close during which the robot control logged
 // "waiting_for_part" is a part_wait bar up to its "part_ready" sensor event (or, without one, up to its command_end or
 // the visit's end: the command ended or the run stopped before the part came) and a move/grip bar after it. The
-// journey marks come from the "gripped" and "released" sensor events of Pick, Put and Place commands. Throws InputError naming `file` when the events
-// contradict the program (an unknown robot or primitive), lack run_start, or have a fire or command event before it.
-Timeline build_timeline(const std::vector<nlohmann::json>& events, const task::CompiledProgram& program,
+// journey marks come from the "gripped" and "released" sensor events of Pick, Put and Place commands. Throws InputError
+// naming `file` and the event's line when the events contradict the program (an unknown robot or primitive), lack
+// run_start, or have a fire or command event before it.
+Timeline build_timeline(const std::vector<runtime::LoggedEvent>& events, const task::CompiledProgram& program,
                         const std::string& file = "events.jsonl");
 
 // --- Where workpieces ended up ---------------------------------------------------------------------------------------
@@ -304,14 +302,13 @@ struct Report {
 // real or emulated driver, not the cell), and the first `physical` event at or after it refutes its symptom
 // (grip_lost, closed_on_nothing: the robot holds a part; obstacle_seen: the safety sensor sees nothing); every other
 // such detection is an unexplained fault (a driver's fault, a lost link, a timeout are always real). `setup`: what
-// the run used (setup_of(scenario) when nullopt). Throws InputError as build_timeline, or when a fault event lacks a
-// field.
-Report make_report(const Scenario& scenario, const std::vector<nlohmann::json>& events,
+// the run used (setup_of(scenario) when nullopt). Throws InputError as build_timeline.
+Report make_report(const Scenario& scenario, const std::vector<runtime::LoggedEvent>& events,
                    const std::vector<FinalPose>& finals, std::optional<double> estimated_cycle_time,
                    const std::string& file = "events.jsonl", std::optional<RunSetup> setup = std::nullopt);
-// The same from an events.jsonl read one line at a time (parse errors as parse_event_log): what it holds grows with
-// the parts, the faults and the chart's bars, not with the log, so a long shift's report never holds its log whole.
-// Throws InputError also when the stream cannot be read.
+// The same from an events.jsonl read one line at a time (runtime::read_log; its errors name the file and line): what
+// it holds grows with the parts, the faults and the chart's bars, not with the log, so a long shift's report never
+// holds its log whole. Throws InputError also when the stream cannot be read.
 Report make_report(const Scenario& scenario, std::istream& jsonl, const std::vector<FinalPose>& finals,
                    std::optional<double> estimated_cycle_time, const std::string& file = "events.jsonl",
                    std::optional<RunSetup> setup = std::nullopt);

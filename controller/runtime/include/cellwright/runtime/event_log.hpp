@@ -1,9 +1,11 @@
-// The run's event log: JSON Lines, one object per line, written in the order events happen. The bytes are fixed by
-// the events alone (fixed key order, fixed number formatting, no wall-clock time, no addresses), so two lock-step runs
-// of the same scenario and seed give byte-identical logs, and tests and CI compare them with a plain diff.
+// The run's event log: JSON Lines, one object per line, written in the order events happen. Each event is a typed
+// value (log_event.hpp: one struct per type, their fields, the one codec that writes and reads their lines); the log
+// encodes each as it is logged, so the bytes are fixed by the events alone (fixed key order, fixed number formatting,
+// no wall-clock time, no addresses), and two lock-step runs of the same scenario and seed give byte-identical logs,
+// which tests and CI compare with a plain diff.
 //
 // Every line starts with "t" (simulation time in seconds, exactly 4 decimals, e.g. 1.2300) and "type". The types and
-// their keys, in this order:
+// their keys, in this order (log_event.hpp has each one's struct):
 //   run_start         program, cell, mode ("lockstep"|"realtime"), period (s, 4 decimals), robots [{robot, cell}]
 //   fire              transition (id), robot (label, "" for a transition of no robot), primitive (index, -1 none),
 //                     line, task, motion
@@ -12,7 +14,8 @@
 //   command_end       robot, primitive, command, ok (true|false), reason ("" when ok)
 //   sensor            robot, primitive, condition ("gripped" | "closed_on_nothing" | "closed_on_wrong_part" |
 //                     "grip_not_sensed" | "released" | "position_reached" | "position_missed" | "waiting_for_part" |
-//                     "bound": a workpiece class of the command now means this part), workpiece ("" if none)
+//                     "part_ready" | "bound": a workpiece class of the command now means this part), workpiece ("" if
+//                     none)
 //   collision         a, b, depth (m, 6 decimals)
 //   workpiece_arrived workpiece, where
 //   workpiece_left    workpiece, where (the conveyor it was carried off): the part left the cell, delivered
@@ -35,12 +38,17 @@
 //                     logged by the simulation thread in the period after a fault_detected, so that a report can tell
 //                     a detection with nothing physically wrong (a false alarm) from a real fault
 //   run_end           outcome ("finished"|"failed"|"timeout"|"stopped"), reason, firings
-// Strings are JSON-escaped (nlohmann::json). Numbers other than "t", period, depth and the vision event's are
+// Strings are JSON-escaped. Numbers other than "t", period, duration, depth, x/y/z and the vision event's are
 // integers.
+//
+// Typed observers: add_observer() registers a function that is handed each event as it is logged (the value, not
+// its line), e.g. RunConfig::event_observers. It is called on the thread that logs, under the log's lock, in log
+// order: it must be quick and must not log.
 //
 // Memory: a log that keeps its lines (Keep::kLines, the default) grows with the run, about 130 bytes per event. A log
 // that streams them (a sink and Keep::kNothing) holds only a count: a shift of a thousand parts costs no more memory
-// than one part, and whoever needs the events reads the sink's file back (scenario::make_report on an istream).
+// than one part, and whoever needs the events reads the sink's file back (cell::make_report on an istream, through
+// read_log).
 //
 // Threads: every member may be called from any thread; each call appends one whole line under a mutex, so lines never
 // interleave. (Determinism of the order is the lock-step scheduler's job, not the log's.)
@@ -50,6 +58,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <ostream>
@@ -58,12 +67,9 @@
 #include <vector>
 
 #include "cellwright/runtime/clock.hpp"
+#include "cellwright/runtime/log_event.hpp"
 
 namespace cellwright::runtime {
-
-// Simulation time as the log writes it: seconds with exactly 4 decimals, rounded half away from zero on the
-// nanosecond count (integer arithmetic, so the same time always gives the same text): 1234567890 ns -> "1.2346".
-std::string format_sim_time(SimDuration t);
 
 class EventLog {
  public:
@@ -78,10 +84,13 @@ class EventLog {
   EventLog(const EventLog&) = delete;
   EventLog& operator=(const EventLog&) = delete;
 
-  struct RobotName {
-    std::string robot;  // program label
-    std::string cell;   // cell robot name
-  };
+  // Logs one event: encodes it (log_event.hpp), writes the line, then hands the value to the observers.
+  void log(const LogEvent& event);
+  // Registers a typed observer (see the top). Before the run: not while events are being logged by other threads.
+  void add_observer(std::function<void(const LogEvent&)> observer);
+
+  // One method per type, for the call sites: each builds the event (log_event.hpp) and logs it.
+  using RobotName = events::RobotName;
   void run_start(SimDuration t, std::string_view program, std::string_view cell, std::string_view mode,
                  SimDuration period, const std::vector<RobotName>& robots);
   void fire(SimDuration t, std::string_view transition, std::string_view robot, int primitive, int line,
@@ -110,22 +119,14 @@ class EventLog {
   void skipped(SimDuration t, std::string_view robot, std::size_t primitive, std::string_view command,
                std::string_view reason);
   void cell_stopped(SimDuration t, std::string_view reason);
-  struct Held {
-    std::string robot;      // cell robot name
-    std::string workpiece;  // cell workpiece between its fingers, "" none
-  };
+  using Held = events::Held;  // a cell robot and the cell workpiece between its fingers, "" none
   void physical(SimDuration t, const std::vector<Held>& held, std::size_t obstacles);
   void run_end(SimDuration t, std::string_view outcome, std::string_view reason, std::uint64_t firings);
 
   // One camera frame processed by the image-processing thread: taken at `frame_time`, what it saw (each part's
   // centre, yaw when it has one, confidence), what it did not, how many blobs it rejected, and a problem that made
   // the frame unusable ("" if none). Positions are written to 0.1 mm, angles to 0.01 degree.
-  struct Seen {
-    std::string workpiece;
-    Eigen::Vector3d position = Eigen::Vector3d::Zero();
-    std::optional<double> yaw;  // radians
-    double confidence = 0;
-  };
+  using Seen = events::Seen;  // workpiece, position (m), yaw (radians, none for a cylinder), confidence
   void vision(SimDuration t, SimDuration frame_time, const std::vector<Seen>& seen,
               const std::vector<std::string>& not_seen, std::size_t rejected, std::string_view problem);
 
@@ -143,9 +144,8 @@ class EventLog {
   void flush() const;
 
  private:
-  void append(std::string line);
-
   mutable std::mutex mutex_;
+  std::vector<std::function<void(const LogEvent&)>> observers_;
   std::ostream* sink_;
   Keep keep_;
   std::vector<std::string> lines_;

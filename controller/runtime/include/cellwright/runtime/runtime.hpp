@@ -147,6 +147,9 @@ struct RunConfig {
   // Who watches the run as it goes (a progress line, a video): the runtime calls each observer and knows nothing of
   // what it does (RunObserver below).
   std::vector<RunObserver> observers;
+  // Who is handed each event of the log as a typed value as it is logged (EventLog::add_observer: on the thread that
+  // logs, in log order, under the log's lock: each must be quick and must not call the Runtime or log).
+  std::vector<std::function<void(const LogEvent&)>> event_observers;
   // Program faults injected on purpose (docs/faults.md, kind lost_signal): the n-th signal task control fires (counting
   // from 1, over all robots) loses its event, so that the wait for it is never signalled. Logged as fault_injected.
   std::vector<std::uint64_t> lost_signals;

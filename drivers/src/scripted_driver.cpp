@@ -204,4 +204,14 @@ bool ScriptedDriver::gripper_closed() const {
   return gripper_closed_;
 }
 
+void ScriptedDriver::set_grip_sense(std::optional<GripSense> sense) {
+  const auto l = lock();
+  grip_sense_ = sense;
+}
+
+std::optional<GripSense> ScriptedDriver::grip_sense() const {
+  const auto l = lock();
+  return grip_sense_;
+}
+
 }  // namespace cellwright::drivers

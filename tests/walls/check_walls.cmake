@@ -15,6 +15,8 @@
 #                                      nothing of cell/sim (the simulated rig); OpenCV only in the reports (cell/report,
 #                                      and the campaign's chart); campaigns and suites never build a run (cell/sim/run)
 #   every library                      nothing of tools/
+#   controller/runtime                 no injected-fault concepts: no line names InjectedFault, new_faults or
+#                                      lost_signal (the rig injects faults and logs them)
 # The `twin` executable built with CW_SIM=OFF links no MuJoCo, OSMesa or Assimp (checked when the closures file says
 # it was built so).
 # Each suite of tests links what its library may link (plus GoogleTest).
@@ -84,6 +86,32 @@ check_includes(cell "opencv2/" ${cell_stages} EXCEPT "^cell/(report/|campaign/(s
 check_includes(campaign "cellwright/cell/sim/|cellwright/runtime/runtime\\.hpp" "cell/campaign/*")
 # The simulated rig may reach everything but the tools.
 check_includes(cell_sim "${tools_reach}" "cell/sim/*")
+
+# check_words(<name> <forbidden regex> <globs...>): no line of the files (code or comment) matches.
+function(check_words name forbidden)
+  set(files "")
+  foreach(g ${ARGN})
+    file(GLOB_RECURSE found ${SOURCE_DIR}/${g})
+    list(APPEND files ${found})
+  endforeach()
+  list(FILTER files INCLUDE REGEX "\\.(cpp|hpp|h)$")
+  if(NOT files)
+    set(offences "${offences}  ${name}: no source files found under ${ARGN}\n" PARENT_SCOPE)
+    return()
+  endif()
+  set(out "${offences}")
+  foreach(f ${files})
+    file(RELATIVE_PATH rel ${SOURCE_DIR} ${f})
+    file(STRINGS ${f} lines REGEX "${forbidden}")
+    foreach(line ${lines})
+      string(STRIP "${line}" line)
+      string(APPEND out "  ${name}: ${rel} has '${line}'\n")
+    endforeach()
+  endforeach()
+  set(offences "${out}" PARENT_SCOPE)
+endfunction()
+# The runtime carries no injected-fault concepts: the rig injects faults and logs its injections itself.
+check_words(runtime_faults "InjectedFault|new_faults|lost_signal" "controller/runtime/*")
 
 # Links, from the closures the configure step wrote.
 set(mujoco_ocv_gl "mujoco|opencv_|OSMESA|osmesa")

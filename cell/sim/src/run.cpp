@@ -141,6 +141,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   estimate_options.targets.handover_clearance = s.options.handover_clearance;
   estimate_options.control_period = s.options.control_period;
   estimate_options.physics_step = s.cell.timestep;
+  std::vector<std::string> mirrored;  // the real robots: their grip sensed on the real side where it can tell
   for (const Binding& b : s.robots) {
     sim::SimDriverOptions driver_options;
     for (const DriverChoice& d : s.drivers) {
@@ -157,6 +158,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
       connect_real_driver(*real, *choice);
       mirrors_.push_back(std::make_unique<sim::MirroredDriver>(b.name, std::move(real), driver, driver.kinematics()));
       config.drivers[b.name] = mirrors_.back().get();
+      mirrored.push_back(b.name);
     } else if (drivers::FaultPlan plan = driver_plan(s, b.name); !plan.kinds_rules.empty()) {
       // The controller's and the link's faults: each reported, as it is chosen on the robot's thread, through the plant.
       plan.on_injection = [this, robot = b.name](drivers::CommandId id, const drivers::Command& command,
@@ -210,8 +212,26 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     }
   }
   plant_ = std::move(plant);
+  // The twin's sensors; a real robot's grip from its own driver where that can tell (MirroredDriver::grip_sense()),
+  // else from its copy in the twin.
+  config.sensors = world_plant_->sensors();
+  for (const std::string& robot : mirrored) {
+    config.sensors.grip[robot] = runtime::grip_sensor_for(*config.drivers.at(robot), config.sensors.grip[robot],
+                                                          grip_sensors_);
+  }
+  // Lost signals: dropped on the signal path and logged here (the runtime knows nothing of injected faults).
+  std::vector<std::uint64_t> lost;
   for (const FaultSpec& f : s.faults) {
-    if (f.kind == FaultKind::lost_signal) config.lost_signals.push_back(f.n);
+    if (f.kind == FaultKind::lost_signal) lost.push_back(f.n);
+  }
+  if (!lost.empty()) {
+    config.signal_filter = [this, lost](const runtime::SignalSent& sig) {
+      if (std::find(lost.begin(), lost.end(), sig.count) == lost.end()) return true;
+      runtime_->log().fault_injected(sig.time, "lost_signal", "", "",
+                                     fmt::format("signal {} of {} (the {}th signal fired) is lost", sig.event,
+                                                 sig.robot, sig.count));
+      return false;
+    };
   }
   estimate_ = estimate_cycle_time(s, net, estimate_options);
 
@@ -305,6 +325,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
                                 }});
   }
   runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
+  world_plant_->log_injections_to(&runtime_->log());
 }
 
 ScenarioRun::~ScenarioRun() {

@@ -157,11 +157,31 @@ const char* to_string(Perception perception) {
   return "?";
 }
 
-void apply_truth(EnvironmentModel& model, const Truth& truth, Perception perception) {
-  model.time = truth.time;
+SensorReadings read_sensors(Sensors& sensors, const std::vector<std::string>& robots, SimDuration time) {
+  SensorReadings r;
+  r.time = time;
+  if (sensors.parts != nullptr) r.parts = sensors.parts->read_parts();
+  if (sensors.safety != nullptr) r.obstacles = sensors.safety->read_obstacles();
+  for (const std::string& name : robots) {
+    SensorReadings::Robot robot;
+    robot.name = name;
+    if (auto g = sensors.grip.find(name); g != sensors.grip.end() && g->second != nullptr) {
+      robot.grip = g->second->read_grip();
+    }
+    if (auto f = sensors.force.find(name); f != sensors.force.end() && f->second != nullptr) {
+      robot.wrist_force = f->second->read_force();
+    }
+    r.robots.push_back(std::move(robot));
+  }
+  return r;
+}
+
+void apply_readings(EnvironmentModel& model, const SensorReadings& readings, Perception perception) {
+  model.time = readings.time;
   model.obstacles.clear();
-  for (const Obstacle& o : truth.obstacles) model.obstacles.push_back({o.name, o.centre, o.size});
-  for (const WorkpieceTruth& w : truth.workpieces) {
+  for (const Obstacle& o : readings.obstacles) model.obstacles.push_back({o.name, o.centre, o.size});
+  static const std::vector<PartReading> kNoParts;
+  for (const PartReading& w : readings.parts ? *readings.parts : kNoParts) {
     if (perception == Perception::kVision) break;
     WorkpieceState* s = model.find_workpiece(w.name);
     if (s == nullptr) continue;
@@ -171,7 +191,7 @@ void apply_truth(EnvironmentModel& model, const Truth& truth, Perception percept
     if (perception == Perception::kTruth) {
       s->pose = w.pose;
       s->confidence = 1.0;
-      s->stamp = truth.time;
+      s->stamp = readings.time;
       continue;
     }
     // kCad: a resting part near a location stands at its nominal pose there; otherwise the model keeps its pose.
@@ -192,13 +212,13 @@ void apply_truth(EnvironmentModel& model, const Truth& truth, Perception percept
     if (!s->pose.isApprox(nominal)) {
       s->pose = nominal;
       s->confidence = 1.0;
-      s->stamp = truth.time;
+      s->stamp = readings.time;
     }
   }
-  for (const RobotTruth& r : truth.robots) {
+  for (const SensorReadings::Robot& r : readings.robots) {
     RobotState* s = model.find_robot(r.name);
     if (s == nullptr) continue;
-    s->between_fingers = r.between_fingers;
+    s->grip = r.grip;
     s->wrist_force = r.wrist_force;
   }
 }

@@ -453,27 +453,28 @@ void RobotControl::complete(SimDuration now) {
     if (options_.recovery.enabled && check_shift(now)) return;  // the part is gone from the hand: recovering
   } else if (p.kind == task::PrimitiveKind::kClose) {
     const std::string expected = p.workpiece.empty() ? std::string() : bound(p.workpiece);
-    const std::optional<std::string> between =
-        env_.read([&](const EnvironmentModel& m) { return m.find_robot(cell_)->between_fingers; });
+    const std::optional<GripReading> between =
+        env_.read([&](const EnvironmentModel& m) { return m.find_robot(cell_)->grip; });
     std::string held;
     if (!between) {
       log_.sensor(now, label_, index, "grip_not_sensed", expected);
       held = expected;
-    } else if (between->empty()) {
+    } else if (!between->on_part) {
       log_.sensor(now, label_, index, "closed_on_nothing", "");
       if (!expected.empty()) {
         const std::string why = fmt::format("the gripper closed on nothing (expected {})", expected);
         if (options_.recovery.enabled) return symptom(now, Symptom::closed_on_nothing, why, expected);
         return fail(now, why);
       }
-    } else if (!expected.empty() && *between != expected) {
-      log_.sensor(now, label_, index, "closed_on_wrong_part", *between);
-      const std::string why = fmt::format("the gripper closed on {}, expected {}", *between, expected);
+    } else if (!expected.empty() && !between->holds(expected)) {
+      log_.sensor(now, label_, index, "closed_on_wrong_part", between->part);
+      const std::string why = fmt::format("the gripper closed on {}, expected {}", between->part, expected);
       if (options_.recovery.enabled) return symptom(now, Symptom::closed_on_wrong_part, why, expected);
       return fail(now, why);
     } else {
-      log_.sensor(now, label_, index, "gripped", *between);
-      held = *between;
+      // A sensor that cannot name the part (a jaw switch) says only "on something": the part expected.
+      held = between->part.empty() ? expected : between->part;
+      log_.sensor(now, label_, index, "gripped", held);
     }
     if (!held.empty()) {
       env_.write([&](EnvironmentModel& m) {
@@ -819,7 +820,7 @@ bool RobotControl::answer(Question q) const {
     case Question::part_in_hand:
       return env_.read([&](const EnvironmentModel& m) {
         const RobotState* r = m.find_robot(cell_);
-        return r != nullptr && r->between_fingers && *r->between_fingers == part;
+        return r != nullptr && r->grip && r->grip->holds(part);
       });
     case Question::driver_in_fault:
       return driver_.state() == drivers::DriverState::fault;
@@ -1211,22 +1212,22 @@ void RobotControl::watch_grip(SimDuration now) {
   if (active().kind != task::PrimitiveKind::kMove) return;  // a grip changes what is between the fingers
   struct Seen {
     std::optional<Hold> hold;
-    std::optional<std::string> between;
+    std::optional<GripReading> between;
   };
   const Seen seen = env_.read([&](const EnvironmentModel& m) {
     const RobotState* r = m.find_robot(cell_);
-    return r == nullptr ? Seen{} : Seen{r->hold, r->between_fingers};
+    return r == nullptr ? Seen{} : Seen{r->hold, r->grip};
   });
   if (!seen.hold || !seen.between) {
     grip_missing_ = 0;
     return;
   }
-  if (*seen.between != seen.hold->workpiece) {
+  if (!seen.between->holds(seen.hold->workpiece)) {
     if (++grip_missing_ >= options_.recovery.grip_lost_periods) {
       grip_missing_ = 0;
       symptom(now, Symptom::grip_lost,
               fmt::format("the grip sensor lost {} while carrying it ({})", seen.hold->workpiece,
-                          seen.between->empty() ? std::string("nothing between the fingers") : *seen.between),
+                          seen.between->on_part ? seen.between->part : std::string("nothing between the fingers")),
               seen.hold->workpiece);
     }
     return;
@@ -1237,7 +1238,7 @@ void RobotControl::watch_grip(SimDuration now) {
 bool RobotControl::check_shift(SimDuration now) {
   const std::optional<std::string> lost = env_.read([&](const EnvironmentModel& m) -> std::optional<std::string> {
     const RobotState* r = m.find_robot(cell_);
-    if (r == nullptr || !r->hold || !r->between_fingers || *r->between_fingers == r->hold->workpiece) return std::nullopt;
+    if (r == nullptr || !r->hold || !r->grip || r->grip->holds(r->hold->workpiece)) return std::nullopt;
     return r->hold->workpiece;
   });
   if (lost) {

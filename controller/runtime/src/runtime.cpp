@@ -153,7 +153,8 @@ struct Runtime::Impl {
   RunConfig& cfg;
   EventLog& log;
   NameMap names;
-  std::vector<std::string> cells;  // per program robot
+  std::vector<std::string> cells;        // per program robot
+  std::vector<std::string> cell_robots;  // every cell robot, in the cell's order (the sensors are read so)
   SharedEnvironment env;
   std::vector<std::unique_ptr<MessageQueue<MotionCommand>>> inboxes;
   MessageQueue<RobotStatus> statuses;
@@ -287,15 +288,13 @@ struct Runtime::Impl {
       return false;
     }
     const SimDuration t = now + cfg.period;
+    // No simulation: the robots' drivers run on their own; this thread keeps the clock and reads the sensors.
+    if (cfg.plant != nullptr) cfg.plant->advance(cfg.period);
+    const SensorReadings readings = read_sensors(cfg.sensors, cell_robots, t);
+    env.write([&](EnvironmentModel& e) { apply_readings(e, readings, cfg.perception); });
     if (cfg.plant == nullptr) {
-      // No simulation: the robots' drivers run on their own; this thread only keeps the clock.
-      env.write([&](EnvironmentModel& e) { e.time = t; });
       clock.advance(cfg.period);
     } else {
-      cfg.plant->advance(cfg.period);
-      Truth truth = cfg.plant->truth();
-      truth.time = t;
-      env.write([&](EnvironmentModel& e) { apply_truth(e, truth, cfg.perception); });
       for (Collision& c : cfg.plant->new_collisions()) {
         log.collision(t, c.a, c.b, c.depth);
         collisions.push_back(std::move(c));
@@ -307,12 +306,10 @@ struct Runtime::Impl {
           log.workpiece_arrived(t, a.workpiece, a.where);
         }
       }
-      for (const InjectedFault& f : cfg.plant->new_faults()) {
-        log.fault_injected(t, f.kind, f.robot, f.workpiece, f.detail);
-      }
       // A detection since the previous period: the plant's physical state with it, for the report to judge it by.
       if (const std::size_t d = log.detections(); d != detections_seen) {
         detections_seen = d;
+        const Truth truth = cfg.plant->truth();
         std::vector<EventLog::Held> held;
         for (const RobotTruth& r : truth.robots) {
           if (r.between_fingers) held.push_back({r.name, *r.between_fingers});
@@ -519,6 +516,15 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
   impl_ = std::make_unique<Impl>(config_, *log_);
   Impl& im = *impl_;
   im.names = check_binding(config_);
+  for (const models::RobotSpec& r : config_.cell.robots) im.cell_robots.push_back(r.name);
+  const auto check_sensors = [&](const auto& sensors) {
+    for (const auto& entry : sensors) {
+      CW_CHECK(config_.cell.find_robot(entry.first) != nullptr, "a sensor is wired for '{}', which is not a cell robot",
+               entry.first);
+    }
+  };
+  check_sensors(config_.sensors.grip);
+  check_sensors(config_.sensors.force);
 
   std::vector<MessageQueue<MotionCommand>*> inbox_ptrs;
   for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
@@ -543,7 +549,7 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
   }
   config_.motion.track_held_parts = config_.perception != Perception::kTruth;
   im.task = std::make_unique<TaskControl>(config_.net, config_.program, inbox_ptrs, im.statuses, *log_,
-                                          config_.motion.recovery, config_.lost_signals);
+                                          config_.motion.recovery, config_.signal_filter);
   for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
     const std::string& label = config_.program.robots[r];
     const std::string& cell = im.names.robots.at(label);

@@ -23,6 +23,7 @@ ScriptedPlant::ScriptedPlant(const models::CellDescription& cell,
     poses_.push_back(w.pose.transform());
   }
   follows_.resize(names_.size());
+  sensors_.update(truth());
 }
 
 Eigen::Isometry3d ScriptedPlant::tool_pose(const Robot& r) const {
@@ -71,6 +72,7 @@ void ScriptedPlant::advance(SimDuration dt) {
     const Robot& r = robots_[*follows_[w]];
     poses_[w] = tool_pose(r) * r.held_offset;
   }
+  sensors_.update(truth());
 }
 
 Truth ScriptedPlant::truth() const {

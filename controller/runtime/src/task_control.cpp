@@ -38,7 +38,7 @@ bool net_only(task::PrimitiveKind k) {
 TaskControl::TaskControl(const petri::Net& net, const task::CompiledProgram& program,
                          std::vector<MessageQueue<MotionCommand>*> robot_inboxes,
                          MessageQueue<RobotStatus>& status_inbox, EventLog& log, RecoveryOptions recovery,
-                         std::vector<std::uint64_t> lost_signals)
+                         SignalFilter signal_filter)
     : net_(net),
       program_(program),
       inboxes_(std::move(robot_inboxes)),
@@ -53,7 +53,7 @@ TaskControl::TaskControl(const petri::Net& net, const task::CompiledProgram& pro
       activity_(program.robots.size(), RobotActivity::kIdle),
       time_(program.robots.size()),
       recovery_(std::move(recovery)),
-      lost_signals_(std::move(lost_signals)),
+      signal_filter_(std::move(signal_filter)),
       wait_since_(program.robots.size()) {
   for (petri::PlaceId p = 0; p < net.num_places(); ++p) expected_tokens_.push_back(marking_[p]);
   CW_CHECK(net.robots() == program.robots, "the net's robots are not the program's ({} vs {})", net.robots().size(),
@@ -154,14 +154,10 @@ void TaskControl::fire_until_quiescent(SimDuration now) {
         completed_[place] = true;
         if (p.kind == task::PrimitiveKind::kSignal) {
           ++signals_fired_;
-          if (std::find(lost_signals_.begin(), lost_signals_.end(), signals_fired_) != lost_signals_.end()) {
-            // Injected: the event never reaches its place.
+          if (signal_filter_) {
             const auto ev = net_.find_place(task::event_place_id(p.event));
-            if (ev && marking_[*ev] > 0) {
-              marking_[*ev] -= 1;
-              log_.fault_injected(now, "lost_signal", "", "",
-                                  fmt::format("signal {} of {} (the {}th signal fired) is lost", p.event,
-                                              program_.robots[r], signals_fired_));
+            if (ev && marking_[*ev] > 0 && !signal_filter_(SignalSent{now, program_.robots[r], p.event, signals_fired_})) {
+              marking_[*ev] -= 1;  // dropped on the way: the event never reaches its place
             }
           }
         }

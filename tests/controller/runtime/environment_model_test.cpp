@@ -16,6 +16,16 @@ using cellwright::testing::paper_cell;
 using std::chrono::milliseconds;
 using ::testing::HasSubstr;
 
+// A simulated plant's truth through its sensors (TruthSensors) into the model, as the simulation thread does.
+void apply_truth(EnvironmentModel& m, const Truth& t, Perception perception = Perception::kTruth) {
+  TruthSensors plant;
+  plant.update(t);
+  Sensors sensors = plant.sensors();
+  std::vector<std::string> robots;
+  for (const RobotState& r : m.robots) robots.push_back(r.name);
+  apply_readings(m, read_sensors(sensors, robots, t.time), perception);
+}
+
 task::Target target(task::TargetKind kind, std::string object) {
   return task::Target{kind, std::move(object)};
 }
@@ -68,9 +78,9 @@ TEST(RuntimeEnvironment, TruthUpdatesPosesAndFingersButNeitherJointsNorWhoHolds)
   EXPECT_FALSE(m.find_workpiece("B")->present);
   // Where a robot is comes from its driver, never from the simulation: the truth's joints are not taken.
   EXPECT_EQ(m.find_robot("puma")->joints, paper_cell().find_robot("puma")->home);
-  EXPECT_EQ(m.find_robot("puma")->between_fingers, std::optional<std::string>("A"));  // the grip sensor is
+  EXPECT_EQ(m.find_robot("puma")->grip, std::optional(GripReading::of("A")));  // the grip sensor is
   EXPECT_EQ(m.find_robot("melfa")->joints, paper_cell().find_robot("melfa")->home);
-  EXPECT_FALSE(m.find_robot("melfa")->between_fingers.has_value());
+  EXPECT_FALSE(m.find_robot("melfa")->grip.has_value());
 }
 
 TEST(RuntimeEnvironment, VisionCorrectsFreePartsOnly) {
@@ -209,7 +219,7 @@ TEST(RuntimeEnvironment, WithoutACameraTheModelPutsARestingPartAtItsLocationsNom
   apply_truth(v, t, Perception::kVision);
   EXPECT_TRUE(v.find_workpiece("A")->pose.isApprox(a_before));
   EXPECT_EQ(v.find_robot("puma")->joints, paper_cell().find_robot("puma")->home);
-  EXPECT_EQ(v.find_robot("puma")->between_fingers, std::optional<std::string>(""));
+  EXPECT_EQ(v.find_robot("puma")->grip, std::optional(GripReading::nothing()));
   EXPECT_EQ(v.time, milliseconds(500));
 }
 

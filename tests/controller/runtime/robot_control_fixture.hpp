@@ -201,8 +201,11 @@ class RobotControlTest : public ::testing::Test {
   WorkpieceState part(const std::string& name) const {
     return env_.read([&](const EnvironmentModel& m) { return *m.find_workpiece(name); });
   }
+  // What the grip sensor says: a part's name, "" for nothing, nullopt for "cannot tell".
   void set_fingers(std::optional<std::string> between) {
-    env_.write([&](EnvironmentModel& m) { m.find_robot("puma")->between_fingers = std::move(between); });
+    std::optional<GripReading> grip;
+    if (between) grip = GripReading::of(*between);
+    env_.write([&](EnvironmentModel& m) { m.find_robot("puma")->grip = std::move(grip); });
   }
 
   // The driver commands the scripted controller accepted, in order.

@@ -129,6 +129,7 @@ TEST(RuntimeWithoutSimulation, TheExchangeRunsOnSelfRunningControllersInTheNetsO
       cell.config.drivers[name] = own[name].get();
     }
     cell.config.plant = nullptr;
+    cell.config.sensors = {};
     cell.config.perception = Perception::kCad;
     Runtime rt(cell.config);
     const RunResult r = rt.run();
@@ -247,6 +248,7 @@ TEST(RuntimeRun, AGripOnNothingFailsTheClose) {
   }
   ScriptedPlant plant(moved, raw);
   cell.config.plant = &plant;
+  cell.config.sensors = plant.sensors();
   cell.config.perception = Perception::kCad;
   cell.config.motion.recovery.enabled = false;
   Runtime rt(cell.config);
@@ -268,6 +270,7 @@ TEST(RuntimeRun, WithRecoveryAGripOnNothingIsTriedAgainThenThePartIsSetAsideAndT
   }
   ScriptedPlant plant(moved, raw);
   cell.config.plant = &plant;
+  cell.config.sensors = plant.sensors();
   cell.config.perception = Perception::kCad;
   Runtime rt(cell.config);
   const RunResult r = rt.run();
@@ -363,7 +366,7 @@ std::pair<std::string, LockstepStats> run_variant(LockstepVariant v, bool lose_a
   cell.config.lockstep_threads = v.threads;
   cell.config.lockstep_skip_idle = v.skip_idle;
   if (lose_a_signal) {
-    cell.config.lost_signals = {1};
+    cell.config.signal_filter = [](const SignalSent& s) { return s.count != 1; };  // the first signal is lost
     cell.config.motion.recovery.wait_timeout = std::chrono::milliseconds(500);
   }
   Runtime rt(cell.config);

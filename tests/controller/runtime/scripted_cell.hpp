@@ -22,6 +22,7 @@ namespace cellwright::testing {
 struct ScriptedTiming {
   std::uint64_t move_ticks = 120;
   std::uint64_t grip_ticks = 40;
+  bool senses_grip = false;  // the double claims a gripper sensor of its own (ScriptedDriver::set_grip_sense)
 };
 
 inline const models::CellDescription& paper_cell() {
@@ -52,6 +53,7 @@ inline drivers::ScriptedDriverConfig scripted_arm(const models::RobotSpec& spec,
   c.capabilities.max_joint_speed.assign(spec.home.size(), 2.0);
   c.capabilities.reads_joints = true;
   c.capabilities.queue_depth = 4;
+  c.capabilities.senses_grip = timing.senses_grip;
   c.tick = std::chrono::milliseconds(1);
   c.home_ticks = 30;
   c.home_joints = spec.home;
@@ -85,6 +87,7 @@ struct ScriptedCell {
     }
     for (auto& [name, d] : drivers) config.drivers[name] = d.get();
     config.plant = plant.get();
+    config.sensors = plant->sensors();
     config.mode = mode;
     config.realtime_speed = 20.0;
     config.limits.sim_time = std::chrono::seconds(30);

@@ -1,5 +1,5 @@
 // Task control's part of fault recovery (task_control.hpp steps 4 and 5, docs/faults.md): lost signals (injected with
-// lost_signals), the watchdog on waits (wait_timeout, diagnosed with the decision tree: resignal or stop the cell) and
+// a signal filter that drops the n-th signal, as a rig does), the watchdog on waits (wait_timeout, diagnosed with the decision tree: resignal or stop the cell) and
 // a robot's stop_cell. TaskControl is driven turn by turn from the test, with robots that finish each command one turn
 // after it was sent (no threads, no sleeping: the simulated time is what the test passes to step()).
 #include "cellwright/runtime/task_control.hpp"
@@ -32,8 +32,18 @@ struct Harness {
       inboxes.push_back(std::make_unique<MessageQueue<MotionCommand>>(4));
       ptrs.push_back(inboxes.back().get());
     }
-    tc = std::make_unique<TaskControl>(net, compiled, ptrs, statuses, log, std::move(recovery),
-                                       std::move(lost_signals));
+    // As a rig injects it (cell/sim's ScenarioRun): the filter drops the n-th signals and logs the injection.
+    SignalFilter filter;
+    if (!lost_signals.empty()) {
+      filter = [this, lost = std::move(lost_signals)](const SignalSent& s) {
+        if (std::find(lost.begin(), lost.end(), s.count) == lost.end()) return true;
+        log.fault_injected(s.time, "lost_signal", "", "",
+                           "signal " + s.event + " of " + s.robot + " (the " + std::to_string(s.count) +
+                               "th signal fired) is lost");
+        return false;
+      };
+    }
+    tc = std::make_unique<TaskControl>(net, compiled, ptrs, statuses, log, std::move(recovery), std::move(filter));
   }
 
   std::vector<std::optional<MotionCommand>> take() {

@@ -49,7 +49,7 @@ class FaultWorld : public cellwright::testing::MujocoTest {
   // One control period of the plant; collects what it injected.
   void period() {
     plant_->advance(kPeriod);
-    for (runtime::InjectedFault& f : plant_->new_faults()) {
+    for (InjectedFault& f : plant_->take_injected()) {
       injected_.push_back(std::move(f));
       injected_at_.push_back(world_->now());
     }
@@ -118,7 +118,7 @@ class FaultWorld : public cellwright::testing::MujocoTest {
   std::unique_ptr<World> world_;
   SimDriver* puma_ = nullptr;
   std::unique_ptr<WorldPlant> plant_;
-  std::vector<runtime::InjectedFault> injected_;
+  std::vector<InjectedFault> injected_;
   std::vector<std::chrono::nanoseconds> injected_at_;
   std::vector<std::string> arrivals_;
   std::function<void()> each_;
@@ -309,7 +309,7 @@ TEST(FaultCamera, FramesAreLostFromTheirTimeForTheirCount) {
   EXPECT_TRUE(injector.lose_frame(1200ms));
   EXPECT_TRUE(injector.lose_frame(1600ms));
   EXPECT_FALSE(injector.lose_frame(2000ms));
-  const std::vector<runtime::InjectedFault> f = injector.take();
+  const std::vector<InjectedFault> f = injector.take();
   ASSERT_EQ(f.size(), 1u);
   EXPECT_EQ(f[0].kind, "frame_lost");
   EXPECT_THAT(f[0].detail, ::testing::HasSubstr("no frame for 2 frames from t=1.200 s"));

@@ -396,8 +396,8 @@ void FaultInjector::update() {
   last_update_ = now;
 }
 
-std::vector<runtime::InjectedFault> FaultInjector::take() {
-  std::vector<runtime::InjectedFault> out;
+std::vector<InjectedFault> FaultInjector::take() {
+  std::vector<InjectedFault> out;
   out.swap(out_);
   return out;
 }

@@ -20,6 +20,7 @@ WorldPlant::WorldPlant(World& world, std::vector<FeedEvent> feed, std::vector<Fa
     injector_ = std::make_unique<FaultInjector>(world_, std::move(faults), seed);
     injector_->prepare(feed_);
   }
+  sensors_.update(truth());
 }
 
 void WorldPlant::recycle_at(std::vector<std::string> conveyors) {
@@ -49,20 +50,14 @@ void WorldPlant::take_out_delivered() {
   }
 }
 
-void WorldPlant::report_fault(runtime::InjectedFault fault) {
+void WorldPlant::report_fault(InjectedFault fault) {
   std::lock_guard lock(reported_mutex_);
   reported_.push_back(std::move(fault));
 }
 
-std::vector<runtime::InjectedFault> WorldPlant::new_faults() {
-  std::vector<runtime::InjectedFault> out;
-  {
-    std::lock_guard lock(reported_mutex_);
-    out.swap(reported_);
-  }
-  if (injector_) {
-    for (runtime::InjectedFault& f : injector_->take()) out.push_back(std::move(f));
-  }
+std::vector<InjectedFault> WorldPlant::take_injected() {
+  std::vector<InjectedFault> out;
+  out.swap(injected_);
   return out;
 }
 
@@ -88,6 +83,21 @@ void WorldPlant::advance(runtime::SimDuration dt) {
   if (!exits_.empty()) take_out_delivered();
   if (injector_) injector_->update();
   for (std::string& w : world_.drain_warnings()) warnings_.push_back(std::move(w));
+  elapsed_ += dt;
+  sensors_.update(truth());
+  // The injections of this period, logged by the plant itself on the simulation thread (fixed order in lock-step).
+  {
+    std::lock_guard lock(reported_mutex_);
+    for (InjectedFault& f : reported_) injected_.push_back(std::move(f));
+    reported_.clear();
+  }
+  if (injector_) {
+    for (InjectedFault& f : injector_->take()) injected_.push_back(std::move(f));
+  }
+  if (log_ != nullptr) {
+    for (const InjectedFault& f : injected_) log_->fault_injected(elapsed_, f.kind, f.robot, f.workpiece, f.detail);
+    injected_.clear();
+  }
 }
 
 runtime::Truth WorldPlant::truth() const {

@@ -129,6 +129,7 @@ class FaultyDriver final : public RobotDriver {
   std::optional<PositionReading> last_position() const override;
   void set_notifier(std::function<void()> notify) override;
   void set_clock(Clock clock) override;
+  std::optional<GripSense> grip_sense() const override { return inner_.grip_sense(); }
 
   // ---- Queries (the owner thread) ----
   const Injected& injected() const { return injected_; }

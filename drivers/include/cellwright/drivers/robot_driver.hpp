@@ -185,6 +185,17 @@ struct Capabilities {
   // which should be sent tool poses (MovePose) rather than joint targets it would have to emulate; false for one
   // that takes joint targets directly (the simulation's servos).
   bool prefers_pose = false;
+  // grip_sense() tells the gripper's state (a jaw switch or finger encoder the controller reports). The Movemaster EX
+  // and VAL II drivers cannot: neither controller's protocol, as far as it is known here, has a query of the hand's
+  // state (docs/real-robots.md).
+  bool senses_grip = false;
+};
+
+// What a gripper's own sensor tells (RobotDriver::grip_sense()).
+enum class GripSense : std::uint8_t {
+  open,            // the fingers are open
+  closed_empty,    // closed and shut: nothing between them
+  closed_on_part,  // closed and stopped before shutting: something is between them (the sensor cannot say what)
 };
 
 // The answer to home(), submit() or request_position().
@@ -267,6 +278,12 @@ class RobotDriver {
   // driver. Pass {} to go back to the driver's own time. Any state.
   using Clock = std::function<std::chrono::nanoseconds()>;
   virtual void set_clock(Clock clock) = 0;
+
+  // The gripper's state as its own sensor last reported it, when capabilities().senses_grip; nullopt when the driver
+  // cannot tell (no such sensor, not read yet, no link). ANY THREAD (the runtime's sensor port reads it on the
+  // simulation thread, runtime/sensors.hpp): a reading the driver keeps, never a request to the controller; it must
+  // not block. The default: cannot tell.
+  virtual std::optional<GripSense> grip_sense() const { return std::nullopt; }
 };
 
 // Why a call was refused, if it was.

@@ -91,6 +91,12 @@ class ScriptedDriver final : public DriverCore {
   // Whether the gripper was last closed (false after homing or an open).
   bool gripper_closed() const;
 
+  // ---- The gripper's sensor (any thread) ----
+  // What grip_sense() reports from now on (a test's jaw switch; capabilities.senses_grip says whether the double
+  // claims one). nullopt (the start): cannot tell.
+  void set_grip_sense(std::optional<GripSense> sense);
+  std::optional<GripSense> grip_sense() const override;
+
  private:
   struct Work : JobData {
     std::uint64_t remaining = 0;  // ticks of work left
@@ -119,6 +125,7 @@ class ScriptedDriver final : public DriverCore {
   std::vector<double> joints_;
   Eigen::Isometry3d pose_;
   bool gripper_closed_ = false;
+  std::optional<GripSense> grip_sense_;
   std::vector<std::pair<CommandId, Command>> accepted_;
 };
 

@@ -52,6 +52,7 @@
 #include "cellwright/runtime/clock.hpp"
 #include "cellwright/runtime/guarded.hpp"
 #include "cellwright/runtime/plant.hpp"
+#include "cellwright/runtime/sensors.hpp"
 #include "cellwright/task/compiled.hpp"
 
 namespace cellwright::runtime {
@@ -163,10 +164,10 @@ struct RobotState {
   // The tool pose (world) where it last opened its hand on a part; cleared when it closes again. Departing from a
   // put-down lifts the open hand straight up from there (see above(X) at the top).
   std::optional<Eigen::Isometry3d> released_tcp;
-  // The grip sensor: the workpiece between the finger pads ("" none), nullopt when nothing senses it. Written from
-  // the plant's sensors (the twin's finger pad touch sensors) every period.
-  std::optional<std::string> between_fingers;
-  // The wrist force sensor (N, world frame), from the plant every period; nullopt when there is none.
+  // The grip sensor (sensors.hpp): what is between the finger pads, nullopt when nothing senses it (no grip sensor
+  // wired, or it cannot tell now). Written from the robot's grip sensor every period.
+  std::optional<GripReading> grip;
+  // The wrist force sensor (N, world frame), from the robot's force sensor every period; nullopt when there is none.
   std::optional<Eigen::Vector3d> wrist_force;
 
   const Eigen::Isometry3d& base() const { return fixed->base; }  // base_link in the world
@@ -211,8 +212,7 @@ EnvironmentModel make_environment_model(const models::CellDescription& cell);
 //           light barrier at each conveyor entry and location, the belts' encoders) tell whether a part is there and
 //           whether it moves, never where exactly: a part at rest within kCadSensorRadius of a location is taken to
 //           stand at that location's nominal pose. While held it moves with the hand.
-// The robots' joints never come from the plant: robot control reads them from the drivers. The grip sensors
-// (between_fingers) do.
+// The robots' joints never come from the sensors: robot control reads them from the drivers. The grip sensors do.
 enum class Perception { kTruth, kVision, kCad };
 
 // "truth", "vision", "cad".
@@ -221,12 +221,29 @@ const char* to_string(Perception perception);
 inline constexpr double kCadSensorRadius = 0.1;  // m
 inline constexpr double kCadRestSpeed = 0.005;   // m/s: slower, a part is at rest for the presence sensors
 
-// Writes the plant's truth into the model, as `perception` allows (see Perception): time, grip sensors
-// (RobotTruth::between_fingers), wrist forces and the safety sensor's obstacles always; workpiece poses, velocities and presence for kTruth (a part held by a robot
-// keeps its held_by; confidence becomes 1 and the stamp the truth's time); presence, velocity and the nominal pose of
-// the location a resting part stands at for kCad; nothing of the workpieces for kVision. Entries naming nothing in the
-// model are ignored (a plant may know more bodies than the model).
-void apply_truth(EnvironmentModel& model, const Truth& truth, Perception perception = Perception::kTruth);
+// What the simulation thread read from the wired sensors (sensors.hpp) in one period, at `time`.
+struct SensorReadings {
+  struct Robot {
+    std::string name;  // cell robot
+    std::optional<GripReading> grip;  // nullopt: no grip sensor, or it cannot tell now
+    std::optional<Eigen::Vector3d> wrist_force;
+  };
+  SimDuration time{0};
+  std::optional<std::vector<PartReading>> parts;  // nullopt: no part sensor
+  std::vector<Obstacle> obstacles;                // the safety sensor's (none without one)
+  std::vector<Robot> robots;                      // every cell robot, in the cell's order
+};
+
+// Reads every sensor of `sensors` once, in the port's order (sensors.hpp): parts, safety, then each of `robots`'
+// grip and force. A robot with no sensor of a kind reads nullopt.
+SensorReadings read_sensors(Sensors& sensors, const std::vector<std::string>& robots, SimDuration time);
+
+// Writes the sensor readings into the model, as `perception` allows (see Perception): time, grip sensors, wrist forces
+// and the safety sensor's obstacles always; with a part sensor, workpiece poses, velocities and presence for kTruth (a
+// part held by a robot keeps its held_by; confidence becomes 1 and the stamp the readings' time); presence, velocity
+// and the nominal pose of the location a resting part stands at for kCad; nothing of the workpieces for kVision.
+// Entries naming nothing in the model are ignored (a sensor may know more bodies than the model).
+void apply_readings(EnvironmentModel& model, const SensorReadings& readings, Perception perception = Perception::kTruth);
 
 // Vision's entry point (issue 5): the workpiece was seen at `pose` (its centre, world) with `confidence` in [0, 1],
 // in an image taken `age` before model.time. Updates the pose and confidence, stamps it model.time - age, and marks

@@ -22,8 +22,8 @@
 //   vision            frame (its sim time, 4 decimals), seen [{workpiece, x, y, z (m, 4 decimals), yaw (degrees, 2
 //                     decimals, null for a cylinder), confidence (3 decimals)}], not_seen [names], rejected (count),
 //                     problem ("" if none)
-//   fault_injected    kind, robot (cell name, "" none), workpiece ("" none), detail: a fault the plant or the runtime
-//                     injected on purpose (docs/faults.md); for the campaign's accounting, never read by the controller
+//   fault_injected    kind, robot (cell name, "" none), workpiece ("" none), detail: a fault the rig (the twin) injected
+//                     on purpose, logged by the rig (docs/faults.md); for the campaign's accounting, never read by the controller
 //   fault_detected    robot (label, "" for the cell), primitive (-1 none), symptom, detail: something the controller
 //                     sensed went wrong
 //   diagnosis         robot, symptom, cause, action, path (the decision tree's answers, "part_seen=yes part_at_rest=no")

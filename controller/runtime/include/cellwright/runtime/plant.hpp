@@ -2,8 +2,10 @@
 // MuJoCo World (twin/sim, adapted by WorldPlant in world_plant.hpp) or, in tests and benchmarks without
 // MuJoCo, a ScriptedPlant (scripted_plant.hpp) that advances ScriptedDrivers.
 //
-// Every period the simulation thread calls advance(period), then truth(), new_collisions() and new_arrivals(), and
-// writes what it learnt into the environment model. The simulated robots' drivers are advanced by the plant inside
+// Every period the simulation thread calls advance(period), then new_collisions() and new_arrivals(), which it logs,
+// and, in the period after a fault detection, truth(), whose physical state it logs for the report to judge the
+// detection by. The controller learns nothing from the plant's truth: what it senses comes through the sensor port
+// (sensors.hpp), which a simulated plant implements for the rig to wire (its sensors are read after advance()). The simulated robots' drivers are advanced by the plant inside
 // advance() (a SimDriver by the World, a ScriptedDriver by the ScriptedPlant), so a command submitted by a
 // robot-control thread starts at the next advance().
 //
@@ -33,6 +35,7 @@ struct WorkpieceTruth {
 };
 
 // One robot as the physics has it.
+// (The grip and the wrist force are what a simulated plant's sensors report, sensors.hpp's TruthSensors.)
 struct RobotTruth {
   std::string name;            // the cell's robot name
   std::vector<double> joints;  // arm joints, base to tip (radians); empty if the plant cannot tell. For reports
@@ -52,15 +55,6 @@ struct Obstacle {
   std::string name;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // world, m
   Eigen::Vector3d size = Eigen::Vector3d::Zero();    // full extents, m
-};
-
-// A fault the plant injected on purpose (docs/faults.md), for the event log and the fault campaign only: the
-// controller never reads it (it must find faults by what it senses).
-struct InjectedFault {
-  std::string kind;       // "drop", "slip", "misplace", "obstacle", "missing", "timeout", ... (docs/faults.md)
-  std::string robot;      // cell robot it concerns, "" if none
-  std::string workpiece;  // cell workpiece it concerns, "" if none
-  std::string detail;     // what exactly was done, with the values
 };
 
 // The physics' state at one instant.
@@ -103,7 +97,7 @@ class Plant {
   // robot or the physics did; a numerical failure shows as driver faults.
   virtual void advance(SimDuration dt) = 0;
 
-  // The state now.
+  // The state now: for reports (the physical state after a detection, the final places), never for the controller.
   virtual Truth truth() const = 0;
 
   // Collisions that began since the previous call, in a fixed order (deterministic for a given run).
@@ -111,10 +105,6 @@ class Plant {
 
   // Arrivals since the previous call, in a fixed order.
   virtual std::vector<Arrival> new_arrivals() = 0;
-
-  // Faults injected since the previous call, in the order they were made (deterministic for a given run). The
-  // default plant injects none.
-  virtual std::vector<InjectedFault> new_faults() { return {}; }
 
   // An image of the plant now from its camera `camera` at that camera's resolution; nullopt when the plant has no such
   // camera or cannot render (the problem is in *why). Made on the calling thread, which is the simulation thread: a

@@ -6,8 +6,10 @@
 // after every completed move) robot control asks request_position(), and when the answer arrives writes it into the
 // environment model (RobotState::joints from a joint read-back; RobotState::tcp from a tool-pose read-back, the
 // joints then being the last commanded ones). A simulation driver answers at its next step; a serial controller
-// answers when its turn in the queue comes. Grip success comes from the grip sensors (RobotState::between_fingers,
-// written by whoever has them: the twin's finger pad sensors through the plant); without one a close is taken as done.
+// answers when its turn in the queue comes. Grip success comes from the robot's grip sensor (RobotState::grip, written
+// from the sensor port, sensors.hpp: the twin's finger pad sensors, or a real gripper's jaw switch through its driver,
+// which says "on something" without naming it: taken as the part expected); without one (nullopt: no sensor wired, or
+// it cannot tell) a close is taken as done (the "grip_not_sensed" condition).
 //
 // Bring-up: the Runtime calls connect() on the main thread before any thread starts (a configuration that cannot work
 // is refused there, as an InputError). In its first turns robot control homes the driver (if not homed yet) and

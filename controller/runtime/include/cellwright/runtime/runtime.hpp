@@ -1,12 +1,13 @@
 // Runtime: the paper's multithreaded control structure (Fig. 2) running one task program on one cell.
 //
 // Threads, started by run() (or the first step()):
-//   simulation     advances the Plant by one control period, writes the truth into the environment model (as much
-//                  as RunConfig::perception allows; never the robots' positions, which robot control reads from the
-//                  drivers), logs collisions and arrivals, captures a camera frame every vision period and queues it
-//                  for image processing (without vision, a plain one for RunConfig::camera_frames' on_frame),
-//                  decides the end of the run (program finished + settle time, failure, sim
-//                  time limit). With no plant (no simulation) it only keeps the clock and decides the end;
+//   simulation     advances the Plant by one control period, reads the sensors (RunConfig::sensors, sensors.hpp)
+//                  and writes their readings into the environment model (as much as RunConfig::perception allows;
+//                  never the robots' positions, which robot control reads from the drivers), logs collisions and
+//                  arrivals, captures a camera frame every vision period and queues it for image processing (without
+//                  vision, a plain one for RunConfig::camera_frames' on_frame), decides the end of the run (program
+//                  finished + settle time, failure, sim time limit). With no plant (no simulation) it keeps the
+//                  clock, reads the sensors and decides the end;
 //   image processing  with Perception::kVision only: ImageProcessing::step (image_processing.hpp), then wakes task
 //                  and robot control;
 //   task control   TaskControl::step (task_control.hpp);
@@ -54,6 +55,7 @@
 #include "cellwright/runtime/image_processing.hpp"
 #include "cellwright/runtime/plant.hpp"
 #include "cellwright/runtime/robot_control.hpp"
+#include "cellwright/runtime/sensors.hpp"
 #include "cellwright/runtime/task_control.hpp"
 #include "cellwright/task/compiled.hpp"
 
@@ -118,8 +120,13 @@ struct RunConfig {
   // advances them) must outlive the Runtime.
   std::map<std::string, drivers::RobotDriver*> drivers;
   // The simulation the simulation thread steps; not owned. nullptr for a cell with no simulation (every robot on a
-  // driver that runs by itself, e.g. a serial controller): the first thread then only keeps the clock.
+  // driver that runs by itself, e.g. a serial controller): the first thread then keeps the clock and reads the sensors.
   Plant* plant = nullptr;
+  // The sensors the rig wires (sensors.hpp; not owned, they must outlive the Runtime): a simulated plant's (the
+  // ScriptedPlant's or the twin's TruthSensors), a real robot's driver's (DriverGripSensor), or none. A robot with no
+  // grip sensor has its closes taken as done; with no part sensor the model keeps what it knows of the parts (or
+  // what vision tells it). Every name must be a cell robot's (InternalError otherwise).
+  Sensors sensors;
   // Where the model's knowledge of the workpieces comes from (environment_model.hpp). kVision needs `vision` and
   // `detector`.
   Perception perception = Perception::kTruth;
@@ -150,9 +157,9 @@ struct RunConfig {
   // Who is handed each event of the log as a typed value as it is logged (EventLog::add_observer: on the thread that
   // logs, in log order, under the log's lock: each must be quick and must not call the Runtime or log).
   std::vector<std::function<void(const LogEvent&)>> event_observers;
-  // Program faults injected on purpose (docs/faults.md, kind lost_signal): the n-th signal task control fires (counting
-  // from 1, over all robots) loses its event, so that the wait for it is never signalled. Logged as fault_injected.
-  std::vector<std::uint64_t> lost_signals;
+  // Where a fired signal goes on its way to its event (task_control.hpp's SignalFilter): called by task control for
+  // every signal it fires; false drops the event. Unset: every event is delivered.
+  SignalFilter signal_filter;
 };
 
 enum class Outcome { kFinished, kFailed, kTimeout, kStopped };
@@ -229,6 +236,10 @@ class Runtime {
 
   // The event log (complete once run() has returned).
   const EventLog& log() const { return *log_; }
+  // The same log, for the rig to write its own events into (the faults it injects, docs/faults.md), from the threads
+  // the run calls it on (the plant's advance() on the simulation thread, a signal filter on task control's), so that
+  // their order is fixed in lock-step. EventLog's members are thread-safe.
+  EventLog& log() { return *log_; }
   // The plant, for snapshots: only between steps or after the run (the simulation thread is parked or gone).
   // InternalError for a run without one.
   Plant& plant() {

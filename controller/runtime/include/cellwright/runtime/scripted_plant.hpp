@@ -3,7 +3,8 @@
 // the forward kinematics of its scripted joints; a closed gripper's pads touch whatever is there, and the part
 // between the fingers is the one the twin's grip sensor would name (grip_sensor.hpp): it is attached to the tool and
 // follows it; when the gripper opens the part stays where it was let go. There is no gravity, no contact and no
-// collision.
+// collision. Its sensors (sensors()) are the twin's kinds: each robot's grip sensor (the part it holds, "" none), no
+// wrist force (nullopt), the safety sensor (no obstacles) and the parts' truth, taken at the end of each advance().
 //
 // Threads: as Plant (plant.hpp). The drivers are advanced from advance() only.
 #pragma once
@@ -18,6 +19,7 @@
 #include "cellwright/models/cell.hpp"
 #include "cellwright/models/kinematics.hpp"
 #include "cellwright/runtime/plant.hpp"
+#include "cellwright/runtime/sensors.hpp"
 
 namespace cellwright::runtime {
 
@@ -34,6 +36,9 @@ class ScriptedPlant final : public Plant {
   Truth truth() const override;
   std::vector<Collision> new_collisions() override { return {}; }
   std::vector<Arrival> new_arrivals() override { return {}; }
+
+  // The plant's sensors, for RunConfig::sensors (valid while the plant lives).
+  Sensors sensors() { return sensors_.sensors(); }
 
   // Where workpiece `name` is now (its centre, world); InternalError if there is none.
   Eigen::Isometry3d workpiece_pose(const std::string& name) const;
@@ -58,6 +63,7 @@ class ScriptedPlant final : public Plant {
   std::vector<Eigen::Vector3d> sizes_;
   std::vector<Eigen::Isometry3d> poses_;
   std::vector<std::optional<std::size_t>> follows_;  // per workpiece: robot index
+  TruthSensors sensors_;
 };
 
 }  // namespace cellwright::runtime

@@ -28,6 +28,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -80,6 +81,21 @@ struct TaskView {
   std::vector<RobotView> robots;        // program order
 };
 
+// A signal task control fires, on its way to its event's place.
+struct SignalSent {
+  SimDuration time{0};
+  std::string robot;        // program label of the robot that signals
+  std::string event;        // the event it signals
+  std::uint64_t count = 0;  // the signals task control has fired so far, this one included (over all robots, from 1)
+};
+
+// A hook on the signal path, the runtime's one port between a signal and its event (RunConfig::signal_filter): true
+// delivers the event, false drops it (its token never reaches the event's place; recovery's wait watchdog finds
+// the wait that is never signalled, step 4 above). Called by task control in its turn, as the signal fires, right
+// after its `fire` line is logged, for an event whose place exists and holds the token just put there. Whoever wires
+// it (a rig that injects a lost signal) logs what it does itself.
+using SignalFilter = std::function<bool(const SignalSent&)>;
+
 class TaskControl {
  public:
   enum class State { kRunning, kFinished, kFailed, kStopped };
@@ -89,7 +105,7 @@ class TaskControl {
   // into; `log` records the firings. All must outlive the TaskControl.
   TaskControl(const petri::Net& net, const task::CompiledProgram& program,
               std::vector<MessageQueue<MotionCommand>*> robot_inboxes, MessageQueue<RobotStatus>& status_inbox,
-              EventLog& log, RecoveryOptions recovery = {}, std::vector<std::uint64_t> lost_signals = {});
+              EventLog& log, RecoveryOptions recovery = {}, SignalFilter signal_filter = {});
 
   // One turn at simulation time `now` (see the top). Non-blocking. Returns the state after the turn; once not
   // kRunning it stays so and further steps only account time (all activities idle).
@@ -149,7 +165,7 @@ class TaskControl {
   SimDuration accounted_{0};
 
   const RecoveryOptions recovery_;
-  std::vector<std::uint64_t> lost_signals_;  // the n-th signals whose event is lost (injected)
+  SignalFilter signal_filter_;  // RunConfig::signal_filter
   std::uint64_t signals_fired_ = 0;
   std::vector<std::int64_t> expected_tokens_;            // per place: initial + put by firings - taken by firings
   std::vector<std::optional<SimDuration>> wait_since_;   // per robot: since when it waits (kWaiting)

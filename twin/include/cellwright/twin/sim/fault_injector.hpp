@@ -25,7 +25,8 @@
 //    s, listed by obstacles(), then goes back under the floor. It collides with robots (World::new_collisions).
 //  - frame_lost: the first `count` frames captured from `time` on are not delivered (lose_frame()).
 //  - detection_noise: reported at `time`; NoisyDetector does the noise.
-//  The driver faults and lost_signal are not injected here (ScenarioRun: FaultyDriver, RunConfig::lost_signals).
+//  The driver faults and lost_signal are not injected here (ScenarioRun: FaultyDriver, and a signal filter on
+// RunConfig::signal_filter).
 // Each injection that happens is reported once (take()), when it happens, with the values in `detail`; a fault whose
 // moment never comes (no n-th carry, the run ends first, the robot has no simulation driver) is never reported.
 //
@@ -52,10 +53,9 @@
 #include "cellwright/runtime/plant.hpp"
 #include "cellwright/twin/faults.hpp"
 #include "cellwright/twin/sim/world.hpp"
+#include "cellwright/twin/sim/world_plant.hpp"
 
 namespace cellwright::twin::sim {
-
-struct FeedEvent;
 
 // How long a drop takes the grip force away.
 inline constexpr std::chrono::nanoseconds kDropRelease = std::chrono::milliseconds(300);
@@ -82,7 +82,7 @@ class FaultInjector {
   bool lose_frame(std::chrono::nanoseconds now);
 
   // The injections since the last call, in the order they happened.
-  std::vector<runtime::InjectedFault> take();
+  std::vector<InjectedFault> take();
   // The obstacles in the cell now (the safety sensor's view).
   std::vector<runtime::Obstacle> obstacles() const;
 
@@ -123,7 +123,7 @@ class FaultInjector {
   std::vector<Carry> carries_;                          // by robot index
   std::vector<std::optional<Eigen::Vector3d>> tcp_;     // by robot index: the tool's position at the last update
   std::optional<std::chrono::nanoseconds> last_update_;
-  std::vector<runtime::InjectedFault> out_;
+  std::vector<InjectedFault> out_;
   bool needs_truth_ = false;
 };
 

@@ -74,6 +74,9 @@ class MirroredDriver final : public drivers::RobotDriver {
   std::optional<drivers::PositionReading> last_position() const override;
   void set_notifier(std::function<void()> notify) override;
   void set_clock(Clock clock) override;
+  // The real gripper's sensor (the copy's grip is the twin's, read by the rig from the World when the real driver
+  // cannot tell).
+  std::optional<drivers::GripSense> grip_sense() const override { return real_->grip_sense(); }
 
  private:
   struct Action {

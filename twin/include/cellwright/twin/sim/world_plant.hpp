@@ -12,10 +12,16 @@
 //    fail on them.
 //  - Faults (docs/faults.md): given the scenario's faults, a FaultInjector (fault_injector.hpp) changes the feed and
 //    the parts at the start when the plant is made, and after every World::advance injects what is due; capture()
-//    delivers no frame while a frame_lost fault says so. new_faults() returns what was injected since the last call:
+//    delivers no frame while a frame_lost fault says so. The plant logs its injections itself (the runtime knows
+//    nothing of them): at the end of every advance(), into the log given to log_injections_to(), as fault_injected
+//    lines stamped with the plant's time (the sum of the dts advanced, which is the runtime's time of the period):
 //    first the faults reported from other threads by report_fault() (the driver faults, in the order they were
-//    reported), then the injector's of this advance. truth() lists the obstacles in the cell and each robot's wrist
-//    force (the World's wrist force sensor, turned into the world frame).
+//    reported, and the rig's own before the run), then the injector's. Without a log they wait for take_injected().
+//    truth() lists the obstacles in the cell and each robot's wrist force (the World's wrist force sensor, turned
+//    into the world frame).
+//  - sensors() are the twin's sensors for the runtime (runtime/sensors.hpp): each robot's grip sensor (between_fingers
+//    above, named), its wrist force sensor, the safety sensor (the obstacles) and the parts' truth, all as truth() has
+//    them at the end of the last advance().
 //  - capture(camera) renders the World's camera offscreen (OSMesa), with a Renderer made on the first call, on the
 //    calling thread, and freed by release_thread_resources() on the same thread (or by the destructor, which must then
 //    run on that thread too).
@@ -31,7 +37,9 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/runtime/event_log.hpp"
 #include "cellwright/runtime/plant.hpp"
+#include "cellwright/runtime/sensors.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/twin/faults.hpp"
 #include "cellwright/twin/sim/belt_exit.hpp"
@@ -50,6 +58,15 @@ struct FeedEvent {
 
 class FaultInjector;
 
+// A fault injected on purpose (docs/faults.md), for the event log and the fault campaign only: the controller never
+// reads it (it must find faults by what it senses).
+struct InjectedFault {
+  std::string kind;       // "drop", "slip", "misplace", "obstacle", "missing", "timeout", ... (docs/faults.md)
+  std::string robot;      // cell robot it concerns, "" if none
+  std::string workpiece;  // cell workpiece it concerns, "" if none
+  std::string detail;     // what exactly was done, with the values
+};
+
 class WorldPlant final : public runtime::Plant {
  public:
   // The World must outlive the plant. Feed events are sorted by time (stable: equal times keep their order).
@@ -62,7 +79,6 @@ class WorldPlant final : public runtime::Plant {
   runtime::Truth truth() const override;
   std::vector<runtime::Collision> new_collisions() override;
   std::vector<runtime::Arrival> new_arrivals() override;
-  std::vector<runtime::InjectedFault> new_faults() override;
   std::optional<runtime::Image> capture(const std::string& camera, std::string* why) override;
   void release_thread_resources() override;
   ~WorldPlant() override;
@@ -78,9 +94,16 @@ class WorldPlant final : public runtime::Plant {
   // Every MuJoCo warning raised so far, as the World words them.
   const std::vector<std::string>& warnings() const { return warnings_; }
 
-  // A fault injected elsewhere (a FaultyDriver around a robot's driver, on its owner's thread), for new_faults().
-  // Any thread.
-  void report_fault(runtime::InjectedFault fault);
+  // A fault injected elsewhere (a FaultyDriver around a robot's driver, on its owner's thread; the rig's perturbation
+  // before the run), logged at the end of the next advance(). Any thread.
+  void report_fault(InjectedFault fault);
+  // Where advance() logs the injections from now on (see the top); the log must outlive the plant's use. Call before
+  // the run (the rig, once the Runtime that owns the log exists).
+  void log_injections_to(runtime::EventLog* log) { log_ = log; }
+  // The injections made so far and not logged (a plant with no log), in order. Simulation thread, or between runs.
+  std::vector<InjectedFault> take_injected();
+  // The twin's sensors, for RunConfig::sensors (valid while the plant lives).
+  runtime::Sensors sensors() { return sensors_.sensors(); }
   // The simulation time of the last capture() (the frame image processing is detecting). Any thread.
   runtime::SimDuration last_capture() const { return runtime::SimDuration(last_capture_.load()); }
 
@@ -96,7 +119,11 @@ class WorldPlant final : public runtime::Plant {
   std::unique_ptr<Renderer> renderer_;  // made by capture() on the simulation thread
   std::unique_ptr<FaultInjector> injector_;  // nullptr without faults
   std::mutex reported_mutex_;
-  std::vector<runtime::InjectedFault> reported_;  // by report_fault(), under reported_mutex_
+  std::vector<InjectedFault> reported_;  // by report_fault(), under reported_mutex_
+  std::vector<InjectedFault> injected_;  // not yet logged (no log)
+  runtime::EventLog* log_ = nullptr;
+  runtime::SimDuration elapsed_{0};  // the sum of the dts advanced
+  runtime::TruthSensors sensors_;
   std::atomic<std::int64_t> last_capture_{0};     // ns
 };
 

@@ -13,9 +13,9 @@
 //
 // Who injects what: the physical kinds (drop, slip, misplace, unreachable, missing, obstacle) the World's fault
 // injector (twin/sim/fault_injector.hpp); the controller's and the link's (timeout, garbage, hardware, position,
-// link_lost) a drivers::FaultyDriver around the robot's simulation driver; lost_signal the runtime (RunConfig::
-// lost_signals); frame_lost and detection_noise the plant's camera and a detector decorator (perception: vision only).
-// ScenarioRun (run.hpp) puts them in place.
+// link_lost) a drivers::FaultyDriver around the robot's simulation driver; lost_signal a filter the rig puts on the
+// runtime's signal path (RunConfig::signal_filter); frame_lost and detection_noise the plant's camera and a detector
+// decorator (perception: vision only). ScenarioRun (run.hpp) puts them in place and logs them (the runtime does not).
 //
 // Thread safety: plain values and re-entrant functions.
 #pragma once

@@ -5,8 +5,12 @@
 // after the run it turns the result into the report and writes the outputs.
 // The scenario's faults (docs/faults.md) are put in place here: the physical ones and the camera's by the plant
 // (sim::FaultInjector; the scene gets the obstacle bodies), the detection noise by a sim::NoisyDetector around the
-// detector, the driver faults by a drivers::FaultyDriver around the robot's simulation driver (each reported through
-// the plant's new_faults() as it is chosen), lost_signal by RunConfig::lost_signals.
+// detector, the driver faults by a drivers::FaultyDriver around the robot's simulation driver (each reported to the
+// plant as it is chosen), lost_signal by a signal filter (RunConfig::signal_filter) that drops the n-th signal. The
+// injections are logged here, not by the runtime: the plant's at the end of its advance() and the lost signals in
+// the filter, into the Runtime's log (docs/faults.md).
+// Sensors (RunConfig::sensors) are the twin's (WorldPlant::sensors()); a real robot's grip is its driver's where the
+// driver can tell (capabilities().senses_grip; the Movemaster EX and VAL II drivers cannot), its twin copy's else.
 //
 // Order of use (main thread):
 //    Scenario s = load_scenario(file);            // InputError: bad input
@@ -145,6 +149,7 @@ class ScenarioRun {
   std::unique_ptr<sim::World> world_;
   std::vector<std::unique_ptr<sim::MirroredDriver>> mirrors_;  // real robots, with their copies in world_
   std::vector<std::unique_ptr<drivers::FaultyDriver>> faulty_;  // simulated robots with driver faults
+  std::vector<std::unique_ptr<runtime::GripSensor>> grip_sensors_;  // real robots' grip sensors, on their drivers
   std::unique_ptr<runtime::Plant> plant_;
   sim::WorldPlant* world_plant_ = nullptr;  // plant_, the World's
   Estimate estimate_;

@@ -90,6 +90,7 @@ void Writer::declaration(std::string_view value) {
 }
 
 void Writer::open(std::string_view tag) {
+  ++elements_;
   open_.push_back({std::string(tag)});
   printer_->OpenElement(open_.back().tag.c_str());
 }

@@ -45,13 +45,19 @@ void index_meshes(const tinyxml2::XMLElement* e, std::map<std::string, int>& mes
   }
 }
 
-// The line of each <link> and <joint> element by its name attribute.
+// The line of each <link> and <joint> element by its name attribute, and of each link's <inertial>, <visual> and
+// <collision> elements in order (of the first <link> of a name: urdfdom refuses a second one).
 void index_lines(const tinyxml2::XMLElement* robot, std::map<std::string, int>& links,
-                 std::map<std::string, int>& joints) {
+                 std::map<std::string, int>& joints,
+                 std::map<std::string, std::map<std::string, std::vector<int>>>& parts) {
   for (const tinyxml2::XMLElement* e = robot->FirstChildElement(); e != nullptr; e = e->NextSiblingElement()) {
     const char* name = e->Attribute("name");
     if (name == nullptr) continue;
-    if (std::string(e->Name()) == "link") links.emplace(name, e->GetLineNum());
+    if (std::string(e->Name()) == "link" && links.emplace(name, e->GetLineNum()).second) {
+      for (const tinyxml2::XMLElement* p = e->FirstChildElement(); p != nullptr; p = p->NextSiblingElement()) {
+        parts[name][p->Name()].push_back(p->GetLineNum());
+      }
+    }
     if (std::string(e->Name()) == "joint") joints.emplace(name, e->GetLineNum());
   }
 }
@@ -219,6 +225,15 @@ SourceLocation UrdfModel::mesh_at(const std::string& filename) const {
   return {file_, line_in(mesh_lines_, filename)};
 }
 
+SourceLocation UrdfModel::link_part_at(const std::string& link, const std::string& tag, std::size_t index) const {
+  if (const auto l = link_part_lines_.find(link); l != link_part_lines_.end()) {
+    if (const auto t = l->second.find(tag); t != l->second.end() && index < t->second.size()) {
+      return {file_, t->second[index]};
+    }
+  }
+  return link_at(link);
+}
+
 UrdfModel load_urdf_file(const std::filesystem::path& file) {
   std::string text;
   try {
@@ -242,7 +257,7 @@ UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {
     throw InputError({file_label, root != nullptr ? root->GetLineNum() : 0},
                      fmt::format("the root element is <{}>, a URDF needs <robot>", root ? root->Name() : ""));
   }
-  index_lines(root, out.link_lines_, out.joint_lines_);
+  index_lines(root, out.link_lines_, out.joint_lines_, out.link_part_lines_);
   index_meshes(root, out.mesh_lines_);
   check_tree(root, file_label);
 

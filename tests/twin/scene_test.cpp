@@ -6,7 +6,12 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -325,6 +330,170 @@ TEST_F(SceneTest, AMeshWithoutItsFileIsRefusedAtItsLineInTheUrdf) {
     EXPECT_THAT(e.what(), HasSubstr("mesh 'pedestal.stl': no file " + (dir / "pedestal.stl").string()));
   }
   std::filesystem::remove_all(dir);
+}
+
+// MuJoCo's refusals of what a user's URDF says name the URDF's file and the line of the element it came from, and the
+// cell file's robot entry, never the generated MJCF's line. Each case edits one element of the PUMA's URDF into
+// something the URDF loader takes and MuJoCo's compiler refuses.
+struct UrdfRefusal {
+  const char* what;
+  std::string from, to;   // the text replaced in puma560.urdf, and by what
+  std::string at;         // where the error must be: the last line holding this text up to the end of `to`
+  const char* problem;    // what MuJoCo says, as the error must say it
+  const char* element;    // the URDF element it names
+};
+
+class UrdfRefusalTest : public SceneTest {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() / fmt::format("cellwright_refusal_{}", ::getpid());
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  // The error building the paper cell with the PUMA's URDF edited as `c` says, and the line where `c.at` is.
+  std::pair<InputError, int> refusal(const UrdfRefusal& c) {
+    std::ifstream in(kSource / "models/urdf/puma560.urdf");
+    std::string urdf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto at = urdf.find(c.from);
+    EXPECT_NE(at, std::string::npos) << c.from;
+    urdf.replace(at, c.from.size(), c.to);
+    const auto line_at = urdf.rfind(c.at, at + c.to.size());
+    const int line =
+        1 + static_cast<int>(std::count(urdf.begin(), urdf.begin() + static_cast<std::ptrdiff_t>(line_at), '\n'));
+    std::ofstream(dir_ / "puma.urdf") << urdf;
+    models::CellDescription cell = paper_cell();
+    cell.robots[0].urdf = dir_ / "puma.urdf";
+    try {
+      build_scene(cell);
+    } catch (const InputError& e) {
+      return {e, line};
+    }
+    ADD_FAILURE() << c.what << ": the scene was built";
+    return {InputError({}, ""), line};
+  }
+
+  // A binary STL file of these triangles in the test's directory.
+  std::filesystem::path stl(const std::string& name, const std::vector<std::array<float, 9>>& triangles) {
+    std::string bytes(80, '\0');
+    const auto put = [&](const void* p, std::size_t n) { bytes.append(static_cast<const char*>(p), n); };
+    const auto count = static_cast<std::uint32_t>(triangles.size());
+    put(&count, 4);
+    for (const auto& t : triangles) {
+      const float normal[3] = {0, 0, 0};
+      put(normal, sizeof normal);
+      put(t.data(), 36);
+      bytes.append(2, '\0');
+    }
+    std::ofstream(dir_ / name, std::ios::binary) << bytes;
+    return dir_ / name;
+  }
+
+  std::filesystem::path dir_;
+};
+
+TEST_F(UrdfRefusalTest, MujocosRefusalsNameTheUrdfLineAndTheRobotsEntry) {
+  stl("nan.stl", {{NAN, 0, 0, 1, 0, 0, 0, 1, 0}, {0, 0, 0, 0, 0, 1, 1, 0, 0}, {0, 0, 0, 0, 1, 0, 0, 0, 1},
+                  {1, 0, 0, 0, 1, 0, 0, 0, 1}});
+  stl("flat.stl", {{0, 0, 0, 0.1f, 0, 0, 0, 0.1f, 0}, {0, 0, 0, 0, 0.1f, 0, 0.1f, 0, 0}});
+  const std::string link3_inertia =
+      R"(<mass value="4.8"/>
+      <inertia ixx="0.066" ixy="0" ixz="0" iyy="0.086" iyz="0" izz="0.021"/>)";
+  const std::string link2_collision = R"(<collision>
+      <origin xyz="0.21 0 0.05" rpy="0 0 0"/>
+      <geometry><box size="0.58 0.14 0.10"/></geometry>)";
+  const std::string link1_collision = R"(<geometry><cylinder radius="0.09" length="0.24"/></geometry>
+    </collision>)";
+  const std::vector<UrdfRefusal> cases = {
+      {"a moving link of no mass", link3_inertia,
+       R"(<mass value="0"/>
+      <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>)",
+       "<link name=\"link3\"", "inertia must have positive eigenvalues", "link 'link3'"},
+      {"an inertia just past the triangle inequality (within the loader's rounding tolerance)", link3_inertia,
+       R"(<mass value="4.8"/>
+      <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.2000001"/>)",
+       "<link name=\"link3\"", "inertia must satisfy A + B >= C", "link 'link3'"},
+      {"a collision box of zero size", link2_collision,
+       R"(<collision>
+      <origin xyz="0.21 0 0.05" rpy="0 0 0"/>
+      <geometry><box size="0 0.14 0.10"/></geometry>)",
+       "<collision>", "sizes must be positive", "link 'link2' (its <collision>)"},
+      {"a visual cylinder of zero radius", R"(<geometry><cylinder radius="0.09" length="0.24"/></geometry>)",
+       R"(<geometry><cylinder radius="0" length="0.24"/></geometry>)", "<visual>", "sizes must be positive",
+       "link 'link1' (its <visual>)"},
+      {"two collisions of one name", link2_collision,
+       R"(<collision name="c"><geometry><box size="0.1 0.1 0.1"/></geometry></collision>
+    <collision name="c">
+      <origin xyz="0.21 0 0.05" rpy="0 0 0"/>
+      <geometry><box size="0.58 0.14 0.10"/></geometry>)",
+       "<collision name=\"c\">\n", "repeated name", "link 'link2' (its <collision>)"},
+      {"a mesh with a vertex that is not a number", link1_collision,
+       R"(<geometry><mesh filename="nan.stl"/></geometry>
+    </collision>)",
+       "<geometry><mesh", "contains invalid vertices", "mesh 'nan.stl'"},
+  };
+  const std::string entry = paper_cell().robots[0].where.str();
+  for (const UrdfRefusal& c : cases) {
+    SCOPED_TRACE(c.what);
+    const auto [e, line] = refusal(c);
+    EXPECT_EQ(e.where().file, (dir_ / "puma.urdf").string());
+    EXPECT_EQ(e.where().line, line);
+    EXPECT_THAT(e.problem(), HasSubstr(fmt::format("robot 'puma' ({})", entry)));
+    EXPECT_THAT(e.problem(), HasSubstr(c.element));
+    EXPECT_THAT(e.problem(), HasSubstr(c.problem));
+    EXPECT_THAT(e.problem(), ::testing::Not(HasSubstr("line")));  // no line of the generated MJCF
+    EXPECT_THAT(e.problem(), ::testing::Not(HasSubstr("id =")));
+  }
+}
+
+// A link without <inertial> gets its mass from its collision geometry; a flat mesh has none, and MuJoCo's refusal
+// names the mesh's line.
+TEST_F(UrdfRefusalTest, AFlatMeshOfALinkWithoutMassIsNamedAtItsLine) {
+  stl("flat.stl", {{0, 0, 0, 0.1f, 0, 0, 0, 0.1f, 0}, {0, 0, 0, 0, 0.1f, 0, 0.1f, 0, 0}});
+  std::ifstream in(kSource / "models/urdf/puma560.urdf");
+  std::string urdf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto link1 = urdf.find(R"(<link name="link1">)");
+  const auto inertial = urdf.find("<inertial>", link1);
+  const auto end = urdf.find("</inertial>", inertial) + std::string("</inertial>").size();
+  urdf.erase(inertial, end - inertial);
+  const std::string collision = R"(<geometry><cylinder radius="0.09" length="0.24"/></geometry>
+    </collision>)";
+  const auto at = urdf.find(collision, link1);
+  ASSERT_NE(at, std::string::npos);
+  urdf.replace(at, collision.size(), R"(<geometry><mesh filename="flat.stl"/></geometry>
+    </collision>)");
+  const int line = 1 + static_cast<int>(std::count(urdf.begin(), urdf.begin() + static_cast<std::ptrdiff_t>(at), '\n'));
+  std::ofstream(dir_ / "puma.urdf") << urdf;
+  models::CellDescription cell = paper_cell();
+  cell.robots[0].urdf = dir_ / "puma.urdf";
+  try {
+    build_scene(cell);
+    FAIL() << "a massless link with a flat mesh was accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().file, (dir_ / "puma.urdf").string());
+    EXPECT_EQ(e.where().line, line);
+    EXPECT_THAT(e.problem(), HasSubstr("mesh 'flat.stl': MuJoCo rejects it: mesh volume is too small"));
+    EXPECT_THAT(e.problem(), ::testing::Not(HasSubstr("puma/mesh")));
+  }
+}
+
+// Robots that overlap in their home poses: one overlap per pair, naming both bodies and the depth; the paper cell has
+// none.
+TEST_F(SceneTest, RobotsThatOverlapAtTheStartAreFoundOncePerPair) {
+  EXPECT_THAT(start_overlaps(build_scene(paper_cell())), ::testing::IsEmpty());
+  const models::CellDescription cell = models::load_cell(kSource / "tests/data/overlap/cell.yaml");
+  const std::vector<StartOverlap> found = start_overlaps(build_scene(cell));
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].robot, "p1");
+  EXPECT_EQ(found[0].other_robot, "p2");
+  EXPECT_THAT(found[0].body, HasSubstr("link '"));
+  EXPECT_THAT(found[0].other, HasSubstr("link '"));
+  EXPECT_GT(found[0].depth, 0.01);
+  const InputError e = start_overlap_error(found);
+  EXPECT_EQ(e.where().file, cell.robots[0].where.file);
+  EXPECT_EQ(e.where().line, cell.robots[0].where.line);
+  EXPECT_THAT(e.problem(), HasSubstr(found[0].text()));
+  EXPECT_THAT(e.problem(), HasSubstr(cell.robots[1].where.str()));
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/cell/campaign.hpp"
+#include "cellwright/cell/outputs.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
 #include "run_args.hpp"
@@ -70,6 +71,7 @@ void add_campaign(CLI::App& app, Command* run) {
     unsigned jobs = 0;
     double timeout = cell::CampaignOptions::kDefaultTimeout;
     std::string out;
+    bool force = false;
     VideoFlag video;
   };
   auto args = std::make_shared<Args>();
@@ -84,6 +86,9 @@ void add_campaign(CLI::App& app, Command* run) {
                   "s of wall time after which a run is killed and counted as a hang (default 600)");
   cmd->add_option("-o,--output", args->out, "directory for campaign.csv/.md/.png and runs/NNNN (required)");
   cmd->add_option("--out", args->out)->group("");  // the old name, still accepted and not shown
+  cmd->add_flag("--force", args->force,
+                "write into the -o directory even though it is not Cellwright's (no .cellwright-output in it) and "
+                "holds files of those names, replacing them (runs/ included)");
   add_video_flag(*cmd, args->video,
                  "record a video of each failed run (exit 1: an outcome did not hold) as runs/NNNN/video.mp4: the run "
                  "is run again, lock-step, after the campaign");
@@ -91,6 +96,7 @@ void add_campaign(CLI::App& app, Command* run) {
     *run = [args] {
       namespace ts = cell;
       if (args->out.empty()) throw InputError({"-o/--output", 0, 0}, "the campaign needs an output directory");
+      ts::check_output_directory(args->out, ts::campaign_output_files(), args->force);
       check_video_flag(args->video);  // the size, the rate and ffmpeg checked now, not after the campaign has run
       const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe");
       const ts::CampaignOptions options =

@@ -2,11 +2,13 @@
 // [--mjcf out.xml]`: build the cell's MuJoCo scene and render one picture of it offscreen (no display needed),
 // optionally after simulating it for a while, and/or save the generated MJCF. With --detections (a cell camera
 // only), find the workpieces in the picture (vision/detector.hpp), draw them on it and print one line per workpiece.
-// Exit 0 on success, 2 on bad input.
+// Exit 0 on success, 2 on bad input. Robots that overlap at the start (twin::start_overlaps) are bad input that is
+// drawn all the same: the error is printed, the picture and the MJCF written, and the exit status is 2.
 #if CW_SIM
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "cellwright/models/cell.hpp"
 #include "cellwright/twin/render.hpp"
@@ -30,7 +32,8 @@ void add_snapshot(CLI::App& app, Command* run) {
   };
   auto opts = std::make_shared<Options>();
   CLI::App* sub = app.add_subcommand(
-      "snapshot", "Render a picture of a cell (offscreen, no display) to a PNG file. Exit 0 on success; 2 on bad input.");
+      "snapshot", "Render a picture of a cell (offscreen, no display) to a PNG file. Exit 0 on success; 2 on bad input (robots "
+      "that overlap at the start: 2, the picture written all the same to show it).");
   sub->add_option("cell", opts->cell, "cell description (.yaml)")->required();
   sub->add_option(
       "--camera", opts->camera,
@@ -56,8 +59,13 @@ void add_snapshot(CLI::App& app, Command* run) {
       }
       const models::CellDescription cell = models::load_cell(opts->cell);
       twin::Scene scene = twin::build_scene(cell);
+      // Robots that overlap at the start: the cell cannot run (twin run refuses it with the same error), but the
+      // picture is what shows the overlap, so it is still drawn, and the exit status says that the cell is wrong.
+      const std::vector<twin::StartOverlap> overlaps = twin::start_overlaps(scene);
+      const int status = overlaps.empty() ? 0 : 2;
+      if (!overlaps.empty()) std::fprintf(stderr, "%s\n", twin::start_overlap_error(overlaps).what());
       if (!opts->mjcf.empty()) twin::write_mjcf(scene.mjcf(), opts->mjcf);
-      if (opts->out.empty()) return 0;
+      if (opts->out.empty()) return status;
       int width = 640, height = 480;
       if (const models::CameraSpec* cam = cell.find_camera(opts->camera)) {
         width = cam->width;
@@ -79,7 +87,11 @@ void add_snapshot(CLI::App& app, Command* run) {
         for (const auto& name : found.not_seen) std::printf("%s not seen\n", name.c_str());
       }
       vision::write_png(image, opts->out);
-      return 0;
+      if (status != 0) {
+        std::fprintf(stderr, "twin snapshot: %s written all the same, to show the overlap (exit 2: the cell cannot run)\n",
+                     opts->out.c_str());
+      }
+      return status;
     };
   });
 }

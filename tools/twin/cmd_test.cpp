@@ -19,6 +19,7 @@
 
 #include "cellwright/common/files.hpp"
 #include "cellwright/cell/suite.hpp"
+#include "cellwright/cell/outputs.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
 #include "run_args.hpp"
@@ -80,6 +81,7 @@ void add_test(CLI::App& app, Command* run) {
     std::string junit;
     unsigned jobs = 0;
     bool keep = false;
+    bool force = false;
     std::optional<std::uint64_t> seed;
     std::optional<double> timeout;
     VideoFlag video;
@@ -92,6 +94,9 @@ void add_test(CLI::App& app, Command* run) {
   cmd->add_option("--junit", args->junit, "write the verdicts as JUnit XML to FILE (for Jenkins, GitLab)");
   cmd->add_option("--jobs", args->jobs, "scenarios at a time (default: the number of cores)");
   cmd->add_flag("--keep", args->keep, "keep the outputs of passing scenarios too");
+  cmd->add_flag("--force", args->force,
+                "write into the -o directory even though it is not Cellwright's (no .cellwright-output in it) and "
+                "holds folders of the scenarios' names, replacing them");
   cmd->add_option("--seed", args->seed, "passed to every run: its seed instead of the scenario's");
   cmd->add_option("--timeout", args->timeout,
                   "s of wall time after which a scenario is killed and counts as hung (default: the scenario's own "
@@ -113,11 +118,12 @@ void add_test(CLI::App& app, Command* run) {
       const fs::path out = temporary ? ts::make_temporary_output_dir() : fs::path(args->out);
       std::vector<ts::SuiteCase> cases;
       try {
-        cases = ts::plan_suite(found, out, args->timeout);
+        cases = ts::plan_suite(found, out, args->timeout, args->force);
       } catch (...) {
         if (temporary) fs::remove_all(out);
         throw;
       }
+      ts::make_output_directory(out);  // marked as Cellwright's before the runs write into it
 
       ts::SuiteOptions options;
       options.executable = fs::read_symlink("/proc/self/exe");

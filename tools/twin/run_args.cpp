@@ -9,6 +9,7 @@
 #include <system_error>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/cell/outputs.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/faults.hpp"
 #if CW_SIM
@@ -29,6 +30,9 @@ void add_run_options(CLI::App& cmd, RunArgs& args) {
                  "index.html, the report page");
   // The old name, for scripts written before the options were made the same everywhere; not shown in --help.
   cmd.add_option("--out", args.output)->group("");
+  cmd.add_flag("--force", args.force,
+               "write into the -o directory even though it is not Cellwright's (no .cellwright-output in it) and holds "
+               "files of those names, replacing them");
   cmd.add_option("--perception", args.perception,
                  "where the controller learns where the parts are, instead of the scenario's choice: truth (the "
                  "simulation), vision (the camera) or cad (the cell description only: vision off)")
@@ -59,9 +63,8 @@ void add_run_options(CLI::App& cmd, RunArgs& args) {
 
 cell::Scenario load_scenario_with(const RunArgs& args) {
   using namespace cell;
-  for (const std::string& dir : {args.output, args.frames}) {
-    if (!dir.empty()) check_writable_dir(dir);
-  }
+  if (!args.output.empty()) check_output_directory(args.output, run_output_files(), args.force);
+  if (!args.frames.empty()) check_writable_dir(args.frames);
   Scenario s = load_scenario(args.scenario);
   for (const std::string& d : args.drivers) set_driver(s, d, {"--driver", 0, 0});
   for (const std::string& f : args.faults) s.faults.push_back(parse_fault_text(f, s.cell, "--fault"));

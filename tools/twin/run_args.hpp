@@ -31,16 +31,19 @@ struct RunArgs {
   int video_fps = 20;
   std::string video_size = "800x600";
   bool allow_collisions = false;  // run although the preflight sweep predicts collisions
+  bool force = false;             // --force: write into an -o directory that is not Cellwright's
 };
 
 // Adds the shared options to `cmd`, stored in `args` (which must outlive the parse): the scenario, -o/--output
-// (--out, the old name, still accepted and not shown), --perception, --driver, --fault, --seed, --save-frames,
+// (--out, the old name, still accepted and not shown), --force, --perception, --driver, --fault, --seed, --save-frames,
 // --video, --video-fps, --video-size, --allow-collisions.
 void add_run_options(CLI::App& cmd, RunArgs& args);
 
 // The scenario with --driver, --fault and --seed applied, after checking that the -o and --save-frames directories
-// can be written (check_writable_dir: before anything is loaded or run, so that a bad one costs no run). InputError
-// (as check_writable_dir, load_scenario, set_driver, parse_fault_text) on bad input.
+// can be written (check_writable_dir; for -o also that it is Cellwright's or holds none of the run's files, unless
+// --force: cell::check_output_directory), before anything is loaded or run, so that a bad one costs no run.
+// InputError (as check_output_directory, check_writable_dir, load_scenario, set_driver, parse_fault_text) on bad
+// input.
 cell::Scenario load_scenario_with(const RunArgs& args);
 
 #if CW_SIM

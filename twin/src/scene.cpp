@@ -4,16 +4,21 @@
 // MuJoCo's virtual file system.
 #include "cellwright/twin/scene.hpp"
 
+#include <tinyxml2.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <numbers>
 #include <optional>
+#include <regex>
 #include <set>
 #include <sstream>
+
+#include <fmt/ranges.h>
 
 #include "cellwright/common/xml.hpp"
 #include "cellwright/models/robot_model.hpp"
@@ -134,6 +139,15 @@ struct RobotModel {
   std::string left_finger_link;
   std::string tool_link;  // the link that carries the "<robot>/tcp" site
 
+  // The file a joint of the robot as mounted comes from: the robot's URDF or the gripper's.
+  const models::UrdfModel& joint_model(const urdf::Joint& j) const {
+    return urdf->getJoint(j.name).get() == &j ? mounted->arm : mounted->hand();
+  }
+  // The file a link of the robot as mounted comes from.
+  const models::UrdfModel& link_model(const std::string& name) const {
+    const RobotLink l = link(name);
+    return l.model != nullptr ? *l.model : mounted->arm;
+  }
   // The link named `name` of the robot as mounted.
   RobotLink link(const std::string& name) const {
     if (auto l = urdf->getLink(name)) return {l.get(), &mounted->arm};
@@ -255,6 +269,22 @@ void accumulate_load(const RobotModel& robot, const LinkMasses& estimated, const
 
 // --- The cell's MJCF -------------------------------------------------------------------------------------------
 
+// Where an element of the generated MJCF comes from in the user's files: an element of a robot's URDF (or of the
+// gripper mounted on it), or the robot's entry in the cell file, so that what MuJoCo says about the element names
+// those (compile_mjcf) rather than a line of a file the user never wrote.
+struct Origin {
+  SourceLocation at;  // the URDF's file and the line of the element; or the robot's entry in the cell file
+  std::string what;   // "link 'link3' (its <inertial>)", "joint 'joint2'", "mesh 'meshes/base.stl'"
+  const models::RobotSpec* robot = nullptr;
+};
+using Origins = std::map<std::size_t, Origin>;  // by the element's number in document order (xml::Writer::elements)
+
+// MJCF text and where its robots' elements come from.
+struct Mjcf {
+  std::string text;
+  Origins origins;
+};
+
 struct Builder {
   Builder(const models::CellDescription& c, const SceneOptions& o) : cell(c), options(o) {}
 
@@ -263,23 +293,39 @@ struct Builder {
   xml::Writer x{2};          // the project's one XML writer (common/xml.hpp), two spaces per level
   std::vector<double> qpos;  // initial qpos in MuJoCo's order (joints in document order)
   std::vector<double> ctrl;  // initial actuator targets, in the order actuators are written
-  std::vector<std::pair<std::string, Attrs>> actuators;  // <actuator> children, written after the worldbody
-  std::vector<std::pair<std::string, Attrs>> sensors;
+  // An element written after the worldbody (actuators, sensors, mesh assets), with its origin if it has one.
+  struct Deferred {
+    std::string tag;
+    Attrs attrs;
+    std::optional<Origin> origin;
+  };
+  std::vector<Deferred> actuators;  // <actuator> children, written after the worldbody
+  std::vector<Deferred> sensors;
+  Origins origins;  // of the elements written so far
   std::vector<std::pair<std::string, std::string>> excludes;
   std::vector<std::pair<std::string, std::string>> couplings;  // joints that move together (joint1 = joint2)
   // Robot meshes: <mesh> assets {name, file MuJoCo reads, scale}, written after the worldbody; by source and scale.
   std::vector<std::array<std::string, 3>> meshes;
+  std::vector<Origin> mesh_origins;  // of each of `meshes`, the first <mesh> element that names it
   std::map<std::pair<std::string, std::string>, std::string> mesh_names;
   // Bodies of links without <inertial> whose collision geometry gives them mass (MuJoCo's default density), and the
   // masses MuJoCo computed for them in a first compile (scene_mjcf), used to tune the servos.
   std::set<std::string> massless;
   LinkMasses estimated;
 
-  void actuator(const std::string& tag, const Attrs& attrs, double initial) {
-    actuators.emplace_back(tag, attrs);
+  void actuator(const std::string& tag, const Attrs& attrs, double initial, std::optional<Origin> origin = {}) {
+    actuators.push_back({tag, attrs, std::move(origin)});
     ctrl.push_back(initial);
   }
-  void sensor(const std::string& tag, const Attrs& attrs) { sensors.emplace_back(tag, attrs); }
+  void sensor(const std::string& tag, const Attrs& attrs, std::optional<Origin> origin = {}) {
+    sensors.push_back({tag, attrs, std::move(origin)});
+  }
+  // The next element written comes from `origin`.
+  void from(Origin origin) { origins[x.elements()] = std::move(origin); }
+  void write(const Deferred& d) {
+    if (d.origin) from(*d.origin);
+    x.leaf(d.tag, d.attrs);
+  }
 
   // --- Robots ---
 
@@ -323,6 +369,7 @@ struct Builder {
         if (it == mesh_names.end()) {
           const std::string name = fmt::format("{}/mesh{}", r.spec->name, meshes.size() + 1);
           meshes.push_back({name, twin::mujoco_mesh(source, where).string(), vec(scale)});
+          mesh_origins.push_back({where, fmt::format("mesh '{}'", m.filename), r.spec});
           it = mesh_names.emplace(key, name).first;
         }
         a.emplace_back("type", "mesh");
@@ -359,6 +406,10 @@ struct Builder {
   void robot_link(const RobotModel& r, const urdf::Link& link, bool moving, std::vector<std::string>& collision_bodies) {
     const std::string& robot = r.spec->name;
     const std::string body = robot + "/" + link.name;
+    const models::UrdfModel& file = r.link_model(link.name);
+    const auto part = [&](const char* tag, std::size_t i) {
+      return Origin{file.link_part_at(link.name, tag, i), fmt::format("link '{}' (its <{}>)", link.name, tag), r.spec};
+    };
     if (link.inertial) {
       const auto& in = *link.inertial;
       const Eigen::Isometry3d t = to_eigen(in.origin);
@@ -366,6 +417,7 @@ struct Builder {
       Eigen::Matrix3d inertia;
       inertia << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
       inertia = t.linear() * inertia * t.linear().transpose();
+      from(part("inertial", 0));
       x.leaf("inertial", {{"pos", vec(t.translation())},
                           {"mass", num(in.mass)},
                           {"fullinertia", nums({inertia(0, 0), inertia(1, 1), inertia(2, 2), inertia(0, 1),
@@ -377,7 +429,8 @@ struct Builder {
     const bool from_geometry = !link.inertial && !link.collision_array.empty();
     if (from_geometry && moving) massless.insert(body);
     if (!r.spec->draw_collision) {
-      for (const auto& v : link.visual_array) {
+      for (std::size_t i = 0; i < link.visual_array.size(); ++i) {
+        const auto& v = link.visual_array[i];
         if (!v || !v->geometry) continue;
         Attrs a{{"class", "visual"}};
         geom_attrs(a, *v->geometry, v->origin, r, link.name);
@@ -385,6 +438,7 @@ struct Builder {
           const auto& c = v->material->color;
           a.emplace_back("rgba", nums({c.r, c.g, c.b, c.a}));
         }
+        from(part("visual", i));
         x.leaf("geom", a);
       }
     }
@@ -394,7 +448,8 @@ struct Builder {
       if (c && c->name.find("pad") != std::string::npos) has_pad = true;
     }
     bool collides = false;
-    for (const auto& c : link.collision_array) {
+    for (std::size_t i = 0; i < link.collision_array.size(); ++i) {
+      const auto& c = link.collision_array[i];
       if (!c || !c->geometry) continue;
       if (r.spec->draw_collision) {
         // meshes: collision: the collision geometry drawn in the URDF's visual colour (grey if none).
@@ -406,6 +461,7 @@ struct Builder {
         } else {
           a.emplace_back("rgba", "0.7 0.7 0.7 1");
         }
+        from(part("collision", i));
         x.leaf("geom", a);
       }
       // Finger pads grip: four contact dimensions (torsional friction too) so that a held part does not pivot.
@@ -414,6 +470,7 @@ struct Builder {
       if (!c->name.empty()) a.emplace_back("name", body + "/" + c->name);
       geom_attrs(a, *c->geometry, c->origin, r, link.name);
       if (from_geometry) a.emplace_back("density", "1000");
+      from(part("collision", i));
       x.leaf("geom", a);
       collides = true;
       if (pad) {
@@ -421,6 +478,7 @@ struct Builder {
         const auto [centre, half] = bounds(*c->geometry);
         const Eigen::Isometry3d t = to_eigen(c->origin);
         const std::string side = link.name == r.left_finger_link ? "left" : "right";
+        from(part("collision", i));
         x.leaf("site", {{"name", fmt::format("{}/finger_{}_touch", robot, side)},
                         {"type", "box"},
                         {"group", "4"},
@@ -439,6 +497,7 @@ struct Builder {
     }
     for (const auto& [j, child] : r.children(link)) {
       const Eigen::Isometry3d t = j != nullptr ? to_eigen(j->parent_to_joint_origin_transform) : Eigen::Isometry3d::Identity();
+      from({child.model->link_at(child.link->name), fmt::format("link '{}'", child.link->name), r.spec});
       x.open("body", {{"name", robot + "/" + child.link->name}, {"pos", vec(t.translation())}, {"quat", quat(t.linear())}});
       if (j != nullptr && movable(*j)) robot_joint(r, *j, *child.link);
       robot_link(r, *child.link, moving || (j != nullptr && movable(*j)), collision_bodies);
@@ -449,6 +508,7 @@ struct Builder {
   void robot_joint(const RobotModel& r, const urdf::Joint& j, const urdf::Link& child) {
     const std::string& robot = r.spec->name;
     const std::string name = robot + "/" + j.name;
+    const Origin origin{r.joint_model(j).joint_at(j.name), fmt::format("joint '{}'", j.name), r.spec};
     const bool prismatic = j.type == urdf::Joint::PRISMATIC;
     const bool limited = j.type != urdf::Joint::CONTINUOUS && j.limits;
     LoadBound load;
@@ -490,6 +550,7 @@ struct Builder {
       ja.emplace_back("limited", "true");
       ja.emplace_back("range", nums({j.limits->lower, j.limits->upper}));
     }
+    from(origin);
     x.leaf("joint", ja);
     qpos.push_back(initial);
 
@@ -509,12 +570,12 @@ struct Builder {
       aa.emplace_back("forcelimited", "true");
       aa.emplace_back("forcerange", nums({-force_limit, force_limit}));
     }
-    actuator(servo_damped ? "general" : "position", aa, initial);
+    actuator(servo_damped ? "general" : "position", aa, initial, origin);
     if (is_finger) {
       const std::string side = j.name == "finger_left_joint" ? "left" : "right";
-      sensor("jointpos", {{"name", fmt::format("{}/finger_{}_pos", robot, side)}, {"joint", name}});
+      sensor("jointpos", {{"name", fmt::format("{}/finger_{}_pos", robot, side)}, {"joint", name}}, origin);
     } else {
-      sensor("jointpos", {{"name", name + "_pos"}, {"joint", name}});
+      sensor("jointpos", {{"name", name + "_pos"}, {"joint", name}}, origin);
     }
   }
 
@@ -526,6 +587,7 @@ struct Builder {
                                              : std::string()));
     if (spec.base.xyz.z() > 1e-3) {
       // A robot mounted above the floor stands on a pedestal.
+      from({spec.where, "its pedestal (the cell's base height)", &spec});
       x.leaf("geom", {{"name", spec.name + "/pedestal"},
                       {"type", "box"},
                       {"pos", vec(Eigen::Vector3d(spec.base.xyz.x(), spec.base.xyz.y(), spec.base.xyz.z() / 2))},
@@ -535,6 +597,7 @@ struct Builder {
     }
     // The base link stands at the robot's base; links above it (a `world` root) are left out (load_robot checked
     // that they are fixed to it).
+    from({r.mounted->arm.link_at(spec.base_link), fmt::format("link '{}'", spec.base_link), &spec});
     x.open("body", {{"name", spec.name + "/" + spec.base_link},
                     {"pos", vec(spec.base.xyz)},
                     {"quat", quat(spec.base.rotation())}});
@@ -825,7 +888,11 @@ struct Builder {
     if (!meshes.empty()) {
       // The robots' meshes (a second <asset> section: the meshes are known once the robots are written).
       x.open("asset");
-      for (const auto& [name, file, scale] : meshes) x.leaf("mesh", {{"name", name}, {"file", file}, {"scale", scale}});
+      for (std::size_t i = 0; i < meshes.size(); ++i) {
+        const auto& [name, file, scale] = meshes[i];
+        from(mesh_origins[i]);
+        x.leaf("mesh", {{"name", name}, {"file", file}, {"scale", scale}});
+      }
       x.close();
     }
     x.open("contact");
@@ -836,10 +903,10 @@ struct Builder {
     x.close();
     // Actuators and sensors were collected while the bodies were written.
     x.open("actuator");
-    for (const auto& [tag, attrs] : actuators) x.leaf(tag, attrs);
+    for (const Deferred& a : actuators) write(a);
     x.close();
     x.open("sensor");
-    for (const auto& [tag, attrs] : sensors) x.leaf(tag, attrs);
+    for (const Deferred& s : sensors) write(s);
     x.close();
     // The initial state, so that the saved MJCF opens in MuJoCo's viewer as the cell starts.
     x.open("keyframe");
@@ -875,8 +942,79 @@ struct VfsDeleter {
   }
 };
 
-// Compiles MJCF text with MuJoCo from memory. Throws InputError naming the cell file with MuJoCo's error or warning.
-mjModel* compile_mjcf(const std::string& mjcf, const models::CellDescription& cell) {
+// The number (in document order, from 0) of the element of `xml` that starts on `line` and of its ancestors, innermost
+// first; empty if no element starts there.
+std::vector<std::size_t> elements_at_line(const std::string& xml, int line) {
+  tinyxml2::XMLDocument doc;
+  if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS) return {};
+  std::size_t count = 0;
+  std::vector<std::size_t> path;  // the numbers of the elements open at the walk's position, outermost first
+  std::vector<std::size_t> found;
+  const std::function<bool(const tinyxml2::XMLElement*)> walk = [&](const tinyxml2::XMLElement* e) {
+    path.push_back(count++);
+    if (e->GetLineNum() == line) {
+      found.assign(path.rbegin(), path.rend());
+      return true;
+    }
+    for (const tinyxml2::XMLElement* c = e->FirstChildElement(); c != nullptr; c = c->NextSiblingElement()) {
+      if (walk(c)) return true;
+    }
+    path.pop_back();
+    return false;
+  };
+  if (doc.RootElement() != nullptr) walk(doc.RootElement());
+  return found;
+}
+
+// MuJoCo's message as the user's error: its first line without MuJoCo's "Error: " or "XML Error: " (the lines after
+// it, "Object name = ..., line = ..." or "Element '...', line ...", place it in the generated MJCF, which the origin
+// replaces), and the generated MJCF's line it names (0 if none).
+std::pair<std::string, int> split_mujoco_message(const std::string& message) {
+  std::string first;
+  std::istringstream lines(message);
+  for (std::string l; std::getline(lines, l);) {
+    if (l.empty() || l.rfind("Object name", 0) == 0 || l.rfind("Element ", 0) == 0) continue;
+    if (first.empty()) first = l;
+  }
+  for (const char* prefix : {"XML Error: ", "Error: ", "Warning: "}) {
+    if (first.rfind(prefix, 0) == 0) first = first.substr(std::string(prefix).size());
+  }
+  // The generated MJCF's names of what it means ("in object '' (id = 9)", ": puma/mesh1"): the origin names it.
+  static const std::regex kObject(R"( in object '[^']*' \(id = \d+\)|: [^ :/]+/mesh\d+$)");
+  first = std::regex_replace(first, kObject, "");
+  int line = 0;
+  std::smatch m;
+  static const std::regex kLine(R"(line(?: =)? (\d+))");
+  if (std::regex_search(message, m, kLine)) line = std::stoi(m[1].str());
+  return {first, line};
+}
+
+// What MuJoCo said about the scene as an InputError: at the URDF element (and the cell's robot entry) the generated
+// element it names comes from; else at the cell file, the generated MJCF's line given as a hint only.
+InputError mujoco_error(const std::string& message, bool warning, const Mjcf& mjcf,
+                        const models::CellDescription& cell) {
+  const auto [problem, line] = split_mujoco_message(message);
+  const char* verb = warning ? "warns about" : "rejects";
+  if (line > 0) {
+    for (const std::size_t element : elements_at_line(mjcf.text, line)) {
+      const auto it = mjcf.origins.find(element);
+      if (it == mjcf.origins.end()) continue;
+      const Origin& o = it->second;
+      return InputError(o.at, fmt::format("robot '{}' ({}): {}: MuJoCo {} it: {}", o.robot->name, o.robot->where.str(),
+                                          o.what, verb, problem));
+    }
+  }
+  return InputError({cell.source.string(), 0, 0},
+                    fmt::format("MuJoCo {} the scene built from this cell: {}{}", verb, problem,
+                                line > 0 ? fmt::format(" (line {} of the generated MJCF, which twin snapshot --mjcf "
+                                                       "FILE writes)",
+                                                       line)
+                                         : std::string()));
+}
+
+// Compiles MJCF text with MuJoCo from memory. Throws InputError (mujoco_error) with MuJoCo's error or warning.
+mjModel* compile_mjcf(const Mjcf& built, const models::CellDescription& cell) {
+  const std::string& mjcf = built.text;
   std::unique_ptr<mjVFS, VfsDeleter> vfs(new mjVFS);
   mj_defaultVFS(vfs.get());
   const char* kFile = "cell.xml";
@@ -886,24 +1024,20 @@ mjModel* compile_mjcf(const std::string& mjcf, const models::CellDescription& ce
   std::copy(mjcf.begin(), mjcf.end(), static_cast<char*>(vfs->filedata[index]));
   std::array<char, 1024> error{};
   mjModel* model = mj_loadXML(kFile, vfs.get(), error.data(), static_cast<int>(error.size()));
-  if (model == nullptr) {
-    throw InputError({cell.source.string(), 0, 0},
-                     fmt::format("MuJoCo rejected the scene built from this cell: {}", error.data()));
-  }
+  if (model == nullptr) throw mujoco_error(error.data(), false, built, cell);
   if (error[0] != '\0') {
     mj_deleteModel(model);
     // A compiler warning (e.g. an inertia fixed up): the model is not what the files describe.
-    throw InputError({cell.source.string(), 0, 0}, fmt::format("MuJoCo warns about the scene: {}", error.data()));
+    throw mujoco_error(error.data(), true, built, cell);
   }
   return model;
 }
 
-}  // namespace
-
-std::string scene_mjcf(const models::CellDescription& cell, const SceneOptions& options) {
+// The scene's MJCF and its origins: written once or, with links that have no mass, twice (scene_mjcf).
+Mjcf build_mjcf(const models::CellDescription& cell, const SceneOptions& options) {
   const std::vector<RobotModel> robots = read_robot_models(cell);
   Builder b{cell, options};
-  std::string mjcf = b.build(robots);
+  Mjcf mjcf{b.build(robots), std::move(b.origins)};
   if (b.massless.empty()) return mjcf;
   // Links without <inertial> got their mass from their geometry; MuJoCo computed it. Tune the servos with those
   // masses: compile once, read them, and write the scene again.
@@ -920,7 +1054,14 @@ std::string scene_mjcf(const models::CellDescription& cell, const SceneOptions& 
   }
   Builder tuned{cell, options};
   tuned.estimated = std::move(estimated);
-  return tuned.build(robots);
+  std::string text = tuned.build(robots);
+  return {std::move(text), std::move(tuned.origins)};
+}
+
+}  // namespace
+
+std::string scene_mjcf(const models::CellDescription& cell, const SceneOptions& options) {
+  return build_mjcf(cell, options).text;
 }
 
 Scene::Scene(Scene&&) noexcept = default;
@@ -930,8 +1071,9 @@ Scene::~Scene() = default;
 Scene build_scene(const models::CellDescription& cell, const SceneOptions& options) {
   Scene s;
   s.cell_ = cell;
-  s.mjcf_ = scene_mjcf(cell, options);
-  s.model_.reset(compile_mjcf(s.mjcf_, cell));
+  Mjcf built = build_mjcf(cell, options);
+  s.model_.reset(compile_mjcf(built, cell));
+  s.mjcf_ = std::move(built.text);
   s.data_.reset(mj_makeData(s.model_.get()));
   CW_CHECK(s.data_ != nullptr, "mj_makeData failed");
   const mjModel* m = s.model_.get();
@@ -1072,6 +1214,102 @@ void write_mjcf(const std::string& mjcf, const std::filesystem::path& path) {
     std::filesystem::remove(tmp, ec);
     throw InputError({path.string(), 0, 0}, fmt::format("cannot write the MJCF file: {}", message));
   }
+}
+
+namespace {
+
+// What a collision geom of the scene is, for start_overlaps: a robot's body (robot >= 0), a fixed object (robot -1,
+// `name` set), or nothing to judge (a part, a belt, an obstacle, a visual geom: `name` empty).
+struct Side {
+  int robot = -1;
+  int mount_of = -1;  // the robot whose pedestal this is, else -1
+  std::string name;
+};
+
+Side side_of(const Scene& scene, int geom) {
+  const mjModel* m = scene.model();
+  Side out;
+  if (m->geom_contype[geom] == 0 && m->geom_conaffinity[geom] == 0) return out;
+  const char* g = mj_id2name(m, mjOBJ_GEOM, geom);
+  const std::string gname = g != nullptr ? g : "";
+  const int b = m->geom_bodyid[geom];
+  const char* bn = mj_id2name(m, mjOBJ_BODY, b);
+  const std::string body = bn != nullptr ? bn : "";
+  const auto starts = [](const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; };
+  if (b == 0) {
+    out.name = gname == "floor" ? "the floor" : fmt::format("'{}'", gname);
+    for (std::size_t r = 0; r < scene.robots().size(); ++r) {
+      if (gname == scene.robots()[r].name + "/pedestal") {
+        out.mount_of = static_cast<int>(r);
+        out.name = fmt::format("robot '{}''s pedestal", scene.robots()[r].name);
+      }
+    }
+  } else if (starts(body, "conveyor/")) {
+    const std::string name = body.substr(9);
+    if (name.find('/') != std::string::npos) return out;  // the belt
+    out.name = fmt::format("conveyor '{}' ({})", name,
+                           gname == body + "/stop" ? "stop bar" : gname == body + "/frame" ? "frame" : gname);
+  } else if (starts(body, "machine/")) {
+    out.name = fmt::format("machine '{}'{}", body.substr(8), gname == body + "/fixture" ? " (fixture)" : "");
+  } else if (!starts(body, "workpiece/") && !starts(body, "obstacle/")) {
+    for (std::size_t r = 0; r < scene.robots().size(); ++r) {
+      const std::string prefix = scene.robots()[r].name + "/";
+      if (starts(body, prefix)) {
+        out.robot = static_cast<int>(r);
+        out.name = fmt::format("link '{}'", body.substr(prefix.size()));
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string StartOverlap::text() const {
+  return fmt::format("robot '{}''s {} and {} overlap by {:.0f} mm", robot, body,
+                     other_robot.empty() ? other : fmt::format("robot '{}''s {}", other_robot, other), depth * 1000);
+}
+
+std::vector<StartOverlap> start_overlaps(const Scene& scene, double depth) {
+  const mjData* d = scene.data();
+  // By robot, then the other robot (or the fixed object): the deepest contact.
+  std::map<std::pair<int, std::string>, StartOverlap> found;
+  for (int c = 0; c < d->ncon; ++c) {
+    const mjContact& con = d->contact[c];
+    if (con.dist >= -depth) continue;
+    Side a = side_of(scene, con.geom1), b = side_of(scene, con.geom2);
+    if (a.name.empty() || b.name.empty()) continue;
+    if (a.robot < 0 || (b.robot >= 0 && b.robot < a.robot)) std::swap(a, b);
+    if (a.robot < 0 || a.robot == b.robot || a.robot == b.mount_of) continue;
+    const auto& robots = scene.robots();
+    const std::string other_robot = b.robot >= 0 ? robots[static_cast<std::size_t>(b.robot)].name : std::string();
+    const auto key = std::make_pair(a.robot, b.robot >= 0 ? "robot " + other_robot : b.name);
+    StartOverlap& o = found[key];
+    if (-con.dist <= o.depth) continue;
+    const std::string& robot = robots[static_cast<std::size_t>(a.robot)].name;
+    o = {robot, a.name, other_robot, b.name, -con.dist, scene.cell().find_robot(robot)->where,
+         other_robot.empty() ? SourceLocation{} : scene.cell().find_robot(other_robot)->where};
+  }
+  std::vector<StartOverlap> out;
+  for (auto& [key, o] : found) out.push_back(std::move(o));
+  return out;
+}
+
+InputError start_overlap_error(const std::vector<StartOverlap>& overlaps) {
+  CW_CHECK(!overlaps.empty(), "no overlap to report");
+  std::vector<std::string> what, entries;
+  for (const StartOverlap& o : overlaps) {
+    what.push_back(o.text());
+    for (const SourceLocation& at : {o.where, o.other_where}) {
+      if (!at.file.empty() && std::find(entries.begin(), entries.end(), at.str()) == entries.end()) {
+        entries.push_back(at.str());
+      }
+    }
+  }
+  return InputError(overlaps.front().where,
+                    fmt::format("at the start, with every robot at home: {}; move a robot's base or change its home "
+                                "(the robots' entries: {})",
+                                fmt::join(what, "; "), fmt::join(entries, ", ")));
 }
 
 void Scene::wrap_belts(mjData* d) const {

@@ -26,6 +26,15 @@
 
 namespace cellwright::cell {
 
+// The names a campaign writes into its directory (campaign_output_files).
+namespace {
+constexpr const char* kCampaignCsv = "campaign.csv";
+constexpr const char* kRunsCsv = "runs.csv";
+constexpr const char* kCampaignMd = "campaign.md";
+constexpr const char* kCampaignPng = "campaign.png";
+constexpr const char* kRunsDir = "runs";
+}  // namespace
+
 const std::vector<std::string>& fault_kinds() {
   static const std::vector<std::string> kinds = {
       "drop",     "slip",     "misplace", "unreachable", "missing",     "obstacle",   "timeout",
@@ -301,12 +310,13 @@ bool stalled(const Report& report) {
 
 std::vector<RunRecord> run_campaign(const CampaignOptions& o,
                                     const std::function<void(const CampaignProgress&)>& on_progress) {
+  make_output_directory(o.out);  // marked as Cellwright's before anything is written into it
   std::vector<RunRecord> records(o.runs);
   std::vector<ChildSpec> children(o.runs);
   for (std::size_t i = 0; i < o.runs; ++i) {
     RunRecord& rec = records[i];
     rec.variant = draw_variant(o.targets, o.kinds, o.seed, i);
-    rec.dir = o.out / "runs" / fmt::format("{:04}", i);
+    rec.dir = o.out / kRunsDir / fmt::format("{:04}", i);
     ChildSpec& c = children[i];
     c.args = {"run", o.scenario.string()};
     for (const DrawnFault& f : rec.variant.faults) {
@@ -654,16 +664,18 @@ cv::Mat draw_campaign(const CampaignSummary& s, int width, int height) {
   return img;
 }
 
+std::vector<std::string> campaign_output_files() {
+  return {kCampaignCsv, kRunsCsv, kCampaignMd, kCampaignPng, kRunsDir};
+}
+
 void write_campaign(const std::filesystem::path& dir, const CampaignSummary& summary,
                     const std::vector<RunRecord>& runs) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the directory: {}", ec.message()));
-  write_file_atomically(dir / "campaign.csv", format_csv(summary));
-  write_file_atomically(dir / "runs.csv", format_runs_csv(runs));
-  write_file_atomically(dir / "campaign.md", format_markdown(summary, runs));
+  make_output_directory(dir);
+  write_file_atomically(dir / kCampaignCsv, format_csv(summary));
+  write_file_atomically(dir / kRunsCsv, format_runs_csv(runs));
+  write_file_atomically(dir / kCampaignMd, format_markdown(summary, runs));
   const int width = std::max(1200, 140 * static_cast<int>(summary.kinds.size()) + 120);
-  vision::write_png(draw_campaign(summary, width, 600), dir / "campaign.png");
+  vision::write_png(draw_campaign(summary, width, 600), dir / kCampaignPng);
 }
 
 }  // namespace cellwright::cell

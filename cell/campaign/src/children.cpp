@@ -149,9 +149,7 @@ std::vector<ChildEnd> run_children(const std::filesystem::path& executable, cons
         const ChildSpec& spec = children[next];
         std::error_code ec;
         fs::remove_all(spec.dir, ec);
-        fs::create_directories(spec.dir, ec);
-        if (ec)
-          throw InputError({spec.dir.string(), 0, 0}, fmt::format("cannot create the directory: {}", ec.message()));
+        make_output_directory(spec.dir);  // marked as Cellwright's: the child's `-o` is its own
         Running c;
         c.index = next;
         c.start = Clock::now();

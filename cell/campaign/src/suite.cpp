@@ -165,7 +165,8 @@ double default_timeout(double scenario_wall_time) {
   return scenario_wall_time > 0 ? scenario_wall_time + 60 : 600;
 }
 
-std::vector<SuiteCase> plan_suite(const Discovery& found, const fs::path& out, std::optional<double> timeout) {
+std::vector<SuiteCase> plan_suite(const Discovery& found, const fs::path& out, std::optional<double> timeout,
+                                  bool force) {
   if (timeout && !(*timeout > 0)) {
     throw InputError({"--timeout", 0, 0}, fmt::format("must be > 0 s, not {}", *timeout));
   }
@@ -181,18 +182,22 @@ std::vector<SuiteCase> plan_suite(const Discovery& found, const fs::path& out, s
     names.insert(c.name);
     c.dir = out / c.name;
     c.error = s.error;
-    std::error_code ec;
-    if (c.error.empty() && fs::exists(c.dir, ec)) {
-      const bool earlier_run =
-          fs::is_directory(c.dir, ec) && (fs::exists(c.dir / kChildStdout, ec) || fs::is_empty(c.dir, ec));
-      if (!earlier_run) {
-        throw InputError({c.dir.string(), 0, 0},
-                         "exists and is not the outputs of an earlier run: the suite would replace it (give another "
-                         "-o/--output)");
-      }
-    }
     c.timeout = timeout ? *timeout : default_timeout(s.wall_time);
     cases.push_back(std::move(c));
+  }
+  // Each OUT/NAME, which a run empties: Cellwright's (marked, an earlier run's, or empty), or refused.
+  for (const SuiteCase& c : cases) {
+    std::error_code ec;
+    if (force || !c.error.empty() || !fs::exists(c.dir, ec)) continue;
+    const bool earlier_run =
+        fs::is_directory(c.dir, ec) && (fs::exists(c.dir / kMarkerFile, ec) || fs::exists(c.dir / kChildStdout, ec) ||
+                                        fs::is_empty(c.dir, ec));
+    if (!earlier_run) {
+      throw InputError({c.dir.string(), 0, 0},
+                       fmt::format("exists and is not the outputs of an earlier run (it has no {}): the suite would "
+                                   "replace it; give another -o/--output, or --force to replace it",
+                                   kMarkerFile));
+    }
   }
   return cases;
 }

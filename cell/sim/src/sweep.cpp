@@ -232,6 +232,10 @@ SweepReport sweep_motions(const Scenario& s, const petri::Net& net, const Motion
            options.depth);
   SweepReport report;
   const Scene scene = build_scene(s.cell);
+  // Robots that overlap at the start: one error, rather than a collision for every command that starts there.
+  if (const auto at_start = twin::start_overlaps(scene, options.depth); !at_start.empty()) {
+    throw twin::start_overlap_error(at_start);
+  }
   const mjModel* m = scene.model();
   std::vector<GeomInfo> geoms = classify(scene);
   Poser poser(scene);

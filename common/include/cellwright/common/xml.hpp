@@ -13,6 +13,7 @@
 // Thread safety: a Writer is a plain object for one thread at a time.
 #pragma once
 
+#include <cstddef>
 #include <deque>
 #include <memory>
 #include <string>
@@ -58,6 +59,10 @@ class Writer {
 
   // The document. CW_CHECK that every element is closed.
   std::string str() const;
+  // How many elements have been started so far: the next element is the document's element number elements()
+  // (from 0) in document order, as a reader walking the document meets them (to find an element again by a line
+  // number a reader of the document reports).
+  std::size_t elements() const { return elements_; }
 
   // An attribute value as attribute() writes it (without the quotes).
   static std::string escape_attribute(std::string_view value);
@@ -70,6 +75,7 @@ class Writer {
   };
   std::unique_ptr<Printer> printer_;
   std::deque<Open> open_;  // the open elements, outermost first
+  std::size_t elements_ = 0;
 };
 
 }  // namespace cellwright::xml

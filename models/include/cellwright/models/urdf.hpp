@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "cellwright/common/error.hpp"
 
@@ -28,6 +29,10 @@ class UrdfModel {
   SourceLocation joint_at(const std::string& name) const;
   // Where the first <mesh> element with this filename attribute is: {file(), line}; line 0 if there is none.
   SourceLocation mesh_at(const std::string& filename) const;
+  // Where the index-th (from 0) <tag> element ("inertial", "visual", "collision") of the link with this name
+  // starts, in the order urdfdom keeps them (Link::visual_array, collision_array); the link's own line if it has
+  // none.
+  SourceLocation link_part_at(const std::string& link, const std::string& tag, std::size_t index = 0) const;
 
  private:
   friend UrdfModel parse_urdf(const std::string& xml, const std::string& file_label);
@@ -36,6 +41,7 @@ class UrdfModel {
   std::string file_;
   std::shared_ptr<const urdf::ModelInterface> robot_;
   std::map<std::string, int> link_lines_, joint_lines_, mesh_lines_;
+  std::map<std::string, std::map<std::string, std::vector<int>>> link_part_lines_;  // link -> tag -> lines
 };
 
 // Reads and parses a URDF file (see parse_urdf). Throws InputError({file}, "cannot read the URDF file: <why>") if it

@@ -157,4 +157,32 @@ Scene build_scene(const models::CellDescription& cell, const SceneOptions& optio
 // the same directory, then renamed over `path`. Throws InputError naming the path if it cannot be written.
 void write_mjcf(const std::string& mjcf, const std::filesystem::path& path);
 
+// A robot that overlaps something at the start, in the cell's initial state (Scene::reset: every robot at home):
+// another robot, or the fixed cell (the floor, a conveyor's frame or stop bar, a machine, another robot's pedestal).
+// Not counted: a robot against its own pedestal, parts (a run's physics judges those: a part may start in a hand)
+// and the fault injection's obstacles (under the floor until a fault puts them in). Such a cell cannot run: every
+// motion of either robot would start in collision.
+struct StartOverlap {
+  std::string robot;        // the robot, as the cell names it
+  std::string body;         // its body in contact: "link 'link3'"
+  std::string other_robot;  // the other robot; "" when `other` is of the fixed cell
+  std::string other;        // "link 'link2'", "the floor", "conveyor 'input' (frame)", "machine 'mill'",
+                            // "robot 'melfa''s pedestal"
+  double depth = 0;         // m, the deepest contact between the two
+  SourceLocation where;        // the robot's entry in the cell file
+  SourceLocation other_where;  // the other robot's; empty for the fixed cell
+  // "robot 'puma''s link 'link3' and robot 'melfa''s link 'link2' overlap by 25 mm"
+  std::string text() const;
+};
+
+// The overlaps at the start deeper than `depth` (m), one per pair of a robot and another robot or a fixed object
+// (the deepest of their contacts), in the order of the cell's robots. `scene` as build_scene returns it (reset).
+// The default depth is the plan's collision sweep's (cell/sweep.hpp SweepOptions::depth): shallower is touching.
+std::vector<StartOverlap> start_overlaps(const Scene& scene, double depth = 0.002);
+
+// The one error for `overlaps` (not empty), at the first one's robot entry in the cell file: "at the start, with
+// every robot at home: <text of each, '; '>; move a robot's base or change its home (the robots' entries: <file:line
+// of each robot named>)".
+InputError start_overlap_error(const std::vector<StartOverlap>& overlaps);
+
 }  // namespace cellwright::twin

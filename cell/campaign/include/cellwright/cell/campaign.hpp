@@ -167,7 +167,9 @@ std::string format_progress(const CampaignProgress& progress, int width = 30);
 // with stdin /dev/null and stdout/stderr to DIR/runs/NNNN/stdout.txt and stderr.txt (NNNN the index, 4 digits at
 // least), at most `jobs` at a time; a child still running `timeout` s after it started is killed (SIGKILL) and is a
 // hang. The records come back in index order. `on_progress` (may be empty) is called when a run starts or ends.
-// Throws InputError if a run directory cannot be made or a child cannot be started.
+// options.out is made Cellwright's first (make_output_directory: its marker file), then each run's directory (emptied
+// and marked before its child starts). Throws InputError if a run directory cannot be made or a child cannot be
+// started.
 std::vector<RunRecord> run_campaign(const CampaignOptions& options,
                                     const std::function<void(const CampaignProgress&)>& on_progress = {});
 
@@ -222,6 +224,10 @@ cv::Mat draw_campaign(const CampaignSummary& summary, int width = 1200, int heig
 
 // Checks that `dir` can be created or written, creating nothing (common/files.hpp; every command's -o uses it).
 using cellwright::check_writable_dir;
+
+// Every name a campaign writes directly into its directory: campaign.csv, runs.csv, campaign.md, campaign.png and
+// runs (the runs' directories), for check_output_directory (outputs.hpp).
+std::vector<std::string> campaign_output_files();
 
 // Writes campaign.csv, runs.csv, campaign.md and campaign.png into `dir` (each atomically). Throws InputError when a
 // file cannot be written.

@@ -105,10 +105,12 @@ double default_timeout(double scenario_wall_time);
 
 // One case per scenario of `found`, in its order, outputs under `out`; `timeout` (s, > 0) for every scenario, or
 // default_timeout() of each. Throws InputError when `timeout` is not > 0 (naming --timeout), `out` cannot be
-// written (check_writable_dir), or an OUT/NAME of a case that runs exists and is not the outputs of an earlier run
-// (a directory holding stdout.txt, or an empty one): the suite would replace it. A case with an error writes nothing.
+// written (check_writable_dir), or an OUT/NAME of a case that runs exists and is not the outputs of an earlier run (a
+// directory with the marker file of outputs.hpp or stdout.txt, or an empty one): the suite would replace it, and
+// that is a folder (or file) of the user's; `force` (--force) lifts that. A case with an error writes nothing.
+// Creates nothing: run_suite's children make and mark OUT/NAME (children.hpp), the caller OUT.
 std::vector<SuiteCase> plan_suite(const Discovery& found, const std::filesystem::path& out,
-                                  std::optional<double> timeout);
+                                  std::optional<double> timeout, bool force = false);
 
 // Checks that `file` (the --junit file) can be written: not a directory, its folder writable or creatable
 // (check_writable_dir), the file itself writable when it exists. Throws InputError naming it; creates nothing.

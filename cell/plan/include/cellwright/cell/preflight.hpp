@@ -53,7 +53,8 @@ struct Preflight {
 // sweeps them for collisions with `collisions` (sweep.hpp: against the static cell, and against the other robots'
 // where the net lets two commands run at once) and lists each predicted one in `collisions`. `collisions` is null in
 // a build without the simulator: then nothing is swept, and sweep_summary says so.
-// Throws InputError only if a URDF cannot be read (load_scenario has read them once already).
+// Throws InputError only if a URDF cannot be read (load_scenario has read them once already) or, from the sweep,
+// when robots overlap at the start (sweep.hpp).
 Preflight preflight(const Scenario& scenario, const CollisionSweep* collisions);
 
 }  // namespace cellwright::cell

@@ -95,7 +95,9 @@ struct SweepReport {
 };
 
 // The port: sweeps the plan of `scenario`'s program (`net` is its task::to_net, `plan` its plan_motions) as the top
-// says. Throws InputError only when the cell's geometry cannot be read (a URDF).
+// says. Throws InputError only when the cell's geometry cannot be read (a URDF), or when robots overlap at the start
+// (at home: one error naming the bodies and the depth, at the cell file's robot entry, rather than a collision for
+// every command that starts there; the twin's: twin/scene.hpp start_overlaps).
 class CollisionSweep {
  public:
   virtual ~CollisionSweep() = default;

@@ -15,7 +15,8 @@
 namespace cellwright::cell {
 
 // Sweeps the plan of `scenario`'s program (`net` is its task::to_net, `plan` its plan_motions) as cell/sweep.hpp
-// says. Throws InputError only as twin::build_scene does (a URDF that cannot be read).
+// says. Throws InputError as twin::build_scene does (a URDF that cannot be read), and twin::start_overlap_error when
+// robots overlap at the start.
 SweepReport sweep_motions(const Scenario& scenario, const petri::Net& net, const MotionPlan& plan,
                           const SweepOptions& options = {});
 

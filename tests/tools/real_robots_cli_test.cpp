@@ -59,6 +59,17 @@ TEST(RealRobotsCli, LockStepWithARealDriverIsRefusedBeforeAnythingRuns) {
   EXPECT_THAT(r.err, HasSubstr("--realtime"));
 }
 
+TEST(RealRobotsCli, SpeedWithoutRealTimeOrForOneEmulatorIsRefused) {
+  TwinCli cli("real-speed");
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --speed 4");
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("--speed"));
+  EXPECT_THAT(r.err, HasSubstr("add --realtime"));
+  const auto e = cli.run("emulate movemaster --link " + shell_quote((cli.dir() / "melfa").string()) + " --speed 4");
+  EXPECT_EQ(e.status, 2) << e.out << e.err;
+  EXPECT_THAT(e.err, HasSubstr("--time-scale"));
+}
+
 TEST(RealRobotsCli, APortThatDoesNotExistIsNamed) {
   TwinCli cli("real-noport");
   const auto r =

@@ -115,6 +115,7 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
   std::vector<std::pair<std::string, int>> lines_run;  // (cell robot, line or step), in the order they started
   cell::EmulatedCellOptions options;
   options.echo = false;
+  options.speed = 4.0;  // the arms move four times faster than real time: the order and outcome are the same
   options.on_ready = [&] {
     std::lock_guard lock(mutex);
     ready = true;

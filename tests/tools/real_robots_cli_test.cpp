@@ -24,12 +24,15 @@ using cellwright::testing::TwinCli;
 using ::testing::HasSubstr;
 
 const std::string kExchange = source_path("scenes/exchange.yaml");
+// The emulated cell's arms and the run's clock go this many times faster than real time (`--speed`): the serial
+// lines, their pacing and the drivers' deadlines stay on the wall clock, so the protocols are exercised as they are.
+const std::string kSpeed = "4";
 
 // The controllers of the exchange cell emulated on the twin's arms, at links in `dir`.
 struct EmulatedExchange {
   EmulatedExchange(const fs::path& dir, const std::vector<std::string>& robots,
-                   const std::vector<std::string>& extra = {}) {
-    std::vector<std::string> args = {"emulate", "--scenario", kExchange};
+                   const std::vector<std::string>& extra = {}, const std::string& speed = kSpeed) {
+    std::vector<std::string> args = {"emulate", "--scenario", kExchange, "--speed", speed};
     for (const std::string& r : robots) {
       args.push_back("--robot");
       args.push_back(r + ":" + (dir / r.substr(0, r.find('='))).string());
@@ -56,6 +59,17 @@ TEST(RealRobotsCli, LockStepWithARealDriverIsRefusedBeforeAnythingRuns) {
   EXPECT_THAT(r.err, HasSubstr("--realtime"));
 }
 
+TEST(RealRobotsCli, SpeedWithoutRealTimeOrForOneEmulatorIsRefused) {
+  TwinCli cli("real-speed");
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --speed 4");
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("--speed"));
+  EXPECT_THAT(r.err, HasSubstr("add --realtime"));
+  const auto e = cli.run("emulate movemaster --link " + shell_quote((cli.dir() / "melfa").string()) + " --speed 4");
+  EXPECT_EQ(e.status, 2) << e.out << e.err;
+  EXPECT_THAT(e.err, HasSubstr("--time-scale"));
+}
+
 TEST(RealRobotsCli, APortThatDoesNotExistIsNamed) {
   TwinCli cli("real-noport");
   const auto r =
@@ -79,7 +93,7 @@ TEST(RealRobotsCli, ExchangeOnTwoEmulatedControllersFinishesWithAOnTheOutput) {
   const std::vector<std::string> robots = {"melfa=movemaster", "puma=val2"};
   EmulatedExchange cell(cli.dir(), robots);
   ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
-  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) + " -o " +
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --speed " + kSpeed + drivers(cli.dir(), robots) + " -o " +
                          shell_quote((cli.dir() / "out").string()));
   EXPECT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
@@ -96,7 +110,7 @@ TEST(RealRobotsCli, ExchangeWithOneArmSwappedFinishes) {
   const std::vector<std::string> robots = {"melfa=movemaster"};
   EmulatedExchange cell(cli.dir(), robots);
   ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
-  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots));
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --speed " + kSpeed + drivers(cli.dir(), robots));
   EXPECT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
 }
@@ -106,9 +120,11 @@ TEST(RealRobotsCli, AHardwareErrorMidRunIsResetAndRehomedAndTheRunGoesOn) {
   const std::vector<std::string> robots = {"melfa=movemaster", "puma=val2"};
   // The MELFA's controller reports a hardware error on its 200th line: while it waits for the PUMA's part, its
   // read-backs go on; the error shows at the `ER` after its next command.
-  EmulatedExchange cell(cli.dir(), robots, {"--misbehave", "melfa:er1@200"});
+  // In real time: the line the error comes on is counted in the lines a real-time run sends (at --speed 4 the run
+  // sends fewer, and the 200th comes after the MELFA's last command).
+  EmulatedExchange cell(cli.dir(), robots, {"--misbehave", "melfa:er1@200"}, "1");
   ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
-  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime" + drivers(cli.dir(), robots) + " -o " +
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --speed 1" + drivers(cli.dir(), robots) + " -o " +
                          shell_quote((cli.dir() / "out").string()));
   const std::string events = cellwright::testing::slurp(cli.dir() / "out" / "events.jsonl");
   // Sensed as the driver's hardware fault, diagnosed by the decision tree, and recovered: the controller was reset

@@ -59,6 +59,7 @@ void add_emulate(CLI::App& app, Command* run) {
     std::string urdf;
     std::vector<double> home_deg;
     double time_scale = 1.0;
+    double speed = 1.0;
     std::string scenario;
     std::vector<std::string> robots;
     std::uint64_t seed = 1;
@@ -77,6 +78,10 @@ void add_emulate(CLI::App& app, Command* run) {
   cmd->add_option("--time-scale", args->time_scale, "motions take this times their time (default 1)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--scenario", args->scenario, "emulate the controllers of this scenario's cell, on the twin's arms");
+  cmd->add_option("--speed", args->speed,
+                  "with --scenario: the twin's arms move this many times faster than real time (default 1), for a "
+                  "twin run --realtime --speed X against them")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--robot", args->robots, "with --scenario: ROBOT=movemaster:LINK or ROBOT=val2:LINK (repeatable)");
   cmd->add_option("--seed", args->seed, "seed of the random misbehaviours");
   cmd->add_option("--misbehave", args->misbehave,
@@ -84,8 +89,8 @@ void add_emulate(CLI::App& app, Command* run) {
                   "KIND: error (er1), unreachable (er2), garbage, silent, drop, late (repeatable)");
   cmd->add_flag("--no-echo", args->no_echo, "VAL II: do not echo what is received");
   cmd->add_flag("--verbose", args->verbose, "print every line received and answered");
-  cmd->callback([run, args] {
-    *run = [args] {
+  cmd->callback([run, args, cmd] {
+    *run = [args, cmd] {
       const SourceLocation cli{"twin emulate", 0, 0};
       std::mutex print_mutex;
       const auto print = [&print_mutex](std::string_view line) {
@@ -123,6 +128,7 @@ void add_emulate(CLI::App& app, Command* run) {
         cell::EmulatedCellOptions options;
         options.seed = args->seed;
         options.echo = !args->no_echo;
+        options.speed = args->speed;
         if (args->verbose) options.log = print;
         std::string names;
         for (const auto& c : controllers) {
@@ -141,6 +147,9 @@ void add_emulate(CLI::App& app, Command* run) {
         return 0;
       }
 
+      if (cmd->count("--speed") > 0) {
+        throw InputError(cli, "--speed is for --scenario (the twin's arms); one controller alone takes --time-scale");
+      }
       if (args->language.empty()) throw InputError(cli, "say which controller: movemaster or val2 (or --scenario)");
       if (args->link.empty()) throw InputError(cli, "--link PATH is needed: where to publish the pseudo-terminal");
       const bool movemaster = args->language == "movemaster";

@@ -104,6 +104,7 @@ void add_run(CLI::App& app, Command* run) {
   struct Args {
     RunArgs run;
     bool realtime = false;
+    double speed = 1.0;
     bool quiet = false;
     bool dry = false;
     std::string final_png = "always";
@@ -111,6 +112,10 @@ void add_run(CLI::App& app, Command* run) {
   auto args = std::make_shared<Args>();
   add_run_options(*cmd, args->run);
   cmd->add_flag("--realtime", args->realtime, "pace the simulation to the wall clock instead of lock-step");
+  cmd->add_option("--speed", args->speed,
+                  "with --realtime: simulation seconds per wall-clock second (default 1); above 1 only against "
+                  "emulated controllers run as fast (twin emulate --scenario ... --speed X), never real arms")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--quiet", args->quiet, "no progress line");
   cmd->add_option("--final-png", args->final_png,
                   "with -o: when to render final.png, the cell at the end: always (default), failed (only when the "
@@ -124,7 +129,7 @@ void add_run(CLI::App& app, Command* run) {
     *run = [args, cmd] {
       using namespace cellwright::cell;
       // A bring-up runs no program: an option for a run's outputs or pace would be ignored, so it is refused.
-      for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime", "--final-png"}) {
+      for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime", "--speed", "--final-png"}) {
         if (args->dry && cmd->count(name) > 0) {
           throw InputError({"--dry", 0, 0},
                            fmt::format("a bring-up runs no program and writes nothing: {} would be ignored", name));
@@ -169,6 +174,11 @@ void add_run(CLI::App& app, Command* run) {
       auto progress = std::make_shared<Progress>(args->quiet);
       RunOptions options = run_options_for(a, s);
       if (args->realtime) options.realtime = true;
+      if (cmd->count("--speed") > 0 && !options.realtime.value_or(s.options.realtime)) {
+        throw InputError({"--speed", 0, 0}, "it paces a real-time run, and this run is lock-step (which runs as fast "
+                                             "as it can): add --realtime");
+      }
+      options.speed = args->speed;
       options.on_progress = [progress](SimDuration t, std::uint64_t firings) { progress->print(t, firings); };
       options.progress_every = progress->every();
       // The event log goes to a file as it is written, never held whole: into the output directory (renamed to

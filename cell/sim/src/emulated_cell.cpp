@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <exception>
 #include <mutex>
@@ -107,6 +108,9 @@ EmulatedCell::EmulatedCell(const Scenario& scenario, std::vector<EmulatedControl
                            EmulatedCellOptions options, const SourceLocation& where)
     : impl_(std::make_unique<Impl>(scenario, std::move(options))) {
   Impl& m = *impl_;
+  if (!(m.options.speed > 0 && std::isfinite(m.options.speed))) {
+    throw InputError(where, fmt::format("the speed must be a positive number, got {}", m.options.speed));
+  }
   std::set<std::string> seen;
   for (const EmulatedController& c : controllers) {
     if (scenario.cell.find_robot(c.robot) == nullptr) {
@@ -177,12 +181,14 @@ void EmulatedCell::stop() {
 
 void EmulatedCell::run() {
   Impl& m = *impl_;
-  // The simulation thread: the World paced to the wall clock, one control period at a time.
-  std::thread sim([&m] {
+  // The simulation thread: the World paced to the wall clock (at options.speed), one control period at a time.
+  const auto wall_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(kPeriod) / m.options.speed);
+  std::thread sim([&m, wall_period] {
     auto next = std::chrono::steady_clock::now();
     std::unique_lock lock(m.mutex);
     while (!m.stopping) {
-      next += kPeriod;
+      next += wall_period;
       if (m.cv.wait_until(lock, next, [&] { return m.stopping; })) break;
       lock.unlock();
       m.plant->advance(kPeriod);

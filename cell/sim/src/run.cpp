@@ -237,6 +237,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
 
   config.plant = plant_.get();
   config.mode = realtime_ ? runtime::Mode::kRealtime : runtime::Mode::kLockstep;
+  config.realtime_speed = options.speed;
   config.period = seconds(s.options.control_period);
   config.limits.sim_time = seconds(s.limits.sim_time);
   config.limits.settle = seconds(s.options.settle_time);

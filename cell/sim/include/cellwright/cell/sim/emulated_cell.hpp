@@ -36,6 +36,10 @@ struct EmulatedController {
 struct EmulatedCellOptions {
   std::uint64_t seed = 1;  // the misbehaviour plans' (each controller's seed is this plus its index)
   bool echo = true;        // VAL II echoes what it receives
+  // Simulation seconds per wall-clock second (`--speed`, > 0): the World, and so every arm's motion, runs this many
+  // times faster than real time; a `twin run --realtime --speed X` against it then sees motions take their planned
+  // simulated time. The serial lines' pacing and the drivers' deadlines stay on the wall clock.
+  double speed = 1.0;
   // Called once every controller's link is published (on run()'s thread), and with one line per event of the
   // emulators (any thread). Either may be empty.
   std::function<void()> on_ready;

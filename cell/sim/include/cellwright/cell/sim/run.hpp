@@ -55,6 +55,10 @@ namespace sim = twin::sim;  // the simulator's World, drivers and plant
 
 struct RunOptions {
   std::optional<bool> realtime;  // overrides the scenario's options.realtime when set (`--realtime`)
+  // Real time only (`--speed X`): simulation seconds per wall-clock second (the runtime's realtime_speed); > 0.
+  // Above 1 only with emulated controllers that run as fast (`twin emulate --scenario ... --speed X`): a real arm
+  // moves at its own pace, so its run would see every motion take X times longer than planned.
+  double speed = 1.0;
   // Called on the simulation thread every `progress_every` of simulation time with the time and the firings so far.
   // Must be short and must not touch the ScenarioRun.
   std::function<void(runtime::SimDuration, std::uint64_t)> on_progress;

@@ -399,7 +399,8 @@ TEST_F(ReportPageTest, TheOutputDirectoryGetsThePageWithThePicturesWrittenBeside
   // No temporary file left behind.
   std::vector<std::string> files;
   for (const auto& e : std::filesystem::directory_iterator(dir)) files.push_back(e.path().filename().string());
-  EXPECT_THAT(files, ::testing::UnorderedElementsAre("report.json", "gantt.png", "final.png", "index.html"));
+  // ... and the marker that makes the directory Cellwright's (outputs.hpp), written first.
+  EXPECT_THAT(files, ::testing::UnorderedElementsAre(kMarkerFile, "report.json", "gantt.png", "final.png", "index.html"));
 
   // Without a snapshot the page says so (and an old final.png is not shown).
   write_report_outputs(dir, scenario_, report_, cv::Mat());

@@ -143,7 +143,7 @@ TEST(CampaignCli, RunsThatEndAtTheirTimeLimitAreStallsNotRecoveries) {
   EXPECT_EQ(rows["all"]["mean_recovery_time_s"], "") << csv;
   EXPECT_EQ(rows["drop"]["stalls"], "2") << csv;
   const std::string md = slurp(out / "campaign.md");
-  EXPECT_THAT(md, HasSubstr("0 recovered, 0 stopped safely; 2 runs stalled."));
+  EXPECT_THAT(md, HasSubstr("0 recovered, 0 stopped safely; 2 runs stalled;"));
   EXPECT_THAT(md, HasSubstr("\nRuns that stalled:\n\n- run 0000 "));
   EXPECT_THAT(md, HasSubstr("recovered before the stall, not counted: drop at "));
   EXPECT_THAT(r.err, HasSubstr("2/2 runs, 0 running, 0 crashes, 0 hangs, 2 stalls"));

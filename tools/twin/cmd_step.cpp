@@ -19,6 +19,7 @@
 #include <system_error>
 #include <vector>
 
+#include "cellwright/cell/outputs.hpp"
 #include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
@@ -149,6 +150,9 @@ void add_step(CLI::App& app, Command* run) {
           for (const std::filesystem::path& f : files) std::filesystem::remove(f, ec);
         }
       } unrun;
+      // The marker that makes -o Cellwright's: left only by a run that wrote something.
+      const std::filesystem::path marker = out.empty() ? std::filesystem::path() : std::filesystem::path(out) / kMarkerFile;
+      const bool marker_was_there = !marker.empty() && std::filesystem::exists(marker);
       block_stop_signals();  // before any thread starts (a video's encoder): each inherits the mask
       ScenarioRun sr(s, pre.net, options);
       // Ctrl-C or SIGTERM: a step or `c` under way stops at the next period (the cell stopped safely), and the prompt
@@ -219,6 +223,7 @@ void add_step(CLI::App& app, Command* run) {
             for (const std::filesystem::path& f : {sr.events_file(), std::filesystem::path(args->video)}) {
               if (!f.empty()) unrun.files.push_back(f);
             }
+            if (!marker.empty() && !marker_was_there) unrun.files.push_back(marker);
             return watcher.stopped() ? kInterrupted : 0;
           }
           // The cell is stopped safely at the next period; what was logged so far is kept and written.

@@ -278,6 +278,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   // The event log first: it makes the output directory, where the video may go (-o DIR --video DIR/run.mp4).
   // The directories this makes for it, innermost first: removed again (when empty) if the video is refused.
   std::vector<std::filesystem::path> made;
+  std::filesystem::path made_marker;
   if (!options.events_file.empty()) {
     events_file_ = std::move(options.events_file);
     std::error_code ec;
@@ -285,6 +286,10 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
          d = d.parent_path()) {
       made.push_back(d);
       if (d == d.parent_path()) break;
+    }
+    // The marker, when this run is what makes the directory Cellwright's: removed too if the video is refused.
+    if (events_file_.has_parent_path() && !std::filesystem::exists(events_file_.parent_path() / kMarkerFile, ec)) {
+      made_marker = events_file_.parent_path() / kMarkerFile;
     }
     if (events_file_.has_parent_path()) make_output_directory(events_file_.parent_path());
     events_out_ = std::make_unique<std::ofstream>(events_file_, std::ios::binary | std::ios::trunc);
@@ -309,6 +314,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
         events_out_.reset();
         std::error_code ec;
         std::filesystem::remove(events_file_, ec);
+        if (!made_marker.empty()) std::filesystem::remove(made_marker, ec);
         for (const std::filesystem::path& d : made) std::filesystem::remove(d, ec);  // each only if empty
       }
       throw;

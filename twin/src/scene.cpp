@@ -14,7 +14,6 @@
 #include <map>
 #include <numbers>
 #include <optional>
-#include <regex>
 #include <set>
 #include <sstream>
 
@@ -980,12 +979,41 @@ std::pair<std::string, int> split_mujoco_message(const std::string& message) {
     if (first.rfind(prefix, 0) == 0) first = first.substr(std::string(prefix).size());
   }
   // The generated MJCF's names of what it means ("in object '' (id = 9)", ": puma/mesh1"): the origin names it.
-  static const std::regex kObject(R"( in object '[^']*' \(id = \d+\)|: [^ :/]+/mesh\d+$)");
-  first = std::regex_replace(first, kObject, "");
+  // (Parsed by hand, not with <regex>: GCC 12's -Wmaybe-uninitialized fires inside libstdc++'s regex in the sanitizer
+  // builds.)
+  const auto is_digit = [](char c) { return c >= '0' && c <= '9'; };
+  const auto digits_from = [&](const std::string& text, std::size_t at) {  // the end of a run of digits at `at`
+    while (at < text.size() && is_digit(text[at])) ++at;
+    return at;
+  };
+  for (std::size_t at = first.find(" in object '"); at != std::string::npos;
+       at = first.find(" in object '", at + 1)) {
+    const std::size_t quote = first.find('\'', at + 12);
+    if (quote == std::string::npos || first.compare(quote + 1, 7, " (id = ") != 0) continue;
+    const std::size_t end = digits_from(first, quote + 8);
+    if (end == quote + 8 || end >= first.size() || first[end] != ')') continue;
+    first.erase(at, end + 1 - at);
+    break;
+  }
+  if (const std::size_t colon = first.rfind(": "); colon != std::string::npos) {
+    const std::string tail = first.substr(colon + 2);  // "<name>/mesh<digits>" to the end
+    const std::size_t slash = tail.find('/');
+    if (slash != std::string::npos && slash > 0 && tail.find_first_of(" :") == std::string::npos &&
+        tail.compare(slash + 1, 4, "mesh") == 0 && tail.size() > slash + 5 &&
+        digits_from(tail, slash + 5) == tail.size()) {
+      first.erase(colon);
+    }
+  }
   int line = 0;
-  std::smatch m;
-  static const std::regex kLine(R"(line(?: =)? (\d+))");
-  if (std::regex_search(message, m, kLine)) line = std::stoi(m[1].str());
+  for (std::size_t at = message.find("line"); at != std::string::npos; at = message.find("line", at + 1)) {
+    std::size_t k = at + 4;
+    if (message.compare(k, 2, " =") == 0) k += 2;
+    if (k >= message.size() || message[k] != ' ') continue;
+    const std::size_t end = digits_from(message, k + 1);
+    if (end == k + 1) continue;
+    line = std::stoi(message.substr(k + 1, end - k - 1));
+    break;
+  }
   return {first, line};
 }
 

@@ -8,7 +8,6 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -136,7 +135,16 @@ LogEvent random_event(std::size_t index, Random& r) {
 
 TEST(LogEventCodec, EveryTypeReadsBackToTheSameBytes) {
   Random r(20261127);
-  const std::regex negative_zero(R"(:-0\.0+[,}\]])");  // a number that prints as zero has no minus sign
+  // A number that prints as zero has no minus sign: no value ":-0.0...0" ending at a ',', '}' or ']'. (By hand, not
+  // with <regex>: GCC 12's -Wmaybe-uninitialized fires inside libstdc++'s regex in the sanitizer builds.)
+  const auto has_negative_zero = [](const std::string& line) {
+    for (std::size_t at = line.find(":-0."); at != std::string::npos; at = line.find(":-0.", at + 1)) {
+      std::size_t k = at + 4;
+      while (k < line.size() && line[k] == '0') ++k;
+      if (k > at + 4 && k < line.size() && (line[k] == ',' || line[k] == '}' || line[k] == ']')) return true;
+    }
+    return false;
+  };
   for (std::size_t index = 0; index < std::variant_size_v<LogEvent>; ++index) {
     for (int i = 0; i < 300; ++i) {
       const LogEvent e = random_event(index, r);
@@ -144,7 +152,7 @@ TEST(LogEventCodec, EveryTypeReadsBackToTheSameBytes) {
       const std::string line = encode(e);
       ASSERT_TRUE(nlohmann::json::accept(line)) << line;
       EXPECT_EQ(line.find('\n'), std::string::npos) << line;
-      EXPECT_FALSE(std::regex_search(line, negative_zero)) << line;
+      EXPECT_FALSE(has_negative_zero(line)) << line;
       const LogEvent back = decode(line, "events.jsonl", 1);
       ASSERT_EQ(back.index(), index) << line;
       EXPECT_EQ(encode(back), line);

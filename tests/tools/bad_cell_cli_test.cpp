@@ -1,5 +1,5 @@
 // Bad input a new user meets, over the built `twin`: an output directory of the user's own is never written over
-// unasked (`-o DIR` of run, step, campaign and test), a URDF that MuJoCo refuses is named at its own line, and robots
+// unasked (`-o DIR` of run, step, campaign, test and compile --robot-language), a URDF that MuJoCo refuses is named at its own line, and robots
 // that overlap at the start are one error wherever the cell is used.
 #include <fmt/format.h>
 #include <gmock/gmock.h>
@@ -113,6 +113,35 @@ TEST(OutputDirectoryCli, CampaignAndTestRefuseAUsersDirectory) {
                                                                   "earlier run (it has no .cellwright-output)"));
   EXPECT_EQ(slurp(suite / "single" / "mine.txt"), "mine\n");
   EXPECT_FALSE(fs::exists(suite / ".cellwright-output"));
+}
+
+// `twin compile --robot-language -o DIR` writes one file a robot: a directory of the user's own holding a file of
+// that name is refused before anything is written, --force writes into it and marks it, a new one is marked.
+TEST(OutputDirectoryCli, CompileRobotLanguageRefusesAUsersDirectoryHoldingAProgramsName) {
+  TwinCli cli("cw-outdir-compile");
+  const fs::path mine = cli.dir() / "mine";
+  fs::create_directories(mine);
+  std::ofstream(mine / "puma.val2") << "my own VAL II program\n";
+  const std::string compile = "compile " + shell_quote(source_path("scenes/exchange.task")) + " --scenario " +
+                              shell_quote(source_path("scenes/exchange.yaml")) +
+                              " --robot-language --driver puma=val2 --driver melfa=movemaster -o ";
+  const Outcome r = cli.run(compile + shell_quote(mine.string()));
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr(mine.string() + ": error: is not an output directory of Cellwright's (it has no "
+                                                ".cellwright-output) and holds 1 file this command would overwrite: "
+                                                "puma.val2"));
+  EXPECT_EQ(names_in(mine), std::vector<std::string>{"puma.val2"});
+  EXPECT_EQ(slurp(mine / "puma.val2"), "my own VAL II program\n");
+
+  const Outcome forced = cli.run(compile + shell_quote(mine.string()) + " --force");
+  EXPECT_EQ(forced.status, 0) << forced.out << forced.err;
+  EXPECT_EQ(names_in(mine), (std::vector<std::string>{".cellwright-output", "melfa.movemaster", "puma.val2"}));
+  EXPECT_THAT(slurp(mine / "puma.val2"), Not(HasSubstr("my own")));
+
+  const fs::path fresh = cli.dir() / "fresh";
+  const Outcome made = cli.run(compile + shell_quote(fresh.string()));
+  EXPECT_EQ(made.status, 0) << made.out << made.err;
+  EXPECT_EQ(names_in(fresh), (std::vector<std::string>{".cellwright-output", "melfa.movemaster", "puma.val2"}));
 }
 
 // A URDF element that MuJoCo's compiler refuses is named at its own line in the URDF, with the cell's robot entry.

@@ -2,7 +2,8 @@
 // programs per robot (or their JSON form, or the Petri net as Graphviz DOT), optionally writing the net as PNML.
 // `twin compile <program> --scenario SCENARIO --robot-language -o DIR [--driver ROBOT=movemaster|val2]...`: write
 // each robot's program in its controller's language (cell/plan/robot_programs.hpp), once the net passed the
-// preflight. Exit 0 on success, 2 on bad input (the message names file, line and column).
+// preflight, into a directory that is new, empty or Cellwright's (outputs.hpp; --force for one of the user's own).
+// Exit 0 on success, 2 on bad input (the message names file, line and column).
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -18,6 +19,7 @@
 #include "cellwright/petri/pnml.hpp"
 #include "cellwright/task/compile.hpp"
 #include "cellwright/task/to_net.hpp"
+#include "cellwright/cell/outputs.hpp"
 #include "cellwright/cell/robot_programs.hpp"
 #include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
@@ -50,6 +52,12 @@ int write_robot_programs(const Options& o) {
     return 2;
   }
   const cell::RobotPrograms programs = cell::generate_robot_programs(s, pre);
+  // A directory of the user's own is not written over unasked (outputs.hpp): checked with the programs' own names,
+  // before anything is written, then marked as Cellwright's.
+  std::vector<std::string> files;
+  for (const cell::RobotProgram& p : programs.robots) files.push_back(p.file_name);
+  cell::check_output_directory(o.out, files, o.force);
+  cell::make_output_directory(o.out);
   cell::write_robot_programs(programs, o.out);
   std::printf("net: %s\n", programs.check.c_str());
   if (simulator() == nullptr) std::printf("%s\n", pre.sweep_summary.c_str());  // nothing swept: say so
@@ -74,6 +82,7 @@ void add_compile(CLI::App& app, Command* run) {
     std::string scenario;
     bool robot_language = false;
     std::string out;
+    bool force = false;
     std::vector<std::string> drivers;
   };
   auto opts = std::make_shared<Options>();
@@ -88,6 +97,9 @@ void add_compile(CLI::App& app, Command* run) {
   sub->add_flag("--robot-language", opts->robot_language,
                 "write each robot's program in its controller's language (Movemaster EX, VAL II) into -o DIR");
   sub->add_option("-o,--output", opts->out, "directory for the robot programs (created if needed)");
+  sub->add_flag("--force", opts->force,
+                "write the robot programs into -o DIR even when it is a directory of your own that holds files of "
+                "the same names");
   // The old name, for scripts written before the options were made the same everywhere; not shown in --help.
   sub->add_option("--out", opts->out)->group("");
   sub->add_option("--driver", opts->drivers,
@@ -98,6 +110,7 @@ void add_compile(CLI::App& app, Command* run) {
   sub->get_option("--robot-language")->needs("--scenario");
   sub->get_option("--scenario")->needs("--robot-language");
   sub->get_option("--driver")->needs("--robot-language");
+  sub->get_option("--force")->needs("--robot-language");
   sub->callback([run, opts] {
     *run = [opts] {
       if (opts->robot_language) return write_robot_programs(*opts);

@@ -12,11 +12,12 @@ cd "$(dirname "$0")/.."
 mode=${1:-}
 case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exit 2 ;; esac
 
+# lld: the linker CMakeLists.txt picks when it is there (links in a quarter of GNU ld's time).
 # ccache: several build directories (CI's sanitizer legs and the build without the simulator, people working side by
 # side) compile the same files; CMake uses it when it is there.
 # libqhull-dev: MuJoCo's CMake config names /usr/include/libqhull_r, and CMake refuses to generate without it.
 packages=(
-  build-essential cmake ninja-build pkg-config git ccache
+  build-essential cmake ninja-build pkg-config git ccache lld
   libmujoco-dev libqhull-dev libeigen3-dev libopencv-dev libosmesa6-dev liburdfdom-dev libyaml-cpp-dev libtinyxml2-dev libpng-dev
   libgtest-dev libgmock-dev libbenchmark-dev libfmt-dev libcli11-dev nlohmann-json3-dev graphviz libglpk-dev
   libassimp-dev ffmpeg libavcodec-dev libavformat-dev libswscale-dev libavutil-dev

@@ -118,14 +118,14 @@ TEST(RealRobotsCli, ExchangeWithOneArmSwappedFinishes) {
 TEST(RealRobotsCli, AHardwareErrorMidRunIsResetAndRehomedAndTheRunGoesOn) {
   TwinCli cli("real-er1");
   const std::vector<std::string> robots = {"melfa=movemaster", "puma=val2"};
-  // The MELFA's controller reports a hardware error on its 200th line: while it waits for the PUMA's part, its
-  // read-backs go on; the error shows at the `ER` after its next command.
-  // In real time: the line the error comes on is counted in the lines a real-time run sends (at --speed 4 the run
-  // sends fewer, and the 200th comes after the MELFA's last command).
-  EmulatedExchange cell(cli.dir(), robots, {"--misbehave", "melfa:er1@200"}, "1");
+  // The MELFA's controller reports a hardware error on its 60th line: homed (its 3rd line), it waits for the PUMA's
+  // part while its read-backs go on; the error shows at the `ER` after its next command. At --speed 4 the MELFA's
+  // controller gets about 250 lines in all, the first command after the wait at about the 170th (the read-backs are
+  // paced on the wall clock, so a slower run has more of them): the 60th comes in the wait.
+  EmulatedExchange cell(cli.dir(), robots, {"--misbehave", "melfa:er1@60"});
   ASSERT_TRUE(cell.process->wait_for("Ctrl-C to stop", std::chrono::seconds(60))) << cell.process->output();
-  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --speed 1" + drivers(cli.dir(), robots) + " -o " +
-                         shell_quote((cli.dir() / "out").string()));
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --speed " + kSpeed +
+                         drivers(cli.dir(), robots) + " -o " + shell_quote((cli.dir() / "out").string()));
   const std::string events = cellwright::testing::slurp(cli.dir() / "out" / "events.jsonl");
   // Sensed as the driver's hardware fault, diagnosed by the decision tree, and recovered: the controller was reset
   // (RS), homed again (a second NT) and the interrupted command done again; the part still reached its place.

@@ -38,6 +38,7 @@ expect 0 "collisions not swept" -- "$twin" compile scenes/exchange.task --scenar
 expect 2 "give it one with --driver puma=movemaster:PORT" -- "$twin" run scenes/exchange.yaml
 expect 2 "needs the simulator" -- "$twin" snapshot scenes/cell.yaml -o "$scratch/cell.png"
 expect 2 "needs the simulator" -- "$twin" campaign scenes/exchange.yaml -o "$scratch/c"
+expect 2 "needs the simulator" -- "$twin" emulate --scenario scenes/exchange.yaml --robot "melfa=movemaster:$scratch/m"
 [[ ! -e $scratch/c && ! -e $scratch/cell.png ]] || fail "a refused command wrote something"
 
 # emulate NAME LANGUAGE: a controller of the build's own on the pseudo-terminal $scratch/NAME, its arm 4 times faster

@@ -176,6 +176,26 @@ TEST(ReportJson, SyntheticReportsComeBackAsWritten) {
   EXPECT_EQ(back.false_alarms[0].primitive, 3);
 }
 
+// A run of real robots without the twin says its parts' places are the controller's model's, in report.json
+// ("parts_from") and back; a report of the twin's truth has no such key (a simulated run's report.json is unchanged),
+// and any other value is refused.
+TEST(ReportJson, PartsFromTheControllersModelAreSaidSoAndComeBack) {
+  Scenario s;
+  Report r = full_report();
+  EXPECT_FALSE(to_json(s, r).contains("parts_from"));
+  EXPECT_FALSE(from_json(to_json(s, r), kFile).setup.parts_from_model);
+  r.setup.parts_from_model = true;
+  const json j = to_json(s, r);
+  EXPECT_EQ(j["parts_from"], "controller_model");
+  EXPECT_TRUE(from_json(j, kFile).setup.parts_from_model);
+  expect_round_trip(s, r);
+  EXPECT_THAT(format_summary(r), HasSubstr("parts: where the controller's model (no twin"));
+  EXPECT_THAT(format_summary(r), HasSubstr("(controller's model)"));
+  json bad = j;
+  bad["parts_from"] = "twin";
+  EXPECT_THAT(input_error([&] { from_json(bad, kFile); }), HasSubstr("\"parts_from\" must be \"controller_model\""));
+}
+
 // Runs a scenario as `twin run` does (lock-step, in this process), checks its report's round trip and returns it.
 Report run_and_round_trip(const Scenario& s) {
   const Preflight pre = preflight(s, &twin_port());

@@ -2,7 +2,7 @@
 // project's kinematics behind it; `twin emulate --scenario SCENARIO --robot ROBOT=LANGUAGE:LINK ...`: the controllers
 // of a cell, each driving the twin's MuJoCo arm (virtual commissioning). Runs until SIGINT or SIGTERM; exit 0 then,
 // 2 on bad input. docs/real-robots.md says what each emulator speaks and how it can be told to misbehave.
-#if CW_SIM
+// A twin built for real robots only (CW_SIM=OFF) has the first form (the emulators need no MuJoCo), not --scenario.
 #include <fmt/format.h>
 #include <signal.h>
 #include <unistd.h>
@@ -22,10 +22,14 @@
 #include "cellwright/emulate/movemaster_emulator.hpp"
 #include "cellwright/emulate/val2_emulator.hpp"
 #include "cellwright/models/kinematics.hpp"
-#include "cellwright/cell/sim/emulated_cell.hpp"
-#include "cellwright/cell/scenario.hpp"
 #include "commands.hpp"
 #include "until_signal.hpp"
+#if CW_SIM
+#include "cellwright/cell/scenario.hpp"
+#include "cellwright/cell/sim/emulated_cell.hpp"
+#else
+#include "simulator.hpp"
+#endif
 
 namespace cellwright::tools {
 
@@ -99,6 +103,9 @@ void add_emulate(CLI::App& app, Command* run) {
         std::fflush(stdout);
       };
       if (!args->scenario.empty()) {
+#if !CW_SIM
+        needs_simulator("twin emulate --scenario (the controllers on the twin's arms)");
+#else
         if (!args->language.empty() || !args->link.empty()) {
           throw InputError(cli,
                            "--scenario emulates the cell's controllers given by --robot; a language and --link "
@@ -145,6 +152,7 @@ void add_emulate(CLI::App& app, Command* run) {
                             p.held_by.empty() ? "" : fmt::format(", held by {}", p.held_by)));
         }
         return 0;
+#endif  // CW_SIM
       }
 
       if (cmd->count("--speed") > 0) {
@@ -192,17 +200,3 @@ void add_emulate(CLI::App& app, Command* run) {
 }
 
 }  // namespace cellwright::tools
-
-#else  // a twin for real robots only: the command needs the simulator
-
-#include "simulator.hpp"
-
-namespace cellwright::tools {
-
-void add_emulate(CLI::App& app, Command* run) {
-  add_unavailable(app, run, "emulate", "Emulate the cell's robot controllers on pseudo-terminals");
-}
-
-}  // namespace cellwright::tools
-
-#endif  // CW_SIM

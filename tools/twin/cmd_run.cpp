@@ -4,6 +4,8 @@
 // with `twin step`: run_args.hpp): run a scenario's task program on the simulated cell (or with some robots real,
 // mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and every expected outcome
 // holds, 1 when not, 2 on bad input or a predicted collision (refused before any thread starts, nothing written).
+// In a twin built for real robots only (CW_SIM=OFF), every robot of the program on a real driver, with no twin
+// (run_real.hpp); with the simulator, real robots are mirrored in the twin (docs/real-robots.md says why).
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -25,6 +27,7 @@
 #include "cellwright/petri/analysis.hpp"
 #include "commands.hpp"
 #include "run_args.hpp"
+#include "run_real.hpp"
 #include "simulator.hpp"
 #include "until_signal.hpp"
 #if CW_SIM
@@ -168,7 +171,8 @@ void add_run(CLI::App& app, Command* run) {
       }
 
 #if !CW_SIM
-      needs_simulator("twin run without --dry");
+      // A twin for real robots only: every robot of the program on its real driver, nothing simulated.
+      return run_real_cell(*cmd, a, s, pre, args->speed, args->quiet);
 #else
       block_stop_signals();  // a stop from now on ends the run safely (run_until_signal below), never mid-write
       auto progress = std::make_shared<Progress>(args->quiet);

@@ -363,6 +363,16 @@ std::size_t Report::unaccounted() const {
       std::count_if(workpieces.begin(), workpieces.end(), [](const WorkpieceReport& w) { return w.unaccounted; }));
 }
 
+std::vector<FinalPose> final_poses_of(const runtime::EnvironmentModel& model) {
+  std::vector<FinalPose> out;
+  for (const runtime::WorkpieceState& w : model.workpieces) out.push_back({w.name, w.pose, w.present, w.held_by});
+  return out;
+}
+
+std::string describe_parts_source(const RunSetup& setup) {
+  return setup.parts_from_model ? "the controller's model (no twin: nothing sensed where the parts are)" : "the twin";
+}
+
 RunSetup setup_of(const Scenario& s) {
   RunSetup setup;
   setup.perception = runtime::to_string(s.perception);
@@ -898,6 +908,7 @@ json to_json(const Scenario& s, const Report& r) {
   }
   j["drivers"] = std::move(drivers);
   j["requested_faults"] = r.setup.faults;
+  if (r.setup.parts_from_model) j["parts_from"] = "controller_model";
   j["result"] = r.ok() ? "ok" : "failed";
   j["failures"] = r.failures;
   j["outcome"] = r.outcome;
@@ -1037,11 +1048,14 @@ std::string format_summary(const Report& r) {
   out += fmt::format("perception {}; {}{}\n", r.setup.perception, describe_drivers(r.setup),
                      r.setup.faults.empty() ? std::string()
                                             : fmt::format("; faults asked for: {}", fmt::join(r.setup.faults, ", ")));
+  if (r.setup.parts_from_model) out += fmt::format("parts: where {} has them\n", describe_parts_source(r.setup));
   out += fmt::format("estimated cycle time {} s, measured {} s\n",
                      r.estimated_cycle_time ? fmt::format("{:.2f}", *r.estimated_cycle_time) : std::string("n/a"),
                      r.finished_at ? fmt::format("{:.2f}", *r.finished_at) : std::string("n/a"));
+  // Without the twin, nothing saw the parts: what is said of them is the controller's belief, and says so.
+  const std::string believed = r.setup.parts_from_model ? " (controller's model)" : "";
   if (r.parts_completed > 0) {
-    out += fmt::format("parts completed {}, throughput {} parts/min\n", r.parts_completed,
+    out += fmt::format("parts completed {}{}, throughput {} parts/min\n", r.parts_completed, believed,
                        r.throughput ? fmt::format("{:.2f}", *r.throughput) : std::string("n/a"));
   }
   if (r.steady_throughput) {
@@ -1056,8 +1070,8 @@ std::string format_summary(const Report& r) {
   for (const WorkpieceReport& w : r.workpieces) {
     if (!w.expected) continue;
     out +=
-        fmt::format("  {} {}: expected {}, is {}{}\n", *w.ok ? "ok  " : "FAIL", w.name, *w.expected, w.final_location,
-                    w.cycle_time ? fmt::format(" (cycle {:.2f} s)", *w.cycle_time) : std::string());
+        fmt::format("  {} {}: expected {}, is {}{}{}\n", *w.ok ? "ok  " : "FAIL", w.name, *w.expected, w.final_location,
+                    believed, w.cycle_time ? fmt::format(" (cycle {:.2f} s)", *w.cycle_time) : std::string());
   }
   // The account of the parts that are not simply in place, or that are unaccounted.
   for (const WorkpieceReport& w : r.workpieces) {
@@ -1074,7 +1088,7 @@ std::string format_summary(const Report& r) {
       line += fmt::format(" ({})", w.where);
     }
     if (w.unaccounted) line += ": UNACCOUNTED";
-    out += line + "\n";
+    out += line + believed + "\n";
   }
   out += fmt::format("collisions: {}\n", r.collisions.size());
   for (const auto& c : r.collisions) out += fmt::format("  t = {:.3f} s: {} - {} ({:.4f} m)\n", c.t, c.a, c.b, c.depth);

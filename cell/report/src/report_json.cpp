@@ -269,6 +269,12 @@ Report from_json(const json& j, const std::string& file) {
     r.setup.drivers.push_back({d.str("robot"), d.str("kind"), d.str("port"), d.boolean("emulated")});
   }
   r.setup.faults = f.strings("requested_faults");
+  // Written only by a run without the twin (report.hpp, RunSetup::parts_from_model); absent: the twin's truth.
+  if (j.contains("parts_from")) {
+    const std::string from = f.str("parts_from");
+    if (from != "controller_model") f.fail("parts_from", "must be \"controller_model\" when given", json(from));
+    r.setup.parts_from_model = true;
+  }
   r.failures = f.strings("failures");
   const std::string result = f.str("result");
   if (result != (r.ok() ? "ok" : "failed")) {

@@ -114,10 +114,12 @@ void header(std::string& out, const Scenario& s, const Report& r) {
   if (faults.empty()) faults = "none";
   out += fmt::format(
       "<p class=\"meta\">scenario <code>{}</code><br>program <code>{}</code> &middot; cell <code>{}</code>{} &middot; "
-      "seed {} &middot; perception {}<br>drivers: {}<br>faults asked for: {}</p>\n</header>\n",
+      "seed {} &middot; perception {}<br>drivers: {}<br>faults asked for: {}{}</p>\n</header>\n",
       esc(s.source.string()), esc(s.program_file.filename().string()), esc(s.cell_file.filename().string()),
       s.cell.name.empty() ? std::string() : fmt::format(" ({})", esc(s.cell.name)), s.seed, esc(r.setup.perception),
-      drivers, faults);
+      drivers, faults,
+      r.setup.parts_from_model ? "<br>parts: where " + esc(describe_parts_source(r.setup)) + " has them"
+                               : std::string());
 }
 
 void verdict(std::string& out, const Report& r) {

@@ -8,17 +8,15 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <map>
 #include <memory>
-#include <system_error>
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/render.hpp"
 #include "cellwright/cell/real_drivers.hpp"
+#include "cellwright/cell/run_wiring.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/fault_injector.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
@@ -108,15 +106,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     : scenario_(s),
       realtime_(options.realtime.value_or(s.options.realtime)),
       perception_(options.perception.value_or(s.perception)) {
-  if (uses_real_drivers(s) && !realtime_) {
-    for (const DriverChoice& d : s.drivers) {
-      if (!d.real()) continue;
-      throw InputError(d.where, fmt::format("robot '{}' is on the real {} driver, and lock-step is refused with a "
-                                            "real driver: a real arm moves on the wall clock and cannot wait for the "
-                                            "simulation's steps; run with --realtime",
-                                            d.robot, to_string(d.kind)));
-    }
-  }
+  refuse_lockstep_with_real_drivers(s, realtime_);
   for (const FaultSpec& f : s.faults) {
     if (needs_vision(f.kind) && perception_ != runtime::Perception::kVision) {
       throw InputError(f.where, fmt::format("a {} fault needs perception vision (the camera), and this run's "
@@ -127,14 +117,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   CellWorld cell = make_cell_world(s);
   world_ = std::move(cell.world);
 
-  runtime::RunConfig config;
-  config.program = s.program;
-  config.net = net;
-  config.cell = s.cell;
-  config.binding.where = {s.source.string(), 0, 0};
-  for (const Binding& b : s.robots) config.binding.robots[b.label] = {b.name, b.where};
-  for (const Binding& b : s.workpieces) config.binding.objects[b.label] = {b.name, b.where};
-  for (const Binding& b : s.locations) config.binding.objects[b.label] = {b.name, b.where};
+  runtime::RunConfig config = scenario_run_config(s, net);
 
   // A simulation driver for each robot the program uses, and the timing the estimate needs from it.
   EstimateOptions estimate_options;
@@ -238,13 +221,6 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
   config.plant = plant_.get();
   config.mode = realtime_ ? runtime::Mode::kRealtime : runtime::Mode::kLockstep;
   config.realtime_speed = options.speed;
-  config.period = seconds(s.options.control_period);
-  config.limits.sim_time = seconds(s.limits.sim_time);
-  config.limits.settle = seconds(s.options.settle_time);
-  config.limits.wall_time = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double>(s.limits.wall_time));
-  config.motion.targets.handover_clearance = s.options.handover_clearance;
-  config.motion.recovery = s.recovery;
   config.perception = perception_;
   if (perception_ == runtime::Perception::kVision) {
     // The scenario's camera (checked when it was loaded), else, when --perception asks for vision, the cell's first.
@@ -276,47 +252,20 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
     config.on_frame = std::move(options.on_frame);
   }
   // The event log first: it makes the output directory, where the video may go (-o DIR --video DIR/run.mp4).
-  // The directories this makes for it, innermost first: removed again (when empty) if the video is refused.
-  std::vector<std::filesystem::path> made;
-  std::filesystem::path made_marker;
   if (!options.events_file.empty()) {
-    events_file_ = std::move(options.events_file);
-    std::error_code ec;
-    for (std::filesystem::path d = events_file_.parent_path(); !d.empty() && !std::filesystem::exists(d, ec);
-         d = d.parent_path()) {
-      made.push_back(d);
-      if (d == d.parent_path()) break;
-    }
-    // The marker, when this run is what makes the directory Cellwright's: removed too if the video is refused.
-    if (events_file_.has_parent_path() && !std::filesystem::exists(events_file_.parent_path() / kMarkerFile, ec)) {
-      made_marker = events_file_.parent_path() / kMarkerFile;
-    }
-    if (events_file_.has_parent_path()) make_output_directory(events_file_.parent_path());
-    events_out_ = std::make_unique<std::ofstream>(events_file_, std::ios::binary | std::ios::trunc);
-    if (!*events_out_) {
-      throw InputError({events_file_.string()}, fmt::format("cannot write the event log: {}", std::strerror(errno)));
-    }
-    config.log_stream = events_out_.get();
+    streamed_ = std::make_unique<StreamedLog>(std::move(options.events_file));
+    config.log_stream = &streamed_->stream();
     config.keep_log = false;
   }
   if (options.on_progress) {
-    config.observers.push_back({options.progress_every, false, [progress = std::move(options.on_progress)](
-                                                                   const runtime::Observation& o) {
-                                  progress(o.time, o.firings);
-                                }});
+    config.observers.push_back(progress_observer(options.progress_every, std::move(options.on_progress)));
   }
   if (options.video) {
     video_file_ = options.video->path;
     try {
       video_ = std::make_unique<twin::VideoRecorder>(world_->scene().model(), std::move(*options.video));
     } catch (...) {  // refused before anything ran: leave nothing behind
-      if (events_out_) {
-        events_out_.reset();
-        std::error_code ec;
-        std::filesystem::remove(events_file_, ec);
-        if (!made_marker.empty()) std::filesystem::remove(made_marker, ec);
-        for (const std::filesystem::path& d : made) std::filesystem::remove(d, ec);  // each only if empty
-      }
+      if (streamed_) streamed_->remove();
       throw;
     }
     // The video watches the run: an observer of the runtime's, which knows nothing of videos.
@@ -357,31 +306,15 @@ std::vector<FinalPose> ScenarioRun::final_poses() const {
   return final_poses_of(*world_);
 }
 
-namespace {
-
-// Every line logged so far in the log's file, or an error naming it (a full disk).
-void flush_streamed_log(const runtime::EventLog& log, const std::filesystem::path& file) {
-  try {
-    log.flush();
-  } catch (const std::runtime_error& e) {
-    throw InputError({file.string()}, e.what());
-  }
-}
-
-}  // namespace
-
 Report ScenarioRun::report() const {
   // What this run used: the scenario's drivers and faults (the command line's already in it), its perception.
   RunSetup setup = setup_of(scenario_);
   setup.perception = runtime::to_string(perception_);
-  if (events_file_.empty()) {
+  if (!streamed_) {
     return make_report(scenario_, runtime::decode_log(runtime_->log().text(), kEventsFile), final_poses(),
                        estimate_.cycle_time, kEventsFile, std::move(setup));
   }
-  flush_streamed_log(runtime_->log(), events_file_);
-  std::ifstream in(events_file_, std::ios::binary);
-  if (!in) throw InputError({events_file_.string()}, "cannot read the event log back");
-  return make_report(scenario_, in, final_poses(), estimate_.cycle_time, events_file_.string(), std::move(setup));
+  return streamed_->report(runtime_->log(), scenario_, final_poses(), estimate_.cycle_time, std::move(setup));
 }
 
 void ScenarioRun::write_outputs(const std::filesystem::path& dir, const Report& report, const cv::Mat& final_image) {
@@ -390,16 +323,10 @@ void ScenarioRun::write_outputs(const std::filesystem::path& dir, const Report& 
     video = std::filesystem::absolute(video_file_).lexically_relative(std::filesystem::absolute(dir));
   }
   make_output_directory(dir);
-  if (events_file_.empty()) {
+  if (!streamed_) {
     write_file_atomically(dir / kEventsFile, runtime_->log().text());
   } else {
-    flush_streamed_log(runtime_->log(), events_file_);
-    std::error_code ec;
-    const std::filesystem::path target = dir / kEventsFile;
-    if (!std::filesystem::equivalent(events_file_, target, ec)) {
-      move_file(events_file_, target);
-      events_file_ = target;
-    }
+    streamed_->move_into(dir, runtime_->log());
   }
   write_report_outputs(dir, scenario_, report, final_image, video);
 }

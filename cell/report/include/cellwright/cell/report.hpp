@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "cellwright/models/cell.hpp"
+#include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/runtime/log_event.hpp"
 #include "cellwright/task/compiled.hpp"
 #include "cellwright/cell/scenario.hpp"
@@ -109,6 +110,10 @@ struct FinalPose {
   std::string held_by;                                     // cell robot holding it, "" if none
 };
 
+// The cell's workpieces as the controller's environment model has them (a run with no twin: real_run.hpp): where it
+// believes each part is, present or not, and which robot it believes holds it.
+std::vector<FinalPose> final_poses_of(const runtime::EnvironmentModel& model);
+
 // The named places a workpiece is at, most specific first: cell locations whose point its bottom centre is within
 // `tolerance` of; the conveyor whose belt it rests on (bottom within `tolerance` of the belt's top, centre over the
 // belt); the machine it rests on (its fixture or its top, likewise); "held by <robot>"; "floor" (bottom within
@@ -139,11 +144,21 @@ struct RunSetup {
   // robot is judged against the twin's `physical` events. false: no twin truth (every detection that no injection
   // explains is an unexplained fault).
   bool twin_truth = true;
+  // Where the parts' final places come from: false, the twin's truth (where they physically are in the simulation);
+  // true, the controller's environment model at the end (a run of real robots without the twin, real_run.hpp: where
+  // the controller believes them, after its own commands, nothing having seen them). The report, its page and its
+  // summary say which; report.json has "parts_from": "controller_model" for the latter (and no such key for the twin's
+  // truth, so that a simulated run's report.json is unchanged).
+  bool parts_from_model = false;
 };
 
 // The setup of a run of `scenario` as its file and bindings say: its perception, each program robot's driver (a
 // real driver's port a pseudo-terminal: emulated), its faults, with a twin.
 RunSetup setup_of(const Scenario& scenario);
+
+// What the page and the summary say of where the parts' places come from: "the twin" or "the controller's model (no
+// twin: nothing sensed where the parts are)".
+std::string describe_parts_source(const RunSetup& setup);
 
 // One driver for a person: "puma simulated", "melfa real movemaster on /dev/ttyUSB0", "melfa emulated movemaster on
 // /tmp/melfa".

@@ -44,6 +44,7 @@
 #include "cellwright/cell/outputs.hpp"
 #include "cellwright/cell/report.hpp"
 #include "cellwright/cell/scenario.hpp"
+#include "cellwright/cell/streamed_log.hpp"
 #include "cellwright/twin/sim/mirrored_driver.hpp"
 #include "cellwright/twin/sim/world.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
@@ -127,7 +128,7 @@ class ScenarioRun {
   Report report() const;
 
   // Where the event log is streamed (RunOptions::events_file; it moves when write_outputs moves it), or empty.
-  const std::filesystem::path& events_file() const { return events_file_; }
+  const std::filesystem::path& events_file() const { return streamed_ ? streamed_->file() : no_file_; }
 
   // write_outputs() below with this run's events: the log's text, or the streamed file moved into `dir` as
   // events.jsonl (copied when `dir` is on another file system); with a video, index.html shows it (by its path
@@ -146,8 +147,8 @@ class ScenarioRun {
 
  private:
   const Scenario& scenario_;
-  std::filesystem::path events_file_;          // the streamed log's file, or empty
-  std::unique_ptr<std::ofstream> events_out_;  // open on events_file_ while the runtime lives
+  std::unique_ptr<StreamedLog> streamed_;  // the event log's file (RunOptions::events_file), or none
+  const std::filesystem::path no_file_;     // events_file() without one
   bool realtime_ = false;
   runtime::Perception perception_ = runtime::Perception::kTruth;
   std::unique_ptr<sim::World> world_;

@@ -1,0 +1,32 @@
+// The wiring every run of a scenario shares, whatever moves the robots: the simulated rig (cell/sim's ScenarioRun,
+// the twin as the plant) and a cell of real robots with no twin (real_run.hpp). Each takes the scenario as loaded and
+// checked (scenario.hpp) and preflight's net of its program; the rig then adds its drivers, plant (or none), sensors
+// and perception to the runtime's configuration this makes.
+//
+// Thread safety: pure functions of their arguments; any thread may call them.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+
+#include "cellwright/petri/net.hpp"
+#include "cellwright/runtime/runtime.hpp"
+#include "cellwright/cell/scenario.hpp"
+
+namespace cellwright::cell {
+
+// The runtime's configuration of a run of `scenario`: its program, `net`, the cell as written (the controller does
+// not know a perturbation), the program's bindings, the control period, the limits (sim time, settle, wall time) and
+// the motion options (hand-over clearance, the decision tree). No drivers, plant, sensors, mode or perception yet.
+runtime::RunConfig scenario_run_config(const Scenario& scenario, const petri::Net& net);
+
+// Refuses a lock-step run (`realtime` false) of a scenario with a robot on a real driver: a real arm moves on the
+// wall clock and cannot wait for the simulation's steps. Throws InputError naming the driver's place.
+void refuse_lockstep_with_real_drivers(const Scenario& scenario, bool realtime);
+
+// The observer (runtime.hpp's RunObserver) that calls `progress` with the time and the firings so far every `every`
+// of simulation time, on the simulation thread: `twin run`'s progress line.
+runtime::RunObserver progress_observer(runtime::SimDuration every,
+                                       std::function<void(runtime::SimDuration, std::uint64_t)> progress);
+
+}  // namespace cellwright::cell

@@ -1,0 +1,91 @@
+// A run of a cell of real robots with no twin (real_run.hpp).
+#include "cellwright/cell/real_run.hpp"
+
+#include <fmt/format.h>
+
+#include <utility>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/cell/real_drivers.hpp"
+#include "cellwright/cell/run_wiring.hpp"
+
+namespace cellwright::cell {
+
+std::string describe_sensing(const RealRobot& r) {
+  return fmt::format("{}, no wrist force sensor",
+                     r.senses_grip ? "grip sensed by its driver" : "no grip sensor (a close is taken as done)");
+}
+
+RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions options) {
+  // Every check before anything is connected.
+  for (const Binding& b : s.robots) {
+    const auto d = std::find_if(s.drivers.begin(), s.drivers.end(),
+                                [&](const DriverChoice& c) { return c.robot == b.name && c.real(); });
+    if (d == s.drivers.end()) {
+      throw InputError(b.where, fmt::format("robot '{}' ({} in the program) has no real driver, and a run without the "
+                                            "twin moves real robots only: give it one with --driver {}=movemaster:PORT "
+                                            "or --driver {}=val2:PORT",
+                                            b.name, b.label, b.name, b.name));
+    }
+  }
+  for (const FaultSpec& f : s.faults) {
+    throw InputError(f.where, fmt::format("a {} fault is injected by the twin, and a run of real robots without the "
+                                          "twin injects nothing: leave the scenario's faults and --fault out",
+                                          to_string(f.kind)));
+  }
+  if (options.perception && *options.perception != runtime::Perception::kCad) {
+    throw InputError({"--perception", 0, 0},
+                     fmt::format("perception {} is the twin's, and a run of real robots without the twin has only "
+                                 "the cell description (cad)",
+                                 runtime::to_string(*options.perception)));
+  }
+  if (!options.perception && s.perception == runtime::Perception::kVision) {
+    throw InputError({s.source.string(), 0, 0},
+                     "the scenario's perception is vision, whose frames the twin renders, and a run of real robots "
+                     "without the twin has no camera: run it with --perception cad");
+  }
+
+  runtime::RunConfig config = scenario_run_config(s, net);
+  for (const Binding& b : s.robots) {
+    const DriverChoice& choice = *std::find_if(s.drivers.begin(), s.drivers.end(),
+                                               [&](const DriverChoice& c) { return c.robot == b.name && c.real(); });
+    drivers_.push_back(make_real_driver(choice, *s.cell.find_robot(b.name)));
+    drivers::SerialDriver& driver = *drivers_.back();
+    connect_real_driver(driver, choice);
+    config.drivers[b.name] = &driver;
+    if (runtime::GripSensor* grip = runtime::grip_sensor_for(driver, nullptr, grip_sensors_)) {
+      config.sensors.grip[b.name] = grip;
+    }
+    robots_.push_back({b.label, b.name,
+                       fmt::format("{} on {}", to_string(choice.kind), choice.serial ? choice.serial->port : ""),
+                       driver.capabilities().senses_grip});
+  }
+  config.plant = nullptr;  // nothing simulated: the robots move by themselves
+  config.mode = runtime::Mode::kRealtime;
+  config.realtime_speed = options.speed;
+  config.perception = runtime::Perception::kCad;
+  if (options.log_stream != nullptr) {
+    config.log_stream = options.log_stream;
+    config.keep_log = false;
+  }
+  if (options.on_progress) {
+    config.observers.push_back(progress_observer(options.progress_every, std::move(options.on_progress)));
+  }
+  runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
+}
+
+RealRun::~RealRun() {
+  runtime_.reset();  // joins the threads before the drivers and sensors they use go
+}
+
+const runtime::RunResult& RealRun::run() {
+  result_ = runtime_->run();
+  return *result_;
+}
+
+const runtime::EnvironmentModel& RealRun::model() const {
+  CW_CHECK(result_.has_value(), "the model of a real run is read after run()");
+  return result_->environment;
+}
+
+}  // namespace cellwright::cell

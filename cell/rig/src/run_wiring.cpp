@@ -1,0 +1,58 @@
+// The wiring every run of a scenario shares (run_wiring.hpp).
+#include "cellwright/cell/run_wiring.hpp"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <utility>
+
+#include "cellwright/common/error.hpp"
+
+namespace cellwright::cell {
+
+namespace {
+
+runtime::SimDuration seconds(double s) {
+  return std::chrono::duration_cast<runtime::SimDuration>(std::chrono::duration<double>(s));
+}
+
+}  // namespace
+
+runtime::RunConfig scenario_run_config(const Scenario& s, const petri::Net& net) {
+  runtime::RunConfig config;
+  config.program = s.program;
+  config.net = net;
+  config.cell = s.cell;
+  config.binding.where = {s.source.string(), 0, 0};
+  for (const Binding& b : s.robots) config.binding.robots[b.label] = {b.name, b.where};
+  for (const Binding& b : s.workpieces) config.binding.objects[b.label] = {b.name, b.where};
+  for (const Binding& b : s.locations) config.binding.objects[b.label] = {b.name, b.where};
+  config.period = seconds(s.options.control_period);
+  config.limits.sim_time = seconds(s.limits.sim_time);
+  config.limits.settle = seconds(s.options.settle_time);
+  config.limits.wall_time = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(s.limits.wall_time));
+  config.motion.targets.handover_clearance = s.options.handover_clearance;
+  config.motion.recovery = s.recovery;
+  return config;
+}
+
+void refuse_lockstep_with_real_drivers(const Scenario& s, bool realtime) {
+  if (!uses_real_drivers(s) || realtime) return;
+  for (const DriverChoice& d : s.drivers) {
+    if (!d.real()) continue;
+    throw InputError(d.where, fmt::format("robot '{}' is on the real {} driver, and lock-step is refused with a "
+                                          "real driver: a real arm moves on the wall clock and cannot wait for the "
+                                          "simulation's steps; run with --realtime",
+                                          d.robot, to_string(d.kind)));
+  }
+}
+
+runtime::RunObserver progress_observer(runtime::SimDuration every,
+                                       std::function<void(runtime::SimDuration, std::uint64_t)> progress) {
+  return {every, false, [progress = std::move(progress)](const runtime::Observation& o) {
+            progress(o.time, o.firings);
+          }};
+}
+
+}  // namespace cellwright::cell

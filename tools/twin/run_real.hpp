@@ -1,0 +1,24 @@
+// `twin run` of a cell of real robots with no twin (a `twin` built with CW_SIM=OFF, docs/real-robots.md): every robot
+// of the program on its real driver (--driver ROBOT=movemaster|val2:PORT), in real time, nothing simulated
+// (cell/rig's RealRun). Writes what a simulated run writes with -o DIR but the final picture: events.jsonl,
+// report.json, gantt.png and index.html, the parts where the controller's model has them, said so. Ctrl-C or SIGTERM
+// stops the cell safely and writes the outputs so far.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/scenario.hpp"
+#include "run_args.hpp"
+
+namespace cellwright::tools {
+
+// Runs scenario `s` (preflight's `pre` accepted) on its real robots. `cmd` is `twin run`'s command, whose options
+// that need the twin (--video, --save-frames, --final-png) are refused when given. `speed`: --speed (simulation
+// seconds per wall-clock second). Returns the exit code: 0 when the run finished and every expectation holds (as
+// far as the controller's model can tell), 1 when not (a run stopped with Ctrl-C included). Throws InputError
+// (nothing run, nothing left behind) as RealRun, or for a refused option.
+int run_real_cell(const CLI::App& cmd, const RunArgs& args, const cell::Scenario& s, const cell::Preflight& pre,
+                  double speed, bool quiet);
+
+}  // namespace cellwright::tools

@@ -48,6 +48,11 @@ EstimateOptions uniform(double joint_speed, double min_move_time) {
   return o;
 }
 
+// The estimate of `s`'s program from its motion plan (the targets' defaults), as the preflight would plan it.
+Estimate estimate_of(const Scenario& s, const petri::Net& net, const EstimateOptions& o) {
+  return estimate_cycle_time(s, net, plan_motions(s, net, {}), o);
+}
+
 const CommandEstimate& find(const Estimate& e, const std::string& robot, std::size_t primitive) {
   for (const auto& c : e.commands) {
     if (c.robot == robot && c.primitive == primitive) return c;
@@ -63,7 +68,7 @@ class ExchangeEstimate : public ::testing::Test {
 };
 
 TEST_F(ExchangeEstimate, CommandDurationsFollowTheirKinds) {
-  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
+  const Estimate e = estimate_of(s_, net_, uniform(2.0, 0.2));
   EXPECT_TRUE(e.notes.empty()) << e.notes.front();
   ASSERT_EQ(e.commands.size(), 14u + 16u);
   for (const CommandEstimate& c : e.commands) {
@@ -88,7 +93,7 @@ TEST_F(ExchangeEstimate, CommandDurationsFollowTheirKinds) {
 }
 
 TEST_F(ExchangeEstimate, GripsTakeTheFingerTravelTheyReallyMake) {
-  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
+  const Estimate e = estimate_of(s_, net_, uniform(2.0, 0.2));
   // r1's first open: the fingers are already open (homing opened them): the shortest finger motion.
   EXPECT_DOUBLE_EQ(find(e, "r1", 0).motion, sim::kFingerMinTime + sim::kFingerRestWindow);
   // Closing on A (40 mm across the fingers): done when the ramp has run the squeeze past the faces, well before
@@ -104,8 +109,8 @@ TEST_F(ExchangeEstimate, GripsTakeTheFingerTravelTheyReallyMake) {
 TEST_F(ExchangeEstimate, FasterJointsMakeMovesProportionallyShorter) {
   // Without a minimum time a joint move's motion is distance / speed: twice the speed, half the time; grips do not
   // change.
-  const Estimate slow = estimate_cycle_time(s_, net_, uniform(1.0, 0.0));
-  const Estimate fast = estimate_cycle_time(s_, net_, uniform(2.0, 0.0));
+  const Estimate slow = estimate_of(s_, net_, uniform(1.0, 0.0));
+  const Estimate fast = estimate_of(s_, net_, uniform(2.0, 0.0));
   ASSERT_EQ(slow.commands.size(), fast.commands.size());
   for (std::size_t i = 0; i < slow.commands.size(); ++i) {
     if (slow.commands[i].command.starts_with("move")) {
@@ -118,7 +123,7 @@ TEST_F(ExchangeEstimate, FasterJointsMakeMovesProportionallyShorter) {
 }
 
 TEST_F(ExchangeEstimate, PuttingThePartOnTheBeltWaitsForItToReachTheStop) {
-  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
+  const Estimate e = estimate_of(s_, net_, uniform(2.0, 0.2));
   // A starts on the input belt and rides it to the stop bar at the belt's speed.
   const models::ConveyorSpec& input = *s_.cell.find_conveyor("input");
   const models::WorkpieceSpec& a = *s_.cell.find_workpiece("A");
@@ -144,7 +149,7 @@ TEST_F(ExchangeEstimate, PuttingThePartOnTheBeltWaitsForItToReachTheStop) {
 }
 
 TEST_F(ExchangeEstimate, CycleIsTheTimedNetsFinishWithTheseDurations) {
-  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
+  const Estimate e = estimate_of(s_, net_, uniform(2.0, 0.2));
   const TimedRun again = simulate_timed(e.timed_net, e.place_duration);
   EXPECT_DOUBLE_EQ(again.finish, e.cycle_time);
   // The critical path after the pick: r2 cannot start its approach before r1's step 1 ends, and places last. The
@@ -163,7 +168,7 @@ TEST_F(ExchangeEstimate, CycleIsTheTimedNetsFinishWithTheseDurations) {
 TEST_F(ExchangeEstimate, RobotWithoutTimingIsABug) {
   EstimateOptions o = uniform(2.0, 0.2);
   o.robots.erase("melfa");
-  EXPECT_THROW(estimate_cycle_time(s_, net_, o), InternalError);
+  EXPECT_THROW(estimate_of(s_, net_, o), InternalError);
 }
 
 // ---- A shift: ten parts of a class from three bodies, each fed again once it has left the cell ---------------------
@@ -222,7 +227,7 @@ TEST_F(ShiftEstimate, TheFeedBringsThePartsAndTheOutputBeltTakesThemOut) {
 }
 
 TEST_F(ShiftEstimate, APartComesAtItsFeedTimeOrWhenABodyIsBackWhicheverIsLater) {
-  const Estimate e = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
+  const Estimate e = estimate_of(s_, net_, uniform(2.0, 0.2));
   const MotionPlan plan = plan_motions(s_, net_, {});
   ASSERT_TRUE(e.run.finished);
   const std::vector<double> feeds = fired(e, {"feed.feed"});
@@ -255,17 +260,17 @@ TEST_F(ShiftEstimate, APartComesAtItsFeedTimeOrWhenABodyIsBackWhicheverIsLater) 
 }
 
 TEST_F(ShiftEstimate, AFourthBodyShortensTheShiftAndTooFewPartsNeverEndIt) {
-  const Estimate three = estimate_cycle_time(s_, net_, uniform(2.0, 0.2));
+  const Estimate three = estimate_of(s_, net_, uniform(2.0, 0.2));
   Scenario four = s_;
   four.feed->workpieces.push_back("D");
-  const Estimate more = estimate_cycle_time(four, net_, uniform(2.0, 0.2));
+  const Estimate more = estimate_of(four, net_, uniform(2.0, 0.2));
   ASSERT_TRUE(three.run.finished);
   ASSERT_TRUE(more.run.finished);
   EXPECT_LT(more.cycle_time, three.cycle_time - 4.0);
   // The program takes ten parts: a feed of nine leaves the last Pick waiting for ever.
   Scenario short_feed = s_;
   short_feed.feed->count = 9;
-  EXPECT_FALSE(estimate_cycle_time(short_feed, net_, uniform(2.0, 0.2)).run.finished);
+  EXPECT_FALSE(estimate_of(short_feed, net_, uniform(2.0, 0.2)).run.finished);
 }
 
 // ---- The estimate against the twin -------------------------------------------------------------------------------
@@ -319,7 +324,7 @@ TEST_P(ShippedScenario, EstimateIsWithinFivePercentOfTheMeasuredCycle) {
   const Scenario s = load_scenario(kScenes + "/" + GetParam());
   const Preflight pre = preflight(s, &twin_port());
   ASSERT_TRUE(pre.ok()) << pre.problems.front();
-  ScenarioRun run(s, pre.net);
+  ScenarioRun run(s, pre);
   const Estimate& e = run.estimate();
   EXPECT_TRUE(e.run.finished);
   EXPECT_TRUE(e.notes.empty()) << e.notes.front();

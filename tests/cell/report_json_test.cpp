@@ -200,7 +200,7 @@ TEST(ReportJson, PartsFromTheControllersModelAreSaidSoAndComeBack) {
 Report run_and_round_trip(const Scenario& s) {
   const Preflight pre = preflight(s, &twin_port());
   EXPECT_TRUE(pre.ok()) << pre.problems.front();
-  ScenarioRun run(s, pre.net);
+  ScenarioRun run(s, pre);
   run.runtime().run();
   const Report r = run.report();
   expect_round_trip(s, r);

@@ -90,7 +90,7 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
   {
     Scenario sim = s;
     for (const char* d : {"puma=sim", "melfa=sim"}) set_language(sim, d, {"test", 0, 0});
-    cell::ScenarioRun run(sim, pre.net);
+    cell::ScenarioRun run(sim, pre);
     run.runtime().run();
     const cell::Report report = run.report();
     ASSERT_TRUE(report.ok()) << cell::format_summary(report);

@@ -183,9 +183,8 @@ TEST_F(RobotProgramsTest, PosesReadBackToThePlan) {
   set_language(s, "melfa=movemaster", {"test", 0, 0});
   const cell::Preflight pre = cell::preflight(s, &twin_port());
   const RobotPrograms p = generate_robot_programs(s, pre);
-  runtime::TargetOptions targets;
-  targets.handover_clearance = s.options.handover_clearance;
-  const cell::MotionPlan plan = cell::plan_motions(s, pre.net, targets);
+  ASSERT_TRUE(pre.plan.has_value());
+  const cell::MotionPlan& plan = *pre.plan;  // the preflight's plan, which the programs follow
 
   for (std::size_t r = 0; r < 2; ++r) {
     const RobotProgram& rp = p.robots[r];

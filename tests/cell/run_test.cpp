@@ -38,13 +38,13 @@ TEST_F(StreamedLog, HasTheBytesAndTheReportOfTheLogKeptInMemory) {
   const Preflight pre = preflight(s, &twin_port());
   ASSERT_TRUE(pre.ok()) << pre.problems.front();
 
-  ScenarioRun kept(s, pre.net);
+  ScenarioRun kept(s, pre);
   ASSERT_EQ(kept.runtime().run().outcome, runtime::Outcome::kFinished);
   const Report kept_report = kept.report();
 
   RunOptions options;
   options.events_file = dir_ / "events.jsonl.part";
-  ScenarioRun streamed(s, pre.net, options);
+  ScenarioRun streamed(s, pre, options);
   EXPECT_FALSE(streamed.runtime().log().keeps_lines());
   ASSERT_EQ(streamed.runtime().run().outcome, runtime::Outcome::kFinished);
   EXPECT_EQ(streamed.runtime().log().size(), kept.runtime().log().size());
@@ -71,14 +71,14 @@ TEST_F(StreamedLog, AFileThatCannotBeWrittenIsRefusedBeforeAnythingRuns) {
   write_file_atomically(dir_ / "blocker", "a file, not a directory");
   options.events_file = dir_ / "blocker" / "events.jsonl";
   try {
-    ScenarioRun run(s, pre.net, options);
+    ScenarioRun run(s, pre, options);
     FAIL() << "a log file that cannot be written was accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("blocker"), std::string::npos) << e.what();
   }
   // A missing directory is made.
   options.events_file = dir_ / "new" / "dir" / "events.jsonl";
-  ScenarioRun made(s, pre.net, options);
+  ScenarioRun made(s, pre, options);
   EXPECT_TRUE(fs::is_regular_file(dir_ / "new" / "dir" / "events.jsonl"));
 }
 

@@ -247,7 +247,7 @@ void picks_and_places(const fs::path& dir, const fs::path& cell, const Vendor& v
   const cell::Scenario s = cell::load_scenario((dir / "move.yaml").string());
   const cell::Preflight pre = cell::preflight(s, &cell::twin_port());
   ASSERT_TRUE(pre.ok()) << pre.problems.front();
-  cell::ScenarioRun run(s, pre.net);
+  cell::ScenarioRun run(s, pre);
   run.runtime().run();
   const cell::Report report = run.report();
   EXPECT_TRUE(report.ok()) << fmt::format("{}", fmt::join(report.failures, "\n"));

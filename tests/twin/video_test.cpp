@@ -187,7 +187,7 @@ TEST_F(Video, ARunRecordsEveryFrameAndKeepsItsEventLog) {
   const Preflight pre = preflight(s, &twin_port());
   ASSERT_TRUE(pre.ok()) << pre.problems.front();
 
-  ScenarioRun plain(s, pre.net);
+  ScenarioRun plain(s, pre);
   ASSERT_EQ(plain.runtime().run().outcome, runtime::Outcome::kFinished);
 
   RunOptions options;
@@ -198,7 +198,7 @@ TEST_F(Video, ARunRecordsEveryFrameAndKeepsItsEventLog) {
   video.height = 240;
   video.hold = 1.0;
   options.video = video;
-  ScenarioRun recorded(s, pre.net, options);
+  ScenarioRun recorded(s, pre, options);
   ASSERT_TRUE(fs::exists(video.path)) << "the file is opened before the run";
   const runtime::RunResult result = recorded.runtime().run();
   ASSERT_EQ(result.outcome, runtime::Outcome::kFinished);
@@ -269,7 +269,7 @@ TEST_F(Video, AFileThatCannotBeWrittenIsRefusedBeforeTheRun) {
   video.path = dir_ / "no" / "such" / "dir" / "run.mp4";
   options.video = video;
   try {
-    ScenarioRun run(s, pre.net, options);
+    ScenarioRun run(s, pre, options);
     FAIL() << "a video that cannot be written was accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(video.path.string()), std::string::npos) << e.what();

@@ -36,7 +36,7 @@ void estimate(benchmark::State& state, Scenario s) {
   const EstimateOptions options = timing(s);
   Estimate e;
   for (auto _ : state) {
-    e = estimate_cycle_time(s, net, options);
+    e = estimate_cycle_time(s, net, plan_motions(s, net, {}), options);  // the plan included, as a preflight makes it
     benchmark::ClobberMemory();  // (DoNotOptimize on a double may clobber it with this library and GCC)
   }
   if (!e.run.finished) state.SkipWithError("the estimate's timed run did not finish");

@@ -42,7 +42,7 @@ void run_scenario(benchmark::State& state, const std::string& name, const std::s
   for (auto _ : state) {
     RunOptions options;
     options.realtime = false;
-    ScenarioRun run(s, pre.net, options);
+    ScenarioRun run(s, pre, options);
     const auto start = std::chrono::steady_clock::now();
     const auto result = run.runtime().run();
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

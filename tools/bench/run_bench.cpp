@@ -91,7 +91,7 @@ Figures run_once(const std::string& file, double raw_seconds) {
   if (!pre.ok()) throw InputError({file, 0, 0}, "refused: " + pre.problems.front());
   RunOptions options;
   options.realtime = false;
-  ScenarioRun run(s, pre.net, options);
+  ScenarioRun run(s, pre, options);
   const mjModel* m = run.world().scene().model();
 
   Figures f;

@@ -181,7 +181,7 @@ void BM_ScenarioLockstep(benchmark::State& state, const std::string& file) {
   }
   static std::map<std::string, std::string> first_log;  // per scenario, the first variant's
   for (auto _ : state) {
-    ScenarioRun run(s, pre.net, RunOptions{});
+    ScenarioRun run(s, pre, RunOptions{});
     choose(run.runtime(), state.range(0));
     const auto start = Clock::now();
     const double cpu_start = process_cpu_seconds();

@@ -165,7 +165,7 @@ void add_run(CLI::App& app, Command* run) {
                            "a dry run is for real drivers, and every robot of the program is "
                            "simulated: give one with --driver ROBOT=movemaster:PORT or val2:PORT");
         }
-        const DryRunReport dry = dry_run(s, pre.net);
+        const DryRunReport dry = dry_run(s, pre);
         std::printf("%s", format_dry_run(dry).c_str());
         return dry.ok() ? 0 : 1;
       }
@@ -192,7 +192,7 @@ void add_run(CLI::App& app, Command* run) {
         scratch.emplace("cellwright-events-", ".jsonl");
         options.events_file = scratch->path();
       }
-      ScenarioRun sr(s, pre.net, options);
+      ScenarioRun sr(s, pre, options);
 
       if (!args->quiet) {
         std::string robots;

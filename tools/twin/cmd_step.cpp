@@ -154,7 +154,7 @@ void add_step(CLI::App& app, Command* run) {
       const std::filesystem::path marker = out.empty() ? std::filesystem::path() : std::filesystem::path(out) / kMarkerFile;
       const bool marker_was_there = !marker.empty() && std::filesystem::exists(marker);
       block_stop_signals();  // before any thread starts (a video's encoder): each inherits the mask
-      ScenarioRun sr(s, pre.net, options);
+      ScenarioRun sr(s, pre, options);
       // Ctrl-C or SIGTERM: a step or `c` under way stops at the next period (the cell stopped safely), and the prompt
       // takes it as `q`.
       const StopWatcher watcher([&sr] { sr.runtime().request_stop("stopped by the user (signal)"); });

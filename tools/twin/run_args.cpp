@@ -163,7 +163,7 @@ cell::Report run_for_video(const RunArgs& args) {
   const Scenario s = load_scenario_with(args);
   const Preflight pre = preflight(s, &twin_port());
   if (!pre.ok(args.allow_collisions)) throw InputError({args.scenario, 0, 0}, "preflight refuses the scenario");
-  ScenarioRun sr(s, pre.net, run_options_for(args, s));
+  ScenarioRun sr(s, pre, run_options_for(args, s));
   sr.runtime().run();
   const Report report = sr.report();
   if (!args.output.empty()) sr.write_outputs(args.output, report, sr.snapshot(800, 600));

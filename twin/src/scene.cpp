@@ -1100,7 +1100,7 @@ Scene build_scene(const models::CellDescription& cell, const SceneOptions& optio
   Scene s;
   s.cell_ = cell;
   Mjcf built = build_mjcf(cell, options);
-  s.model_.reset(compile_mjcf(built, cell));
+  s.model_ = std::shared_ptr<const mjModel>(compile_mjcf(built, cell), mj_deleteModel);
   s.mjcf_ = std::move(built.text);
   s.data_.reset(mj_makeData(s.model_.get()));
   CW_CHECK(s.data_ != nullptr, "mj_makeData failed");
@@ -1180,6 +1180,22 @@ Scene build_scene(const models::CellDescription& cell, const SceneOptions& optio
     ids.size = options.obstacles[i];
     s.obstacles_.push_back(ids);
   }
+  s.reset();
+  return s;
+}
+
+Scene Scene::share() const {
+  Scene s;
+  s.cell_ = cell_;
+  s.mjcf_ = mjcf_;
+  s.model_ = model_;
+  s.data_.reset(mj_makeData(model_.get()));
+  CW_CHECK(s.data_ != nullptr, "mj_makeData failed");
+  s.robots_ = robots_;
+  s.conveyors_ = conveyors_;
+  s.machines_ = machines_;
+  s.workpieces_ = workpieces_;
+  s.obstacles_ = obstacles_;
   s.reset();
   return s;
 }

@@ -278,7 +278,7 @@ CampaignOptions plan_campaign(const std::filesystem::path& scenario, const std::
     for (const std::string& p : pre.problems) why += "\n  " + p;
     throw InputError({s.source.string(), 0, 0}, fmt::format("the scenario is refused, nothing was run:{}", why));
   }
-  const double cycle_time = twin.estimate(s, pre.net).cycle_time;
+  const double cycle_time = twin.estimate(s, pre).cycle_time;  // the preflight's plan on the cell it compiled: no run
   CampaignOptions o;
   o.targets = campaign_targets(s, cycle_time);
   o.kinds = check_kinds(kinds, o.targets, {"--faults", 0, 0});

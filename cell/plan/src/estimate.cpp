@@ -440,7 +440,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   return plan;
 }
 
-Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const EstimateOptions& options) {
+Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const MotionPlan& plan,
+                             const EstimateOptions& options) {
   Estimate est;
   const task::CompiledProgram& prog = s.program;
   std::vector<const RobotTiming*> timing;
@@ -450,7 +451,13 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Est
     CW_CHECK(it != options.robots.end(), "no timing for robot {}", cell_name);
     timing.push_back(&it->second);
   }
-  MotionPlan plan = plan_motions(s, net, options.targets);
+  CW_CHECK(plan.commands.size() == prog.robots.size(), "a motion plan of {} robots for a program of {}",
+           plan.commands.size(), prog.robots.size());
+  for (std::size_t r = 0; r < prog.robots.size(); ++r) {
+    CW_CHECK(plan.commands[r].size() == prog.programs[r].primitives.size(),
+             "robot {}: a motion plan of {} commands for {} primitives", prog.robots[r], plan.commands[r].size(),
+             prog.programs[r].primitives.size());
+  }
   est.notes = plan.problems();
 
   const double period = options.control_period, step = options.physics_step;
@@ -532,8 +539,9 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Est
     }
   }
   // A part seen at rest is taken in the round after it came to rest.
-  for (ArrivalGate& g : plan.gates) g.ready = std::ceil(g.ready / period - 1e-9) * period;
-  est.timed_net = with_arrivals(net, plan.gates, durations);
+  std::vector<ArrivalGate> gates = plan.gates;
+  for (ArrivalGate& g : gates) g.ready = std::ceil(g.ready / period - 1e-9) * period;
+  est.timed_net = with_arrivals(net, gates, durations);
   if (!plan.feed_takes.empty()) est.timed_net = with_feed(est.timed_net, *s.feed, plan, delivered, period, durations);
   est.place_duration = durations;
   task::LoopControl loops(est.timed_net, prog);

@@ -248,12 +248,13 @@ Preflight preflight(const Scenario& s, const CollisionSweep* collisions) {
   if (out.problems.empty()) {
     runtime::TargetOptions targets;
     targets.handover_clearance = s.options.handover_clearance;
-    const MotionPlan plan = plan_motions(s, out.net, targets);
-    for (std::string& p : plan.problems()) out.problems.push_back(std::move(p));
+    out.plan = plan_motions(s, out.net, targets);
+    for (std::string& p : out.plan->problems()) out.problems.push_back(std::move(p));
     if (out.problems.empty() && collisions == nullptr) {
       out.sweep_summary = "collisions not swept: this twin was built without the simulator (CW_SIM=OFF)";
     } else if (out.problems.empty()) {
-      const SweepReport sweep = collisions->sweep(s, out.net, plan);
+      out.twin = collisions->compile(s);
+      const SweepReport sweep = collisions->sweep(*out.twin, s, out.net, *out.plan);
       for (const PredictedCollision& c : sweep.collisions) {
         out.collisions.push_back(c.text());
         out.problems.push_back("predicted collision: " + out.collisions.back());

@@ -295,9 +295,8 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
     }
   }
 
-  runtime::TargetOptions targets;
-  targets.handover_clearance = s.options.handover_clearance;
-  const cell::MotionPlan plan = cell::plan_motions(s, pre.net, targets);
+  CW_CHECK(pre.plan.has_value(), "a preflight that passed without a motion plan");
+  const cell::MotionPlan& plan = *pre.plan;  // the preflight's: planned once
 
   // A part that comes later on a conveyor (fed, or riding to the stop): the first move to it waits for the
   // conveyor's part-present sensor, as robot control waits until it sees the part there. Named parts have their

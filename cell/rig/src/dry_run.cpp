@@ -12,6 +12,7 @@
 #include "cellwright/models/kinematics.hpp"
 #include "cellwright/models/robot_model.hpp"
 #include "cellwright/cell/estimate.hpp"
+#include "cellwright/common/error.hpp"
 #include "cellwright/cell/real_drivers.hpp"
 
 namespace cellwright::cell {
@@ -70,11 +71,10 @@ bool DryRunReport::ok() const {
   return true;
 }
 
-DryRunReport dry_run(const Scenario& s, const petri::Net& net, const DryRunOptions& options) {
+DryRunReport dry_run(const Scenario& s, const Preflight& pre, const DryRunOptions& options) {
   DryRunReport report;
-  runtime::TargetOptions targets;
-  targets.handover_clearance = s.options.handover_clearance;
-  const MotionPlan plan = plan_motions(s, net, targets);
+  CW_CHECK(pre.plan.has_value(), "a dry run of a program the preflight did not plan");
+  const MotionPlan& plan = *pre.plan;
   for (std::size_t i = 0; i < s.robots.size(); ++i) {
     const Binding& b = s.robots[i];
     DryRobot r;

@@ -17,12 +17,14 @@
 #include "cellwright/twin/render.hpp"
 #include "cellwright/cell/real_drivers.hpp"
 #include "cellwright/cell/run_wiring.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/fault_injector.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
 #include "cellwright/vision/camera_model.hpp"
 #include "cellwright/vision/cell_detector.hpp"
 #include "cellwright/vision/detector.hpp"
+#include "cellwright/models/robot_model.hpp"
 
 namespace cellwright::cell {
 
@@ -72,10 +74,7 @@ drivers::FaultPlan driver_plan(const Scenario& s, const std::string& robot) {
 
 }  // namespace
 
-CellWorld make_cell_world(const Scenario& s) {
-  sim::WorldOptions world_options;
-  world_options.where = {s.source.string(), 0, 0};
-  if (s.feed) world_options.parked = s.feed->workpieces;
+twin::Scene compile_cell(const Scenario& s) {
   // The world as it really is: perturbed parts stand elsewhere than the cell description says.
   const std::map<std::string, Eigen::Isometry3d> offsets =
       s.perturb ? draw_perturbation(*s.perturb, s.seed) : std::map<std::string, Eigen::Isometry3d>{};
@@ -87,9 +86,17 @@ CellWorld make_cell_world(const Scenario& s) {
     w.pose.xyz = moved.translation();
     w.pose.rpy.z() += std::atan2(it->second.linear()(1, 0), it->second.linear()(0, 0));
   }
+  return twin::build_scene(real, sim::FaultInjector::scene_options(s.faults));
+}
+
+CellWorld make_cell_world(const Scenario& s, const twin::Scene* compiled) {
+  sim::WorldOptions world_options;
+  world_options.where = {s.source.string(), 0, 0};
+  if (s.feed) world_options.parked = s.feed->workpieces;
+  const std::map<std::string, Eigen::Isometry3d> offsets =
+      s.perturb ? draw_perturbation(*s.perturb, s.seed) : std::map<std::string, Eigen::Isometry3d>{};
   CellWorld out;
-  out.world =
-      std::make_unique<sim::World>(twin::build_scene(real, sim::FaultInjector::scene_options(s.faults)), world_options);
+  out.world = std::make_unique<sim::World>(compiled != nullptr ? compiled->share() : compile_cell(s), world_options);
   if (s.feed) {
     for (std::size_t i = 0; i < s.feed->count; ++i) {
       const auto it = offsets.find(s.feed->workpiece_at(i));
@@ -102,7 +109,39 @@ CellWorld make_cell_world(const Scenario& s) {
 }
 
 
-ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions options)
+sim::SimDriverOptions sim_driver_options(const Scenario& s, const std::string& robot) {
+  sim::SimDriverOptions o;
+  for (const DriverChoice& d : s.drivers) {
+    if (d.robot == robot) o.where = d.where;
+  }
+  return o;
+}
+
+EstimateOptions twin_estimate_options(const Scenario& s, const twin::Scene& scene, double motion_speed) {
+  EstimateOptions out;
+  out.control_period = s.options.control_period;
+  out.physics_step = s.cell.timestep;
+  for (const Binding& b : s.robots) {
+    const sim::SimDriverOptions driver = sim_driver_options(s, b.name);
+    const twin::RobotIds* ids = scene.find_robot(b.name);
+    CW_CHECK(ids != nullptr, "robot {} is not in the scene", b.name);
+    const models::RobotSpec& spec = scene.cell().robots.at(static_cast<std::size_t>(ids - scene.robots().data()));
+    RobotTiming timing;
+    timing.max_joint_speed = sim::sim_joint_speeds(spec, models::robot_chain(spec), driver);
+    timing.speed = motion_speed;
+    timing.min_move_time = driver.min_move_time;
+    timing.finger_speed = driver.finger_speed;
+    timing.finger_closed = ids->finger_range[0];
+    timing.finger_open = ids->finger_range[1];
+    // The fingers' servo stiffness (N/m) in the scene: the grip force is reached this far behind the ramp.
+    const double finger_stiffness = scene.model()->actuator_gainprm[ids->finger_actuator[0] * mjNGAIN];
+    timing.finger_squeeze = spec.grip_force / finger_stiffness;
+    out.robots[b.name] = timing;
+  }
+  return out;
+}
+
+ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions options)
     : scenario_(s),
       realtime_(options.realtime.value_or(s.options.realtime)),
       perception_(options.perception.value_or(s.perception)) {
@@ -114,23 +153,16 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
                                             to_string(f.kind), runtime::to_string(perception_)));
     }
   }
-  CellWorld cell = make_cell_world(s);
+  CW_CHECK(pre.plan.has_value(), "a run of a program the preflight did not plan");
+  CellWorld cell = make_cell_world(s, pre.twin != nullptr ? &pre.twin->scene : nullptr);
   world_ = std::move(cell.world);
 
-  runtime::RunConfig config = scenario_run_config(s, net);
+  runtime::RunConfig config = scenario_run_config(s, pre.net);
 
-  // A simulation driver for each robot the program uses, and the timing the estimate needs from it.
-  EstimateOptions estimate_options;
-  estimate_options.targets.handover_clearance = s.options.handover_clearance;
-  estimate_options.control_period = s.options.control_period;
-  estimate_options.physics_step = s.cell.timestep;
+  // A simulation driver for each robot the program uses.
   std::vector<std::string> mirrored;  // the real robots: their grip sensed on the real side where it can tell
   for (const Binding& b : s.robots) {
-    sim::SimDriverOptions driver_options;
-    for (const DriverChoice& d : s.drivers) {
-      if (d.robot == b.name) driver_options.where = d.where;
-    }
-    sim::SimDriver& driver = world_->add_sim_driver(b.name, driver_options);
+    sim::SimDriver& driver = world_->add_sim_driver(b.name, sim_driver_options(s, b.name));
     config.drivers[b.name] = &driver;
     const DriverChoice* choice = nullptr;
     for (const DriverChoice& d : s.drivers) {
@@ -160,18 +192,6 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
       faulty_.push_back(std::make_unique<drivers::FaultyDriver>(driver, std::move(plan)));
       config.drivers[b.name] = faulty_.back().get();
     }
-    RobotTiming timing;
-    timing.max_joint_speed = driver.capabilities().max_joint_speed;
-    timing.speed = config.motion.speed;
-    timing.min_move_time = driver_options.min_move_time;
-    timing.finger_speed = driver_options.finger_speed;
-    const twin::RobotIds& ids = *world_->scene().find_robot(b.name);
-    timing.finger_closed = ids.finger_range[0];
-    timing.finger_open = ids.finger_range[1];
-    // The fingers' servo stiffness (N/m) in the scene: the grip force is reached this far behind the ramp.
-    const double finger_stiffness = world_->scene().model()->actuator_gainprm[ids.finger_actuator[0] * mjNGAIN];
-    timing.finger_squeeze = driver.capabilities().gripper_max_force / finger_stiffness;
-    estimate_options.robots[b.name] = timing;
   }
 
   auto plant = std::make_unique<sim::WorldPlant>(*world_, std::move(cell.feed), s.faults, s.seed);
@@ -216,7 +236,8 @@ ScenarioRun::ScenarioRun(const Scenario& s, const petri::Net& net, RunOptions op
       return false;
     };
   }
-  estimate_ = estimate_cycle_time(s, net, estimate_options);
+  // The preflight's plan, timed as the drivers above will take it.
+  estimate_ = estimate_cycle_time(s, pre.net, *pre.plan, twin_estimate_options(s, world_->scene(), config.motion.speed));
 
   config.plant = plant_.get();
   config.mode = realtime_ ? runtime::Mode::kRealtime : runtime::Mode::kLockstep;

@@ -228,10 +228,14 @@ struct MarkingHash {
 
 SweepReport sweep_motions(const Scenario& s, const petri::Net& net, const MotionPlan& plan,
                           const SweepOptions& options) {
+  return sweep_motions(build_scene(s.cell), s, net, plan, options);
+}
+
+SweepReport sweep_motions(const Scene& scene, const Scenario& s, const petri::Net& net, const MotionPlan& plan,
+                          const SweepOptions& options) {
   CW_CHECK(options.resolution > 0 && options.depth >= 0, "sweep resolution {} m, depth {} m", options.resolution,
            options.depth);
   SweepReport report;
-  const Scene scene = build_scene(s.cell);
   // Robots that overlap at the start: one error, rather than a collision for every command that starts there.
   if (const auto at_start = twin::start_overlaps(scene, options.depth); !at_start.empty()) {
     throw twin::start_overlap_error(at_start);
@@ -544,14 +548,21 @@ SweepReport sweep_motions(const Scenario& s, const petri::Net& net, const Motion
   return report;
 }
 
-SweepReport SimulatedTwin::sweep(const Scenario& scenario, const petri::Net& net, const MotionPlan& plan,
-                                 const SweepOptions& options) const {
-  return sweep_motions(scenario, net, plan, options);
+std::shared_ptr<const TwinModel> SimulatedTwin::compile(const Scenario& scenario) const {
+  return std::make_shared<const TwinModel>(TwinModel{compile_cell(scenario)});
 }
 
-Estimate SimulatedTwin::estimate(const Scenario& scenario, const petri::Net& net) const {
-  const ScenarioRun run(scenario, net);  // builds the world, its drivers and the estimate; starts no thread
-  return run.estimate();
+SweepReport SimulatedTwin::sweep(const TwinModel& model, const Scenario& scenario, const petri::Net& net,
+                                 const MotionPlan& plan, const SweepOptions& options) const {
+  return sweep_motions(model.scene, scenario, net, plan, options);
+}
+
+Estimate SimulatedTwin::estimate(const Scenario& scenario, const Preflight& preflight) const {
+  CW_CHECK(preflight.plan.has_value(), "an estimate of a program the preflight did not plan");
+  const std::shared_ptr<const TwinModel> model = preflight.twin != nullptr ? preflight.twin : compile(scenario);
+  // The speed of a run's moves: ScenarioRun leaves the runtime's default.
+  return estimate_cycle_time(scenario, preflight.net, *preflight.plan,
+                             twin_estimate_options(scenario, model->scene, runtime::MotionOptions{}.speed));
 }
 
 const TwinPort& twin_port() {

@@ -41,6 +41,36 @@ std::string joint_list(const std::vector<std::string>& names, const Eigen::Vecto
 
 }  // namespace
 
+std::vector<double> sim_joint_speeds(const models::RobotSpec& spec, const models::KinematicChain& chain,
+                                     const SimDriverOptions& options) {
+  const std::size_t n = chain.dof();
+  std::vector<double> speeds = options.max_joint_speed;
+  if (speeds.empty()) {
+    // The URDF's <limit velocity>, read with the chain by the one URDF loader (models/urdf.hpp).
+    for (const models::JointLimit& limit : chain.limits()) speeds.push_back(limit.velocity);
+    for (std::size_t j = 0; j < n; ++j) {
+      if (!(speeds[j] > 0.0)) {
+        throw InputError({spec.urdf.string(), 0, 0},
+                         fmt::format("robot '{}': joint '{}' has no velocity limit; the simulated controller needs "
+                                     "one (or max_joint_speed in its options)",
+                                     spec.name, chain.joint_names()[j]));
+      }
+    }
+  }
+  const auto fail = [&](const std::string& problem) {
+    return InputError(options.where, fmt::format("simulated robot '{}': {}", spec.name, problem));
+  };
+  if (speeds.size() != n) {
+    throw fail(fmt::format("max_joint_speed has {} values for {} joints", speeds.size(), n));
+  }
+  for (std::size_t j = 0; j < n; ++j) {
+    if (!std::isfinite(speeds[j]) || speeds[j] <= 0.0) {
+      throw fail(fmt::format("max_joint_speed of joint {} is {}; it must be > 0", j + 1, speeds[j]));
+    }
+  }
+  return speeds;
+}
+
 SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals, SimDriverOptions options)
     : ids_(scene.robots().at(robot)),
       signals_(signals),
@@ -57,27 +87,7 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
     CW_CHECK(ids_.joints[j] == name_ + "/" + chain_.joint_names()[j], "robot {}: scene joint {} is {}, kinematics {}",
              name_, j, ids_.joints[j], chain_.joint_names()[j]);
   }
-  std::vector<double> speeds = options_.max_joint_speed;
-  if (speeds.empty()) {
-    // The URDF's <limit velocity>, read with the chain by the one URDF loader (models/urdf.hpp).
-    for (const models::JointLimit& limit : chain_.limits()) speeds.push_back(limit.velocity);
-    for (std::size_t j = 0; j < n; ++j) {
-      if (!(speeds[j] > 0.0)) {
-        throw InputError({spec.urdf.string(), 0, 0},
-                         fmt::format("robot '{}': joint '{}' has no velocity limit; the simulated controller needs "
-                                     "one (or max_joint_speed in its options)",
-                                     name_, chain_.joint_names()[j]));
-      }
-    }
-  }
-  if (speeds.size() != n) {
-    throw fail(fmt::format("max_joint_speed has {} values for {} joints", speeds.size(), n));
-  }
-  for (std::size_t j = 0; j < n; ++j) {
-    if (!std::isfinite(speeds[j]) || speeds[j] <= 0.0) {
-      throw fail(fmt::format("max_joint_speed of joint {} is {}; it must be > 0", j + 1, speeds[j]));
-    }
-  }
+  const std::vector<double> speeds = sim_joint_speeds(spec, chain_, options_);
   const auto positive = [&](const char* what, double v) {
     if (!std::isfinite(v) || v <= 0.0) throw fail(fmt::format("{} is {}; it must be > 0", what, v));
   };

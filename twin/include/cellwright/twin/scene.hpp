@@ -17,8 +17,12 @@
 //  - each machine as a static body "machine/<name>" with its fixture plate; each workpiece as a free body
 //    "workpiece/<name>"; cameras and lights as described; sites "location/<name>" and "handover/<name>" (hidden).
 //
-// Threads: a Scene and its mjData belong to one thread at a time (MuJoCo's mjData is not thread-safe). The
-// functions here install no MuJoCo error or warning handlers: that is the application's choice.
+// Fixed model and changing state: the compiled mjModel is never changed once built, and Scenes made with share() use
+// the one model (compiled once) each with its own mjData.
+//
+// Threads: a Scene and its mjData belong to one thread at a time (MuJoCo's mjData is not thread-safe); Scenes that
+// share a model may be used by different threads. The functions here install no MuJoCo error or warning handlers:
+// that is the application's choice.
 #pragma once
 
 #include <mujoco/mujoco.h>
@@ -87,6 +91,9 @@ class Scene {
   ~Scene();
 
   const mjModel* model() const { return model_.get(); }
+  // Another Scene of this compiled model (shared, not compiled again) with its own mjData, in the initial state
+  // (reset()).
+  Scene share() const;
   mjData* data() { return data_.get(); }
   const mjData* data() const { return data_.get(); }
   const models::CellDescription& cell() const { return cell_; }
@@ -121,16 +128,13 @@ class Scene {
   void write_mjcf(const std::string& mjcf, const std::filesystem::path& path);
   Scene() = default;
 
-  struct ModelDeleter {
-    void operator()(mjModel* m) const { mj_deleteModel(m); }
-  };
   struct DataDeleter {
     void operator()(mjData* d) const { mj_deleteData(d); }
   };
 
   models::CellDescription cell_;
   std::string mjcf_;
-  std::unique_ptr<mjModel, ModelDeleter> model_;
+  std::shared_ptr<const mjModel> model_;  // shared by the Scenes share() makes
   std::unique_ptr<mjData, DataDeleter> data_;
   std::vector<RobotIds> robots_;
   std::vector<ConveyorIds> conveyors_;

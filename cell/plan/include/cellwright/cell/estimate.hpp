@@ -2,7 +2,7 @@
 // simulated at earliest firing times (timed_net.hpp), all robots concurrent, waits resolved at the times of their
 // signals. It predicts a lock-step run on the twin; docs/scenarios.md compares it with measured runs.
 //
-// First the motion plan (plan_motions), which follows the program in the order one untimed run of the net gives: each
+// First the motion plan (plan_motions, computed once by the preflight and passed on), which follows the program in the order one untimed run of the net gives: each
 // move's target is resolved as robot control resolves it (runtime::resolve_target on an environment model that
 // follows the program: parts held move with the hand and keep the approach they were grasped with, parts put down
 // rest where they were put, parts on a conveyor are picked at its stop, a hand that has just let go of a part departs
@@ -116,6 +116,9 @@ struct MotionPlan {
 // delivered. Moves whose
 // target cannot be resolved or has no inverse-kinematics solution within the joint limits are reported in
 // PlannedCommand::problem (the robot then stays where it was). Throws InputError if a URDF cannot be read.
+// The one function that computes the plan: the preflight calls it once per scenario (targets: the scenario's
+// handover_clearance) and keeps it (Preflight::plan); the sweep, the estimate, the robot programs, the dry run and
+// the run take it from there.
 MotionPlan plan_motions(const Scenario& scenario, const petri::Net& net, const runtime::TargetOptions& targets);
 
 // How fast one robot's controller executes commands (the simulated controller's settings).
@@ -133,7 +136,6 @@ struct EstimateOptions {
   std::map<std::string, RobotTiming> robots;  // by cell robot name; every program robot needs one
   double control_period = 0.01;               // s: the lock-step round (scenario options.control_period)
   double physics_step = 0.002;                // s: the simulation's timestep (the cell's timestep)
-  runtime::TargetOptions targets;
 };
 
 // One primitive's estimated duration and what it is based on.
@@ -160,8 +162,9 @@ struct Estimate {
 };
 
 // Estimates the cycle time of the scenario's program, whose net is `net` (task::to_net of the program), from its
-// motion plan. Throws InternalError when a program robot has no timing in `options` (or one of the wrong size), or a
-// period or step is not > 0; InputError if a URDF cannot be read.
+// motion plan `plan` (plan_motions of that net: the preflight's, Preflight::plan; nothing is planned here). Throws
+// InternalError when a program robot has no timing in `options` (or one of the wrong size), the plan is not of this
+// program (its robots or primitives), or a period or step is not > 0.
 //
 // The feed's net, for a program with feed takes (each place's duration in brackets; p = the control period):
 //  - feed.first [start] --feed.begin--> feed.slot [0] + feed.clock [period], feed.clock --feed.tick--> feed.clock +
@@ -171,6 +174,7 @@ struct Estimate {
 //    stop, taken by every feed take (an input arc of its transition);
 //  - in a shift, per delivery d: its open's transition --> feed.leaving.d [from the open's start to the end of the
 //    period in which the part, let go of, has ridden to the exit point] --feed.delivered.d--> feed.free.
-Estimate estimate_cycle_time(const Scenario& scenario, const petri::Net& net, const EstimateOptions& options);
+Estimate estimate_cycle_time(const Scenario& scenario, const petri::Net& net, const MotionPlan& plan,
+                             const EstimateOptions& options);
 
 }  // namespace cellwright::cell

@@ -5,8 +5,8 @@
 // the controllers' digital I/O (`twin compile PROGRAM --scenario SCENARIO --robot-language -o DIR`).
 // docs/real-robots.md, "Robot programs", says what is written and which choices are assumed.
 //
-// Coordinates: every move's target is resolved nominally from the cell description, as the estimator plans the
-// program (cell::plan_motions: parts wait at their conveyor's stop, held parts move with the hand), and its tool
+// Coordinates: every move's target is the preflight's motion plan's (cell::plan_motions, resolved nominally from the
+// cell description: parts wait at their conveyor's stop, held parts move with the hand), and its tool
 // pose in the robot's base frame is written in the language's convention: Movemaster x,y,z,p,r (mm, degrees, the
 // 5-axis rule), VAL II TRANS(x,y,z,o,a,t) (mm, degrees, O/A/T as the doc defines them). The conversions here are
 // written from the doc, apart from the drivers' and the emulators', so that the emulators check them.
@@ -85,7 +85,8 @@ inline constexpr int kMovemasterChannels = 16;
 // `where` and the text when the spec is malformed or names no robot of the cell.
 void set_language(cell::Scenario& scenario, const std::string& spec, const SourceLocation& where);
 
-// Writes every program robot's program. `preflight` is cell::preflight(scenario). Throws InputError, naming the
+// Writes every program robot's program, its moves from the preflight's motion plan (Preflight::plan). `preflight` is
+// cell::preflight(scenario). Throws InputError, naming the
 // file and line that cause it, when:
 //  - the preflight failed (the net is not deadlock-free, bounded and exclusive, or a move cannot be made): the
 //    message lists its problems;

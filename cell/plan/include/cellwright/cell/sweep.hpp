@@ -44,6 +44,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -94,15 +95,26 @@ struct SweepReport {
   bool ok() const { return collisions.empty(); }
 };
 
-// The port: sweeps the plan of `scenario`'s program (`net` is its task::to_net, `plan` its plan_motions) as the top
-// says. Throws InputError only when the cell's geometry cannot be read (a URDF), or when robots overlap at the start
-// (at home: one error naming the bodies and the depth, at the cell file's robot entry, rather than a collision for
-// every command that starts there; the twin's: twin/scene.hpp start_overlaps).
+// The simulator's compiled model of one scenario's cell (its MuJoCo scene, defined by cell/sim/sweep.hpp): made once
+// by the port, the sweep runs on it, and the preflight carries it (Preflight::twin) to the estimate and the run, so
+// that a run compiles its cell once. The plan stage only carries it: the type is complete in cell/sim alone.
+struct TwinModel;
+
+// The port.
 class CollisionSweep {
  public:
   virtual ~CollisionSweep() = default;
-  virtual SweepReport sweep(const Scenario& scenario, const petri::Net& net, const MotionPlan& plan,
-                            const SweepOptions& options = {}) const = 0;
+  // Compiles `scenario`'s cell as its runs will have it (its parts where the scenario's perturbation puts them, the
+  // obstacles its faults may put in the cell; neither changes what the sweep finds: it parks the parts it does not
+  // carry and ignores the obstacles). Throws InputError when the cell's geometry cannot be read (a URDF) or the
+  // simulator rejects it.
+  virtual std::shared_ptr<const TwinModel> compile(const Scenario& scenario) const = 0;
+  // Sweeps the plan of `scenario`'s program (`net` is its task::to_net, `plan` its plan_motions) on `model` (compile()
+  // of the scenario) as the top says. Throws InputError only when robots overlap at the start (at home: one error
+  // naming the bodies and the depth, at the cell file's robot entry, rather than a collision for every command that
+  // starts there; the twin's: twin/scene.hpp start_overlaps).
+  virtual SweepReport sweep(const TwinModel& model, const Scenario& scenario, const petri::Net& net,
+                            const MotionPlan& plan, const SweepOptions& options = {}) const = 0;
 };
 
 }  // namespace cellwright::cell

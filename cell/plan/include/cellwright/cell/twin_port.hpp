@@ -7,17 +7,19 @@
 #pragma once
 
 #include "cellwright/cell/estimate.hpp"
+#include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/scenario.hpp"
 #include "cellwright/cell/sweep.hpp"
-#include "cellwright/petri/net.hpp"
 
 namespace cellwright::cell {
 
 class TwinPort : public CollisionSweep {
  public:
-  // The estimate of `scenario`'s cycle time (estimate.hpp) with the timing of the twin's robots, grippers and belts.
-  // `net` is preflight's net of the scenario's program. Throws InputError if the simulator rejects the cell.
-  virtual Estimate estimate(const Scenario& scenario, const petri::Net& net) const = 0;
+  // The estimate of `scenario`'s cycle time (estimate.hpp) with the timing of the twin's robots, grippers and belts,
+  // from preflight's net and motion plan (`preflight` is preflight(scenario, this), which planned: InternalError if
+  // it has no plan) on its compiled cell (Preflight::twin; compiled here when it has none). Builds no run. Throws
+  // InputError if the simulator rejects the cell.
+  virtual Estimate estimate(const Scenario& scenario, const Preflight& preflight) const = 0;
 };
 
 }  // namespace cellwright::cell

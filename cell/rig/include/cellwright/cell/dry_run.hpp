@@ -3,7 +3,8 @@
 // program without moving anything else.
 //
 // The targets are the program's moves as the runtime would make them, planned on the cell description (the
-// estimator's motion plan, plan_motions: parts at their stops, held parts moving with the hand). Each is checked:
+// preflight's motion plan, Preflight::plan from plan_motions: parts at their stops, held parts moving with the
+// hand). Each is checked:
 //  - against the project's kinematics of the robot (a joint configuration within the limits reaches it), and
 //  - against what the controller can be told: the Movemaster's x,y,z,p,r must express it (the 5-axis rule, with the
 //    driver's yaw tolerance); VAL II locations express every pose.
@@ -19,7 +20,7 @@
 #include <vector>
 
 #include "cellwright/drivers/robot_driver.hpp"
-#include "cellwright/petri/net.hpp"
+#include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/scenario.hpp"
 
 namespace cellwright::cell {
@@ -51,9 +52,9 @@ struct DryRunOptions {
   std::chrono::nanoseconds read_timeout = std::chrono::seconds(5);
 };
 
-// Runs the dry run. `net` is preflight's net of the program. Throws InputError when a real driver cannot be made or
+// Runs the dry run. `preflight` is preflight(scenario, ...), passed (its plan is what is checked). Throws InputError when a real driver cannot be made or
 // connected (the port does not exist, the controller does not answer), naming the driver's place and the problem.
-DryRunReport dry_run(const Scenario& scenario, const petri::Net& net, const DryRunOptions& options = {});
+DryRunReport dry_run(const Scenario& scenario, const Preflight& preflight, const DryRunOptions& options = {});
 
 // The report as text: per robot, what was done and each target with its verdict.
 std::string format_dry_run(const DryRunReport& report);

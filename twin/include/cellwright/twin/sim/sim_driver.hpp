@@ -94,6 +94,12 @@ struct SimDriverOptions {
   models::IkOptions ik;                 // how hard the inverse kinematics tries
 };
 
+// The joint speeds (rad/s per arm joint at speed 1) a SimDriver of robot `spec` (kinematics `chain`) with `options`
+// moves at, its capabilities().max_joint_speed: options.max_joint_speed, else the URDF's velocity limits. Throws
+// InputError as the SimDriver's constructor does for them (a joint without a limit, a wrong length, a value <= 0).
+std::vector<double> sim_joint_speeds(const models::RobotSpec& spec, const models::KinematicChain& chain,
+                                     const SimDriverOptions& options);
+
 // How the last completed Grip ended.
 // A pad touch sensor reading above this (newtons) counts as contact.
 inline constexpr double kTouchThreshold = 0.05;

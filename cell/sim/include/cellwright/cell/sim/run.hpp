@@ -1,7 +1,9 @@
 // One run of a scenario on the simulated cell: everything `twin run`, `twin step` and the pipeline benchmark share.
-// It builds the MuJoCo scene and World (with the scenario's perturbation of where parts really are), the simulation
-// drivers, the plant (with the scenario's workpiece feed), the detector when the perception is vision, the cycle-time
-// estimate and the Runtime (given the cell description as written: the controller does not know the perturbation);
+// It builds the World (with the scenario's perturbation of where parts really are) on the cell the preflight's sweep
+// compiled (Preflight::twin: the MuJoCo model is compiled once per run; compiled here only when the preflight swept
+// nothing), the simulation drivers, the plant (with the scenario's workpiece feed), the detector when the perception
+// is vision, the cycle-time estimate from the preflight's motion plan (Preflight::plan: planned once per run) and the
+// Runtime (given the cell description as written: the controller does not know the perturbation);
 // after the run it turns the result into the report and writes the outputs.
 // The scenario's faults (docs/faults.md) are put in place here: the physical ones and the camera's by the plant
 // (sim::FaultInjector; the scene gets the obstacle bodies), the detection noise by a sim::NoisyDetector around the
@@ -15,7 +17,7 @@
 // Order of use (main thread):
 //    Scenario s = load_scenario(file);            // InputError: bad input
 //    Preflight p = preflight(s, &twin_port());   // !p.ok(): refuse, nothing built (preflight.hpp)
-//    ScenarioRun run(s, p.net, options);          // builds, starts no thread
+//    ScenarioRun run(s, p, options);              // builds, starts no thread
 //    RunResult r = run.runtime().run();           // or runtime().step() ...
 //    Report rep = run.report();
 //    run.write_outputs(dir, rep, run.snapshot(800, 600));
@@ -42,6 +44,7 @@
 #include "cellwright/runtime/runtime.hpp"
 #include "cellwright/cell/estimate.hpp"
 #include "cellwright/cell/outputs.hpp"
+#include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/report.hpp"
 #include "cellwright/cell/scenario.hpp"
 #include "cellwright/cell/streamed_log.hpp"
@@ -83,13 +86,31 @@ struct RunOptions {
   std::optional<twin::VideoOptions> video;
 };
 
+// The scenario's cell as it really is, compiled: its parts where the scenario's perturbation puts them (drawn with its
+// seed), with the obstacle bodies its faults need (sim::FaultInjector::scene_options). Throws InputError if MuJoCo
+// rejects the cell.
+twin::Scene compile_cell(const Scenario& scenario);
+
 // The scenario's cell as it really is: the World (perturbed parts moved by the scenario's seed, fed parts parked) and
-// the feed events that bring the parked parts in. Throws InputError if MuJoCo rejects the cell.
+// the feed events that bring the parked parts in. The World runs on `compiled` (compile_cell of the scenario, its
+// model shared: Scene::share()), or on the cell compiled here when it is null. Throws InputError if MuJoCo rejects
+// the cell.
 struct CellWorld {
   std::unique_ptr<sim::World> world;
   std::vector<sim::FeedEvent> feed;
 };
-CellWorld make_cell_world(const Scenario& scenario);
+CellWorld make_cell_world(const Scenario& scenario, const twin::Scene* compiled = nullptr);
+
+// The options of the simulation driver a run gives robot `robot` (a cell robot of the program).
+sim::SimDriverOptions sim_driver_options(const Scenario& scenario, const std::string& robot);
+
+// The estimate's options (estimate.hpp) for `scenario` run on the twin whose compiled cell is `scene`: per program
+// robot the timing of the simulation driver a run gives it (sim_driver_options: its joint speeds, sim_joint_speeds;
+// its minimum move time and finger speed; the fingers' travel, the grip force and the finger servos' stiffness of the
+// scene) at `motion_speed` (the runtime's MotionOptions::speed), the control period and the physics step. The one
+// timing set-up: ScenarioRun and the twin's estimate without a run (SimulatedTwin::estimate) both call it. Throws
+// InputError as sim_joint_speeds (reading the robots' URDFs).
+EstimateOptions twin_estimate_options(const Scenario& scenario, const twin::Scene& scene, double motion_speed);
 
 // The cell's workpieces as `world` has them now (ground truth: parked parts are not present, a part both finger pads
 // of a robot touch is held by it). Only while nothing steps the world.
@@ -97,14 +118,17 @@ std::vector<FinalPose> final_poses_of(const sim::World& world);
 
 class ScenarioRun {
  public:
-  // Builds the scene and World (feed workpieces parked), a simulation driver per program robot, the plant that feeds
-  // workpieces at their times, the estimate and the Runtime. `net` is preflight's net of the scenario's program.
+  // Builds the World (feed workpieces parked) on the preflight's compiled cell (or the cell compiled here when it has
+  // none), a simulation driver per program robot, the plant that feeds workpieces at their times, the estimate (of
+  // the preflight's plan) and the Runtime (with the preflight's net). `preflight` is preflight(scenario, ...), which
+  // planned the program (InternalError if it has no plan: a run follows a preflight that passed, or only found
+  // collisions).
   // A robot on a real driver (DriverChoice::real) is driven through it, its simulation driver being the copy that
   // follows it in the twin (sim::MirroredDriver); its driver is connected here, so that a port that cannot be opened
   // or a controller that does not answer is an error before anything runs. Real drivers need real time.
   // Throws InputError if MuJoCo rejects the cell, a driver's configuration cannot work, a real driver cannot connect,
   // or a real driver would run lock-step; nothing runs yet.
-  ScenarioRun(const Scenario& scenario, const petri::Net& net, RunOptions options = {});
+  ScenarioRun(const Scenario& scenario, const Preflight& preflight, RunOptions options = {});
   ~ScenarioRun();
   ScenarioRun(const ScenarioRun&) = delete;
   ScenarioRun& operator=(const ScenarioRun&) = delete;

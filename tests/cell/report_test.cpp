@@ -281,6 +281,11 @@ TEST(Report, FinishedRunWithThePartOnTheOutputBeltIsOk) {
   EXPECT_EQ(j["robots"][1]["blocked"], 0.5);
   EXPECT_EQ(j["collisions"][0]["b"], "conveyor/output");
   EXPECT_THAT(format_summary(r), HasSubstr("estimated cycle time 14.25 s, measured 15.50 s"));
+  // A time not known is "n/a", with no unit after it (a real run has no estimate; a stalled one never finished).
+  Report unknown = r;
+  unknown.estimated_cycle_time.reset();
+  unknown.finished_at.reset();
+  EXPECT_THAT(format_summary(unknown), HasSubstr("estimated cycle time n/a, measured n/a\n"));
 }
 
 TEST(Report, PartAtTheDropPointIsAtBothTheLocationAndTheBelt) {

@@ -1049,9 +1049,12 @@ std::string format_summary(const Report& r) {
                      r.setup.faults.empty() ? std::string()
                                             : fmt::format("; faults asked for: {}", fmt::join(r.setup.faults, ", ")));
   if (r.setup.parts_from_model) out += fmt::format("parts: where {} has them\n", describe_parts_source(r.setup));
-  out += fmt::format("estimated cycle time {} s, measured {} s\n",
-                     r.estimated_cycle_time ? fmt::format("{:.2f}", *r.estimated_cycle_time) : std::string("n/a"),
-                     r.finished_at ? fmt::format("{:.2f}", *r.finished_at) : std::string("n/a"));
+  // A time that is not known (no estimate for a run with no twin, no end for a run that never finished) is "n/a".
+  const auto seconds = [](const std::optional<double>& t) {
+    return t ? fmt::format("{:.2f} s", *t) : std::string("n/a");
+  };
+  out += fmt::format("estimated cycle time {}, measured {}\n", seconds(r.estimated_cycle_time),
+                     seconds(r.finished_at));
   // Without the twin, nothing saw the parts: what is said of them is the controller's belief, and says so.
   const std::string believed = r.setup.parts_from_model ? " (controller's model)" : "";
   if (r.parts_completed > 0) {

@@ -15,7 +15,8 @@ namespace {
 using SteadyClock = SerialPort::Clock;
 
 bool fatal(ErrorCode e) {
-  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost;
+  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost ||
+         e == ErrorCode::unknown;
 }
 
 }  // namespace

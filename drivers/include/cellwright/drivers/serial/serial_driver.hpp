@@ -16,10 +16,10 @@
 // and in poll()) and the rest, the host's own processing time; timing() sums them up and keeps the most recent jobs.
 //
 // FAILURES. A job's outcome is none (done), or a controller's error: unreachable or timeout (the job fails, the driver
-// goes on), hardware, protocol or connection_lost (the driver enters fault; the message names the bytes received).
-// A read that finds the line hung up is connection_lost. Nothing waits without a deadline. After a fault, reset()
-// marks the controller's error to be cleared: the thread calls clear_error() before it takes the next job (the home()
-// that follows); a link that dropped leaves the driver disconnected instead (connect() again).
+// goes on), hardware, protocol, connection_lost or unknown (the driver enters fault; the message names the bytes
+// received). A read that finds the line hung up is connection_lost. Nothing waits without a deadline. After a fault,
+// reset() marks the controller's error to be cleared: the thread calls clear_error() before it takes the next job (the
+// home() that follows); a link that dropped leaves the driver disconnected instead (connect() again).
 //
 // STOP. stop() and disconnect() cancel the jobs at once (DriverCore); an exchange already on the wire is finished by
 // the thread (the controllers cannot be interrupted over the line: the motion in progress ends), and its outcome is
@@ -114,7 +114,7 @@ class SerialDriver : public DriverCore {
 
   // What a job came to.
   struct Outcome {
-    ErrorCode error = ErrorCode::none;  // none, unreachable, timeout, hardware, protocol, connection_lost
+    ErrorCode error = ErrorCode::none;  // none, unreachable, timeout, hardware, protocol, connection_lost, unknown
     std::string message;
     std::optional<PositionReading> reading;  // a position job that is done: the reading (stamp set by the base)
   };

@@ -11,7 +11,8 @@ namespace cellwright::drivers {
 namespace {
 
 bool fatal(ErrorCode e) {
-  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost;
+  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost ||
+         e == ErrorCode::unknown;
 }
 
 bool controller_error(ErrorCode e) {
@@ -125,7 +126,7 @@ bool DriverCore::Controller::fail(CommandId id, ErrorCode error, std::string mes
 }
 
 void DriverCore::Controller::raise_fault(ErrorCode error, std::string message) {
-  CW_CHECK(fatal(error), "a fault is hardware, protocol or connection_lost, not {}", to_string(error));
+  CW_CHECK(fatal(error), "a fault is hardware, protocol, connection_lost or unknown, not {}", to_string(error));
   DriverCore& c = *core_;
   c.fail_all(error, message);
   if (error == ErrorCode::connection_lost) c.link_up_ = false;

@@ -11,7 +11,8 @@ namespace cellwright::drivers {
 namespace {
 
 bool fatal(ErrorCode e) {
-  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost;
+  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost ||
+         e == ErrorCode::unknown;
 }
 
 void check_fault(const Fault& f) {

@@ -209,6 +209,8 @@ std::string_view to_string(ErrorCode error) {
       return "protocol";
     case ErrorCode::connection_lost:
       return "connection_lost";
+    case ErrorCode::unknown:
+      return "unknown";
     case ErrorCode::unknown_command:
       return "unknown_command";
   }

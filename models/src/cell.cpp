@@ -239,10 +239,73 @@ void read_robot_model_fields(const Doc& doc, const Fields& f, const std::filesys
   }
 }
 
+// The word at `key` among `choices` (word, value); else "<field> must be a, b or c, got '<word>'".
+template <typename T>
+T choice_of(const Doc& doc, const Fields& f, const std::string& key,
+            std::initializer_list<std::pair<std::string_view, T>> choices) {
+  const std::string w = f.text(key);
+  std::string names;
+  std::size_t i = 0;
+  for (const auto& [name, value] : choices) {
+    if (w == name) return value;
+    names += fmt::format("{}{}", i == 0 ? "" : i + 1 == choices.size() ? " or " : ", ", name);
+    ++i;
+  }
+  doc.fail(f.node(key), fmt::format("{} must be {}, got '{}'", f.field(key), names, w));
+}
+
+LineEnd read_line_end(const Doc& doc, const Fields& f) {
+  return choice_of<LineEnd>(doc, f, "line_end", {{"cr", LineEnd::kCr}, {"crlf", LineEnd::kCrLf}, {"lf", LineEnd::kLf}});
+}
+
+Val2Conventions read_val2(const Doc& doc, const YAML::Node& n, const std::string& robot) {
+  Fields f(doc, n, fmt::format("the VAL II conventions of robot '{}'", robot),
+           {"orientation", "line_end", "prompt", "where", "echo"});
+  Val2Conventions c;
+  using C = Val2Conventions;
+  if (f.has("orientation")) {
+    c.orientation = choice_of<C::Orientation>(
+        doc, f, "orientation", {{"tool_down", C::Orientation::kToolDown}, {"zyz", C::Orientation::kZyz}});
+  }
+  if (f.has("line_end")) c.line_end = read_line_end(doc, f);
+  if (f.has("prompt")) {
+    c.prompt = f.text("prompt");
+    const bool ok = !c.prompt.empty() &&
+                    std::all_of(c.prompt.begin(), c.prompt.end(), [](char ch) { return ch > 0x20 && ch < 0x7f; });
+    if (!ok) {
+      doc.fail(f.node("prompt"), fmt::format("{} must be printable characters without spaces (\".\", \">\"), got '{}'",
+                                             f.field("prompt"), c.prompt));
+    }
+  }
+  if (f.has("where")) {
+    c.where = choice_of<C::WhereLayout>(doc, f, "where",
+                                        {{"val2", C::WhereLayout::kVal2}, {"as", C::WhereLayout::kAsTwoBlock}});
+  }
+  if (f.has("echo")) {
+    c.echo = choice_of<C::Echo>(doc, f, "echo",
+                                {{"maybe", C::Echo::kMaybe}, {"always", C::Echo::kAlways}, {"never", C::Echo::kNever}});
+  }
+  return c;
+}
+
+MovemasterConventions read_movemaster(const Doc& doc, const YAML::Node& n, const std::string& robot) {
+  Fields f(doc, n, fmt::format("the Movemaster conventions of robot '{}'", robot),
+           {"line_end", "completion", "ms_open_letter"});
+  MovemasterConventions c;
+  using C = MovemasterConventions;
+  if (f.has("line_end")) c.line_end = read_line_end(doc, f);
+  if (f.has("completion")) {
+    c.completion =
+        choice_of<C::Completion>(doc, f, "completion", {{"er", C::Completion::kEr}, {"poll", C::Completion::kPoll}});
+  }
+  if (f.has("ms_open_letter")) c.ms_open_letter = choice_of<char>(doc, f, "ms_open_letter", {{"O", 'O'}, {"C", 'C'}});
+  return c;
+}
+
 RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const std::filesystem::path& base_dir) {
   Fields f(doc, n, "robot",
            {"name", "urdf", "base", "home", "grip_force", "driver", "serial", "base_link", "flange_link", "tool_link",
-            "gripper", "package_path", "meshes"},
+            "gripper", "package_path", "meshes", "val2", "movemaster"},
            true);
   RobotSpec r;
   r.where = doc.at(n);
@@ -280,6 +343,8 @@ RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const st
     doc.fail(
         n, fmt::format("robot '{}' uses the {} driver and needs 'serial' settings (at least 'port')", r.name, driver));
   }
+  if (f.has("val2")) r.val2 = read_val2(doc, f.node("val2"), r.name);
+  if (f.has("movemaster")) r.movemaster = read_movemaster(doc, f.node("movemaster"), r.name);
   return r;
 }
 

@@ -34,7 +34,7 @@ std::vector<std::string_view> lines_of(std::string_view bytes) {
 void movemaster(std::string_view bytes) {
   namespace mm = cellwright::drivers::movemaster;
   for (const std::string_view line : lines_of(bytes)) {
-    if (const auto er = mm::parse_er(line)) CW_FUZZ_CHECK(*er >= 0 && *er <= 2);
+    if (const auto er = mm::parse_er(line)) CW_FUZZ_CHECK(*er >= 0 && *er <= 99);
     const auto wh = mm::parse_wh(line);
     if (!wh) continue;
     for (const double v : {wh->x, wh->y, wh->z, wh->p, wh->r}) CW_FUZZ_CHECK(std::isfinite(v));

@@ -252,6 +252,56 @@ TEST(Cell, SerialSettingsAreKept) {
   EXPECT_FALSE(p.serial->xon_xoff);
 }
 
+TEST(Cell, ControllerConventionsAreSettingsWithThePagesDefaults) {
+  // Left out: the defaults are today's conventions (docs/real-robots.md), so existing cells do not change.
+  const models::CellDescription plain = parse(base_yaml());
+  const models::RobotSpec& d = *plain.find_robot("puma");
+  EXPECT_EQ(d.val2.orientation, models::Val2Conventions::Orientation::kToolDown);
+  EXPECT_EQ(d.val2.line_end, models::LineEnd::kCr);
+  EXPECT_EQ(d.val2.prompt, ".");
+  EXPECT_EQ(d.val2.where, models::Val2Conventions::WhereLayout::kVal2);
+  EXPECT_EQ(d.val2.echo, models::Val2Conventions::Echo::kMaybe);
+  EXPECT_EQ(d.movemaster.line_end, models::LineEnd::kCrLf);
+  EXPECT_EQ(d.movemaster.completion, models::MovemasterConventions::Completion::kEr);
+  EXPECT_EQ(d.movemaster.ms_open_letter, 'O');
+
+  const std::string text =
+      with(with(base_yaml(), "    home: [0, 84, -192, 0, -72, 90]\n",
+                "    home: [0, 84, -192, 0, -72, 90]\n"
+                "    val2: {orientation: zyz, line_end: crlf, prompt: '>', where: as, echo: never}\n"),
+           "    home: [0, 30, 60, 0, 60, 0]\n",
+           "    home: [0, 30, 60, 0, 60, 0]\n    movemaster: {line_end: cr, completion: poll, ms_open_letter: C}\n");
+  const models::CellDescription cell = parse(text);
+  const models::RobotSpec& p = *cell.find_robot("puma");
+  EXPECT_EQ(p.val2.orientation, models::Val2Conventions::Orientation::kZyz);
+  EXPECT_EQ(p.val2.line_end, models::LineEnd::kCrLf);
+  EXPECT_EQ(p.val2.prompt, ">");
+  EXPECT_EQ(p.val2.where, models::Val2Conventions::WhereLayout::kAsTwoBlock);
+  EXPECT_EQ(p.val2.echo, models::Val2Conventions::Echo::kNever);
+  const models::RobotSpec& m = *cell.find_robot("melfa");
+  EXPECT_EQ(m.movemaster.line_end, models::LineEnd::kCr);
+  EXPECT_EQ(m.movemaster.completion, models::MovemasterConventions::Completion::kPoll);
+  EXPECT_EQ(m.movemaster.ms_open_letter, 'C');
+}
+
+TEST(CellErrors, BadControllerConventionsNameTheLine) {
+  const std::string anchor = "    home: [0, 84, -192, 0, -72, 90]\n";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"    val2: {line_end: crcr}\n", "must be cr, crlf or lf, got 'crcr'"},
+      {"    val2: {orientation: xyz}\n", "must be tool_down or zyz, got 'xyz'"},
+      {"    val2: {where: kawasaki}\n", "must be val2 or as, got 'kawasaki'"},
+      {"    val2: {echo: sometimes}\n", "must be maybe, always or never, got 'sometimes'"},
+      {"    val2: {prompt: '. '}\n", "must be printable characters without spaces"},
+      {"    val2: {baud: 9600}\n", "baud"},
+      {"    movemaster: {completion: wh}\n", "must be er or poll, got 'wh'"},
+      {"    movemaster: {ms_open_letter: X}\n", "must be O or C, got 'X'"},
+  };
+  for (const auto& [entry, fragment] : cases) {
+    const std::string text = with(base_yaml(), anchor, anchor + entry);
+    expect_error(text, fragment, line_of(text, entry.substr(0, entry.size() - 1)));
+  }
+}
+
 TEST(CellErrors, MissingFile) {
   try {
     models::load_cell("/nonexistent/cell.yaml");

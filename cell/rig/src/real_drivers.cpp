@@ -27,6 +27,32 @@ drivers::SerialLine line_of(const models::SerialSettings& s) {
   return line;
 }
 
+// The robot's conventions (its cell entry's `val2:` / `movemaster:`, docs/cell-description.md) as driver options.
+void set_conventions(const models::Val2Conventions& c, drivers::Val2Options& o) {
+  using C = models::Val2Conventions;
+  o.orientation =
+      c.orientation == C::Orientation::kZyz ? drivers::val2::Orientation::zyz : drivers::val2::Orientation::tool_down;
+  o.line_end = c.line_end == models::LineEnd::kCrLf ? drivers::Val2LineEnd::crlf
+               : c.line_end == models::LineEnd::kLf ? drivers::Val2LineEnd::lf
+                                                    : drivers::Val2LineEnd::cr;
+  o.prompt = c.prompt;
+  o.where_layout = c.where == C::WhereLayout::kAsTwoBlock ? drivers::val2::WhereLayout::as_two_block
+                                                          : drivers::val2::WhereLayout::val2;
+  o.echo = c.echo == C::Echo::kAlways  ? drivers::Val2Echo::always
+           : c.echo == C::Echo::kNever ? drivers::Val2Echo::never
+                                       : drivers::Val2Echo::maybe;
+}
+
+void set_conventions(const models::MovemasterConventions& c, drivers::MovemasterOptions& o) {
+  o.line_end = c.line_end == models::LineEnd::kCr   ? drivers::movemaster::LineEnd::cr
+               : c.line_end == models::LineEnd::kLf ? drivers::movemaster::LineEnd::lf
+                                                    : drivers::movemaster::LineEnd::crlf;
+  o.completion = c.completion == models::MovemasterConventions::Completion::kPoll
+                     ? drivers::MovemasterOptions::Completion::poll
+                     : drivers::MovemasterOptions::Completion::er;
+  o.ms_open_letter = c.ms_open_letter;
+}
+
 }  // namespace
 
 std::unique_ptr<drivers::SerialDriver> make_real_driver(const DriverChoice& choice, const models::RobotSpec& robot) {
@@ -44,11 +70,13 @@ std::unique_ptr<drivers::SerialDriver> make_real_driver(const DriverChoice& choi
     o.joints = chain.dof();
     o.max_joint_speed = speeds;
     o.gripper_max_force = robot.grip_force;
+    set_conventions(robot.movemaster, o);
     return std::make_unique<drivers::MovemasterDriver>(std::move(o));
   }
   drivers::Val2Options o;
   o.serial.line = line_of(*choice.serial);
   o.serial.where = choice.where;
+  set_conventions(robot.val2, o);
   if (chain.dof() == 6) {
     o.max_joint_speed = speeds;
     o.joint_travel = travel;

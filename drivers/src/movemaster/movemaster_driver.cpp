@@ -71,8 +71,8 @@ class MovemasterDriver::Exchange {
                                                           asked, message, received()));
   }
 
-  // Sends `ER` and reads its digit: none for 0; for 1 and 2 `RS` goes out (when `reset` is set) and the outcome is
-  // hardware or unreachable; anything else is protocol.
+  // Sends `ER` and reads its number: none for 0; for any other `RS` goes out (when `reset` is set) and the outcome is
+  // hardware (1), unreachable (2) or unknown (a code outside the manual's); an answer that is no number is protocol.
   // With `settle` (at connect), the answer is the last line before `settle` of quiet: see greet().
   Outcome er(Steady::time_point deadline, bool reset = true, std::chrono::nanoseconds settle = {}) {
     const std::string what = since_er_.empty() ? std::string("at connect") : fmt::format("after '{}'", last_sent());
@@ -89,23 +89,26 @@ class MovemasterDriver::Exchange {
     }
     const std::optional<int> answer = mm::parse_er(line);
     if (!answer) {
-      return failed(ErrorCode::protocol, fmt::format("the answer to 'ER' {} is '{}', not 0, 1 or 2 (received for this "
-                                                     "command: {})",
+      return failed(ErrorCode::protocol, fmt::format("the answer to 'ER' {} is '{}', not an error code (received for "
+                                                     "this command: {})",
                                                      what, printable(line), received()));
     }
     if (*answer == 0) return {};
-    const bool hardware = *answer == 1;
-    std::string message = hardware ? fmt::format("the controller reports a hardware error: ER answered 1 {}", what)
-                                   : fmt::format(
-                                         "the controller cannot do it: ER answered 2 (position or format "
-                                         "error) {}",
-                                         what);
+    const ErrorCode code = *answer == 1   ? ErrorCode::hardware
+                           : *answer == 2 ? ErrorCode::unreachable
+                                          : ErrorCode::unknown;
+    std::string message =
+        code == ErrorCode::hardware ? fmt::format("the controller reports a hardware error: ER answered 1 {}", what)
+        : code == ErrorCode::unreachable
+            ? fmt::format("the controller cannot do it: ER answered 2 (position or format error) {}", what)
+            : fmt::format("the controller reports an error this driver does not know: ER answered {} {}", *answer,
+                          what);
     if (reset) {
       if (Outcome o = send("RS"); o.error != ErrorCode::none) return o;
       since_er_.clear();
       message += "; RS sent";
     }
-    return failed(hardware ? ErrorCode::hardware : ErrorCode::unreachable, std::move(message));
+    return failed(code, std::move(message));
   }
 
   // Sends `WH` and reads the pose it answers.

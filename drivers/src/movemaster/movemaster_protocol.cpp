@@ -186,8 +186,13 @@ double travel_mm(const Xyzpr& from, const Xyzpr& to) {
 std::optional<int> parse_er(std::string_view line) {
   if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
   line = trim(line);
-  if (line.size() != 1 || line[0] < '0' || line[0] > '2') return std::nullopt;
-  return line[0] - '0';
+  if (line.empty() || line.size() > 2) return std::nullopt;
+  int value = 0;
+  for (const char c : line) {
+    if (c < '0' || c > '9') return std::nullopt;
+    value = value * 10 + (c - '0');
+  }
+  return value;
 }
 
 std::optional<Xyzpr> parse_wh(std::string_view line) {

@@ -15,7 +15,8 @@ namespace {
 using SteadyClock = SerialPort::Clock;
 
 bool fatal(ErrorCode e) {
-  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost;
+  return e == ErrorCode::hardware || e == ErrorCode::protocol || e == ErrorCode::connection_lost ||
+         e == ErrorCode::unknown;
 }
 
 }  // namespace
@@ -51,6 +52,10 @@ IoStatus SerialDriver::Link::receive(Clock::time_point deadline, std::string* me
   const IoStatus s = port_.read_some(&buffer_, deadline, message);
   const std::size_t got = buffer_.size() - before;
   received_.append(buffer_, before, got);
+  if (lf_owed_ && !buffer_.empty()) {
+    lf_owed_ = false;
+    if (buffer_.front() == '\n') buffer_.erase(0, 1);  // the LF of a CR LF whose CR ended a line
+  }
   if (exchange_ != nullptr) {
     exchange_->waiting += port_.waited() - waited;
     exchange_->bytes_received += got;
@@ -61,12 +66,18 @@ IoStatus SerialDriver::Link::receive(Clock::time_point deadline, std::string* me
 
 IoStatus SerialDriver::Link::read_line(Clock::time_point deadline, std::string* line, std::string* message) {
   for (;;) {
-    const std::size_t end = buffer_.find('\n');
+    const std::size_t end = buffer_.find_first_of("\r\n");
     if (end != std::string::npos) {
-      std::size_t stop = end;
-      if (stop > 0 && buffer_[stop - 1] == '\r') --stop;
-      line->assign(buffer_, 0, stop);
-      buffer_.erase(0, end + 1);
+      line->assign(buffer_, 0, end);
+      std::size_t taken = end + 1;
+      if (buffer_[end] == '\r') {
+        if (taken == buffer_.size()) {
+          lf_owed_ = true;  // a LF may still come: receive() drops it
+        } else if (buffer_[taken] == '\n') {
+          ++taken;
+        }
+      }
+      buffer_.erase(0, taken);
       return IoStatus::ok;
     }
     const IoStatus s = receive(deadline, message);
@@ -76,6 +87,7 @@ IoStatus SerialDriver::Link::read_line(Clock::time_point deadline, std::string* 
 
 void SerialDriver::Link::discard_input() {
   buffer_.clear();
+  lf_owed_ = false;
   port_.discard_input();
 }
 

@@ -37,6 +37,11 @@ bool printable_byte(char ch) {
   return c == '\t' || (c >= 0x20 && c < 0x7f);
 }
 
+// A byte that may stand in an unfinished line: printable, a line end's CR, or a bell (dropped when the line ends).
+bool pending_byte(char ch) {
+  return ch == '\r' || ch == '\a' || printable_byte(ch);
+}
+
 // A line's text without the spaces and tabs around it.
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
@@ -82,7 +87,7 @@ class Val2Driver::Session {
                   val2::WhereParser* where = nullptr) {
     if (Outcome o = unasked(text); o.error != ErrorCode::none) return o;
     if (Outcome o = send(text); o.error != ErrorCode::none) return o;
-    return await(text, true, budget, on_silence, where);
+    return await(text, options_.echo != Val2Echo::never, budget, on_silence, where);
   }
 
   // RESYNC (val2_driver.hpp): an empty line, then a prompt followed by quiet; whatever comes before it is skipped.
@@ -96,8 +101,8 @@ class Val2Driver::Session {
     bool prompt = false;
     std::string message;
     for (;;) {
-      if (const std::size_t nl = buffer.rfind('\n'); nl != std::string::npos) buffer.erase(0, nl + 1);
-      if (buffer == ".") {
+      if (const std::size_t end = buffer.find_last_of("\r\n"); end != std::string::npos) buffer.erase(0, end + 1);
+      if (val2::is_prompt(buffer, options_.prompt)) {
         prompt = true;
         buffer.clear();
       } else if (buffer.size() > kMaxLine) {
@@ -135,7 +140,7 @@ class Val2Driver::Session {
   }
 
   Outcome where() {
-    val2::WhereParser parser;
+    val2::WhereParser parser(options_.where_layout);
     Outcome o = command("WHERE", options_.serial.reply_timeout, ErrorCode::protocol, &parser);
     if (o.error != ErrorCode::none) return o;
     PositionReading reading = val2::to_position_reading(*parser.reading(), options_.orientation);
@@ -239,8 +244,10 @@ class Val2Driver::Session {
     }
     const std::string& bytes = link_.buffer();
     if (bytes.empty()) return {};
-    const bool hardware = trim(bytes).starts_with('*') && val2::classify_error(bytes) == ErrorCode::hardware;
-    return failure(hardware ? ErrorCode::hardware : ErrorCode::protocol,
+    const std::string said_text = val2::without_bells(bytes);
+    const ErrorCode said = trim(said_text).starts_with('*') ? val2::classify_error(said_text) : ErrorCode::protocol;
+    const bool fault = said == ErrorCode::hardware || said == ErrorCode::unknown;
+    return failure(fault ? said : ErrorCode::protocol,
                    fmt::format("{} not sent: the controller sent '{}' unasked", text, printable(bytes)));
   }
 
@@ -266,16 +273,19 @@ class Val2Driver::Session {
     std::optional<std::string> error_line;
     std::string message;
     for (;;) {
-      for (std::size_t nl = buffer.find('\n'); nl != std::string::npos; nl = buffer.find('\n')) {
-        std::string line = buffer.substr(0, nl);
-        buffer.erase(0, nl + 1);
-        while (!line.empty() && line.back() == '\r') line.pop_back();
-        if (!std::all_of(line.begin(), line.end(), printable_byte)) return garbage(sent, line);
+      // A line ends at CR LF, CR or LF: the empty line between a CR and its LF is skipped as every blank line is.
+      for (std::size_t end = buffer.find_first_of("\r\n"); end != std::string::npos;
+           end = buffer.find_first_of("\r\n")) {
+        const std::string raw = buffer.substr(0, end);
+        buffer.erase(0, end + 1);
+        const std::string line = val2::without_bells(raw);
+        if (!std::all_of(line.begin(), line.end(), printable_byte)) return garbage(sent, raw);
         const std::string_view text = trim(line);
         if (text.empty()) continue;
         if (echo) {
           echo = false;
           if (text == sent) continue;
+          if (options_.echo == Val2Echo::always) return garbage(sent, raw);
         }
         if (text.front() == '*') {
           if (!error_line) {
@@ -285,11 +295,11 @@ class Val2Driver::Session {
           continue;
         }
         if (!error_line && where != nullptr && where->feed(line)) continue;
-        return garbage(sent, line);
+        return garbage(sent, raw);
       }
-      if (buffer == ".") {
+      if (val2::is_prompt(buffer, options_.prompt)) {
         // A number line of WHERE may begin with '.': then more follows at once.
-        if (!error_line && where != nullptr && !where->complete()) {
+        if (!error_line && where != nullptr && !where->finished()) {
           const IoStatus s = link_.receive(std::min(deadline, Link::in(options_.prompt_settle)), &message);
           if (s == IoStatus::ok) continue;
           if (s != IoStatus::timeout) return dropped(sent, s, message);
@@ -297,8 +307,7 @@ class Val2Driver::Session {
         buffer.clear();
         return answered(sent, error_line, where);
       }
-      const bool bad =
-          std::any_of(buffer.begin(), buffer.end(), [](char c) { return c != '\r' && !printable_byte(c); });
+      const bool bad = !std::all_of(buffer.begin(), buffer.end(), pending_byte);
       if (bad || buffer.size() > kMaxLine) return garbage(sent, buffer);
       const IoStatus s = link_.receive(deadline, &message);
       if (s == IoStatus::timeout) return silent(sent, budget, error_line, on_silence);
@@ -363,6 +372,15 @@ void check_six(const SerialOptions& serial, const char* name, const std::vector<
 const Val2Options& checked(const Val2Options& o) {
   check_six(o.serial, "max_joint_speed", o.max_joint_speed);
   check_six(o.serial, "joint_travel", o.joint_travel);
+  const bool prompt_ok =
+      !o.prompt.empty() && std::all_of(o.prompt.begin(), o.prompt.end(), [](char c) { return c > 0x20 && c < 0x7f; });
+  if (!prompt_ok) {
+    std::string shown;
+    for (const char c : o.prompt) shown += printable_byte(c) ? std::string(1, c) : fmt::format("\\x{:02x}", c);
+    throw InputError(o.serial.where, fmt::format("VAL II driver on {}: the prompt must be printable characters "
+                                                 "without spaces, not '{}'",
+                                                 o.serial.line.port, shown));
+  }
   if (!(std::isfinite(o.max_tool_speed) && o.max_tool_speed > 0.0)) {
     throw InputError(o.serial.where, fmt::format("VAL II driver on {}: max_tool_speed must be positive, not {}",
                                                  o.serial.line.port, o.max_tool_speed));

@@ -144,21 +144,38 @@ std::optional<std::vector<double>> parse_numbers(std::string_view line) {
   return values;
 }
 
+namespace {
+
+// The first word of `line` starts with `prefix` (whatever its case).
+bool first_word_starts(std::string_view line, std::string_view prefix) {
+  std::size_t i = 0;
+  while (i < line.size() && is_space(line[i])) ++i;
+  return lower(line.substr(i)).starts_with(prefix);
+}
+
+Location world_of(const std::vector<double>& n) {
+  return {n[0], n[1], n[2], n[3], n[4], n[5]};
+}
+
+}  // namespace
+
 bool WhereParser::feed(std::string_view line) {
   const std::optional<std::vector<double>> numbers = parse_numbers(line);
+  return layout_ == WhereLayout::val2 ? feed_val2(line, numbers) : feed_as(line, numbers);
+}
+
+bool WhereParser::feed_val2(std::string_view line, const std::optional<std::vector<double>>& numbers) {
   switch (stage_) {
     case Stage::start:
       if (!numbers) {
-        std::size_t i = 0;
-        while (i < line.size() && is_space(line[i])) ++i;
-        if (i == line.size() || (line[i] != 'X' && line[i] != 'x')) return false;
+        if (!first_word_starts(line, "x")) return false;
         stage_ = Stage::header;
         return true;
       }
       [[fallthrough]];
     case Stage::header:
       if (!numbers || (numbers->size() != 6 && numbers->size() != 7)) return false;
-      reading_.world = {(*numbers)[0], (*numbers)[1], (*numbers)[2], (*numbers)[3], (*numbers)[4], (*numbers)[5]};
+      reading_.world = world_of(*numbers);
       if (numbers->size() == 7) reading_.hand = (*numbers)[6];
       stage_ = Stage::world;
       return true;
@@ -167,23 +184,51 @@ bool WhereParser::feed(std::string_view line) {
       reading_.joints = *numbers;
       stage_ = Stage::done;
       return true;
-    case Stage::done:
+    default:
       return false;
   }
-  return false;
+}
+
+bool WhereParser::feed_as(std::string_view line, const std::optional<std::vector<double>>& numbers) {
+  const bool six = numbers && numbers->size() == 6;
+  switch (stage_) {
+    case Stage::start:
+      if (numbers || !first_word_starts(line, "jt")) return false;
+      stage_ = Stage::joint_header;
+      return true;
+    case Stage::joint_header:
+      if (!six) return false;
+      reading_.joints = *numbers;
+      stage_ = Stage::joints;
+      return true;
+    case Stage::joints:
+      if (numbers || !first_word_starts(line, "x")) return false;
+      stage_ = Stage::world_header;
+      return true;
+    case Stage::world_header:
+      if (!six) return false;
+      reading_.world = world_of(*numbers);
+      stage_ = Stage::done;
+      return true;
+    default:
+      return false;
+  }
+}
+
+bool WhereParser::complete() const {
+  return stage_ == Stage::done || (layout_ == WhereLayout::val2 && stage_ == Stage::world);
 }
 
 std::string_view WhereParser::missing() const {
+  if (complete()) return "";
+  if (layout_ == WhereLayout::val2) return "the world values";
   switch (stage_) {
     case Stage::start:
-    case Stage::header:
-      return "the world values and the joint angles";
-    case Stage::world:
-      return "the joint angles";
-    case Stage::done:
-      return "";
+    case Stage::joint_header:
+      return "the joint angles and the world values";
+    default:
+      return "the world values";
   }
-  return "";
 }
 
 std::optional<WhereParser::Reading> WhereParser::reading() const {
@@ -191,10 +236,25 @@ std::optional<WhereParser::Reading> WhereParser::reading() const {
   return reading_;
 }
 
+bool is_prompt(std::string_view pending, std::string_view prompt) {
+  std::string text = without_bells(pending);
+  while (!text.empty() && is_space(text.back())) text.pop_back();
+  return !text.empty() && text == prompt;
+}
+
+std::string without_bells(std::string_view line) {
+  std::string out;
+  out.reserve(line.size());
+  for (const char c : line) {
+    if (c != '\a') out += c;
+  }
+  return out;
+}
+
 PositionReading to_position_reading(const WhereParser::Reading& where, Orientation orientation) {
   PositionReading r;
   r.joints.reserve(where.joints.size());
-  for (const double j : where.joints) r.joints.push_back(j * kDeg);
+  for (const double j : where.joints) r.joints.push_back(j * kDeg);  // none when the monitor printed none
   r.tool_pose = to_pose(where.world, orientation);
   return r;
 }
@@ -209,7 +269,10 @@ ErrorCode classify_error(std::string_view line) {
       contains(words, "illegal value") || contains(words, "syntax error")) {
     return ErrorCode::protocol;
   }
-  return ErrorCode::hardware;
+  if (contains(words, "arm power off") || contains(words, "servo error") || contains(words, "emergency stop")) {
+    return ErrorCode::hardware;
+  }
+  return ErrorCode::unknown;
 }
 
 }  // namespace cellwright::drivers::val2

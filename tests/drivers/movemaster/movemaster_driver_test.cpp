@@ -560,7 +560,7 @@ TEST(MovemasterDriverErrors, ErTwoFailsUnreachableThenRsAndTheDriverGoesOn) {
 
 TEST(MovemasterDriverErrors, GarbageIsAProtocolFaultQuotingTheBytes) {
   const std::vector<std::pair<std::string, std::string>> answers = {
-      {"7\r\n", "'7'"}, {"ER\r\n", "'ER'"}, {"0,0\r\n", "'0,0'"}, {"\x80\x07\r\n", "'\\x80\\x07'"}};
+      {"1.0\r\n", "'1.0'"}, {"ER\r\n", "'ER'"}, {"0,0\r\n", "'0,0'"}, {"\x80\x07\r\n", "'\\x80\\x07'"}};
   for (const auto& [bad, quoted] : answers) {
     SCOPED_TRACE(quoted);
     Rig r(except_nth("ER", 3, {bad}, obedient()));
@@ -710,6 +710,69 @@ TEST(MovemasterDriverCompletion, PollSendsWhUntilTwoAnswersAgreeThenEr) {
   const std::vector<Peer::Line> lines = r.peer.lines();
   ASSERT_GE(lines.size(), 3u);
   EXPECT_GE(lines[lines.size() - 2].arrived - lines[lines.size() - 3].answered, o.poll_period);
+}
+
+// ---- Answer variants (issue 25): the controller's line ends, whatever the host sends ------------------------------
+
+// A controller that ends its answers with `end` (CR LF, LF alone or CR alone).
+Peer::Answer obedient_with(std::string end) {
+  return [end](const std::string& line) -> Peer::Reply {
+    if (line == "ER") return {"0" + end};
+    if (line == "WH") return {"300.0,0.0,200.0,-90.0,0.0" + end};
+    return {};
+  };
+}
+
+TEST(MovemasterDriverVariants, AnswersEndedByCrLfOrCrAloneOrLfAlone) {
+  for (const std::string end : {"\r\n", "\r", "\n"}) {
+    SCOPED_TRACE(end == "\r" ? "CR" : end == "\n" ? "LF" : "CR LF");
+    Rig r(except_nth("ER", 4, {"2" + end}, obedient_with(end)));
+    r.bring_up();
+    // WH: the pose read back.
+    const Submitted p = r.driver.request_position();
+    ASSERT_EQ(r.finish(p.id).phase, CommandPhase::done) << r.driver.poll(p.id).message;
+    const Eigen::Isometry3d pose = *r.driver.last_position()->tool_pose;
+    EXPECT_TRUE(pose.translation().isApprox(Eigen::Vector3d(0.3, 0.0, 0.2), 1e-12));
+    EXPECT_TRUE(pose.linear().col(2).isApprox(-Eigen::Vector3d::UnitZ(), 1e-12));
+    // A move, then ER 2 (the 4th ER) in the same line ends: unreachable, the driver goes on.
+    EXPECT_EQ(r.run(move_to({300.0, 0.0, 250.0, -90.0, 0.0})).phase, CommandPhase::done);
+    const CommandStatus s = r.run(move_to({900.0, 0.0, 200.0, -90.0, 0.0}));
+    EXPECT_EQ(s.error, ErrorCode::unreachable) << s.message;
+    EXPECT_EQ(r.driver.state(), DriverState::active);
+    EXPECT_EQ(r.run(Grip{Grip::Action::close, {}, {}}).phase, CommandPhase::done);
+  }
+}
+
+TEST(MovemasterDriverVariants, ACrLfSplitAcrossTwoWritesIsOneLineEnd) {
+  // The CR ends the answer at once; its LF, written after the driver has read the line, is not taken for bytes
+  // nobody asked for before the next command.
+  Rig r([owed = false](const std::string& line) mutable -> Peer::Reply {
+    std::string reply = owed ? "\n" : "";  // the LF of the last answer's CR LF comes first
+    owed = line == "ER" || line == "WH";
+    if (line == "ER") reply += "0\r";
+    if (line == "WH") reply += "300.0,0.0,200.0,-90.0,0.0\r";
+    return {reply};
+  });
+  r.bring_up();
+  const Submitted p = r.driver.request_position();
+  ASSERT_EQ(r.finish(p.id).phase, CommandPhase::done) << r.driver.poll(p.id).message;
+  EXPECT_EQ(r.run(move_to({300.0, 0.0, 250.0, -90.0, 0.0})).phase, CommandPhase::done) << r.driver.poll(p.id).message;
+  EXPECT_EQ(r.driver.state(), DriverState::active);
+}
+
+TEST(MovemasterDriverVariants, AnErCodeOutsideTheManualsIsAnUnknownFaultThenRs) {
+  Rig r(except_nth("ER", 3, {"7\r\n"}, obedient()));
+  r.bring_up();
+  const std::size_t from = r.peer.size();
+  const CommandStatus s = r.run(move_to({300.0, 0.0, 200.0, -90.0, 0.0}));
+  EXPECT_EQ(s.error, ErrorCode::unknown) << s.message;
+  EXPECT_TRUE(contains(s.message, "ER answered 7")) << s.message;
+  EXPECT_EQ(r.driver.state(), DriverState::fault);
+  const std::string expected = "SP 9\r\nMP 300.0,0.0,200.0,-90.0,0.0\r\nER\r\nRS\r\n";
+  EXPECT_EQ(r.sent_since(from, expected), expected);
+  EXPECT_EQ(r.driver.reset(), ErrorCode::none);
+  const Submitted h = r.driver.home();
+  EXPECT_EQ(r.finish(h.id).phase, CommandPhase::done);
 }
 
 }  // namespace

@@ -51,8 +51,9 @@ class Peer {
     SteadyClock::time_point answered{};  // when the answer was written (if it was)
   };
 
-  Peer(const std::filesystem::path& link, Script script, bool echo = true, char terminator = '\r')
-      : pty_(link), script_(std::move(script)), echo_(echo), terminator_(terminator) {
+  Peer(const std::filesystem::path& link, Script script, bool echo = true, char terminator = '\r',
+       std::string echo_end = "\r\n")
+      : pty_(link), script_(std::move(script)), echo_(echo), terminator_(terminator), echo_end_(std::move(echo_end)) {
     if (::pipe2(wake_, O_CLOEXEC | O_NONBLOCK) != 0) throw std::runtime_error("pipe2");
     thread_ = std::thread([this] { run(); });
   }
@@ -129,7 +130,7 @@ class Peer {
     if (answer && answer->hang_up) {
       pty_.hang_up();
     } else {
-      if (echo_) write_all(text + "\r\n");
+      if (echo_) write_all(text + echo_end_);
       if (answer) write_all(answer->bytes);
     }
     std::lock_guard lock(mutex_);
@@ -193,6 +194,7 @@ class Peer {
   Script script_;
   const bool echo_;
   const char terminator_;
+  const std::string echo_end_;
   int wake_[2] = {-1, -1};
   mutable std::mutex mutex_;
   std::condition_variable cv_;
@@ -347,6 +349,11 @@ TEST_F(Val2DriverTest, BadOptionsAreInputErrors) {
   o = options();
   o.motion_margin = -1s;
   EXPECT_THROW(Val2Driver{o}, InputError);
+  for (const std::string prompt : {"", ". ", "\x01"}) {
+    o = options();
+    o.prompt = prompt;
+    EXPECT_THROW(Val2Driver{o}, InputError) << prompt;
+  }
 }
 
 TEST_F(Val2DriverTest, SendsExactBytesForEveryCommand) {
@@ -507,9 +514,13 @@ TEST_F(Val2DriverTest, UnreachableFailsTheCommandOnly) {
   EXPECT_EQ(run(d, w, SetOutput{2, true}).phase, CommandPhase::done);
 }
 
-TEST_F(Val2DriverTest, ProtocolAndHardwareErrorsFault) {
+// Error words outside the driver's lists ("*Unknown command*", "*Invalid format*") are unknown, not hardware: the
+// driver faults all the same, so the arm stops until reset and homed again.
+TEST_F(Val2DriverTest, ProtocolHardwareAndUnknownErrorsFault) {
   for (const auto& [line_text, expected] : {std::pair{std::string("*Syntax error*"), ErrorCode::protocol},
-                                            std::pair{std::string("*Arm power off*"), ErrorCode::hardware}}) {
+                                            std::pair{std::string("*Arm power off*"), ErrorCode::hardware},
+                                            std::pair{std::string("*Unknown command*"), ErrorCode::unknown},
+                                            std::pair{std::string("*Invalid format*"), ErrorCode::unknown}}) {
     const std::string error_line = line_text;
     const ErrorCode code = expected;
     std::atomic<bool> failing = true;
@@ -788,6 +799,159 @@ TEST_F(Val2DriverTest, TimingCountsEveryJob) {
   EXPECT_EQ(t.recent[1].bytes_sent, std::string("SPEED 100\rDO MOVE #PPOINT(0,0,0,0,0,0)\r").size());
   EXPECT_EQ(t.recent[2].what, "position");
   EXPECT_EQ(t.recent[2].bytes_received, std::string("WHERE\r\n").size() + kWhere.size());
+}
+
+// ---- Monitor variants (issue 25): each connects, reads WHERE, moves, and reports errors with their class ----------
+
+// `text` with every CR LF replaced by `end`.
+std::string with_line_end(const std::string& text, const std::string& end) {
+  std::string out;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if (text.compare(i, 2, "\r\n") == 0) {
+      out += end;
+      ++i;
+    } else {
+      out += text[i];
+    }
+  }
+  return out;
+}
+
+struct MonitorVariant {
+  std::string name;
+  std::string where;     // the answer to WHERE, its prompt included
+  std::string prompt;    // what answers every other line
+  std::string echo_end;  // the echo's line end
+  bool joints = true;    // the WHERE answer has the joint angles
+  std::function<void(Val2Options&)> settings = [](Val2Options&) {};
+};
+
+std::vector<MonitorVariant> monitor_variants() {
+  const std::string kas =
+      "     JT1       JT2       JT3       JT4       JT5       JT6  \r\n"
+      "     0.000   -90.000   180.000     0.000     0.000     0.000\r\n"
+      "    X[mm]     Y[mm]     Z[mm]     O[deg]    A[deg]    T[deg]\r\n"
+      "   431.800  -149.090   433.070    90.000   -90.000     0.000\r\n";
+  return {
+      {"CR-only line ends", with_line_end(kWhere, "\r"), ".", "\r"},
+      {"LF-only line ends", with_line_end(kWhere, "\n"), ".", "\n"},
+      {"CR LF line ends and a prompt with a trailing space", kWhere + " ", ". ", "\r\n"},
+      {"a WHERE without the joint row",
+       "     X/JT1      Y/JT2      Z/JT3      O/JT4      A/JT5      T/JT6      HAND\r\n"
+       "    431.80    -149.09     433.07     90.000    -90.000      0.000     50.000\r\n.",
+       ".", "\r\n", false},
+      {"Kawasaki AS: two-block WHERE, prompt '>'", kas + ">", ">", "\r\n", true,
+       [](Val2Options& o) {
+         o.prompt = ">";
+         o.where_layout = val2::WhereLayout::as_two_block;
+       }},
+  };
+}
+
+TEST_F(Val2DriverTest, EveryMonitorVariantConnectsReadsWhereAndMoves) {
+  for (const MonitorVariant& v : monitor_variants()) {
+    SCOPED_TRACE(v.name);
+    Peer peer(
+        link(),
+        [&](const std::string& line) -> std::optional<Peer::Answer> {
+          if (line == "WHERE") return Peer::Answer{v.where};
+          if (line == "DO CLOSEI")
+            return Peer::Answer{with_line_end("*Location out of range*\r\n", v.echo_end) + v.prompt};
+          return Peer::Answer{v.prompt};
+        },
+        true, '\r', v.echo_end);
+    Val2Options o = options();
+    v.settings(o);
+    Val2Driver d(o);
+    Waiter w(d);
+    bring_up(d, w);
+    const Submitted p = d.request_position();
+    ASSERT_EQ(w.finished(p.id).phase, CommandPhase::done) << w.finished(p.id).message;
+    const auto r = d.last_position();
+    ASSERT_TRUE(r && r->tool_pose);
+    EXPECT_TRUE(r->tool_pose->translation().isApprox(Eigen::Vector3d(0.4318, -0.14909, 0.43307), 1e-12));
+    EXPECT_LT(Eigen::AngleAxisd(r->tool_pose->linear().transpose() * location(0, 0, 0, 90, -90, 0).linear()).angle(),
+              1e-9);
+    if (v.joints) {
+      ASSERT_EQ(r->joints.size(), 6U);
+      EXPECT_NEAR(r->joints[1], -std::numbers::pi / 2, 1e-12);
+      EXPECT_NEAR(r->joints[2], std::numbers::pi, 1e-12);
+    } else {
+      EXPECT_TRUE(r->joints.empty());
+    }
+    EXPECT_EQ(run(d, w, MovePose{location(400, 0, 300, 0, 0, 0), Path::joint, 0.5}).phase, CommandPhase::done);
+    EXPECT_EQ(run(d, w, MoveJoints{degrees({0, -90, 180, 0, 0, 0}), 0.5}).phase, CommandPhase::done);
+    // An error line in the variant's line ends keeps its class: unreachable fails the command only.
+    const CommandStatus s = run(d, w, Grip{Grip::Action::close, {}, {}});
+    EXPECT_EQ(s.error, ErrorCode::unreachable) << s.message;
+    EXPECT_EQ(d.state(), DriverState::active);
+    EXPECT_EQ(peer.received(),
+              "\rDO READY\rWHERE\rSPEED 50\rDO MOVE TRANS(400,0,300,0,0,0)\r"
+              "DO MOVE #PPOINT(0,-90,180,0,0,0)\rDO CLOSEI\r");
+    d.disconnect();
+  }
+}
+
+TEST_F(Val2DriverTest, ABellBeforeAnErrorLineKeepsTheLinesClass) {
+  for (const auto& [error_line, code] : {std::pair{std::string("\a*Location out of range*"), ErrorCode::unreachable},
+                                         std::pair{std::string("\a\a*Servo error*"), ErrorCode::hardware}}) {
+    SCOPED_TRACE(error_line.substr(error_line.find('*')));
+    const std::string answer = error_line + "\r\n.";
+    Peer peer(link(), [&](const std::string& line) -> std::optional<Peer::Answer> {
+      if (line == "DO CLOSEI") return Peer::Answer{answer};
+      return Peer::Answer{"."};
+    });
+    Val2Driver d(options());
+    Waiter w(d);
+    bring_up(d, w);
+    const CommandStatus s = run(d, w, Grip{Grip::Action::close, {}, {}});
+    EXPECT_EQ(s.error, code) << s.message;
+    EXPECT_NE(s.message.find(error_line.substr(error_line.find('*'))), std::string::npos) << s.message;
+    d.disconnect();
+  }
+}
+
+TEST_F(Val2DriverTest, UnknownErrorLinesSentUnaskedFaultAsUnknown) {
+  Peer peer(link(), monitor);
+  Val2Driver d(options());
+  Waiter w(d);
+  bring_up(d, w);
+  peer.inject("\a*Invalid format*\r\n.");
+  const CommandStatus s = run(d, w, SetOutput{1, true});
+  EXPECT_EQ(s.error, ErrorCode::unknown) << s.message;
+  EXPECT_NE(s.message.find("not sent"), std::string::npos) << s.message;
+}
+
+TEST_F(Val2DriverTest, EchoIsASetting) {
+  {
+    // always: an answer without the copy of the line is garbage.
+    Peer peer(link(), monitor, false);
+    Val2Options o = options();
+    o.echo = Val2Echo::always;
+    Val2Driver d(o);
+    Waiter w(d);
+    ASSERT_EQ(d.connect(), ErrorCode::none) << d.connect_problem();
+    const Submitted h = d.home();
+    ASSERT_EQ(w.finished(h.id).phase, CommandPhase::done);  // an answer of the prompt alone has nothing to check
+    const Submitted p = d.request_position();
+    const CommandStatus s = w.finished(p.id);
+    EXPECT_EQ(s.error, ErrorCode::protocol) << s.message;
+    d.disconnect();
+  }
+  {
+    // never: a copy of the line is garbage.
+    Peer peer(link(), monitor, true);
+    Val2Options o = options();
+    o.echo = Val2Echo::never;
+    Val2Driver d(o);
+    Waiter w(d);
+    ASSERT_EQ(d.connect(), ErrorCode::none) << d.connect_problem();
+    const Submitted h = d.home();
+    const CommandStatus s = w.finished(h.id);
+    EXPECT_EQ(s.error, ErrorCode::protocol) << s.message;
+    EXPECT_NE(s.message.find("'DO READY'"), std::string::npos) << s.message;
+    d.disconnect();
+  }
 }
 
 }  // namespace

@@ -15,8 +15,8 @@
 //  - The head of the queue is running (as soon as it reaches the head, or when the controller side calls start();
 //    see RunningWhen); the others are pending.
 //  - When a job fails, everything queued behind it fails: with cancelled ("cancelled: command N before it failed"),
-//    or with connection_lost when the link dropped. hardware, protocol and connection_lost put the driver in fault
-//    (and then the pending reads fail too). A home() that completes makes the driver homed.
+//    or with connection_lost when the link dropped. hardware, protocol, connection_lost and unknown put the driver in
+//    fault (and then the pending reads fail too). A home() that completes makes the driver homed.
 //  - stop() and disconnect() cancel every job ("cancelled by stop()" / "cancelled by disconnect()"); stop() takes
 //    active to stopped; reset() takes fault to connected, or to disconnected (connection_lost) when the link is down.
 //  - poll() answers for the kStatusRetention most recent finished jobs and every unfinished one; last_position()
@@ -144,13 +144,13 @@ class DriverCore : public RobotDriver {
     // nothing) when `id` is neither the head nor a pending read: it was cancelled, or stop() ended it.
     bool complete(CommandId id);
     bool complete(CommandId id, PositionReading reading);
-    // Job `id` failed with `error` (a controller's: unreachable, timeout, hardware, protocol, connection_lost) and
-    // `message`. For the head, everything queued behind it fails (see the top); for a read, only the read. Fatal
+    // Job `id` failed with `error` (a controller's: unreachable, timeout, hardware, protocol, connection_lost, unknown)
+    // and `message`. For the head, everything queued behind it fails (see the top); for a read, only the read. Fatal
     // errors enter fault. Returns false (and changes nothing) when `id` is neither the head nor a pending read.
     bool fail(CommandId id, ErrorCode error, std::string message);
     // The controller reported an error or the link dropped outside any command: every job fails with `error` and
     // `message`, the driver enters fault (unless disconnected; connection_lost also marks the link down). `error`
-    // is hardware, protocol or connection_lost. Always calls the notifier.
+    // is hardware, protocol, connection_lost or unknown. Always calls the notifier.
     void raise_fault(ErrorCode error, std::string message);
     // The time to stamp a reading taken now: the clock given to set_clock(), or `own` (the driver's own time).
     std::chrono::nanoseconds stamp(std::chrono::nanoseconds own) const;

@@ -25,7 +25,8 @@
 //                 motion.
 //   active        accepting commands: motions, gripper, digital I/O.
 //   stopped       stop() halted it: in-flight commands were cancelled; activate() resumes, home() re-homes.
-//   fault         the controller reported a hardware error, the reply could not be understood, or the link dropped.
+//   fault         the controller reported a hardware error or one the driver does not know, the reply could not be
+//                 understood, or the link dropped.
 //                 Every command in flight failed. Only reset(), disconnect(), stop() and the queries work.
 //
 //   Which calls each state allows (anything else is refused with ErrorCode::wrong_state and changes nothing):
@@ -56,7 +57,7 @@
 // driver's life). poll(id) returns pending (queued), running (being executed), done, or failed with an ErrorCode and a
 // message naming the values involved. Drivers keep the status of at least the kStatusRetention most recent commands;
 // older or never-issued ids poll as failed/unknown_command. Errors of the controller: unreachable or timeout fail the
-// command only; hardware, protocol and connection_lost also put the driver in fault.
+// command only; hardware, protocol, connection_lost and unknown also put the driver in fault.
 //
 // THREADS. The robot-control thread that owns the driver is the only caller of every method. A serial driver runs
 // its own communication thread, the only one that touches the port (paper section 4: one pair of threads per port);
@@ -98,6 +99,9 @@ enum class ErrorCode : std::uint8_t {
   hardware,         // failed: the controller reported a hardware error (Movemaster ER answer 1); driver in fault
   protocol,         // failed: the controller's reply could not be understood; driver in fault
   connection_lost,  // failed: the link dropped; driver in fault
+  // failed: the controller reported an error this driver does not know (words or a code outside its list; the
+  // message quotes them); driver in fault, as for hardware: what the arm is doing cannot be told
+  unknown,
   unknown_command,  // poll() of an id never issued or no longer retained
 };
 

@@ -63,6 +63,31 @@ struct SerialSettings {
   bool xon_xoff = false;
 };
 
+// How a host ends the lines it sends a controller.
+enum class LineEnd { kCr, kCrLf, kLf };
+
+// The conventions of a VAL II monitor (docs/real-robots.md, "VAL II"), the robot's `val2:` entry; the defaults are the
+// page's (assumed) ones, which the val2 driver uses when the entry is left out.
+struct Val2Conventions {
+  enum class Orientation { kToolDown, kZyz };     // O, A, T: tool_down (page) or plain Z-Y-Z (zyz)
+  enum class WhereLayout { kVal2, kAsTwoBlock };  // the page's layout, or Kawasaki AS's two blocks (as)
+  enum class Echo { kMaybe, kAlways, kNever };    // whether the monitor echoes the lines it is sent
+  Orientation orientation = Orientation::kToolDown;
+  LineEnd line_end = LineEnd::kCr;
+  std::string prompt = ".";
+  WhereLayout where = WhereLayout::kVal2;
+  Echo echo = Echo::kMaybe;
+};
+
+// The conventions of a Movemaster EX controller (docs/real-robots.md, "Movemaster EX"), the robot's `movemaster:`
+// entry; the defaults are the page's, which the movemaster driver uses when the entry is left out.
+struct MovemasterConventions {
+  enum class Completion { kEr, kPoll };  // a motion's end: the ER answer after it, or WH polling
+  LineEnd line_end = LineEnd::kCrLf;
+  Completion completion = Completion::kEr;
+  char ms_open_letter = 'O';  // the MS letter for an open tool
+};
+
 // Which gripper a robot holds (docs/cell-description.md, "Robots as their makers publish them").
 enum class GripperKind {
   kOwn,        // the robot's URDF has it: prismatic joints finger_left_joint and finger_right_joint, tool link inside
@@ -89,6 +114,9 @@ struct RobotSpec {
   double grip_force = 5.0;     // newtons: the most each finger's servo pushes with (so the grip on a part)
   DriverKind driver = DriverKind::kSim;
   std::optional<SerialSettings> serial;  // required for movemaster and val2
+  // The controller's conventions, whichever driver the scenario or the command line picks (unused by sim).
+  Val2Conventions val2;
+  MovemasterConventions movemaster;
   SourceLocation where;
 };
 

@@ -28,8 +28,12 @@
 //   `ER` 0              the command is done (completion: er — the answer comes when the motion has ended).
 //   `ER` 1              `RS` is sent; the command fails with hardware and the driver enters fault.
 //   `ER` 2              `RS` is sent; the command fails with unreachable; the driver goes on.
-//   anything else       (another digit, a word, bytes outside printable ASCII, the wrong count of numbers in a `WH`
-//                       answer): protocol, fault, the message quoting the bytes received for the job.
+//   `ER` another number (3..99: a code outside the manual's 0, 1, 2) `RS` is sent; the command fails with unknown and
+//                       the driver enters fault, as for 1: the driver cannot tell what the controller's state is.
+//   anything else       (a word, bytes outside printable ASCII, the wrong count of numbers in a `WH` answer):
+//                       protocol, fault, the message quoting the bytes received for the job.
+// Every answer line may end with CR LF, LF alone or CR alone (serial_driver.hpp, Link::read_line), whatever
+// MovemasterOptions::line_end sends.
 //   silence             past the wait's deadline: connection_lost, fault. Chosen over timeout, which fails only the
 //                       command and lets the next one go: after silence the driver cannot tell whether the command
 //                       ran, nor match a late answer to its command. Chosen over protocol (whose reset() would send

@@ -69,7 +69,9 @@ double travel_mm(const Xyzpr& from, const Xyzpr& to);
 
 // ---- Controller to host (one line, its line end already removed) ---------------------------------------------------
 
-// The answer to `ER`: 0, 1 or 2, with spaces (or tabs) around it allowed; nullopt for anything else.
+// The answer to `ER`: a number of one or two digits, with spaces (or tabs) around it allowed; nullopt for anything
+// else. The manual's codes are 0, 1 and 2 (facts.md); the driver takes any other number for an error code it does not
+// know (ErrorCode::unknown).
 std::optional<int> parse_er(std::string_view line);
 // The answer to `WH`: five comma-separated numbers, each with or without a sign and a leading zero ("+.5", "-0.5",
 // "12", "12.25"), spaces (or tabs) around each allowed; a CR left at the end is ignored. nullopt for anything else

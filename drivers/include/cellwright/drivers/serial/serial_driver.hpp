@@ -16,10 +16,10 @@
 // and in poll()) and the rest, the host's own processing time; timing() sums them up and keeps the most recent jobs.
 //
 // FAILURES. A job's outcome is none (done), or a controller's error: unreachable or timeout (the job fails, the driver
-// goes on), hardware, protocol or connection_lost (the driver enters fault; the message names the bytes received).
-// A read that finds the line hung up is connection_lost. Nothing waits without a deadline. After a fault, reset()
-// marks the controller's error to be cleared: the thread calls clear_error() before it takes the next job (the home()
-// that follows); a link that dropped leaves the driver disconnected instead (connect() again).
+// goes on), hardware, protocol, connection_lost or unknown (the driver enters fault; the message names the bytes
+// received). A read that finds the line hung up is connection_lost. Nothing waits without a deadline. After a fault,
+// reset() marks the controller's error to be cleared: the thread calls clear_error() before it takes the next job (the
+// home() that follows); a link that dropped leaves the driver disconnected instead (connect() again).
 //
 // STOP. stop() and disconnect() cancel the jobs at once (DriverCore); an exchange already on the wire is finished by
 // the thread (the controllers cannot be interrupted over the line: the motion in progress ends), and its outcome is
@@ -85,8 +85,10 @@ class SerialDriver : public DriverCore {
     // Sends `text` as it is (the protocol adds its line end), after the pacing wait. ok, or timeout / closed / error
     // with *message set.
     IoStatus send(std::string_view text, std::string* message);
-    // Waits until the buffer holds a complete line (ended by LF; a CR before it is dropped), then removes and returns
-    // it in *line. timeout / closed / error with *message set (the bytes received so far stay in buffer()).
+    // Waits until the buffer holds a complete line (ended by CR LF, LF alone or CR alone), then removes and returns
+    // it in *line, without its end. A line ended by a CR that came last: the LF that may follow it is dropped when
+    // it comes (receive()), so a CR LF is one line end even when it arrives in two reads. timeout / closed / error
+    // with *message set (the bytes received so far stay in buffer()).
     IoStatus read_line(Clock::time_point deadline, std::string* line, std::string* message);
     // Appends what arrives to buffer(), waiting for at least one byte (for prompts that end no line).
     IoStatus receive(Clock::time_point deadline, std::string* message);
@@ -107,14 +109,15 @@ class SerialDriver : public DriverCore {
     SerialPort& port_;
     const SerialOptions& options_;
     std::string buffer_;
-    std::string received_;                // this job's bytes, for messages
-    Clock::time_point not_before_{};      // pacing: the next send waits until then
+    bool lf_owed_ = false;            // read_line() ended a line at a CR that came last: a LF right after it is dropped
+    std::string received_;            // this job's bytes, for messages
+    Clock::time_point not_before_{};  // pacing: the next send waits until then
     SerialExchange* exchange_ = nullptr;  // the job being counted
   };
 
   // What a job came to.
   struct Outcome {
-    ErrorCode error = ErrorCode::none;  // none, unreachable, timeout, hardware, protocol, connection_lost
+    ErrorCode error = ErrorCode::none;  // none, unreachable, timeout, hardware, protocol, connection_lost, unknown
     std::string message;
     std::optional<PositionReading> reading;  // a position job that is done: the reading (stamp set by the base)
   };

@@ -2,9 +2,11 @@
 // the serial line, pacing, timing and the communication thread are SerialDriver's, serial_driver.hpp).
 //
 // THE MONITOR. Every call becomes one monitor line ended by Val2Options::line_end (CR). The monitor may echo the line
-// (an echoed copy, the first non-blank line, is skipped); its answer is zero or more lines ended by CR LF, then the
-// prompt: a `.` at the start of a line with nothing after it. The prompt's return is the line's completion (assumed
-// by the page: the monitor takes the next line only when a DO instruction has finished). Blank lines are skipped.
+// (Val2Options::echo: by default an echoed copy, the first non-blank line, is skipped); its answer is zero or more
+// lines, each ended by CR LF, CR alone or LF alone, then the prompt (Val2Options::prompt, `.`) at the start of a line
+// with nothing after it but spaces or tabs (a prompt `. `). The prompt's return is the line's completion (assumed by
+// the page: the monitor takes the next line only when a DO instruction has finished). Blank lines are skipped, and
+// BEL bytes (0x07, a terminal's bell, rung before an error line) are dropped wherever they come.
 //
 // WHAT EACH CALL SENDS (numbers: val2_protocol.hpp's format_number, at most three decimals, a point whatever the
 // locale; locations: trans_text, with Val2Options::orientation):
@@ -16,7 +18,9 @@
 //   Grip open / close    DO OPENI / DO CLOSEI
 //   SetOutput n on/off   DO SIGNAL n / DO SIGNAL -n                    n in 1..32
 //   WaitInput n on/off   DO WAIT SIG(1000+n) / DO WAIT SIG(-(1000+n))  e.g. DO WAIT SIG(-1005)
-//   request_position()   WHERE                                         answer: val2_protocol.hpp's WhereParser
+//   request_position()   WHERE                                         answer: val2_protocol.hpp's WhereParser in
+//                                                                      Val2Options::where_layout; a reading without
+//                                                                      the joint row has no joints
 //   reset() (after it)   an empty line; the prompt must come back (see RESYNC)
 // `SPEED n` (n = round(speed × 100), within 1..100) goes out before a motion only when n differs from the last one
 // the monitor took since the driver connected or was reset; it is a line of its own, answered by the prompt. WHERE's
@@ -41,14 +45,14 @@
 //
 // ERRORS (a command's outcome; robot_driver.hpp says which put the driver in fault):
 //   - a line starting with `*` before the prompt: classify_error() (val2_protocol.hpp) — unreachable (the command
-//     fails, the driver goes on), protocol or hardware (fault); the message quotes the controller's line. The driver
-//     still waits for the prompt that follows (serial.reply_timeout); a missing one is a protocol fault.
+//     fails, the driver goes on), protocol, hardware or unknown (fault); the message quotes the controller's line. The
+//     driver still waits for the prompt that follows (serial.reply_timeout); a missing one is a protocol fault.
 //   - garbage: any line that is not the echo, a blank line, an error line, the prompt or (WHERE only) the header and
-//     the two lines of numbers, and any byte outside printable ASCII (tab, CR, LF aside), or an unfinished line longer
-//     than 512 bytes: protocol, fault, at once; the message quotes the bytes (SerialDriver::printable) and everything
-//     received for the command (Link::received_text).
+//     the two lines of numbers, and any byte outside printable ASCII (tab, CR, LF and BEL aside), or an unfinished line
+//     longer than 512 bytes: protocol, fault, at once; the message quotes the bytes (SerialDriver::printable) and
+//     everything received for the command (Link::received_text).
 //   - bytes that arrive between the prompt and the next command (the monitor spoke on its own): that command is not
-//     sent and fails with protocol, or hardware if the bytes are a hardware-class error line.
+//     sent and fails with protocol, or hardware or unknown if the bytes are an error line of that class.
 //   - silence past the deadline: protocol, fault (chosen over timeout, which fails a command only and would let the
 //     next line go to a monitor still busy with this one; over connection_lost, because a serial line gives no sign
 //     of a cut cable, the link may well be up, and reset()'s empty line both checks it and resynchronises). The
@@ -68,9 +72,9 @@
 // (connection_lost, connect_problem() says why) or, after reset(), faults the driver again (protocol).
 //
 // CHOICES WHERE THE PAGE IS SILENT (all settings below): the line end (CR), the orientation convention (the page's
-// tool-down Z-Y-Z), the maximum speeds (the project's PUMA 560 URDF estimates), the deadlines above, the quiet times,
-// the optional WHERE header and hand value, and that a prompt `.` during a WHERE answer still missing its numbers
-// counts only after prompt_settle of quiet (a number line may start with `.`).
+// tool-down Z-Y-Z), the prompt, the WHERE layout, the echo, the maximum speeds (the project's PUMA 560 URDF estimates),
+// the deadlines above, the quiet times, the optional WHERE header and hand value, and that a prompt `.` during a WHERE
+// answer still missing its numbers counts only after prompt_settle of quiet (a number line may start with `.`).
 //
 // THREADS: as SerialDriver. The owner thread calls the RobotDriver methods; the communication thread writes and reads
 // the port and keeps the protocol's state (the monitor speed, where the last motion ended, an owed prompt).
@@ -90,6 +94,13 @@ namespace cellwright::drivers {
 // What ends each line the driver sends.
 enum class Val2LineEnd : std::uint8_t { cr, crlf, lf };
 
+// Whether the monitor echoes the lines it is sent.
+enum class Val2Echo : std::uint8_t {
+  maybe,   // a copy of the line, when it is the first line of the answer, is skipped (the page's)
+  always,  // the first line of the answer must be the copy: any other first line is garbage
+  never,   // no copy comes: a line equal to the command is garbage
+};
+
 // The VAL II line's defaults: 9600 baud, 8 data bits, no parity, 1 stop bit, no handshake.
 SerialOptions val2_serial_defaults();
 
@@ -97,6 +108,11 @@ struct Val2Options {
   SerialOptions serial = val2_serial_defaults();
   Val2LineEnd line_end = Val2LineEnd::cr;
   val2::Orientation orientation = val2::Orientation::tool_down;
+  // The monitor's prompt, at the start of a line ("." for VAL II; ">" for Kawasaki AS). Not empty, printable ASCII,
+  // no spaces.
+  std::string prompt = ".";
+  val2::WhereLayout where_layout = val2::WhereLayout::val2;
+  Val2Echo echo = Val2Echo::maybe;
   // Joint speeds at SPEED 100, rad/s, and each joint's widest move (its range), rad, in joint order (six each).
   // Defaults: the project's PUMA 560 URDF (models/urdf/puma560.urdf), velocity limits and joint ranges.
   std::vector<double> max_joint_speed = {2.0, 2.0, 2.5, 4.0, 4.0, 4.0};

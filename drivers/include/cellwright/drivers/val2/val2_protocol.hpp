@@ -59,40 +59,65 @@ std::string ppoint_text(const std::vector<double>& joints);
 // nullopt when a token is not such a number (or is not finite) or the line has none.
 std::optional<std::vector<double>> parse_numbers(std::string_view line);
 
-// The answer to WHERE (docs/real-robots.md, assumed layout), line by line: an optional header line (its first word
-// starts with X, as "X/JT1"), then a line of six world values (X, Y, Z mm; O, A, T degrees) with or without a seventh,
-// the hand opening (mm), then a line of six joint angles (degrees). Blank lines are the caller's to skip.
+// How the monitor lays out its answer to WHERE (docs/real-robots.md, "WHERE"; a setting of the robot's cell entry).
+enum class WhereLayout : std::uint8_t {
+  // The page's (assumed) VAL II layout: an optional header line (its first word starts with X, as "X/JT1"), a line of
+  // six world values (X, Y, Z mm; O, A, T degrees) with or without a seventh, the hand opening (mm), then a line of
+  // six joint angles (degrees), which a monitor may leave out.
+  val2,
+  // VAL's descendants (Kawasaki AS): two blocks, each a header and a line of six numbers: "JT1 ... JT6" and the
+  // joint angles (degrees), then "X[mm] Y[mm] Z[mm] O[deg] A[deg] T[deg]" and the world values. Both are needed.
+  as_two_block,
+};
+
+// The answer to WHERE, line by line, in `layout`. Blank lines are the caller's to skip.
 class WhereParser {
  public:
   struct Reading {
     Location world;
     std::optional<double> hand;  // mm, when the monitor printed it
-    std::vector<double> joints;  // degrees, six
+    std::vector<double> joints;  // degrees, six; empty when the monitor left the joint row out
   };
+
+  explicit WhereParser(WhereLayout layout = WhereLayout::val2) : layout_(layout) {}
 
   // Takes the next line of the answer. false when it does not fit here (the caller's garbage); the parser is then
   // unchanged.
   bool feed(std::string_view line);
-  // The two lines of numbers have come.
-  bool complete() const { return stage_ == Stage::done; }
+  // Every line the layout needs has come (val2: the world values; as_two_block: both blocks).
+  bool complete() const;
+  // Nothing more can come (val2: the joint row came too). A prompt that might be the start of a number line (".5")
+  // is waited on only while this is false.
+  bool finished() const { return stage_ == Stage::done; }
   // What is still missing, for messages ("the world values", "the joint angles"); "" when complete.
   std::string_view missing() const;
   // The reading, once complete() (else nullopt).
   std::optional<Reading> reading() const;
 
  private:
-  enum class Stage : std::uint8_t { start, header, world, done };
+  enum class Stage : std::uint8_t { start, header, world, joint_header, joints, world_header, done };
+  bool feed_val2(std::string_view line, const std::optional<std::vector<double>>& numbers);
+  bool feed_as(std::string_view line, const std::optional<std::vector<double>>& numbers);
+  WhereLayout layout_;
   Stage stage_ = Stage::start;
   Reading reading_;
 };
+
+// Whether `pending`, the bytes received after the last line end, is the monitor's prompt `prompt` ("." for VAL II,
+// ">" for Kawasaki AS): equal to it once spaces and tabs after it (a prompt ". ") and BEL bytes are dropped.
+bool is_prompt(std::string_view pending, std::string_view prompt);
+
+// `line` without its BEL bytes (0x07: a terminal's bell, which a monitor may ring before an error line).
+std::string without_bells(std::string_view line);
 
 // The readings of a complete WHERE answer, converted: joints in radians, the tool pose in metres in the base frame.
 PositionReading to_position_reading(const WhereParser::Reading& where, Orientation orientation);
 
 // What an error line ("*Location out of range*") means (docs/real-robots.md, "Errors"), by its words, whatever their
 // case: unreachable (location out of range or too close, joint n limit stop, position out of range), protocol (the
-// monitor did not understand: unknown instruction, invalid argument, illegal value, syntax error) or hardware (any
-// other).
+// monitor did not understand: unknown instruction, invalid argument, illegal value, syntax error), hardware (arm
+// power off, servo error, emergency stop) or unknown (any other: "*Unknown command*", "*Invalid format*", words this
+// driver has no list for).
 ErrorCode classify_error(std::string_view line);
 
 }  // namespace cellwright::drivers::val2

@@ -132,7 +132,7 @@ TEST(DriverNames, EveryValueHasItsOwnName) {
   for (int i = 0; i <= static_cast<int>(ErrorCode::unknown_command); ++i) {
     errors.insert(to_string(static_cast<ErrorCode>(i)));
   }
-  EXPECT_EQ(errors.size(), 12u);
+  EXPECT_EQ(errors.size(), 13u);
   EXPECT_FALSE(errors.contains("?"));
   EXPECT_FALSE(states.contains("?"));
   EXPECT_EQ(to_string(CommandPhase::running), "running");

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <algorithm>
 #include <chrono>
 #include <sstream>
 #include <thread>
@@ -174,18 +175,25 @@ TEST(RuntimeRun, TheWallTimeLimitEndsARunThatTakesTooLong) {
 // without it, with the same log. The recorder takes 1 s in all; the limit is half of that, far more than the run
 // itself needs.
 TEST(RuntimeRun, TimeSpentRecordingDoesNotCountTowardsTheWallTimeLimit) {
+  // The limit is scaled to this machine (a sanitized build on a loaded machine runs the cell many times slower): five
+  // times the wall time of the run unrecorded, while the recording alone takes four times the limit. Counted, the
+  // recording would end the run at the limit; not counted, the run finishes well inside it.
   ScriptedCell plain;
   Runtime without(plain.config);
+  const auto started = std::chrono::steady_clock::now();
   const RunResult expected = without.run();
+  const auto unrecorded = std::chrono::steady_clock::now() - started;
   ASSERT_EQ(expected.outcome, Outcome::kFinished);
+  const auto limit = std::max(std::chrono::duration_cast<std::chrono::milliseconds>(5 * unrecorded),
+                              std::chrono::milliseconds(200));
 
   ScriptedCell cell;
-  cell.config.limits.wall_time = std::chrono::milliseconds(500);
+  cell.config.limits.wall_time = limit;
   int frames = 0;
-  cell.config.observers.push_back({expected.end_time / 20, true, [&frames](const Observation&) {
+  cell.config.observers.push_back({expected.end_time / 20, true, [&frames, limit](const Observation&) {
                                      ++frames;
                                      // the slow consumer, not a wait for another thread
-                                     std::this_thread::sleep_for(std::chrono::milliseconds(50));
+                                     std::this_thread::sleep_for(limit / 5);
                                    }});
   Runtime with(cell.config);
   const RunResult r = with.run();

@@ -267,4 +267,24 @@ TEST(RealRobotsCli, ARunAgainstAMonitorWhoseWorldIsElsewhereIsRefusedAtConnect) 
   EXPECT_THAT(emulator.output(), Not(HasSubstr("< DO MOVE")));
 }
 
+// The Movemaster reads pose only (WH): the check compares it with the kinematics of the cell's home and says what it
+// could not check; a controller that reads p = +90 for a hand pointing down, its world 250 mm up, is refused and
+// commissioned as such.
+TEST(RealRobotsCli, AMovemasterReadingPitchDownAsPlusNinetyIsCommissioned) {
+  TwinCli cli("real-commission-mm");
+  const fs::path link = cli.dir() / "melfa";
+  BackgroundTwin emulator({"emulate", "movemaster", "--link", link.string(), "--time-scale", "0.05", "--home",
+                           "-90,30,60,0,60,0", "--pitch-down", "90", "--world-offset", "0,0,250"});
+  ASSERT_TRUE(emulator.wait_for("Ctrl-C to stop", std::chrono::seconds(20))) << emulator.output();
+  const std::string driver = " --driver " + shell_quote("melfa=movemaster:" + link.string());
+  auto r = cli.run("run " + shell_quote(kExchange) + " --dry" + driver);
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("not checked: the controller reads no joints"));
+  EXPECT_THAT(r.out, HasSubstr("CROSS-CHECK FAILED: the pose the controller reads back is 250"));
+  r = cli.run("commission " + shell_quote(kExchange) + driver);
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("    movemaster: {pitch_down: 90, world_offset: [0, 0, 250"));
+  EXPECT_EQ(emulator.stop(), 0);
+}
+
 }  // namespace

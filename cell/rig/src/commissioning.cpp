@@ -182,10 +182,15 @@ CrossCheck cross_check(const models::RobotSpec& robot, models::DriverKind kind, 
     for (const double x : v) s += fmt::format("{}{}", s.empty() ? "" : ", ", num(x / kDeg));
     return "[" + s + "]";
   };
+  if (!q.empty() && q.size() != robot.home.size()) {
+    c.problems.push_back(fmt::format("the controller reads {} joints, and the cell's home has {}", q.size(),
+                                     robot.home.size()));
+    return c;
+  }
   if (!q.empty()) {
     std::size_t worst = 0;
-    double off = q.size() == robot.home.size() ? 0.0 : 360.0;
-    for (std::size_t j = 0; j < std::min(q.size(), robot.home.size()); ++j) {
+    double off = 0.0;
+    for (std::size_t j = 0; j < q.size(); ++j) {
       if (std::abs(q[j] - robot.home[j]) > off) {
         off = std::abs(q[j] - robot.home[j]);
         worst = j;

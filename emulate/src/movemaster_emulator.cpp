@@ -51,7 +51,15 @@ MovemasterEmulator::MovemasterEmulator(EmulatedArm& arm, MovemasterEmulatorOptio
     throw InputError(where, "the nominal tool length is not a number");
   }
   if (options_.reconnect_delay.count() < 0) throw InputError(where, "the reconnect delay is negative");
-  executor_ = std::make_unique<movemaster::Executor>(arm_, options_.nominal_tool_length_mm, options_.speed_level);
+  if (options_.pitch_down_deg != -90 && options_.pitch_down_deg != 90) {
+    throw InputError(where, fmt::format("pitch_down {} is neither -90 nor 90", options_.pitch_down_deg));
+  }
+  if (options_.roll_sense != 1 && options_.roll_sense != -1) {
+    throw InputError(where, fmt::format("roll_sense {} is neither 1 nor -1", options_.roll_sense));
+  }
+  executor_ = std::make_unique<movemaster::Executor>(
+      arm_, options_.nominal_tool_length_mm, options_.speed_level,
+      movemaster::Conventions{options_.world, options_.tool, options_.pitch_down_deg > 0, options_.roll_sense < 0});
   program_ = std::make_unique<movemaster::Program>();
 }
 

@@ -45,7 +45,8 @@ struct Val2Emulator::Impl {
       : arm(a),
         options(std::move(o)),
         plan(options.misbehaviours, options.seed),
-        executor(a, options.speed),
+        executor(a, options.speed, {options.orientation == Val2EmulatorOptions::Orientation::val, options.world,
+                                    options.tool}),
         garbage_random(options.seed ^ 0x9e3779b97f4a7c15ULL) {}
 
   EmulatedArm& arm;

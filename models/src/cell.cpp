@@ -258,15 +258,34 @@ LineEnd read_line_end(const Doc& doc, const Fields& f) {
   return choice_of<LineEnd>(doc, f, "line_end", {{"cr", LineEnd::kCr}, {"crlf", LineEnd::kCrLf}, {"lf", LineEnd::kLf}});
 }
 
+// The frame keys shared by `val2:` and `movemaster:` (ControllerFrames): offsets in mm within ±10 m, rotations in
+// degrees within ±360 (bounds::kAngle).
+constexpr Range kOffsetMm{-10000, 10000, false, "mm"};
+
+ControllerFrames read_frames(const Fields& f) {
+  const auto rotation = [](const Eigen::Vector3d& rpy_deg) {
+    return Pose{Eigen::Vector3d::Zero(), rpy_deg * kDeg}.rotation();
+  };
+  ControllerFrames c;
+  if (f.has("world_offset")) c.world.translation() = f.vec3_within("world_offset", kOffsetMm) / 1000.0;
+  if (f.has("world_rotation")) c.world.linear() = rotation(f.vec3_within("world_rotation", kAngleDeg));
+  if (f.has("tool_offset")) c.tool.translation() = f.vec3_within("tool_offset", kOffsetMm) / 1000.0;
+  if (f.has("tool_rotation")) c.tool.linear() = rotation(f.vec3_within("tool_rotation", kAngleDeg));
+  return c;
+}
+
 Val2Conventions read_val2(const Doc& doc, const YAML::Node& n, const std::string& robot) {
   Fields f(doc, n, fmt::format("the VAL II conventions of robot '{}'", robot),
-           {"orientation", "line_end", "prompt", "where", "echo"});
+           {"orientation", "line_end", "prompt", "where", "echo", "world_offset", "world_rotation", "tool_offset",
+            "tool_rotation"});
   Val2Conventions c;
   using C = Val2Conventions;
   if (f.has("orientation")) {
     c.orientation = choice_of<C::Orientation>(
-        doc, f, "orientation", {{"tool_down", C::Orientation::kToolDown}, {"zyz", C::Orientation::kZyz}});
+        doc, f, "orientation",
+        {{"tool_down", C::Orientation::kToolDown}, {"zyz", C::Orientation::kZyz}, {"val", C::Orientation::kVal}});
   }
+  c.frames = read_frames(f);
   if (f.has("line_end")) c.line_end = read_line_end(doc, f);
   if (f.has("prompt")) {
     c.prompt = f.text("prompt");
@@ -290,9 +309,20 @@ Val2Conventions read_val2(const Doc& doc, const YAML::Node& n, const std::string
 
 MovemasterConventions read_movemaster(const Doc& doc, const YAML::Node& n, const std::string& robot) {
   Fields f(doc, n, fmt::format("the Movemaster conventions of robot '{}'", robot),
-           {"line_end", "completion", "ms_open_letter"});
+           {"line_end", "completion", "ms_open_letter", "pitch_down", "roll", "world_offset", "world_rotation",
+            "tool_offset", "tool_rotation"});
   MovemasterConventions c;
   using C = MovemasterConventions;
+  c.frames = read_frames(f);
+  if (f.has("pitch_down")) {
+    c.pitch_down_deg = f.number("pitch_down");
+    if (c.pitch_down_deg != -90 && c.pitch_down_deg != 90) {
+      doc.fail(f.node("pitch_down"), fmt::format("{} must be -90 (the page's: p = -90 points the hand straight down) "
+                                                 "or 90, got {}",
+                                                 f.field("pitch_down"), c.pitch_down_deg));
+    }
+  }
+  if (f.has("roll")) c.roll_sense = choice_of<int>(doc, f, "roll", {{"right_hand", 1}, {"left_hand", -1}});
   if (f.has("line_end")) c.line_end = read_line_end(doc, f);
   if (f.has("completion")) {
     c.completion =

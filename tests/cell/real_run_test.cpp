@@ -29,9 +29,13 @@ namespace fs = std::filesystem;
 
 const std::string kExchange = std::string(CW_SOURCE_DIR) + "/scenes/exchange.yaml";
 
-emulate::KinematicArm arm_of(const char* urdf) {
+// `home`: the cell's home of the robot (degrees), where the controller's READY / nest takes it: the bring-up's
+// cross-check refuses a controller whose home is not the cell's.
+emulate::KinematicArm arm_of(const char* urdf, std::vector<double> home) {
   emulate::KinematicArmOptions o;
   o.time_scale = 0.25;  // the run goes at --speed 4
+  for (double& h : home) h *= M_PI / 180.0;
+  o.home = std::move(home);
   return emulate::KinematicArm(models::KinematicChain::from_urdf_file(std::string(models::models_dir()) + urdf), o);
 }
 
@@ -94,8 +98,8 @@ TEST_F(RealRunTest, EveryRobotOfTheProgramNeedsARealDriver) {
 }
 
 TEST_F(RealRunTest, ExchangeRunsOnTwoEmulatedControllersWithNoPlantAndTheModelsParts) {
-  emulate::KinematicArm puma_arm = arm_of("/urdf/puma560.urdf");
-  emulate::KinematicArm melfa_arm = arm_of("/urdf/melfa_rve2.urdf");
+  emulate::KinematicArm puma_arm = arm_of("/urdf/puma560.urdf", {0, 84, -192, 0, -72, 90});
+  emulate::KinematicArm melfa_arm = arm_of("/urdf/melfa_rve2.urdf", {-90, 30, 60, 0, 60, 0});
   Serving<emulate::Val2Emulator> puma(puma_arm, dir_ / "puma");
   Serving<emulate::MovemasterEmulator> melfa(melfa_arm, dir_ / "melfa");
   Scenario s = exchange_at_the_stop();

@@ -877,6 +877,72 @@ TEST(Val2AgainstEmulator, EveryLineSettingOfTheDocAgrees) {
   }
 }
 
+// A monitor that follows VAL's published conventions (O, A, T all zero: the hand along −Y, the fingers horizontal),
+// its world at the shoulder and its tool point at the flange (docs/real-robots.md, "Commissioning"): a driver told the
+// same settings sends poses that arrive where they were meant and reads back what the kinematics say; a driver on the
+// page's defaults reads back a pose 671.83 mm and tens of degrees away.
+TEST(Val2AgainstEmulator, AMonitorWithValsConventionsAgreesWithADriverGivenTheSameSettings) {
+  auto options = Val2::emulator_options();
+  options.orientation = emulate::Val2EmulatorOptions::Orientation::val;
+  options.world.translation() = Eigen::Vector3d(0, 0, 0.67183);
+  options.tool.translation() = Eigen::Vector3d(0, 0, -0.146);
+  Val2Rig rig(options, [](drivers::Val2Options& o) {
+    o.orientation = drivers::val2::Orientation::val;
+    o.frames.world.translation() = Eigen::Vector3d(0, 0, 0.67183);
+    o.frames.tool.translation() = Eigen::Vector3d(0, 0, -0.146);
+  });
+  ASSERT_NO_FATAL_FAILURE(rig.bring_up());
+  for (const auto& q : {kQ1, kQ2, kQ3}) {
+    const Eigen::Isometry3d pose = forward(rig.arm, q);
+    rig.done(MovePose{pose, Path::joint, 1.0});
+    // The tool point 146 mm from the TCP turns the angles' rounding (0.001° sent, 0.001° read) into up to 4 µm.
+    expect_pose_near(rig.arm_pose(), pose, 0.01, 0.003, "the arm");
+    const drivers::PositionReading r = rig.read_back();
+    ASSERT_TRUE(r.tool_pose.has_value());
+    expect_pose_near(*r.tool_pose, forward(rig.arm, r.joints), kVal2Mm + 0.01, kVal2Deg, "WHERE's world");
+    ASSERT_TRUE(rig.driver->last_location().has_value());
+    // What the monitor printed is in its own frame: the tool point at the flange, the height from the shoulder.
+    const Eigen::Vector3d flange = (pose * Eigen::Vector3d(0, 0, -0.146)) * 1000.0;
+    EXPECT_NEAR(rig.driver->last_location()->z, flange.z() - 671.83, 0.02);
+  }
+
+  Val2Rig plain(options);  // the driver on the page's defaults
+  ASSERT_NO_FATAL_FAILURE(plain.bring_up());
+  plain.done(MoveJoints{kQ1, 1.0});
+  const drivers::PositionReading r = plain.read_back();
+  const Eigen::Isometry3d fk = forward(plain.arm, r.joints);
+  EXPECT_GT((r.tool_pose->translation() - fk.translation()).norm(), 0.5);
+  EXPECT_GT(degrees_between(r.tool_pose->linear(), fk.linear()), 10.0);
+}
+
+// The Movemaster's settings on both sides: a world frame turned and raised, p read with +90 down, roll left-handed.
+TEST(MovemasterAgainstEmulator, AControllerWithOtherConventionsAgreesWithADriverGivenTheSameSettings) {
+  auto options = Movemaster::emulator_options();
+  options.world.translation() = Eigen::Vector3d(0, 0, 0.3);
+  options.world.linear() = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  options.pitch_down_deg = 90;
+  options.roll_sense = -1;
+  MovemasterRig rig(options, [&](drivers::MovemasterOptions& o) {
+    o.frames.world = options.world;
+    o.pitch_down_deg = 90;
+    o.roll_sense = -1;
+  });
+  ASSERT_NO_FATAL_FAILURE(rig.bring_up());
+  // In the turned frame the numbers sent (one decimal) no longer fall on the pose's own grid: each is off by up to
+  // 0.05 mm or 0.05°, and so is each read back.
+  for (const Eigen::Isometry3d& pose :
+       {five_axis(300.0, 0.0, 200.0, -90.0, 0.0), five_axis(350.0, 100.0, 200.0, -45.0, -60.0)}) {
+    rig.done(MovePose{pose, Path::joint, 1.0});
+    expect_pose_near(rig.arm_pose(), pose, 2 * kMovemasterMm, 2 * kMovemasterDeg, "the arm");
+    expect_pose_near(*rig.read_back().tool_pose, pose, 4 * kMovemasterMm, 4 * kMovemasterDeg, "WH");
+  }
+  // Straight down reads p = +90 on this controller.
+  rig.done(MovePose{five_axis(300.0, 0.0, 200.0, -90.0, 0.0), Path::joint, 1.0});
+  rig.read_back();
+  ASSERT_TRUE(rig.driver->last_wh().has_value());
+  EXPECT_NEAR(rig.driver->last_wh()->p, 90.0, 0.1);
+}
+
 TEST(Val2AgainstEmulator, AWaitForAnInputThatTimesOutHoldsTheNextCommandUntilTheMonitorIsDone) {
   Val2Rig rig;
   ASSERT_NO_FATAL_FAILURE(rig.bring_up());

@@ -281,14 +281,51 @@ TEST(Cell, ControllerConventionsAreSettingsWithThePagesDefaults) {
   const models::RobotSpec& m = *cell.find_robot("melfa");
   EXPECT_EQ(m.movemaster.line_end, models::LineEnd::kCr);
   EXPECT_EQ(m.movemaster.completion, models::MovemasterConventions::Completion::kPoll);
+  // Left out, the frames are the page's: the controller's world is the base link, its tool point the TCP.
+  EXPECT_TRUE(p.val2.frames.world.matrix().isIdentity(0)) << p.val2.frames.world.matrix();
+  EXPECT_TRUE(m.movemaster.frames.tool.matrix().isIdentity(0));
+  EXPECT_EQ(m.movemaster.pitch_down_deg, -90);
+  EXPECT_EQ(m.movemaster.roll_sense, 1);
   EXPECT_EQ(m.movemaster.ms_open_letter, 'C');
+}
+
+// The frames and readings of docs/real-robots.md's "Commissioning": mm and degrees in the file, metres and a
+// rotation (R = Rz(yaw)·Ry(pitch)·Rx(roll)) here.
+TEST(Cell, ControllerFramesAndReadingsAreRead) {
+  const std::string text =
+      with(with(base_yaml(), "    home: [0, 84, -192, 0, -72, 90]\n",
+                "    home: [0, 84, -192, 0, -72, 90]\n"
+                "    val2: {orientation: val, world_offset: [0, 0, 671.83], world_rotation: [0, 0, 90], "
+                "tool_offset: [0, 0, -146]}\n"),
+           "    home: [0, 30, 60, 0, 60, 0]\n",
+           "    home: [0, 30, 60, 0, 60, 0]\n    movemaster: {pitch_down: 90, roll: left_hand, "
+           "tool_rotation: [180, 0, 0]}\n");
+  const models::CellDescription cell = parse(text);
+  const models::RobotSpec& p = *cell.find_robot("puma");
+  EXPECT_EQ(p.val2.orientation, models::Val2Conventions::Orientation::kVal);
+  EXPECT_TRUE(p.val2.frames.world.translation().isApprox(Eigen::Vector3d(0, 0, 0.67183), 1e-12));
+  EXPECT_TRUE(p.val2.frames.world.linear().col(0).isApprox(Eigen::Vector3d(0, 1, 0), 1e-12));  // yaw 90
+  EXPECT_TRUE(p.val2.frames.tool.translation().isApprox(Eigen::Vector3d(0, 0, -0.146), 1e-12));
+  const models::RobotSpec& m = *cell.find_robot("melfa");
+  EXPECT_EQ(m.movemaster.pitch_down_deg, 90);
+  EXPECT_EQ(m.movemaster.roll_sense, -1);
+  EXPECT_TRUE(m.movemaster.frames.tool.linear().col(2).isApprox(Eigen::Vector3d(0, 0, -1), 1e-12));  // roll 180
 }
 
 TEST(CellErrors, BadControllerConventionsNameTheLine) {
   const std::string anchor = "    home: [0, 84, -192, 0, -72, 90]\n";
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"    val2: {line_end: crcr}\n", "must be cr, crlf or lf, got 'crcr'"},
-      {"    val2: {orientation: xyz}\n", "must be tool_down or zyz, got 'xyz'"},
+      {"    val2: {orientation: xyz}\n", "must be tool_down, zyz or val, got 'xyz'"},
+      {"    val2: {world_offset: [0, 660]}\n", "world_offset"},
+      {"    val2: {world_offset: [0, 0, 66000]}\n", "world_offset"},
+      {"    val2: {world_rotation: [0, 0, 400]}\n", "world_rotation"},
+      {"    val2: {tool_offset: [0, 0, x]}\n", "tool_offset"},
+      {"    val2: {tool_rotation: 90}\n", "tool_rotation"},
+      {"    val2: {pitch_down: 90}\n", "pitch_down"},
+      {"    movemaster: {pitch_down: 45}\n", "must be -90 (the page's: p = -90 points the hand straight down) or 90, got 45"},
+      {"    movemaster: {roll: sideways}\n", "must be right_hand or left_hand, got 'sideways'"},
+      {"    movemaster: {world_offset: [0, 0, .nan]}\n", "world_offset"},
       {"    val2: {where: kawasaki}\n", "must be val2 or as, got 'kawasaki'"},
       {"    val2: {echo: sometimes}\n", "must be maybe, always or never, got 'sometimes'"},
       {"    val2: {prompt: '. '}\n", "must be printable characters without spaces"},

@@ -42,11 +42,12 @@ expect 2 "needs the simulator" -- "$twin" emulate --scenario scenes/exchange.yam
 [[ ! -e $scratch/c && ! -e $scratch/cell.png ]] || fail "a refused command wrote something"
 
 # emulate NAME LANGUAGE: a controller of the build's own on the pseudo-terminal $scratch/NAME, its arm 4 times faster
-# than real time; waits until it is published.
+# than real time, its home the cell's (the bring-up cross-checks it); waits until it is published.
 emulate() {
-  local name=$1 language=$2
+  local name=$1 language=$2 home
+  home=$([[ $name == puma ]] && echo 0,84,-192,0,-72,90 || echo -90,30,60,0,60,0)
   rm -f "$scratch/$name.log"
-  "$twin" emulate "$language" --link "$scratch/$name" --time-scale 0.25 >"$scratch/$name.log" 2>&1 &
+  "$twin" emulate "$language" --link "$scratch/$name" --time-scale 0.25 --home "$home" >"$scratch/$name.log" 2>&1 &
   emulators+=($!)
   for _ in $(seq 100); do
     grep -q "Ctrl-C to stop" "$scratch/$name.log" 2>/dev/null && return 0

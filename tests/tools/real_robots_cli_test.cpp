@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@ using cellwright::testing::shell_quote;
 using cellwright::testing::source_path;
 using cellwright::testing::TwinCli;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 const std::string kExchange = source_path("scenes/exchange.yaml");
 // The emulated cell's arms and the run's clock go this many times faster than real time (`--speed`): the serial
@@ -160,7 +162,9 @@ TEST(RealRobotsCli, AHardwareErrorMidRunIsResetAndRehomedAndTheRunGoesOn) {
 TEST(RealRobotsCli, DryRunHomesReadsAndChecksEveryTargetMovingNothingElse) {
   TwinCli cli("real-dry");
   const fs::path link = cli.dir() / "melfa";
-  BackgroundTwin emulator({"emulate", "movemaster", "--link", link.string(), "--time-scale", "0.05", "--verbose"});
+  // Its nest is the cell's home (the bring-up's cross-check refuses a controller whose home is not the cell's).
+  BackgroundTwin emulator({"emulate", "movemaster", "--link", link.string(), "--time-scale", "0.05", "--verbose",
+                           "--home", "-90,30,60,0,60,0"});
   ASSERT_TRUE(emulator.wait_for("Ctrl-C to stop", std::chrono::seconds(20))) << emulator.output();
   const auto r =
       cli.run("run " + shell_quote(kExchange) + " --dry --driver " + shell_quote("melfa=movemaster:" + link.string()));
@@ -184,6 +188,103 @@ TEST(RealRobotsCli, DryRunWithEveryRobotSimulatedIsRefused) {
   const auto r = cli.run("run " + shell_quote(kExchange) + " --dry");
   EXPECT_EQ(r.status, 2) << r.out << r.err;
   EXPECT_THAT(r.err, HasSubstr("a dry run is for real drivers"));
+}
+
+
+// The exchange's scene in `dir`, its cell's PUMA entry given `puma_entry` (a line such as "    val2: {...}\n").
+fs::path exchange_with_puma(const fs::path& dir, const std::string& puma_entry) {
+  fs::create_directories(dir);
+  std::string cell = cellwright::testing::slurp(source_path("scenes/cell.yaml"));
+  for (std::size_t at = cell.find("../models/"); at != std::string::npos; at = cell.find("../models/")) {
+    cell.replace(at, 10, source_path("models/"));
+  }
+  const std::string puma_driver = "    home: [0, 84, -192, 0, -72, 90]\n    driver: sim\n";
+  const std::size_t at = cell.find(puma_driver);
+  EXPECT_NE(at, std::string::npos);
+  cell.insert(at + puma_driver.size(), puma_entry);
+  std::ofstream(dir / "cell.yaml") << cell;
+  fs::copy_file(kExchange, dir / "exchange.yaml");
+  fs::copy_file(source_path("scenes/exchange.task"), dir / "exchange.task");
+  return dir / "exchange.yaml";
+}
+
+// The monitor (docs/real-robots.md, "Commissioning"): a VAL II monitor that follows VAL's published conventions
+// (O, A, T all zero: the hand along -Y, the fingers horizontal) with its world frame at the shoulder, 671.83 mm above
+// the URDF's base link. The bring-up's cross-check refuses it before anything moves but homing, naming the offset and
+// rotation it found and the settings that explain them; `twin commission` proposes those settings; pasted into the
+// cell, the dry run passes and the exchange runs through that monitor.
+TEST(RealRobotsCli, AMonitorWithValsConventionsAndAShoulderWorldIsRefusedAtBringUpThenCommissioned) {
+  TwinCli cli("real-commission");
+  const fs::path link = cli.dir() / "puma";
+  BackgroundTwin emulator({"emulate", "val2", "--link", link.string(), "--time-scale", "0.25", "--home",
+                           "0,84,-192,0,-72,90", "--orientation", "val", "--world-offset", "0,0,671.83", "--verbose"});
+  ASSERT_TRUE(emulator.wait_for("Ctrl-C to stop", std::chrono::seconds(20))) << emulator.output();
+  const std::string driver = " --driver " + shell_quote("puma=val2:" + link.string());
+
+  auto r = cli.run("run " + shell_quote(kExchange) + " --dry" + driver);
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("CROSS-CHECK FAILED: the pose the controller reads back is 671.8"));
+  EXPECT_THAT(r.out, HasSubstr(", -671.8"));  // the offset's z, mm: the shoulder's height
+  EXPECT_THAT(r.out, HasSubstr(" deg (about the axis ["));
+  EXPECT_THAT(r.out, HasSubstr("set val2: {orientation: val, world_offset: ["));
+  EXPECT_THAT(r.out, HasSubstr(", 671.8"));
+  EXPECT_THAT(r.out, Not(HasSubstr("dry run: every target can be reached")));
+
+  r = cli.run("commission " + shell_quote(kExchange) + driver);
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("proposed settings"));
+  const std::size_t at = r.out.find("    val2: {");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const std::string proposed = r.out.substr(at, r.out.find('\n', at) + 1 - at);
+  EXPECT_THAT(proposed, HasSubstr("orientation: val, world_offset: ["));
+
+  const fs::path scenario = exchange_with_puma(cli.dir() / "scene", proposed);
+  r = cli.run("run " + shell_quote(scenario.string()) + " --dry" + driver);
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("dry run: every target can be reached and expressed, and the read-backs agree"));
+  r = cli.run("run " + shell_quote(scenario.string()) + " --quiet --realtime --speed 4" + driver);
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
+  EXPECT_EQ(emulator.stop(), 0);
+  EXPECT_THAT(emulator.output(), HasSubstr("< DO MOVE TRANS("));
+  EXPECT_THAT(emulator.output(), Not(HasSubstr("out of range")));
+}
+
+// A real connect makes the same check: the run is refused (exit 2) before anything moves but homing.
+TEST(RealRobotsCli, ARunAgainstAMonitorWhoseWorldIsElsewhereIsRefusedAtConnect) {
+  TwinCli cli("real-connect-check");
+  const fs::path link = cli.dir() / "puma";
+  BackgroundTwin emulator({"emulate", "val2", "--link", link.string(), "--time-scale", "0.25", "--home",
+                           "0,84,-192,0,-72,90", "--world-offset", "0,0,671.83", "--verbose"});
+  ASSERT_TRUE(emulator.wait_for("Ctrl-C to stop", std::chrono::seconds(20))) << emulator.output();
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --driver " +
+                         shell_quote("puma=val2:" + link.string()));
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("refused at bring-up before anything moved but homing"));
+  EXPECT_THAT(r.err, HasSubstr("world_offset: ["));
+  EXPECT_EQ(emulator.stop(), 0);
+  EXPECT_THAT(emulator.output(), HasSubstr("< DO READY"));
+  EXPECT_THAT(emulator.output(), Not(HasSubstr("< DO MOVE")));
+}
+
+// The Movemaster reads pose only (WH): the check compares it with the kinematics of the cell's home and says what it
+// could not check; a controller that reads p = +90 for a hand pointing down, its world 250 mm up, is refused and
+// commissioned as such.
+TEST(RealRobotsCli, AMovemasterReadingPitchDownAsPlusNinetyIsCommissioned) {
+  TwinCli cli("real-commission-mm");
+  const fs::path link = cli.dir() / "melfa";
+  BackgroundTwin emulator({"emulate", "movemaster", "--link", link.string(), "--time-scale", "0.05", "--home",
+                           "-90,30,60,0,60,0", "--pitch-down", "90", "--world-offset", "0,0,250"});
+  ASSERT_TRUE(emulator.wait_for("Ctrl-C to stop", std::chrono::seconds(20))) << emulator.output();
+  const std::string driver = " --driver " + shell_quote("melfa=movemaster:" + link.string());
+  auto r = cli.run("run " + shell_quote(kExchange) + " --dry" + driver);
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("not checked: the controller reads no joints"));
+  EXPECT_THAT(r.out, HasSubstr("CROSS-CHECK FAILED: the pose the controller reads back is 250"));
+  r = cli.run("commission " + shell_quote(kExchange) + driver);
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("    movemaster: {pitch_down: 90, world_offset: [0, 0, 250"));
+  EXPECT_EQ(emulator.stop(), 0);
 }
 
 }  // namespace

@@ -49,6 +49,19 @@ std::vector<double> degrees_to_radians(const std::vector<double>& deg) {
   return out;
 }
 
+// A frame from --*-offset (mm) and --*-rotation (degrees, R = Rz(yaw)·Ry(pitch)·Rx(roll)); each empty: none.
+Eigen::Isometry3d frame_of(const std::vector<double>& offset_mm, const std::vector<double>& rpy_deg) {
+  Eigen::Isometry3d f = Eigen::Isometry3d::Identity();
+  if (offset_mm.size() == 3) f.translation() = Eigen::Vector3d(offset_mm[0], offset_mm[1], offset_mm[2]) / 1000.0;
+  if (rpy_deg.size() == 3) {
+    const std::vector<double> r = degrees_to_radians(rpy_deg);
+    f.linear() = (Eigen::AngleAxisd(r[2], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(r[1], Eigen::Vector3d::UnitY()) *
+                  Eigen::AngleAxisd(r[0], Eigen::Vector3d::UnitX()))
+                     .toRotationMatrix();
+  }
+  return f;
+}
+
 }  // namespace
 
 void add_emulate(CLI::App& app, Command* run) {
@@ -70,6 +83,10 @@ void add_emulate(CLI::App& app, Command* run) {
     std::vector<std::string> misbehave;
     bool no_echo = false;
     bool verbose = false;
+    std::string orientation = "tool_down";
+    std::vector<double> world_offset, world_rotation, tool_offset, tool_rotation;
+    double pitch_down = -90;
+    int roll_sense = 1;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("language", args->language, "the controller to emulate alone: movemaster or val2")
@@ -93,6 +110,18 @@ void add_emulate(CLI::App& app, Command* run) {
                   "KIND: error (er1), unreachable (er2), garbage, silent, drop, late (repeatable)");
   cmd->add_flag("--no-echo", args->no_echo, "VAL II: do not echo what is received");
   cmd->add_flag("--verbose", args->verbose, "print every line received and answered");
+  // The controller's conventions (docs/real-robots.md, "Commissioning"), as a robot's cell entry gives them.
+  cmd->add_option("--orientation", args->orientation, "VAL II: how O, A, T read: tool_down (default) or val")
+      ->check(CLI::IsMember({"tool_down", "val"}));
+  const auto triple = [&](const char* name, std::vector<double>& v, const char* what) {
+    cmd->add_option(name, v, what)->delimiter(',')->expected(3);
+  };
+  triple("--world-offset", args->world_offset, "X,Y,Z mm: the controller's world frame in the arm's base frame");
+  triple("--world-rotation", args->world_rotation, "ROLL,PITCH,YAW degrees: its rotation (Rz·Ry·Rx, fixed axes)");
+  triple("--tool-offset", args->tool_offset, "X,Y,Z mm: the controller's tool point in the arm's TCP frame");
+  triple("--tool-rotation", args->tool_rotation, "ROLL,PITCH,YAW degrees: its axes in the TCP's");
+  cmd->add_option("--pitch-down", args->pitch_down, "Movemaster: the pitch at which the hand points down: -90 or 90");
+  cmd->add_option("--roll-sense", args->roll_sense, "Movemaster: 1 (roll right-handed about the approach) or -1");
   cmd->callback([run, args, cmd] {
     *run = [args, cmd] {
       const SourceLocation cli{"twin emulate", 0, 0};
@@ -102,6 +131,14 @@ void add_emulate(CLI::App& app, Command* run) {
         std::fprintf(stdout, "%.*s\n", static_cast<int>(line.size()), line.data());
         std::fflush(stdout);
       };
+      for (const char* name : {"--orientation", "--world-offset", "--world-rotation", "--tool-offset",
+                               "--tool-rotation", "--pitch-down", "--roll-sense"}) {
+        if (!args->scenario.empty() && cmd->count(name) > 0) {
+          throw InputError(cli, fmt::format("{} is for one controller alone; with --scenario the controllers follow "
+                                            "the page's conventions",
+                                            name));
+        }
+      }
       if (!args->scenario.empty()) {
 #if !CW_SIM
         needs_simulator("twin emulate --scenario (the controllers on the twin's arms)");
@@ -177,6 +214,10 @@ void add_emulate(CLI::App& app, Command* run) {
         o.seed = args->seed;
         o.misbehaviours = std::move(misbehaviours);
         if (args->verbose) o.log = print;
+        o.world = frame_of(args->world_offset, args->world_rotation);
+        o.tool = frame_of(args->tool_offset, args->tool_rotation);
+        o.pitch_down_deg = args->pitch_down;
+        o.roll_sense = args->roll_sense;
         emulate::MovemasterEmulator e(arm, std::move(o));
         Joined announce{std::thread([&] {
           if (e.wait_published(1, std::chrono::seconds(10))) print(ready);
@@ -188,6 +229,9 @@ void add_emulate(CLI::App& app, Command* run) {
         o.misbehaviours = std::move(misbehaviours);
         o.echo = !args->no_echo;
         if (args->verbose) o.log = print;
+        o.world = frame_of(args->world_offset, args->world_rotation);
+        o.tool = frame_of(args->tool_offset, args->tool_rotation);
+        if (args->orientation == "val") o.orientation = emulate::Val2EmulatorOptions::Orientation::val;
         emulate::Val2Emulator e(arm, std::move(o));
         Joined announce{std::thread([&] {
           if (e.wait_published(1, std::chrono::seconds(10))) print(ready);

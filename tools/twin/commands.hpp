@@ -22,6 +22,7 @@ void add_snapshot(CLI::App& app, Command* run);
 void add_run(CLI::App& app, Command* run);
 void add_step(CLI::App& app, Command* run);
 void add_emulate(CLI::App& app, Command* run);
+void add_commission(CLI::App& app, Command* run);
 void add_campaign(CLI::App& app, Command* run);
 void add_test(CLI::App& app, Command* run);
 

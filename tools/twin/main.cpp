@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
   cellwright::tools::add_emulate(app, &run);
   cellwright::tools::add_campaign(app, &run);
   cellwright::tools::add_test(app, &run);
+  cellwright::tools::add_commission(app, &run);
   // A first word that is no option and no command is a mistyped command: say so (CLI11 would call it an unexpected
   // argument).
   if (argc > 1 && argv[1][0] != '-') {

@@ -4,8 +4,6 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <condition_variable>
-#include <mutex>
 
 #include "cellwright/drivers/movemaster/movemaster_driver.hpp"
 #include "cellwright/drivers/movemaster/movemaster_protocol.hpp"
@@ -13,57 +11,15 @@
 #include "cellwright/models/robot_model.hpp"
 #include "cellwright/cell/estimate.hpp"
 #include "cellwright/common/error.hpp"
+#include "cellwright/cell/commissioning.hpp"
 #include "cellwright/cell/real_drivers.hpp"
 
 namespace cellwright::cell {
 
-namespace {
-
-// Waits for command `id` of `driver` to end, at most `timeout`; its status then.
-drivers::CommandStatus wait_for(drivers::RobotDriver& driver, drivers::CommandId id, std::chrono::nanoseconds timeout) {
-  std::mutex mutex;
-  std::condition_variable cv;
-  std::uint64_t events = 0;
-  driver.set_notifier([&] {
-    {
-      std::lock_guard lock(mutex);
-      ++events;
-    }
-    cv.notify_all();
-  });
-  const auto until = std::chrono::steady_clock::now() + timeout;
-  drivers::CommandStatus st;
-  for (;;) {
-    std::uint64_t seen = 0;
-    {
-      std::lock_guard lock(mutex);
-      seen = events;
-    }
-    st = driver.poll(id);
-    if (st.phase == drivers::CommandPhase::done || st.phase == drivers::CommandPhase::failed) break;
-    std::unique_lock lock(mutex);
-    if (!cv.wait_until(lock, until, [&] { return events != seen; })) {
-      st.message = "no answer in time";
-      break;
-    }
-  }
-  driver.set_notifier({});
-  return st;
-}
-
-std::string failed(const char* step, const drivers::CommandStatus& st) {
-  return fmt::format("{} did not finish: {} {}", step, drivers::to_string(st.phase),
-                     st.phase == drivers::CommandPhase::failed
-                         ? fmt::format("({}: {})", drivers::to_string(st.error), st.message)
-                         : st.message);
-}
-
-}  // namespace
-
 bool DryRunReport::ok() const {
   for (const DryRobot& r : robots) {
     if (!r.real) continue;
-    if (!r.problem.empty() || !r.homed || !r.position) return false;
+    if (!r.problem.empty() || !r.homed || !r.position || !r.check.ok()) return false;
     for (const DryTarget& t : r.targets) {
       if (!t.problem.empty()) return false;
     }
@@ -93,19 +49,13 @@ DryRunReport dry_run(const Scenario& s, const Preflight& pre, const DryRunOption
     const models::RobotSpec& spec = *s.cell.find_robot(b.name);
     std::unique_ptr<drivers::SerialDriver> driver = make_real_driver(*choice, spec);
     connect_real_driver(*driver, *choice);
-    const drivers::Submitted home = driver->home();
-    drivers::CommandStatus st = wait_for(*driver, home.id, options.home_timeout);
-    if (st.phase != drivers::CommandPhase::done) {
-      r.problem = failed("homing", st);
-    } else {
+    if (const std::optional<ReadBack> home =
+            home_and_read(*driver, options.home_timeout, options.read_timeout, &r.problem)) {
       r.homed = true;
-      const drivers::Submitted read = driver->request_position();
-      st = wait_for(*driver, read.id, options.read_timeout);
-      if (st.phase == drivers::CommandPhase::done) {
-        r.position = driver->last_position();
-      } else {
-        r.problem = failed("reading the position", st);
-      }
+      r.position = home->reading;
+      r.check = cross_check(spec, choice->kind, *home);
+    } else {
+      r.homed = driver->state() == drivers::DriverState::homed;
     }
     driver->disconnect();
 
@@ -161,12 +111,15 @@ std::string format_dry_run(const DryRunReport& report) {
       out += fmt::format("  position after homing: joints [{}] deg\n", q);
     }
     if (!r.problem.empty()) out += fmt::format("  PROBLEM: {}\n", r.problem);
+    for (const std::string& p : r.check.problems) out += fmt::format("  CROSS-CHECK FAILED: {}\n", p);
+    for (const std::string& n : r.check.notes) out += fmt::format("  not checked: {}\n", n);
     for (const DryTarget& t : r.targets) {
       out += fmt::format("  {} {:<24} {}  {}\n", t.problem.empty() ? "ok  " : "FAIL", t.command,
                          t.problem.empty() ? t.controller : t.problem, t.source);
     }
   }
-  out += report.ok() ? "dry run: every target can be reached and expressed; nothing was moved but homing\n"
+  out += report.ok() ? "dry run: every target can be reached and expressed, and the read-backs agree with the "
+                       "kinematics and the home; nothing was moved but homing\n"
                      : "dry run: problems above; nothing was moved but homing\n";
   return out;
 }

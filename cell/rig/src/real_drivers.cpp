@@ -30,8 +30,10 @@ drivers::SerialLine line_of(const models::SerialSettings& s) {
 // The robot's conventions (its cell entry's `val2:` / `movemaster:`, docs/cell-description.md) as driver options.
 void set_conventions(const models::Val2Conventions& c, drivers::Val2Options& o) {
   using C = models::Val2Conventions;
-  o.orientation =
-      c.orientation == C::Orientation::kZyz ? drivers::val2::Orientation::zyz : drivers::val2::Orientation::tool_down;
+  o.orientation = c.orientation == C::Orientation::kZyz   ? drivers::val2::Orientation::zyz
+                  : c.orientation == C::Orientation::kVal ? drivers::val2::Orientation::val
+                                                          : drivers::val2::Orientation::tool_down;
+  o.frames = {c.frames.world, c.frames.tool};
   o.line_end = c.line_end == models::LineEnd::kCrLf ? drivers::Val2LineEnd::crlf
                : c.line_end == models::LineEnd::kLf ? drivers::Val2LineEnd::lf
                                                     : drivers::Val2LineEnd::cr;
@@ -51,6 +53,9 @@ void set_conventions(const models::MovemasterConventions& c, drivers::Movemaster
                      ? drivers::MovemasterOptions::Completion::poll
                      : drivers::MovemasterOptions::Completion::er;
   o.ms_open_letter = c.ms_open_letter;
+  o.frames = {c.frames.world, c.frames.tool};
+  o.pitch_down_deg = c.pitch_down_deg;
+  o.roll_sense = c.roll_sense;
 }
 
 }  // namespace

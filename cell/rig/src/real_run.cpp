@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/cell/commissioning.hpp"
 #include "cellwright/cell/real_drivers.hpp"
 #include "cellwright/cell/run_wiring.hpp"
 
@@ -52,6 +53,7 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
     drivers_.push_back(make_real_driver(choice, *s.cell.find_robot(b.name)));
     drivers::SerialDriver& driver = *drivers_.back();
     connect_real_driver(driver, choice);
+    bring_up_checked(driver, choice, *s.cell.find_robot(b.name));  // homes, reads and cross-checks: refuses here
     config.drivers[b.name] = &driver;
     if (runtime::GripSensor* grip = runtime::grip_sensor_for(driver, nullptr, grip_sensors_)) {
       config.sensors.grip[b.name] = grip;

@@ -15,6 +15,7 @@
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
 #include "cellwright/twin/render.hpp"
+#include "cellwright/cell/commissioning.hpp"
 #include "cellwright/cell/real_drivers.hpp"
 #include "cellwright/cell/run_wiring.hpp"
 #include "cellwright/cell/sim/sweep.hpp"
@@ -171,6 +172,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
     if (choice != nullptr && choice->real()) {
       std::unique_ptr<drivers::SerialDriver> real = make_real_driver(*choice, *s.cell.find_robot(b.name));
       connect_real_driver(*real, *choice);
+      bring_up_checked(*real, *choice, *s.cell.find_robot(b.name));  // homes, reads and cross-checks: refuses here
       mirrors_.push_back(std::make_unique<sim::MirroredDriver>(b.name, std::move(real), driver, driver.kinematics()));
       config.drivers[b.name] = mirrors_.back().get();
       mirrored.push_back(b.name);

@@ -177,6 +177,9 @@ MovemasterDriver::MovemasterDriver(MovemasterOptions options) : SerialDriver(opt
                fmt::format("tool_length_mm {} is not a length >= 0", o.tool_length_mm.value_or(0.0)));
   check_option(std::isfinite(o.yaw_tolerance_deg) && o.yaw_tolerance_deg >= 0.0 && o.yaw_tolerance_deg < 90.0, o,
                fmt::format("yaw_tolerance_deg {} is outside [0, 90)", o.yaw_tolerance_deg));
+  check_option(o.pitch_down_deg == -90.0 || o.pitch_down_deg == 90.0, o,
+               fmt::format("pitch_down {} is neither -90 nor 90", o.pitch_down_deg));
+  check_option(o.roll_sense == 1 || o.roll_sense == -1, o, fmt::format("roll_sense {} is neither 1 nor -1", o.roll_sense));
   check_option(o.grip_start_time >= 0 && o.grip_start_time <= 99, o,
                fmt::format("grip_start_time {} is outside 0..99 (tenths of a second)", o.grip_start_time));
   check_option(o.joints >= 1, o, "joints must be at least 1");
@@ -258,6 +261,11 @@ SerialDriver::Outcome MovemasterDriver::clear_error(Link& link) {
   return o;
 }
 
+std::optional<mm::Xyzpr> MovemasterDriver::last_wh() const {
+  std::lock_guard lock(wh_mutex_);
+  return last_wh_;
+}
+
 SerialDriver::Outcome MovemasterDriver::execute(Link& link, const JobCopy& job) {
   Exchange ex(link, options_);
   const auto reply = options_.serial.reply_timeout;
@@ -274,8 +282,13 @@ SerialDriver::Outcome MovemasterDriver::execute(Link& link, const JobCopy& job) 
         o = ex.wh(Link::in(reply), &v);
         if (o.error == ErrorCode::none) {
           where_ = v;
+          {
+            std::lock_guard lock(wh_mutex_);
+            last_wh_ = v;
+          }
           o.reading.emplace();
-          o.reading->tool_pose = mm::to_pose(v);
+          o.reading->tool_pose = options_.frames.from_controller(
+              mm::to_pose(mm::with_angle_reading(v, options_.pitch_down_deg, options_.roll_sense)));
         }
         break;
       }
@@ -298,8 +311,10 @@ SerialDriver::Outcome MovemasterDriver::execute(Link& link, const JobCopy& job) 
 
 SerialDriver::Outcome MovemasterDriver::move(Exchange& ex, const MovePose& command) {
   std::string problem;
-  const std::optional<mm::Xyzpr> target = mm::to_xyzpr(command.pose, options_.yaw_tolerance_deg, &problem);
+  std::optional<mm::Xyzpr> target =
+      mm::to_xyzpr(options_.frames.to_controller(command.pose), options_.yaw_tolerance_deg, &problem);
   if (!target) return Exchange::failed(ErrorCode::unreachable, problem + "; nothing sent");
+  target = mm::with_angle_reading(*target, options_.pitch_down_deg, options_.roll_sense);
   const int level = mm::speed_level(command.speed);
   if (speed_level_ != level) {
     if (Outcome o = ex.send(mm::format_sp(level, options_.acceleration)); o.error != ErrorCode::none) return o;

@@ -127,6 +127,13 @@ std::optional<Xyzpr> to_xyzpr(const Eigen::Isometry3d& pose, double yaw_toleranc
   return v;
 }
 
+Xyzpr with_angle_reading(const Xyzpr& v, double pitch_down_deg, int roll_sense) {
+  Xyzpr out = v;
+  if (pitch_down_deg > 0) out.p = -v.p;
+  if (roll_sense < 0) out.r = -v.r;
+  return out;
+}
+
 std::string number(double v) {
   const double tenths = std::round(v * 10.0);
   std::string s = fmt::format("{:.1f}", tenths / 10.0);

@@ -144,6 +144,8 @@ class Val2Driver::Session {
     Outcome o = command("WHERE", options_.serial.reply_timeout, ErrorCode::protocol, &parser);
     if (o.error != ErrorCode::none) return o;
     PositionReading reading = val2::to_position_reading(*parser.reading(), options_.orientation);
+    reading.tool_pose = options_.frames.from_controller(*reading.tool_pose);
+    state_.where_world = parser.reading()->world;
     state_.joints = reading.joints;
     state_.pose = reading.tool_pose;
     o.reading = std::move(reading);
@@ -178,7 +180,7 @@ class Val2Driver::Session {
       duration = std::max(distance / options_.max_tool_speed, turn / wrist);
     }
     const std::string text = std::string(linear ? "DO MOVES " : "DO MOVE ") +
-                             val2::trans_text(val2::to_location(c.pose, options_.orientation));
+                             val2::trans_text(val2::to_location(options_.frames.to_controller(c.pose), options_.orientation));
     Outcome o = command(text, motion_budget(duration, percent));
     forget_position();
     if (o.error == ErrorCode::none) state_.pose = c.pose;
@@ -423,6 +425,11 @@ Val2Driver::Val2Driver(Val2Options options) : SerialDriver(checked(options).seri
   set_capabilities(std::move(c));
 }
 
+std::optional<val2::Location> Val2Driver::last_location() const {
+  std::lock_guard lock(location_mutex_);
+  return last_location_;
+}
+
 Val2Driver::~Val2Driver() {
   disconnect();
 }
@@ -446,8 +453,14 @@ SerialDriver::Outcome Val2Driver::execute(Link& link, const JobCopy& job) {
   switch (job.kind) {
     case JobKind::home:
       return session.home();
-    case JobKind::position:
-      return session.where();
+    case JobKind::position: {
+      Outcome o = session.where();
+      if (o.error == ErrorCode::none && state_.where_world) {
+        std::lock_guard lock(location_mutex_);
+        last_location_ = state_.where_world;
+      }
+      return o;
+    }
     case JobKind::command:
       break;
   }

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <numbers>
@@ -41,6 +42,34 @@ double wrap_degrees(double degrees) {
   return d;
 }
 
+// VAL's tool axes at O = A = T = 0 (Orientation::val): columns x = −Z, y = +X, z = −Y.
+Eigen::Matrix3d val_zero() {
+  Eigen::Matrix3d r;
+  r << 0, 1, 0,  //
+      0, 0, -1,  //
+      -1, 0, 0;
+  return r;
+}
+
+// O, A, T (degrees) of `r` in VAL's convention. m = r · R0ᵀ = Rz(O)·Rx(A)·Ry(B) with B = −T: its third row is
+// (−cos A sin B, sin A, cos A cos B), its second column (−sin O cos A, cos O cos A, sin A). A is taken in [−90, 90].
+std::array<double, 3> val_angles(const Eigen::Matrix3d& r) {
+  const Eigen::Matrix3d m = r * val_zero().transpose();
+  const double cos_a = std::hypot(m(0, 1), m(1, 1));
+  const double a = std::atan2(m(2, 1), cos_a);
+  double o = 0.0;
+  double b = 0.0;
+  if (cos_a > kSingular) {
+    o = std::atan2(-m(0, 1), m(1, 1));
+    b = std::atan2(-m(2, 0), m(2, 2));
+  } else {
+    // A = ±90: m = Rz(O ∓ T)·Rx(±90); T is 0 and O takes the turn, read from m·Rx(∓90) = Rz(O).
+    const Eigen::Matrix3d n = m * Eigen::AngleAxisd(-a, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    o = std::atan2(n(1, 0), n(0, 0));
+  }
+  return {wrap_degrees(o / kDeg), a / kDeg, wrap_degrees(-b / kDeg)};
+}
+
 bool is_space(char c) {
   return c == ' ' || c == '\t';
 }
@@ -67,6 +96,7 @@ std::string format_number(double value) {
 }
 
 Eigen::Matrix3d oat_rotation(double o, double a, double t, Orientation orientation) {
+  if (orientation == Orientation::val) return rz(o * kDeg) * val_zero() * ry(a * kDeg) * rz(t * kDeg);
   Eigen::Matrix3d r = rz(o * kDeg) * ry(a * kDeg) * rz(t * kDeg);
   if (orientation == Orientation::tool_down) r = r * tool_down_turn();
   return r;
@@ -77,6 +107,13 @@ Location to_location(const Eigen::Isometry3d& pose, Orientation orientation) {
   l.x = pose.translation().x() * 1000.0;
   l.y = pose.translation().y() * 1000.0;
   l.z = pose.translation().z() * 1000.0;
+  if (orientation == Orientation::val) {
+    const std::array<double, 3> oat = val_angles(pose.rotation());
+    l.o = oat[0];
+    l.a = oat[1];
+    l.t = oat[2];
+    return l;
+  }
   Eigen::Matrix3d m = pose.rotation();
   if (orientation == Orientation::tool_down) m = m * tool_down_turn();
   // m = Rz(O) Ry(A) Rz(T): its third column is (cos O sin A, sin O sin A, cos A), its third row

@@ -20,11 +20,20 @@ std::string wh_number(double v) {
 
 }  // namespace
 
-Executor::Executor(EmulatedArm& arm, double nominal_tool_length_mm, int speed_level)
+Executor::Executor(EmulatedArm& arm, double nominal_tool_length_mm, int speed_level, Conventions conventions)
     : arm_(arm),
       nominal_tool_length_mm_(nominal_tool_length_mm),
       speed_level_(speed_level),
-      tool_length_mm_(nominal_tool_length_mm) {}
+      tool_length_mm_(nominal_tool_length_mm) {
+  conventions_ = std::move(conventions);
+}
+
+Pose5 Executor::page_angles(const Pose5& pose) const {
+  Pose5 out = pose;
+  if (conventions_.pitch_down_positive) out.p = -pose.p;
+  if (conventions_.roll_left_handed) out.r = -pose.r;
+  return out;
+}
 
 void Executor::raise(int code) {
   if (error_ != kHardwareError) error_ = code;
@@ -106,13 +115,15 @@ Executed Executor::execute(const Command& c) {
 }
 
 std::optional<std::vector<double>> Executor::solve(const Pose5& pose, std::string& why) const {
-  const std::optional<Eigen::Isometry3d> tool = tool_frame(pose);
+  const std::optional<Eigen::Isometry3d> tool = tool_frame(page_angles(pose));
   if (!tool) {
     why = fmt::format("the tool point ({:.1f}, {:.1f}) mm is on the base's z axis: it has no azimuth", pose.x, pose.y);
     return std::nullopt;
   }
-  Eigen::Isometry3d tip = *tool;
-  tip.translation() -= tool_offset() * tool->linear().col(2);
+  Eigen::Isometry3d in_world = *tool;
+  in_world.translation() -= tool_offset() * tool->linear().col(2);
+  // From the controller's world and tool point to the arm's base frame and chain tip.
+  const Eigen::Isometry3d tip = conventions_.world * in_world * conventions_.tool.inverse();
   const std::vector<double> now = arm_.joints();
   const Eigen::VectorXd seed = Eigen::Map<const Eigen::VectorXd>(now.data(), static_cast<Eigen::Index>(now.size()));
   const models::IkResult ik = arm_.chain().inverse(tip, seed);
@@ -161,10 +172,11 @@ Executed Executor::grip(bool close) {
 
 std::string Executor::where() const {
   const std::vector<double> now = arm_.joints();
-  Eigen::Isometry3d tool =
+  const Eigen::Isometry3d tip =
       arm_.chain().forward(Eigen::Map<const Eigen::VectorXd>(now.data(), static_cast<Eigen::Index>(now.size())));
+  Eigen::Isometry3d tool = conventions_.world.inverse() * tip * conventions_.tool;
   tool.translation() += tool_offset() * tool.linear().col(2);
-  const Pose5 p = pose_of(tool);
+  const Pose5 p = page_angles(pose_of(tool));
   return fmt::format("{},{},{},{},{}", wh_number(p.x), wh_number(p.y), wh_number(p.z), wh_number(p.p), wh_number(p.r));
 }
 

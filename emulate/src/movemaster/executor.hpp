@@ -31,11 +31,19 @@ struct Executed {
   std::string error;                 // why the register was set, if it was
 };
 
+// The controller's conventions (movemaster_emulator.hpp, MovemasterEmulatorOptions).
+struct Conventions {
+  Eigen::Isometry3d world = Eigen::Isometry3d::Identity();  // the controller's world in the arm's base frame
+  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();   // its tool point (TL at nominal) in the arm's TCP frame
+  bool pitch_down_positive = false;                         // p = +90 points down (else −90, the page's)
+  bool roll_left_handed = false;                            // r turns the other way about the approach axis
+};
+
 class Executor {
  public:
   // `nominal_tool_length_mm`: the TL length at which the tool point is the chain's tip; `speed_level` the SP level at
   // power-on.
-  Executor(EmulatedArm& arm, double nominal_tool_length_mm, int speed_level);
+  Executor(EmulatedArm& arm, double nominal_tool_length_mm, int speed_level, Conventions conventions = {});
 
   Executed execute(const Command& command);
   // Sets the register as a failing command does (kHardwareError or kPositionError).
@@ -56,8 +64,12 @@ class Executor {
   // (l − nominal) in metres: how far the tool point is from the chain's tip along the tool's z axis.
   double tool_offset() const { return (tool_length_mm_ - nominal_tool_length_mm_) / 1000; }
 
+  // p and r between the controller's reading and the page's (the same map both ways).
+  Pose5 page_angles(const Pose5& pose) const;
+
   EmulatedArm& arm_;
   const double nominal_tool_length_mm_;
+  Conventions conventions_;
   int error_ = kNoError;
   int speed_level_;
   bool high_acceleration_ = true;

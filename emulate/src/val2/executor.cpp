@@ -73,7 +73,43 @@ std::array<double, 3> oat_angles(const Eigen::Matrix3d& r, const std::array<doub
   return distance(second) < distance(first) ? second : first;
 }
 
-Executor::Executor(EmulatedArm& arm, double speed) : arm_(arm), speed_(speed) {}
+Eigen::Matrix3d val_oat_rotation(double o, double a, double t) {
+  const double so = std::sin(o * kDeg), co = std::cos(o * kDeg);
+  const double sa = std::sin(a * kDeg), ca = std::cos(a * kDeg);
+  const Eigen::Vector3d approach(so * ca, -co * ca, -sa);  // Rz(O)·(0, −cos A, −sin A)
+  const Eigen::Vector3d fingers0(co, so, 0.0);             // the finger line at T = 0, horizontal
+  const Eigen::Vector3d normal0 = fingers0.cross(approach);
+  const Eigen::Vector3d fingers = fingers0 * std::cos(t * kDeg) - normal0 * std::sin(t * kDeg);
+  Eigen::Matrix3d r;
+  r.col(0) = fingers.cross(approach);
+  r.col(1) = fingers;
+  r.col(2) = approach;
+  return r;
+}
+
+std::array<double, 3> val_oat_angles(const Eigen::Matrix3d& r, const std::array<double, 3>& near) {
+  const Eigen::Vector3d approach = r.col(2);
+  const double horizontal = std::hypot(approach.x(), approach.y());
+  const double a = std::atan2(-approach.z(), horizontal) / kDeg;
+  // Pointing straight up or down, O and T turn about the same axis: O is kept and T takes the rest.
+  const double o = horizontal < kDegenerateSinA ? wrap_degrees(near[0]) : std::atan2(approach.x(), -approach.y()) / kDeg;
+  const Eigen::Vector3d fingers0(std::cos(o * kDeg), std::sin(o * kDeg), 0.0);
+  const Eigen::Vector3d normal0 = fingers0.cross(approach);
+  const double t = std::atan2(-r.col(1).dot(normal0), r.col(1).dot(fingers0)) / kDeg;
+  const std::array<double, 3> first{wrap_degrees(o), wrap_degrees(a), wrap_degrees(t)};
+  if (horizontal < kDegenerateSinA) return first;
+  // The other set: the approach axis seen from the other side, O + 180, A → 180 − A, T + 180.
+  const std::array<double, 3> second{wrap_degrees(o + 180), wrap_degrees(180 - a), wrap_degrees(t + 180)};
+  const auto distance = [&](const std::array<double, 3>& x) {
+    double d = 0;
+    for (int i = 0; i < 3; ++i) d += std::abs(wrap_degrees(x[i] - near[i]));
+    return d;
+  };
+  return distance(second) < distance(first) ? second : first;
+}
+
+Executor::Executor(EmulatedArm& arm, double speed, Conventions conventions)
+    : arm_(arm), speed_(speed), conventions_(std::move(conventions)) {}
 
 Outcome Executor::execute(const Instruction& in) {
   switch (in.op) {
@@ -157,9 +193,12 @@ Outcome Executor::move_to_location(const Location& location, bool linear) {
     }
     return move_to(q, linear);
   }
-  Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
-  target.translation() = Eigen::Vector3d(v[0], v[1], v[2]) / 1000.0;
-  target.linear() = oat_rotation(v[3], v[4], v[5]);
+  Eigen::Isometry3d given = Eigen::Isometry3d::Identity();
+  given.translation() = Eigen::Vector3d(v[0], v[1], v[2]) / 1000.0;
+  given.linear() = conventions_.val_orientation ? val_oat_rotation(v[3], v[4], v[5]) : oat_rotation(v[3], v[4], v[5]);
+  // The location is the monitor's tool point in its world: the arm's TCP in its base frame is world · location ·
+  // tool⁻¹.
+  const Eigen::Isometry3d target = conventions_.world * given * conventions_.tool.inverse();
   const std::vector<double> now = arm_.joints();
   models::IkOptions options;
   // Tight enough that WHERE (0.01 mm, 0.001°) reads the location back as written.
@@ -175,10 +214,12 @@ Outcome Executor::move_to_location(const Location& location, bool linear) {
 
 Outcome Executor::where() const {
   const std::vector<double> q = arm_.joints();
-  const Eigen::Isometry3d pose =
+  const Eigen::Isometry3d tcp =
       arm_.chain().forward(Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size())));
+  const Eigen::Isometry3d pose = conventions_.world.inverse() * tcp * conventions_.tool;
   const Eigen::Vector3d p = pose.translation() * 1000.0;
-  const std::array<double, 3> oat = oat_angles(pose.linear(), oat_);
+  const std::array<double, 3> oat =
+      conventions_.val_orientation ? val_oat_angles(pose.linear(), oat_) : oat_angles(pose.linear(), oat_);
   Outcome out;
   out.lines.emplace_back(kWhereHeader);
   out.lines.push_back(fmt::format("{:10.2f}{:11.2f}{:11.2f}{:11.3f}{:11.3f}{:11.3f}{:11.3f}", printable(p.x(), 2),

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <array>
 #include <string>
@@ -23,10 +24,17 @@ struct Outcome {
   std::string failure;             // the arm's message, when an error line came from the arm
 };
 
+// The monitor's conventions (val2_emulator.hpp, Val2EmulatorOptions).
+struct Conventions {
+  bool val_orientation = false;                             // O, A, T as VAL publishes them, else the page's
+  Eigen::Isometry3d world = Eigen::Isometry3d::Identity();  // the monitor's world in the arm's base frame
+  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();   // the monitor's tool point in the arm's TCP frame
+};
+
 class Executor {
  public:
   // `speed`: the monitor speed, percent, before any SPEED. The arm's chain has six joints (the caller checks).
-  Executor(EmulatedArm& arm, double speed);
+  Executor(EmulatedArm& arm, double speed, Conventions conventions = {});
 
   // Carries out `instruction` (blocking while the arm moves or waits) and says what to print.
   Outcome execute(const Instruction& instruction);
@@ -37,7 +45,8 @@ class Executor {
   Outcome where() const;
 
   EmulatedArm& arm_;
-  double speed_;                        // percent
+  double speed_;  // percent
+  Conventions conventions_;
   std::array<double, 3> oat_{0, 0, 0};  // degrees: the last O, A, T given in a TRANS
 };
 
@@ -45,5 +54,10 @@ class Executor {
 Eigen::Matrix3d oat_rotation(double o, double a, double t);
 // The O, A, T (degrees, each in (−180, 180]) of rotation `r` nearest to `near` (see val2_emulator.hpp).
 std::array<double, 3> oat_angles(const Eigen::Matrix3d& r, const std::array<double, 3>& near);
+// The same in VAL's published convention (val2_emulator.hpp, "Orientation"): the tool's approach axis is
+// Rz(O)·(0, −cos A, −sin A), its finger line at T = 0 is Rz(O)·(1, 0, 0), and T turns the finger line about the
+// approach axis.
+Eigen::Matrix3d val_oat_rotation(double o, double a, double t);
+std::array<double, 3> val_oat_angles(const Eigen::Matrix3d& r, const std::array<double, 3>& near);
 
 }  // namespace cellwright::emulate::val2

@@ -55,6 +55,8 @@
 #pragma once
 
 #include <array>
+#include <Eigen/Geometry>
+
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
@@ -82,6 +84,14 @@ struct MovemasterEmulatorOptions {
   std::vector<Misbehaviour> misbehaviours;
   // The TL length (mm) at which the tool point is the arm chain's tip (its `tcp` link).
   double nominal_tool_length_mm = 0;
+  // The controller's conventions (docs/real-robots.md, "Commissioning"; `twin emulate movemaster --world-offset ...`):
+  // its world frame in the arm's base frame, its tool point (at the nominal TL) in the arm's TCP frame, and how it
+  // reads p and r (pitch_down -90 or 90; roll_sense +1 right-handed about the approach axis, or -1). Defaults: the
+  // page's.
+  Eigen::Isometry3d world = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+  double pitch_down_deg = -90;
+  int roll_sense = 1;
   // How long the path stays gone after a `drop`.
   std::chrono::nanoseconds reconnect_delay = std::chrono::milliseconds(200);
   // The SP level at power-on (0–9). (assumed: the doc does not say.)

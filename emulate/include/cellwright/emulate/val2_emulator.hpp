@@ -23,7 +23,11 @@
 // it waits as long as it takes). WHERE prints three lines: the doc's header, X Y Z (mm, 2 decimals) O A T (degrees,
 // 3 decimals) and the hand opening (mm, 3 decimals), then the six joint angles (degrees, 3 decimals); columns 10
 // characters wide for the first value and 11 for each further one.
-//  - Orientation: R = Rz(O)·Ry(A)·Rz(T)·Rx(180°). WHERE writes the O, A, T, each in (−180, 180], nearest to the
+//  - Orientation: R = Rz(O)·Ry(A)·Rz(T)·Rx(180°); with Val2EmulatorOptions::orientation val, VAL's published
+//    convention (all zero: the hand points along −Y, the finger line along +X, the fingers in a horizontal plane; O
+//    turns about the vertical, A tilts the hand about its finger line, A = 90 pointing down, T turns the finger line
+//    about the approach axis). Locations are the monitor's tool point (Val2EmulatorOptions::tool, in the arm's TCP
+//    frame) in its world (Val2EmulatorOptions::world, in the arm's base frame): the arm's TCP is world · L · tool⁻¹. WHERE writes the O, A, T, each in (−180, 180], nearest to the
 //    last ones a MOVE or MOVES was given (at first 0, 0, 0): Z-Y-Z angles have two sets per rotation, and a whole
 //    family when A is 0 or 180 (then O is kept and T takes the rest), so a location reads back as it was written.
 //  - MOVE/MOVES TRANS: inverse kinematics (arm.chain().inverse(), seeded with the joints now, tolerances 1 µm and
@@ -72,6 +76,8 @@
 // arm must not be used by anyone else while serve() runs.
 #pragma once
 
+#include <Eigen/Geometry>
+
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
@@ -91,6 +97,12 @@ struct Val2EmulatorOptions {
   bool echo = true;                         // echo each received line (`--no-echo` turns it off)
   std::chrono::nanoseconds reconnect_delay{std::chrono::milliseconds(200)};  // after a drop, before republishing
   double speed = 100;  // the monitor speed (percent, [1, 100]) before any SPEED
+  // The monitor's conventions (docs/real-robots.md, "Commissioning"; `twin emulate val2 --orientation --world-offset
+  // ...`). Defaults: the page's (tool_down; world = the arm's base link; tool point = the TCP).
+  enum class Orientation : std::uint8_t { tool_down, val };
+  Orientation orientation = Orientation::tool_down;
+  Eigen::Isometry3d world = Eigen::Isometry3d::Identity();  // the monitor's world frame in the arm's base frame
+  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();   // the monitor's tool point in the arm's TCP frame
   // Called on the serving thread with each line received ("< ...") and each answer line ("> ..."), e.g. for
   // `twin emulate --verbose`. May be empty.
   std::function<void(std::string_view)> log;

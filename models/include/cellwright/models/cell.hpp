@@ -66,10 +66,26 @@ struct SerialSettings {
 // How a host ends the lines it sends a controller.
 enum class LineEnd { kCr, kCrLf, kLf };
 
+// Where a controller's numbers live (docs/real-robots.md, "Commissioning"): the robot's `val2:` / `movemaster:` keys
+// world_offset, world_rotation, tool_offset and tool_rotation. The defaults (identity) are the project's assumption
+// that the controller's world frame is the URDF's base link and its tool point the project's TCP with the TCP's axes.
+struct ControllerFrames {
+  // The controller's world frame in the robot's base frame (base_link): metres and a rotation. In the cell file:
+  // world_offset in mm, world_rotation in degrees [roll, pitch, yaw] about the fixed axes, R = Rz(yaw)·Ry(pitch)·Rx(roll)
+  // (the URDF's convention, as every rpy of the cell description).
+  Eigen::Isometry3d world = Eigen::Isometry3d::Identity();
+  // The controller's tool point (and its axes) in the project's TCP frame: tool_offset (mm), tool_rotation (degrees,
+  // as world_rotation). A controller with no tool set reports its flange: tool_offset [0, 0, -l], l the TCP's distance
+  // from the flange.
+  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+};
+
 // The conventions of a VAL II monitor (docs/real-robots.md, "VAL II"), the robot's `val2:` entry; the defaults are the
 // page's (assumed) ones, which the val2 driver uses when the entry is left out.
 struct Val2Conventions {
-  enum class Orientation { kToolDown, kZyz };     // O, A, T: tool_down (page) or plain Z-Y-Z (zyz)
+  // O, A, T: tool_down (page), plain Z-Y-Z (zyz) or VAL's published one (val: all zero, the hand along -Y, fingers
+  // horizontal; val2_protocol.hpp)
+  enum class Orientation { kToolDown, kZyz, kVal };
   enum class WhereLayout { kVal2, kAsTwoBlock };  // the page's layout, or Kawasaki AS's two blocks (as)
   enum class Echo { kMaybe, kAlways, kNever };    // whether the monitor echoes the lines it is sent
   Orientation orientation = Orientation::kToolDown;
@@ -77,6 +93,7 @@ struct Val2Conventions {
   std::string prompt = ".";
   WhereLayout where = WhereLayout::kVal2;
   Echo echo = Echo::kMaybe;
+  ControllerFrames frames;
 };
 
 // The conventions of a Movemaster EX controller (docs/real-robots.md, "Movemaster EX"), the robot's `movemaster:`
@@ -86,6 +103,12 @@ struct MovemasterConventions {
   LineEnd line_end = LineEnd::kCrLf;
   Completion completion = Completion::kEr;
   char ms_open_letter = 'O';  // the MS letter for an open tool
+  // How x,y,z,p,r's angles are read (assumed, docs/real-robots.md "Pose convention"): the pitch at which the hand
+  // points straight down (-90, the page's; or 90), and the sense of the roll about the approach axis (+1 right-handed,
+  // the page's; -1 the other way).
+  double pitch_down_deg = -90;
+  int roll_sense = 1;
+  ControllerFrames frames;
 };
 
 // Which gripper a robot holds (docs/cell-description.md, "Robots as their makers publish them").

@@ -1,6 +1,7 @@
 // The dry run for hardware bring-up (`twin run SCENARIO --driver melfa=movemaster:PORT --dry`, docs/real-robots.md):
-// for every robot of the program on a real driver, connect, home, read the position, and check every target of the
-// program without moving anything else.
+// for every robot of the program on a real driver, connect, home, read the position, cross-check the read-back against
+// the project's kinematics and the cell's home (commissioning.hpp), and check every target of the program without
+// moving anything else.
 //
 // The targets are the program's moves as the runtime would make them, planned on the cell description (the
 // preflight's motion plan, Preflight::plan from plan_motions: parts at their stops, held parts moving with the
@@ -20,6 +21,7 @@
 #include <vector>
 
 #include "cellwright/drivers/robot_driver.hpp"
+#include "cellwright/cell/commissioning.hpp"
 #include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/scenario.hpp"
 
@@ -39,12 +41,13 @@ struct DryRobot {
   bool homed = false;
   std::optional<drivers::PositionReading> position;  // after homing
   std::string problem;                               // a step that failed: connect, home, read
+  CrossCheck check;                                  // the read-back against the kinematics and the home
   std::vector<DryTarget> targets;
 };
 
 struct DryRunReport {
   std::vector<DryRobot> robots;
-  bool ok() const;  // every real robot homed and read, every target of theirs without a problem
+  bool ok() const;  // every real robot homed, read and cross-checked, every target of theirs without a problem
 };
 
 struct DryRunOptions {

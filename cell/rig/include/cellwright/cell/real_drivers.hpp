@@ -1,6 +1,8 @@
 // The serial drivers of real robots, made from a scenario's driver choice (docs/real-robots.md): the Movemaster EX
-// driver for `movemaster`, the VAL II driver for `val2`, on the choice's line settings, with the robot's kinematics
-// for what the driver needs of it (joint count, speeds, tool length).
+// driver for `movemaster`, the VAL II driver for `val2`, on the choice's line settings, with the robot's conventions
+// (its cell entry's `val2:` / `movemaster:`: line ends, prompt, WHERE layout, echo, orientation reading, world frame and
+// tool point) and the robot's kinematics for what the driver needs of it (joint count, speeds). A real connect is then
+// cross-checked by commissioning.hpp's bring_up_checked.
 #pragma once
 
 #include <memory>

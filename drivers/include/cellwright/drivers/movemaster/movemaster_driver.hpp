@@ -78,10 +78,12 @@
 #pragma once
 
 #include <chrono>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "cellwright/drivers/controller_frames.hpp"
 #include "cellwright/drivers/movemaster/movemaster_protocol.hpp"
 #include "cellwright/drivers/serial/serial_driver.hpp"
 
@@ -103,6 +105,12 @@ struct MovemasterOptions {
   int linear_slot = 629;                 // the position number `PD` defines for `MS` (1..629)
   std::optional<double> tool_length_mm;  // sent with `TL` at connect when set (mm, >= 0)
   double yaw_tolerance_deg = 0.5;        // how far out of the vertical plane an approach axis may be
+  // The controller's world frame and tool point (controller_frames.hpp; identity: the page's), and how it reads pitch
+  // and roll (movemaster_protocol.hpp's with_angle_reading; -90 and +1: the page's). A MovePose becomes
+  // with_angle_reading(to_xyzpr(frames.to_controller(pose))), a `WH` answer the inverse.
+  ControllerFrames frames;
+  double pitch_down_deg = -90;  // -90 or 90
+  int roll_sense = 1;           // +1 or -1
   movemaster::Acceleration acceleration = movemaster::Acceleration::none;  // `SP n` or `SP n,H` / `SP n,L`
   int grip_start_time = 3;                                                 // `GP`'s starting time t, in 0.1 s (0..99)
   std::size_t joints = 5;                                                  // the arm's axes, reported in capabilities()
@@ -125,6 +133,9 @@ class MovemasterDriver final : public SerialDriver {
   ~MovemasterDriver() override;  // disconnect(): the communication thread must end before this driver's parts do
 
   const MovemasterOptions& options() const { return options_; }
+  // The last `WH` answer, as the controller wrote it (before any conversion); nullopt before one. For commissioning
+  // (cell/rig's bring-up check). Any thread.
+  std::optional<movemaster::Xyzpr> last_wh() const;
 
  private:
   class Exchange;  // one job's lines on the link (movemaster_driver.cpp)
@@ -145,6 +156,8 @@ class MovemasterDriver final : public SerialDriver {
   std::optional<int> speed_level_;          // the `SP` level last sent and acknowledged, if known
   bool grip_closed_ = false;                // the last grip command that succeeded (open before any)
   std::optional<movemaster::Xyzpr> where_;  // where the arm is, if known: the last target reached or `WH`
+  mutable std::mutex wh_mutex_;
+  std::optional<movemaster::Xyzpr> last_wh_;  // guarded by wh_mutex_
 };
 
 }  // namespace cellwright::drivers

@@ -46,6 +46,11 @@ Eigen::Isometry3d to_pose(const Xyzpr& v);
 // `yaw_tolerance_deg`. Within the tolerance, the approach axis is projected onto the plane.
 std::optional<Xyzpr> to_xyzpr(const Eigen::Isometry3d& pose, double yaw_tolerance_deg, std::string* problem);
 
+// The page's p and r (above) as a controller that reads them otherwise writes them, and back (the same map both ways):
+// p is negated when `pitch_down_deg` is 90 (the hand points straight down at p = +90 there, at −90 on the page), r is
+// multiplied by `roll_sense` (+1: right-handed about the approach axis, the page's; −1: the other way). x, y, z stay.
+Xyzpr with_angle_reading(const Xyzpr& v, double pitch_down_deg, int roll_sense);
+
 // ---- Host to controller (without the line end) --------------------------------------------------------------------
 
 // One decimal (to the nearest tenth, halves away from zero), a point, no "-0.0": 12.25 -> "12.3", -0.04 -> "0.0".

@@ -72,7 +72,8 @@
 // (connection_lost, connect_problem() says why) or, after reset(), faults the driver again (protocol).
 //
 // CHOICES WHERE THE PAGE IS SILENT (all settings below): the line end (CR), the orientation convention (the page's
-// tool-down Z-Y-Z), the prompt, the WHERE layout, the echo, the maximum speeds (the project's PUMA 560 URDF estimates),
+// tool-down Z-Y-Z; VAL's published one is `val`), the monitor's world frame and tool point (frames: the base link and
+// the TCP), the prompt, the WHERE layout, the echo, the maximum speeds (the project's PUMA 560 URDF estimates),
 // the deadlines above, the quiet times, the optional WHERE header and hand value, and that a prompt `.` during a WHERE
 // answer still missing its numbers counts only after prompt_settle of quiet (a number line may start with `.`).
 //
@@ -82,10 +83,12 @@
 
 #include <chrono>
 #include <cstdint>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "cellwright/drivers/controller_frames.hpp"
 #include "cellwright/drivers/serial/serial_driver.hpp"
 #include "cellwright/drivers/val2/val2_protocol.hpp"
 
@@ -108,6 +111,9 @@ struct Val2Options {
   SerialOptions serial = val2_serial_defaults();
   Val2LineEnd line_end = Val2LineEnd::cr;
   val2::Orientation orientation = val2::Orientation::tool_down;
+  // The monitor's world frame and tool point (controller_frames.hpp): every TRANS sent is frames.to_controller() of
+  // the MovePose, every WHERE's world values frames.from_controller(). Identity by default (the page's assumption).
+  ControllerFrames frames;
   // The monitor's prompt, at the start of a line ("." for VAL II; ">" for Kawasaki AS). Not empty, printable ASCII,
   // no spaces.
   std::string prompt = ".";
@@ -139,6 +145,9 @@ class Val2Driver final : public SerialDriver {
   ~Val2Driver() override;  // disconnect()s: the communication thread must end before the protocol goes
 
   const Val2Options& options() const { return options_; }
+  // The world values (X, Y, Z, O, A, T as printed, before any conversion) of the last WHERE answered; nullopt before
+  // one. For commissioning (cell/rig's bring-up check), which tries other conventions on them. Any thread.
+  std::optional<val2::Location> last_location() const;
 
  private:
   Outcome greet(Link& link) override;
@@ -151,12 +160,15 @@ class Val2Driver final : public SerialDriver {
     std::optional<std::vector<double>> joints;  // rad, where the last motion ended (if known)
     std::optional<Eigen::Isometry3d> pose;      // the same for the tool
     std::optional<std::string> owed_prompt;     // a DO WAIT given up on, whose prompt has not come
+    std::optional<val2::Location> where_world;  // the last WHERE's world values, as printed
   };
 
   class Session;  // one job's exchanges (val2_driver.cpp)
 
   const Val2Options options_;
   State state_;
+  mutable std::mutex location_mutex_;
+  std::optional<val2::Location> last_location_;  // guarded by location_mutex_
 };
 
 }  // namespace cellwright::drivers

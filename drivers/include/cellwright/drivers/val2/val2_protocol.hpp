@@ -28,6 +28,13 @@ enum class Orientation : std::uint8_t {
   // Plain Z-Y-Z Euler angles, R = Rz(O) · Ry(A) · Rz(T) (O = A = T = 0: the tool frame is the base frame), for a
   // controller whose locations are not taken relative to a downward tool.
   zyz,
+  // VAL's published convention (Unimation's VAL instruction set, 1977: "with all three angles zero, the hand points in
+  // the negative Y direction with the fingers in a horizontal plane; the orientation vector, from one finger tip to
+  // the other, is aligned along the X axis; O turns the orientation vector about a vertical direction"). The tool's
+  // axes at O = A = T = 0 are R0 = [x: −z, y: +x, z: −y] (approach z along −Y, the fingers' line y along +X); then
+  // R = Rz(O) · R0 · Ry(A) · Rz(T): O about the world's vertical, A about the tool's finger line (A = 90: the hand
+  // points straight down; this sense is assumed), T about the approach axis. Equivalently R = Rz(O)·Rx(A)·Ry(−T)·R0.
+  val,
 };
 
 // A VAL II location: X, Y, Z in mm and O, A, T in degrees.
@@ -43,8 +50,8 @@ std::string format_number(double value);
 // The rotation that O, A, T (degrees) stand for under `orientation`.
 Eigen::Matrix3d oat_rotation(double o, double a, double t, Orientation orientation);
 
-// A pose (metres, base frame) as a location. O and T are in (−180, 180], A in [0, 180]. Where A is 0 or 180
-// (within 1e-9 rad: O and T then turn about the same axis) T is 0 and O carries the whole turn.
+// A pose (metres, base frame) as a location. O and T are in (−180, 180], A in [0, 180] (val: A in [−90, 90]). Where A
+// is 0 or 180 (val: ±90; within 1e-9 rad: O and T then turn about the same axis) T is 0 and O carries the whole turn.
 Location to_location(const Eigen::Isometry3d& pose, Orientation orientation);
 // A location as a pose (metres, base frame).
 Eigen::Isometry3d to_pose(const Location& location, Orientation orientation);

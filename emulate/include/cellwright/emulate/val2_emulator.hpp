@@ -81,6 +81,7 @@
 #include <vector>
 
 #include "cellwright/emulate/emulated_arm.hpp"
+#include "cellwright/emulate/line_pace.hpp"
 #include "cellwright/emulate/misbehaviour.hpp"
 
 namespace cellwright::emulate {
@@ -91,6 +92,9 @@ struct Val2EmulatorOptions {
   bool echo = true;                         // echo each received line (`--no-echo` turns it off)
   std::chrono::nanoseconds reconnect_delay{std::chrono::milliseconds(200)};  // after a drop, before republishing
   double speed = 100;  // the monitor speed (percent, [1, 100]) before any SPEED
+  // The pseudo-terminal paced as a serial line at this rate (line_pace.hpp: answers reach the host a character time
+  // apart, a line is taken when its last byte would have arrived); baud 0, the default: at once.
+  LineRate pace;
   // Called on the serving thread with each line received ("< ...") and each answer line ("> ..."), e.g. for
   // `twin emulate --verbose`. May be empty.
   std::function<void(std::string_view)> log;

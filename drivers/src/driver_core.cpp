@@ -125,6 +125,17 @@ bool DriverCore::Controller::fail(CommandId id, ErrorCode error, std::string mes
   return true;
 }
 
+bool DriverCore::Controller::withdraw(CommandId id, std::string message) {
+  DriverCore& c = *core_;
+  if (c.queue_.empty() || c.queue_.front().id != id || c.queue_.front().kind != JobKind::position) return false;
+  const auto it = c.statuses_.find(id);
+  if (it == c.statuses_.end() || it->second.phase != CommandPhase::pending) return false;
+  c.queue_.pop_front();
+  c.set_status(id, CommandPhase::failed, ErrorCode::cancelled, std::move(message));
+  c.head_changed();
+  return true;
+}
+
 void DriverCore::Controller::raise_fault(ErrorCode error, std::string message) {
   CW_CHECK(fatal(error), "a fault is hardware, protocol, connection_lost or unknown, not {}", to_string(error));
   DriverCore& c = *core_;

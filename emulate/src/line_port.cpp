@@ -20,7 +20,7 @@ constexpr char kXoff = 0x13;
 
 }  // namespace
 
-LinePort::LinePort(std::size_t max_line) : max_line_(max_line) {
+LinePort::LinePort(std::size_t max_line, LineRate pace) : max_line_(max_line), pace_(pace) {
   CW_CHECK(max_line > 0, "a line port needs room for a line");
   stop_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   if (stop_fd_ < 0) {
@@ -46,6 +46,7 @@ void LinePort::hang_up() {
   lines_.clear();
   partial_ = {};
   skip_lf_ = false;
+  pace_.reset();
 }
 
 std::string LinePort::slave_path() const {
@@ -77,30 +78,33 @@ std::optional<ReceivedLine> LinePort::next_line() {
     const ssize_t n = ::read(pty_->master(), bytes, sizeof bytes);
     if (n > 0) {
       take(bytes, static_cast<std::size_t>(n));
+      arrived_ = pace_.received(static_cast<std::size_t>(n), LinePace::Clock::now());
     } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
       throw InputError({pty_->slave_path(), 0, 0},
                        fmt::format("cannot read the pseudo-terminal's master: {}", std::strerror(errno)));
     }
   }
+  if (pace_.paced() && !wait(arrived_ - LinePace::Clock::now())) return std::nullopt;  // its end is still on the line
   ReceivedLine line = std::move(lines_.front());
   lines_.pop_front();
   return line;
 }
 
 bool LinePort::write(std::string_view bytes) {
-  while (!bytes.empty()) {
-    if (!pty_ || stopped()) return false;
-    const ssize_t n = ::write(pty_->master(), bytes.data(), bytes.size());
-    if (n > 0) {
-      bytes.remove_prefix(static_cast<std::size_t>(n));
-    } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
-      throw InputError({pty_->slave_path(), 0, 0},
-                       fmt::format("cannot write the pseudo-terminal's master: {}", std::strerror(errno)));
-    } else if (!wait_master(POLLOUT)) {
-      return false;
+  const auto write_some = [this](std::string_view part) -> std::size_t {
+    for (;;) {
+      if (!pty_ || stopped()) return 0;
+      const ssize_t n = ::write(pty_->master(), part.data(), part.size());
+      if (n > 0) return static_cast<std::size_t>(n);
+      if (n < 0 && errno != EAGAIN && errno != EINTR) {
+        throw InputError({pty_->slave_path(), 0, 0},
+                         fmt::format("cannot write the pseudo-terminal's master: {}", std::strerror(errno)));
+      }
+      if (!wait_master(POLLOUT)) return 0;
     }
-  }
-  return true;
+  };
+  return pace_.write(bytes, write_some,
+                     [this](LinePace::Clock::time_point t) { return wait(t - LinePace::Clock::now()); });
 }
 
 bool LinePort::wait(std::chrono::nanoseconds duration) {

@@ -39,7 +39,10 @@ bool blank(std::string_view text) {
 }  // namespace
 
 MovemasterEmulator::MovemasterEmulator(EmulatedArm& arm, MovemasterEmulatorOptions options)
-    : arm_(arm), options_(std::move(options)), plan_(options_.misbehaviours, options_.seed), port_(kMaxLine) {
+    : arm_(arm),
+      options_(std::move(options)),
+      plan_(options_.misbehaviours, options_.seed),
+      port_(kMaxLine, options_.pace) {
   const SourceLocation where{"<movemaster emulator>", 0, 0};
   if (options_.speed_level < 0 || options_.speed_level > 9) {
     throw InputError(where, fmt::format("speed level {} is not 0 to 9", options_.speed_level));

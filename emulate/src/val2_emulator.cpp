@@ -18,6 +18,7 @@
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/pty.hpp"
+#include "cellwright/emulate/line_pace.hpp"
 #include "val2/executor.hpp"
 #include "val2/instruction.hpp"
 #include "val2/program.hpp"
@@ -47,7 +48,8 @@ struct Val2Emulator::Impl {
         plan(options.misbehaviours, options.seed),
         executor(a, options.speed, {options.orientation == Val2EmulatorOptions::Orientation::val, options.world,
                                     options.tool}),
-        garbage_random(options.seed ^ 0x9e3779b97f4a7c15ULL) {}
+        garbage_random(options.seed ^ 0x9e3779b97f4a7c15ULL),
+        pace(options.pace) {}
 
   EmulatedArm& arm;
   const Val2EmulatorOptions options;
@@ -55,6 +57,7 @@ struct Val2Emulator::Impl {
   val2::Executor executor;
   val2::Programs programs;  // stored programs and locations (.PROGRAM, .LOCATIONS, EXECUTE)
   std::mt19937_64 garbage_random;
+  LinePace pace;  // options.pace: the pseudo-terminal paced as a serial line
 
   int wake = -1;  // an eventfd, readable once stop() was called
   std::atomic<bool> stopping{false};
@@ -72,6 +75,7 @@ struct Val2Emulator::Impl {
   bool pending_overlong = false;
   bool after_cr = false;       // the last byte was a CR: an LF now is its partner
   bool at_line_start = false;  // the last byte written ended a line
+  std::chrono::steady_clock::time_point input_arrived{};  // the bytes read so far have crossed the line (pace)
 
   template <typename F>
   void update(F&& f) {
@@ -96,22 +100,31 @@ struct Val2Emulator::Impl {
     }
   }
 
-  // Writes all of `bytes`, waiting while the line is full; false when stopping. A line that fails (EIO) loses them.
+  // Waits until `t` unless stop() comes; false when stopping.
+  bool pause_until(std::chrono::steady_clock::time_point t) { return pause(t - std::chrono::steady_clock::now()); }
+
+  // Writes all of `bytes` (at the line's pace, options.pace), waiting while the line is full; false when stopping. A
+  // line that fails (EIO) loses them.
   bool write_all(std::string_view bytes) {
     if (bytes.empty()) return !stopping;
     std::size_t done = 0;
-    while (done < bytes.size()) {
-      if (stopping) return false;
-      const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-      if (n > 0) {
-        done += static_cast<std::size_t>(n);
-      } else if (n < 0 && (errno == EAGAIN || errno == EINTR)) {
-        pollfd p[2] = {{fd, POLLOUT, 0}, {wake, POLLIN, 0}};
-        poll(p, 2, -1);
-      } else {
-        break;
+    const auto write_some = [&](std::string_view part) -> std::size_t {
+      for (;;) {
+        if (stopping) return 0;
+        const ssize_t n = ::write(fd, part.data(), part.size());
+        if (n > 0) {
+          done += static_cast<std::size_t>(n);
+          return static_cast<std::size_t>(n);
+        }
+        if (n < 0 && (errno == EAGAIN || errno == EINTR)) {
+          pollfd p[2] = {{fd, POLLOUT, 0}, {wake, POLLIN, 0}};
+          poll(p, 2, -1);
+        } else {
+          return 0;
+        }
       }
-    }
+    };
+    pace.write(bytes, write_some, [&](std::chrono::steady_clock::time_point t) { return pause_until(t); });
     update([&](Stats& s) { s.bytes_out += done; });
     at_line_start = bytes.back() == '\n';
     return !stopping;
@@ -223,10 +236,12 @@ Next Val2Emulator::Impl::serve_connection(int master) {
   pending_overlong = false;
   after_cr = false;
   at_line_start = false;
+  pace.reset();
   if (!write_all("\r\n.")) return Next::stop;
   char buffer[4096];
   for (;;) {
     while (const std::optional<ReceivedLine> line = take_line()) {
+      if (pace.paced() && !pause_until(input_arrived)) return Next::stop;  // its end has not crossed the line yet
       const Next next = handle(*line);
       if (next != Next::read_on) return next;
     }
@@ -237,6 +252,7 @@ Next Val2Emulator::Impl::serve_connection(int master) {
     const ssize_t n = ::read(fd, buffer, sizeof buffer);
     if (n > 0) {
       received.append(buffer, static_cast<std::size_t>(n));
+      input_arrived = pace.received(static_cast<std::size_t>(n), std::chrono::steady_clock::now());
       update([&](Stats& s) { s.bytes_in += static_cast<std::uint64_t>(n); });
     } else if (n < 0 && (errno == EAGAIN || errno == EINTR)) {
       continue;

@@ -87,6 +87,7 @@ void add_emulate(CLI::App& app, Command* run) {
     std::vector<double> world_offset, world_rotation, tool_offset, tool_rotation;
     double pitch_down = -90;
     int roll_sense = 1;
+    int pace = 0;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("language", args->language, "the controller to emulate alone: movemaster or val2")
@@ -108,6 +109,10 @@ void add_emulate(CLI::App& app, Command* run) {
   cmd->add_option("--misbehave", args->misbehave,
                   "KIND@LINE or KIND~PROBABILITY (late: late@LINE:SECONDS); with --scenario ROBOT:KIND@LINE; "
                   "KIND: error (er1), unreachable (er2), garbage, silent, drop, late (repeatable)");
+  cmd->add_option("--pace", args->pace,
+                  "one controller alone: pace the pseudo-terminal as a serial line at this baud rate (e.g. 9600; "
+                  "Movemaster 11 bits a character, VAL II 10), for figures of the line's use")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--no-echo", args->no_echo, "VAL II: do not echo what is received");
   cmd->add_flag("--verbose", args->verbose, "print every line received and answered");
   // The controller's conventions (docs/real-robots.md, "Commissioning"), as a robot's cell entry gives them.
@@ -143,10 +148,10 @@ void add_emulate(CLI::App& app, Command* run) {
 #if !CW_SIM
         needs_simulator("twin emulate --scenario (the controllers on the twin's arms)");
 #else
-        if (!args->language.empty() || !args->link.empty()) {
+        if (!args->language.empty() || !args->link.empty() || args->pace != 0) {
           throw InputError(cli,
-                           "--scenario emulates the cell's controllers given by --robot; a language and --link "
-                           "are for one controller alone");
+                           "--scenario emulates the cell's controllers given by --robot; a language, --link and "
+                           "--pace are for one controller alone");
         }
         if (args->robots.empty()) throw InputError(cli, "--scenario needs at least one --robot ROBOT=LANGUAGE:LINK");
         const cell::Scenario s = cell::load_scenario(args->scenario);
@@ -213,6 +218,7 @@ void add_emulate(CLI::App& app, Command* run) {
         emulate::MovemasterEmulatorOptions o;
         o.seed = args->seed;
         o.misbehaviours = std::move(misbehaviours);
+        o.pace = {args->pace, 11};
         if (args->verbose) o.log = print;
         o.world = frame_of(args->world_offset, args->world_rotation);
         o.tool = frame_of(args->tool_offset, args->tool_rotation);
@@ -228,6 +234,7 @@ void add_emulate(CLI::App& app, Command* run) {
         o.seed = args->seed;
         o.misbehaviours = std::move(misbehaviours);
         o.echo = !args->no_echo;
+        o.pace = {args->pace, 10};
         if (args->verbose) o.log = print;
         o.world = frame_of(args->world_offset, args->world_rotation);
         o.tool = frame_of(args->tool_offset, args->tool_rotation);

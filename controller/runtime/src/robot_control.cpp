@@ -79,6 +79,8 @@ RobotControl::RobotControl(std::size_t index, std::string label, std::string cel
       await_fresh_truth_(await_fresh_truth) {
   CW_CHECK(options_.speed > 0.0 && options_.speed <= 1.0, "motion speed {} outside (0, 1]", options_.speed);
   CW_CHECK(options_.position_tolerance > 0.0, "position tolerance {} must be positive", options_.position_tolerance);
+  CW_CHECK(options_.read_line_share >= 0.0 && options_.read_line_share <= 1.0, "read line share {} outside [0, 1]",
+           options_.read_line_share);
 }
 
 void RobotControl::connect() {
@@ -697,9 +699,17 @@ void RobotControl::step(SimDuration now) {
   run_commands(now);
   // The periodic read goes last, so that a read asked for after a completion seen in this turn is the one that
   // checks it.
-  if (phase_ != RobotPhase::kFailed && (!last_request_ || now - *last_request_ >= options_.position_period)) {
-    request_position(now);
+  if (phase_ != RobotPhase::kFailed && periodic_read_due(now)) request_position(now);
+}
+
+bool RobotControl::periodic_read_due(SimDuration now) const {
+  const drivers::Capabilities& caps = driver_.capabilities();
+  SimDuration period = options_.position_period;
+  if (options_.read_line_share > 0.0 && caps.read_time > SimDuration::zero() && !caps.reads_while_moving) {
+    if (current_ && current_->id != 0) return false;  // it would wait behind the command, then delay the check's read
+    period = std::max(period, std::chrono::duration_cast<SimDuration>(caps.read_time / options_.read_line_share));
   }
+  return !last_request_ || now - *last_request_ >= period;
 }
 
 void RobotControl::run_commands(SimDuration now) {

@@ -222,6 +222,9 @@ MovemasterDriver::MovemasterDriver(MovemasterOptions options) : SerialDriver(opt
   caps.reads_joints = false;
   caps.reads_pose = true;
   caps.reads_while_moving = false;
+  // `WH` and its line end; a typical answer of five signed values with one decimal ("+350.0,-150.0,+300.0,-90.0,+0.0",
+  // 31 characters) and CR LF.
+  caps.read_time = read_time(o.serial, 2 + movemaster::line_end_text(o.line_end).size(), 33);
   caps.prefers_pose = true;
   set_capabilities(std::move(caps));
 }

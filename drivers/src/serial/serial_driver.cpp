@@ -114,6 +114,11 @@ std::string SerialDriver::printable(std::string_view bytes) {
   return out;
 }
 
+std::chrono::nanoseconds SerialDriver::read_time(const SerialOptions& options, std::size_t request,
+                                                 std::size_t answer) {
+  return options.line.wire_time(request + answer) + options.processing_time;
+}
+
 // ---- SerialDriver -------------------------------------------------------------------------------------------------
 
 SerialDriver::SerialDriver(SerialOptions options) : DriverCore(RunningWhen::started), options_(std::move(options)) {}
@@ -222,15 +227,32 @@ void SerialDriver::run() {
     }
     bool clear = false;
     std::optional<JobCopy> job;
+    std::optional<SteadyClock::time_point> read_due;  // a read waits for the pacing window before it is taken
     {
       Controller c = controller();
       if (clear_pending_) {
         clear = true;
         clear_pending_ = false;
-      } else if (Job* head = c.head(); head != nullptr && head->id > last_taken) {
-        job = JobCopy{head->id, head->kind, head->command};
-        last_taken = head->id;
-        c.start(head->id);
+      } else {
+        Job* head = c.head();
+        // A read not yet on the wire never delays a command queued behind it (serial_driver.hpp).
+        while (head != nullptr && head->kind == JobKind::position && head->id > last_taken && c.queued().size() > 1 &&
+               c.queued()[1].kind != JobKind::position) {
+          const CommandId overtaken = head->id;
+          c.withdraw(overtaken, fmt::format("cancelled: overtaken by command {} (a position read never delays a "
+                                            "command; it was not on the wire yet)",
+                                            c.queued()[1].id));
+          head = c.head();
+        }
+        if (head != nullptr && head->id > last_taken) {
+          if (head->kind == JobKind::position && SteadyClock::now() < link_->not_before_) {
+            read_due = link_->not_before_;
+          } else {
+            job = JobCopy{head->id, head->kind, head->command};
+            last_taken = head->id;
+            c.start(head->id);
+          }
+        }
       }
     }
     if (clear) {
@@ -269,7 +291,11 @@ void SerialDriver::run() {
       continue;
     }
     std::unique_lock lock(wake_mutex_);
-    wake_cv_.wait(lock, [&] { return quit_ || wake_seq_ != seen; });
+    if (read_due) {
+      wake_cv_.wait_until(lock, *read_due, [&] { return quit_ || wake_seq_ != seen; });
+    } else {
+      wake_cv_.wait(lock, [&] { return quit_ || wake_seq_ != seen; });
+    }
   }
 }
 

@@ -403,6 +403,21 @@ const Val2Options& checked(const Val2Options& o) {
   return o;
 }
 
+// The bytes of `WHERE` and its line end.
+std::size_t where_request_bytes(const Val2Options& o) {
+  return 5 + (o.line_end == Val2LineEnd::crlf ? 2 : 1);
+}
+
+// A typical answer to `WHERE` (Capabilities::read_time), with the columns of docs/real-robots.md: the echo (`WHERE` CR
+// LF), then for the VAL II layout a header of seven columns (76 characters), the seven world values (76) and the six
+// joints (65), for the AS layout four lines of six columns (60 each), each line with CR LF, and the prompt.
+std::size_t where_answer_bytes(const Val2Options& o) {
+  const std::size_t echo = o.echo == Val2Echo::never ? 0 : 7;
+  const std::size_t lines =
+      o.where_layout == val2::WhereLayout::as_two_block ? 4 * (60 + 2) : (76 + 2) + (76 + 2) + (65 + 2);
+  return echo + lines + o.prompt.size();
+}
+
 }  // namespace
 
 Val2Driver::Val2Driver(Val2Options options) : SerialDriver(checked(options).serial), options_(std::move(options)) {
@@ -422,6 +437,7 @@ Val2Driver::Val2Driver(Val2Options options) : SerialDriver(checked(options).seri
   c.reads_joints = true;
   c.reads_pose = true;
   c.reads_while_moving = false;
+  c.read_time = read_time(options_.serial, where_request_bytes(options_), where_answer_bytes(options_));
   set_capabilities(std::move(c));
 }
 

@@ -655,16 +655,18 @@ TEST(MovemasterDriverTiming, LinesAreNoCloserThanWireTimePlusProcessingTime) {
   const Submitted grip = r.driver.submit(Grip{Grip::Action::open, {}, {}});
   ASSERT_TRUE(read.accepted() && grip.accepted());
   ASSERT_EQ(r.finish(grip.id).phase, CommandPhase::done);
-  // GO goes out after WH's answer was written (at `answered`); the ER after GO then waits for GO's wire time plus
-  // the processing time. Only the lower bound is checked.
+  // The read was still held by the pacing after the home's last line when the grip came: the grip overtook it (a
+  // read never delays a command). GO goes out after the home's ER was answered (at `answered`); the ER after GO then
+  // waits for GO's wire time plus the processing time. Only the lower bound is checked.
+  EXPECT_EQ(r.finish(read.id).error, ErrorCode::cancelled);
   const std::vector<Peer::Line> lines = r.peer.lines();
   ASSERT_GE(lines.size(), 3u);
-  const Peer::Line& wh = lines[lines.size() - 3];
+  const Peer::Line& home_er = lines[lines.size() - 3];
   const Peer::Line& er = lines[lines.size() - 1];
-  ASSERT_EQ(wh.text, "WH");
+  ASSERT_EQ(home_er.text, "ER");
   ASSERT_EQ(lines[lines.size() - 2].text, "GO");
   ASSERT_EQ(er.text, "ER");
-  EXPECT_GE(er.arrived - wh.answered, o.serial.line.wire_time(4) + o.serial.processing_time);
+  EXPECT_GE(er.arrived - home_er.answered, o.serial.line.wire_time(4) + o.serial.processing_time);
 }
 
 TEST(MovemasterDriverTiming, CountsBytesAndWireTimePerCommand) {

@@ -148,6 +148,11 @@ class DriverCore : public RobotDriver {
     // and `message`. For the head, everything queued behind it fails (see the top); for a read, only the read. Fatal
     // errors enter fault. Returns false (and changes nothing) when `id` is neither the head nor a pending read.
     bool fail(CommandId id, ErrorCode error, std::string message);
+    // The position read `id` at the head of the queue, not started, is withdrawn because a command waits behind it
+    // (a read never delays a command: robot_driver.hpp, POSITION READS ON A LINE): it fails with cancelled and
+    // `message`; nothing behind it is touched, and the next job becomes the head. Returns false (and changes nothing)
+    // when `id` is not a position read at the head, or was started.
+    bool withdraw(CommandId id, std::string message);
     // The controller reported an error or the link dropped outside any command: every job fails with `error` and
     // `message`, the driver enters fault (unless disconnected; connection_lost also marks the link down). `error`
     // is hardware, protocol, connection_lost or unknown. Always calls the notifier.

@@ -53,6 +53,14 @@
 // order, but such a request may then complete before commands with smaller ids. When it is false (a Movemaster
 // answers `WH` only between commands), the request takes its place in the one queue like any command.
 //
+// POSITION READS ON A LINE (capabilities().read_time > 0: a serial controller, whose answer holds the line). A read
+// never delays a command that is ready to go: a request that has not gone on the wire when a command is queued
+// behind it is withdrawn (failed with ErrorCode::cancelled, "overtaken by command N"; only the read, nothing behind
+// it), and the command goes first. A read already on the wire is finished first (the controller cannot be
+// interrupted): a command waits at most one read_time for it. Ask again after the command if the position is still
+// wanted. The runtime paces its periodic reads by read_time (runtime/robot_control.hpp, docs/real-robots.md
+// "The serial line").
+//
 // COMPLETION AND ERRORS. Accepted commands get ids 1, 2, 3, ... in acceptance order (never 0, never reused for the
 // driver's life). poll(id) returns pending (queued), running (being executed), done, or failed with an ErrorCode and a
 // message naming the values involved. Drivers keep the status of at least the kStatusRetention most recent commands;
@@ -95,7 +103,8 @@ enum class ErrorCode : std::uint8_t {
   busy,             // refused: capabilities().queue_depth commands are already in flight
   unreachable,      // failed: outside the workspace or the joint limits (Movemaster ER answer 2)
   timeout,          // failed: a wait-for-input ran out, or the controller did not answer in time
-  cancelled,        // failed: stop(), disconnect() or an earlier failure cancelled it before it finished
+  cancelled,        // failed: stop(), disconnect() or an earlier failure cancelled it before it finished; or a
+                    // position read not yet on the wire that a command overtook (read_time > 0, see above)
   hardware,         // failed: the controller reported a hardware error (Movemaster ER answer 1); driver in fault
   protocol,         // failed: the controller's reply could not be understood; driver in fault
   connection_lost,  // failed: the link dropped; driver in fault
@@ -185,6 +194,10 @@ struct Capabilities {
   bool reads_joints = false;            // request_position() reports joint positions
   bool reads_pose = false;              // request_position() reports the tool pose (Movemaster `WH`: pose only)
   bool reads_while_moving = false;      // request_position() is answered at the next tick, not behind the motions
+  // How long one position read holds the controller's line: the request and a typical answer at the line's rate plus
+  // the controller's processing time (a serial driver's estimate from its line settings). Zero: reads cost nothing
+  // (a simulation). See POSITION READS ON A LINE above.
+  std::chrono::nanoseconds read_time{0};
   // The controller's native command space: true for a Cartesian controller (Movemaster `MP`/`MS`, VAL II locations),
   // which should be sent tool poses (MovePose) rather than joint targets it would have to emulate; false for one
   // that takes joint targets directly (the simulation's servos).

@@ -26,6 +26,7 @@
 #include <string_view>
 
 #include "cellwright/common/pty.hpp"
+#include "cellwright/emulate/line_pace.hpp"
 
 namespace cellwright::emulate {
 
@@ -36,8 +37,9 @@ struct ReceivedLine {
 
 class LinePort {
  public:
-  // Publishes nothing yet. Throws InputError only if the process is out of descriptors (for the eventfd).
-  explicit LinePort(std::size_t max_line = 256);
+  // Publishes nothing yet. `pace`: the pseudo-terminal paced as a serial line at that rate (line_pace.hpp; baud 0:
+  // not paced). Throws InputError if the process is out of descriptors (for the eventfd) or the rate is wrong.
+  explicit LinePort(std::size_t max_line = 256, LineRate pace = {});
   ~LinePort();
   LinePort(const LinePort&) = delete;
   LinePort& operator=(const LinePort&) = delete;
@@ -51,10 +53,11 @@ class LinePort {
   // The pseudo-terminal's slave (/dev/pts/N), empty when none is published.
   std::string slave_path() const;
 
-  // The next line the host sent; waits as long as it takes. nullopt once stop() has been called (or with nothing
-  // published).
+  // The next line the host sent (paced: once its last byte would have arrived); waits as long as it takes. nullopt
+  // once stop() has been called (or with nothing published).
   std::optional<ReceivedLine> next_line();
-  // Writes all of `bytes` (waiting while the host does not read). False if stop() came first or nothing is published.
+  // Writes all of `bytes` (paced: a character time apart; waiting while the host does not read). False if stop() came
+  // first or nothing is published.
   bool write(std::string_view bytes);
   // Waits `duration`; false if stop() came first (at once).
   bool wait(std::chrono::nanoseconds duration);
@@ -80,6 +83,8 @@ class LinePort {
   std::deque<ReceivedLine> lines_;  // complete lines not yet returned
   ReceivedLine partial_;            // the line being received
   bool skip_lf_ = false;            // the last line ended with CR: an LF next is its end too
+  LinePace pace_;
+  LinePace::Clock::time_point arrived_{};  // paced: the bytes read so far have crossed the line by then
 
   mutable std::mutex mutex_;
   mutable std::condition_variable published_;

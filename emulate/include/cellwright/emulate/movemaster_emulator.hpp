@@ -98,6 +98,9 @@ struct MovemasterEmulatorOptions {
   int speed_level = 4;
   // What ends WH's and ER's answers: "\r\n" or "\n" (the doc allows both).
   std::string reply_line_end = "\r\n";
+  // The pseudo-terminal paced as a serial line at this rate (line_pace.hpp; the Movemaster's 7E2 is 11 bits a
+  // character); baud 0, the default: at once.
+  LineRate pace{0, 11};
   // Called on the serving thread with one line of text per event (a line received, an answer, why the register was
   // set, a misbehaviour, a new pseudo-terminal), e.g. for `twin emulate --verbose`. May be empty.
   std::function<void(std::string_view)> log;

@@ -87,6 +87,7 @@
 #include <vector>
 
 #include "cellwright/emulate/emulated_arm.hpp"
+#include "cellwright/emulate/line_pace.hpp"
 #include "cellwright/emulate/misbehaviour.hpp"
 
 namespace cellwright::emulate {
@@ -103,6 +104,9 @@ struct Val2EmulatorOptions {
   Orientation orientation = Orientation::tool_down;
   Eigen::Isometry3d world = Eigen::Isometry3d::Identity();  // the monitor's world frame in the arm's base frame
   Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();   // the monitor's tool point in the arm's TCP frame
+  // The pseudo-terminal paced as a serial line at this rate (line_pace.hpp: answers reach the host a character time
+  // apart, a line is taken when its last byte would have arrived); baud 0, the default: at once.
+  LineRate pace;
   // Called on the serving thread with each line received ("< ...") and each answer line ("> ..."), e.g. for
   // `twin emulate --verbose`. May be empty.
   std::function<void(std::string_view)> log;

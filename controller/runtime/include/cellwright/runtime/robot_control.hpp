@@ -3,9 +3,11 @@
 // one driver interface, watches the sensor condition of the command's place, and reports done or failed.
 //
 // WHERE THE ROBOT IS comes from its driver, never from a simulation: every MotionOptions::position_period (and once
-// after every completed move) robot control asks request_position(), and when the answer arrives writes it into the
-// environment model (RobotState::joints from a joint read-back; RobotState::tcp from a tool-pose read-back, the
-// joints then being the last commanded ones). A simulation driver answers at its next step; a serial controller
+// after every completed move) robot control asks request_position(); for a driver whose reads hold a serial line
+// (Capabilities::read_time), paced to the line: at least read_time / MotionOptions::read_line_share apart and never
+// while a command is in the driver (docs/real-robots.md, "The serial line"). When the answer arrives it writes it
+// into the environment model (RobotState::joints from a joint read-back; RobotState::tcp from a tool-pose read-back,
+// the joints then being the last commanded ones). A simulation driver answers at its next step; a serial controller
 // answers when its turn in the queue comes. Grip success comes from the robot's grip sensor (RobotState::grip, written
 // from the sensor port, sensors.hpp: the twin's finger pad sensors, or a real gripper's jaw switch through its driver,
 // which says "on something" without naming it: taken as the part expected); without one (nullopt: no sensor wired, or
@@ -87,6 +89,14 @@ struct MotionOptions {
   double arm_plane_tolerance = 0.004;
   // How often robot control asks its driver where the arm is (a read already in flight is waited for first).
   SimDuration position_period = std::chrono::milliseconds(10);
+  // The most of its line's time a robot's periodic reads may take when each read holds the line
+  // (Capabilities::read_time > 0 and no reads_while_moving: a serial controller). Its periodic reads are then at
+  // least read_time / read_line_share apart (0.25: 4 read times; a VAL II `WHERE` at 9600 baud holds the line about
+  // 0.27 s, so about one read a second), and none is asked while a command is in the driver (it would wait behind it
+  // and then delay the read that checks it); the read after a move that checks it is always asked. 0 turns this
+  // pacing off (position_period alone, reads asked behind commands: how it was, for the comparison of
+  // tools/bench/polling_bench.cpp).
+  double read_line_share = 0.25;
   TargetOptions targets;
   models::IkOptions ik;
   // Each step, move the part this robot holds with its hand in the environment model (Hold::in_hand): the runtime
@@ -205,6 +215,8 @@ class RobotControl {
   void run_commands(SimDuration now);
   // Asks the driver for a position now (if none is in flight and the driver takes one); true when one is in flight.
   bool request_position(SimDuration now);
+  // Whether the periodic read is due (position_period; paced to the line by MotionOptions::read_line_share).
+  bool periodic_read_due(SimDuration now) const;
   // Checks a completed move against the read-back; false (the command failed) when the position was missed.
   bool check_position(SimDuration now);
   // With MotionOptions::track_held_parts, moves the part the robot holds with its tool in the model.

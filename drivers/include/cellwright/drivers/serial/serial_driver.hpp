@@ -12,6 +12,13 @@
 // PACING (the paper's rule, docs/real-robots.md): Link::send() sends nothing sooner than the previous line's wire
 // time plus the controller's processing time (SerialOptions::processing_time) after that line was written.
 //
+// READS NEVER DELAY COMMANDS (robot_driver.hpp, POSITION READS ON A LINE). The thread takes a position read only once
+// the pacing lets it go on the wire at once (it waits for the pacing window with the read still pending), and a
+// pending read at the head with a command behind it is withdrawn (cancelled, "overtaken by command N") so that the
+// command goes first. A read on the wire is finished: the command behind it waits at most one read. Each driver
+// reports in Capabilities::read_time how long one read holds its line (read_time() below: its request and a typical
+// answer at the line's rate, plus processing_time), which the runtime paces its periodic reads by.
+//
 // TIMING: for every job, the bytes each way, their wire time, the time spent waiting for the line (for the pacing
 // and in poll()) and the rest, the host's own processing time; timing() sums them up and keeps the most recent jobs.
 //
@@ -150,6 +157,9 @@ class SerialDriver : public DriverCore {
 
   // For messages: the bytes as text, non-printable ones escaped ("\r", "\x07").
   static std::string printable(std::string_view bytes);
+  // Capabilities::read_time of a protocol whose position read sends `request` bytes and gets about `answer` bytes
+  // back (echo and prompt included): their wire time on `options`' line plus the controller's processing_time.
+  static std::chrono::nanoseconds read_time(const SerialOptions& options, std::size_t request, std::size_t answer);
 
  private:
   ErrorCode connect_hook() final;

@@ -316,6 +316,77 @@ TEST_F(RobotProgramsTest, RefusesAFedPartOfAClassOnAConveyorWithoutSensor) {
                  "robot 'puma' (r1) goes to the next part the feed brings (prog.task:6:3 'Pick part')");
 }
 
+// Issue 25: a third robot takes the parts the output conveyor brings to its stop (tests/data/third): its program went
+// to the pick right after the upstream robot's signal that the part was down on the belt, with the part still riding.
+// Every move that takes a part of a class arriving on a belt now waits for the belt's sensor (the cell's input 15).
+const std::string kThird = std::string(CW_SOURCE_DIR) + "/tests/data/third";
+
+// The third robot's cell (tests/data/third/cell.yaml), copied into `dir` with `from` replaced by `to`; the scenario
+// s.yaml beside it runs third.task with r3 (p3) in `language`.
+Scenario third_robot(const fs::path& dir, const std::string& from, const std::string& to, const std::string& language,
+                     std::string* cell_text = nullptr) {
+  std::string text = read_file(kThird + "/cell.yaml");
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  const std::string urdf = "../../../models/urdf/";
+  for (std::size_t p = text.find(urdf); p != std::string::npos; p = text.find(urdf, p)) {
+    text.replace(p, 9, std::string(CW_SOURCE_DIR) + "/");
+  }
+  std::ofstream(dir / "cell.yaml") << text;
+  std::string scenario = read_file(kThird + "/third.yaml");
+  scenario.replace(scenario.find("program: third.task"), 19, "program: " + kThird + "/third.task");
+  std::ofstream(dir / "s.yaml") << scenario;
+  if (cell_text != nullptr) *cell_text = text;
+  Scenario s = cell::load_scenario(dir / "s.yaml");
+  set_language(s, "puma=val2", {"test", 0, 0});
+  set_language(s, "melfa=movemaster", {"test", 0, 0});
+  set_language(s, "p3=" + language, {"test", 0, 0});
+  return s;
+}
+
+TEST_F(RobotProgramsTest, AThirdRobotWaitsForThePartTheBeltBringsInVal2) {
+  const Scenario s = third_robot(dir_, "", "", "val2");
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  const RobotProgram& p3 = p.robots.at(2);
+  ASSERT_EQ(p3.cell_robot, "p3");
+  // After the MELFA's signal that the part is down, the sensor at the output conveyor's stop, then the move.
+  EXPECT_THAT(p3.text, HasSubstr("  WAIT SIG(1001)\n; third.task:20:3 Pick part\n  OPENI\n  WAIT SIG(1015)\n"
+                                 "  MOVE above.part\n"));
+  EXPECT_THAT(p3.text, HasSubstr("; I/O 15: WAIT SIG(1015) = a part at the stop of conveyor output (its sensor)\n"));
+  // The PUMA still waits for its own belt's sensor, once.
+  EXPECT_THAT(p.robots.at(0).text, HasSubstr("  OPENI\n  WAIT SIG(1016)\n  MOVE above.A\n"));
+}
+
+TEST_F(RobotProgramsTest, AThirdRobotWaitsForThePartTheBeltBringsInMovemaster) {
+  const Scenario s = third_robot(dir_, "", "", "movemaster");
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  const RobotProgram& p3 = p.robots.at(2);
+  ASSERT_EQ(p3.language, models::DriverKind::kMovemaster);
+  // Line 60 waits for the MELFA's output 1, line 70 opens, line 80 jumps onto itself until input 15 is on, then the
+  // move to the pick.
+  EXPECT_THAT(p3.text, HasSubstr("\n60 TB -1,60\n70 GO\n80 TB -15,80\n90 MO 1\n"));
+}
+
+TEST_F(RobotProgramsTest, RefusesAPartABeltBringsToAStopWithoutSensor) {
+  std::string cell;
+  const Scenario s = third_robot(dir_, "    sensor: {signal: 15}\n", "", "val2", &cell);
+  expect_refused(s, "cell.yaml", line_of(cell, "- name: output"),
+                 "robot 'p3' (r3) goes to the next part of class 'part' at output_pick (third.task:20:3 'Pick part') "
+                 "before it has ridden conveyor 'output' to its stop: its controller must wait for the part, but the "
+                 "conveyor has no part-present sensor");
+}
+
+TEST_F(RobotProgramsTest, RefusesAPartTakenFromABeltAwayFromItsStop) {
+  // The class's location 0.3 m upstream of the stop: the belt carries parts past it, and no sensor is there.
+  std::string cell;
+  const Scenario s = third_robot(dir_, "at: output.leave, offset: [0, -0.02, 0]", "at: output.leave, offset: [0, -0.3, 0]",
+                                 "val2", &cell);
+  expect_refused(s, "cell.yaml", line_of(cell, "name: output_pick"),
+                 "robot 'p3' (r3) takes a part of class 'part' at output_pick (third.task:20:3 'Pick part'), which "
+                 "lies on conveyor 'output' 0.30 m before its stop bar");
+}
+
 TEST_F(RobotProgramsTest, RefusesASensorOnAnEventWire) {
   const std::string cell = cell_with(dir_, "sensor: {signal: 16}", "sensor: {signal: 1}");
   const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());

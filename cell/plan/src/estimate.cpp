@@ -315,9 +315,17 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           const bool to_part = target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt;
           if (to_part && task::find_class(prog, target.object) != nullptr) {
             hand_peer.erase(arm.cell);
+            const std::string label = target.object;
+            const bool new_part = instance[arm.cell].count(label) == 0;
             bool fed = false;
-            const std::string body = bind_class(arm.cell, target.object, &fed);
-            target.object = body.empty() ? s.location_of(task::find_class(prog, target.object)->from) : body;
+            const std::string body = bind_class(arm.cell, label, &fed);
+            const std::string& from = s.location_of(task::find_class(prog, label)->from);
+            target.object = body.empty() ? from : body;
+            if (new_part) {
+              plan.class_takes.push_back({t, label, from, fed});
+              // A part that no feed brings has no body here: the class stays taken (by no body) until it is let go.
+              if (body.empty()) instance[arm.cell][label] = "";
+            }
             if (fed) {
               // Each time this move starts, it takes the next part fed (the feed's net, not a gate of its own).
               plan.feed_takes.push_back(t);
@@ -397,8 +405,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           if (p.workpiece.empty()) break;
           const bool of_class = task::find_class(prog, p.workpiece) != nullptr;
           const std::string w = of_class ? bind_class(arm.cell, p.workpiece) : s.workpiece_of(p.workpiece);
-          if (w.empty()) break;
           if (of_class && p.kind == task::PrimitiveKind::kOpen) instance[arm.cell].erase(p.workpiece);
+          if (w.empty()) break;
           runtime::WorkpieceState& ws = *model.find_workpiece(w);
           const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
           c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)

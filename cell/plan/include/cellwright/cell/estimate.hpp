@@ -105,6 +105,16 @@ struct MotionPlan {
   // Transitions that start the first move to a new part of a class the feed brings: each firing takes the next part
   // fed (see the top).
   std::vector<petri::TransitionId> feed_takes;
+  // Every move that takes a new part of a class from the class's location (`workpiece part from LOC`; not a Get's,
+  // which takes the giver's part): the part arrives there, fed, carried by a belt or put down by another robot, and
+  // the robot programs must know it is there before the move (robot_programs.hpp). `fed`: one of feed_takes.
+  struct ClassTake {
+    petri::TransitionId transition = 0;
+    std::string label;     // the program's class
+    std::string location;  // the cell location it is taken from
+    bool fed = false;
+  };
+  std::vector<ClassTake> class_takes;
   double feed_ride = 0;  // s a fed part rides from the feed's entry point to the stop (the longest of the bodies')
   std::vector<Delivery> deliveries;  // a shift's opens that deliver a body (empty unless the feed recycles)
   // One line per move that cannot be made: the robot, the command, its source and why.

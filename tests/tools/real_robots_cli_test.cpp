@@ -22,6 +22,7 @@ using cellwright::testing::shell_quote;
 using cellwright::testing::source_path;
 using cellwright::testing::TwinCli;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 const std::string kExchange = source_path("scenes/exchange.yaml");
 // The emulated cell's arms and the run's clock go this many times faster than real time (`--speed`): the serial
@@ -68,6 +69,25 @@ TEST(RealRobotsCli, SpeedWithoutRealTimeOrForOneEmulatorIsRefused) {
   const auto e = cli.run("emulate movemaster --link " + shell_quote((cli.dir() / "melfa").string()) + " --speed 4");
   EXPECT_EQ(e.status, 2) << e.out << e.err;
   EXPECT_THAT(e.err, HasSubstr("--time-scale"));
+}
+
+// Issue 25: --speed above 1 with a real arm (a port that is not a pseudo-terminal) is refused before anything
+// connects: the arm moves at its own pace. Emulators over pseudo-terminals may go faster (the tests below, at 4).
+TEST(RealRobotsCli, SpeedAboveOneWithARealArmIsRefusedBeforeAnythingConnects) {
+  TwinCli cli("real-arm-speed");
+  const std::string port = (cli.dir() / "ttyUSB0").string();  // no such port: nothing can have connected
+  const auto r = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --speed 4 --driver melfa=movemaster:" +
+                         shell_quote(port));
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("--speed"));
+  EXPECT_THAT(r.err, HasSubstr("robot 'melfa' is a real arm (movemaster on " + port));
+  EXPECT_THAT(r.err, Not(HasSubstr("cannot open serial port"))) << "it tried the port";
+  // At most 1, the same run goes as far as the port (which it then cannot open).
+  const auto one = cli.run("run " + shell_quote(kExchange) + " --quiet --realtime --speed 1 --driver melfa=movemaster:" +
+                           shell_quote(port));
+  EXPECT_EQ(one.status, 2) << one.out << one.err;
+  EXPECT_THAT(one.err, Not(HasSubstr("is a real arm")));
+  EXPECT_THAT(one.err, HasSubstr("cannot open serial port " + port));
 }
 
 TEST(RealRobotsCli, APortThatDoesNotExistIsNamed) {

@@ -262,18 +262,25 @@ TEST_F(RobotProgramsTest, RefusesARobotOnTheSimDriver) {
   expect_refused(s, "exchange.yaml", 8, "robot 'puma' (r1) runs on the sim driver");
 }
 
-// The cell's cell.yaml, copied into the test's directory with `from` replaced by `to`.
-std::string cell_with(const fs::path& dir, const std::string& from, const std::string& to) {
-  std::string text = read_file(kScenes + "/cell.yaml");
+// The cell file `source`, copied into `dir` as cell.yaml with `from` replaced by `to` and its URDF paths (written
+// relative as `urdf`, e.g. "../models/urdf/") made absolute; returns the copy's text.
+std::string copy_cell_with(const std::string& source, const fs::path& dir, const std::string& from,
+                           const std::string& to, const std::string& urdf) {
+  std::string text = read_file(source);
   const std::size_t at = text.find(from);
   EXPECT_NE(at, std::string::npos) << from;
   if (at != std::string::npos) text.replace(at, from.size(), to);
-  const std::string urdf = "../models/urdf/";
+  const std::size_t up = urdf.size() - std::string("models/urdf/").size();  // the "../" parts
   for (std::size_t p = text.find(urdf); p != std::string::npos; p = text.find(urdf, p)) {
-    text.replace(p, 3, std::string(CW_SOURCE_DIR) + "/");
+    text.replace(p, up, std::string(CW_SOURCE_DIR) + "/");
   }
   std::ofstream(dir / "cell.yaml") << text;
   return text;
+}
+
+// The cell's cell.yaml, copied into the test's directory with `from` replaced by `to`.
+std::string cell_with(const fs::path& dir, const std::string& from, const std::string& to) {
+  return copy_cell_with(kScenes + "/cell.yaml", dir, from, to, "../models/urdf/");
 }
 
 int line_of(const std::string& text, const std::string& needle) {
@@ -325,15 +332,7 @@ const std::string kThird = std::string(CW_SOURCE_DIR) + "/tests/data/third";
 // s.yaml beside it runs third.task with r3 (p3) in `language`.
 Scenario third_robot(const fs::path& dir, const std::string& from, const std::string& to, const std::string& language,
                      std::string* cell_text = nullptr) {
-  std::string text = read_file(kThird + "/cell.yaml");
-  const std::size_t at = text.find(from);
-  EXPECT_NE(at, std::string::npos) << from;
-  if (at != std::string::npos) text.replace(at, from.size(), to);
-  const std::string urdf = "../../../models/urdf/";
-  for (std::size_t p = text.find(urdf); p != std::string::npos; p = text.find(urdf, p)) {
-    text.replace(p, 9, std::string(CW_SOURCE_DIR) + "/");
-  }
-  std::ofstream(dir / "cell.yaml") << text;
+  const std::string text = copy_cell_with(kThird + "/cell.yaml", dir, from, to, "../../../models/urdf/");
   std::string scenario = read_file(kThird + "/third.yaml");
   scenario.replace(scenario.find("program: third.task"), 19, "program: " + kThird + "/third.task");
   std::ofstream(dir / "s.yaml") << scenario;

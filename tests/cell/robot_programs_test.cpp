@@ -386,6 +386,26 @@ TEST_F(RobotProgramsTest, RefusesAPartTakenFromABeltAwayFromItsStop) {
                  "lies on conveyor 'output' 0.30 m before its stop bar");
 }
 
+TEST_F(RobotProgramsTest, RefusesTakingANamedPartAgainAfterItWasLetGoOfOnARunningBelt) {
+  // The MELFA puts A down on the output conveyor and goes back for it: the belt has carried it on by then, and the plan
+  // (which keeps A where it was let go) cannot say where.
+  const Scenario s = load(
+      "robot r1 r2\nworkpiece A\nlocation OUT\n\nsteps\n  r1       | r2\n  Pick A   |\n  Put r2   | Get r1\n"
+      "           | Place OUT\n           | Pick A\nend\n",
+      "bind: {OUT: output_drop}\n");
+  // Without the collision sweep (as `twin compile` in a build without the simulator): the twin's sweep would find the
+  // MELFA's fingers grazing the belt's frame on the way back, where the plan has A.
+  try {
+    generate_robot_programs(s, cell::preflight(s, nullptr));
+    ADD_FAILURE() << "not refused";
+  } catch (const InputError& e) {
+    EXPECT_EQ(fs::path(e.where().file).filename().string(), "prog.task") << e.what();
+    EXPECT_EQ(e.where().line, 10) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("robot 'melfa' (r2) goes to workpiece 'A' ('Pick A') after prog.task:9:14 "
+                                    "'Place OUT' let go of it on conveyor 'output', which carries it on"));
+  }
+}
+
 TEST_F(RobotProgramsTest, RefusesASensorOnAnEventWire) {
   const std::string cell = cell_with(dir_, "sensor: {signal: 16}", "sensor: {signal: 1}");
   const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());

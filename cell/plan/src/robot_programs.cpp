@@ -98,19 +98,6 @@ std::vector<IoChannel> assign_channels(const Scenario& s, std::set<std::string>&
   return channels;
 }
 
-// The running belt whose top surface holds `point` (a location's bottom centre), or nullptr: a part put there rides.
-const models::ConveyorSpec* belt_under(const models::CellDescription& cell, const Eigen::Vector3d& point) {
-  constexpr double kOnBelt = 0.01;  // m above or below the belt's top surface
-  for (const models::ConveyorSpec& c : cell.conveyors) {
-    const Eigen::Vector3d local = c.pose.transform().inverse() * point;
-    if (c.speed > 0 && std::abs(local.x()) <= c.length / 2 && std::abs(local.y()) <= c.width / 2 &&
-        std::abs(local.z() - c.height) <= kOnBelt) {
-      return &c;
-    }
-  }
-  return nullptr;
-}
-
 // Refuses a class's location on a running belt where no part comes to rest: a belt without a stop, or a location
 // further from its stop bar than robot control looks for a class's part (0.25 m, robot_control.cpp).
 void stop_of(const Scenario& s, const models::ConveyorSpec& c, const models::LocationSpec& at,
@@ -359,6 +346,20 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
     wait_for_sensor(g.transition, fmt::format("workpiece '{}'", g.workpiece), g.conveyor,
                     fmt::format(" (at {:.1f} s by the plan)", g.ready));
   }
+  // A named part let go of on a running belt rides on from where the plan has it: no program can wait for it there.
+  for (const cell::MotionPlan::BeltRide& ride : plan.belt_rides) {
+    const petri::Transition& t = pre.net.transitions()[ride.transition];
+    CW_CHECK(t.starts_robot.has_value(), "a belt ride on a transition that starts no primitive");
+    const std::size_t r = *t.starts_robot;
+    const task::Primitive& p = prog.programs[r].primitives[static_cast<std::size_t>(t.starts_primitive)];
+    throw InputError(p.where,
+                     fmt::format("robot '{}' ({}) goes to workpiece '{}' ('{}') after {} let go of it on conveyor "
+                                 "'{}', which carries it on: where it comes to rest is not planned, and no sensor "
+                                 "tells the program it is there; take it as a part of a class at the conveyor's stop "
+                                 "(`workpiece part from LOC`, LOC at the stop, the belt with a sensor)",
+                                 s.robot_of(prog.robots[r]), prog.robots[r], ride.workpiece, p.task, ride.put,
+                                 ride.conveyor));
+  }
   // A part of a class arrives at the class's location: a belt that brings it there must tell it with its sensor;
   // elsewhere it is put there by a robot (the program's events order that) or fed (the feed's conveyor's sensor).
   for (const cell::MotionPlan::ClassTake& take : plan.class_takes) {
@@ -367,7 +368,7 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
     const std::string part =
         take.fed ? std::string("the next part the feed brings")
                  : fmt::format("the next part of class '{}' at {}", take.label, take.location);
-    if (const models::ConveyorSpec* belt = belt_under(s.cell, at->pose.xyz)) {
+    if (const models::ConveyorSpec* belt = running_belt_under(s.cell, at->pose.xyz)) {
       stop_of(s, *belt, *at, take, pre.net);
       wait_for_sensor(take.transition, part, belt->name, "");
     } else if (take.fed) {

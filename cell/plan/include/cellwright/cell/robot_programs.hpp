@@ -98,8 +98,9 @@ void set_language(cell::Scenario& scenario, const std::string& spec, const Sourc
 //    a controller has;
 //  - a robot must wait for a part that comes later on a conveyor without a part-present sensor (naming the
 //    conveyor's line in the cell, the robot and the task line), a class's location lies on a running belt where no
-//    part comes to rest (no stop, or more than 0.25 m before the stop bar: naming the location's line), or a sensor's
-//    input is one of the event wires' channels (naming the sensor's line);
+//    part comes to rest (no stop, or more than 0.25 m before the stop bar: naming the location's line), a robot goes
+//    to a named part after it was let go of on a running belt (cell::MotionPlan::belt_rides: naming the move's task
+//    line), or a sensor's input is one of the event wires' channels (naming the sensor's line);
 //  - a Movemaster move needs a tool pose the 5-axis rule cannot express (its approach axis out of the arm's vertical
 //    plane by more than 0.5°, or the tool point on the base's z axis).
 RobotPrograms generate_robot_programs(const cell::Scenario& scenario, const cell::Preflight& preflight);

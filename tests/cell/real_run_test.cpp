@@ -97,6 +97,25 @@ TEST_F(RealRunTest, EveryRobotOfTheProgramNeedsARealDriver) {
   }
 }
 
+// Issue 25: parts the feed puts on a belt while the run goes would be taken where the cell description has them, and
+// nothing real sees them arrive: the run is refused before anything connects (the ports here do not exist), naming
+// the feed.
+TEST_F(RealRunTest, AFeedIsRefusedBeforeAnythingConnects) {
+  Scenario s = load_scenario(std::string(CW_SOURCE_DIR) + "/scenes/pipeline.yaml");
+  set_driver(s, "puma=val2:" + (dir_ / "no-puma").string(), {"--driver", 0, 0});
+  set_driver(s, "melfa=movemaster:" + (dir_ / "no-melfa").string(), {"--driver", 0, 0});
+  const Preflight pre = preflight(s, nullptr);
+  try {
+    RealRun run(s, pre.net);
+    FAIL() << "a real run of a feed was accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(fs::path(e.where().file).filename(), "pipeline.yaml") << e.what();
+    EXPECT_EQ(e.where().line, 10) << e.what();  // feed: {conveyor: input, ...}
+    EXPECT_NE(std::string(e.what()).find("the feed puts parts on conveyor 'input'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("nothing that sees a part arrive on a belt"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(RealRunTest, ExchangeRunsOnTwoEmulatedControllersWithNoPlantAndTheModelsParts) {
   emulate::KinematicArm puma_arm = arm_of("/urdf/puma560.urdf", {0, 84, -192, 0, -72, 90});
   emulate::KinematicArm melfa_arm = arm_of("/urdf/melfa_rve2.urdf", {-90, 30, 60, 0, 60, 0});

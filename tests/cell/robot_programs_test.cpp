@@ -56,10 +56,12 @@ class RobotProgramsTest : public ::testing::Test {
     return s;
   }
 
-  // Expects generate_robot_programs to refuse with `text`, at `file`:`line`.
-  void expect_refused(const Scenario& s, const std::string& file, int line, const std::string& text) {
+  // Expects generate_robot_programs to refuse with `text`, at `file`:`line` (the preflight without the collision
+  // sweep when `sweep` is false, as `twin compile` in a build without the simulator).
+  void expect_refused(const Scenario& s, const std::string& file, int line, const std::string& text,
+                      bool sweep = true) {
     try {
-      generate_robot_programs(s, cell::preflight(s, &twin_port()));
+      generate_robot_programs(s, sweep ? cell::preflight(s, &twin_port()) : cell::preflight(s, nullptr));
       ADD_FAILURE() << "not refused; expected: " << text;
     } catch (const InputError& e) {
       EXPECT_EQ(fs::path(e.where().file).filename().string(), file) << e.what();
@@ -262,18 +264,25 @@ TEST_F(RobotProgramsTest, RefusesARobotOnTheSimDriver) {
   expect_refused(s, "exchange.yaml", 8, "robot 'puma' (r1) runs on the sim driver");
 }
 
-// The cell's cell.yaml, copied into the test's directory with `from` replaced by `to`.
-std::string cell_with(const fs::path& dir, const std::string& from, const std::string& to) {
-  std::string text = read_file(kScenes + "/cell.yaml");
+// The cell file `source`, copied into `dir` as cell.yaml with `from` replaced by `to` and its URDF paths (written
+// relative as `urdf`, e.g. "../models/urdf/") made absolute; returns the copy's text.
+std::string copy_cell_with(const std::string& source, const fs::path& dir, const std::string& from,
+                           const std::string& to, const std::string& urdf) {
+  std::string text = read_file(source);
   const std::size_t at = text.find(from);
   EXPECT_NE(at, std::string::npos) << from;
   if (at != std::string::npos) text.replace(at, from.size(), to);
-  const std::string urdf = "../models/urdf/";
+  const std::size_t up = urdf.size() - std::string("models/urdf/").size();  // the "../" parts
   for (std::size_t p = text.find(urdf); p != std::string::npos; p = text.find(urdf, p)) {
-    text.replace(p, 3, std::string(CW_SOURCE_DIR) + "/");
+    text.replace(p, up, std::string(CW_SOURCE_DIR) + "/");
   }
   std::ofstream(dir / "cell.yaml") << text;
   return text;
+}
+
+// The cell's cell.yaml, copied into the test's directory with `from` replaced by `to`.
+std::string cell_with(const fs::path& dir, const std::string& from, const std::string& to) {
+  return copy_cell_with(kScenes + "/cell.yaml", dir, from, to, "../models/urdf/");
 }
 
 int line_of(const std::string& text, const std::string& needle) {
@@ -314,6 +323,84 @@ TEST_F(RobotProgramsTest, RefusesAFedPartOfAClassOnAConveyorWithoutSensor) {
   const Scenario s = load(class_program(), kFeed, (dir_ / "cell.yaml").string());
   expect_refused(s, "cell.yaml", line_of(cell, "- name: input"),
                  "robot 'puma' (r1) goes to the next part the feed brings (prog.task:6:3 'Pick part')");
+}
+
+// Issue 25: a third robot takes the parts the output conveyor brings to its stop (tests/data/third): its program went
+// to the pick right after the upstream robot's signal that the part was down on the belt, with the part still riding.
+// Every move that takes a part of a class arriving on a belt now waits for the belt's sensor (the cell's input 15).
+const std::string kThird = std::string(CW_SOURCE_DIR) + "/tests/data/third";
+
+// The third robot's cell (tests/data/third/cell.yaml), copied into `dir` with `from` replaced by `to`; the scenario
+// s.yaml beside it runs third.task with r3 (p3) in `language`.
+Scenario third_robot(const fs::path& dir, const std::string& from, const std::string& to, const std::string& language,
+                     std::string* cell_text = nullptr) {
+  const std::string text = copy_cell_with(kThird + "/cell.yaml", dir, from, to, "../../../models/urdf/");
+  std::string scenario = read_file(kThird + "/third.yaml");
+  scenario.replace(scenario.find("program: third.task"), 19, "program: " + kThird + "/third.task");
+  std::ofstream(dir / "s.yaml") << scenario;
+  if (cell_text != nullptr) *cell_text = text;
+  Scenario s = cell::load_scenario(dir / "s.yaml");
+  set_language(s, "puma=val2", {"test", 0, 0});
+  set_language(s, "melfa=movemaster", {"test", 0, 0});
+  set_language(s, "p3=" + language, {"test", 0, 0});
+  return s;
+}
+
+TEST_F(RobotProgramsTest, AThirdRobotWaitsForThePartTheBeltBringsInVal2) {
+  const Scenario s = third_robot(dir_, "", "", "val2");
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  const RobotProgram& p3 = p.robots.at(2);
+  ASSERT_EQ(p3.cell_robot, "p3");
+  // After the MELFA's signal that the part is down, the sensor at the output conveyor's stop, then the move.
+  EXPECT_THAT(p3.text, HasSubstr("  WAIT SIG(1001)\n; third.task:20:3 Pick part\n  OPENI\n  WAIT SIG(1015)\n"
+                                 "  MOVE above.part\n"));
+  EXPECT_THAT(p3.text, HasSubstr("; I/O 15: WAIT SIG(1015) = a part at the stop of conveyor output (its sensor)\n"));
+  // The PUMA still waits for its own belt's sensor, once.
+  EXPECT_THAT(p.robots.at(0).text, HasSubstr("  OPENI\n  WAIT SIG(1016)\n  MOVE above.A\n"));
+}
+
+TEST_F(RobotProgramsTest, AThirdRobotWaitsForThePartTheBeltBringsInMovemaster) {
+  const Scenario s = third_robot(dir_, "", "", "movemaster");
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  const RobotProgram& p3 = p.robots.at(2);
+  ASSERT_EQ(p3.language, models::DriverKind::kMovemaster);
+  // Line 60 waits for the MELFA's output 1, line 70 opens, line 80 jumps onto itself until input 15 is on, then the
+  // move to the pick.
+  EXPECT_THAT(p3.text, HasSubstr("\n60 TB -1,60\n70 GO\n80 TB -15,80\n90 MO 1\n"));
+}
+
+TEST_F(RobotProgramsTest, RefusesAPartABeltBringsToAStopWithoutSensor) {
+  std::string cell;
+  const Scenario s = third_robot(dir_, "    sensor: {signal: 15}\n", "", "val2", &cell);
+  expect_refused(s, "cell.yaml", line_of(cell, "- name: output"),
+                 "robot 'p3' (r3) goes to the next part of class 'part' at output_pick (third.task:20:3 'Pick part') "
+                 "before it has ridden conveyor 'output' to its stop: its controller must wait for the part, but the "
+                 "conveyor has no part-present sensor");
+}
+
+TEST_F(RobotProgramsTest, RefusesAPartTakenFromABeltAwayFromItsStop) {
+  // The class's location 0.3 m upstream of the stop: the belt carries parts past it, and no sensor is there.
+  std::string cell;
+  const Scenario s = third_robot(dir_, "at: output.leave, offset: [0, -0.02, 0]", "at: output.leave, offset: [0, -0.3, 0]",
+                                 "val2", &cell);
+  expect_refused(s, "cell.yaml", line_of(cell, "name: output_pick"),
+                 "robot 'p3' (r3) takes a part of class 'part' at output_pick (third.task:20:3 'Pick part'), which "
+                 "lies on conveyor 'output' 0.30 m before its stop bar");
+}
+
+TEST_F(RobotProgramsTest, RefusesTakingANamedPartAgainAfterItWasLetGoOfOnARunningBelt) {
+  // The MELFA puts A down on the output conveyor and goes back for it: the belt has carried it on by then, and the plan
+  // (which keeps A where it was let go) cannot say where.
+  const Scenario s = load(
+      "robot r1 r2\nworkpiece A\nlocation OUT\n\nsteps\n  r1       | r2\n  Pick A   |\n  Put r2   | Get r1\n"
+      "           | Place OUT\n           | Pick A\nend\n",
+      "bind: {OUT: output_drop}\n");
+  // Without the collision sweep (as `twin compile` in a build without the simulator): the twin's sweep would find the
+  // MELFA's fingers grazing the belt's frame on the way back, where the plan has A.
+  expect_refused(s, "prog.task", 10,
+                 "robot 'melfa' (r2) goes to workpiece 'A' ('Pick A') after prog.task:9:14 'Place OUT' let go of it on "
+                 "conveyor 'output', which carries it on",
+                 /*sweep=*/false);
 }
 
 TEST_F(RobotProgramsTest, RefusesASensorOnAnEventWire) {

@@ -40,6 +40,12 @@ expect 2 "needs the simulator" -- "$twin" snapshot scenes/cell.yaml -o "$scratch
 expect 2 "needs the simulator" -- "$twin" campaign scenes/exchange.yaml -o "$scratch/c"
 expect 2 "needs the simulator" -- "$twin" emulate --scenario scenes/exchange.yaml --robot "melfa=movemaster:$scratch/m"
 [[ ! -e $scratch/c && ! -e $scratch/cell.png ]] || fail "a refused command wrote something"
+# Refused before anything connects (the ports do not exist): a feed, which nothing real sees arrive, and --speed above
+# 1 with a real arm (a port that is not a pseudo-terminal).
+expect 2 "the feed puts parts on conveyor 'input'" -- "$twin" run scenes/pipeline.yaml \
+  --driver "puma=val2:$scratch/none" --driver "melfa=movemaster:$scratch/none"
+expect 2 "robot 'puma' is a real arm" -- "$twin" run scenes/exchange.yaml --speed 4 \
+  --driver "puma=val2:$scratch/none" --driver "melfa=movemaster:$scratch/none"
 
 # emulate NAME LANGUAGE: a controller of the build's own on the pseudo-terminal $scratch/NAME, its arm 4 times faster
 # than real time, its home the cell's (the bring-up cross-checks it); waits until it is published.

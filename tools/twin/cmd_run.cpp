@@ -143,6 +143,7 @@ void add_run(CLI::App& app, Command* run) {
         throw InputError({"--final-png", 0, 0}, "it chooses what -o DIR gets, and without -o nothing is written");
       }
       Scenario s = load_scenario_with(a);
+      check_speed_for_real_arms(s, args->speed);
       const Preflight pre = preflight(s, simulator());
       if (!pre.ok(a.allow_collisions)) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", a.scenario.c_str());

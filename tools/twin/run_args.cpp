@@ -72,6 +72,19 @@ cell::Scenario load_scenario_with(const RunArgs& args) {
   return s;
 }
 
+void check_speed_for_real_arms(const cell::Scenario& s, double speed) {
+  if (speed <= 1.0) return;
+  for (const cell::DriverUse& d : cell::setup_of(s).drivers) {
+    if (d.kind == "sim" || d.emulated) continue;
+    throw InputError({"--speed", 0, 0},
+                     fmt::format("{:g} paces the run faster than the wall clock, and robot '{}' is a real arm ({} on "
+                                 "{}, not an emulator's pseudo-terminal), which moves at its own pace: every motion "
+                                 "would take {:g} times longer on the run's clock than planned; leave --speed out (or "
+                                 "at most 1) with real arms",
+                                 speed, d.robot, d.kind, d.port, speed));
+  }
+}
+
 #if CW_SIM
 namespace {
 

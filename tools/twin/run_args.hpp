@@ -46,6 +46,11 @@ void add_run_options(CLI::App& cmd, RunArgs& args);
 // input.
 cell::Scenario load_scenario_with(const RunArgs& args);
 
+// Refuses --speed above 1 (simulation seconds per wall-clock second) when a program robot of `s` is on a real driver
+// whose port is not a pseudo-terminal (cell::setup_of: not emulated, so a real arm, which moves at its own pace):
+// InputError naming --speed, the robot and its port. Checked before anything connects.
+void check_speed_for_real_arms(const cell::Scenario& s, double speed);
+
 #if CW_SIM
 // The run's options from the shared options, for scenario `s`: perception, the frames callback (its directory
 // made), the video (checked: InputError naming the option), and the event log streamed into the output directory

@@ -182,6 +182,18 @@ std::vector<std::string> MotionPlan::problems() const {
   return out;
 }
 
+const models::ConveyorSpec* running_belt_under(const models::CellDescription& cell, const Eigen::Vector3d& point) {
+  constexpr double kOnBelt = 0.01;  // m above or below the belt's top surface
+  for (const models::ConveyorSpec& c : cell.conveyors) {
+    const Eigen::Vector3d local = c.pose.transform().inverse() * point;
+    if (c.speed > 0 && std::abs(local.x()) <= c.length / 2 && std::abs(local.y()) <= c.width / 2 &&
+        std::abs(local.z() - c.height) <= kOnBelt) {
+      return &c;
+    }
+  }
+  return nullptr;
+}
+
 MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime::TargetOptions& targets) {
   const task::CompiledProgram& prog = s.program;
   struct Arm {
@@ -248,6 +260,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   // What each arm holds, relative to its tool (parts held move with the hand).
   std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> held;  // cell robot -> (workpiece, tcp^-1 part)
   std::map<std::string, double> closed;  // cell robot -> where its fingers closed to (absent: open)
+  // Named parts let go of on a running belt, not taken up since: cell workpiece -> (conveyor, the open's source).
+  std::map<std::string, std::pair<std::string, std::string>> on_belt;
 
   auto tcp_of = [&](const Arm& a, const std::vector<double>& q) { return a.base * a.chain.forward(vec(q)); };
   auto bound = [&](const task::Target& t) {
@@ -315,9 +329,17 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           const bool to_part = target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt;
           if (to_part && task::find_class(prog, target.object) != nullptr) {
             hand_peer.erase(arm.cell);
+            const std::string label = target.object;
+            const bool new_part = instance[arm.cell].count(label) == 0;
             bool fed = false;
-            const std::string body = bind_class(arm.cell, target.object, &fed);
-            target.object = body.empty() ? s.location_of(task::find_class(prog, target.object)->from) : body;
+            const std::string body = bind_class(arm.cell, label, &fed);
+            const std::string& from = s.location_of(task::find_class(prog, label)->from);
+            target.object = body.empty() ? from : body;
+            if (new_part) {
+              plan.class_takes.push_back({t, label, from, fed});
+              // A part that no feed brings has no body here: the class stays taken (by no body) until it is let go.
+              if (body.empty()) instance[arm.cell][label] = "";
+            }
             if (fed) {
               // Each time this move starts, it takes the next part fed (the feed's net, not a gate of its own).
               plan.feed_takes.push_back(t);
@@ -329,6 +351,10 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           }
           // A part still to come holds back the first move to it.
           if (target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt) {
+            if (auto b = on_belt.find(target.object); b != on_belt.end()) {
+              plan.belt_rides.push_back({t, b->first, b->second.first, b->second.second});
+              on_belt.erase(b);
+            }
             if (auto it = ready_at.find(target.object); it != ready_at.end()) {
               if (it->second > 0) plan.gates.push_back({t, target.object, it->second, arrives_on[target.object]});
               ready_at.erase(it);
@@ -397,8 +423,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           if (p.workpiece.empty()) break;
           const bool of_class = task::find_class(prog, p.workpiece) != nullptr;
           const std::string w = of_class ? bind_class(arm.cell, p.workpiece) : s.workpiece_of(p.workpiece);
-          if (w.empty()) break;
           if (of_class && p.kind == task::PrimitiveKind::kOpen) instance[arm.cell].erase(p.workpiece);
+          if (w.empty()) break;
           runtime::WorkpieceState& ws = *model.find_workpiece(w);
           const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
           c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)
@@ -422,6 +448,12 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
               const double distance = std::max(0.0, e.out_at() - *at);
               plan.deliveries.push_back({t, r, k, e.conveyor().name, distance, distance / e.conveyor().speed});
               break;
+            }
+            if (!of_class) {
+              const Eigen::Vector3d bottom = ws.pose.translation() - Eigen::Vector3d(0, 0, ws.size().z() / 2);
+              if (const models::ConveyorSpec* belt = running_belt_under(s.cell, bottom)) {
+                on_belt[w] = {belt->name, c.source};
+              }
             }
             held.erase(arm.cell);
             rs.hold.reset();

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <map>
 #include <set>
 
@@ -95,6 +96,26 @@ std::vector<IoChannel> assign_channels(const Scenario& s, std::set<std::string>&
     channels.push_back(std::move(c));
   }
   return channels;
+}
+
+// Refuses a class's location on a running belt where no part comes to rest: a belt without a stop, or a location
+// further from its stop bar than robot control looks for a class's part (0.25 m, robot_control.cpp).
+void stop_of(const Scenario& s, const models::ConveyorSpec& c, const models::LocationSpec& at,
+             const cell::MotionPlan::ClassTake& take, const petri::Net& net) {
+  constexpr double kStopReach = 0.25;
+  const double along = (c.pose.transform().inverse() * at.pose.xyz).x() + c.length / 2;
+  if (c.stop && std::abs(c.leave - along) <= kStopReach) return;
+  const petri::Transition& t = net.transitions()[take.transition];
+  CW_CHECK(t.starts_robot.has_value(), "a class take on a transition that starts no primitive");
+  const task::Primitive& p = s.program.programs[*t.starts_robot].primitives[static_cast<std::size_t>(t.starts_primitive)];
+  throw InputError(at.where,
+                   fmt::format("robot '{}' ({}) takes a part of class '{}' at {} ({} '{}'), which lies on conveyor "
+                               "'{}' {}: the belt carries a part on from there, and no sensor can tell when one is "
+                               "there; take it at the conveyor's stop",
+                               s.robot_of(s.program.robots[*t.starts_robot]), s.program.robots[*t.starts_robot],
+                               take.label, take.location, where_text(p.where), p.task, c.name,
+                               c.stop ? fmt::format("{:.2f} m before its stop bar", c.leave - along)
+                                      : std::string("(it has no stop)")));
 }
 
 // The DriverChoice of a program robot.
@@ -325,9 +346,35 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
     wait_for_sensor(g.transition, fmt::format("workpiece '{}'", g.workpiece), g.conveyor,
                     fmt::format(" (at {:.1f} s by the plan)", g.ready));
   }
-  for (const petri::TransitionId t : plan.feed_takes) {
-    CW_CHECK(s.feed.has_value(), "a move takes a fed part, but the scenario has no feed");
-    wait_for_sensor(t, "the next part the feed brings", s.feed->conveyor, "");
+  // A named part let go of on a running belt rides on from where the plan has it: no program can wait for it there.
+  for (const cell::MotionPlan::BeltRide& ride : plan.belt_rides) {
+    const petri::Transition& t = pre.net.transitions()[ride.transition];
+    CW_CHECK(t.starts_robot.has_value(), "a belt ride on a transition that starts no primitive");
+    const std::size_t r = *t.starts_robot;
+    const task::Primitive& p = prog.programs[r].primitives[static_cast<std::size_t>(t.starts_primitive)];
+    throw InputError(p.where,
+                     fmt::format("robot '{}' ({}) goes to workpiece '{}' ('{}') after {} let go of it on conveyor "
+                                 "'{}', which carries it on: where it comes to rest is not planned, and no sensor "
+                                 "tells the program it is there; take it as a part of a class at the conveyor's stop "
+                                 "(`workpiece part from LOC`, LOC at the stop, the belt with a sensor)",
+                                 s.robot_of(prog.robots[r]), prog.robots[r], ride.workpiece, p.task, ride.put,
+                                 ride.conveyor));
+  }
+  // A part of a class arrives at the class's location: a belt that brings it there must tell it with its sensor;
+  // elsewhere it is put there by a robot (the program's events order that) or fed (the feed's conveyor's sensor).
+  for (const cell::MotionPlan::ClassTake& take : plan.class_takes) {
+    const models::LocationSpec* at = s.cell.find_location(take.location);
+    CW_CHECK(at != nullptr, "class {} is taken from {}, which the cell does not have", take.label, take.location);
+    const std::string part =
+        take.fed ? std::string("the next part the feed brings")
+                 : fmt::format("the next part of class '{}' at {}", take.label, take.location);
+    if (const models::ConveyorSpec* belt = running_belt_under(s.cell, at->pose.xyz)) {
+      stop_of(s, *belt, *at, take, pre.net);
+      wait_for_sensor(take.transition, part, belt->name, "");
+    } else if (take.fed) {
+      CW_CHECK(s.feed.has_value(), "a move takes a fed part, but the scenario has no feed");
+      wait_for_sensor(take.transition, part, s.feed->conveyor, "");
+    }
   }
 
   for (std::size_t r = 0; r < prog.robots.size(); ++r) {

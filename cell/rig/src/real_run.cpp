@@ -29,6 +29,13 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
                                             b.name, b.label, b.name, b.name));
     }
   }
+  if (s.feed) {
+    throw InputError(s.feed->where,
+                     fmt::format("the feed puts parts on conveyor '{}' while the run goes, and a run of real robots "
+                                 "without the twin has nothing that sees a part arrive on a belt (no part sensor is "
+                                 "read yet: real I/O devices come with issue 26); run the feed on the twin",
+                                 s.feed->conveyor));
+  }
   for (const FaultSpec& f : s.faults) {
     throw InputError(f.where, fmt::format("a {} fault is injected by the twin, and a run of real robots without the "
                                           "twin injects nothing: leave the scenario's faults and --fault out",

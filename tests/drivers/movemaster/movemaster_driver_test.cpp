@@ -41,6 +41,8 @@ class Peer {
   struct Reply {
     std::string bytes;     // written back at once
     bool hang_up = false;  // then the master is closed, as when a cable is pulled
+    // When set, the bytes are written one at a time this far apart, as a slow line delivers them.
+    std::chrono::microseconds byte_gap{0};
   };
   using Answer = std::function<Reply(const std::string& line)>;
   struct Line {
@@ -102,7 +104,14 @@ class Peer {
           std::lock_guard lock(mutex_);
           lines_.push_back({text, arrived, Steady::now()});
         }
-        write_all(reply.bytes);
+        if (reply.byte_gap.count() == 0) {
+          write_all(reply.bytes);
+        } else {
+          for (const char c : reply.bytes) {
+            std::this_thread::sleep_for(reply.byte_gap);  // the line's pace, not a race: see Reply::byte_gap
+            write_all(std::string(1, c));
+          }
+        }
         if (reply.hang_up) pty_.hang_up();
       }
     }
@@ -775,6 +784,172 @@ TEST(MovemasterDriverVariants, AnErCodeOutsideTheManualsIsAnUnknownFaultThenRs) 
   EXPECT_EQ(r.driver.reset(), ErrorCode::none);
   const Submitted h = r.driver.home();
   EXPECT_EQ(r.finish(h.id).phase, CommandPhase::done);
+}
+
+// ---- Answer variants (issue 25): every form of WH and every class of ER code, over the pseudo-terminal ------------
+// The forms are those docs/real-robots.md ("Controller to host") and facts.md allow: values with or without a sign
+// (a leading '+' too) and a leading zero, with or without decimals, spaces around them, answers ended by CR LF, LF or
+// CR. The ER codes: 0, 1 (hardware), 2 (position or format), another number of one or two digits (unknown).
+
+const char* end_name(const std::string& end) {
+  return end == "\r" ? "CR" : end == "\n" ? "LF" : "CR LF";
+}
+
+TEST(MovemasterDriverVariants, EveryWhFormOverEveryLineEndIsTheSamePose) {
+  // Each form written its own way; all of them the pose x 300, y -0.5, z 200, p -90, r 0.5 (except the whole numbers).
+  const std::vector<std::pair<std::string, mm::Xyzpr>> forms = {
+      {"+300.0,-0.5,+200.0,-90.0,+0.5", {300.0, -0.5, 200.0, -90.0, 0.5}},          // every value signed
+      {"300,-1,200,-90,1", {300.0, -1.0, 200.0, -90.0, 1.0}},                       // whole numbers
+      {"300.00,-.5,200.25,-90.0,.5", {300.0, -0.5, 200.25, -90.0, 0.5}},            // no leading zero, two decimals
+      {" 300.0, -0.5, 200.0, -90.0, 0.5", {300.0, -0.5, 200.0, -90.0, 0.5}},        // a space after each comma
+      {"+300.0 , -.5 , +200.0 , -90.0 , +.5 ", {300.0, -0.5, 200.0, -90.0, 0.5}},  // spaces around each value
+      {"\t300.0,\t-0.5,\t200.0,\t-90.0,\t0.5", {300.0, -0.5, 200.0, -90.0, 0.5}},      // tabs
+  };
+  for (const std::string end : {"\r\n", "\n", "\r"}) {
+    SCOPED_TRACE(end_name(end));
+    Rig r([&forms, end, next = std::size_t{0}](const std::string& line) mutable -> Peer::Reply {
+      if (line == "ER") return {"0" + end};
+      if (line == "WH") return {forms[next++ % forms.size()].first + end};
+      return {};
+    });
+    r.bring_up();
+    for (const auto& [text, v] : forms) {
+      SCOPED_TRACE(text);
+      const Submitted s = r.driver.request_position();
+      ASSERT_TRUE(s.accepted());
+      ASSERT_EQ(r.finish(s.id).phase, CommandPhase::done) << r.driver.poll(s.id).message;
+      const std::optional<PositionReading> reading = r.driver.last_position();
+      ASSERT_TRUE(reading.has_value() && reading->tool_pose.has_value());
+      EXPECT_EQ(reading->request, s.id);
+      EXPECT_TRUE(reading->tool_pose->translation().isApprox(Eigen::Vector3d(v.x, v.y, v.z) / 1000.0, 1e-12));
+      EXPECT_TRUE(reading->tool_pose->isApprox(mm::to_pose(v), 1e-12));
+    }
+    EXPECT_EQ(r.driver.state(), DriverState::active);
+  }
+}
+
+TEST(MovemasterDriverVariants, AWhAnswerTricklingInAByteAtATimeIsOneAnswer) {
+  // At 9600 baud a character takes about 1.1 ms: the answer comes in pieces, and its CR LF last.
+  Rig r([](const std::string& line) -> Peer::Reply {
+    if (line == "ER") return {"0\r\n"};
+    if (line == "WH") return {"+300.0,-0.5,+200.0,-90.0,+0.5\r\n", false, std::chrono::microseconds(1500)};
+    return {};
+  });
+  r.bring_up();
+  const Submitted s = r.driver.request_position();
+  ASSERT_EQ(r.finish(s.id).phase, CommandPhase::done) << r.driver.poll(s.id).message;
+  EXPECT_TRUE(r.driver.last_position()->tool_pose->isApprox(mm::to_pose({300.0, -0.5, 200.0, -90.0, 0.5}), 1e-12));
+  // The LF that came last is no answer to the next command.
+  EXPECT_EQ(r.run(Grip{Grip::Action::close, {}, {}}).phase, CommandPhase::done);
+  EXPECT_EQ(r.driver.state(), DriverState::active);
+}
+
+// One class of answers to ER: what the command comes to and whether the driver goes on.
+struct ErClass {
+  std::string answer;  // the ER line, without its line end
+  ErrorCode error;
+  bool fault;        // the driver enters fault (reset() clears it); else it goes on
+  std::string says;  // in the command's message
+};
+
+const std::vector<ErClass>& er_classes() {
+  static const std::vector<ErClass> classes = {
+      {"1", ErrorCode::hardware, true, "ER answered 1"},
+      {"2", ErrorCode::unreachable, false, "ER answered 2"},
+      {" 2 ", ErrorCode::unreachable, false, "ER answered 2"},
+      {"3", ErrorCode::unknown, true, "ER answered 3"},
+      {"42", ErrorCode::unknown, true, "ER answered 42"},
+      {"99", ErrorCode::unknown, true, "ER answered 99"},
+  };
+  return classes;
+}
+
+// Each command the driver sends, with the lines it sends for it (after a bring-up, speed level 9 not sent yet).
+struct Sent {
+  std::string name;
+  std::function<Submitted(MovemasterDriver&)> submit;
+  std::string lines;  // what goes out before the ER
+};
+
+std::vector<Sent> every_command() {
+  const mm::Xyzpr to{300.0, 0.0, 250.0, -90.0, 0.0};
+  return {
+      {"home", [](MovemasterDriver& d) { return d.home(); }, "NT\r\n"},
+      {"joint move", [to](MovemasterDriver& d) { return d.submit(move_to(to)); },
+       "SP 9\r\nMP 300.0,0.0,250.0,-90.0,0.0\r\n"},
+      // Linear: the driver does not know where the arm is after homing, so it asks (WH) to count the points.
+      {"linear move", [to](MovemasterDriver& d) { return d.submit(move_to(to, Path::linear)); },
+       "SP 9\r\nWH\r\nPD 629,300.0,0.0,250.0,-90.0,0.0\r\nMS 629,5,O\r\n"},
+      {"grip with force", [](MovemasterDriver& d) { return d.submit(Grip{Grip::Action::close, {}, 10.0}); },
+       "GP 8,8,3\r\nGC\r\n"},
+  };
+}
+
+TEST(MovemasterDriverVariants, EveryErCodeClassAfterEveryCommandThenRs) {
+  for (const ErClass& c : er_classes()) {
+    for (const Sent& command : every_command()) {
+      SCOPED_TRACE(fmt::format("ER '{}' after the {}", c.answer, command.name));
+      // ER 1: connect, ER 2: homing (for the home case, the ER after NT is the 2nd), then the command's.
+      const int nth = command.name == "home" ? 2 : 3;
+      Rig r(except_nth("ER", nth, {c.answer + "\r\n"}, obedient()));
+      if (command.name == "home") {
+        ASSERT_EQ(r.driver.connect(), ErrorCode::none) << r.driver.connect_problem();
+      } else {
+        r.bring_up();
+      }
+      const std::size_t from = r.peer.size();
+      const Submitted s = command.submit(r.driver);
+      ASSERT_TRUE(s.accepted()) << s.message;
+      const CommandStatus st = r.finish(s.id);
+      EXPECT_EQ(st.phase, CommandPhase::failed);
+      EXPECT_EQ(st.error, c.error) << st.message;
+      EXPECT_TRUE(contains(st.message, c.says)) << st.message;
+      const std::string expected = command.lines + "ER\r\nRS\r\n";
+      EXPECT_EQ(r.sent_since(from, expected), expected);
+      if (c.fault) {
+        EXPECT_TRUE(r.events.wait([&] { return r.driver.state() == DriverState::fault; }));
+        EXPECT_EQ(r.driver.reset(), ErrorCode::none);
+        EXPECT_TRUE(r.events.wait([&] { return r.driver.state() == DriverState::connected; }));
+      } else {
+        EXPECT_NE(r.driver.state(), DriverState::fault);
+      }
+      // Either way the driver goes on with the controller: an active driver moves again, another homes; a read-back.
+      if (r.driver.state() == DriverState::active) {
+        EXPECT_EQ(r.run(move_to({300.0, 0.0, 200.0, -90.0, 0.0})).phase, CommandPhase::done);
+      } else {
+        const Submitted h = r.driver.home();
+        ASSERT_TRUE(h.accepted()) << h.message;
+        EXPECT_EQ(r.finish(h.id).phase, CommandPhase::done) << r.driver.poll(h.id).message;
+      }
+      EXPECT_EQ(r.finish(r.driver.request_position().id).phase, CommandPhase::done);
+    }
+  }
+}
+
+TEST(MovemasterDriverVariants, EveryNonZeroErCodeAtConnectFailsItThenRsAndTheNextConnectWorks) {
+  for (const ErClass& c : er_classes()) {
+    SCOPED_TRACE(c.answer);
+    Rig r(except_nth("ER", 1, {c.answer + "\r\n"}, obedient()));
+    EXPECT_EQ(r.driver.connect(), ErrorCode::connection_lost);
+    EXPECT_EQ(r.driver.state(), DriverState::disconnected);
+    EXPECT_TRUE(contains(r.driver.connect_problem(), c.says)) << r.driver.connect_problem();
+    EXPECT_EQ(r.sent_since(0, "ER\r\nRS\r\n"), "ER\r\nRS\r\n");
+    EXPECT_EQ(r.driver.connect(), ErrorCode::none) << r.driver.connect_problem();
+  }
+}
+
+TEST(MovemasterDriverVariants, AnErCodeOtherThanZeroAfterRsKeepsTheFault) {
+  for (const ErClass& c : er_classes()) {
+    SCOPED_TRACE(c.answer);
+    // ER 3 (after GO) answers 1; ER 4 (after the reset's RS) answers the class's code.
+    Rig r(except_nth("ER", 4, {c.answer + "\r\n"}, except_nth("ER", 3, {"1\r\n"}, obedient())));
+    r.bring_up();
+    EXPECT_EQ(r.run(Grip{Grip::Action::open, {}, {}}).error, ErrorCode::hardware);
+    EXPECT_EQ(r.driver.reset(), ErrorCode::none);  // accepted: the RS goes out on the communication thread
+    EXPECT_TRUE(r.events.wait([&] { return r.driver.state() == DriverState::fault; }));
+    const Submitted h = r.driver.home();
+    EXPECT_FALSE(h.accepted()) << "a driver whose controller kept its error took a command";
+  }
 }
 
 }  // namespace

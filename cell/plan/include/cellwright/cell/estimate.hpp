@@ -105,11 +105,34 @@ struct MotionPlan {
   // Transitions that start the first move to a new part of a class the feed brings: each firing takes the next part
   // fed (see the top).
   std::vector<petri::TransitionId> feed_takes;
+  // Every move that takes a new part of a class from the class's location (`workpiece part from LOC`; not a Get's,
+  // which takes the giver's part): the part arrives there, fed, carried by a belt or put down by another robot, and
+  // the robot programs must know it is there before the move (robot_programs.hpp). `fed`: one of feed_takes.
+  struct ClassTake {
+    petri::TransitionId transition = 0;
+    std::string label;     // the program's class
+    std::string location;  // the cell location it is taken from
+    bool fed = false;
+  };
+  std::vector<ClassTake> class_takes;
+  // The first move to a named part after an open let go of it on a running belt, which carries it on: the plan keeps
+  // the part where it was let go, so the robot programs refuse it (robot_programs.hpp).
+  struct BeltRide {
+    petri::TransitionId transition = 0;
+    std::string workpiece;  // cell workpiece
+    std::string conveyor;   // the belt it was let go of on
+    std::string put;        // the open's task-level command: "prog.task:5:3 'Place OUT'"
+  };
+  std::vector<BeltRide> belt_rides;
   double feed_ride = 0;  // s a fed part rides from the feed's entry point to the stop (the longest of the bodies')
   std::vector<Delivery> deliveries;  // a shift's opens that deliver a body (empty unless the feed recycles)
   // One line per move that cannot be made: the robot, the command, its source and why.
   std::vector<std::string> problems() const;
 };
+
+// The running belt (speed > 0) whose top surface holds `point` (within 1 cm of it), or nullptr: a part let go of
+// there rides on.
+const models::ConveyorSpec* running_belt_under(const models::CellDescription& cell, const Eigen::Vector3d& point);
 
 // Follows one untimed run of the net (petri::choose over everything enabled) and plans every move as robot control
 // will make it (see the top): parts ride conveyors to their stop, are held, handed over, put down and, in a shift,

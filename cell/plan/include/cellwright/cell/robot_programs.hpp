@@ -20,9 +20,12 @@
 // A critical region used by one robot only needs no wire (its wait and signal are left out).
 //
 // Parts that come later: before a robot's first move to a part that rides a conveyor to its stop after the start
-// (cell::MotionPlan::gates: fed parts, parts starting away from the stop), its program waits for that conveyor's
-// part-present sensor, input n = models::ConveyorSpec::sensor (VAL II `WAIT SIG(1000+n)`, Movemaster `L TB -n,L`), as
-// robot control waits until it sees the part. Event wires count up from 1; a sensor's input must lie above them.
+// (cell::MotionPlan::gates: fed parts, parts starting away from the stop; cell::MotionPlan::class_takes: a part of a
+// class whose location lies on a running belt, which brings it there, or that the feed brings), its program waits for
+// that conveyor's part-present sensor, input n = models::ConveyorSpec::sensor (VAL II `WAIT SIG(1000+n)`, Movemaster
+// `L TB -n,L`), as robot control waits until it sees the part. A class's location off the belts needs no wait (robots
+// put its parts there, ordered by the program's events). Event wires count up from 1; a sensor's input must lie above
+// them.
 //
 // Output is deterministic: the same inputs give the same bytes (no date, file names without directories).
 //
@@ -94,7 +97,10 @@ void set_language(cell::Scenario& scenario, const std::string& spec, const Sourc
 //  - an event cannot be a wire (see the top), a critical region is used by two robots, more channels are needed than
 //    a controller has;
 //  - a robot must wait for a part that comes later on a conveyor without a part-present sensor (naming the
-//    conveyor's line in the cell), or a sensor's input is one of the event wires' channels (naming the sensor's line);
+//    conveyor's line in the cell, the robot and the task line), a class's location lies on a running belt where no
+//    part comes to rest (no stop, or more than 0.25 m before the stop bar: naming the location's line), a robot goes
+//    to a named part after it was let go of on a running belt (cell::MotionPlan::belt_rides: naming the move's task
+//    line), or a sensor's input is one of the event wires' channels (naming the sensor's line);
 //  - a Movemaster move needs a tool pose the 5-axis rule cannot express (its approach axis out of the arm's vertical
 //    plane by more than 0.5°, or the tool point on the base's z axis).
 RobotPrograms generate_robot_programs(const cell::Scenario& scenario, const cell::Preflight& preflight);

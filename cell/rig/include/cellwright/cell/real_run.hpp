@@ -67,8 +67,9 @@ class RealRun {
   // Builds the drivers, connects them, wires the sensors and builds the Runtime (no thread starts). Throws InputError
   // (nothing runs) when a robot of the program has no real driver (naming it and saying how to give one: --driver
   // ROBOT=movemaster:PORT or val2:PORT), the scenario asks for faults (the twin injects them), the perception asked
-  // for is the twin's (truth from --perception, vision), a driver cannot be made or connected, or the runtime refuses
-  // the configuration.
+  // for is the twin's (truth from --perception, vision), the scenario has a feed (parts put on a belt while the run
+  // goes, which nothing real senses yet; naming the feed), a driver cannot be made or connected, or the runtime
+  // refuses the configuration.
   RealRun(const Scenario& scenario, const petri::Net& net, RealRunOptions options = {});
   ~RealRun();
   RealRun(const RealRun&) = delete;

@@ -639,9 +639,13 @@ void RobotControl::collect_position(SimDuration now) {
       recovery_ || phase_ == RobotPhase::kBringUp) {
     return;
   }
-  // A command in flight reports the failure itself (a fault fails it too); idle, or a move done and waiting for its
-  // read-back, nothing else would until the next command.
-  if (current_ && current_->id != 0 && driver_.poll(current_->id).phase != drivers::CommandPhase::done) return;
+  // A command in flight reports a failure of its own; idle, a move done and waiting for its read-back, or a command
+  // cancelled behind the read (the read's fault is the cause), nothing else would say why.
+  if (current_ && current_->id != 0) {
+    const drivers::CommandStatus c = driver_.poll(current_->id);
+    const bool cancelled = c.phase == drivers::CommandPhase::failed && c.error == drivers::ErrorCode::cancelled;
+    if (c.phase != drivers::CommandPhase::done && !cancelled) return;
+  }
   if (options_.recovery.enabled) return symptom(now, symptom_of(st.error), last_failure_, std::string());
   if (current_) return fail(now, last_failure_);
   phase_ = RobotPhase::kFailed;

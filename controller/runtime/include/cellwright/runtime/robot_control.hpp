@@ -212,8 +212,8 @@ class RobotControl {
 
   void bring_up(SimDuration now);
   // Writes a position read-back that arrived into the model. A read that failed while no command of this robot
-  // would report the failure itself (idle, or a move done and waiting for its read-back) is a symptom at once, with
-  // the driver's message (docs/faults.md section 2).
+  // would report the failure itself (idle, a move done and waiting for its read-back, or a command cancelled behind
+  // the read) is a symptom at once, with the driver's message (docs/faults.md section 2).
   void collect_position(SimDuration now);
   // Writes the driver's newest reading into the model if it is newer than the last one written.
   void adopt_reading();

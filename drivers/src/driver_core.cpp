@@ -275,7 +275,8 @@ Submitted DriverCore::submit(const Command& command) {
 Submitted DriverCore::request_position() {
   std::lock_guard lock(mutex_);
   ++calls_.request_position;
-  if (state_ != DriverState::homed && state_ != DriverState::active && state_ != DriverState::stopped) {
+  if (state_ != DriverState::connected && state_ != DriverState::homed && state_ != DriverState::active &&
+      state_ != DriverState::stopped) {
     return refuse(ErrorCode::wrong_state, fmt::format("request_position() is not allowed while {}", to_string(state_)));
   }
   return accept(JobKind::position, std::nullopt);

@@ -178,7 +178,8 @@ Submitted FaultyDriver::submit(const Command& command) {
 Submitted FaultyDriver::request_position() {
   update();
   const DriverState s = state();
-  if (s != DriverState::homed && s != DriverState::active && s != DriverState::stopped) {
+  if (s != DriverState::connected && s != DriverState::homed && s != DriverState::active &&
+      s != DriverState::stopped) {
     return refuse(ErrorCode::wrong_state, fmt::format("request_position() is not allowed while {}", to_string(s)));
   }
   const bool out_of_queue = capabilities().reads_while_moving;

@@ -148,7 +148,7 @@ std::uint64_t ScriptedDriver::now_ticks() const {
 
 void ScriptedDriver::fail_command(CommandId id, ErrorCode error, std::string message) {
   CW_CHECK(error == ErrorCode::unreachable || error == ErrorCode::timeout || error == ErrorCode::hardware ||
-               error == ErrorCode::protocol || error == ErrorCode::connection_lost,
+               error == ErrorCode::protocol || error == ErrorCode::connection_lost || error == ErrorCode::unknown,
            "a controller cannot fail a command with {}", to_string(error));
   const auto l = lock();
   injected_failures_[id] = {error, std::move(message)};

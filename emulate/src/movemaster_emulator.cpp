@@ -81,7 +81,7 @@ void MovemasterEmulator::serve(const std::filesystem::path& link) {
 bool MovemasterEmulator::serve_line(const ReceivedLine& line, const std::filesystem::path& link) {
   using movemaster::Executor;
   if (blank(line.text) && !line.overlong) return true;
-  const std::optional<Misbehaviour> m = plan_.next_line();
+  const std::optional<Misbehaviour> m = plan_.next_line(line.text);
   tally([&](Stats& s) {
     ++s.lines;
     if (m) ++s.misbehaviours[static_cast<std::size_t>(m->kind)];
@@ -105,9 +105,12 @@ bool MovemasterEmulator::serve_line(const ReceivedLine& line, const std::filesys
   const movemaster::Parsed parsed =
       line.overlong ? movemaster::Parsed{std::nullopt, fmt::format("longer than {} bytes", kMaxLine)}
                     : movemaster::parse_command(line.text);
-  const bool refused = m && (kind == MisbehaviourKind::error || kind == MisbehaviourKind::unreachable);
+  const bool refused = m && (kind == MisbehaviourKind::error || kind == MisbehaviourKind::unreachable ||
+                             kind == MisbehaviourKind::unknown);
   if (refused) {
-    executor_->raise(kind == MisbehaviourKind::error ? movemaster::kHardwareError : movemaster::kPositionError);
+    executor_->raise(kind == MisbehaviourKind::error     ? movemaster::kHardwareError
+                     : kind == MisbehaviourKind::unknown ? movemaster::kUnlistedError
+                                                         : movemaster::kPositionError);
   }
   movemaster::Executed done;
   if (!parsed.command) {
@@ -122,7 +125,9 @@ bool MovemasterEmulator::serve_line(const ReceivedLine& line, const std::filesys
     const bool er = parsed.command->op == movemaster::Op::ER;
     tally([&](Stats& s) {
       if (!done.ignored) ++s.executed;
-      if (er && done.reply) ++s.er_answers[static_cast<std::size_t>(done.reply->front() - '0')];
+      if (er && done.reply && done.reply->front() >= '0' && done.reply->front() <= '2') {
+        ++s.er_answers[static_cast<std::size_t>(done.reply->front() - '0')];
+      }
     });
     if (done.ignored) log("ignored: halted by a hardware error until RS");
     if (!done.error.empty()) log(fmt::format("error {}: {}", executor_->error(), done.error));
@@ -140,8 +145,11 @@ bool MovemasterEmulator::serve_line(const ReceivedLine& line, const std::filesys
 
 bool MovemasterEmulator::store_line(std::string_view text, const std::optional<Misbehaviour>& m) {
   const MisbehaviourKind kind = m ? m->kind : MisbehaviourKind::error;
-  if (m && (kind == MisbehaviourKind::error || kind == MisbehaviourKind::unreachable)) {
-    executor_->raise(kind == MisbehaviourKind::error ? movemaster::kHardwareError : movemaster::kPositionError);
+  if (m && (kind == MisbehaviourKind::error || kind == MisbehaviourKind::unreachable ||
+            kind == MisbehaviourKind::unknown)) {
+    executor_->raise(kind == MisbehaviourKind::error     ? movemaster::kHardwareError
+                     : kind == MisbehaviourKind::unknown ? movemaster::kUnlistedError
+                                                         : movemaster::kPositionError);
   } else if (const std::optional<std::string> why = program_->store(text)) {
     executor_->raise(movemaster::kPositionError);
     tally([](Stats& s) { ++s.format_errors; });

@@ -170,7 +170,7 @@ struct Val2Emulator::Impl {
 };
 
 Next Val2Emulator::Impl::handle(const ReceivedLine& line) {
-  const std::optional<Misbehaviour> m = plan.next_line();
+  const std::optional<Misbehaviour> m = plan.next_line(line.text);
   if (options.log) options.log(fmt::format("< {}{}", line.text, m ? fmt::format("  ({})", to_string(*m)) : ""));
   update([&](Stats& s) {
     ++s.lines;
@@ -186,6 +186,8 @@ Next Val2Emulator::Impl::handle(const ReceivedLine& line) {
     lines.emplace_back(val2::kArmPowerOff);
   } else if (m && m->kind == MisbehaviourKind::unreachable) {
     lines.emplace_back(val2::kLocationOutOfRange);
+  } else if (m && m->kind == MisbehaviourKind::unknown) {
+    lines.emplace_back(val2::kInvalidFormat);
   } else if (std::optional<val2::Outcome> program =
                  line.overlong ? std::nullopt : programs.take(line.text, executor, options.on_program_step)) {
     if (program->interrupted) return Next::stop;

@@ -21,6 +21,7 @@
 #include "cellwright/emulate/val2_emulator.hpp"
 #include "cellwright/models/kinematics.hpp"
 #include "cellwright/models/robot_model.hpp"
+#include "cell/real_exchange.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -65,23 +66,7 @@ class RealRunTest : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  // The exchange with A already at the input conveyor's stop bar: a run without the twin has no part sensor, so its
-  // controller cannot know when a part riding a belt arrives (tests/tools/real_only_check.sh does the same).
-  Scenario exchange_at_the_stop() {
-    const fs::path scenes = fs::path(CW_SOURCE_DIR) / "scenes";
-    std::string cell = read_file(scenes / "cell.yaml");
-    const std::string on_belt = "colour: [0.85, 0.1, 0.1], on: input}";
-    const std::size_t a = cell.find(on_belt);
-    EXPECT_NE(a, std::string::npos);
-    cell.replace(a, on_belt.size(), "colour: [0.85, 0.1, 0.1], pose: {xyz: [0.03, -0.55, 0.53], yaw: 0}}");
-    for (std::size_t at = cell.find("../models/"); at != std::string::npos; at = cell.find("../models/", at + 1)) {
-      cell.replace(at, 2, fs::path(CW_SOURCE_DIR).string());
-    }
-    write_file_atomically(dir_ / "cell.yaml", cell);
-    fs::copy_file(scenes / "exchange.yaml", dir_ / "exchange.yaml");
-    fs::copy_file(scenes / "exchange.task", dir_ / "exchange.task");
-    return load_scenario(dir_ / "exchange.yaml");
-  }
+  Scenario exchange_at_the_stop() { return test_real::exchange_at_the_stop(dir_); }
   fs::path dir_;
 };
 

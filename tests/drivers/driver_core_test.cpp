@@ -120,7 +120,9 @@ TEST(DriverCoreLifecycle, FollowsTheStateTableOfTheInterface) {
       {"home", [](FakeDriver& d) { return d.home().error; }, {S::connected, S::homed, S::stopped}},
       {"activate", [](FakeDriver& d) { return d.activate(); }, {S::homed, S::stopped}},
       {"submit", [](FakeDriver& d) { return d.submit(kMove).error; }, {S::active}},
-      {"request_position", [](FakeDriver& d) { return d.request_position().error; }, {S::homed, S::active, S::stopped}},
+      {"request_position",
+       [](FakeDriver& d) { return d.request_position().error; },
+       {S::connected, S::homed, S::active, S::stopped}},
       {"reset", [](FakeDriver& d) { return d.reset(); }, {S::fault}},
   };
   for (const S state : {S::disconnected, S::connected, S::homed, S::active, S::stopped, S::fault}) {

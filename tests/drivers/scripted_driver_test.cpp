@@ -103,7 +103,7 @@ TEST(ScriptedDriverLifecycle, FollowsTheStateTableOfTheInterface) {
       {"submit", submit_call([](ScriptedDriver& d) { return d.submit(kMove); }), {S::active}},
       {"request_position",
        submit_call([](ScriptedDriver& d) { return d.request_position(); }),
-       {S::homed, S::active, S::stopped}},
+       {S::connected, S::homed, S::active, S::stopped}},
       {"reset", code_call([](ScriptedDriver& d) { return d.reset(); }), {S::fault}},
   };
   for (const S state : states) {

@@ -526,6 +526,17 @@ TEST(MovemasterEmulatorTest, MisbehaviourUnreachableAtALine) {
   EXPECT_EQ(s.arm.move_count(), 1u);
 }
 
+// An error the manual does not list: the register answers 9 (the driver's `unknown`).
+TEST(MovemasterEmulatorTest, MisbehaviourUnknownAnswersACodeTheManualDoesNotList) {
+  Session s(misbehaving("unknown@mp#1"));
+  s.tell("NT");
+  s.tell(mp(kDown));
+  EXPECT_EQ(s.ask("ER"), "9\r\n");
+  EXPECT_EQ(s.arm.move_count(), 1u);  // the homing only
+  s.tell("RS");
+  EXPECT_EQ(s.ask("ER"), "0\r\n");
+}
+
 TEST(MovemasterEmulatorTest, MisbehaviourGarbageReplacesTheAnswer) {
   Session s(misbehaving("garbage@1"));
   const std::string garbage = std::string(MovemasterEmulator::kGarbage) + "\r\n";
@@ -603,7 +614,7 @@ TEST(MovemasterEmulatorTest, SeededRandomMisbehaviourIsReproducible) {
   // The counts are the plan's, drawn with the same seed.
   MisbehaviourPlan plan(
       {parse_misbehaviour("garbage~0.2"), parse_misbehaviour("er2~0.15"), parse_misbehaviour("late~0.1:0.001")}, 7);
-  std::array<std::uint64_t, 6> expected{};
+  std::array<std::uint64_t, 7> expected{};
   for (int i = 0; i < 81; ++i) {
     if (const auto m = plan.next_line()) ++expected[static_cast<std::size_t>(m->kind)];
   }

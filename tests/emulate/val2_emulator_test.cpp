@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "cellwright/common/error.hpp"
 #include "emulate/val2_fake_arm.hpp"
 
 namespace cellwright::emulate {
@@ -525,6 +526,30 @@ TEST_F(Val2MisbehaviourTest, ErrorPrintsArmPowerOffInsteadOfDoingTheLine) {
   EXPECT_EQ(t->command("DO READY"), "DO READY" + kPrompt);
   EXPECT_EQ(arm_.puma_moves().size(), 1u);
   EXPECT_EQ(emulator_->stats().misbehaviours, 1u);
+}
+
+// Aimed at commands rather than lines, and scripted: the second WHERE fails, then the first DO READY after it prints
+// an error the driver's list does not have; the position reads around them do not shift either.
+TEST_F(Val2MisbehaviourTest, MisbehavioursAimedAtCommandsFollowEachOther) {
+  Val2EmulatorOptions options;
+  options.misbehaviours = {parse_misbehaviour("error@where#2"), parse_misbehaviour("unknown@ do ready #1")};
+  EXPECT_EQ(to_string(options.misbehaviours[1]), "unknown@DOREADY#1");
+  EXPECT_EQ(to_string(parse_misbehaviour(to_string(options.misbehaviours[1]))), "unknown@DOREADY#1");
+  start(options);
+  auto t = connect();
+  EXPECT_EQ(t->command("DO READY"), "DO READY" + kPrompt);  // not armed yet
+  EXPECT_EQ(t->command("where").find('*'), std::string::npos);
+  EXPECT_EQ(t->command("WHERE"), "WHERE\r\n*Arm power off*" + kPrompt);
+  EXPECT_EQ(t->command("WHERE").find('*'), std::string::npos);
+  EXPECT_EQ(t->command("DO READY"), "DO READY\r\n*Invalid format*" + kPrompt);
+  EXPECT_EQ(t->command("DO READY"), "DO READY" + kPrompt);
+  EXPECT_EQ(emulator_->stats().misbehaviours, 2u);
+}
+
+TEST_F(Val2MisbehaviourTest, AMisbehaviourAimedAtNoCommandIsRefused) {
+  EXPECT_THROW(parse_misbehaviour("error@#2"), InputError);
+  EXPECT_THROW(parse_misbehaviour("error@where#0"), InputError);
+  EXPECT_THROW(parse_misbehaviour("error~where#0.5"), InputError);
 }
 
 TEST_F(Val2MisbehaviourTest, UnreachablePrintsLocationOutOfRange) {

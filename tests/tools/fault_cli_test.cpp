@@ -65,7 +65,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"exchange.yaml", "garbage:robot=melfa,command=move,n=2", "driver_fault", "reset_rehome", 0},
                       Case{"exchange.yaml", "hardware:robot=melfa,command=grip,n=1", "driver_fault", "reset_rehome", 0},
                       Case{"exchange.yaml", "position:robot=puma,command=move,n=2", "position_refused", "retry", 0},
-                      Case{"exchange.yaml", "link_lost:robot=puma,command=grip,n=2", "link_lost", "reset_rehome", 0},
+                      Case{"exchange.yaml", "link_lost:robot=puma,command=grip,n=1", "link_lost", "reset_rehome", 0},
                       Case{"exchange.yaml", "lost_signal:n=1", "wait_timeout", "resignal", 0}));
 
 // The safety layer: a box appears in the way of the MELFA's move (the obstacle fault puts it 15 cm ahead of the

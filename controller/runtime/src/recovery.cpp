@@ -18,7 +18,7 @@ constexpr std::array<std::string_view, kSymptoms> kSymptomNames = {
     "grip_lost",        "closed_on_nothing",  "closed_on_wrong_part", "part_shifted", "part_misplaced",
     "part_not_arrived", "target_unreachable", "driver_timeout",       "driver_fault", "link_lost",
     "position_refused", "position_missed",    "protective_stop",      "wait_timeout", "frame_lost",
-    "obstacle_seen",    "no_progress"};
+    "obstacle_seen",    "no_progress",        "unknown_error"};
 constexpr std::array<std::string_view, 12> kQuestionNames = {
     "part_seen",          "part_at_rest",     "part_upright", "part_reachable", "part_in_hand", "driver_in_fault",
     "retries_left",       "obstacle_near",    "signal_fired", "motion_blocked", "waiting_for_part", "part_lost"};
@@ -100,6 +100,8 @@ driver_fault:
   ask: retries_left
   yes: {cause: controller_error, action: reset_rehome}
   no: {cause: controller_broken, action: stop_cell}
+# An error text or code the driver does not know: what the controller's state is cannot be told, so no arm is moved.
+unknown_error: {cause: unknown_controller_error, action: stop_cell}
 link_lost:
   ask: retries_left
   yes: {cause: link_dropped, action: reset_rehome}

@@ -57,6 +57,22 @@ void add_once(std::vector<std::string>& names, const std::string& name) {
   if (!contains(names, name)) names.push_back(name);
 }
 
+// The symptom a driver's failure shows as (docs/faults.md section 2).
+Symptom symptom_of(drivers::ErrorCode error) {
+  switch (error) {
+    case drivers::ErrorCode::timeout:
+      return Symptom::driver_timeout;
+    case drivers::ErrorCode::connection_lost:
+      return Symptom::link_lost;
+    case drivers::ErrorCode::unreachable:
+      return Symptom::position_refused;
+    case drivers::ErrorCode::unknown:
+      return Symptom::unknown_error;
+    default:
+      return Symptom::driver_fault;
+  }
+}
+
 }  // namespace
 
 RobotControl::RobotControl(std::size_t index, std::string label, std::string cell_name, drivers::RobotDriver& driver,
@@ -404,8 +420,11 @@ bool RobotControl::submit_current(SimDuration now) {
   current_->detail = drivers::describe(cmd);
   if (s.error == drivers::ErrorCode::busy) return false;  // its queue is full (a position read, say): next turn
   if (!s.accepted()) {
-    const std::string reason =
+    std::string reason =
         fmt::format("the driver refused '{}': {}: {}", current_->detail, drivers::to_string(s.error), s.message);
+    if (driver_.state() == drivers::DriverState::fault && !last_failure_.empty()) {
+      reason += fmt::format(" ({})", last_failure_);  // why it is in fault, if a read-back said
+    }
     if (options_.recovery.enabled && driver_.state() == drivers::DriverState::fault) {
       symptom(now, Symptom::driver_fault, reason, std::string());
     } else {
@@ -609,29 +628,47 @@ bool RobotControl::request_position(SimDuration now) {
   return true;
 }
 
-void RobotControl::collect_position() {
-  if (position_request_ != 0) {
-    const drivers::CommandStatus st = driver_.poll(position_request_);
-    if (st.phase == drivers::CommandPhase::pending || st.phase == drivers::CommandPhase::running) return;
-    position_request_ = 0;
-    if (st.phase == drivers::CommandPhase::done) {
-      std::optional<drivers::PositionReading> r = driver_.last_position();
-      if (r && (!reading_ || r->request > reading_->request)) {
-        reading_ = std::move(r);
-        reading_number_ = reads_asked_;
-        env_.write([&](EnvironmentModel& m) {
-          RobotState* robot = m.find_robot(cell_);
-          if (robot == nullptr) return;
-          if (reading_->joints.size() == chain_.dof()) {
-            robot->joints = reading_->joints;
-            robot->tcp = robot->base() * chain_.forward(to_eigen(robot->joints));
-          } else if (reading_->tool_pose) {
-            robot->tcp = robot->base() * *reading_->tool_pose;
-          }
-        });
-      }
-    }
+void RobotControl::collect_position(SimDuration now) {
+  if (position_request_ == 0) return;
+  const drivers::CommandStatus st = driver_.poll(position_request_);
+  if (st.phase == drivers::CommandPhase::pending || st.phase == drivers::CommandPhase::running) return;
+  position_request_ = 0;
+  if (st.phase == drivers::CommandPhase::done) return adopt_reading();
+  last_failure_ = fmt::format("the position read-back failed: {}: {}", drivers::to_string(st.error), st.message);
+  // Cancelled: stopped on purpose or behind another failure, which is reported where it happened. A recovery under
+  // way reads and resets the driver itself.
+  if (st.error == drivers::ErrorCode::cancelled || st.error == drivers::ErrorCode::unknown_command || halted_ ||
+      recovery_ || phase_ == RobotPhase::kBringUp) {
+    return;
   }
+  // A command in flight reports a failure of its own; idle, a move done and waiting for its read-back, or a command
+  // cancelled behind the read (the read's fault is the cause), nothing else would say why.
+  if (current_ && current_->id != 0) {
+    const drivers::CommandStatus c = driver_.poll(current_->id);
+    const bool cancelled = c.phase == drivers::CommandPhase::failed && c.error == drivers::ErrorCode::cancelled;
+    if (c.phase != drivers::CommandPhase::done && !cancelled) return;
+  }
+  if (options_.recovery.enabled) return symptom(now, symptom_of(st.error), last_failure_, std::string());
+  if (current_) return fail(now, last_failure_);
+  phase_ = RobotPhase::kFailed;
+  report(now, CommandOutcome::kFailed, last_failure_);
+}
+
+void RobotControl::adopt_reading() {
+  std::optional<drivers::PositionReading> r = driver_.last_position();
+  if (!r || (reading_ && r->request <= reading_->request)) return;
+  reading_ = std::move(r);
+  reading_number_ = reads_asked_;
+  env_.write([&](EnvironmentModel& m) {
+    RobotState* robot = m.find_robot(cell_);
+    if (robot == nullptr) return;
+    if (reading_->joints.size() == chain_.dof()) {
+      robot->joints = reading_->joints;
+      robot->tcp = robot->base() * chain_.forward(to_eigen(robot->joints));
+    } else if (reading_->tool_pose) {
+      robot->tcp = robot->base() * *reading_->tool_pose;
+    }
+  });
 }
 
 void RobotControl::poll_current(SimDuration now) {
@@ -656,22 +693,7 @@ void RobotControl::poll_current(SimDuration now) {
         reset_submission();  // stopped on purpose: done again once released
         return;
       }
-      Symptom sy = Symptom::driver_fault;
-      switch (st.error) {
-        case drivers::ErrorCode::timeout:
-          sy = Symptom::driver_timeout;
-          break;
-        case drivers::ErrorCode::connection_lost:
-          sy = Symptom::link_lost;
-          break;
-        case drivers::ErrorCode::unreachable:
-          sy = Symptom::position_refused;
-          break;
-        default:
-          sy = Symptom::driver_fault;
-          break;
-      }
-      return symptom(now, sy, reason, std::string());
+      return symptom(now, symptom_of(st.error), reason, std::string());
     }
     case drivers::CommandPhase::done:
       return complete(now);
@@ -689,7 +711,8 @@ void RobotControl::start_next(SimDuration now) {
 
 void RobotControl::step(SimDuration now) {
   if (phase_ == RobotPhase::kFailed) return;
-  collect_position();
+  collect_position(now);
+  if (phase_ == RobotPhase::kFailed) return;
   track_held_part();
   if (options_.recovery.enabled && phase_ != RobotPhase::kBringUp) {
     watch_safety(now);
@@ -719,6 +742,11 @@ void RobotControl::run_commands(SimDuration now) {
   }
   for (;;) {
     if (!current_) {
+      if (recovery_ && recovery_->rehome) {
+        // A fault sensed while idle (a failed read-back): the driver is brought back before the next command.
+        advance_recovery(now);
+        if (phase_ == RobotPhase::kFailed || (recovery_ && recovery_->rehome)) return;
+      }
       start_next(now);
       if (!current_) return;
     }
@@ -1000,60 +1028,8 @@ bool RobotControl::advance_recovery(SimDuration now) {
     r.wait_clear = false;
   }
   if (r.rehome) {
-    switch (driver_.state()) {
-      case drivers::DriverState::fault: {
-        const drivers::ErrorCode e = driver_.reset();
-        // A lost link leaves the driver disconnected with connection_lost (robot_driver.hpp): connect again next.
-        const bool link_down = e == drivers::ErrorCode::connection_lost &&
-                               driver_.state() == drivers::DriverState::disconnected;
-        if (e != drivers::ErrorCode::none && !link_down) {
-          stop_cell(now, fmt::format("the driver of {} could not be reset", cell_));
-        }
-        return false;
-      }
-      case drivers::DriverState::disconnected: {
-        drivers::ErrorCode e = drivers::ErrorCode::none;
-        std::string why;
-        try {
-          e = driver_.connect();
-        } catch (const std::exception& ex) {
-          why = ex.what();
-          e = drivers::ErrorCode::connection_lost;
-        }
-        if (e != drivers::ErrorCode::none) {
-          stop_cell(now, fmt::format("the driver of {} could not connect again: {} {}", cell_, drivers::to_string(e), why));
-        }
-        return false;
-      }
-      case drivers::DriverState::connected:
-      case drivers::DriverState::stopped:
-        if (r.home_id == 0) {
-          const drivers::Submitted s = driver_.home();
-          if (!s.accepted()) {
-            stop_cell(now, fmt::format("{} could not be homed again: {}", cell_, drivers::to_string(s.error)));
-            return false;
-          }
-          r.home_id = s.id;
-        }
-        [[fallthrough]];
-      case drivers::DriverState::homed: {
-        if (r.home_id != 0) {
-          const drivers::CommandStatus st = driver_.poll(r.home_id);
-          if (st.phase == drivers::CommandPhase::failed) {
-            stop_cell(now, fmt::format("{} could not be homed again: {}", cell_, st.message));
-            return false;
-          }
-          if (st.phase != drivers::CommandPhase::done) return false;
-        }
-        if (driver_.state() == drivers::DriverState::homed && driver_.activate() != drivers::ErrorCode::none) {
-          stop_cell(now, fmt::format("{} could not be activated again", cell_));
-        }
-        return false;
-      }
-      case drivers::DriverState::active:
-        r.rehome = false;
-        break;
-    }
+    if (!rehome(now)) return false;
+    r.rehome = false;
   }
   if (!current_) return false;  // the recovery waits for the next command
   if (!current_->step && current_->id == 0) {
@@ -1064,6 +1040,173 @@ bool RobotControl::advance_recovery(SimDuration now) {
       skip_current(now, fmt::format("its workpiece is lost ({})", r.diagnosis.cause));
       return false;
     }
+  }
+  return true;
+}
+
+bool RobotControl::rehome(SimDuration now) {
+  Recovery& r = *recovery_;
+  // Starts the steps over from the reset or the read-back; false when the attempts are spent (the cell is stopped).
+  const auto start_over = [&](const std::string& why) {
+    r.home_id = 0;
+    r.read_id = 0;
+    r.read_asked.reset();
+    r.position_read = false;
+    if (!why.empty()) r.last_failure = why;
+    if (++r.tries <= options_.recovery.max_attempts) return true;
+    stop_cell(now, fmt::format("{}: {}; {} could not be recovered: reset, read-back, homing and activation tried {} "
+                               "times; the last failure: {}",
+                               r.diagnosis.cause, r.detail, cell_, r.tries - 1, r.last_failure));
+    return false;
+  };
+  // A step's command failed: a failure that put the driver in fault is started over from the reset (next turn).
+  const auto step_failed = [&](const std::string& why) {
+    r.last_failure = why;
+    if (driver_.state() != drivers::DriverState::fault) start_over(why);
+    return false;
+  };
+  if (r.tries == 0 && !start_over("")) return false;
+  switch (driver_.state()) {
+    case drivers::DriverState::active:
+      return true;
+    case drivers::DriverState::fault: {
+      // A fault again after this recovery's reset (a read-back or the homing failed on the way): start over, saying
+      // what failed (the step in flight, else a position read, else only that the driver is in fault).
+      if (r.reset_done) {
+        std::string why;
+        for (const drivers::CommandId id : {r.home_id, r.read_id}) {
+          if (id == 0 || !why.empty()) continue;
+          if (const drivers::CommandStatus st = driver_.poll(id); st.phase == drivers::CommandPhase::failed) {
+            why = fmt::format("{}: {}", drivers::to_string(st.error), st.message);
+          }
+        }
+        if (why.empty()) why = last_failure_;
+        if (why.empty()) why = fmt::format("the driver of {} went into fault again", cell_);
+        if (!start_over(why)) return false;
+      }
+      last_failure_.clear();
+      r.reset_done = true;
+      r.home_id = 0;  // whatever was in flight is gone with the fault: home again
+      const drivers::ErrorCode e = driver_.reset();
+      // A lost link leaves the driver disconnected with connection_lost (robot_driver.hpp): connect again next.
+      const bool link_down =
+          e == drivers::ErrorCode::connection_lost && driver_.state() == drivers::DriverState::disconnected;
+      if (e != drivers::ErrorCode::none && !link_down) {
+        stop_cell(now, fmt::format("the driver of {} could not be reset: {}", cell_, drivers::to_string(e)));
+      }
+      return false;
+    }
+    case drivers::DriverState::disconnected: {
+      drivers::ErrorCode e = drivers::ErrorCode::none;
+      std::string why;
+      try {
+        e = driver_.connect();
+      } catch (const std::exception& ex) {
+        why = ex.what();
+        e = drivers::ErrorCode::connection_lost;
+      }
+      if (e != drivers::ErrorCode::none) {
+        start_over(fmt::format("the driver of {} could not connect again: {} {}", cell_, drivers::to_string(e), why));
+      }
+      return false;
+    }
+    case drivers::DriverState::connected:
+    case drivers::DriverState::stopped:
+    case drivers::DriverState::homed:
+      break;
+  }
+  // Where the arm stopped, before anything moves it: the model (and a twin's copy of the arm) learns it.
+  const drivers::Capabilities& caps = driver_.capabilities();
+  if (!r.position_read && (caps.reads_joints || caps.reads_pose)) {
+    if (r.read_id == 0) {
+      const drivers::Submitted s = driver_.request_position();
+      if (s.error == drivers::ErrorCode::busy) return false;  // its queue is full: next turn
+      if (!s.accepted()) {
+        return step_failed(fmt::format("where {} stopped could not be asked: {}: {}", cell_,
+                                       drivers::to_string(s.error), s.message));
+      }
+      r.read_id = s.id;
+      r.read_asked = now;
+      ++reads_asked_;
+    }
+    const drivers::CommandStatus st = driver_.poll(r.read_id);
+    if (st.phase == drivers::CommandPhase::failed) {
+      r.read_id = 0;
+      return step_failed(fmt::format("the read-back of where {} stopped failed: {}: {}", cell_,
+                                     drivers::to_string(st.error), st.message));
+    }
+    if (st.phase != drivers::CommandPhase::done) {
+      if (now - *r.read_asked < options_.recovery.command_timeout) return false;
+      driver_.stop();  // the read is abandoned
+      r.read_id = 0;
+      return step_failed(fmt::format("no read-back of where {} stopped {} s after it was asked", cell_,
+                                     format_sim_time(now - *r.read_asked)));
+    }
+    r.read_id = 0;
+    r.position_read = true;
+    adopt_reading();
+    if (current_) {
+      const Eigen::Vector3d at = env_.read([&](const EnvironmentModel& m) -> Eigen::Vector3d {
+        const RobotState* robot = m.find_robot(cell_);
+        if (robot == nullptr) return Eigen::Vector3d::Zero();
+        return tool_in_world(*robot).translation();
+      });
+      log_.sensor(now, label_, current_->command.index, "stopped_at",
+                  fmt::format("({:.3f}, {:.3f}, {:.3f})", at.x(), at.y(), at.z()));
+    }
+  }
+  if (driver_.state() != drivers::DriverState::homed || r.home_id != 0) {
+    if (r.home_id == 0) {
+      // A loaded arm is not sent home: its way home, with the part, may cross another robot's space, and nothing the
+      // controller has can check that way (docs/faults.md, reset_rehome).
+      struct Loaded {
+        std::string part, others;
+        Eigen::Vector3d at = Eigen::Vector3d::Zero();
+      };
+      const Loaded loaded = env_.read([&](const EnvironmentModel& m) {
+        Loaded l;
+        const RobotState* robot = m.find_robot(cell_);
+        if (robot == nullptr || !robot->hold) return l;
+        for (const RobotState& o : m.robots) {
+          if (o.name != cell_) l.others += (l.others.empty() ? "" : ", ") + o.name;
+        }
+        if (!l.others.empty()) l.part = robot->hold->workpiece;
+        l.at = tool_in_world(*robot).translation();
+        return l;
+      });
+      if (!loaded.part.empty()) {
+        stop_cell(now, fmt::format("{}: {}; {} holds {} where it stopped, at ({:.3f}, {:.3f}, {:.3f}): re-homing would "
+                                   "carry it along a way no check has cleared of {}; take the part out and home the "
+                                   "arm by hand",
+                                   r.diagnosis.cause, r.detail, cell_, loaded.part, loaded.at.x(), loaded.at.y(),
+                                   loaded.at.z(), loaded.others));
+        return false;
+      }
+      const drivers::Submitted s = driver_.home();
+      if (s.error == drivers::ErrorCode::busy) return false;
+      if (!s.accepted()) {
+        return step_failed(
+            fmt::format("{} could not be homed again: {}: {}", cell_, drivers::to_string(s.error), s.message));
+      }
+      r.home_id = s.id;
+    }
+    const drivers::CommandStatus st = driver_.poll(r.home_id);
+    if (st.phase == drivers::CommandPhase::failed) {
+      r.home_id = 0;
+      return step_failed(
+          fmt::format("{} could not be homed again: {}: {}", cell_, drivers::to_string(st.error), st.message));
+    }
+    if (st.phase != drivers::CommandPhase::done) return false;
+    r.home_id = 0;
+    if (driver_.state() == drivers::DriverState::fault) return false;  // a fault on the way: reset next turn
+    if (driver_.state() != drivers::DriverState::homed) {
+      start_over(fmt::format("the homing of {} ended with the driver {}, not homed", cell_,
+                             drivers::to_string(driver_.state())));
+      return false;
+    }
+  }
+  if (const drivers::ErrorCode e = driver_.activate(); e != drivers::ErrorCode::none) {
+    return step_failed(fmt::format("{} could not be activated again: {}", cell_, drivers::to_string(e)));
   }
   return true;
 }

@@ -23,6 +23,7 @@ namespace cellwright::emulate::movemaster {
 inline constexpr int kNoError = 0;
 inline constexpr int kHardwareError = 1;
 inline constexpr int kPositionError = 2;  // also a format error
+inline constexpr int kUnlistedError = 9;   // a code the manual does not list (the `unknown` misbehaviour)
 
 struct Executed {
   std::optional<std::string> reply;  // WH's and ER's answer, without its line end

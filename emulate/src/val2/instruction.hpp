@@ -19,6 +19,7 @@ inline constexpr std::string_view kIllegalValue = "*Illegal value*";
 inline constexpr std::string_view kLocationOutOfRange = "*Location out of range*";
 inline constexpr std::string_view kServoError = "*Servo error*";
 inline constexpr std::string_view kArmPowerOff = "*Arm power off*";
+inline constexpr std::string_view kInvalidFormat = "*Invalid format*";  // only from the `unknown` misbehaviour
 // `*Joint n limit stop*`, n from 1.
 std::string joint_limit_stop(int joint);
 

@@ -20,7 +20,9 @@
 //   disconnect(): any state --> disconnected
 //
 //   disconnected  no link to the controller.
-//   connected     link open, the controller answers; its position is not trusted until the robot is homed.
+//   connected     link open, the controller answers; its position is not trusted until the robot is homed. It can
+//                 be read (request_position()): after reset() from a fault, where the controller says the arm
+//                 stopped, which a recovery reads before it moves the arm (docs/faults.md, reset_rehome).
 //   homed         the robot has been to its reference position (Movemaster `NT`); it is idle and not accepting
 //                 motion.
 //   active        accepting commands: motions, gripper, digital I/O.
@@ -36,7 +38,7 @@
 //     home()                  -          yes      yes     -       yes      -
 //     activate()              -           -       yes     -       yes      -
 //     submit()                -           -        -     yes       -       -
-//     request_position()      -           -       yes    yes      yes      -
+//     request_position()      -          yes      yes    yes      yes      -
 //     reset()                 -           -        -      -        -      yes
 //     stop(), disconnect(), poll(), state(), capabilities(), last_position(), set_notifier(), set_clock(): every
 //     state.
@@ -275,7 +277,8 @@ class RobotDriver {
   // Queues a command (active only). Refusals: wrong_state, invalid_command, unsupported, busy (see check_command()).
   virtual Submitted submit(const Command& command) = 0;
 
-  // Queues a position read-back (homed, active, stopped). When the request is done, last_position() holds its answer.
+  // Queues a position read-back (connected, homed, active, stopped). When the request is done, last_position() holds
+  // its answer.
   virtual Submitted request_position() = 0;
 
   // The status of command `id` now. Never blocks; any state.

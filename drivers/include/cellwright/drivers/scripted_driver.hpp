@@ -67,7 +67,7 @@ class ScriptedDriver final : public DriverCore {
 
   // When command `id` (the id-th command accepted, counting home(), submit() and request_position()) would
   // complete, it fails with `error` and `message` instead. `error` must be one a controller reports: unreachable,
-  // timeout, hardware, protocol or connection_lost (the last three also put the driver in fault).
+  // timeout, hardware, protocol, connection_lost or unknown (the last four also put the driver in fault).
   void fail_command(CommandId id, ErrorCode error, std::string message);
   // Command `id` never completes: it runs until stop(), disconnect() or a fault ends it.
   void never_complete(CommandId id);

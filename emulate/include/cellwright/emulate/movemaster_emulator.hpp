@@ -52,6 +52,8 @@
 //                        (arm, register, positions, speed, tool) persists; bytes sent after the dropped line are lost.
 //   late                 the command is executed, then its answer (if any) and the reading of the next line wait the
 //                        misbehaviour's delay
+//   unknown              as error, with the register 9 (a code the manual does not list); like 2, it does not halt
+//                        the controller
 #pragma once
 
 #include <array>
@@ -120,7 +122,7 @@ class MovemasterEmulator {
                                  // took, nor those ignored while halted)
     std::uint64_t format_errors = 0;
     std::array<std::uint64_t, 3> er_answers{};     // ER answered 0, 1, 2 (garbled answers included)
-    std::array<std::uint64_t, 6> misbehaviours{};  // done, by MisbehaviourKind
+    std::array<std::uint64_t, 7> misbehaviours{};  // done, by MisbehaviourKind
     std::uint64_t publications = 0;                // pseudo-terminals published (1 + drops served so far)
   };
 

@@ -63,6 +63,7 @@
 // over the emulator's life:
 //   error        echo, `*Arm power off*`, prompt; the line is not carried out
 //   unreachable  echo, `*Location out of range*`, prompt; not carried out
+//   unknown      echo, `*Invalid format*` (an error the driver's list does not have), prompt; not carried out
 //   garbage      echo; the line is carried out, and its answer and prompt are replaced by one line of seeded bytes
 //                in 0x80–0xFE (never CR, LF, `.` or `*`) ended by CR LF. No prompt follows: the next line (an empty
 //                one, as a driver's reset sends) is answered as usual

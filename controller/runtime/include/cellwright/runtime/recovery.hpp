@@ -49,6 +49,7 @@ enum class Symptom : std::uint8_t {
   target_unreachable,    // no grasp of the target is reachable
   driver_timeout,        // the controller did not answer a command in time
   driver_fault,          // the controller reported a hardware or protocol error: the driver is in fault
+                         // (an error the driver does not know is unknown_error)
   link_lost,             // the link to the controller was lost
   position_refused,      // the controller refused a position (unreachable for it)
   position_missed,       // the arm did not arrive where it was sent
@@ -59,8 +60,11 @@ enum class Symptom : std::uint8_t {
   // a robot makes no progress: one command interrupted RecoveryOptions::progress_limit times (the same protective
   // stop, force trip or retry again and again), or waiting progress_timeout for a part that is never ready
   no_progress,
+  // the controller reported an error its driver does not know (ErrorCode::unknown: words or a code outside the
+  // driver's list); the driver is in fault and what the arm is doing cannot be told
+  unknown_error,
 };
-inline constexpr std::size_t kSymptoms = 17;
+inline constexpr std::size_t kSymptoms = 18;
 std::string_view to_string(Symptom s);
 std::optional<Symptom> symptom_from(std::string_view name);
 

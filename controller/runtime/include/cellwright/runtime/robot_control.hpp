@@ -48,6 +48,9 @@
 // and retry; adopt the shifted hold; wait for the safety layer's release and retry; set the part aside as lost
 // (workpiece_lost; every command about it is then skipped, logged as `skipped`, and reported done); or stop the cell
 // (reported as a failure with RobotStatus::stop_cell). recovery_end closes each recovery when the command is done.
+// reset_rehome reads where the arm stopped before it moves it, refuses to home an arm that holds a part (the cell
+// stops: rehome()), and starts its steps over when one fails, at most max_attempts times. A position read-back that
+// fails while nothing else would report it (idle) is a symptom at once, recovered before the next command.
 // A robot that makes no progress is a symptom of its own (no_progress, diagnosed by the same tree): the
 // RecoveryOptions::progress_limit-th interruption of one command (the same protective stop, force trip or retry again
 // and again), or a wait of progress_timeout for a part that is never ready (a class whose part was set aside
@@ -203,14 +206,27 @@ class RobotControl {
     bool skip = false;                    // after the steps, the command completes as skipped
     bool settle = false;                  // the diagnosis waits for the part to come to rest (a drop)
     std::string detail;                   // the symptom's detail (for a deferred diagnosis)
-    drivers::CommandId home_id = 0;       // re-homing: the home command
+    // Re-homing (rehome()): the attempts at reset, read-back, homing and activation (at most max_attempts), a reset
+    // made, the read-back of where the arm stopped (asked when, done), the home command (0: none in flight, cleared
+    // whenever a new one must be issued), and the last step's failure (the driver's message).
+    int tries = 0;
+    bool reset_done = false;
+    drivers::CommandId read_id = 0;
+    std::optional<SimDuration> read_asked;
+    bool position_read = false;
+    drivers::CommandId home_id = 0;
+    std::string last_failure;
     bool motion_blocked = false;          // Question::motion_blocked, as sensed when the symptom came
     bool waiting = false;                 // Question::waiting_for_part, as sensed when the symptom came
   };
 
   void bring_up(SimDuration now);
-  // Writes a position read-back that arrived into the model.
-  void collect_position();
+  // Writes a position read-back that arrived into the model. A read that failed while no command of this robot
+  // would report the failure itself (idle, a move done and waiting for its read-back, or a command cancelled behind
+  // the read) is a symptom at once, with the driver's message (docs/faults.md section 2).
+  void collect_position(SimDuration now);
+  // Writes the driver's newest reading into the model if it is newer than the last one written.
+  void adopt_reading();
   // Bring-up, then the commands: take, submit, poll, check.
   void run_commands(SimDuration now);
   // Asks the driver for a position now (if none is in flight and the driver takes one); true when one is in flight.
@@ -251,6 +267,12 @@ class RobotControl {
   // Advances a recovery under way (re-homing, waiting for the release, a deferred diagnosis); false while it holds
   // the command back.
   bool advance_recovery(SimDuration now);
+  // reset_rehome's steps, in order: reset (connect again after a lost link), read where the arm stopped (its answer
+  // awaited for command_timeout) into the model, refuse to home an arm that holds a part while another robot is in
+  // the cell (the cell stops: nothing here can check the way home), home, activate. A step that fails (or a fault
+  // on the way) starts them over, at most RecoveryOptions::max_attempts times in all; then the cell stops, naming the
+  // last failure. True once the driver is active again.
+  bool rehome(SimDuration now);
   // The command is done after its recovery: logs recovery_end.
   void end_recovery(SimDuration now, bool ok, const std::string& detail);
   // Marks a workpiece lost in the model and logs it.
@@ -307,6 +329,7 @@ class RobotControl {
   std::optional<drivers::PositionReading> reading_;
   std::uint64_t reads_asked_ = 0;     // position reads asked for so far
   std::uint64_t reading_number_ = 0;  // which of them reading_ answers (1 = the first)
+  std::string last_failure_;          // the last read-back failure the driver reported (its error and message)
   // The target of this robot's previous move (a straight approach follows from it).
   std::optional<task::Target> last_target_;
 

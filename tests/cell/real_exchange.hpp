@@ -8,8 +8,14 @@
 #include <filesystem>
 #include <string>
 
+#include <cmath>
+#include <vector>
+
 #include "cellwright/cell/scenario.hpp"
 #include "cellwright/common/files.hpp"
+#include "cellwright/emulate/kinematic_arm.hpp"
+#include "cellwright/models/kinematics.hpp"
+#include "cellwright/models/robot_model.hpp"
 
 namespace cellwright::cell::test_real {
 
@@ -29,6 +35,21 @@ inline Scenario exchange_at_the_stop(const std::filesystem::path& dir) {
   fs::copy_file(scenes / "exchange.yaml", dir / "exchange.yaml");
   fs::copy_file(scenes / "exchange.task", dir / "exchange.task");
   return load_scenario(dir / "exchange.yaml");
+}
+
+// The cell's homes of the exchange's arms (degrees, scenes/cell.yaml), where the controllers' READY / nest take them:
+// the bring-up's cross-check refuses a controller whose home is not the cell's.
+inline const std::vector<double> kPumaHome = {0, 84, -192, 0, -72, 90};
+inline const std::vector<double> kMelfaHome = {-90, 30, 60, 0, 60, 0};
+
+// An emulated arm of the URDF under models/ (e.g. "/urdf/puma560.urdf"), homing to `home` (degrees), at a quarter of
+// real time (the runs go at --speed 4).
+inline emulate::KinematicArm arm_at_home(const char* urdf, std::vector<double> home) {
+  emulate::KinematicArmOptions o;
+  o.time_scale = 0.25;
+  for (double& h : home) h *= M_PI / 180.0;
+  o.home = std::move(home);
+  return emulate::KinematicArm(models::KinematicChain::from_urdf_file(std::string(models::models_dir()) + urdf), o);
 }
 
 }  // namespace cellwright::cell::test_real

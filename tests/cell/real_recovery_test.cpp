@@ -33,19 +33,14 @@ using ::testing::HasSubstr;
 
 constexpr double kLimit = 90;  // s of cell time: a clean exchange takes well under half of it
 
-emulate::KinematicArm arm(const char* urdf) {
-  emulate::KinematicArmOptions o;
-  o.time_scale = 0.25;  // the run goes at speed 4
-  return emulate::KinematicArm(models::KinematicChain::from_urdf_file(std::string(models::models_dir()) + urdf), o);
-}
 
 // The two controllers on their pseudo-terminals, each on a thread of its own until the end of the scope; the lines the
 // PUMA's monitor received ("< ...") and answered ("> ..."), in order.
 class EmulatedPair {
  public:
   EmulatedPair(const fs::path& dir, const std::vector<std::string>& puma_misbehaviours)
-      : puma_arm_(arm("/urdf/puma560.urdf")),
-        melfa_arm_(arm("/urdf/melfa_rve2.urdf")),
+      : puma_arm_(test_real::arm_at_home("/urdf/puma560.urdf", test_real::kPumaHome)),
+        melfa_arm_(test_real::arm_at_home("/urdf/melfa_rve2.urdf", test_real::kMelfaHome)),
         puma_(puma_arm_, puma_options(puma_misbehaviours)),
         melfa_(melfa_arm_, {}),
         puma_link_(dir / "puma"),
@@ -219,10 +214,11 @@ TEST_F(RealRecoveryTest, ARecoveryThatKeepsFailingStopsTheCell) {
   EXPECT_THAT(ran.result.reason, HasSubstr("*Arm power off*"));
 }
 
-// The first WHERE after the PUMA's bring-up (its homing answered 10 ms late, to start the script there) fails: a fault
+// The first WHERE of the run after the PUMA's bring-up fails (the script starts at the homing, answered 10 ms late;
+// the bring-up's own cross-check read is the first WHERE after it, the run's first read the second): a fault
 // of the PUMA at once, whose detail is the monitor's error; recovered.
 TEST_F(RealRecoveryTest, AFailedReadBackIsAFaultOfThatRobotWithItsCause) {
-  EmulatedPair pair(dir_, {"late@doready#1:0.01", "error@where#1"});
+  EmulatedPair pair(dir_, {"late@doready#1:0.01", "error@where#2"});
   const Ran ran = run(pair);
   ASSERT_EQ(ran.result.outcome, runtime::Outcome::kFinished) << ran.result.reason;
   const std::vector<nlohmann::json> detected = ran.of("fault_detected");
@@ -234,7 +230,7 @@ TEST_F(RealRecoveryTest, AFailedReadBackIsAFaultOfThatRobotWithItsCause) {
 
 // Without recovery the same failure ends the run at once, and the verdict keeps the monitor's error.
 TEST_F(RealRecoveryTest, WithoutRecoveryTheVerdictKeepsTheReadBacksCause) {
-  EmulatedPair pair(dir_, {"late@doready#1:0.01", "error@where#1"});
+  EmulatedPair pair(dir_, {"late@doready#1:0.01", "error@where#2"});
   const Ran ran = run(pair, false);
   EXPECT_NE(ran.result.outcome, runtime::Outcome::kFinished);
   EXPECT_LT(seconds(ran.result.end_time), kLimit / 2);

@@ -30,15 +30,6 @@ namespace fs = std::filesystem;
 
 const std::string kExchange = std::string(CW_SOURCE_DIR) + "/scenes/exchange.yaml";
 
-// `home`: the cell's home of the robot (degrees), where the controller's READY / nest takes it: the bring-up's
-// cross-check refuses a controller whose home is not the cell's.
-emulate::KinematicArm arm_of(const char* urdf, std::vector<double> home) {
-  emulate::KinematicArmOptions o;
-  o.time_scale = 0.25;  // the run goes at --speed 4
-  for (double& h : home) h *= M_PI / 180.0;
-  o.home = std::move(home);
-  return emulate::KinematicArm(models::KinematicChain::from_urdf_file(std::string(models::models_dir()) + urdf), o);
-}
 
 // An emulator serving `link` on a thread of its own until the end of the scope.
 template <typename Emulator>
@@ -102,8 +93,8 @@ TEST_F(RealRunTest, AFeedIsRefusedBeforeAnythingConnects) {
 }
 
 TEST_F(RealRunTest, ExchangeRunsOnTwoEmulatedControllersWithNoPlantAndTheModelsParts) {
-  emulate::KinematicArm puma_arm = arm_of("/urdf/puma560.urdf", {0, 84, -192, 0, -72, 90});
-  emulate::KinematicArm melfa_arm = arm_of("/urdf/melfa_rve2.urdf", {-90, 30, 60, 0, 60, 0});
+  emulate::KinematicArm puma_arm = test_real::arm_at_home("/urdf/puma560.urdf", test_real::kPumaHome);
+  emulate::KinematicArm melfa_arm = test_real::arm_at_home("/urdf/melfa_rve2.urdf", test_real::kMelfaHome);
   Serving<emulate::Val2Emulator> puma(puma_arm, dir_ / "puma");
   Serving<emulate::MovemasterEmulator> melfa(melfa_arm, dir_ / "melfa");
   Scenario s = exchange_at_the_stop();

@@ -233,7 +233,8 @@ TEST(RealRobotsCli, TheCellsControllerConventionsReachTheDriver) {
   TwinCli cli("real-conventions");
   for (const bool pages : {false, true}) {
     const fs::path link = cli.dir() / (pages ? "puma-pages" : "puma-other");
-    BackgroundTwin emulator({"emulate", "val2", "--link", link.string(), "--time-scale", "0.05"});
+    BackgroundTwin emulator(
+        {"emulate", "val2", "--link", link.string(), "--time-scale", "0.05", "--home", "0,84,-192,0,-72,90"});
     ASSERT_TRUE(emulator.wait_for("Ctrl-C to stop", std::chrono::seconds(20))) << emulator.output();
     const std::string scenario = exchange_with_puma_setting(
         cli.dir(), pages ? "    val2: {orientation: tool_down, line_end: cr, prompt: '.', where: val2, echo: maybe}\n"

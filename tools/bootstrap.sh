@@ -20,9 +20,12 @@ packages=(
   build-essential cmake ninja-build pkg-config git ccache lld
   libmujoco-dev libqhull-dev libeigen3-dev libopencv-dev libosmesa6-dev liburdfdom-dev libyaml-cpp-dev libtinyxml2-dev libpng-dev
   libgtest-dev libgmock-dev libbenchmark-dev libfmt-dev libcli11-dev nlohmann-json3-dev graphviz libglpk-dev
-  libassimp-dev ffmpeg libavcodec-dev libavformat-dev libswscale-dev libavutil-dev
+  libassimp-dev ffmpeg libavcodec-dev libavformat-dev libswscale-dev libavutil-dev libmodbus-dev
 )
-if [[ $mode == test ]]; then packages+=(chromium); fi  # the report page opened in a browser (tests/tools)
+# chromium: the report page opened in a browser (tests/tools). python3-pymodbus (and the serial modules its server
+# imports, which Debian lists only as recommended): a Modbus TCP server and client the team did not write, which the
+# I/O driver and the twin's I/O server are tested against over loopback.
+if [[ $mode == test ]]; then packages+=(chromium python3-pymodbus python3-serial python3-serial-asyncio); fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -84,6 +84,20 @@ class Names {
     seen_.emplace(name, std::make_pair(kind, doc_.at(n).line));
     return name;
   }
+  // A name the reader made up (a default) or read from a node other than a `name` field: the same rule, at `at`.
+  void take_text(const std::string& name, const YAML::Node& at, const std::string& kind) {
+    if (!valid_name(name)) {
+      doc_.fail(at, fmt::format("{} name '{}' is not valid: use letters, digits, '_' and '-', starting with a letter "
+                                "or '_', at most 64 characters",
+                                kind, shown_name(name)));
+    }
+    auto it = seen_.find(name);
+    if (it != seen_.end()) {
+      doc_.fail(at, fmt::format("duplicate name '{}': already used for the {} on line {}", name, it->second.first,
+                                it->second.second));
+    }
+    seen_.emplace(name, std::make_pair(kind, doc_.at(at).line));
+  }
 
  private:
   const Doc& doc_;
@@ -378,9 +392,42 @@ RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const st
   return r;
 }
 
+// A colour: [r, g, b] or [r, g, b, a], values 0..1.
+Eigen::Vector4d read_rgba(const Doc& doc, const Fields& f, const std::string& key) {
+  const auto rgba = f.numbers(key);
+  if (rgba.size() != 3 && rgba.size() != 4) {
+    doc.fail(f.node(key), fmt::format("{} must be [r, g, b] or [r, g, b, a] with values 0..1, got {} numbers",
+                                      f.field(key), rgba.size()));
+  }
+  for (double c : rgba) {
+    if (c < 0 || c > 1) doc.fail(f.node(key), fmt::format("{} must have values 0..1, got {}", f.field(key), c));
+  }
+  return {rgba[0], rgba[1], rgba[2], rgba.size() == 4 ? rgba[3] : 1.0};
+}
+
+// An address on the cell's I/O unit (a coil or a discrete input): a whole number 0..65535.
+IoAddress read_io_address(const Doc& doc, const Fields& f, const std::string& key) {
+  const double v = f.number(key);
+  if (v != std::floor(v) || v < 0 || v > 65535) {
+    doc.fail(f.node(key), fmt::format("{} must be an address of the cell's I/O unit, a whole number 0..65535, got {}",
+                                      f.field(key), v));
+  }
+  return {static_cast<int>(v), doc.at(f.node(key))};
+}
+
+// A photo-eye's `name` (or `fallback`) and `io`, taken into the cell's name space.
+void read_eye(const Doc& doc, Names& names, const Fields& f, const std::string& fallback, std::string& name,
+              IoAddress& io) {
+  name = f.has("name") ? f.text("name") : fallback;
+  names.take_text(name, f.has("name") ? f.node("name") : f.map(), "sensor");
+  if (f.has("io")) io = read_io_address(doc, f, "io");
+}
+
 ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
   Fields f(doc, n, "conveyor",
-           {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop", "sensor"}, true);
+           {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop", "sensor", "drop_sensor",
+            "accumulate", "io"},
+           true);
   ConveyorSpec c;
   c.where = doc.at(n);
   c.name = names.take(f, "conveyor");
@@ -416,20 +463,41 @@ ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
       doc.fail(f.node("sensor"),
                fmt::format("conveyor '{}': a part-present sensor sits at the stop bar; set 'stop: true'", c.name));
     }
-    Fields sf(doc, f.node("sensor"), fmt::format("the sensor of conveyor '{}'", c.name), {"signal"});
-    const double v = sf.number("signal");
-    if (v != std::floor(v) || v < 1 || v > kCellSignals) {
-      doc.fail(sf.node("signal"), fmt::format("{} must be a whole number 1..{} (the cell's digital signals), got {}",
-                                              sf.field("signal"), kCellSignals, v));
+    Fields sf(doc, f.node("sensor"), fmt::format("the sensor of conveyor '{}'", c.name), {"signal", "name", "io"});
+    c.stop_eye = true;
+    if (sf.has("signal")) {
+      const double v = sf.number("signal");
+      if (v != std::floor(v) || v < 1 || v > kCellSignals) {
+        doc.fail(sf.node("signal"), fmt::format("{} must be a whole number 1..{} (the cell's digital signals), got {}",
+                                                sf.field("signal"), kCellSignals, v));
+      }
+      c.sensor = static_cast<int>(v);
+      c.sensor_where = doc.at(sf.node("signal"));
     }
-    c.sensor = static_cast<int>(v);
-    c.sensor_where = doc.at(sf.node("signal"));
+    read_eye(doc, names, sf, c.name + "_stop", c.stop_eye_name, c.stop_eye_io);
+  }
+  if (f.has("drop_sensor")) {
+    Fields df(doc, f.node("drop_sensor"), fmt::format("the drop sensor of conveyor '{}'", c.name), {"name", "io"});
+    c.drop_eye = true;
+    read_eye(doc, names, df, c.name + "_drop", c.drop_eye_name, c.drop_eye_io);
+  }
+  // A belt that accumulates stops while its stop photo-eye is blocked: it needs one.
+  c.accumulate = f.boolean_or("accumulate", c.stop_eye);
+  if (c.accumulate && !c.stop_eye) {
+    doc.fail(f.node("accumulate"),
+             fmt::format("conveyor '{}' accumulates while a part blocks the photo-eye at its stop bar, and has none: "
+                         "add 'sensor: {{}}' (with 'stop: true')",
+                         c.name));
+  }
+  if (f.has("io")) {
+    Fields io(doc, f.node("io"), fmt::format("the io of conveyor '{}'", c.name), {"run"});
+    if (io.has("run")) c.run_io = read_io_address(doc, io, "run");
   }
   return c;
 }
 
 MachineSpec read_machine(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "machine", {"name", "pose", "size", "fixture", "process_time"}, true);
+  Fields f(doc, n, "machine", {"name", "pose", "size", "fixture", "process_time", "processed_colour", "io"}, true);
   MachineSpec m;
   m.where = doc.at(n);
   m.name = names.take(f, "machine");
@@ -452,6 +520,13 @@ MachineSpec read_machine(const Doc& doc, Names& names, const YAML::Node& n) {
   }
   if (!f.has("process_time")) doc.fail(n, fmt::format("machine '{}' has no field 'process_time'", m.name));
   m.process_time = f.within("process_time", Range{0, bounds::kMaxTime, false, "s"});
+  if (f.has("processed_colour")) m.processed_rgba = read_rgba(doc, f, "processed_colour");
+  if (f.has("io")) {
+    Fields io(doc, f.node("io"), fmt::format("the io of machine '{}'", m.name), {"start", "busy", "done"});
+    if (io.has("start")) m.start_io = read_io_address(doc, io, "start");
+    if (io.has("busy")) m.busy_io = read_io_address(doc, io, "busy");
+    if (io.has("done")) m.done_io = read_io_address(doc, io, "done");
+  }
   return m;
 }
 
@@ -538,17 +613,7 @@ PendingWorkpiece read_workpiece(const Doc& doc, Names& names, const YAML::Node& 
   }
   for (const auto& e : f.node("size")) f.within_of(e, f.field("size"), kPartSize);
   w.mass = f.within("mass", Range{bounds::kMinMass, bounds::kMaxMass, false, "kg"});
-  const auto rgba = f.numbers("colour");
-  if (rgba.size() != 3 && rgba.size() != 4) {
-    doc.fail(f.node("colour"), fmt::format("{} must be [r, g, b] or [r, g, b, a] with values 0..1, got {} numbers",
-                                           f.field("colour"), rgba.size()));
-  }
-  for (double c : rgba) {
-    if (c < 0 || c > 1) {
-      doc.fail(f.node("colour"), fmt::format("{} must have values 0..1, got {}", f.field("colour"), c));
-    }
-  }
-  w.rgba = {rgba[0], rgba[1], rgba[2], rgba.size() == 4 ? rgba[3] : 1.0};
+  w.rgba = read_rgba(doc, f, "colour");
   if (f.has("pose") == f.has("on")) {
     doc.fail(n, fmt::format("workpiece '{}' needs exactly one of 'pose' (its centre in the world) or 'on' (a "
                             "conveyor or location)",
@@ -766,6 +831,35 @@ const CameraSpec* CellDescription::find_camera(std::string_view n) const {
   return find_named(cameras, n);
 }
 
+// The cell's I/O list is one list: no two outputs share a coil, no two inputs a discrete input.
+void check_io_addresses(const CellDescription& cell) {
+  struct Use {
+    std::string what;
+    int line;
+  };
+  std::map<int, Use> coils, inputs;
+  auto add = [&](std::map<int, Use>& used, const char* kind, const IoAddress& io, const std::string& what) {
+    if (!io.wired()) return;
+    const int address = io.address;
+    auto [it, fresh] = used.emplace(address, Use{what, io.where.line});
+    if (!fresh) {
+      throw InputError(io.where, fmt::format("{} {} is wired to {} and already to {} (line {}): each signal of the "
+                                          "cell's I/O unit has one address",
+                                          kind, address, what, it->second.what, it->second.line));
+    }
+  };
+  for (const auto& c : cell.conveyors) {
+    add(coils, "coil", c.run_io, fmt::format("the run of conveyor '{}'", c.name));
+    add(inputs, "discrete input", c.stop_eye_io, fmt::format("sensor '{}'", c.stop_eye_name));
+    add(inputs, "discrete input", c.drop_eye_io, fmt::format("sensor '{}'", c.drop_eye_name));
+  }
+  for (const auto& m : cell.machines) {
+    add(coils, "coil", m.start_io, fmt::format("the start of machine '{}'", m.name));
+    add(inputs, "discrete input", m.busy_io, fmt::format("the busy signal of machine '{}'", m.name));
+    add(inputs, "discrete input", m.done_io, fmt::format("the done signal of machine '{}'", m.name));
+  }
+}
+
 CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::path& source) {
   const Doc doc(source.string());
   const YAML::Node root = yaml::load(yaml_text, doc, "not valid YAML");
@@ -804,6 +898,7 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
     }
   }
   for (const auto& n : list_of(doc, top, "machines")) cell.machines.push_back(read_machine(doc, names, n));
+  check_io_addresses(cell);
 
   auto check_robot_ref = [&](const std::string& robot, const YAML::Node& node, const std::string& user) {
     if (cell.find_robot(robot) == nullptr) {

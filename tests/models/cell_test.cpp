@@ -136,6 +136,20 @@ TEST(Cell, PaperCellLoadsAsDescribed) {
   EXPECT_TRUE(output.stop);
   EXPECT_DOUBLE_EQ(output.speed, 0.05);
   EXPECT_EQ(output.sensor, 0);
+  // The paper's I/O list (docs/cell-description.md, "io").
+  EXPECT_EQ(input.run_io.address, 0);
+  EXPECT_EQ(input.stop_eye_name, "input_eye");
+  EXPECT_EQ(input.stop_eye_io.address, 0);
+  EXPECT_TRUE(input.accumulate);
+  EXPECT_EQ(output.run_io.address, 1);
+  EXPECT_EQ(output.drop_eye_name, "output_eye");
+  EXPECT_EQ(output.drop_eye_io.address, 1);
+  EXPECT_FALSE(output.stop_eye_io.wired());  // its end eye is the belt's own
+  EXPECT_TRUE(output.accumulate);
+  const models::MachineSpec& mill = cell.machines.at(0);
+  EXPECT_EQ(mill.start_io.address, 2);
+  EXPECT_EQ(mill.busy_io.address, 2);
+  EXPECT_EQ(mill.done_io.address, 3);
 
   // Locations resolved from the objects they are at.
   EXPECT_TRUE(cell.find_location("input_pick")->pose.xyz.isApprox(Eigen::Vector3d(0.03, -0.55, 0.5)));
@@ -439,6 +453,47 @@ TEST(CellErrors, SensorWiring) {
                                   "    sensor: {signal: 9}\nmachines:\n");
   expect_error(shared, "conveyor 'belt2': signal 9 is already the sensor of conveyor 'belt' (line",
                line_of(shared, "sensor: {signal: 9}\nmachines"));
+}
+
+// Devices on the cell's I/O unit: addresses 0..65535, each signal its own, photo-eyes named in the one name space.
+TEST(CellErrors, IoWiring) {
+  const std::string stop = with(base_yaml(), "    speed: 0.05\n", "    speed: 0.05\n    stop: true\n");
+  const std::string good = with(with(stop, "    stop: true\n", "    stop: true\n    sensor: {io: 0}\n    io: {run: 0}\n"),
+                                "    process_time: 5\n",
+                                "    process_time: 5\n    io: {start: 1, busy: 1, done: 2}\n");
+  const models::CellDescription cell = parse(good);
+  const models::ConveyorSpec& belt = *cell.find_conveyor("belt");
+  EXPECT_EQ(belt.stop_eye_name, "belt_stop");
+  EXPECT_EQ(belt.stop_eye_io.address, 0);
+  EXPECT_EQ(belt.sensor, 0);  // on the I/O unit, not on the robots' inputs
+  EXPECT_TRUE(belt.accumulate);
+  EXPECT_EQ(cell.machines[0].start_io.address, 1);
+  EXPECT_EQ(cell.machines[0].done_io.address, 2);
+  EXPECT_FALSE(parse(stop).find_conveyor("belt")->accumulate);
+
+  for (const char* bad : {"-1", "65536", "2.5", "x"}) {
+    const std::string text = with(good, "io: {run: 0}", fmt::format("io: {{run: {}}}", bad));
+    expect_error(text, "of the io of conveyor 'belt'", line_of(text, "io: {run"));
+  }
+  const std::string coil = with(good, "start: 1", "start: 0");
+  expect_error(coil,
+               "coil 0 is wired to the start of machine 'mill' and already to the run of conveyor 'belt' (line " +
+                   std::to_string(line_of(coil, "io: {run")) + ")",
+               line_of(coil, "io: {start"));
+  const std::string input = with(good, "busy: 1", "busy: 0");
+  expect_error(input, "discrete input 0 is wired to the busy signal of machine 'mill' and already to sensor "
+                      "'belt_stop'",
+               line_of(input, "io: {start"));
+  const std::string clash = with(good, "sensor: {io: 0}", "sensor: {io: 0, name: mill}");
+  expect_error(clash, "duplicate name 'mill': already used for the sensor on line", line_of(clash, "- name: mill"));
+  const std::string field = with(good, "io: {run: 0}", "io: {stop: 0}");
+  expect_error(field, "unknown field 'stop' in the io of conveyor 'belt'", line_of(field, "io: {stop"));
+  const std::string no_eye = with(stop, "    stop: true\n", "    stop: true\n    accumulate: true\n");
+  expect_error(no_eye, "conveyor 'belt' accumulates while a part blocks the photo-eye at its stop bar, and has none",
+               line_of(no_eye, "accumulate"));
+  const std::string colour = with(good, "    process_time: 5\n", "    process_time: 5\n    processed_colour: [2, 0, 0]\n");
+  expect_error(colour, "field 'processed_colour' of machine 'mill' must have values 0..1, got 2",
+               line_of(colour, "processed_colour"));
 }
 
 TEST(CellErrors, NegativeSize) {

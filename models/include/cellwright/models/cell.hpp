@@ -147,6 +147,14 @@ struct RobotSpec {
 // twin's SignalTable has this many; the Movemaster's bits are assumed to be 1..16).
 inline constexpr int kCellSignals = 16;
 
+// An address on the cell's I/O unit (a coil or a discrete input, drivers/digital_io.hpp), 0..65535, and where the
+// cell file gives it; address -1: not wired.
+struct IoAddress {
+  int address = -1;
+  SourceLocation where;
+  bool wired() const { return address >= 0; }
+};
+
 // A belt conveyor. Its frame: origin at the centre of its footprint on the floor, x along the direction of travel.
 // The belt's top surface is `height` above the origin and spans x in [-length/2, length/2].
 struct ConveyorSpec {
@@ -163,6 +171,22 @@ struct ConveyorSpec {
   SourceLocation where;
   SourceLocation sensor_where;  // of the `signal` value, for errors about the wiring
 
+  // Devices on the cell's I/O unit (drivers/digital_io.hpp; docs/cell-description.md, "io").
+  IoAddress run_io;  // the coil that runs the belt (on: running)
+  // An accumulating conveyor stops while a part blocks the photo-eye at its stop bar (and runs again when it is
+  // taken), so that a queue of parts rests still instead of sliding against a running belt. Default: true with a stop.
+  bool accumulate = false;
+  // The photo-eye at the stop bar (`sensor:`): present with a stop; its name (default "<conveyor>_stop", in the
+  // cell's one name space) and the discrete input it is wired to.
+  bool stop_eye = false;
+  std::string stop_eye_name;
+  IoAddress stop_eye_io;
+  // A photo-eye where parts are put on the belt (`drop_sensor:`, at `enter`): on while a part lies there. Its name
+  // (default "<conveyor>_drop") and discrete input.
+  bool drop_eye = false;
+  std::string drop_eye_name;
+  IoAddress drop_eye_io;
+
   // World position of the point on the belt's top surface at distance s from the upstream end, on the centre line.
   Eigen::Vector3d belt_point(double s) const;
 };
@@ -175,6 +199,14 @@ struct MachineSpec {
   Eigen::Vector3d size = Eigen::Vector3d::Zero();          // body extents x, y, z
   Eigen::Vector3d fixture_size = Eigen::Vector3d::Zero();  // fixture plate extents x, y, z
   double process_time = 0;                                 // seconds a part spends in the machine
+  // The colour a part takes when processed (its cycle done): the change the camera and the video show.
+  Eigen::Vector4d processed_rgba{0.55, 0.57, 0.62, 1.0};
+  // Its signals on the cell's I/O unit (docs/cell-description.md, "io"). The controller sets `start`
+  // (a coil) to start a cycle; the machine answers `busy` (a discrete input) while processing, then `done` until the
+  // processed part is taken out.
+  IoAddress start_io;
+  IoAddress busy_io;
+  IoAddress done_io;
   SourceLocation where;
 
   // Pose of the centre of the fixture plate's top face (the machine's yaw).

@@ -286,13 +286,13 @@ bool ModbusServer::answer(Client& c, const std::uint8_t* frame, std::size_t leng
       }
     }
   }
+  ++requests_;  // before the answer goes, so that a client holding its answer sees its request counted
   modbus_set_socket(ctx_, c.fd);
   const int sent = code != 0 ? modbus_reply_exception(ctx_, frame, static_cast<unsigned>(code))
                              : modbus_reply(ctx_, frame, static_cast<int>(length), mapping_);
   if (sent < 0) return false;
   s.exception_code = code;
   s.processing = Clock::now() - t0;
-  ++requests_;
   if (hook_) hook_(s);
   return true;
 }

@@ -36,17 +36,18 @@ class PythonPeer {
  public:
   // Starts `peer.py args...`; the first line it prints is read at once (port() has the port of a server).
   explicit PythonPeer(const std::vector<std::string>& args) {
+    // Everything the child needs is made before the fork: it only redirects and execs (the test may run threads).
+    std::vector<std::string> argv_s{kSystemPython, "-u", std::string(CW_SOURCE_DIR) + "/tests/data/modbus/peer.py"};
+    argv_s.insert(argv_s.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (std::string& a : argv_s) argv.push_back(a.data());
+    argv.push_back(nullptr);
     int out[2], in[2];
     if (::pipe2(out, O_CLOEXEC) != 0 || ::pipe2(in, O_CLOEXEC) != 0) return;
     pid_ = ::fork();
     if (pid_ == 0) {
       ::dup2(in[0], STDIN_FILENO);
       ::dup2(out[1], STDOUT_FILENO);
-      std::vector<std::string> argv_s{kSystemPython, "-u", std::string(CW_SOURCE_DIR) + "/tests/data/modbus/peer.py"};
-      argv_s.insert(argv_s.end(), args.begin(), args.end());
-      std::vector<char*> argv;
-      for (std::string& a : argv_s) argv.push_back(a.data());
-      argv.push_back(nullptr);
       ::execv(kSystemPython, argv.data());
       ::_exit(127);
     }

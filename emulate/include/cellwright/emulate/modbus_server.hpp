@@ -94,7 +94,8 @@ class ModbusServer {
   void start();
   void stop();
 
-  // Connections open now, and requests answered so far (both safe from any thread).
+  // Connections open now, and requests handled so far (counted before each answer is sent, so a client that has its
+  // answer is counted); both safe from any thread.
   int clients() const { return open_clients_.load(); }
   long requests() const { return requests_.load(); }
 

@@ -14,6 +14,8 @@ line, and answers each with one line on stdout. It ends when stdin closes.
                           requests         requests answered so far                           -> "requests N"
   peer.py junk          a raw TCP server that answers every read with 40 bytes of junk.
   peer.py silent        a raw TCP server that accepts and reads, and never answers.
+  peer.py late SECONDS  a raw TCP server that answers its first request SECONDS late (then prints "late answer
+                        sent") and every later one at once: reads with inputs 1,0,1,1,0..., writes echoed.
   peer.py client PORT [UNIT]
                         pymodbus's TCP client (timeout 3 s) connected to 127.0.0.1:PORT. Commands:
                           read_coils A N | read_inputs A N | read_holding A N | write_coil A 0|1 |
@@ -25,6 +27,7 @@ import logging
 import socket
 import sys
 import threading
+import time
 
 logging.disable(logging.CRITICAL)  # pymodbus logs refused requests; the tests read only our own lines
 
@@ -97,12 +100,26 @@ def run_pymodbus_server():
     asyncio.run(main())
 
 
-def run_raw_server(answer):
+def reply_to(request):
+    """A valid answer to a read (function 1 or 2: bits 1,0,1,1 then zeros) or a write of one coil (echoed)."""
+    function = request[7]
+    if function in (1, 2):
+        count = (request[10] << 8) | request[11]
+        data = bytes([0x0D] + [0] * ((count + 7) // 8 - 1))
+        pdu = bytes([function, len(data)]) + data
+    else:
+        pdu = request[7:12]
+    return request[0:4] + bytes([0, len(pdu) + 1, request[6]]) + pdu
+
+
+def run_raw_server(answer, late=None):
     listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     listener.bind(("127.0.0.1", 0))
     listener.listen(8)
     say("port %d" % listener.getsockname()[1])
+
+    first = [True]
 
     def serve(connection):
         with connection:
@@ -110,7 +127,15 @@ def run_raw_server(answer):
                 data = connection.recv(260)
                 if not data:
                     return
-                if answer:
+                if late is not None:
+                    if first[0]:
+                        first[0] = False
+                        time.sleep(late)
+                        connection.sendall(reply_to(data))
+                        say("late answer sent")
+                    else:
+                        connection.sendall(reply_to(data))
+                elif answer:
                     connection.sendall(bytes((0x5A + i * 37) & 0xFF for i in range(40)))
 
     def accept():
@@ -171,6 +196,8 @@ def main():
         run_raw_server(True)
     elif mode == "silent":
         run_raw_server(False)
+    elif mode == "late" and len(sys.argv) >= 3:
+        run_raw_server(True, late=float(sys.argv[2]))
     elif mode == "client" and len(sys.argv) >= 3:
         run_client(int(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) > 3 else 1)
     else:

@@ -216,6 +216,21 @@ TEST_F(ModbusIoPeer, AServerThatNeverAnswersTimesOutAndTheUnitStaysOpen) {
   EXPECT_EQ(io->write_coil(1, true).status, IoStatus::timeout);
 }
 
+TEST_F(ModbusIoPeer, ALateAnswerIsDiscardedAndTheNextRequestGetsItsOwn) {
+  peer_ = std::make_unique<PythonPeer>(std::vector<std::string>{"late", "0.5"});
+  ASSERT_GT(peer_->port(), 0) << peer_->first_line();
+  ModbusIo io({"127.0.0.1", peer_->port(), 1}, {0.2});
+  ASSERT_TRUE(io.connect().ok());
+  std::vector<bool> v;
+  EXPECT_EQ(io.read_coils(0, 4, v).status, IoStatus::timeout);
+  ASSERT_EQ(peer_->line(), "late answer sent");  // it waits in our socket now
+  const IoResult r = io.write_coil(3, true);
+  EXPECT_TRUE(r.ok()) << "the late answer (to another request) was taken for this one: " << r.message;
+  EXPECT_TRUE(io.is_open());
+  ASSERT_TRUE(io.read_inputs(0, 4, v).ok());
+  EXPECT_EQ(v, (std::vector<bool>{true, false, true, true}));
+}
+
 TEST(ModbusIo, NoServerIsDisconnectedAndEveryCallSaysNotConnected) {
   ModbusIo io({"127.0.0.1", unused_port(), 1});
   IoResult r = io.connect();

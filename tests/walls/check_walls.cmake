@@ -8,7 +8,8 @@
 #   common                             nothing of ours but common; no MuJoCo, OpenGL/OSMesa, OpenCV
 #   vision                             OpenCV yes; no MuJoCo, OpenGL/OSMesa; nothing of twin or cell
 #   emulate                            no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, runtime, cell; none of
-#                                      the drivers' protocol code (drivers/serial, movemaster, val2): each checks the other
+#                                      the drivers' protocol code (drivers/serial, movemaster, val2, modbus): each checks
+#                                      the other
 #   twin/model (the twin's facts)      no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of cell
 #   twin (the simulator)               nothing of cell (the application); OpenCV only in rendering and the video
 #   cell (the application layer)       no MuJoCo, OpenGL/OSMesa; of the twin only its MuJoCo-free facts (twin/model);
@@ -69,7 +70,7 @@ check_includes(drivers "${heavy}|cellwright/(twin|vision|runtime)/|${cell_libs}|
 check_includes(common "${heavy}|cellwright/(twin|vision|drivers|runtime|models|petri|task|cell|emulate)/|${tools_reach}"
                "common/*")
 check_includes(vision "mujoco/|GL/|osmesa|cellwright/(twin|cell)/|${tools_reach}" "vision/*")
-check_includes(emulate "${heavy}|cellwright/(twin|vision|runtime|cell)/|cellwright/drivers/(serial|movemaster|val2)/|${tools_reach}"
+check_includes(emulate "${heavy}|cellwright/(twin|vision|runtime|cell)/|cellwright/drivers/(serial|movemaster|val2|modbus)/|${tools_reach}"
                "emulate/*")
 # The twin's MuJoCo-free facts.
 check_includes(twin_model "${heavy}|cellwright/(cell|vision|emulate)/|${tools_reach}" "twin/model/*")

@@ -3,6 +3,7 @@
 // of a cell, each driving the twin's MuJoCo arm (virtual commissioning). Runs until SIGINT or SIGTERM; exit 0 then,
 // 2 on bad input. docs/real-robots.md says what each emulator speaks and how it can be told to misbehave.
 // A twin built for real robots only (CW_SIM=OFF) has the first form (the emulators need no MuJoCo), not --scenario.
+// `twin emulate io --listen HOST:PORT`: the cell's I/O on Modbus TCP (emulate_io.hpp).
 #include <fmt/format.h>
 #include <signal.h>
 #include <unistd.h>
@@ -23,6 +24,7 @@
 #include "cellwright/emulate/val2_emulator.hpp"
 #include "cellwright/models/kinematics.hpp"
 #include "commands.hpp"
+#include "emulate_io.hpp"
 #include "until_signal.hpp"
 #if CW_SIM
 #include "cellwright/cell/scenario.hpp"
@@ -69,7 +71,8 @@ void add_emulate(CLI::App& app, Command* run) {
       "emulate",
       "Emulate robot controllers on pseudo-terminals: one controller with the project's kinematics "
       "(`emulate movemaster|val2 --link PATH`), or a cell's controllers driving the twin's arms (`emulate --scenario "
-      "SCENARIO --robot ROBOT=movemaster:LINK ...`). Runs until Ctrl-C or SIGTERM; exit 0, or 2 on bad input.");
+      "SCENARIO --robot ROBOT=movemaster:LINK ...`); or the cell's I/O on Modbus TCP (`emulate io --listen HOST:PORT`). "
+      "Runs until Ctrl-C or SIGTERM; exit 0, or 2 on bad input.");
   struct Args {
     std::string language;
     std::string link;
@@ -88,10 +91,12 @@ void add_emulate(CLI::App& app, Command* run) {
     double pitch_down = -90;
     int roll_sense = 1;
     int pace = 0;
+    EmulateIoArgs io;
   };
   auto args = std::make_shared<Args>();
-  cmd->add_option("language", args->language, "the controller to emulate alone: movemaster or val2")
-      ->check(CLI::IsMember({"movemaster", "val2"}));
+  cmd->add_option("language", args->language,
+                  "the controller to emulate alone: movemaster or val2; or io, the cell's I/O on Modbus TCP")
+      ->check(CLI::IsMember({"movemaster", "val2", "io"}));
   cmd->add_option("--link", args->link, "where to publish the pseudo-terminal (a symbolic link), e.g. /tmp/melfa");
   cmd->add_option("--urdf", args->urdf,
                   "the arm (default: models/urdf/melfa_rve2.urdf for movemaster, puma560.urdf for val2)");
@@ -127,9 +132,25 @@ void add_emulate(CLI::App& app, Command* run) {
   triple("--tool-rotation", args->tool_rotation, "ROLL,PITCH,YAW degrees: its axes in the TCP's");
   cmd->add_option("--pitch-down", args->pitch_down, "Movemaster: the pitch at which the hand points down: -90 or 90");
   cmd->add_option("--roll-sense", args->roll_sense, "Movemaster: 1 (roll right-handed about the approach) or -1");
+  add_emulate_io_options(cmd, args->io);
   cmd->callback([run, args, cmd] {
     *run = [args, cmd] {
       const SourceLocation cli{"twin emulate", 0, 0};
+      const bool io = args->language == "io";
+      for (const char* name : {"--listen", "--unit", "--process-time", "--take-out-after", "--input"}) {
+        if (!io && cmd->count(name) > 0) throw InputError(cli, fmt::format("{} is for `twin emulate io`", name));
+      }
+      if (io) {
+        for (const CLI::Option* o : cmd->get_options()) {
+          const std::string name = o->get_name();  // "--link"; the positional's name has no dashes
+          const bool robots = name.rfind("--", 0) == 0 && name != "--verbose" && name != "--help" &&
+                              o->get_description().rfind("io: ", 0) != 0;
+          if (robots && o->count() > 0) {
+            throw InputError(cli, fmt::format("{} is for a robot controller, not `twin emulate io`", name));
+          }
+        }
+        return emulate_io(args->io, args->verbose);
+      }
       std::mutex print_mutex;
       const auto print = [&print_mutex](std::string_view line) {
         std::lock_guard lock(print_mutex);

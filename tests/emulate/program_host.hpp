@@ -27,8 +27,8 @@ class ProgramHost {
   // Sends `text` followed by `end`.
   void send(std::string_view text, std::string_view end) {
     std::string message;
-    const drivers::IoStatus s = port_.write(std::string(text) + std::string(end), Clock::now() + kWrite, &message);
-    EXPECT_EQ(s, drivers::IoStatus::ok) << "writing '" << text << "': " << message;
+    const drivers::PortStatus s = port_.write(std::string(text) + std::string(end), Clock::now() + kWrite, &message);
+    EXPECT_EQ(s, drivers::PortStatus::ok) << "writing '" << text << "': " << message;
   }
 
   // The next line received (without its end), or nullopt when none comes within `timeout`.
@@ -112,7 +112,7 @@ class ProgramHost {
 
   bool fill(Clock::time_point deadline) {
     std::string message;
-    return port_.read_some(&buffer_, deadline, &message) == drivers::IoStatus::ok;
+    return port_.read_some(&buffer_, deadline, &message) == drivers::PortStatus::ok;
   }
 
   drivers::SerialPort port_;

@@ -45,9 +45,9 @@ class MovemasterDriver::Exchange {
   // Sends one line; `ER` and `WH` are not counted as what an `ER` answers for.
   Outcome send(const std::string& command) {
     std::string message;
-    const IoStatus s = link_.send(command + std::string(mm::line_end_text(options_.line_end)), &message);
+    const PortStatus s = link_.send(command + std::string(mm::line_end_text(options_.line_end)), &message);
     sent_any_ = true;
-    if (s == IoStatus::ok) {
+    if (s == PortStatus::ok) {
       if (command != "ER" && command != "WH") since_er_.push_back(command);
       return {};
     }
@@ -58,9 +58,9 @@ class MovemasterDriver::Exchange {
   Outcome read(const std::string& asked, Steady::time_point deadline, std::string* line) {
     const auto waited = deadline - Steady::now();
     std::string message;
-    const IoStatus s = link_.read_line(deadline, line, &message);
-    if (s == IoStatus::ok) return {};
-    if (s == IoStatus::timeout) {
+    const PortStatus s = link_.read_line(deadline, line, &message);
+    if (s == PortStatus::ok) return {};
+    if (s == PortStatus::timeout) {
       return failed(ErrorCode::connection_lost,
                     fmt::format("the controller is silent: no answer to '{}' within {:.0f} ms "
                                 "(received for this command: {})",
@@ -82,9 +82,9 @@ class MovemasterDriver::Exchange {
     if (Outcome o = read("ER", deadline, &line); o.error != ErrorCode::none) return o;
     while (settle.count() > 0) {
       std::string later, message;
-      const IoStatus s = link_.read_line(Link::in(settle), &later, &message);
-      if (s == IoStatus::timeout) break;
-      if (s != IoStatus::ok) return failed(ErrorCode::connection_lost, fmt::format("the line dropped: {}", message));
+      const PortStatus s = link_.read_line(Link::in(settle), &later, &message);
+      if (s == PortStatus::timeout) break;
+      if (s != PortStatus::ok) return failed(ErrorCode::connection_lost, fmt::format("the line dropped: {}", message));
       line = std::move(later);
     }
     const std::optional<int> answer = mm::parse_er(line);
@@ -131,8 +131,8 @@ class MovemasterDriver::Exchange {
   Outcome quiet() {
     if (link_.buffer().empty()) {
       std::string message;
-      const IoStatus s = link_.receive(Steady::now(), &message);
-      if (s == IoStatus::closed || s == IoStatus::error) {
+      const PortStatus s = link_.receive(Steady::now(), &message);
+      if (s == PortStatus::closed || s == PortStatus::error) {
         return failed(ErrorCode::connection_lost, fmt::format("the line dropped: {}", message));
       }
     }
@@ -144,9 +144,9 @@ class MovemasterDriver::Exchange {
   // Waits `period` with nothing asked, watching the line: none when nothing came.
   Outcome idle(std::chrono::nanoseconds period) {
     std::string message;
-    const IoStatus s = link_.receive(Link::in(period), &message);
-    if (s == IoStatus::timeout) return {};
-    if (s == IoStatus::ok) return quiet();
+    const PortStatus s = link_.receive(Link::in(period), &message);
+    if (s == PortStatus::timeout) return {};
+    if (s == PortStatus::ok) return quiet();
     return failed(ErrorCode::connection_lost, fmt::format("the line dropped: {}", message));
   }
 

@@ -28,14 +28,14 @@ void SerialDriver::Link::begin(SerialExchange* exchange) {
   received_.clear();
 }
 
-IoStatus SerialDriver::Link::send(std::string_view text, std::string* message) {
+PortStatus SerialDriver::Link::send(std::string_view text, std::string* message) {
   const auto now = Clock::now();
   if (now < not_before_) {
     std::this_thread::sleep_until(not_before_);  // the paper's pacing rule, not a race
     if (exchange_ != nullptr) exchange_->waiting += Clock::now() - now;
   }
   const auto waited = port_.waited();
-  const IoStatus s = port_.write(text, in(options_.reply_timeout), message);
+  const PortStatus s = port_.write(text, in(options_.reply_timeout), message);
   const auto written = Clock::now();
   if (exchange_ != nullptr) {
     exchange_->waiting += port_.waited() - waited;
@@ -46,10 +46,10 @@ IoStatus SerialDriver::Link::send(std::string_view text, std::string* message) {
   return s;
 }
 
-IoStatus SerialDriver::Link::receive(Clock::time_point deadline, std::string* message) {
+PortStatus SerialDriver::Link::receive(Clock::time_point deadline, std::string* message) {
   const std::size_t before = buffer_.size();
   const auto waited = port_.waited();
-  const IoStatus s = port_.read_some(&buffer_, deadline, message);
+  const PortStatus s = port_.read_some(&buffer_, deadline, message);
   const std::size_t got = buffer_.size() - before;
   received_.append(buffer_, before, got);
   if (lf_owed_ && !buffer_.empty()) {
@@ -64,7 +64,7 @@ IoStatus SerialDriver::Link::receive(Clock::time_point deadline, std::string* me
   return s;
 }
 
-IoStatus SerialDriver::Link::read_line(Clock::time_point deadline, std::string* line, std::string* message) {
+PortStatus SerialDriver::Link::read_line(Clock::time_point deadline, std::string* line, std::string* message) {
   for (;;) {
     const std::size_t end = buffer_.find_first_of("\r\n");
     if (end != std::string::npos) {
@@ -78,10 +78,10 @@ IoStatus SerialDriver::Link::read_line(Clock::time_point deadline, std::string* 
         }
       }
       buffer_.erase(0, taken);
-      return IoStatus::ok;
+      return PortStatus::ok;
     }
-    const IoStatus s = receive(deadline, message);
-    if (s != IoStatus::ok) return s;
+    const PortStatus s = receive(deadline, message);
+    if (s != PortStatus::ok) return s;
   }
 }
 

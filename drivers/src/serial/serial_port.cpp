@@ -153,30 +153,30 @@ void SerialPort::interrupt() {
   [[maybe_unused]] const ssize_t n = ::write(interrupt_fd_, &one, sizeof one);
 }
 
-IoStatus SerialPort::wait_until_ready(short events, Clock::time_point deadline, std::string* message) {
+PortStatus SerialPort::wait_until_ready(short events, Clock::time_point deadline, std::string* message) {
   pollfd fds[2] = {{fd_, events, 0}, {interrupt_fd_, POLLIN, 0}};
   const auto before = Clock::now();
   const int r = ::poll(fds, 2, poll_timeout(deadline));
   waited_ += Clock::now() - before;
   if (r > 0 && (fds[1].revents & POLLIN) != 0) {
     *message = "interrupted: the driver is closing the port";
-    return IoStatus::closed;
+    return PortStatus::closed;
   }
-  if (r == 0) return IoStatus::timeout;
+  if (r == 0) return PortStatus::timeout;
   if (r < 0) {
-    if (errno == EINTR) return IoStatus::ok;  // try again
+    if (errno == EINTR) return PortStatus::ok;  // try again
     *message = std::strerror(errno);
-    return IoStatus::error;
+    return PortStatus::error;
   }
   // A hang-up with bytes still to read is read first; the read then sees the end.
   if ((fds[0].revents & events) == 0 && (fds[0].revents & (POLLHUP | POLLERR)) != 0) {
     *message = "the other end hung up";
-    return IoStatus::closed;
+    return PortStatus::closed;
   }
-  return IoStatus::ok;
+  return PortStatus::ok;
 }
 
-IoStatus SerialPort::write(std::string_view bytes, Clock::time_point deadline, std::string* message) {
+PortStatus SerialPort::write(std::string_view bytes, Clock::time_point deadline, std::string* message) {
   std::size_t sent = 0;
   while (sent < bytes.size()) {
     const ssize_t n = ::write(fd_, bytes.data() + sent, bytes.size() - sent);
@@ -187,40 +187,40 @@ IoStatus SerialPort::write(std::string_view bytes, Clock::time_point deadline, s
     if (n < 0 && errno == EINTR) continue;
     if (n < 0 && errno != EAGAIN) {
       *message = std::strerror(errno);
-      return errno == EIO ? IoStatus::closed : IoStatus::error;
+      return errno == EIO ? PortStatus::closed : PortStatus::error;
     }
-    if (const IoStatus s = wait_until_ready(POLLOUT, deadline, message); s != IoStatus::ok) {
-      if (s == IoStatus::timeout)
+    if (const PortStatus s = wait_until_ready(POLLOUT, deadline, message); s != PortStatus::ok) {
+      if (s == PortStatus::timeout)
         *message = fmt::format("{} of {} bytes written before the deadline", sent, bytes.size());
       return s;
     }
   }
-  return IoStatus::ok;
+  return PortStatus::ok;
 }
 
-IoStatus SerialPort::read_some(std::string* buffer, Clock::time_point deadline, std::string* message) {
+PortStatus SerialPort::read_some(std::string* buffer, Clock::time_point deadline, std::string* message) {
   for (;;) {
     char chunk[256];
     const ssize_t n = ::read(fd_, chunk, sizeof chunk);
     if (n > 0) {
       buffer->append(chunk, static_cast<std::size_t>(n));
-      return IoStatus::ok;
+      return PortStatus::ok;
     }
     if (n == 0) {
       *message = "end of file: the other end hung up";
-      return IoStatus::closed;
+      return PortStatus::closed;
     }
     if (errno == EINTR) continue;
     if (errno == EIO) {
       *message = "input/output error: the other end hung up";
-      return IoStatus::closed;
+      return PortStatus::closed;
     }
     if (errno != EAGAIN) {
       *message = std::strerror(errno);
-      return IoStatus::error;
+      return PortStatus::error;
     }
-    if (const IoStatus s = wait_until_ready(POLLIN, deadline, message); s != IoStatus::ok) {
-      if (s == IoStatus::timeout) *message = "no bytes before the deadline";
+    if (const PortStatus s = wait_until_ready(POLLIN, deadline, message); s != PortStatus::ok) {
+      if (s == PortStatus::timeout) *message = "no bytes before the deadline";
       return s;
     }
   }

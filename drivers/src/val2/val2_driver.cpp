@@ -109,13 +109,13 @@ class Val2Driver::Session {
         buffer.clear();  // no prompt in there
       }
       const auto until = prompt ? std::min(deadline, Link::in(options_.resync_quiet)) : deadline;
-      const IoStatus s = link_.receive(until, &message);
-      if (s == IoStatus::timeout) {
+      const PortStatus s = link_.receive(until, &message);
+      if (s == PortStatus::timeout) {
         if (prompt) return {};
         return failure(failed, fmt::format("the monitor gave no prompt within {} of an empty line (received '{}')",
                                            seconds_text(options_.serial.reply_timeout), link_.received_text()));
       }
-      if (s != IoStatus::ok) return dropped("an empty line", s, message);
+      if (s != PortStatus::ok) return dropped("an empty line", s, message);
       prompt = false;  // more came after it: the prompt is the last one, if any
     }
   }
@@ -241,8 +241,8 @@ class Val2Driver::Session {
   Outcome unasked(const std::string& text) {
     std::string message;
     if (link_.buffer().empty()) {
-      const IoStatus s = link_.receive(SteadyClock::now(), &message);
-      if (s == IoStatus::closed || s == IoStatus::error) return dropped(text, s, message);
+      const PortStatus s = link_.receive(SteadyClock::now(), &message);
+      if (s == PortStatus::closed || s == PortStatus::error) return dropped(text, s, message);
     }
     const std::string& bytes = link_.buffer();
     if (bytes.empty()) return {};
@@ -255,10 +255,10 @@ class Val2Driver::Session {
 
   Outcome send(const std::string& text) {
     std::string message;
-    const IoStatus s = link_.send(text + std::string(line_end_text(options_.line_end)), &message);
-    if (s == IoStatus::ok) return {};
+    const PortStatus s = link_.send(text + std::string(line_end_text(options_.line_end)), &message);
+    if (s == PortStatus::ok) return {};
     const std::string what = text.empty() ? std::string("an empty line") : text;
-    if (s == IoStatus::timeout) {
+    if (s == PortStatus::timeout) {
       return failure(ErrorCode::protocol, fmt::format("{}: the line took no bytes for {} ({})", what,
                                                       seconds_text(options_.serial.reply_timeout), message));
     }
@@ -302,18 +302,18 @@ class Val2Driver::Session {
       if (val2::is_prompt(buffer, options_.prompt)) {
         // A number line of WHERE may begin with '.': then more follows at once.
         if (!error_line && where != nullptr && !where->finished()) {
-          const IoStatus s = link_.receive(std::min(deadline, Link::in(options_.prompt_settle)), &message);
-          if (s == IoStatus::ok) continue;
-          if (s != IoStatus::timeout) return dropped(sent, s, message);
+          const PortStatus s = link_.receive(std::min(deadline, Link::in(options_.prompt_settle)), &message);
+          if (s == PortStatus::ok) continue;
+          if (s != PortStatus::timeout) return dropped(sent, s, message);
         }
         buffer.clear();
         return answered(sent, error_line, where);
       }
       const bool bad = !std::all_of(buffer.begin(), buffer.end(), pending_byte);
       if (bad || buffer.size() > kMaxLine) return garbage(sent, buffer);
-      const IoStatus s = link_.receive(deadline, &message);
-      if (s == IoStatus::timeout) return silent(sent, budget, error_line, on_silence);
-      if (s != IoStatus::ok) return dropped(sent, s, message);
+      const PortStatus s = link_.receive(deadline, &message);
+      if (s == PortStatus::timeout) return silent(sent, budget, error_line, on_silence);
+      if (s != PortStatus::ok) return dropped(sent, s, message);
     }
   }
 
@@ -348,9 +348,9 @@ class Val2Driver::Session {
                                                     sent, printable(bytes), link_.received_text()));
   }
 
-  static Outcome dropped(std::string_view what, IoStatus s, const std::string& message) {
+  static Outcome dropped(std::string_view what, PortStatus s, const std::string& message) {
     return failure(ErrorCode::connection_lost, fmt::format("{}: the link dropped{}: {}", what,
-                                                           s == IoStatus::error ? " (port error)" : "", message));
+                                                           s == PortStatus::error ? " (port error)" : "", message));
   }
 
   Link& link_;

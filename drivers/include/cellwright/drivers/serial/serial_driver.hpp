@@ -91,14 +91,14 @@ class SerialDriver : public DriverCore {
 
     // Sends `text` as it is (the protocol adds its line end), after the pacing wait. ok, or timeout / closed / error
     // with *message set.
-    IoStatus send(std::string_view text, std::string* message);
+    PortStatus send(std::string_view text, std::string* message);
     // Waits until the buffer holds a complete line (ended by CR LF, LF alone or CR alone), then removes and returns
     // it in *line, without its end. A line ended by a CR that came last: the LF that may follow it is dropped when
     // it comes (receive()), so a CR LF is one line end even when it arrives in two reads. timeout / closed / error
     // with *message set (the bytes received so far stay in buffer()).
-    IoStatus read_line(Clock::time_point deadline, std::string* line, std::string* message);
+    PortStatus read_line(Clock::time_point deadline, std::string* line, std::string* message);
     // Appends what arrives to buffer(), waiting for at least one byte (for prompts that end no line).
-    IoStatus receive(Clock::time_point deadline, std::string* message);
+    PortStatus receive(Clock::time_point deadline, std::string* message);
     // Bytes received and not consumed yet.
     std::string& buffer() { return buffer_; }
     // Discards the bytes received and not read, in the buffer and in the port.

@@ -8,7 +8,7 @@
 // arrive.
 //
 // Errors: the constructor throws InputError (naming `where`, the port and errno's text) when the port does not exist,
-// cannot be opened or cannot be configured. After that, calls return an IoStatus and never throw.
+// cannot be opened or cannot be configured. After that, calls return an PortStatus and never throw.
 //
 // Threads: not synchronised. One thread (a serial driver's communication thread) owns the port.
 #pragma once
@@ -40,7 +40,7 @@ struct SerialLine {
   std::chrono::nanoseconds wire_time(std::size_t characters) const;
 };
 
-enum class IoStatus : std::uint8_t {
+enum class PortStatus : std::uint8_t {
   ok,
   timeout,  // the deadline passed first
   closed,   // the other end hung up (end of file, POLLHUP, EIO): the link dropped
@@ -60,10 +60,10 @@ class SerialPort {
   const SerialLine& line() const { return line_; }
 
   // Writes all of `bytes` before `deadline`. On anything but ok, `*message` says what happened (errno's text).
-  IoStatus write(std::string_view bytes, Clock::time_point deadline, std::string* message);
+  PortStatus write(std::string_view bytes, Clock::time_point deadline, std::string* message);
   // Appends to `*buffer` the bytes that arrive, waiting until at least one has arrived or `deadline` passes. Returns
   // ok when it appended something.
-  IoStatus read_some(std::string* buffer, Clock::time_point deadline, std::string* message);
+  PortStatus read_some(std::string* buffer, Clock::time_point deadline, std::string* message);
   // Discards bytes received and not yet read.
   void discard_input();
   // Makes the read or write in progress (and every later one) return closed at once, "interrupted": the way another
@@ -75,7 +75,7 @@ class SerialPort {
  private:
   // Waits in poll() until the port is ready for `events` (POLLIN or POLLOUT), the deadline passes (timeout, no
   // message), interrupt() is called or the other end hangs up (closed), or poll fails (error).
-  IoStatus wait_until_ready(short events, Clock::time_point deadline, std::string* message);
+  PortStatus wait_until_ready(short events, Clock::time_point deadline, std::string* message);
 
   SerialLine line_;
   int fd_ = -1;

@@ -639,6 +639,8 @@ PendingWorkpiece read_workpiece(const Doc& doc, Names& names, const YAML::Node& 
   return p;
 }
 
+Eigen::Vector3d rpy_of(const Eigen::Matrix3d& r);
+
 // Rotation whose -z axis looks from `from` to `to` and whose +y axis (image up) is as close to `up` as possible.
 // Looking straight along `up`, image up is the world +y axis instead.
 Eigen::Vector3d look_at_rpy(const Eigen::Vector3d& from, const Eigen::Vector3d& to, Eigen::Vector3d up) {
@@ -651,7 +653,11 @@ Eigen::Vector3d look_at_rpy(const Eigen::Vector3d& from, const Eigen::Vector3d& 
   r.col(0) = x;
   r.col(1) = y;
   r.col(2) = z;
-  // rpy from R = Rz*Ry*Rx.
+  return rpy_of(r);
+}
+
+// Roll, pitch and yaw (radians) of a rotation R = Rz(yaw) * Ry(pitch) * Rx(roll).
+Eigen::Vector3d rpy_of(const Eigen::Matrix3d& r) {
   const double pitch = std::asin(std::clamp(-r(2, 0), -1.0, 1.0));
   double roll = 0, yaw = 0;
   if (std::abs(std::cos(pitch)) > 1e-9) {
@@ -663,8 +669,22 @@ Eigen::Vector3d look_at_rpy(const Eigen::Vector3d& from, const Eigen::Vector3d& 
   return {roll, pitch, yaw};
 }
 
-CameraSpec read_camera(const Doc& doc, Names& names, const YAML::Node& n) {
-  Fields f(doc, n, "camera", {"name", "pose", "position", "look_at", "up", "resolution", "fovy"}, true);
+// A file named in field `key` of `f`, relative to the cell's directory: absolute; InputError at the field when it is
+// not a file.
+std::filesystem::path file_field(const Doc& doc, const Fields& f, const std::string& key,
+                                 const std::filesystem::path& base_dir, const std::string& what) {
+  const std::string text = f.text(key);
+  std::filesystem::path p = std::filesystem::path(text).is_absolute() ? std::filesystem::path(text) : base_dir / text;
+  p = p.lexically_normal();
+  if (const std::string problem = not_a_file(p); !problem.empty()) {
+    doc.fail(f.node(key), fmt::format("{} '{}' {}", what, p.string(), problem));
+  }
+  return p;
+}
+
+CameraSpec read_camera(const Doc& doc, Names& names, const YAML::Node& n, const std::filesystem::path& base_dir) {
+  Fields f(doc, n, "camera",
+           {"name", "pose", "position", "look_at", "up", "resolution", "fovy", "intrinsics", "calibration"}, true);
   CameraSpec c;
   c.where = doc.at(n);
   c.name = names.take(f, "camera");
@@ -704,6 +724,14 @@ CameraSpec read_camera(const Doc& doc, Names& names, const YAML::Node& n) {
     doc.fail(f.node("fovy"), fmt::format("{} must be between 0 and 180 degrees, got {}", f.field("fovy"), fovy));
   }
   c.fovy = fovy * kDeg;
+  c.nominal = c.pose;
+  if (f.has("intrinsics")) {
+    c.intrinsics = file_field(doc, f, "intrinsics", base_dir, fmt::format("camera '{}': intrinsics file", c.name));
+  }
+  if (f.has("calibration")) {
+    c.calibration = file_field(doc, f, "calibration", base_dir, fmt::format("camera '{}': calibration file", c.name));
+    c.pose = read_camera_calibration(c.calibration, c.name);
+  }
   return c;
 }
 
@@ -999,7 +1027,7 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
                                   "than {} mm)",
                                   o.body, o.other, o.depth * 1000, bounds::kOverlap * 1000));
   }
-  for (const auto& n : list_of(doc, top, "cameras")) cell.cameras.push_back(read_camera(doc, names, n));
+  for (const auto& n : list_of(doc, top, "cameras")) cell.cameras.push_back(read_camera(doc, names, n, base_dir));
   for (const auto& n : list_of(doc, top, "lights")) cell.lights.push_back(read_light(doc, names, n));
 
   // The robots' models: home configurations must fit them, and every location and the hand-over must be reachable.
@@ -1162,6 +1190,30 @@ Eigen::Isometry3d grasp_pose(const Eigen::Vector3d& point, Approach approach, do
   t.linear() = r;
   t.translation() = point;
   return t;
+}
+
+std::string format_camera_calibration(const std::string& camera, const Eigen::Isometry3d& pose,
+                                      const std::string& comment) {
+  std::string out;
+  std::istringstream lines(comment);
+  for (std::string line; std::getline(lines, line);) out += line.empty() ? "#\n" : "# " + line + "\n";
+  const Eigen::Vector3d p = pose.translation();
+  const Eigen::Vector3d rpy = rpy_of(pose.rotation()) / kDeg;
+  out += fmt::format("camera: {}\npose: {{xyz: [{:.6f}, {:.6f}, {:.6f}], rpy: [{:.5f}, {:.5f}, {:.5f}]}}\n", camera,
+                     p.x(), p.y(), p.z(), rpy.x(), rpy.y(), rpy.z());
+  return out;
+}
+
+Pose read_camera_calibration(const std::filesystem::path& file, const std::string& camera) {
+  const Doc doc(file.string());
+  const YAML::Node root = yaml::load(read_file(file), doc, "not valid YAML");
+  if (!root.IsDefined() || root.IsNull()) throw InputError({file.string(), 0, 0}, "the camera calibration is empty");
+  Fields f(doc, root, "the camera calibration", {"camera", "pose"});
+  if (const std::string name = f.text("camera"); name != camera) {
+    doc.fail(f.node("camera"), fmt::format("this calibration is of camera '{}', and it is named by camera '{}'",
+                                           name, camera));
+  }
+  return read_pose(doc, f.node("pose"), f.field("pose"));
 }
 
 }  // namespace cellwright::models

@@ -132,7 +132,8 @@ void add_run(CLI::App& app, Command* run) {
     *run = [args, cmd] {
       using namespace cellwright::cell;
       // A bring-up runs no program: an option for a run's outputs or pace would be ignored, so it is refused.
-      for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime", "--speed", "--final-png"}) {
+      for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime", "--speed", "--final-png",
+                               "--camera", "--record-camera"}) {
         if (args->dry && cmd->count(name) > 0) {
           throw InputError({"--dry", 0, 0},
                            fmt::format("a bring-up runs no program and writes nothing: {} would be ignored", name));

@@ -25,5 +25,6 @@ void add_emulate(CLI::App& app, Command* run);
 void add_commission(CLI::App& app, Command* run);
 void add_campaign(CLI::App& app, Command* run);
 void add_test(CLI::App& app, Command* run);
+void add_calibrate(CLI::App& app, Command* run);
 
 }  // namespace cellwright::tools

@@ -57,6 +57,14 @@ void add_run_options(CLI::App& cmd, RunArgs& args) {
       ->needs(video);
   cmd.add_option("--video-size", args.video_size, "video width x height in pixels, both even (default 800x600)")
       ->needs(video);
+  cmd.add_option("--camera", args.cameras,
+                 "take vision's frames from a real camera instead of the twin's: NAME=v4l2:/dev/videoN (with "
+                 "--realtime) or a recording, NAME=file:VIDEO or NAME=file:GLOB,fps=N (image files in sorted order; "
+                 "frame i is the picture of time i/fps); NAME the camera vision looks through (docs/vision.md)");
+  cmd.add_option("--record-camera", args.record_camera,
+                 "write each frame of vision's camera (plain, as captured) as DIR/frame_<i>.png (6 digits, i the "
+                 "vision period it belongs to): lossless, to be read back with --camera NAME=file:DIR/frame_*.png,"
+                 "fps=1/PERIOD");
   cmd.add_flag("--allow-collisions", args.allow_collisions,
                "run even though the preflight's motion sweep predicts collisions (printed as warnings)");
 }
@@ -65,6 +73,7 @@ cell::Scenario load_scenario_with(const RunArgs& args) {
   using namespace cell;
   if (!args.output.empty()) check_output_directory(args.output, run_output_files(), args.force);
   if (!args.frames.empty()) check_writable_dir(args.frames);
+  if (!args.record_camera.empty()) check_writable_dir(args.record_camera);
   Scenario s = load_scenario(args.scenario);
   for (const std::string& d : args.drivers) set_driver(s, d, {"--driver", 0, 0});
   for (const std::string& f : args.faults) s.faults.push_back(parse_fault_text(f, s.cell, "--fault"));
@@ -136,6 +145,22 @@ cell::RunOptions run_options_for(const RunArgs& args, const cell::Scenario& s) {
       vision::write_png(drawn, dir / fmt::format("frame_{:08}.png", ms));
     };
   }
+  if (!args.record_camera.empty()) {
+    if (s.cell.cameras.empty()) throw InputError({args.scenario, 0, 0}, "--record-camera needs a camera, and the cell has none");
+    const std::filesystem::path dir = args.record_camera;
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) throw InputError({dir.string(), 0, 0}, fmt::format("cannot create the directory: {}", ec.message()));
+    const double period = s.vision ? s.vision->period : cell::VisionSettings{}.period;
+    // Frame i belongs to period i: replayed at fps = 1 / period, frame round(t * fps) is the one taken at t.
+    options.on_frame = [dir, period, saving = std::move(options.on_frame)](const runtime::VisionFrame& f) {
+      if (saving) saving(f);
+      if (f.image.empty()) return;
+      const auto i = std::llround(std::chrono::duration<double>(f.time).count() / period);
+      vision::write_png(vision::as_mat(f.image), dir / fmt::format("frame_{:06}.png", i));
+    };
+  }
+  options.cameras = args.cameras;
   if (!args.output.empty()) options.events_file = streamed_events_file(args.output);
   return options;
 }

@@ -32,11 +32,13 @@ struct RunArgs {
   std::string video_size = "800x600";
   bool allow_collisions = false;  // run although the preflight sweep predicts collisions
   bool force = false;             // --force: write into an -o directory that is not Cellwright's
+  std::vector<std::string> cameras;  // --camera NAME=SOURCE: vision's frames from a real camera or a recording
+  std::string record_camera;         // --record-camera DIR: the camera's frames as lossless PNG files
 };
 
 // Adds the shared options to `cmd`, stored in `args` (which must outlive the parse): the scenario, -o/--output
 // (--out, the old name, still accepted and not shown), --force, --perception, --driver, --fault, --seed, --save-frames,
-// --video, --video-fps, --video-size, --allow-collisions.
+// --video, --video-fps, --video-size, --allow-collisions, --camera, --record-camera.
 void add_run_options(CLI::App& cmd, RunArgs& args);
 
 // The scenario with --driver, --fault and --seed applied, after checking that the -o and --save-frames directories

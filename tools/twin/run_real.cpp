@@ -23,7 +23,11 @@ namespace cellwright::tools {
 int run_real_cell(const CLI::App& cmd, const RunArgs& a, const cell::Scenario& s, const cell::Preflight& pre,
                   double speed, bool quiet) {
   using namespace cellwright::cell;
-  for (const char* name : {"--video", "--save-frames", "--final-png"}) {
+  if (cmd.count("--camera") > 0) {
+    throw InputError({"--camera", 0, 0}, "a camera's frames are for vision, and a run of real robots only has none "
+                                         "(its perception is cad; docs/real-robots.md): leave it out");
+  }
+  for (const char* name : {"--video", "--save-frames", "--final-png", "--record-camera"}) {
     if (cmd.count(name) > 0) {
       throw InputError({name, 0, 0}, "it needs the twin (a picture of the simulated cell), and this twin was built "
                                      "for real robots only (CW_SIM=OFF): leave it out");

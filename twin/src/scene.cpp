@@ -882,6 +882,17 @@ struct Builder {
                       {"rgba", "0.2 0.2 0.22 1"}});
       x.close();
     }
+    for (std::size_t i = 0; i < options.plates.size(); ++i) {
+      const Plate& p = options.plates[i];
+      x.leaf("geom", {{"name", fmt::format("plate/{}", i + 1)},
+                      {"type", "box"},
+                      {"pos", vec(p.pose.translation())},
+                      {"quat", quat(Eigen::Matrix3d(p.pose.linear()))},
+                      {"size", vec(p.size / 2)},
+                      {"contype", "0"},
+                      {"conaffinity", "0"},
+                      {"rgba", nums({p.rgba[0], p.rgba[1], p.rgba[2], p.rgba[3]})}});
+    }
     x.close();
 
     if (!meshes.empty()) {

@@ -567,11 +567,19 @@ void match_faults(const Scenario& s, const std::vector<LoggedEvent>& events, Rep
     }
     r.faults.push_back(std::move(f));
   }
-  // Detections no injection took, with no injection before them: false alarms when the twin's truth shows nothing
-  // wrong, else unexplained faults.
-  for (std::size_t k = 0; k < events.size() && k < first_injection; ++k) {
+  // Detections no injection took, with no injection before them (a later detection may be a consequence of an
+  // earlier fault), or lost frames with no lost frame injected before them (the camera's frames are lost by nothing
+  // else: a real camera's recording that ended): false alarms when the twin's truth shows nothing wrong, else
+  // unexplained faults.
+  for (std::size_t k = 0; k < events.size(); ++k) {
     const auto* e = std::get_if<ev::FaultDetected>(&events[k].event);
     if (matched[k] || e == nullptr) continue;
+    bool may_follow_an_injection = k > first_injection && e->symptom != "frame_lost";
+    for (std::size_t i = first_injection; i < k && !may_follow_an_injection; ++i) {
+      const auto* injected = std::get_if<ev::FaultInjected>(&events[i].event);
+      may_follow_an_injection = injected != nullptr && can_show_as(injected->kind, e->symptom);
+    }
+    if (may_follow_an_injection) continue;
     Detection d;
     d.t = seconds(e->t);
     d.robot = e->robot;

@@ -142,6 +142,48 @@ EstimateOptions twin_estimate_options(const Scenario& s, const twin::Scene& scen
   return out;
 }
 
+namespace {
+
+// The real camera of `texts` (RunOptions::cameras), opened, or none; InputError when it cannot stand in for the twin's.
+std::unique_ptr<vision::CameraSource> open_real_camera(const Scenario& s, const std::vector<std::string>& texts,
+                                                       runtime::Perception perception, bool realtime) {
+  if (texts.empty()) return nullptr;
+  const SourceLocation where{"--camera", 0, 0};
+  if (texts.size() > 1) {
+    throw InputError(where, fmt::format("{} cameras given, and vision looks through one", texts.size()));
+  }
+  const vision::CameraText text = vision::parse_camera_text(texts.front(), where);
+  const models::CameraSpec* camera = s.cell.find_camera(text.camera);
+  if (camera == nullptr) {
+    throw InputError(where, fmt::format("'{}': the cell {} has no camera '{}'", text.text, s.cell.source.string(),
+                                        text.camera));
+  }
+  if (perception != runtime::Perception::kVision) {
+    throw InputError(where, fmt::format("'{}': a camera's frames are for vision, and this run's perception is {}",
+                                        text.text, runtime::to_string(perception)));
+  }
+  const std::string looks_through = s.vision ? s.vision->camera : s.cell.cameras.front().name;
+  if (text.camera != looks_through) {
+    throw InputError(where, fmt::format("'{}': vision looks through camera '{}', not '{}'", text.text, looks_through,
+                                        text.camera));
+  }
+  if (text.kind == vision::CameraText::Kind::kDevice && !realtime) {
+    throw InputError(where, fmt::format("'{}': a live camera runs at its own pace, and this run is lock-step: add "
+                                        "--realtime (or give a recording, file:...)",
+                                        text.text));
+  }
+  for (const FaultSpec& f : s.faults) {
+    if (needs_vision(f.kind)) {
+      throw InputError(f.where, fmt::format("a {} fault is injected into the twin's camera, and '{}' puts a real "
+                                            "camera in its place",
+                                            to_string(f.kind), text.text));
+    }
+  }
+  return std::make_unique<vision::CameraSource>(text, *camera);
+}
+
+}  // namespace
+
 ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions options)
     : scenario_(s),
       realtime_(options.realtime.value_or(s.options.realtime)),
@@ -155,6 +197,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
     }
   }
   CW_CHECK(pre.plan.has_value(), "a run of a program the preflight did not plan");
+  camera_ = open_real_camera(s, options.cameras, perception_, realtime_);
   CellWorld cell = make_cell_world(s, pre.twin != nullptr ? &pre.twin->scene : nullptr);
   world_ = std::move(cell.world);
 
@@ -266,6 +309,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
                                                                    [frames] { return frames->last_capture(); });
     }
     config.on_frame = std::move(options.on_frame);
+    config.camera = camera_.get();
   } else if (options.on_frame) {
     // Plain frames of the camera vision would look through, at its period: for a person to look at, not acted on.
     const VisionSettings v = s.vision.value_or(VisionSettings{});

@@ -324,7 +324,9 @@ struct Runtime::Impl {
       Frame f;
       f.time = t;
       std::string why;
-      if (std::optional<Image> image = cfg.plant->capture(vision->options().camera, &why)) {
+      std::optional<Image> image = cfg.camera != nullptr ? cfg.camera->capture(t, &why)
+                                                         : cfg.plant->capture(vision->options().camera, &why);
+      if (image) {
         f.image = std::move(*image);
       } else {
         f.problem = why;
@@ -504,6 +506,7 @@ struct Runtime::Impl {
 
   void release_plant() {
     if (cfg.plant != nullptr) cfg.plant->release_thread_resources();
+    if (cfg.camera != nullptr) cfg.camera->release_thread_resources();
   }
 };
 
@@ -533,8 +536,9 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     im.robot_wake.push_back(std::make_unique<Event>(Event::Kind::auto_reset));
   }
   if (config_.perception == Perception::kVision) {
-    CW_CHECK(config_.vision.has_value() && config_.detector != nullptr && config_.plant != nullptr,
-             "vision perception needs a camera, a detector and a plant that renders the camera");
+    CW_CHECK(config_.vision.has_value() && config_.detector != nullptr &&
+                 (config_.plant != nullptr || config_.camera != nullptr),
+             "vision perception needs a camera, a detector and a frame source or a plant that renders the camera");
     im.vision = std::make_unique<ImageProcessing>(*config_.detector, im.env, im.frames, *log_, *config_.vision,
                                                   config_.on_frame, config_.motion.recovery);
     // Until the camera has seen them, parts are not known to be in the cell (a fed part may not have arrived): their

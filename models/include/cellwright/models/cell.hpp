@@ -255,13 +255,31 @@ struct WorkpieceSpec {
 };
 
 // A fixed camera. pose is MuJoCo's camera frame: it looks along its -z axis, image up is its +y axis.
+// A real camera (issue 26, docs/vision.md "A real camera") may have two files of its own, named in its entry:
+//  - `intrinsics: FILE`, its intrinsics and lens distortion as OpenCV's calibration tools write them (read by vision/:
+//    models/ only checks that the file is there); its frames are undistorted into the pinhole of `resolution` and
+//    `fovy` before detection;
+//  - `calibration: FILE`, its pose in the cell as `twin calibrate` found it (format_camera_calibration below): then
+//    `pose` is the calibrated pose, and the entry's own (`pose`, or `position` with `look_at`) is `nominal`.
 struct CameraSpec {
   std::string name;
   Pose pose;
+  Pose nominal;  // the entry's own pose (the same as `pose` without a calibration)
   int width = 640, height = 480;
   double fovy = 0;  // vertical field of view, radians
+  std::filesystem::path intrinsics;   // absolute; empty when not given
+  std::filesystem::path calibration;  // absolute; empty when not given
   SourceLocation where;
 };
+
+// A camera's calibrated pose as `twin calibrate` writes it: YAML, `camera: NAME`, `pose: {xyz: [...], rpy: [...]}`
+// (metres, degrees: the cell description's pose) and `comment` as comment lines at the top.
+std::string format_camera_calibration(const std::string& camera, const Eigen::Isometry3d& pose,
+                                      const std::string& comment);
+
+// Reads such a file for camera `camera`: its pose. InputError naming the file, line and problem (a missing or
+// unknown field, another camera's name, a bad number).
+Pose read_camera_calibration(const std::filesystem::path& file, const std::string& camera);
 
 struct LightSpec {
   std::string name;

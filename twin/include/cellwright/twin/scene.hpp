@@ -79,9 +79,19 @@ struct ObstacleIds {
   double size = 0;  // m, the cube's side
 };
 
-// What a scene holds besides the cell: the obstacles the scenario's faults may put in the cell, by size (m).
+// A flat coloured box fixed in the world that the cameras see and nothing touches (a calibration target's board and
+// squares, for `twin calibrate`'s tests: vision/calibration.hpp).
+struct Plate {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // its centre, world
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();          // full extents, m
+  Eigen::Vector4d rgba = Eigen::Vector4d::Ones();
+};
+
+// What a scene holds besides the cell: the obstacles the scenario's faults may put in the cell, by size (m), and
+// plates.
 struct SceneOptions {
   std::vector<double> obstacles;
+  std::vector<Plate> plates;
 };
 
 class Scene {

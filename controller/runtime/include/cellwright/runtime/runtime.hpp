@@ -52,6 +52,7 @@
 #include "cellwright/petri/net.hpp"
 #include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/runtime/event_log.hpp"
+#include "cellwright/runtime/frame_source.hpp"
 #include "cellwright/runtime/image_processing.hpp"
 #include "cellwright/runtime/plant.hpp"
 #include "cellwright/runtime/robot_control.hpp"
@@ -132,6 +133,9 @@ struct RunConfig {
   Perception perception = Perception::kTruth;
   std::optional<VisionOptions> vision;
   std::shared_ptr<const PartDetector> detector;  // for the vision camera
+  // Where vision's frames come from (frame_source.hpp: a real camera or a recording of one); not owned, it must
+  // outlive the Runtime. Unset: the plant renders the vision camera (Plant::capture).
+  FrameSource* camera = nullptr;
   // Called on the image-processing thread after each frame (e.g. to save it). Must not call the Runtime.
   std::function<void(const VisionFrame&)> on_frame;
   // Without vision perception (ignored with it): the camera and period of plain frames, captured by the simulation

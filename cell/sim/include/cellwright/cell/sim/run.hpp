@@ -52,6 +52,7 @@
 #include "cellwright/twin/sim/world.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
 #include "cellwright/twin/video.hpp"
+#include "cellwright/vision/camera_source.hpp"
 
 namespace cellwright::cell {
 
@@ -84,6 +85,11 @@ struct RunOptions {
   // cannot be written), frames are recorded on the simulation thread at multiples of 1/fps of simulation time (the
   // event log is the same with and without), and finish_video() adds the verdict and closes it.
   std::optional<twin::VideoOptions> video;
+  // Real cameras (`--camera NAME=SOURCE`, vision/camera_source.hpp): vision's frames come from the source instead of
+  // the twin's renderer. NAME must be the camera vision looks through, and the perception vision; a live device
+  // needs a real-time run; the twin's camera faults (frame_lost, detection_noise) cannot be injected into a real
+  // camera. The source is opened (its first frame read) when the ScenarioRun is built: InputError otherwise.
+  std::vector<std::string> cameras;
 };
 
 // The scenario's cell as it really is, compiled: its parts where the scenario's perturbation puts them (drawn with its
@@ -179,6 +185,7 @@ class ScenarioRun {
   std::vector<std::unique_ptr<sim::MirroredDriver>> mirrors_;  // real robots, with their copies in world_
   std::vector<std::unique_ptr<drivers::FaultyDriver>> faulty_;  // simulated robots with driver faults
   std::vector<std::unique_ptr<runtime::GripSensor>> grip_sensors_;  // real robots' grip sensors, on their drivers
+  std::unique_ptr<vision::CameraSource> camera_;  // RunOptions::cameras: vision's frames, or none (the twin's)
   std::unique_ptr<runtime::Plant> plant_;
   sim::WorldPlant* world_plant_ = nullptr;  // plant_, the World's
   Estimate estimate_;

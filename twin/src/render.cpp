@@ -162,6 +162,17 @@ cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int h
   mjvCamera cam = camera;
   const mjrRect viewport{0, 0, width, height};
   mjv_updateScene(model_, data, &r.option, nullptr, &cam, mjCAT_ALL, &r.scene);
+  // Colours the run changed (a processed part): state in mjData::userdata, painted over the shared model's.
+  for (int slot = 0; slot + kColourSlot <= model_->nuserdata; slot += kColourSlot) {
+    const mjtNum* c = data->userdata + slot;
+    const int geom = static_cast<int>(c[0]) - 1;
+    if (geom < 0) continue;
+    for (int i = 0; i < r.scene.ngeom; ++i) {
+      mjvGeom& g = r.scene.geoms[i];
+      if (g.objtype != mjOBJ_GEOM || g.objid != geom) continue;
+      for (int k = 0; k < 4; ++k) g.rgba[k] = static_cast<float>(c[1 + k]);
+    }
+  }
   // Shadows cost a depth pass per shadow-casting light, reflections a mirrored pass of the scene.
   const mjtByte full = quality == RenderQuality::kFull ? 1 : 0;
   for (int flag : {mjRND_SHADOW, mjRND_REFLECTION, mjRND_SKYBOX}) r.scene.flags[flag] = full;

@@ -763,7 +763,10 @@ struct Builder {
     // MuJoCo 2.2 sizes mjData by these: njmax rows of constraint (its njmax x njmax matrix made 4000 rows cost 200
     // MB), nconmax contacts. The shipped scenarios need at most about 135 rows and 35 contacts; a run that needs more
     // fails with a clear error (World: the buffer-full warning faults every robot).
-    x.leaf("size", {{"njmax", std::to_string(kNjmax)}, {"nconmax", std::to_string(kNconmax)}});
+    x.leaf("size", {{"njmax", std::to_string(kNjmax)},
+                    {"nconmax", std::to_string(kNconmax)},
+                    // A colour per workpiece that the run may change (scene.hpp, kColourSlot).
+                    {"nuserdata", std::to_string(kColourSlot * static_cast<int>(cell.workpieces.size()))}});
     int offwidth = 640, offheight = 480;
     for (const auto& c : cell.cameras) {
       offwidth = std::max(offwidth, c.width);

@@ -316,6 +316,7 @@ VideoRecorder::Frame VideoRecorder::capture(const mjData* data, runtime::SimDura
   f.qpos.assign(data->qpos, data->qpos + model_->nq);
   f.mocap_pos.assign(data->mocap_pos, data->mocap_pos + 3 * model_->nmocap);
   f.mocap_quat.assign(data->mocap_quat, data->mocap_quat + 4 * model_->nmocap);
+  f.userdata.assign(data->userdata, data->userdata + model_->nuserdata);  // colours changed by the run
   return f;
 }
 
@@ -402,6 +403,7 @@ void VideoRecorder::loop() {
         std::copy(f.qpos.begin(), f.qpos.end(), d->qpos);
         std::copy(f.mocap_pos.begin(), f.mocap_pos.end(), d->mocap_pos);
         std::copy(f.mocap_quat.begin(), f.mocap_quat.end(), d->mocap_quat);
+        std::copy(f.userdata.begin(), f.userdata.end(), d->userdata);
         d->time = std::chrono::duration<double>(f.time).count();
         mj_kinematics(model_, d);
         mj_comPos(model_, d);

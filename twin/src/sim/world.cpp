@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <utility>
 
 namespace cellwright::twin::sim {
 
@@ -23,6 +24,8 @@ constexpr double kRestGap = 0.002;  // m: a part this close above a surface rest
 // The part-present sensors (world.hpp): how close a part's front face is to the stop bar, and its bottom to the belt.
 constexpr double kSensorReach = 0.005;
 constexpr double kSensorHeight = 0.005;
+// An accumulating belt stops when a part's front face comes this close to the bar (world.hpp, "Belts").
+constexpr double kBlockReach = 0.0005;
 // A part moving faster is passing, not resting: the runtime's rule for a part ready to be grasped.
 const double kSensorRestSpeed = runtime::TargetOptions{}.part_at_rest_speed;
 // Its speed is averaged (a first-order filter with this time constant): a part pressed against the stop by the belt
@@ -67,6 +70,19 @@ Eigen::Isometry3d free_pose(const mjData* d, int qpos_adr) {
   t.translation() << q[0], q[1], q[2];
   t.linear() = Eigen::Quaterniond(q[3], q[4], q[5], q[6]).normalized().toRotationMatrix();
   return t;
+}
+
+// A part as seen in another frame (a conveyor's, a fixture's): its centre and half its extents along that frame's
+// axes, however it is turned.
+struct Lying {
+  Eigen::Vector3d centre;
+  Eigen::Vector3d half;
+  double bottom() const { return centre.z() - half.z(); }
+};
+
+Lying lying(const Eigen::Isometry3d& pose, const Eigen::Vector3d& size) {
+  const Eigen::Matrix3d r = pose.linear().cwiseAbs();
+  return {pose.translation(), 0.5 * (r * size)};
 }
 
 }  // namespace
@@ -119,17 +135,33 @@ World::World(Scene scene, WorldOptions options)
     place_at_rest(w, parking_pose(w));
     parked_[w] = true;
   }
-  for (const models::ConveyorSpec& c : scene_.cell().conveyors) {
-    if (c.sensor == 0) continue;
+  const models::CellDescription& cell = scene_.cell();
+  for (const models::ConveyorSpec& c : cell.conveyors) {
+    world_to_conveyor_.push_back(c.pose.transform().inverse());
+    state_.conveyors.push_back({c.name, true, true, false, false});
+    if (!c.stop_eye) continue;
     if (static_cast<std::size_t>(c.sensor) > signals_.size()) {
       throw InputError(c.sensor_where, fmt::format("conveyor '{}': its sensor's signal {} is not one of the cell's {} "
                                                    "digital signals",
                                                    c.name, c.sensor, signals_.size()));
     }
-    sensors_.push_back({&c, c.pose.transform().inverse()});
+    ++stop_eyes_;
   }
+  for (const models::MachineSpec& mc : cell.machines) {
+    world_to_fixture_.push_back(mc.fixture_top().transform().inverse());
+    MachineDevice md;
+    md.name = mc.name;
+    state_.machines.push_back(std::move(md));
+  }
+  belt_run_.assign(cell.conveyors.size(), true);  // the belts run from the start, as they always did
+  machine_start_.assign(cell.machines.size(), false);
+  start_edges_.assign(cell.machines.size(), 0);
+  taken_edges_.assign(cell.machines.size(), 0);
+  busy_steps_.assign(cell.machines.size(), 0);
+  held_.assign(cell.conveyors.size(), false);
+  processed_.assign(scene_.workpieces().size(), false);
   sensed_velocity_.assign(scene_.workpieces().size(), Eigen::Vector3d::Zero());
-  update_sensors();
+  update_devices(false);
   for (int i = 0; i < mjNWARNING; ++i) warning_counts_[static_cast<std::size_t>(i)] = d->warning[i].number;
 }
 
@@ -231,6 +263,7 @@ void World::step(std::int64_t n) {
   const mjModel* m = scene_.model();
   mjData* d = scene_.data();
   for (std::int64_t i = 0; i < n; ++i) {
+    if (commands_changed_.load(std::memory_order_acquire)) apply_commands();
     for (auto& driver : drivers_) {
       if (driver) driver->step(now(), m, d);
     }
@@ -239,8 +272,8 @@ void World::step(std::int64_t n) {
     ++steps_;
     check_contacts();
     check_warnings();
-    if (!sensors_.empty()) {
-      // The parts' averaged velocities, for the sensors' rest test.
+    if (stop_eyes_ != 0 || !state_.machines.empty()) {
+      // The parts' averaged velocities, for the stop eyes' and the fixtures' rest test.
       const double a = std::min(1.0, std::chrono::duration<double>(timestep_).count() / kSensorSpeedTime);
       for (std::size_t w = 0; w < sensed_velocity_.size(); ++w) {
         const Eigen::Vector3d v = Eigen::Map<const Eigen::Vector3d>(d->qvel + scene_.workpieces()[w].dof_adr);
@@ -248,36 +281,170 @@ void World::step(std::int64_t n) {
             parked_[w] ? Eigen::Vector3d::Zero() : Eigen::Vector3d(sensed_velocity_[w] + a * (v - sensed_velocity_[w]));
       }
     }
-    update_sensors();
+    update_devices(true);
   }
+}
+
+void World::update_devices(bool stepped) {
+  update_sensors();
+  update_machines(stepped);
+  drive_belts();
+  {
+    const std::lock_guard lock(device_mutex_);
+    if (!(published_ == state_)) published_ = state_;
+  }
+  published_time_.store(now().count(), std::memory_order_release);
 }
 
 void World::update_sensors() {
   const mjData* d = scene_.data();
   const models::CellDescription& cell = scene_.cell();
-  for (const Sensor& sensor : sensors_) {
-    const models::ConveyorSpec& c = *sensor.conveyor;
-    bool present = false;
-    for (std::size_t w = 0; w < cell.workpieces.size() && !present; ++w) {
+  for (std::size_t i = 0; i < cell.conveyors.size(); ++i) {
+    const models::ConveyorSpec& c = cell.conveyors[i];
+    if (!c.stop_eye && !c.drop_eye) continue;
+    bool stop = false, drop = false, near = false, at = false;
+    for (std::size_t w = 0; w < cell.workpieces.size(); ++w) {
       if (parked_[w]) continue;
-      const WorkpieceIds& ids = scene_.workpieces()[w];
-      const Eigen::Vector3d& size = cell.workpieces[w].size;
-      // The part in the conveyor's frame: x along the belt from its centre, z up from the floor.
-      const Eigen::Isometry3d pose = sensor.world_to_conveyor * free_pose(d, ids.qpos_adr);
-      const Eigen::Matrix3d& r = pose.linear();
-      // Half its extent along the belt and upwards, however it is turned.
-      const double half_x =
-          0.5 * (std::abs(r(0, 0)) * size.x() + std::abs(r(0, 1)) * size.y() + std::abs(r(0, 2)) * size.z());
-      const double half_z =
-          0.5 * (std::abs(r(2, 0)) * size.x() + std::abs(r(2, 1)) * size.y() + std::abs(r(2, 2)) * size.z());
-      const Eigen::Vector3d& p = pose.translation();
-      const double front = p.x() + c.length / 2 + half_x;  // distance from the belt's upstream end
-      const double speed = sensed_velocity_[w].norm();
-      present = std::abs(front - c.leave) <= kSensorReach && std::abs(p.y()) <= c.width / 2 &&
-                std::abs(p.z() - half_z - c.height) <= kSensorHeight && speed < kSensorRestSpeed;
+      const Lying l = lying(world_to_conveyor_[i] * free_pose(d, scene_.workpieces()[w].qpos_adr),
+                            cell.workpieces[w].size);
+      const Eigen::Vector3d& p = l.centre;  // in the conveyor's frame: x along the belt from its centre, z up
+      if (std::abs(p.y()) > c.width / 2 || std::abs(l.bottom() - c.height) > kSensorHeight) continue;
+      const double s = p.x() + c.length / 2;  // distance from the belt's upstream end
+      // The stop eye: the front face at the bar, at rest. The drop eye: a beam across the belt at `enter`.
+      const double gap = std::abs(s + l.half.x() - c.leave);
+      near = near || gap <= kSensorReach;
+      at = at || gap <= kBlockReach;
+      stop = stop || (c.stop_eye && gap <= kSensorReach && sensed_velocity_[w].norm() < kSensorRestSpeed);
+      drop = drop || (c.drop_eye && std::abs(s - c.enter) <= l.half.x());
     }
-    signals_.set(c.sensor, present);
+    // Accumulation holds the belt from a part reaching the bar until no part is near it any more: the hysteresis
+    // keeps the belt from restarting when the part, no longer pressed on the bar, eases back from it.
+    held_[i] = c.stop_eye && (held_[i] ? near : at);
+    state_.conveyors[i].stop_eye = stop;
+    state_.conveyors[i].drop_eye = drop;
+    if (c.sensor != 0) signals_.set(c.sensor, stop);
   }
+}
+
+void World::apply_commands() {
+  commands_changed_.store(false, std::memory_order_relaxed);
+  const std::lock_guard lock(device_mutex_);
+  for (std::size_t i = 0; i < belt_run_.size(); ++i) state_.conveyors[i].run = belt_run_[i];
+  for (std::size_t m = 0; m < machine_start_.size(); ++m) {
+    state_.machines[m].start = machine_start_[m];
+    taken_edges_[m] += std::exchange(start_edges_[m], 0);
+  }
+  drive_belts();
+}
+
+void World::drive_belts() {
+  mjData* d = scene_.data();
+  const models::CellDescription& cell = scene_.cell();
+  for (std::size_t i = 0; i < cell.conveyors.size(); ++i) {
+    ConveyorDevice& c = state_.conveyors[i];
+    c.running = c.run && !(cell.conveyors[i].accumulate && held_[i]);
+    const ConveyorIds& ids = scene_.conveyors()[i];
+    d->ctrl[ids.belt_actuator] = c.running ? ids.speed : 0.0;
+  }
+}
+
+bool World::on_fixture(std::size_t machine, std::size_t workpiece) const {
+  if (parked_[workpiece]) return false;
+  const Lying l = lying(world_to_fixture_[machine] * free_pose(scene_.data(), scene_.workpieces()[workpiece].qpos_adr),
+                        scene_.cell().workpieces[workpiece].size);
+  const Eigen::Vector3d& fixture = scene_.cell().machines[machine].fixture_size;
+  return std::abs(l.centre.x()) <= fixture.x() / 2 && std::abs(l.centre.y()) <= fixture.y() / 2 &&
+         std::abs(l.bottom()) <= kSensorHeight;
+}
+
+void World::update_machines(bool stepped) {
+  const models::CellDescription& cell = scene_.cell();
+  for (std::size_t m = 0; m < state_.machines.size(); ++m) {
+    MachineDevice& md = state_.machines[m];
+    const int starts = std::exchange(taken_edges_[m], 0);
+    const std::size_t w = md.part.empty() ? npos : workpiece_index(md.part);
+    if (md.state == MachineState::idle) {
+      for (std::size_t o = 0; o < processed_.size(); ++o) {
+        if (on_fixture(m, o) && sensed_velocity_[o].norm() < kSensorRestSpeed) {
+          md.state = MachineState::loaded;
+          md.part = scene_.workpieces()[o].name;
+          break;
+        }
+      }
+      continue;  // a start while empty is ignored
+    }
+    if (!on_fixture(m, w)) {
+      // The part left the fixture: after the cycle, that is the unload; before its end, the cycle is aborted.
+      if (md.state == MachineState::done) ++md.unloads;
+      md.state = MachineState::idle;
+      md.part.clear();
+      md.busy_left = std::chrono::nanoseconds(0);
+      continue;
+    }
+    if (md.state == MachineState::loaded && starts > 0) {
+      md.state = MachineState::busy;
+      const double steps = cell.machines[m].process_time / std::chrono::duration<double>(timestep_).count();
+      busy_steps_[m] = std::max<std::int64_t>(1, std::llround(steps));
+    } else if (md.state == MachineState::busy && stepped && --busy_steps_[m] == 0) {
+      md.state = MachineState::done;
+      ++md.cycles;
+      processed_[w] = true;
+      state_.processed.push_back(md.part);
+      paint_processed(w, cell.machines[m].processed_rgba);
+    }
+    md.busy_left = md.state == MachineState::busy ? timestep_ * busy_steps_[m] : std::chrono::nanoseconds(0);
+  }
+}
+
+void World::paint_processed(std::size_t workpiece, const Eigen::Vector4d& rgba) {
+  mjtNum* slot = scene_.data()->userdata + kColourSlot * static_cast<std::ptrdiff_t>(workpiece);
+  CW_CHECK(kColourSlot * static_cast<int>(workpiece + 1) <= scene_.model()->nuserdata,
+           "the scene has no colour slot for workpiece {}", workpiece);
+  slot[0] = scene_.workpieces()[workpiece].geom + 1;
+  for (int k = 0; k < 4; ++k) slot[1 + k] = rgba[k];
+}
+
+void World::set_belt_run(std::size_t conveyor, bool run) {
+  const std::lock_guard lock(device_mutex_);
+  CW_CHECK(conveyor < belt_run_.size(), "no conveyor {} (the cell has {})", conveyor, belt_run_.size());
+  belt_run_[conveyor] = run;
+  commands_changed_.store(true, std::memory_order_release);
+}
+
+bool World::belt_run(std::size_t conveyor) const {
+  const std::lock_guard lock(device_mutex_);
+  CW_CHECK(conveyor < belt_run_.size(), "no conveyor {} (the cell has {})", conveyor, belt_run_.size());
+  return belt_run_[conveyor];
+}
+
+void World::set_machine_start(std::size_t machine, bool on) {
+  const std::lock_guard lock(device_mutex_);
+  CW_CHECK(machine < machine_start_.size(), "no machine {} (the cell has {})", machine, machine_start_.size());
+  if (on && !machine_start_[machine]) ++start_edges_[machine];
+  machine_start_[machine] = on;
+  commands_changed_.store(true, std::memory_order_release);
+}
+
+bool World::machine_start(std::size_t machine) const {
+  const std::lock_guard lock(device_mutex_);
+  CW_CHECK(machine < machine_start_.size(), "no machine {} (the cell has {})", machine, machine_start_.size());
+  return machine_start_[machine];
+}
+
+DeviceStates World::devices() const {
+  DeviceStates out;
+  {
+    const std::lock_guard lock(device_mutex_);
+    out = published_;
+  }
+  out.time = std::chrono::nanoseconds(published_time_.load(std::memory_order_acquire));
+  return out;
+}
+
+bool World::processed(std::string_view workpiece) const {
+  const std::size_t w = workpiece_index(workpiece);
+  CW_CHECK(w != npos, "no workpiece '{}'", workpiece);
+  return processed_[w];
 }
 
 void World::check_contacts() {
@@ -425,6 +592,7 @@ FeedResult World::feed(std::string_view workpiece, std::string_view conveyor, co
   }
   place_at_rest(w, pose);
   parked_[w] = false;
+  update_devices(false);
   return {};
 }
 
@@ -433,7 +601,7 @@ FeedResult World::park(std::string_view workpiece) {
   if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to park", workpiece)};
   place_at_rest(w, parking_pose(w));
   parked_[w] = true;
-  update_sensors();
+  update_devices(false);
   return {};
 }
 
@@ -442,7 +610,7 @@ FeedResult World::place(std::string_view workpiece, const Eigen::Isometry3d& pos
   if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to place", workpiece)};
   place_at_rest(w, pose);
   parked_[w] = false;
-  update_sensors();
+  update_devices(false);
   return {};
 }
 
@@ -647,6 +815,20 @@ std::string_view to_string(SupportKind kind) {
       return "other";
     case SupportKind::parked:
       return "parked";
+  }
+  return "?";
+}
+
+std::string_view to_string(MachineState state) {
+  switch (state) {
+    case MachineState::idle:
+      return "idle";
+    case MachineState::loaded:
+      return "loaded";
+    case MachineState::busy:
+      return "busy";
+    case MachineState::done:
+      return "done";
   }
   return "?";
 }

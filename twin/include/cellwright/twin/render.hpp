@@ -46,7 +46,8 @@ class Renderer {
   int max_height() const { return max_height_; }
 
   // Renders `data` (made for this renderer's model) seen by the model's camera `camera_id`, as a BGR image (OpenCV's
-  // channel order) of width x height pixels, top row first. The camera's vertical field of view spans the image
+  // channel order) of width x height pixels, top row first. Geoms whose colour the run changed (a processed part:
+  // mjData::userdata, scene.hpp kColourSlot) are drawn in that colour; this holds for every render below. The camera's vertical field of view spans the image
   // height. width and height must be within 1..max (else InternalError).
   cv::Mat render_camera(mjData* data, int camera_id, int width, int height,
                         RenderQuality quality = RenderQuality::kFull);

@@ -18,7 +18,10 @@
 //    "workpiece/<name>"; cameras and lights as described; sites "location/<name>" and "handover/<name>" (hidden).
 //
 // Fixed model and changing state: the compiled mjModel is never changed once built, and Scenes made with share() use
-// the one model (compiled once) each with its own mjData.
+// the one model (compiled once) each with its own mjData. A colour that changes during a run (a part a machine has
+// processed, world.hpp) is therefore state: it travels in mjData::userdata (kColourSlot numbers per workpiece, in
+// workpieces() order: {geom id + 1, or 0 for no change; r; g; b; a}), which every copy of the state carries
+// (mj_copyData, the video's frames), and the Renderer paints it over the model's colour (render.hpp).
 //
 // Threads: a Scene and its mjData belong to one thread at a time (MuJoCo's mjData is not thread-safe); Scenes that
 // share a model may be used by different threads. The functions here install no MuJoCo error or warning handlers:
@@ -51,6 +54,9 @@ struct RobotIds {
   int base_body = -1, flange_body = -1;
   std::vector<double> home;  // radians, per arm joint
 };
+
+// Numbers of mjData::userdata per workpiece: a colour that replaces the model's (see the top).
+inline constexpr int kColourSlot = 5;
 
 struct ConveyorIds {
   std::string name;

@@ -123,7 +123,7 @@ class VideoRecorder {
  private:
   struct Frame {
     runtime::SimDuration time{0};
-    std::vector<mjtNum> qpos, mocap_pos, mocap_quat;
+    std::vector<mjtNum> qpos, mocap_pos, mocap_quat, userdata;  // userdata: colours the run changed (scene.hpp)
     Overlay overlay;
     int repeat = 1;     // the hold at the end: the same picture this many times
     bool last = false;  // the thread ends after it

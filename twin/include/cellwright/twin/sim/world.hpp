@@ -13,18 +13,47 @@
 //    downward cameras' view (chosen with WorldOptions::parked); feed() puts the next one on a conveyor's entry
 //    point, at rest, as a scenario event. It is
 //    the only way a part moves without contacts: robots carry parts by friction only.
-//  - Part-present sensors: for each conveyor with a sensor (models::ConveyorSpec::sensor, the cell's `sensor:
-//    {signal: n}`), signal n of signals() is set after every step (and at construction, and by park()): on while a
+//  - Part-present sensors: for each conveyor with a stop eye (models::ConveyorSpec::stop_eye, the cell's `sensor:`),
+//    the eye, and signal n of signals() when it is wired to one (`sensor: {signal: n}`), are set after every step (and
+//    at construction, and by feed(), park() and place()): on while a
 //    workpiece that is not parked rests against the stop bar (its front face, along the belt, within 5 mm of `leave`;
 //    its centre over the belt; its bottom within 5 mm of the belt's top) and moves slower than the runtime's
 //    part-at-rest speed (runtime::TargetOptions::part_at_rest_speed), its velocity averaged over about 0.1 s (a
 //    part pressed against the stop chatters), else off. Like a photo-eye at the stop, it says
 //    that a part is there, not which one. The sensor owns its signal: anything else setting it is overwritten.
 //
+// DEVICES (docs/simulation.md, "Devices"): the conveyors, their photo-eyes and the machines, as a real cell's I/O unit
+// sees them (TwinIo, twin_io.hpp, serves them as a DigitalIo). Their state is updated after every step (and at
+// construction, feed(), park() and place()) and read by devices().
+//  - Photo-eyes. The stop eye of a conveyor with a `sensor` (models::ConveyorSpec::stop_eye) is the part-present
+//    sensor above (it drives its signal when it has one). The drop eye (`drop_sensor`) is on while a part that is not
+//    parked lies across the point `enter` (the part's extent along the belt covers it; its centre over the belt; its
+//    bottom within 5 mm of the belt's top), moving or not, like a beam across the belt.
+//  - Belts. A belt runs at its speed while its run command is on (set_belt_run(); on at the start, so that a cell
+//    without device commands runs as it always did) and, on an accumulating conveyor (ConveyorSpec::accumulate), no
+//    part blocks the stop eye's beam: it stops (drive 0) when a part on the belt reaches the stop bar (its front face
+//    within 0.5 mm of it), so that the queue behind rests instead of sliding on a moving belt, and runs again once no
+//    part on the belt is within 5 mm of the bar (the part was taken; the hysteresis keeps a part that eases back from
+//    the bar once the belt no longer presses it from restarting the belt). The eye's output (the signal, the
+//    discrete input) is the settled part of the rule above. A stopped belt carries nothing. The belt's drive is set
+//    after every step from the parts' poses of that step.
+//  - Machines: the cycle idle -> loaded -> busy -> done -> (unloaded) idle. `loaded`: a part that is not parked rests
+//    on the fixture (its bottom centre over the fixture plate's top, within 5 mm of it, averaged speed under the
+//    part-at-rest speed); a part that no longer lies on it (the same test without the speed) has left. A rising edge
+//    of the start command (set_machine_start(), from false to true; edges between two steps are not lost) while
+//    `loaded` starts the cycle: `busy` for process_time, counted in whole steps of simulated time; then the part is
+//    processed (processed(): for good; its colour becomes the machine's processed_rgba in every rendering, through
+//    mjData::userdata, scene.hpp) and the machine is `done` until that part leaves the fixture, which is the unload:
+//    the machine goes back to `idle` (MachineDevice::unloads counts them). A start while the machine is not `loaded`
+//    (empty, busy or done) is IGNORED: nothing happens, the edge is consumed. A part taken off while `busy` aborts
+//    the cycle unprocessed (back to `idle`).
+//
 // THREADS. One thread (the simulation thread) calls every other member, const or not (now(), truth(), ...);
 // scene() and the ids it holds never change and may be read from any thread. The SimDrivers it
 // creates are used by their owners (robot-control threads) through the RobotDriver interface, which is thread-safe;
-// signals() may be used from any thread. World is neither copyable nor movable (drivers refer to it).
+// signals(), set_belt_run(), set_machine_start(), belt_run(), machine_start() and devices() may be used from any
+// thread (a device-control thread serving the I/O image): commands take effect at the next step, devices() gives
+// the state as of the last step. World is neither copyable nor movable (drivers refer to it).
 //
 // DETERMINISM. Nothing here reads the wall clock, uses randomness or depends on thread timing: drivers are stepped in
 // robot order, contacts and collisions are processed in MuJoCo's order, MuJoCo runs single-threaded. Two Worlds made
@@ -34,11 +63,13 @@
 #include <Eigen/Geometry>
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -105,6 +136,44 @@ struct RobotTruth {
 struct ConveyorTruth {
   std::string name;
   double belt_speed = 0;  // m/s, measured
+};
+
+// The devices as the I/O image sees them (see the top), for the rig to log and TwinIo to serve.
+struct ConveyorDevice {
+  std::string name;
+  bool run = true;         // the run command (the coil)
+  bool running = true;     // the belt is driven at its speed now (run, and not held by accumulation)
+  bool stop_eye = false;   // the photo-eye at the stop bar (false when the conveyor has none)
+  bool drop_eye = false;   // the photo-eye at `enter` (false when the conveyor has none)
+  bool operator==(const ConveyorDevice&) const = default;
+};
+
+enum class MachineState : std::uint8_t {
+  idle,    // no part on the fixture (or one the machine has processed was taken: the unload)
+  loaded,  // a part rests on the fixture
+  busy,    // processing the part, for the machine's process_time
+  done,    // the processed part is still on the fixture
+};
+
+struct MachineDevice {
+  std::string name;
+  bool start = false;                // the start command (the coil)
+  MachineState state = MachineState::idle;
+  std::string part;                  // the part on the fixture (loaded, busy, done), else ""
+  std::chrono::nanoseconds busy_left{0};  // busy: the process time still to run
+  int cycles = 0;                    // cycles done (parts processed)
+  int unloads = 0;                   // processed parts taken off the fixture
+  bool busy() const { return state == MachineState::busy; }
+  bool done() const { return state == MachineState::done; }
+  bool operator==(const MachineDevice&) const = default;
+};
+
+struct DeviceStates {
+  std::chrono::nanoseconds time{0};      // the simulation time of the step they are from
+  std::vector<ConveyorDevice> conveyors;  // in the cell's order
+  std::vector<MachineDevice> machines;    // in the cell's order
+  std::vector<std::string> processed;     // the workpieces processed so far, in the order they were done
+  bool operator==(const DeviceStates&) const = default;
 };
 
 struct WorldTruth {
@@ -213,6 +282,20 @@ class World {
   // Whether a workpiece waits in the parking row. InternalError if there is no such workpiece.
   bool parked(std::string_view workpiece) const;
 
+  // ---- Devices (see the top). Any thread. ----
+  // The run command of conveyor `conveyor` (index in the cell's conveyors; InternalError outside): on, the belt runs
+  // (unless it accumulates against a blocked stop eye); off, it stops. From the next step.
+  void set_belt_run(std::size_t conveyor, bool run);
+  bool belt_run(std::size_t conveyor) const;
+  // The start command of machine `machine` (index in the cell's machines; InternalError outside). A change from off
+  // to on is a start, acted on at the next step (and ignored unless the machine is loaded).
+  void set_machine_start(std::size_t machine, bool on);
+  bool machine_start(std::size_t machine) const;
+  // The devices' state as of the last step (or construction, feed(), park(), place()).
+  DeviceStates devices() const;
+  // Whether a workpiece has been processed by a machine. InternalError if there is no such workpiece.
+  bool processed(std::string_view workpiece) const;
+
   // ---- Fault injection (fault_injector.hpp): the physics made to go wrong on purpose ----
   // Puts a workpiece (parked or not) at `pose` (its centre, world), at rest. Refuses with unknown_workpiece only.
   FeedResult place(std::string_view workpiece, const Eigen::Isometry3d& pose);
@@ -241,7 +324,15 @@ class World {
   Eigen::Isometry3d parking_pose(std::size_t workpiece) const;
   void check_contacts();
   void check_warnings();
-  void update_sensors();  // sets each part-present sensor's signal from the workpieces' poses and speeds
+  // After a step (stepped) or a part moved without one: the photo-eyes (and the stop eyes' signals), the machines,
+  // the belts' drive; publishes the devices if they changed.
+  void update_devices(bool stepped);
+  void update_sensors();  // the photo-eyes, from the workpieces' poses and speeds; the stop eyes' signals
+  void apply_commands();  // before a step: takes the device commands given since the last one
+  void drive_belts();     // sets each belt's drive from its run command and, accumulating, its stop eye
+  void update_machines(bool stepped);
+  bool on_fixture(std::size_t machine, std::size_t workpiece) const;  // the part lies on the fixture plate
+  void paint_processed(std::size_t workpiece, const Eigen::Vector4d& rgba);
   std::size_t workpiece_index(std::string_view name) const;  // npos when unknown
 
   Scene scene_;
@@ -258,16 +349,28 @@ class World {
   std::vector<Collision> collisions_;                       // not yet reported
   std::array<int, mjNWARNING> warning_counts_{};            // MuJoCo's counters at the last check
   std::vector<std::string> warnings_;                       // not yet drained
-  struct Sensor {
-    const models::ConveyorSpec* conveyor = nullptr;  // in scene_.cell(), which the World owns
-    Eigen::Isometry3d world_to_conveyor = Eigen::Isometry3d::Identity();
-  };
-  std::vector<Sensor> sensors_;                   // the conveyors with a part-present sensor, in the cell's order
+  std::size_t stop_eyes_ = 0;                     // conveyors with a stop eye
   std::vector<Eigen::Vector3d> sensed_velocity_;  // by workpiece: its averaged velocity (update_sensors())
+  std::vector<Eigen::Isometry3d> world_to_conveyor_;  // by conveyor
+  std::vector<Eigen::Isometry3d> world_to_fixture_;   // by machine: the frame of the fixture plate's top centre
+  std::vector<std::int64_t> busy_steps_;              // by machine: busy steps still to run
+  std::vector<int> taken_edges_;                      // by machine: starts taken by apply_commands() for this step
+  std::vector<bool> held_;                            // by conveyor: accumulation holds the belt (see the top)
+  std::vector<bool> processed_;                       // by workpiece
+  DeviceStates state_;                                // the simulation thread's, updated every step
+  // The commands and the published state, shared with any thread under device_mutex_.
+  mutable std::mutex device_mutex_;
+  std::vector<bool> belt_run_;        // by conveyor, the run command
+  std::vector<bool> machine_start_;   // by machine, the start command
+  std::vector<int> start_edges_;      // by machine, rising edges of start not yet taken by a step
+  DeviceStates published_;            // devices() returns this (its time: published_time_)
+  std::atomic<bool> commands_changed_{true};
+  std::atomic<std::int64_t> published_time_{0};  // ns: the step the published state is from
 };
 
 // Names for logs: "gripper", "conveyor", ...; "ok", "occupied", ...
 std::string_view to_string(SupportKind kind);
 std::string_view to_string(FeedStatus status);
+std::string_view to_string(MachineState state);  // "idle", "loaded", "busy", "done"
 
 }  // namespace cellwright::twin::sim

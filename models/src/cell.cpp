@@ -348,7 +348,7 @@ MovemasterConventions read_movemaster(const Doc& doc, const YAML::Node& n, const
 
 RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const std::filesystem::path& base_dir) {
   Fields f(doc, n, "robot",
-           {"name", "urdf", "base", "home", "grip_force", "driver", "serial", "base_link", "flange_link", "tool_link",
+           {"name", "urdf", "base", "home", "park", "grip_force", "driver", "serial", "base_link", "flange_link", "tool_link",
             "gripper", "package_path", "meshes", "val2", "movemaster"},
            true);
   RobotSpec r;
@@ -363,6 +363,9 @@ RobotSpec read_robot(const Doc& doc, Names& names, const YAML::Node& n, const st
   }
   r.base = read_pose(doc, f.node("base"), f.field("base"));
   for (double deg : f.numbers("home")) r.home.push_back(deg * kDeg);
+  if (f.has("park")) {
+    for (double deg : f.numbers("park")) r.park.push_back(deg * kDeg);
+  }
   read_robot_model_fields(doc, f, base_dir, r);
   if (f.has("grip_force")) {
     r.grip_force = f.positive("grip_force");
@@ -1056,6 +1059,21 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
                  fmt::format("robot '{}': home angle of {} is {:.2f} deg, outside its limits {:.2f}..{:.2f} "
                              "deg",
                              r.name, chain.joint_names()[j], r.home[j] / kDeg, lim.lower / kDeg, lim.upper / kDeg));
+      }
+    }
+    // The park pose, if any, by the same rules as home.
+    const YAML::Node park = robot_node["park"];
+    if (!r.park.empty() && r.park.size() != chain.dof()) {
+      doc.fail(park, fmt::format("robot '{}': 'park' has {} angles but {} has {} joints", r.name, r.park.size(),
+                                 r.urdf.filename().string(), chain.dof()));
+    }
+    for (std::size_t j = 0; j < r.park.size(); ++j) {
+      const models::JointLimit lim = chain.limits()[j];
+      if (r.park[j] < lim.lower - 1e-9 || r.park[j] > lim.upper + 1e-9) {
+        doc.fail(park[j], fmt::format("robot '{}': park angle of {} is {:.2f} deg, outside its limits {:.2f}..{:.2f} "
+                                      "deg",
+                                      r.name, chain.joint_names()[j], r.park[j] / kDeg, lim.lower / kDeg,
+                                      lim.upper / kDeg));
       }
     }
   }

@@ -583,6 +583,24 @@ TEST(CellErrors, HomeDoesNotFitTheRobot) {
                line_of(limit, "home: [0, 30, 60, 0, 60, 250]"));
 }
 
+TEST(Cell, AParkPoseIsKeptAndChecked) {
+  // Where the task language's `park` sends a robot: optional, checked like home.
+  const std::string park = with(base_yaml(), "    home: [0, 30, 60, 0, 60, 0]\n",
+                                "    home: [0, 30, 60, 0, 60, 0]\n    park: [90, 30, 60, 0, 60, 0]\n");
+  const models::CellDescription cell = parse(park);
+  ASSERT_EQ(cell.find_robot("melfa")->park.size(), 6u);
+  EXPECT_NEAR(cell.find_robot("melfa")->park[0], std::numbers::pi / 2, 1e-12);
+  EXPECT_TRUE(cell.find_robot("puma")->park.empty());
+  const std::string count = with(base_yaml(), "    home: [0, 30, 60, 0, 60, 0]\n",
+                                 "    home: [0, 30, 60, 0, 60, 0]\n    park: [90, 30]\n");
+  expect_error(count, "robot 'melfa': 'park' has 2 angles but melfa_rve2.urdf has 6 joints",
+               line_of(count, "park: [90, 30]"));
+  const std::string limit = with(base_yaml(), "    home: [0, 30, 60, 0, 60, 0]\n",
+                                 "    home: [0, 30, 60, 0, 60, 0]\n    park: [0, 30, 60, 0, 60, 250]\n");
+  expect_error(limit, "park angle of joint6 is 250.00 deg, outside its limits -200.00..200.00 deg",
+               line_of(limit, "park: [0, 30, 60, 0, 60, 250]"));
+}
+
 TEST(CellErrors, DriversNeedTheirSettings) {
   const std::string none = with(base_yaml(), "    home: [0, 30, 60, 0, 60, 0]\n",
                                 "    home: [0, 30, 60, 0, 60, 0]\n    driver: movemaster\n");

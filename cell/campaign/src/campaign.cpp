@@ -75,6 +75,7 @@ CampaignTargets campaign_targets(const Scenario& s, double cycle_time) {
           break;
         case task::PrimitiveKind::kWait:
         case task::PrimitiveKind::kLoop:
+        case task::PrimitiveKind::kDevice:
           break;
       }
     }

@@ -464,6 +464,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
         case task::PrimitiveKind::kSignal:
         case task::PrimitiveKind::kWait:
         case task::PrimitiveKind::kLoop:
+        case task::PrimitiveKind::kDevice:  // the device's own time is not planned here (issue 26: the lead's part)
           break;
       }
     }

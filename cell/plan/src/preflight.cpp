@@ -179,6 +179,7 @@ Preflight preflight(const Scenario& s, const CollisionSweep* collisions) {
         case task::PrimitiveKind::kSignal:
         case task::PrimitiveKind::kWait:
         case task::PrimitiveKind::kLoop:
+        case task::PrimitiveKind::kDevice:  // no robot motion
           break;
       }
     }

@@ -213,8 +213,19 @@ struct Writer {
         throw InputError(p.where, fmt::format("robot '{}': '{}' cannot be written as a {} program yet: loops are "
                                               "run from the cell controller only",
                                               out.robot, p.task, movemaster() ? "Movemaster EX" : "VAL II"));
+      case PrimitiveKind::kDevice:
+        // Device actions go to the cell's I/O unit from the cell controller (runtime/device_control.hpp); a
+        // generated robot program does not drive the I/O.
+        throw InputError(p.where, fmt::format("robot '{}': '{}' cannot be written as a {} program: devices are "
+                                              "driven from the cell controller only",
+                                              out.robot, p.task, movemaster() ? "Movemaster EX" : "VAL II"));
       case PrimitiveKind::kMove:
         break;
+    }
+    if (p.target.kind == TargetKind::kPark) {
+      throw InputError(p.where, fmt::format("robot '{}': '{}' cannot be written as a {} program yet: park poses are "
+                                            "run from the cell controller only",
+                                            out.robot, p.task, movemaster() ? "Movemaster EX" : "VAL II"));
     }
     if (p.target.kind == TargetKind::kHome) return add(movemaster() ? "NT" : "READY");
     CW_CHECK(!planned.goal.empty(), "robot {} primitive {}: no planned goal after a passed preflight", planned.robot,

@@ -269,6 +269,7 @@ class TimelineBuilder {
         break;
       }
       case task::PrimitiveKind::kWait:
+      case task::PrimitiveKind::kDevice:  // waiting for the device's action (its own Gantt rows: the lead's part)
         bar.activity = Activity::kWait;
         bar.end = finish;
         if (bar.end > bar.start) bars.push_back(std::move(bar));

@@ -113,7 +113,7 @@ const CellLocation* CellGeometry::find_location(std::string_view name) const {
 
 EnvironmentModel make_environment_model(const models::CellDescription& cell) {
   auto g = std::make_shared<CellGeometry>();
-  for (const models::RobotSpec& r : cell.robots) g->robots.push_back({r.name, r.base.transform(), r.home});
+  for (const models::RobotSpec& r : cell.robots) g->robots.push_back({r.name, r.base.transform(), r.home, r.park});
   for (const models::WorkpieceSpec& w : cell.workpieces) g->workpieces.push_back({w.name, w.shape, w.size});
   for (const models::LocationSpec& l : cell.locations) {
     g->locations.push_back({l.name, l.pose.transform(), l.grasp_height, l.approach_height});
@@ -250,6 +250,18 @@ MotionTarget resolve_target(const EnvironmentModel& model, const std::string& ro
       t.resolution = MotionTarget::Resolution::kOk;
       t.joints = r->home();
       t.description = "home";
+      return t;
+    }
+    case task::TargetKind::kPark: {
+      if (r->park().empty()) {
+        return fail(fmt::format("robot '{}' has no park pose: give it one with 'park:' in the cell description "
+                                "(docs/cell-description.md)",
+                                robot));
+      }
+      MotionTarget t;
+      t.resolution = MotionTarget::Resolution::kOk;
+      t.joints = r->park();
+      t.description = "park";
       return t;
     }
     case task::TargetKind::kAbove:

@@ -121,6 +121,13 @@ NameMap check_binding(const RunConfig& c) {
   for (std::size_t r = 0; r < c.program.programs.size(); ++r) {
     const std::string& label = c.program.robots[r];
     for (const task::Primitive& p : c.program.programs[r].primitives) {
+      // Device commands are checked in the Petri net but not driven yet: device control over the cell's I/O unit
+      // is still to come (issue 26), so a run that would need it is refused before it starts, never half-run.
+      if (p.kind == task::PrimitiveKind::kDevice) {
+        throw InputError(p.where, fmt::format("robot {}: '{}' drives device '{}', and this controller cannot run "
+                                              "device commands yet (it checks them: twin check)",
+                                              label, p.task, p.device));
+      }
       if (p.kind != task::PrimitiveKind::kMove) continue;
       const task::TargetKind k = p.target.kind;
       if (k != task::TargetKind::kHandover && k != task::TargetKind::kHandApproach &&

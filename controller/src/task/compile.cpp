@@ -48,6 +48,12 @@ class Emitter {
     add(PrimitiveKind::kLoop).loop = index;
     return *this;
   }
+  Emitter& device(const std::string& name, DeviceOp op) {
+    Primitive& p = add(PrimitiveKind::kDevice);
+    p.device = name;
+    p.op = op;
+    return *this;
+  }
 
  private:
   Primitive& add(PrimitiveKind kind) {
@@ -81,17 +87,37 @@ class Compiler {
       }
     }
     out_.locations = declared_names(program_, NameKind::kLocation);
+    out_.machines = declared_names(program_, NameKind::kMachine);
+    out_.conveyors = declared_names(program_, NameKind::kConveyor);
+    for (const Declaration& d : program_.declarations) {
+      if (d.kind == NameKind::kSensor) {
+        out_.sensors.push_back({d.name, d.from});
+        sensor_conveyor_[d.name] = d.from;
+      }
+    }
     for (std::size_t r = 0; r < out_.robots.size(); ++r) {
       robot_index_[out_.robots[r]] = r;
       out_.programs.push_back({out_.robots[r], {}, {}});
     }
     state_.resize(out_.robots.size());
     for (const Declaration& d : program_.declarations) {
-      if (d.kind == NameKind::kSemaphore) out_.semaphores.push_back({d.name, d.initial, false, d.where, false});
+      if (d.kind == NameKind::kSemaphore) out_.semaphores.push_back({d.name, d.initial, false, d.where, false, {}});
       if (d.kind == NameKind::kRegion) {
-        out_.semaphores.push_back({d.name, 1, true, d.where, false});
+        out_.semaphores.push_back({d.name, 1, true, d.where, false, {}});
         region_index_[d.name] = out_.regions.size();
         out_.regions.push_back({d.name, {}});
+      }
+    }
+    // Each device's states, after the user's semaphores and before the events inserted below.
+    for (const Declaration& d : program_.declarations) {
+      if (d.kind == NameKind::kMachine) {
+        add_state(d, kIdle, 1);
+        add_state(d, kLoaded, 0);
+        add_state(d, kBusy, 0);
+        add_state(d, kDone, 0);
+      } else if (d.kind == NameKind::kConveyor) {
+        add_state(d, kStopped, 1);
+        add_state(d, kRunning, 0);
       }
     }
     // Blocks in source order, so the first error in the file is the one reported.
@@ -140,7 +166,24 @@ class Compiler {
   std::vector<Primitive>& primitives(std::size_t r) { return out_.programs[r].primitives; }
 
   void add_event(const std::string& name, const SourceLocation& where) {
-    out_.semaphores.push_back({name, 0, false, where, true});
+    out_.semaphores.push_back({name, 0, false, where, true, {}});
+  }
+
+  // A device's states (compiled.hpp, Semaphore::device).
+  static constexpr const char* kIdle = "idle";
+  static constexpr const char* kLoaded = "loaded";
+  static constexpr const char* kBusy = "busy";
+  static constexpr const char* kDone = "done";
+  static constexpr const char* kStopped = "stopped";
+  static constexpr const char* kRunning = "running";
+  void add_state(const Declaration& d, const char* state, std::uint32_t initial) {
+    out_.semaphores.push_back({device_state_event(d.name, state), initial, false, d.where, false, d.name});
+  }
+  static std::string state(const std::string& device, const char* s) { return device_state_event(device, s); }
+
+  // A device action bracketed by its states: wait until the device is in `from`, act, then put it in `to`.
+  static void device_step(Emitter& emit, const std::string& device, const char* from, DeviceOp op, const char* to) {
+    emit.wait(state(device, from)).device(device, op).signal(state(device, to));
   }
 
   static std::string held_since(const Holding& h) { return fmt::format("{} (since line {})", h.workpiece, h.line); }
@@ -166,9 +209,13 @@ class Compiler {
                                                  out_.robots[other], h->line));
           }
         }
+        // Out of a machine: only once its cycle is done; the machine is idle again once the part is lifted out.
+        const std::string& m = cmd.machine;
+        if (!m.empty()) emit.motion("unload " + m).wait(state(m, kDone));
         emit.motion("approach " + x).open("").move(TargetKind::kAbove, x);
         emit.motion("grasp " + x).move(TargetKind::kAt, x).close(x);
         emit.motion("lift up " + x).move(TargetKind::kAbove, x);
+        if (!m.empty()) emit.motion("unload " + m).signal(state(m, kIdle));
         st.holding = Holding{x, cmd.where.line};
         return;
       }
@@ -181,10 +228,14 @@ class Compiler {
                                                "arrives at {}); place on a location or a named workpiece",
                                                name, x, c->from));
         }
+        // Into a machine: only while it is idle (empty); then it is loaded.
+        const bool machine = cmd.argument_kind == NameKind::kMachine;
+        if (machine) emit.motion("load " + x).wait(state(x, kIdle));
         emit.motion("approach " + x).move(TargetKind::kAbove, x);
         emit.motion("put down " + w).move(TargetKind::kAt, x);
         emit.motion("release " + w).open(w);
         emit.motion("depart " + x).move(TargetKind::kAbove, x);
+        if (machine) emit.motion("load " + x).signal(state(x, kLoaded));
         st.holding.reset();
         return;
       }
@@ -192,7 +243,35 @@ class Compiler {
         emit.motion("signal " + x).signal(x);
         return;
       case CommandKind::kWait:
-        emit.motion("wait " + x).wait(x);
+        if (cmd.argument_kind == NameKind::kMachine) {
+          device_step(emit.motion("wait for " + x + " done"), x, kBusy, DeviceOp::kAwaitDone, kDone);
+        } else if (cmd.argument_kind == NameKind::kSensor) {
+          // A photo-eye sees a part its conveyor brings: the wait holds the conveyor running while it lasts.
+          const auto c = sensor_conveyor_.find(x);
+          CW_CHECK(c != sensor_conveyor_.end(), "sensor '{}' has no conveyor", x);
+          emit.motion("wait for " + x).wait(state(c->second, kRunning)).device(x, DeviceOp::kAwaitOn);
+          emit.signal(state(c->second, kRunning));
+        } else {
+          emit.motion("wait " + x).wait(x);
+        }
+        return;
+      case CommandKind::kStart:
+        device_step(emit.motion("start " + x), x, kLoaded, DeviceOp::kStart, kBusy);
+        return;
+      case CommandKind::kRun:
+        device_step(emit.motion("run " + x), x, kStopped, DeviceOp::kRun, kRunning);
+        return;
+      case CommandKind::kAccumulate:
+        device_step(emit.motion("accumulate " + x), x, kStopped, DeviceOp::kAccumulate, kRunning);
+        return;
+      case CommandKind::kStop:
+        device_step(emit.motion("stop " + x), x, kRunning, DeviceOp::kStop, kStopped);
+        return;
+      case CommandKind::kHome:
+        emit.motion("home").move(TargetKind::kHome, "");
+        return;
+      case CommandKind::kPark:
+        emit.motion("park").move(TargetKind::kPark, "");
         return;
       case CommandKind::kEnter: {
         for (const Inside& in : st.inside) {
@@ -440,6 +519,7 @@ class Compiler {
   CompiledProgram out_;
   std::map<std::string, std::size_t> robot_index_;
   std::map<std::string, std::size_t> region_index_;
+  std::map<std::string, std::string> sensor_conveyor_;  // sensor -> its conveyor
   std::vector<RobotState> state_;
 };
 

@@ -23,8 +23,32 @@ const char* to_string(PrimitiveKind k) {
       return "wait";
     case PrimitiveKind::kLoop:
       return "loop";
+    case PrimitiveKind::kDevice:
+      return "device";
   }
   return "?";
+}
+
+const char* to_string(DeviceOp op) {
+  switch (op) {
+    case DeviceOp::kStart:
+      return "start";
+    case DeviceOp::kAwaitDone:
+      return "await done";
+    case DeviceOp::kRun:
+      return "run";
+    case DeviceOp::kStop:
+      return "stop";
+    case DeviceOp::kAccumulate:
+      return "accumulate";
+    case DeviceOp::kAwaitOn:
+      return "await on";
+  }
+  return "?";
+}
+
+std::string device_state_event(const std::string& device, const char* state) {
+  return fmt::format("{}.{}", device, state);
 }
 
 std::string loop_again_event(const Loop& loop, const std::string& follower) {
@@ -58,6 +82,8 @@ const char* target_kind_name(TargetKind k) {
       return "hand_grasp";
     case TargetKind::kHome:
       return "home";
+    case TargetKind::kPark:
+      return "park";
   }
   return "?";
 }
@@ -80,6 +106,7 @@ std::string names(const std::vector<std::string>& list) {
 
 std::string to_string(const Target& t) {
   if (t.kind == TargetKind::kHome) return "home";
+  if (t.kind == TargetKind::kPark) return "park";
   return fmt::format("{}({})", target_kind_name(t.kind), t.object);
 }
 
@@ -97,6 +124,8 @@ std::string to_string(const Primitive& p) {
     case PrimitiveKind::kLoop:
       // The loop's name is "loopL", L the line of its `repeat`, which is where the kLoop primitive points.
       return fmt::format("loop loop{}", p.where.line);
+    case PrimitiveKind::kDevice:
+      return fmt::format("device {} {}", p.device, to_string(p.op));
   }
   return "?";
 }
@@ -123,6 +152,13 @@ std::string format_listing(const CompiledProgram& compiled) {
     out += fmt::format("workpiece classes: {}\n", fmt::join(classes, ", "));
   }
   out += fmt::format("locations: {}\n", names(compiled.locations));
+  if (!compiled.machines.empty()) out += fmt::format("machines: {}\n", names(compiled.machines));
+  if (!compiled.conveyors.empty()) out += fmt::format("conveyors: {}\n", names(compiled.conveyors));
+  if (!compiled.sensors.empty()) {
+    std::vector<std::string> sensors;
+    for (const SensorDecl& d : compiled.sensors) sensors.push_back(fmt::format("{} on {}", d.name, d.conveyor));
+    out += fmt::format("sensors: {}\n", fmt::join(sensors, ", "));
+  }
   for (const RobotProgram& prog : compiled.programs) {
     const std::size_t n = prog.primitives.size();
     out += n == 0 ? fmt::format("\nrobot {}: no primitives\n", prog.robot)
@@ -147,7 +183,7 @@ std::string format_listing(const CompiledProgram& compiled) {
     for (const Semaphore& s : compiled.semaphores) name_w = std::max(name_w, s.name.size());
     out += fmt::format("\nsemaphores and events\n  {:<{}}  initial  kind       source\n", "name", name_w);
     for (const Semaphore& s : compiled.semaphores) {
-      const char* kind = s.region ? "region" : s.inserted ? "event" : "semaphore";
+      const char* kind = s.region ? "region" : !s.device.empty() ? "device" : s.inserted ? "event" : "semaphore";
       out += fmt::format("  {:<{}}  {:>7}  {:<9}  {}\n", s.name, name_w, s.initial, kind, location(s.declared));
     }
   }
@@ -188,6 +224,10 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
         case PrimitiveKind::kLoop:
           j["loop"] = p.loop;
           break;
+        case PrimitiveKind::kDevice:
+          j["device"] = p.device;
+          j["op"] = to_string(p.op);
+          break;
       }
       prims.push_back(std::move(j));
     }
@@ -205,11 +245,13 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
   }
   nlohmann::json semaphores = nlohmann::json::array();
   for (const Semaphore& s : compiled.semaphores) {
-    semaphores.push_back({{"name", s.name},
-                          {"initial", s.initial},
-                          {"region", s.region},
-                          {"inserted", s.inserted},
-                          {"declared", location_json(s.declared)}});
+    nlohmann::json j = {{"name", s.name},
+                        {"initial", s.initial},
+                        {"region", s.region},
+                        {"inserted", s.inserted},
+                        {"declared", location_json(s.declared)}};
+    if (!s.device.empty()) j["device"] = s.device;
+    semaphores.push_back(std::move(j));
   }
   nlohmann::json regions = nlohmann::json::array();
   for (const RegionUse& r : compiled.regions) {
@@ -221,7 +263,9 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
   for (const WorkpieceClass& c : compiled.classes) {
     classes.push_back({{"name", c.name}, {"from", c.from}, {"where", location_json(c.where)}});
   }
-  return {{"file", compiled.file},
+  nlohmann::json sensors = nlohmann::json::array();
+  for (const SensorDecl& d : compiled.sensors) sensors.push_back({{"name", d.name}, {"conveyor", d.conveyor}});
+  nlohmann::json out = {{"file", compiled.file},
           {"robots", compiled.robots},
           {"workpieces", compiled.workpieces},
           {"classes", std::move(classes)},
@@ -229,6 +273,13 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
           {"programs", std::move(programs)},
           {"semaphores", std::move(semaphores)},
           {"regions", std::move(regions)}};
+  // Devices only when the program declares some, so that the JSON of a program without them is as before.
+  if (!compiled.machines.empty() || !compiled.conveyors.empty() || !compiled.sensors.empty()) {
+    out["machines"] = compiled.machines;
+    out["conveyors"] = compiled.conveyors;
+    out["sensors"] = std::move(sensors);
+  }
+  return out;
 }
 
 }  // namespace cellwright::task

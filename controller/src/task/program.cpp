@@ -30,6 +30,12 @@ const char* to_string(NameKind k) {
       return "semaphore";
     case NameKind::kRegion:
       return "region";
+    case NameKind::kMachine:
+      return "machine";
+    case NameKind::kConveyor:
+      return "conveyor";
+    case NameKind::kSensor:
+      return "sensor";
   }
   return "?";
 }
@@ -52,11 +58,25 @@ const char* to_string(CommandKind k) {
       return "enter";
     case CommandKind::kLeave:
       return "leave";
+    case CommandKind::kStart:
+      return "start";
+    case CommandKind::kRun:
+      return "run";
+    case CommandKind::kStop:
+      return "stop";
+    case CommandKind::kAccumulate:
+      return "accumulate";
+    case CommandKind::kHome:
+      return "home";
+    case CommandKind::kPark:
+      return "park";
   }
   return "?";
 }
 
 std::string to_string(const Command& c) {
+  if (c.argument.empty()) return to_string(c.kind);
+  if (!c.machine.empty()) return fmt::format("{} {} from {}", to_string(c.kind), c.argument, c.machine);
   return fmt::format("{} {}", to_string(c.kind), c.argument);
 }
 
@@ -136,6 +156,19 @@ constexpr std::array<CommandSpec, 8> kCommands{{
     {"leave", CommandKind::kLeave, "a region"},
 }};
 
+// The device commands and the robot's home/park. They came after programs had been written with names like
+// `machine` or `home`, so they are recognised by position only (a command at the start of a cell or a sequence line)
+// and are not reserved: a program may still name a region `machine` (scenes/pick_place.task does). `needs` is
+// empty for a command without argument.
+constexpr std::array<CommandSpec, 6> kDeviceCommands{{
+    {"start", CommandKind::kStart, "a machine"},
+    {"run", CommandKind::kRun, "a conveyor"},
+    {"stop", CommandKind::kStop, "a conveyor"},
+    {"accumulate", CommandKind::kAccumulate, "a conveyor"},
+    {"home", CommandKind::kHome, ""},
+    {"park", CommandKind::kPark, ""},
+}};
+
 // Statements that open a top-level line. Also reserved: they cannot be names.
 constexpr std::array<const char*, 8> kStatements{"robot",  "workpiece", "location", "semaphore",
                                                  "region", "steps",     "sequence", "end"};
@@ -152,8 +185,21 @@ const CommandSpec* find_command(std::string_view word) {
   return nullptr;
 }
 
+// A command keyword or a device command word.
+const CommandSpec* find_any_command(std::string_view word) {
+  if (const CommandSpec* c = find_command(word)) return c;
+  const std::string w = lower(word);
+  for (const CommandSpec& c : kDeviceCommands) {
+    if (w == c.keyword) return &c;
+  }
+  return nullptr;
+}
+
 const CommandSpec& spec_of(CommandKind kind) {
   for (const CommandSpec& c : kCommands) {
+    if (c.kind == kind) return c;
+  }
+  for (const CommandSpec& c : kDeviceCommands) {
     if (c.kind == kind) return c;
   }
   return kCommands[0];
@@ -182,7 +228,8 @@ bool is_top_level_statement(const Token& t) {
                            kStatements.end();
 }
 
-constexpr const char* kCommandList = "Pick, Put, Get, Place, signal, wait, enter or leave";
+constexpr const char* kCommandList =
+    "Pick, Put, Get, Place, signal, wait, enter, leave, start, run, stop, accumulate, home or park";
 
 bool is_word(const Token& t, std::string_view keyword) {
   return t.kind == TokenKind::kName && lower(t.text) == keyword;
@@ -318,8 +365,8 @@ class Parser {
   void parse_top() {
     const Token& first = tokens_.front();
     if (first.kind != TokenKind::kName) {
-      fail(first, fmt::format("expected a statement (robot, workpiece, location, semaphore, region, steps or "
-                              "sequence), found {}",
+      fail(first, fmt::format("expected a statement (robot, workpiece, location, semaphore, region, machine, "
+                              "conveyor, sensor, steps or sequence), found {}",
                               quoted(first)));
     }
     const std::string word = lower(first.text);
@@ -333,6 +380,13 @@ class Parser {
                                                   : NameKind::kRegion;
       if (tokens_.size() == 1) fail(first, fmt::format("'{}' needs at least one name", first.text));
       for (std::size_t i = 1; i < tokens_.size(); ++i) declare(kind, expect_new_name(i, to_string(kind)), 0);
+    } else if (word == "machine" || word == "conveyor") {
+      // Device declarations (recognised at the start of a line only: these words are not reserved).
+      const NameKind kind = word == "machine" ? NameKind::kMachine : NameKind::kConveyor;
+      if (tokens_.size() == 1) fail(first, fmt::format("'{}' needs at least one name", first.text));
+      for (std::size_t i = 1; i < tokens_.size(); ++i) declare(kind, expect_new_name(i, to_string(kind)), 0);
+    } else if (word == "sensor") {
+      parse_sensor(first);
     } else if (word == "semaphore") {
       if (tokens_.size() == 1) fail(first, fmt::format("'{}' needs at least one name", first.text));
       std::size_t i = 1;
@@ -376,13 +430,13 @@ class Parser {
       mode_ = Mode::kSequence;
     } else if (word == "end") {
       fail(first, "'end' without an open steps or sequence block");
-    } else if (find_command(word) != nullptr || word == "repeat") {
+    } else if (find_any_command(word) != nullptr || word == "repeat") {
       fail(first, fmt::format("'{}' must stand inside a steps or sequence block", first.text));
     } else if (word == "from") {
       fail(first, "'from' stands in a workpiece class declaration: 'workpiece NAME from LOCATION'");
     } else {
       fail(first, fmt::format("unknown statement '{}' (expected robot, workpiece, location, semaphore, region, "
-                              "steps or sequence)",
+                              "machine, conveyor, sensor, steps or sequence)",
                               first.text));
     }
   }
@@ -423,6 +477,30 @@ class Parser {
     declare(NameKind::kWorkpiece, name, 0);
     program_.declarations.back().from = location.text;
     program_.declarations.back().from_where = at(location);
+  }
+
+  // `sensor NAME on CONVEYOR`: one photo-eye per statement, with the conveyor whose parts it sees (resolved after
+  // the whole file).
+  void parse_sensor(const Token& first) {
+    if (tokens_.size() == 1) fail(first, "'sensor' needs a name and its conveyor: 'sensor NAME on CONVEYOR'");
+    const Token& name = expect_new_name(1, "sensor");
+    if (tokens_.size() < 3 || !is_word(tokens_[2], "on")) {
+      fail(tokens_.size() < 3 ? name : tokens_[2],
+           fmt::format("sensor '{}' needs the conveyor whose parts it sees: 'sensor {} on CONVEYOR'{}", name.text,
+                       name.text, tokens_.size() < 3 ? std::string() : fmt::format(", found {}", quoted(tokens_[2]))));
+    }
+    if (tokens_.size() < 4) fail(tokens_[2], fmt::format("'on' after sensor '{}' needs a conveyor name", name.text));
+    const Token& conveyor = tokens_[3];
+    if (conveyor.kind != TokenKind::kName) {
+      fail(conveyor, fmt::format("expected a conveyor name after 'on', found {}", quoted(conveyor)));
+    }
+    if (tokens_.size() > 4) {
+      fail(tokens_[4], fmt::format("unexpected {} after 'sensor {} on {}': declare each sensor on a line of its own",
+                                   quoted(tokens_[4]), name.text, conveyor.text));
+    }
+    declare(NameKind::kSensor, name, 0);
+    program_.declarations.back().from = conveyor.text;
+    program_.declarations.back().from_where = at(conveyor);
   }
 
   // `repeat N` inside a block: opens a loop over the lines (table) or commands (sequence) that follow.
@@ -636,31 +714,54 @@ class Parser {
     if (word.kind != TokenKind::kName) {
       fail(word, fmt::format("expected a command ({}), found {}", kCommandList, quoted(word)));
     }
-    const CommandSpec* spec = find_command(word.text);
+    const CommandSpec* spec = find_any_command(word.text);
     if (is_word(word, "repeat")) {
       fail(word, "'repeat' opens a loop on a line of its own ('repeat N'), not in a table cell");
     }
     if (spec == nullptr) fail(word, fmt::format("unknown command '{}' (expected {})", word.text, kCommandList));
-    if (e - b < 2) fail(word, fmt::format("{} needs an argument: {} name", to_string(spec->kind), spec->needs));
-    const Token& arg = tokens_[b + 1];
-    if (arg.kind != TokenKind::kName) {
-      fail(arg, fmt::format("{} needs {} name, found {}", to_string(spec->kind), spec->needs, quoted(arg)));
-    }
-    if (e - b > 2) {
-      const Token& extra = tokens_[b + 2];
-      if (extra.kind == TokenKind::kName && find_command(extra.text) != nullptr) {
-        fail(extra, fmt::format("two commands for robot '{}' on line {} ('{} {}' and '{}'): the {} allows one "
-                                "command per robot on a line",
-                                robot, line_, word.text, arg.text, extra.text, block));
-      }
-      fail(extra, fmt::format("extra argument {} after '{} {}': {} takes one argument", quoted(extra), word.text,
-                              arg.text, to_string(spec->kind)));
-    }
     Command cmd;
     cmd.kind = spec->kind;
-    cmd.argument = arg.text;
     cmd.where = at(word);
-    cmd.argument_where = at(arg);
+    const bool no_argument = spec->needs[0] == '\0';
+    // Arguments end at the cell's end; `Pick W from M` has three.
+    std::size_t args = 1;
+    if (spec->kind == CommandKind::kPick && e - b >= 3 && is_word(tokens_[b + 2], "from")) args = 3;
+    if (no_argument) args = 0;
+    if (!no_argument && e - b < 2) {
+      fail(word, fmt::format("{} needs an argument: {} name", to_string(spec->kind), spec->needs));
+    }
+    if (!no_argument) {
+      const Token& arg = tokens_[b + 1];
+      if (arg.kind != TokenKind::kName) {
+        fail(arg, fmt::format("{} needs {} name, found {}", to_string(spec->kind), spec->needs, quoted(arg)));
+      }
+      cmd.argument = arg.text;
+      cmd.argument_where = at(arg);
+    }
+    if (args == 3) {
+      if (e - b < 4) fail(tokens_[b + 2], fmt::format("'from' after 'Pick {}' needs a machine name", cmd.argument));
+      const Token& m = tokens_[b + 3];
+      if (m.kind != TokenKind::kName) {
+        fail(m, fmt::format("expected a machine name after 'from', found {}", quoted(m)));
+      }
+      cmd.machine = m.text;
+      cmd.machine_where = at(m);
+    }
+    if (e - b > args + 1) {
+      const Token& extra = tokens_[b + args + 1];
+      if (extra.kind == TokenKind::kName && find_any_command(extra.text) != nullptr) {
+        fail(extra, fmt::format("two commands for robot '{}' on line {} ('{}' and '{}'): the {} allows one "
+                                "command per robot on a line",
+                                robot, line_, to_string(cmd), extra.text, block));
+      }
+      if (no_argument) {
+        fail(extra, fmt::format("unexpected {} after '{}': {} takes no argument", quoted(extra), word.text,
+                                to_string(spec->kind)));
+      }
+      fail(extra, fmt::format("extra argument {} after '{}': {} takes one argument{}", quoted(extra),
+                              to_string(cmd), to_string(spec->kind),
+                              spec->kind == CommandKind::kPick ? " (or 'Pick W from MACHINE')" : ""));
+    }
     return cmd;
   }
 
@@ -680,6 +781,16 @@ class Parser {
   }
 
   void resolve_command(Command& cmd) const {
+    if (cmd.kind == CommandKind::kHome || cmd.kind == CommandKind::kPark) return;
+    if (!cmd.machine.empty()) {
+      const Declaration* m = find_declaration(program_, cmd.machine);
+      if (m == nullptr) fail_at(cmd.machine_where, fmt::format("unknown machine '{}'", cmd.machine));
+      if (m->kind != NameKind::kMachine) {
+        fail_at(cmd.machine_where, fmt::format("Pick ... from expects a machine, but '{}' is a {} (declared on line "
+                                               "{})",
+                                               cmd.machine, to_string(m->kind), m->where.line));
+      }
+    }
     const Declaration* d = find_declaration(program_, cmd.argument);
     const CommandSpec& spec = spec_of(cmd.kind);
     std::vector<NameKind> allowed;
@@ -692,12 +803,25 @@ class Parser {
         allowed = {NameKind::kRobot};
         break;
       case CommandKind::kPlace:
-        allowed = {NameKind::kWorkpiece, NameKind::kLocation};
+        allowed = {NameKind::kWorkpiece, NameKind::kLocation, NameKind::kMachine};
         break;
       case CommandKind::kSignal:
-      case CommandKind::kWait:
         allowed = {NameKind::kSemaphore};
         break;
+      case CommandKind::kWait:
+        allowed = {NameKind::kSemaphore, NameKind::kMachine, NameKind::kSensor};
+        break;
+      case CommandKind::kStart:
+        allowed = {NameKind::kMachine};
+        break;
+      case CommandKind::kRun:
+      case CommandKind::kStop:
+      case CommandKind::kAccumulate:
+        allowed = {NameKind::kConveyor};
+        break;
+      case CommandKind::kHome:
+      case CommandKind::kPark:
+        return;
       case CommandKind::kEnter:
       case CommandKind::kLeave:
         allowed = {NameKind::kRegion};
@@ -751,6 +875,17 @@ class Parser {
     for (Command& cmd : seq.commands) resolve_command(cmd);
   }
 
+  // The conveyor a sensor sees the parts of.
+  void resolve_sensor(const Declaration& c) const {
+    const Declaration* d = find_declaration(program_, c.from);
+    if (d == nullptr) fail_at(c.from_where, fmt::format("unknown conveyor '{}'", c.from));
+    if (d->kind != NameKind::kConveyor) {
+      fail_at(c.from_where, fmt::format("sensor '{}' sees the parts of a conveyor, but '{}' is a {} (declared on "
+                                        "line {})",
+                                        c.name, c.from, to_string(d->kind), d->where.line));
+    }
+  }
+
   // The location a workpiece class takes its parts from.
   void resolve_class(const Declaration& c) const {
     const Declaration* d = find_declaration(program_, c.from);
@@ -767,7 +902,11 @@ class Parser {
   void resolve() {
     std::vector<std::pair<int, std::function<void()>>> work;  // (source line, what to resolve)
     for (const Declaration& d : program_.declarations) {
-      if (!d.from.empty()) work.emplace_back(d.where.line, [this, &d] { resolve_class(d); });
+      if (d.kind == NameKind::kSensor) {
+        work.emplace_back(d.where.line, [this, &d] { resolve_sensor(d); });
+      } else if (!d.from.empty()) {
+        work.emplace_back(d.where.line, [this, &d] { resolve_class(d); });
+      }
     }
     if (program_.steps) work.emplace_back(program_.steps->where.line, [this] { resolve_table(*program_.steps); });
     for (std::size_t i = 0; i < program_.sequences.size(); ++i) {

@@ -51,7 +51,9 @@ petri::Net to_net(const CompiledProgram& program) {
   for (const Semaphore& s : program.semaphores) {
     petri::Place p;
     p.id = event_place_id(s.name);
-    p.name = s.region ? fmt::format("region {} free", s.name) : fmt::format("event {}", s.name);
+    p.name = s.region            ? fmt::format("region {} free", s.name)
+             : !s.device.empty() ? fmt::format("device {}", s.name)
+                                 : fmt::format("event {}", s.name);
     p.initial = s.initial;
     p.kind = s.region ? petri::PlaceKind::kRegion : petri::PlaceKind::kEvent;
     p.origin.line = s.declared.line;

@@ -344,5 +344,17 @@ TEST(RuntimeEnvironment, TargetsNamingNothingFailWithTheName) {
   EXPECT_EQ(home.joints, paper_cell().find_robot("melfa")->home);
 }
 
+TEST(RuntimeEnvironment, ParkGoesToTheCellsParkPoseAndFailsWithoutOne) {
+  models::CellDescription cell = paper_cell();
+  cell.robots.front().park = {0.5, 0.1, 0.2, 0, 0.3, 0};
+  const EnvironmentModel m = make_environment_model(cell);
+  const MotionTarget park = resolve_target(m, cell.robots.front().name, target(task::TargetKind::kPark, ""));
+  ASSERT_EQ(park.resolution, MotionTarget::Resolution::kOk);
+  EXPECT_EQ(park.joints, cell.robots.front().park);
+  const MotionTarget none = resolve_target(m, cell.robots.back().name, target(task::TargetKind::kPark, ""));
+  EXPECT_EQ(none.resolution, MotionTarget::Resolution::kFail);
+  EXPECT_THAT(none.reason, HasSubstr("has no park pose"));
+}
+
 }  // namespace
 }  // namespace cellwright::runtime

@@ -538,6 +538,15 @@ TEST(RuntimeRun, AMissingLocationOrWorkpieceIsRefused) {
   expect_refused(cell3, "scenario.yaml:8:3", "'Q' is not a workpiece or location of the program");
 }
 
+TEST(RuntimeRun, AProgramWithDeviceCommandsIsRefusedBeforeAnythingMoves) {
+  // Device control is not there yet: a program that drives a belt is refused at its command, no driver connected.
+  ScriptedCell cell;
+  cell.config.program = task::compile(task::parse_program(
+      "robot r1 r2\nworkpiece A\nlocation B\nconveyor IN\nsequence r1\n  run IN\n  stop IN\nend\n", "belt.task"));
+  expect_refused(cell, "belt.task:6:3", "robot r1: 'run IN' drives device 'IN', and this controller cannot run device "
+                                        "commands yet");
+}
+
 TEST(RuntimeRun, ARobotWithoutADriverIsRefused) {
   ScriptedCell cell;
   cell.config.drivers.erase("melfa");

@@ -418,10 +418,11 @@ TEST(ParseErrors, StatementsOutOfPlace) {
   expect_failure("robot r1\nend\n", 2, 1, "'end' without an open steps or sequence block");
   expect_failure("robot r1\nworkpiece A\n  Pick A\n", 3, 3, "'Pick' must stand inside a steps or sequence block");
   expect_failure("robots r1\n", 1, 1,
-                 "unknown statement 'robots' (expected robot, workpiece, location, semaphore, region, steps or "
-                 "sequence)");
+                 "unknown statement 'robots' (expected robot, workpiece, location, semaphore, region, machine, "
+                 "conveyor, sensor, steps or sequence)");
   expect_failure("| r1\n", 1, 1,
-                 "expected a statement (robot, workpiece, location, semaphore, region, steps or sequence), found '|'");
+                 "expected a statement (robot, workpiece, location, semaphore, region, machine, conveyor, sensor, "
+                 "steps or sequence), found '|'");
   expect_failure("robot r1\nsteps\nr1\nend\nsteps\nr1\nend\n", 5, 1,
                  "only one steps block is allowed; the first is on line 2");
   expect_failure("robot r1\nsteps now\n", 2, 7, "unexpected 'now' after 'steps'");
@@ -433,9 +434,11 @@ TEST(ParseErrors, StatementsOutOfPlace) {
 
 TEST(ParseErrors, UnknownCommand) {
   expect_failure("robot r1\nworkpiece A\nsequence r1\n  Pik A\nend\n", 4, 3,
-                 "unknown command 'Pik' (expected Pick, Put, Get, Place, signal, wait, enter or leave)");
+                 "unknown command 'Pik' (expected Pick, Put, Get, Place, signal, wait, enter, leave, start, run, stop, accumulate, home or "
+                 "park)");
   expect_failure("robot r1 r2\nsteps\nr1 | r2\n | 7\nend\n", 4, 4,
-                 "expected a command (Pick, Put, Get, Place, signal, wait, enter or leave), found '7'");
+                 "expected a command (Pick, Put, Get, Place, signal, wait, enter, leave, start, run, stop, accumulate, "
+                 "home or park), found '7'");
 }
 
 TEST(ParseErrors, MissingOrExtraArguments) {
@@ -445,7 +448,7 @@ TEST(ParseErrors, MissingOrExtraArguments) {
                  "Place needs an argument: a workpiece or location name");
   expect_failure("robot r1\nsequence r1\n  wait =\nend\n", 3, 8, "wait needs a semaphore name, found '='");
   expect_failure("robot r1\nworkpiece A B\nsequence r1\n  Pick A B\nend\n", 4, 10,
-                 "extra argument 'B' after 'Pick A': Pick takes one argument");
+                 "extra argument 'B' after 'Pick A': Pick takes one argument (or 'Pick W from MACHINE')");
   expect_failure("robot r1\nsequence\n", 2, 1, "'sequence' needs the name of the robot it programs");
   expect_failure("robot r1 r2\nsequence r1 r2\nend\n", 2, 13,
                  "unexpected 'r2' after 'sequence r1': a sequence programs one robot");

@@ -13,7 +13,22 @@ namespace cellwright::task {
 
 // kLoop closes the body of a `repeat N ... end` block (RobotProgram::loops): it never goes to a robot and takes no
 // time; after it the robot goes back to the body's first primitive (again) or on to the next one (exit).
-enum class PrimitiveKind : std::uint8_t { kMove, kOpen, kClose, kSignal, kWait, kLoop };
+// kDevice is an action of a device (a machine, a conveyor, a sensor) that a robot's program orders: it goes to device
+// control (runtime/device_control.hpp), not to the robot, and the robot's program goes on when it is done.
+enum class PrimitiveKind : std::uint8_t { kMove, kOpen, kClose, kSignal, kWait, kLoop, kDevice };
+
+// What a kDevice primitive does (docs/task-language.md, "Devices"):
+enum class DeviceOp : std::uint8_t {
+  kStart,       // machine: set its start coil, see busy, clear start (the cycle has begun)
+  kAwaitDone,   // machine: wait until its done input is on (the cycle has finished)
+  kRun,         // conveyor: set its run coil
+  kStop,        // conveyor: clear its run coil
+  kAccumulate,  // conveyor: set its run coil; the belt stops itself while its stop eye is blocked
+  kAwaitOn,     // sensor: wait until its input is on (a part is there)
+};
+
+// "start", "await done", "run", "stop", "accumulate", "await on".
+const char* to_string(DeviceOp op);
 
 // Where a move goes, symbolically; robot control resolves it against the environment model at run time.
 enum class TargetKind : std::uint8_t {
@@ -23,6 +38,7 @@ enum class TargetKind : std::uint8_t {
   kHandApproach,  // approaching the other robot's hand (`object` = that robot) before a Get grasp
   kHandGrasp,     // at the other robot's hand, fingers around the workpiece it presents
   kHome,      // the robot's home pose
+  kPark,      // the robot's park pose (the cell description's `park:`), out of the other robots' way
 };
 
 struct Target {
@@ -36,6 +52,8 @@ struct Primitive {
   std::string event;      // kSignal / kWait: event (semaphore) name
   std::string workpiece;  // kClose: the workpiece grasped; kOpen: the workpiece released (empty if none)
   int loop = -1;          // kLoop: index into RobotProgram::loops of the loop it closes; -1 for the other kinds
+  std::string device;     // kDevice: the machine, conveyor or sensor
+  DeviceOp op = DeviceOp::kStart;  // kDevice: what it does
   // Provenance, for listings and for analysis results told in program terms.
   SourceLocation where;   // the task-level command (or signal/wait/enter/leave statement) in the source
   std::string task;       // task-level command as written, e.g. "Pick A"
@@ -79,7 +97,14 @@ struct Semaphore {
   bool region = false;
   SourceLocation declared;  // user semaphores/regions: the declaration; inserted events: the command that needs them
   bool inserted = false;    // inserted by the compiler (lock-step barrier or Put/Get hand-over event)
+  // A device's state (inserted too, `inserted` false): the device's name; its places are "M.idle" (initial 1),
+  // "M.loaded", "M.busy", "M.done" for a machine M, "C.stopped" (initial 1) and "C.running" for a conveyor C. Empty
+  // for the others.
+  std::string device{};
 };
+
+// A device's state event, "mill.idle".
+std::string device_state_event(const std::string& device, const char* state);
 
 // A critical region: for each robot, the half-open primitive index ranges [enter, leave) spent inside it.
 struct RegionSpan {
@@ -102,12 +127,21 @@ struct WorkpieceClass {
   SourceLocation where;  // the name in the declaration
 };
 
+// A photo-eye and the conveyor whose parts it sees.
+struct SensorDecl {
+  std::string name;
+  std::string conveyor;
+};
+
 struct CompiledProgram {
   std::string file;
   std::vector<std::string> robots;       // declaration order
   std::vector<std::string> workpieces;   // named workpieces only (declaration order); classes are in `classes`
   std::vector<WorkpieceClass> classes;   // declaration order
   std::vector<std::string> locations;
+  std::vector<std::string> machines;     // declaration order
+  std::vector<std::string> conveyors;    // declaration order
+  std::vector<SensorDecl> sensors;       // declaration order
   std::vector<RobotProgram> programs;    // one per robot, same order as robots
   std::vector<Semaphore> semaphores;     // user semaphores, regions, and the events the compiler inserted
   std::vector<RegionUse> regions;

@@ -24,9 +24,11 @@
 namespace cellwright::task {
 
 // The kinds of declared names. All names share one namespace.
-enum class NameKind : std::uint8_t { kRobot, kWorkpiece, kLocation, kSemaphore, kRegion };
+// Devices (kMachine, kConveyor, kSensor) are the cell's ancillary equipment: the process machine, the belts and their
+// photo-eyes (docs/task-language.md, "Devices").
+enum class NameKind : std::uint8_t { kRobot, kWorkpiece, kLocation, kSemaphore, kRegion, kMachine, kConveyor, kSensor };
 
-// "robot", "workpiece", "location", "semaphore", "region".
+// "robot", "workpiece", "location", "semaphore", "region", "machine", "conveyor", "sensor".
 const char* to_string(NameKind k);
 
 // One declared name, e.g. `semaphore s = 2` or one of the names of `robot r1 r2`.
@@ -37,25 +39,36 @@ struct Declaration {
   SourceLocation where;       // the name token in the declaration
   // Workpieces only: a class (`workpiece part from IN`, one name per such statement) names the location its parts
   // arrive at (a declared location); empty for a named workpiece.
+  // Sensors: the conveyor whose parts the photo-eye sees (`sensor in_stop on IN`, a declared conveyor).
   std::string from;
-  SourceLocation from_where;  // the location token after `from`
+  SourceLocation from_where;  // the location token after `from` (the conveyor token after `on`)
 };
 
-enum class CommandKind : std::uint8_t { kPick, kPut, kGet, kPlace, kSignal, kWait, kEnter, kLeave };
+// Device commands (docs/task-language.md, "Devices"): kStart (a machine's cycle), kRun / kStop / kAccumulate (a
+// conveyor); `wait` also takes a machine (until its cycle is done) or a sensor (until it sees a part), `Place` a
+// machine (put the held part into it) and `Pick W from M` takes W out of machine M. kHome and kPark send the robot to
+// its home or park pose and take no argument.
+enum class CommandKind : std::uint8_t {
+  kPick, kPut, kGet, kPlace, kSignal, kWait, kEnter, kLeave, kStart, kRun, kStop, kAccumulate, kHome, kPark
+};
 
-// The canonical spelling of the command keyword: "Pick", "Put", "Get", "Place", "signal", "wait", "enter", "leave".
+// The canonical spelling of the command keyword: "Pick", "Put", "Get", "Place", "signal", "wait", "enter", "leave",
+// "start", "run", "stop", "accumulate", "home", "park".
 const char* to_string(CommandKind k);
 
-// One task-level command with its single argument.
+// One task-level command with its argument (none for home and park).
 struct Command {
   CommandKind kind = CommandKind::kPick;
-  std::string argument;                           // the name the command takes
-  NameKind argument_kind = NameKind::kWorkpiece;  // what the argument resolved to (Place: workpiece or location)
+  std::string argument;                           // the name the command takes; empty for home and park
+  NameKind argument_kind = NameKind::kWorkpiece;  // what the argument resolved to (Place: workpiece, location or
+                                                  // machine; wait: semaphore, machine or sensor)
   SourceLocation where;                           // the command keyword
   SourceLocation argument_where;                  // the argument token
+  std::string machine;                            // `Pick W from M`: the machine M; empty otherwise
+  SourceLocation machine_where;                   // its token
 };
 
-// "Pick A", "Put r2", "signal s1": canonical keyword spelling, one space, the argument.
+// "Pick A", "Put r2", "signal s1", "Pick A from mill", "home": canonical keyword spelling, then the arguments.
 std::string to_string(const Command& c);
 
 // One line of the lock-step table.

@@ -122,6 +122,9 @@ struct RobotSpec {
   std::filesystem::path urdf;  // absolute; links base_link..tcp, joints joint1..joint6 and two finger joints
   Pose base;                   // base_link in the world
   std::vector<double> home;    // radians, one per arm joint from base_link to tcp, in chain order
+  // The robot's park pose (`park:`, degrees in the file), out of the other robots' way: where the task language's
+  // `park` sends it. Empty: the cell gives none (a program's `park` for this robot is refused at run time).
+  std::vector<double> park;
   // The URDF's own link names: the link placed at `base` (links above it, such as a `world` root fixed to it, are
   // left out), the tool mounting face (the wrist force sensor's frame, where a mounted gripper goes), and the tool
   // centre point, the tip of the robot's kinematic chain. With gripper kCellwright the tool link is the gripper's

@@ -63,6 +63,7 @@ struct CellRobot {
   std::string name;
   Eigen::Isometry3d base = Eigen::Isometry3d::Identity();  // base_link in the world
   std::vector<double> home;                                // radians
+  std::vector<double> park;                                // radians; empty: the cell gives no park pose
 };
 
 struct CellWorkpiece {
@@ -172,6 +173,7 @@ struct RobotState {
 
   const Eigen::Isometry3d& base() const { return fixed->base; }  // base_link in the world
   const std::vector<double>& home() const { return fixed->home; }
+  const std::vector<double>& park() const { return fixed->park; }
 };
 
 // An object the safety sensor sees that is not in the cell model (runtime::Obstacle), as of the last period.

@@ -1,0 +1,75 @@
+// DeviceControl: the device-control work for one I/O unit (issue 26): it executes the task program's device
+// primitives (compiled.hpp, PrimitiveKind::kDevice: a machine's start and done, a conveyor's run and stop, a
+// photo-eye's input) on a DigitalIo (drivers/digital_io.hpp), and says when each is done or why it failed.
+//
+// It is a step machine, not a thread: begin() takes a device primitive, poll() makes the I/O requests it needs now and
+// returns kPending until the primitive is done. Whoever owns the unit calls both (the DigitalIo rules: one owner
+// thread); in lock-step the caller polls once per turn, in real time at a set period, so nothing here sleeps or
+// blocks beyond one request. NOT YET WIRED: the Runtime refuses device commands; task control is to send these
+// primitives over a queue to a device-control participant that owns this object (the lead's part of issue 26).
+//
+// What each operation does on the unit (the device's addresses come from the cell description's `io` keys):
+//   start       machine: write start = 1; poll busy until on; write start = 0; done
+//   await done  machine: poll done until on; done
+//   run         conveyor: write run = 1; done (accumulate: the same, the belt stops itself at its stop eye)
+//   stop        conveyor: write run = 0; done
+//   await on    sensor: poll its input until on; done
+// Faults, never a hang: a request that fails (timeout, exception, disconnected, protocol) ends the primitive with
+// kFault and the unit's message; an awaited input that is not seen within the device's `limit` (for a machine's busy
+// and done: set from its process_time by the caller) ends it with kFault naming the device, the input and the limit.
+// The decision tree's action for both is to stop the cell with this reason (docs/faults.md).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cellwright/drivers/digital_io.hpp"
+#include "cellwright/runtime/clock.hpp"
+#include "cellwright/task/compiled.hpp"
+
+namespace cellwright::runtime {
+
+// One device's wiring on the unit. Addresses -1: not wired (a primitive that needs it faults).
+struct DeviceWiring {
+  std::string name;      // the program's (and the cell's) device name
+  int coil = -1;         // machine: start; conveyor: run
+  int input = -1;        // machine: done; sensor: its photo-eye
+  int busy = -1;         // machine: busy
+  SimDuration limit{0};  // how long an awaited input may take; 0: no limit
+};
+
+enum class DeviceOutcome { kPending, kDone, kFault };
+
+struct DeviceStep {
+  DeviceOutcome outcome = DeviceOutcome::kPending;
+  std::string reason;  // kFault: what failed, naming the device
+};
+
+class DeviceControl {
+ public:
+  // `io` must outlive this object; its owner thread is the only caller of begin() and poll().
+  DeviceControl(drivers::DigitalIo& io, std::vector<DeviceWiring> devices);
+
+  // Starts device primitive `p` at `now`. InternalError if another primitive is still pending or `p` is not a
+  // device primitive; a device this unit does not wire is a fault reported by the next poll().
+  void begin(const task::Primitive& p, SimDuration now);
+  // Advances the pending primitive (see the top); kDone or kFault end it. Without a pending primitive: kDone.
+  DeviceStep poll(SimDuration now);
+
+ private:
+  DeviceStep fault(std::string reason);
+  DeviceStep write(int address, bool value, const char* what);
+  // true when input `address` is on; a fault (request failed, or the limit passed) in `out`.
+  bool input_on(int address, const char* what, SimDuration now, DeviceStep& out);
+
+  drivers::DigitalIo& io_;
+  std::vector<DeviceWiring> devices_;
+  std::optional<task::Primitive> current_;
+  const DeviceWiring* device_ = nullptr;
+  SimDuration since_{0};
+  bool written_ = false;  // start: the start coil is set, waiting for busy
+};
+
+}  // namespace cellwright::runtime

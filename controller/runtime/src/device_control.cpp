@@ -1,0 +1,100 @@
+#include "cellwright/runtime/device_control.hpp"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <utility>
+
+#include "cellwright/common/error.hpp"
+
+namespace cellwright::runtime {
+
+DeviceControl::DeviceControl(drivers::DigitalIo& io, std::vector<DeviceWiring> devices)
+    : io_(io), devices_(std::move(devices)) {}
+
+void DeviceControl::begin(const task::Primitive& p, SimDuration now) {
+  CW_CHECK(!current_, "device primitive '{}' begun while '{}' is pending", task::to_string(p),
+           task::to_string(*current_));
+  CW_CHECK(p.kind == task::PrimitiveKind::kDevice, "'{}' is not a device primitive", task::to_string(p));
+  current_ = p;
+  device_ = nullptr;
+  for (const DeviceWiring& d : devices_) {
+    if (d.name == p.device) device_ = &d;
+  }
+  since_ = now;
+  written_ = false;
+}
+
+DeviceStep DeviceControl::fault(std::string reason) {
+  current_.reset();
+  return {DeviceOutcome::kFault, std::move(reason)};
+}
+
+DeviceStep DeviceControl::write(int address, bool value, const char* what) {
+  if (address < 0) return fault(fmt::format("device {}: its {} is not wired", device_->name, what));
+  const drivers::IoResult r = io_.write_coil(static_cast<std::uint16_t>(address), value);
+  if (!r.ok()) {
+    return fault(fmt::format("device {}: writing {} (coil {}) on {} failed: {} {}", device_->name, what, address,
+                             io_.describe(), drivers::to_string(r.status), r.message));
+  }
+  return {DeviceOutcome::kDone, {}};
+}
+
+bool DeviceControl::input_on(int address, const char* what, SimDuration now, DeviceStep& out) {
+  if (address < 0) {
+    out = fault(fmt::format("device {}: its {} input is not wired", device_->name, what));
+    return false;
+  }
+  std::vector<bool> values;
+  const drivers::IoResult r = io_.read_inputs(static_cast<std::uint16_t>(address), 1, values);
+  if (!r.ok()) {
+    out = fault(fmt::format("device {}: reading {} (input {}) on {} failed: {} {}", device_->name, what, address,
+                            io_.describe(), drivers::to_string(r.status), r.message));
+    return false;
+  }
+  if (values.at(0)) return true;
+  if (device_->limit.count() > 0 && now - since_ > device_->limit) {
+    out = fault(fmt::format("device {}: {} (input {}) not seen within {:.3f} s", device_->name, what, address,
+                            std::chrono::duration<double>(device_->limit).count()));
+  }
+  return false;
+}
+
+DeviceStep DeviceControl::poll(SimDuration now) {
+  if (!current_) return {DeviceOutcome::kDone, {}};
+  if (device_ == nullptr) {
+    return fault(fmt::format("device {}: not wired to {}", current_->device, io_.describe()));
+  }
+  DeviceStep step;
+  DeviceStep end{DeviceOutcome::kDone, {}};
+  switch (current_->op) {
+    case task::DeviceOp::kStart:
+      if (!written_) {
+        step = write(device_->coil, true, "start");
+        if (step.outcome == DeviceOutcome::kFault) return step;
+        written_ = true;
+        since_ = now;
+        step = {};  // pending until busy is seen
+      }
+      if (!input_on(device_->busy, "busy", now, step)) return step;
+      end = write(device_->coil, false, "start");
+      break;
+    case task::DeviceOp::kAwaitDone:
+      if (!input_on(device_->input, "done", now, step)) return step;
+      break;
+    case task::DeviceOp::kAwaitOn:
+      if (!input_on(device_->input, "photo-eye", now, step)) return step;
+      break;
+    case task::DeviceOp::kRun:
+    case task::DeviceOp::kAccumulate:
+      end = write(device_->coil, true, "run");
+      break;
+    case task::DeviceOp::kStop:
+      end = write(device_->coil, false, "run");
+      break;
+  }
+  current_.reset();
+  return end;
+}
+
+}  // namespace cellwright::runtime

@@ -291,7 +291,7 @@ int line_of(const std::string& text, const std::string& needle) {
 }
 
 TEST_F(RobotProgramsTest, RefusesAPartComingOnAConveyorWithoutSensor) {
-  const std::string cell = cell_with(dir_, "    sensor: {signal: 16}\n", "");
+  const std::string cell = cell_with(dir_, "    sensor: {signal: 16, name: input_eye, io: 0}\n", "");
   const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());
   expect_refused(s, "cell.yaml", line_of(cell, "- name: input"),
                  "robot 'puma' (r1) goes to workpiece 'A' (prog.task:5:3 'Pick A') before it has ridden conveyor "
@@ -319,7 +319,7 @@ TEST_F(RobotProgramsTest, AFedPartOfAClassIsWaitedForAtTheSensor) {
 }
 
 TEST_F(RobotProgramsTest, RefusesAFedPartOfAClassOnAConveyorWithoutSensor) {
-  const std::string cell = cell_with(dir_, "    sensor: {signal: 16}\n", "");
+  const std::string cell = cell_with(dir_, "    sensor: {signal: 16, name: input_eye, io: 0}\n", "");
   const Scenario s = load(class_program(), kFeed, (dir_ / "cell.yaml").string());
   expect_refused(s, "cell.yaml", line_of(cell, "- name: input"),
                  "robot 'puma' (r1) goes to the next part the feed brings (prog.task:6:3 'Pick part')");
@@ -404,9 +404,9 @@ TEST_F(RobotProgramsTest, RefusesTakingANamedPartAgainAfterItWasLetGoOfOnARunnin
 }
 
 TEST_F(RobotProgramsTest, RefusesASensorOnAnEventWire) {
-  const std::string cell = cell_with(dir_, "sensor: {signal: 16}", "sensor: {signal: 1}");
+  const std::string cell = cell_with(dir_, "sensor: {signal: 16,", "sensor: {signal: 1,");
   const Scenario s = load(kSmall, "", (dir_ / "cell.yaml").string());
-  expect_refused(s, "cell.yaml", line_of(cell, "sensor: {signal: 1}"),
+  expect_refused(s, "cell.yaml", line_of(cell, "sensor: {signal: 1,"),
                  "input 1 is the part-present sensor of conveyor 'input', but the program's events need the wires "
                  "1..1");
 }

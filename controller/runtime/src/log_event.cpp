@@ -198,6 +198,13 @@ template <class F, Is<events::CellStopped> E>
 void fields(F& f, E& e) {
   f("reason", e.reason);
 }
+template <class F, Is<events::Device> E>
+void fields(F& f, E& e) {
+  f("device", e.device);
+  f("kind", e.kind);
+  f("state", e.state);
+  f("workpiece", e.workpiece);
+}
 template <class F, Is<events::Held> E>
 void fields(F& f, E& e) {
   f("robot", e.robot);

@@ -127,6 +127,8 @@ LogEvent random_event(std::size_t index, Random& r) {
     }
     case 19:
       return ev::RunEnd{t, r.text(), r.text(), r.flag() ? std::numeric_limits<std::uint64_t>::max() : 12u};
+    case 20:
+      return ev::Device{t, r.text(), r.text(), r.text(), r.text()};
     default:
       ADD_FAILURE() << "no random event for alternative " << index;
       return ev::CellStopped{};
@@ -196,6 +198,8 @@ TEST(LogEventCodec, WritesTheLinesTheLogHasAlwaysHad) {
        R"({"t":21.9346,"type":"physical","held":[{"robot":"puma","workpiece":"A"},{"robot":"melfa","workpiece":""}],"obstacles":1})"},
       {ev::WorkpieceLeft{t, "A", "output"},
        R"({"t":21.9346,"type":"workpiece_left","workpiece":"A","where":"output"})"},
+      {ev::Device{t, "mill", "machine", "busy", "A"},
+       R"({"t":21.9346,"type":"device","device":"mill","kind":"machine","state":"busy","workpiece":"A"})"},
   };
   for (const auto& [event, line] : cases) {
     EXPECT_EQ(encode(event), line);

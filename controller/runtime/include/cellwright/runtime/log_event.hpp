@@ -288,6 +288,21 @@ struct RunEnd {
   bool operator==(const RunEnd&) const = default;
 };
 
+// A device of the cell changed state (issue 26: machines, conveyors, photo-eyes), as device control sees it through
+// the device's I/O (the twin's I/O image or a real unit): logged by device control when an input it reads or a coil
+// it writes changes, so that the same events come from the twin and from real I/O.
+struct Device {
+  static constexpr std::string_view kType = "device";
+  SimDuration t{0};
+  std::string device;     // the cell's device name (a machine, conveyor or sensor)
+  std::string kind;       // "machine" | "conveyor" | "sensor"
+  // machine: "idle" | "busy" | "done" (from its busy and done inputs); conveyor: "running" | "stopped" (its run
+  // coil); sensor: "on" | "off" (its input)
+  std::string state;
+  std::string workpiece;  // machine: the cell workpiece the model has in it ("" none); others ""
+  bool operator==(const Device&) const = default;
+};
+
 }  // namespace events
 
 // Any event of the log.
@@ -295,7 +310,7 @@ using LogEvent = std::variant<events::RunStart, events::Fire, events::CommandSta
                               events::Collision, events::WorkpieceArrived, events::WorkpieceLeft, events::Vision,
                               events::FaultInjected, events::FaultDetected, events::Diagnosis, events::RecoveryEnd,
                               events::ProtectiveStop, events::ProtectiveRelease, events::WorkpieceLost, events::Skipped,
-                              events::CellStopped, events::Physical, events::RunEnd>;
+                              events::CellStopped, events::Physical, events::RunEnd, events::Device>;
 
 // The event's time and its "type" ("run_start", ...).
 SimDuration time_of(const LogEvent& e);

@@ -61,6 +61,10 @@ void add_run_options(CLI::App& cmd, RunArgs& args) {
                  "take vision's frames from a real camera instead of the twin's: NAME=v4l2:/dev/videoN (with "
                  "--realtime) or a recording, NAME=file:VIDEO or NAME=file:GLOB,fps=N (image files in sorted order; "
                  "frame i is the picture of time i/fps); NAME the camera vision looks through (docs/vision.md)");
+  cmd.add_option("--device", args.devices,
+                 "put a device of the cell on real I/O: NAME=modbus:HOST:PORT[/UNIT] (Modbus TCP, unit 1 by default; "
+                 "NAME a machine, conveyor or photo-eye the cell's io keys wire; repeatable; needs --realtime; "
+                 "docs/devices.md)");
   cmd.add_option("--record-camera", args.record_camera,
                  "write each frame of vision's camera (plain, as captured) as DIR/frame_<i>.png (6 digits, i the "
                  "vision period it belongs to): lossless, to be read back with --camera NAME=file:DIR/frame_*.png,"
@@ -161,6 +165,7 @@ cell::RunOptions run_options_for(const RunArgs& args, const cell::Scenario& s) {
     };
   }
   options.cameras = args.cameras;
+  options.devices = args.devices;
   if (!args.output.empty()) options.events_file = streamed_events_file(args.output);
   return options;
 }

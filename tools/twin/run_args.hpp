@@ -34,11 +34,12 @@ struct RunArgs {
   bool force = false;             // --force: write into an -o directory that is not Cellwright's
   std::vector<std::string> cameras;  // --camera NAME=SOURCE: vision's frames from a real camera or a recording
   std::string record_camera;         // --record-camera DIR: the camera's frames as lossless PNG files
+  std::vector<std::string> devices;  // --device NAME=modbus:HOST:PORT[/UNIT]: a device on real I/O
 };
 
 // Adds the shared options to `cmd`, stored in `args` (which must outlive the parse): the scenario, -o/--output
 // (--out, the old name, still accepted and not shown), --force, --perception, --driver, --fault, --seed, --save-frames,
-// --video, --video-fps, --video-size, --allow-collisions, --camera, --record-camera.
+// --video, --video-fps, --video-size, --allow-collisions, --camera, --record-camera, --device.
 void add_run_options(CLI::App& cmd, RunArgs& args);
 
 // The scenario with --driver, --fault and --seed applied, after checking that the -o and --save-frames directories

@@ -1,4 +1,5 @@
 // The wiring every run of a scenario shares (run_wiring.hpp).
+#include <algorithm>
 #include "cellwright/cell/run_wiring.hpp"
 
 #include <fmt/format.h>
@@ -26,7 +27,11 @@ runtime::RunConfig scenario_run_config(const Scenario& s, const petri::Net& net)
   config.binding.where = {s.source.string(), 0, 0};
   for (const Binding& b : s.robots) config.binding.robots[b.label] = {b.name, b.where};
   for (const Binding& b : s.workpieces) config.binding.objects[b.label] = {b.name, b.where};
-  for (const Binding& b : s.locations) config.binding.objects[b.label] = {b.name, b.where};
+  for (const Binding& b : s.locations) {
+    // A machine's label is bound to its fixture for the moves; the runtime binds its device itself (same name).
+    const auto& m = s.program.machines;
+    if (std::find(m.begin(), m.end(), b.label) == m.end()) config.binding.objects[b.label] = {b.name, b.where};
+  }
   config.period = seconds(s.options.control_period);
   config.limits.sim_time = seconds(s.limits.sim_time);
   config.limits.settle = seconds(s.options.settle_time);
@@ -35,6 +40,39 @@ runtime::RunConfig scenario_run_config(const Scenario& s, const petri::Net& net)
   config.motion.targets.handover_clearance = s.options.handover_clearance;
   config.motion.recovery = s.recovery;
   return config;
+}
+
+std::vector<runtime::DeviceWiring> cell_devices(const models::CellDescription& cell) {
+  std::vector<runtime::DeviceWiring> out;
+  for (const models::MachineSpec& m : cell.machines) {
+    runtime::DeviceWiring w;
+    w.name = m.name;
+    w.kind = runtime::DeviceKind::kMachine;
+    w.coil = m.start_io.address;
+    w.busy = m.busy_io.address;
+    w.input = m.done_io.address;
+    w.at = m.fixture_top().xyz;
+    if (w.coil >= 0 && w.busy >= 0 && w.input >= 0) out.push_back(w);
+  }
+  for (const models::ConveyorSpec& c : cell.conveyors) {
+    runtime::DeviceWiring w;
+    w.name = c.name;
+    w.kind = runtime::DeviceKind::kConveyor;
+    w.coil = c.run_io.address;
+    w.at = c.belt_point(c.leave);
+    if (w.coil >= 0) out.push_back(w);
+    const auto eye = [&](const std::string& name, const models::IoAddress& io, double s) {
+      runtime::DeviceWiring e;
+      e.name = name;
+      e.kind = runtime::DeviceKind::kSensor;
+      e.input = io.address;
+      e.at = c.belt_point(s);
+      if (e.input >= 0) out.push_back(e);
+    };
+    if (c.stop_eye) eye(c.stop_eye_name, c.stop_eye_io, c.leave);
+    if (c.drop_eye) eye(c.drop_eye_name, c.drop_eye_io, c.enter);
+  }
+  return out;
 }
 
 void refuse_lockstep_with_real_drivers(const Scenario& s, bool realtime) {

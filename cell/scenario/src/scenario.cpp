@@ -413,6 +413,30 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   bind_labels(s.program.workpieces, "workpiece", wp_map, names_of(s.cell.workpieces), "workpiece", "bind",
               s.workpieces);
   bind_labels(s.program.locations, "location", loc_map, names_of(s.cell.locations), "location", "bind", s.locations);
+  // A program machine is the cell machine of its name, and robots reach into it at its fixture: the machine's label
+  // stands for the location at the fixture (`at: M.fixture`) in every move (`Place M`), for the plan as for the run.
+  for (const std::string& label : s.program.machines) {
+    const models::MachineSpec* m = nullptr;
+    for (const auto& spec : s.cell.machines) {
+      if (spec.name == label) m = &spec;
+    }
+    if (m == nullptr) {
+      doc.fail(program_node, fmt::format("the program declares machine '{}', which is not a machine of the cell {} "
+                                         "(machines: {})",
+                                         label, s.cell_file.filename().string(), list_names(names_of(s.cell.machines))));
+    }
+    std::string fixture;
+    for (const auto& l : s.cell.locations) {
+      if ((l.pose.xyz - m->fixture_top().xyz).norm() < 1e-3) fixture = l.name;
+    }
+    if (fixture.empty()) {
+      doc.fail(program_node, fmt::format("machine '{}' has no location at its fixture, where robots put parts into "
+                                         "it: add one to the cell's or the scenario's locations, e.g. `- {{name: "
+                                         "{}_fixture, at: {}.fixture}}`",
+                                         label, label, label));
+    }
+    s.locations.push_back(Binding{label, fixture, doc.at(program_node)});
+  }
 
   // --- drivers: the cell's choice unless the scenario overrides it ---
   std::map<std::string, std::pair<YAML::Node, YAML::Node>> driver_given;

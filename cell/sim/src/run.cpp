@@ -11,6 +11,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <set>
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/common/files.hpp"
@@ -22,6 +23,7 @@
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/fault_injector.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
+#include "cellwright/drivers/modbus/modbus_io.hpp"
 #include "cellwright/vision/camera_model.hpp"
 #include "cellwright/vision/cell_detector.hpp"
 #include "cellwright/vision/detector.hpp"
@@ -72,6 +74,33 @@ drivers::FaultPlan driver_plan(const Scenario& s, const std::string& robot) {
   plan.seed = s.seed;
   return plan;
 }
+
+// A real I/O unit whose coils are also written into the twin's I/O image, so that the twin mirrors the real devices:
+// reads are the real unit's; a coil written there is written into the twin after it (the twin refusing it changes
+// nothing for the controller, which drives the real unit).
+class MirroredIo final : public drivers::DigitalIo {
+ public:
+  MirroredIo(std::unique_ptr<drivers::DigitalIo> real, drivers::DigitalIo& twin) : real_(std::move(real)), twin_(twin) {}
+  std::string describe() const override { return real_->describe(); }
+  drivers::IoResult connect() override { return real_->connect(); }
+  void close() override { real_->close(); }
+  bool is_open() const override { return real_->is_open(); }
+  drivers::IoResult write_coil(std::uint16_t address, bool value) override {
+    const drivers::IoResult r = real_->write_coil(address, value);
+    if (r.ok()) (void)twin_.write_coil(address, value);
+    return r;
+  }
+  drivers::IoResult read_coils(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) override {
+    return real_->read_coils(first, count, values);
+  }
+  drivers::IoResult read_inputs(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) override {
+    return real_->read_inputs(first, count, values);
+  }
+
+ private:
+  std::unique_ptr<drivers::DigitalIo> real_;
+  drivers::DigitalIo& twin_;
+};
 
 }  // namespace
 
@@ -347,8 +376,58 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
                                   if (video_) video_->record(world_->data(), o.time, std::move(lines));
                                 }});
   }
+  wire_devices(config, options.devices);
   runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
   world_plant_->log_injections_to(&runtime_->log());
+}
+
+void ScenarioRun::wire_devices(runtime::RunConfig& config, const std::vector<std::string>& real) {
+  std::vector<runtime::DeviceWiring> all = cell_devices(scenario_.cell);
+  twin_io_ = std::make_unique<sim::TwinIo>(*world_);
+  // Real units by endpoint, and the devices on each.
+  std::map<std::string, std::size_t> unit_of;
+  std::vector<runtime::IoUnit> units;
+  std::set<std::string> taken;
+  for (const std::string& text : real) {
+    const SourceLocation where{"--device", 0, 0};
+    const auto eq = text.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      throw InputError(where, fmt::format("'{}': expected NAME=modbus:HOST:PORT[/UNIT]", text));
+    }
+    const std::string name = text.substr(0, eq);
+    const drivers::ModbusAddress address = drivers::parse_modbus_address(text.substr(eq + 1), where);
+    auto dev = std::find_if(all.begin(), all.end(), [&](const runtime::DeviceWiring& w) { return w.name == name; });
+    if (dev == all.end()) {
+      std::string known;
+      for (const auto& w : all) known += (known.empty() ? "" : ", ") + w.name;
+      throw InputError(where, fmt::format("'{}': the cell {} has no device '{}' wired to I/O (its devices with `io` "
+                                          "addresses: {})",
+                                          text, scenario_.cell.source.string(), name,
+                                          known.empty() ? std::string("none") : known));
+    }
+    if (!taken.insert(name).second) {
+      throw InputError(where, fmt::format("'{}': device '{}' is given twice", text, name));
+    }
+    if (!realtime_) {
+      throw InputError(where, fmt::format("'{}': a real device runs on the wall clock and cannot wait for the "
+                                          "simulation's steps; run with --realtime",
+                                          text));
+    }
+    auto [it, fresh] = unit_of.emplace(address.str(), units.size());
+    if (fresh) {
+      (void)twin_io_->connect();  // the mirror writes into it
+      real_io_.push_back(std::make_unique<MirroredIo>(std::make_unique<drivers::ModbusIo>(address, drivers::ModbusIoOptions{}, where),
+                                                      *twin_io_));
+      units.push_back(runtime::IoUnit{real_io_.back().get(), true, {}});
+    }
+    units[it->second].devices.push_back(*dev);
+  }
+  runtime::IoUnit twin{twin_io_.get(), false, {}};
+  for (const runtime::DeviceWiring& w : all) {
+    if (taken.count(w.name) == 0) twin.devices.push_back(w);
+  }
+  units.insert(units.begin(), std::move(twin));
+  config.io_units = std::move(units);
 }
 
 ScenarioRun::~ScenarioRun() {

@@ -9,6 +9,18 @@
 
 namespace cellwright::runtime {
 
+const char* to_string(DeviceKind kind) {
+  switch (kind) {
+    case DeviceKind::kMachine:
+      return "machine";
+    case DeviceKind::kConveyor:
+      return "conveyor";
+    case DeviceKind::kSensor:
+      return "sensor";
+  }
+  return "?";
+}
+
 DeviceControl::DeviceControl(drivers::DigitalIo& io, std::vector<DeviceWiring> devices)
     : io_(io), devices_(std::move(devices)) {}
 
@@ -56,6 +68,7 @@ bool DeviceControl::input_on(int address, const char* what, SimDuration now, Dev
   if (device_->limit.count() > 0 && now - since_ > device_->limit) {
     out = fault(fmt::format("device {}: {} (input {}) not seen within {:.3f} s", device_->name, what, address,
                             std::chrono::duration<double>(device_->limit).count()));
+    out.timed_out = true;
   }
   return false;
 }

@@ -18,7 +18,8 @@ constexpr std::array<std::string_view, kSymptoms> kSymptomNames = {
     "grip_lost",        "closed_on_nothing",  "closed_on_wrong_part", "part_shifted", "part_misplaced",
     "part_not_arrived", "target_unreachable", "driver_timeout",       "driver_fault", "link_lost",
     "position_refused", "position_missed",    "protective_stop",      "wait_timeout", "frame_lost",
-    "obstacle_seen",    "no_progress",        "unknown_error"};
+    "obstacle_seen",    "no_progress",        "unknown_error",        "io_failed",    "device_timeout",
+    "device_contradiction"};
 constexpr std::array<std::string_view, 12> kQuestionNames = {
     "part_seen",          "part_at_rest",     "part_upright", "part_reachable", "part_in_hand", "driver_in_fault",
     "retries_left",       "obstacle_near",    "signal_fired", "motion_blocked", "waiting_for_part", "part_lost"};
@@ -134,6 +135,16 @@ no_progress:
     yes: {cause: part_lost_upstream, action: set_aside}
     no: {cause: part_never_ready, action: stop_cell}
   no: {cause: livelock, action: stop_cell}
+# Devices on the cell's I/O (device control, docs/devices.md): a request the unit did not carry out (timeout, Modbus
+# exception, connection lost) is tried again after connecting anew; an input that never comes (a machine never done,
+# a photo-eye never on) or that contradicts the environment model (an eye sees a part the model does not have) stops
+# the cell: nothing the controller can do makes a machine finish or explains a part it does not know.
+io_failed:
+  ask: retries_left
+  yes: {cause: io_request_failed, action: retry}
+  no: {cause: io_unit_down, action: stop_cell}
+device_timeout: {cause: device_not_answering, action: stop_cell}
+device_contradiction: {cause: unknown_part_at_sensor, action: stop_cell}
 )TREE";
 
 }  // namespace

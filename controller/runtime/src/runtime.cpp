@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "cellwright/runtime/clock.hpp"
+#include "cellwright/runtime/device_hub.hpp"
 #include "cellwright/runtime/event.hpp"
 #include "cellwright/runtime/message_queue.hpp"
 
@@ -110,8 +111,16 @@ NameMap check_binding(const RunConfig& c) {
   for (const auto& w : c.program.workpieces) object(w, true);
   for (const auto& l : c.program.locations) object(l, false);
   for (const task::WorkpieceClass& w : c.program.classes) names.classes[w.name] = names.objects.at(w.from);
+  const auto is_device = [&](const std::string& label) {
+    const auto& p = c.program;
+    return std::count(p.machines.begin(), p.machines.end(), label) + std::count(p.conveyors.begin(), p.conveyors.end(),
+                                                                               label) +
+               std::count_if(p.sensors.begin(), p.sensors.end(),
+                             [&](const task::SensorDecl& s) { return s.name == label; }) >
+           0;
+  };
   for (const auto& [label, entry] : b.objects) {
-    if (names.objects.count(label) == 0) {
+    if (names.objects.count(label) == 0 && !is_device(label)) {
       throw InputError(entry.where,
                        fmt::format("'{}' is not a workpiece or location of the program (workpieces: {}; locations: {})",
                                    label, joined(c.program.workpieces), joined(c.program.locations)));
@@ -121,13 +130,6 @@ NameMap check_binding(const RunConfig& c) {
   for (std::size_t r = 0; r < c.program.programs.size(); ++r) {
     const std::string& label = c.program.robots[r];
     for (const task::Primitive& p : c.program.programs[r].primitives) {
-      // Device commands are checked in the Petri net but not driven yet: device control over the cell's I/O unit
-      // is still to come (issue 26), so a run that would need it is refused before it starts, never half-run.
-      if (p.kind == task::PrimitiveKind::kDevice) {
-        throw InputError(p.where, fmt::format("robot {}: '{}' drives device '{}', and this controller cannot run "
-                                              "device commands yet (it checks them: twin check)",
-                                              label, p.task, p.device));
-      }
       if (p.kind != task::PrimitiveKind::kMove) continue;
       const task::TargetKind k = p.target.kind;
       if (k != task::TargetKind::kHandover && k != task::TargetKind::kHandApproach &&
@@ -152,6 +154,109 @@ NameMap check_binding(const RunConfig& c) {
   return names;
 }
 
+// The cell device a program device label is bound to (the binding's objects, else the same name).
+std::pair<std::string, SourceLocation> bound_device(const Binding& b, const std::string& label) {
+  auto it = b.objects.find(label);
+  return it == b.objects.end() ? std::pair{label, b.where} : std::pair{it->second.name, it->second.where};
+}
+
+// Checks the program's devices against the cell and the I/O units (runtime.hpp, the input errors); returns program
+// device label -> cell device name, and adds each machine's fixture location to `names.objects` (a robot's `Place M`
+// goes there). Fills in the limits of the units' devices that have none (RecoveryOptions).
+std::map<std::string, std::string> check_devices(RunConfig& c, NameMap& names) {
+  std::map<std::string, std::string> devices;
+  const task::CompiledProgram& p = c.program;
+  const auto wired = [&](const std::string& cell, const std::string& label, const SourceLocation& where) {
+    for (const IoUnit& u : c.io_units) {
+      for (const DeviceWiring& w : u.devices) {
+        if (w.name == cell) return;
+      }
+    }
+    throw InputError(where, fmt::format("program device '{}' (cell device '{}') is on no I/O unit: the cell "
+                                        "description gives it no `io` addresses, so device control cannot drive it "
+                                        "(docs/cell-description.md, \"io\")",
+                                        label, cell));
+  };
+  for (const std::string& label : p.machines) {
+    const auto [cell, where] = bound_device(c.binding, label);
+    const models::MachineSpec* m = nullptr;
+    for (const auto& spec : c.cell.machines) {
+      if (spec.name == cell) m = &spec;
+    }
+    if (m == nullptr) {
+      throw InputError(where, fmt::format("program machine '{}' is {}not a machine of the cell (cell machines: {})",
+                                          label, cell == label ? "" : fmt::format("bound to '{}', which is ", cell),
+                                          joined(names_of(c.cell.machines))));
+    }
+    // Its fixture: the location at the fixture's top (`at: M.fixture` in the cell description).
+    const Eigen::Vector3d top = m->fixture_top().xyz;
+    std::string fixture;
+    for (const auto& l : c.cell.locations) {
+      if ((l.pose.xyz - top).norm() < 1e-3) fixture = l.name;
+    }
+    if (fixture.empty()) {
+      throw InputError(m->where, fmt::format("machine '{}' has no location at its fixture, where robots put parts "
+                                             "into it: add one to the cell's locations, e.g. `- {{name: {}_fixture, "
+                                             "at: {}.fixture, reach: [ROBOT]}}`",
+                                             cell, cell, cell));
+    }
+    names.objects[label] = fixture;
+    wired(cell, label, where);
+    devices[label] = cell;
+  }
+  for (const std::string& label : p.conveyors) {
+    const auto [cell, where] = bound_device(c.binding, label);
+    if (c.cell.find_conveyor(cell) == nullptr) {
+      throw InputError(where, fmt::format("program conveyor '{}' is {}not a conveyor of the cell (cell conveyors: {})",
+                                          label, cell == label ? "" : fmt::format("bound to '{}', which is ", cell),
+                                          joined(names_of(c.cell.conveyors))));
+    }
+    wired(cell, label, where);
+    devices[label] = cell;
+  }
+  for (const task::SensorDecl& s : p.sensors) {
+    const auto [cell, where] = bound_device(c.binding, s.name);
+    const std::string belt = devices.count(s.conveyor) ? devices.at(s.conveyor) : s.conveyor;
+    std::vector<std::string> eyes;
+    bool found = false;
+    for (const auto& cv : c.cell.conveyors) {
+      if (cv.stop_eye) eyes.push_back(cv.stop_eye_name);
+      if (cv.drop_eye) eyes.push_back(cv.drop_eye_name);
+      if ((cv.stop_eye && cv.stop_eye_name == cell) || (cv.drop_eye && cv.drop_eye_name == cell)) {
+        found = true;
+        if (cv.name != belt) {
+          throw InputError(where, fmt::format("program sensor '{}' is on conveyor '{}' (cell conveyor '{}'), and "
+                                              "cell sensor '{}' watches conveyor '{}'",
+                                              s.name, s.conveyor, belt, cell, cv.name));
+        }
+      }
+    }
+    if (!found) {
+      throw InputError(where, fmt::format("program sensor '{}' is {}not a photo-eye of the cell (cell photo-eyes: {})",
+                                          s.name, cell == s.name ? "" : fmt::format("bound to '{}', which is ", cell),
+                                          joined(eyes)));
+    }
+    wired(cell, s.name, where);
+    devices[s.name] = cell;
+  }
+  const RecoveryOptions& r = c.motion.recovery;
+  for (IoUnit& u : c.io_units) {
+    CW_CHECK(u.io != nullptr, "an I/O unit has no DigitalIo");
+    for (DeviceWiring& w : u.devices) {
+      if (w.limit.count() > 0) continue;
+      if (w.kind == DeviceKind::kSensor) w.limit = r.sensor_wait;
+      if (w.kind != DeviceKind::kMachine) continue;
+      for (const auto& m : c.cell.machines) {
+        if (m.name != w.name) continue;
+        w.limit = std::chrono::duration_cast<SimDuration>(
+                      std::chrono::duration<double>(m.process_time * r.machine_time_factor)) +
+                  r.machine_time_margin;
+      }
+    }
+  }
+  return devices;
+}
+
 }  // namespace
 
 struct Runtime::Impl {
@@ -166,6 +271,10 @@ struct Runtime::Impl {
   std::vector<std::unique_ptr<MessageQueue<MotionCommand>>> inboxes;
   MessageQueue<RobotStatus> statuses;
   std::unique_ptr<TaskControl> task;
+  // Device control (the program has device commands): its inbox and its work.
+  MessageQueue<MotionCommand> device_inbox{64};
+  std::unique_ptr<DeviceHub> devices;
+  Event device_wake{Event::Kind::auto_reset};
   std::vector<std::unique_ptr<RobotControl>> robots;
   VirtualClock clock;
   // Vision (Perception::kVision): frames from the simulation thread to the image-processing thread.
@@ -228,6 +337,7 @@ struct Runtime::Impl {
     if (scheduler) scheduler->stop();
     frames.close();
     task_wake.set();
+    device_wake.set();
     for (auto& e : robot_wake) e->set();
     std::lock_guard lock(m);
     abort = true;
@@ -426,6 +536,11 @@ struct Runtime::Impl {
       // did, the robots coming after it) unless its wait watchdog is armed: that is a time, so it looks every period.
       return skip && !task_watches_time() ? Wake::on_notify() : Wake::next_round();
     }
+    if (devices && p == device_seat()) {
+      devices->step(now);
+      if (statuses.size() > 0) scheduler->notify(task_seat());
+      return Wake::next_round();  // every period it reads the devices' states and polls what it waits for
+    }
     const std::size_t r = p - first_robot_seat();
     robots[r]->step(now);
     if (statuses.size() > 0) scheduler->notify(task_seat());
@@ -443,10 +558,12 @@ struct Runtime::Impl {
                        [](const RobotView& r) { return r.activity == RobotActivity::kWaiting; });
   }
 
-  // Seats (lock-step turns): simulation, image processing (with vision), task control, robots.
+  // Seats (lock-step turns): simulation, image processing (with vision), task control, device control (with
+  // devices), robots.
   std::size_t vision_seat() const { return 1; }
   std::size_t task_seat() const { return vision ? 2 : 1; }
-  std::size_t first_robot_seat() const { return task_seat() + 1; }
+  std::size_t device_seat() const { return task_seat() + 1; }
+  std::size_t first_robot_seat() const { return task_seat() + (devices ? 2 : 1); }
   std::size_t participants() const { return first_robot_seat() + robots.size(); }
 
   std::chrono::steady_clock::duration wall_period() const {
@@ -483,6 +600,15 @@ struct Runtime::Impl {
           for (std::size_t r = 0; r < robots.size(); ++r) {
             if (inboxes[r]->size() > 0) robot_wake[r]->set();
           }
+          if (device_inbox.size() > 0) device_wake.set();
+        }
+      } else if (devices && participant == device_seat()) {
+        while (!stopping) {
+          // Woken by a command; at least once a period, to poll what it waits for and read the devices' states.
+          (void)device_wake.wait_for(wall_period());
+          if (stopping) break;
+          devices->step(clock.now());
+          if (statuses.size() > 0) task_wake.set();
         }
       } else {
         const std::size_t r = participant - first_robot_seat();
@@ -559,8 +685,18 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     });
   }
   config_.motion.track_held_parts = config_.perception != Perception::kTruth;
+  std::map<std::string, std::string> devices = check_devices(config_, im.names);
+  const bool has_devices = std::any_of(config_.program.programs.begin(), config_.program.programs.end(), [](const auto& p) {
+    return std::any_of(p.primitives.begin(), p.primitives.end(),
+                       [](const task::Primitive& q) { return q.kind == task::PrimitiveKind::kDevice; });
+  });
+  if (has_devices || !devices.empty()) {
+    im.devices = std::make_unique<DeviceHub>(config_.io_units, std::move(devices), config_.program, im.device_inbox,
+                                             im.statuses, *log_, im.env, config_.motion.recovery);
+  }
   im.task = std::make_unique<TaskControl>(config_.net, config_.program, inbox_ptrs, im.statuses, *log_,
-                                          config_.motion.recovery, config_.signal_filter);
+                                          config_.motion.recovery, config_.signal_filter,
+                                          im.devices ? &im.device_inbox : nullptr);
   for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
     const std::string& label = config_.program.robots[r];
     const std::string& cell = im.names.robots.at(label);
@@ -642,6 +778,7 @@ void Runtime::start() {
     names.push_back({config_.program.robots[r], im.cells[r]});
   }
   for (auto& r : im.robots) r->connect();  // InputError here: no thread has started
+  if (im.devices) im.devices->connect();
   // Position read-backs are stamped on the runtime's clock.
   for (const std::string& cell : im.cells) {
     config_.drivers.at(cell)->set_clock([&clock = im.clock] { return clock.now(); });

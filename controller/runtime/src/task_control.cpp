@@ -38,10 +38,11 @@ bool net_only(task::PrimitiveKind k) {
 TaskControl::TaskControl(const petri::Net& net, const task::CompiledProgram& program,
                          std::vector<MessageQueue<MotionCommand>*> robot_inboxes,
                          MessageQueue<RobotStatus>& status_inbox, EventLog& log, RecoveryOptions recovery,
-                         SignalFilter signal_filter)
+                         SignalFilter signal_filter, MessageQueue<MotionCommand>* device_inbox)
     : net_(net),
       program_(program),
       inboxes_(std::move(robot_inboxes)),
+      device_inbox_(device_inbox),
       statuses_(status_inbox),
       log_(log),
       marking_(net.initial_marking()),
@@ -167,10 +168,14 @@ void TaskControl::fire_until_quiescent(SimDuration now) {
       CW_CHECK(!in_flight_[r], "robot {} was sent primitive {} with a command still in flight", program_.robots[r], k);
       in_flight_[r] = true;
       MotionCommand cmd{r, k, p, id, now};
-      const QueueStatus pushed = inboxes_[r]->try_push(std::move(cmd));
-      // Each robot has at most one command in flight, so its inbox always has room; closed means the run is over.
-      CW_CHECK(pushed == QueueStatus::ok || pushed == QueueStatus::closed, "robot {} inbox refused a command: {}",
-               program_.robots[r], to_string(pushed));
+      const bool device = p.kind == task::PrimitiveKind::kDevice;
+      CW_CHECK(!device || device_inbox_ != nullptr, "robot {} orders device command '{}' and the run has no device "
+               "control", program_.robots[r], task::to_string(p));
+      const QueueStatus pushed = (device ? device_inbox_ : inboxes_[r])->try_push(std::move(cmd));
+      // Each robot has at most one command in flight, so its inbox (and device control's, sized for one per robot)
+      // always has room; closed means the run is over.
+      CW_CHECK(pushed == QueueStatus::ok || pushed == QueueStatus::closed, "robot {} {} refused a command: {}",
+               program_.robots[r], device ? "device control's inbox" : "inbox", to_string(pushed));
     }
   }
 }

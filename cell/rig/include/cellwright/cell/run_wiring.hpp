@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <vector>
 
 #include "cellwright/petri/net.hpp"
 #include "cellwright/runtime/runtime.hpp"
@@ -19,6 +20,12 @@ namespace cellwright::cell {
 // not know a perturbation), the program's bindings, the control period, the limits (sim time, settle, wall time) and
 // the motion options (hand-over clearance, the decision tree). No drivers, plant, sensors, mode or perception yet.
 runtime::RunConfig scenario_run_config(const Scenario& scenario, const petri::Net& net);
+
+// Every device of the cell, as device control drives it (runtime/device_hub.hpp): each machine (start coil, busy and
+// done inputs; `at` its fixture's top), conveyor (run coil) and photo-eye (its input; `at` where it looks), with the
+// addresses of the cell description's `io` keys, in the cell's order; a device whose `io` lacks an address it needs
+// is left out (the runtime then refuses a program that uses it). Limits are left 0 (the runtime sets them).
+std::vector<runtime::DeviceWiring> cell_devices(const models::CellDescription& cell);
 
 // Refuses a lock-step run (`realtime` false) of a scenario with a robot on a real driver: a real arm moves on the
 // wall clock and cannot wait for the simulation's steps. Throws InputError naming the driver's place.

@@ -5,8 +5,7 @@
 // It is a step machine, not a thread: begin() takes a device primitive, poll() makes the I/O requests it needs now and
 // returns kPending until the primitive is done. Whoever owns the unit calls both (the DigitalIo rules: one owner
 // thread); in lock-step the caller polls once per turn, in real time at a set period, so nothing here sleeps or
-// blocks beyond one request. NOT YET WIRED: the Runtime refuses device commands; task control is to send these
-// primitives over a queue to a device-control participant that owns this object (the lead's part of issue 26).
+// blocks beyond one request. The runtime's device-control participant (device_hub.hpp) owns one per device.
 //
 // What each operation does on the unit (the device's addresses come from the cell description's `io` keys):
 //   start       machine: write start = 1; poll busy until on; write start = 0; done
@@ -20,6 +19,8 @@
 // The decision tree's action for both is to stop the cell with this reason (docs/faults.md).
 #pragma once
 
+#include <Eigen/Core>
+
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -31,20 +32,30 @@
 
 namespace cellwright::runtime {
 
+enum class DeviceKind { kMachine, kConveyor, kSensor };
+
+// "machine", "conveyor", "sensor".
+const char* to_string(DeviceKind kind);
+
 // One device's wiring on the unit. Addresses -1: not wired (a primitive that needs it faults).
 struct DeviceWiring {
-  std::string name;      // the program's (and the cell's) device name
+  std::string name;      // the cell's device name
   int coil = -1;         // machine: start; conveyor: run
   int input = -1;        // machine: done; sensor: its photo-eye
   int busy = -1;         // machine: busy
   SimDuration limit{0};  // how long an awaited input may take; 0: no limit
+  DeviceKind kind = DeviceKind::kMachine;
+  // Where a machine's part rests (its fixture's top) or where a photo-eye looks (world, m): what the environment
+  // model is asked about the device (the part in the machine; a part at the eye).
+  Eigen::Vector3d at = Eigen::Vector3d::Zero();
 };
 
 enum class DeviceOutcome { kPending, kDone, kFault };
 
 struct DeviceStep {
   DeviceOutcome outcome = DeviceOutcome::kPending;
-  std::string reason;  // kFault: what failed, naming the device
+  std::string reason;      // kFault: what failed, naming the device
+  bool timed_out = false;  // kFault: an awaited input did not come within the limit (else a request failed)
 };
 
 class DeviceControl {

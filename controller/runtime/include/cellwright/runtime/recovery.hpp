@@ -63,8 +63,11 @@ enum class Symptom : std::uint8_t {
   // the controller reported an error its driver does not know (ErrorCode::unknown: words or a code outside the
   // driver's list); the driver is in fault and what the arm is doing cannot be told
   unknown_error,
+  io_failed,             // a request to a device's I/O unit failed (timeout, Modbus exception, link lost, garbled)
+  device_timeout,        // a device's awaited input did not come in time (a machine never done, an eye never on)
+  device_contradiction,  // a real photo-eye sees a part where the environment model has none
 };
-inline constexpr std::size_t kSymptoms = 18;
+inline constexpr std::size_t kSymptoms = 21;
 std::string_view to_string(Symptom s);
 std::optional<Symptom> symptom_from(std::string_view name);
 
@@ -167,6 +170,14 @@ struct RecoveryOptions {
   // N: a change of the wrist force this large during a command that does not end is something pressing on the hand
   // (Question::motion_blocked)
   double contact_force = 3.0;
+  // device_contradiction when a real photo-eye has seen a part the model does not have for this long (a part on its
+  // way to the eye is seen a little earlier or later than the model says)
+  SimDuration contradiction_time = std::chrono::seconds(1);
+  // How long an awaited device input may take (device_timeout): a machine's busy after its start and its done after
+  // `wait M` began: its process_time times machine_time_factor plus machine_time_margin; a photo-eye: sensor_wait.
+  double machine_time_factor = 2.0;
+  SimDuration machine_time_margin = std::chrono::seconds(5);
+  SimDuration sensor_wait = std::chrono::seconds(60);
 };
 
 struct SafetyOptions {

@@ -11,6 +11,8 @@
 //   image processing  with Perception::kVision only: ImageProcessing::step (image_processing.hpp), then wakes task
 //                  and robot control;
 //   task control   TaskControl::step (task_control.hpp);
+//   device control with device commands in the program (or devices declared): DeviceHub::step (device_hub.hpp): the
+//                  devices' commands on the cell's I/O units (RunConfig::io_units), their states in the log;
 //   robot control  one per program robot, RobotControl::step (robot_control.hpp).
 // The main thread (the caller) builds everything, checks the input, starts and joins the threads.
 //
@@ -50,6 +52,7 @@
 #include "cellwright/drivers/robot_driver.hpp"
 #include "cellwright/models/cell.hpp"
 #include "cellwright/petri/net.hpp"
+#include "cellwright/runtime/device_hub.hpp"
 #include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/runtime/event_log.hpp"
 #include "cellwright/runtime/frame_source.hpp"
@@ -69,7 +72,8 @@ struct Binding {
     SourceLocation where;
   };
   std::map<std::string, Entry> robots;   // every program robot label -> a cell robot (required)
-  std::map<std::string, Entry> objects;  // workpiece/location label -> cell workpiece/location; absent: same name
+  // workpiece/location/device label -> cell workpiece/location/device; absent: same name
+  std::map<std::string, Entry> objects;
   SourceLocation where;                  // the scenario itself (for "robot r3 is not bound")
 };
 
@@ -161,6 +165,10 @@ struct RunConfig {
   // Who is handed each event of the log as a typed value as it is logged (EventLog::add_observer: on the thread that
   // logs, in log order, under the log's lock: each must be quick and must not call the Runtime or log).
   std::vector<std::function<void(const LogEvent&)>> event_observers;
+  // The cell's I/O units and the devices wired on each (device_hub.hpp; the DigitalIo objects are not owned and must
+  // outlive the Runtime): the twin's I/O image for simulated devices, a Modbus TCP unit for real ones. Every device
+  // the program declares must be on one. Device limits left 0 are set from the cell and `motion.recovery`.
+  std::vector<IoUnit> io_units;
   // Where a fired signal goes on its way to its event (task_control.hpp's SignalFilter): called by task control for
   // every signal it fires; false drops the event. Unset: every event is delivered.
   SignalFilter signal_filter;

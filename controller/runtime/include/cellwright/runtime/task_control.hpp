@@ -9,7 +9,9 @@
 //      completed (move/open/close: the robot reported done; signal/wait/loop: at once, they never go to a robot;
 //      start places: always), and a loop leader's again/exit as its iteration count says (task::LoopControl). choose() picks a conflict-free set, fire_chosen() fires it; for each fired transition, in
 //      ascending id order, a `fire` event is logged and, if it starts a move/open/close, the MotionCommand goes to
-//      that robot's queue (try_push: the queue has room, each robot has at most one command in flight);
+//      that robot's queue (try_push: the queue has room, each robot has at most one command in flight); a device
+//      primitive (a machine's start, a belt's run, waiting for a photo-eye) goes to device control's queue instead,
+//      with the robot whose program ordered it, and device control reports its end like a robot (RobotStatus);
 //   3. detect the end: the final marking (every robot done) -> kFinished; a dead marking that is not final -> kFailed
 //      with "deadlock" and the marked places (the net was checked, so this should not happen, but it never hangs);
 //   4. watch the waits (with recovery enabled): a robot waiting longer than RecoveryOptions::wait_timeout for an
@@ -102,10 +104,12 @@ class TaskControl {
 
   // `net` must be to_net(program) (same robots, transitions starting primitives of the program): checked here,
   // InternalError otherwise. robot_inboxes[r] is robot r's command queue, `status_inbox` the queue robots report
-  // into; `log` records the firings. All must outlive the TaskControl.
+  // into; `log` records the firings; `device_inbox` is device control's command queue (nullptr: the program has no
+  // device commands; InternalError at the first one). All must outlive the TaskControl.
   TaskControl(const petri::Net& net, const task::CompiledProgram& program,
               std::vector<MessageQueue<MotionCommand>*> robot_inboxes, MessageQueue<RobotStatus>& status_inbox,
-              EventLog& log, RecoveryOptions recovery = {}, SignalFilter signal_filter = {});
+              EventLog& log, RecoveryOptions recovery = {}, SignalFilter signal_filter = {},
+              MessageQueue<MotionCommand>* device_inbox = nullptr);
 
   // One turn at simulation time `now` (see the top). Non-blocking. Returns the state after the turn; once not
   // kRunning it stays so and further steps only account time (all activities idle).
@@ -139,6 +143,7 @@ class TaskControl {
   const petri::Net& net_;
   const task::CompiledProgram& program_;
   std::vector<MessageQueue<MotionCommand>*> inboxes_;
+  MessageQueue<MotionCommand>* device_inbox_;
   MessageQueue<RobotStatus>& statuses_;
   EventLog& log_;
 

@@ -48,7 +48,9 @@
 #include "cellwright/cell/report.hpp"
 #include "cellwright/cell/scenario.hpp"
 #include "cellwright/cell/streamed_log.hpp"
+#include "cellwright/drivers/digital_io.hpp"
 #include "cellwright/twin/sim/mirrored_driver.hpp"
+#include "cellwright/twin/sim/twin_io.hpp"
 #include "cellwright/twin/sim/world.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
 #include "cellwright/twin/video.hpp"
@@ -90,6 +92,13 @@ struct RunOptions {
   // needs a real-time run; the twin's camera faults (frame_lost, detection_noise) cannot be injected into a real
   // camera. The source is opened (its first frame read) when the ScenarioRun is built: InputError otherwise.
   std::vector<std::string> cameras;
+  // Devices on real I/O (`--device NAME=modbus:HOST:PORT[/UNIT]`, docs/devices.md), added to the scenario's
+  // `devices:`: NAME a machine, conveyor or photo-eye of the cell that its `io` keys wire; the device's commands and
+  // states go to that Modbus unit (one connection per HOST:PORT/UNIT) at the cell's addresses, and every coil written
+  // there is written into the twin too, so that the twin mirrors the device (its belt runs, its mill cycles). The
+  // other devices are the twin's (TwinIo). A real device needs a real-time run (InputError otherwise); the units are
+  // connected when the run starts (InputError naming the unit when one cannot be reached).
+  std::vector<std::string> devices;
 };
 
 // The scenario's cell as it really is, compiled: its parts where the scenario's perturbation puts them (drawn with its
@@ -176,6 +185,9 @@ class ScenarioRun {
   std::filesystem::path finish_video(const Report& report);
 
  private:
+  // The I/O units (RunConfig::io_units): the twin's, and RunOptions::devices' real ones, mirrored into it.
+  void wire_devices(runtime::RunConfig& config, const std::vector<std::string>& real);
+
   const Scenario& scenario_;
   std::unique_ptr<StreamedLog> streamed_;  // the event log's file (RunOptions::events_file), or none
   const std::filesystem::path no_file_;     // events_file() without one
@@ -188,6 +200,8 @@ class ScenarioRun {
   std::unique_ptr<vision::CameraSource> camera_;  // RunOptions::cameras: vision's frames, or none (the twin's)
   std::unique_ptr<runtime::Plant> plant_;
   sim::WorldPlant* world_plant_ = nullptr;  // plant_, the World's
+  std::unique_ptr<sim::TwinIo> twin_io_;                       // the twin's I/O image: the simulated devices' unit
+  std::vector<std::unique_ptr<drivers::DigitalIo>> real_io_;  // RunOptions::devices' units, mirrored into twin_io_
   Estimate estimate_;
   std::unique_ptr<twin::VideoRecorder> video_;  // with RunOptions::video; fed by the simulation thread
   std::filesystem::path video_file_;      // its file, kept when finish_video() has closed it

@@ -1,0 +1,163 @@
+// scenes/machine.yaml as a user runs it (issue 26): the PUMA clears the mill, loads it with A, starts its cycle, waits
+// for it, unloads A and hands it over; the MELFA puts it on the output conveyor. On the twin's devices in lock-step,
+// and with the mill on Modbus TCP against `twin emulate io` (the emulated PLC, a process of its own) in real time;
+// a mill that never finishes stops the cell, and a device that cannot be used is refused before anything runs.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "tools/twin_cli.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using cellwright::testing::BackgroundTwin;
+using cellwright::testing::shell_quote;
+using cellwright::testing::slurp;
+using cellwright::testing::source_path;
+using cellwright::testing::TwinCli;
+using ::testing::HasSubstr;
+using namespace std::chrono_literals;
+
+std::vector<nlohmann::json> events_of(const fs::path& file, const std::string& type) {
+  std::vector<nlohmann::json> out;
+  std::ifstream in(file);
+  std::string line;
+  while (std::getline(in, line)) {
+    nlohmann::json e = nlohmann::json::parse(line);
+    if (e["type"] == type) out.push_back(std::move(e));
+  }
+  return out;
+}
+
+// The mill's states in order, "busy:A" etc.
+std::vector<std::string> mill_states(const fs::path& file) {
+  std::vector<std::string> out;
+  for (const auto& e : events_of(file, "device")) {
+    if (e["device"] == "mill") out.push_back(e["state"].get<std::string>() + ":" + e["workpiece"].get<std::string>());
+  }
+  return out;
+}
+
+// `twin emulate io` on a free port: the mill busy `process` seconds, its part taken out 1 s after done.
+struct EmulatedPlc {
+  explicit EmulatedPlc(const std::string& process)
+      : twin({"emulate", "io", "--listen", "127.0.0.1:0", "--process-time", process, "--take-out-after", "1"}) {
+    EXPECT_TRUE(twin.wait_for("Ctrl-C to stop\n", 20s)) << twin.output();
+    std::smatch m;
+    const std::string out = twin.output();
+    EXPECT_TRUE(std::regex_search(out, m, std::regex("at 127\\.0\\.0\\.1:([0-9]+), unit 1"))) << out;
+    port = m[1].str();
+  }
+  BackgroundTwin twin;
+  std::string port;
+};
+
+const std::string kScenario = source_path("scenes/machine.yaml");
+
+TEST(MachineCli, InLockStepTheMillProcessesAAndEveryDeviceStateIsLogged) {
+  TwinCli cli("machine-lockstep");
+  const fs::path out = cli.dir() / "out";
+  const auto r = cli.run("run " + shell_quote(kScenario) + " -o " + shell_quote(out.string()) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
+  EXPECT_THAT(r.out, HasSubstr("ok   D: expected aside, is aside"));
+  const fs::path log = out / "events.jsonl";
+  // The cycle as the mill's I/O shows it: A is in it while busy and done, then taken out.
+  EXPECT_EQ(mill_states(log), (std::vector<std::string>{"idle:", "busy:A", "done:A", "idle:"}));
+  // The program's start and wait are the PUMA's commands, on the twin's I/O.
+  bool started = false;
+  for (const auto& e : events_of(log, "command_start")) {
+    if (e["command"] == "device mill start") {
+      started = true;
+      EXPECT_EQ(e["robot"], "r1");
+      EXPECT_EQ(e["detail"], "twin mill");
+    }
+  }
+  EXPECT_TRUE(started);
+  // The mill is busy for its process_time (5 s) of simulated time.
+  double busy = -1, done = -1;
+  for (const auto& e : events_of(log, "device")) {
+    if (e["device"] == "mill" && e["state"] == "busy") busy = e["t"].get<double>();
+    if (e["device"] == "mill" && e["state"] == "done") done = e["t"].get<double>();
+  }
+  EXPECT_NEAR(done - busy, 5.0, 0.02);
+  EXPECT_TRUE(events_of(log, "fault_detected").empty());
+  // The same bytes again.
+  const fs::path again = cli.dir() / "again";
+  ASSERT_EQ(cli.run("run " + shell_quote(kScenario) + " -o " + shell_quote(again.string()) + " --quiet").status, 0);
+  EXPECT_EQ(slurp(log), slurp(again / "events.jsonl"));
+}
+
+TEST(MachineCli, WithTheMillOnModbusAgainstAnEmulatedPlcTheRunFinishesTheSame) {
+  // At 4x real time, the emulated mill's 1.25 s are the cell's 5 s.
+  EmulatedPlc plc("1.25");
+  ASSERT_FALSE(plc.port.empty());
+  TwinCli cli("machine-modbus");
+  const fs::path out = cli.dir() / "out";
+  const auto r = cli.run("run " + shell_quote(kScenario) + " --realtime --speed 4 --device mill=modbus:127.0.0.1:" +
+                         plc.port + " -o " + shell_quote(out.string()) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
+  const fs::path log = out / "events.jsonl";
+  const auto states = mill_states(log);
+  ASSERT_GE(states.size(), 3u);
+  EXPECT_EQ(states[1], "busy:A");
+  EXPECT_EQ(states[2], "done:A");
+  bool on_modbus = false;
+  for (const auto& e : events_of(log, "command_start")) {
+    if (e["command"] == "device mill await done") {
+      on_modbus = e["detail"] == "modbus 127.0.0.1:" + plc.port + " unit 1 mill";
+    }
+  }
+  EXPECT_TRUE(on_modbus);
+  EXPECT_EQ(plc.twin.stop(), 0) << plc.twin.output();
+}
+
+TEST(MachineCli, AMillOnModbusThatNeverFinishesStopsTheCellNamingIt) {
+  EmulatedPlc plc("1000");
+  ASSERT_FALSE(plc.port.empty());
+  TwinCli cli("machine-never");
+  const fs::path out = cli.dir() / "out";
+  const auto r = cli.run("run " + shell_quote(kScenario) + " --realtime --speed 4 --device mill=modbus:127.0.0.1:" +
+                         plc.port + " -o " + shell_quote(out.string()) + " --quiet");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("device_timeout: device mill: done (input 3) not seen within 15.000 s"));
+  const fs::path log = out / "events.jsonl";
+  const auto faults = events_of(log, "fault_detected");
+  ASSERT_EQ(faults.size(), 1u);
+  EXPECT_EQ(faults[0]["symptom"], "device_timeout");
+  const auto end = events_of(log, "run_end");
+  ASSERT_EQ(end.size(), 1u);
+  EXPECT_EQ(end[0]["outcome"], "stopped");
+  EXPECT_EQ(mill_states(log).back(), "busy:A");  // it never finished
+}
+
+TEST(MachineCli, ADeviceThatCannotBeUsedIsRefusedBeforeAnythingRuns) {
+  TwinCli cli("machine-bad");
+  const std::string run = "run " + shell_quote(kScenario) + " ";
+  const struct {
+    std::string args;
+    std::string message;
+  } cases[] = {
+      {run + "--device mill=modbus:127.0.0.1:1502", "a real device runs on the wall clock"},
+      {run + "--realtime --device drill=modbus:127.0.0.1:1502", "has no device 'drill' wired to I/O"},
+      {run + "--realtime --device mill=modbus:127.0.0.1", "modbus:127.0.0.1"},
+      {run + "--realtime --device mill", "expected NAME=modbus:HOST:PORT[/UNIT]"},
+      {run + "--realtime --device mill=modbus:127.0.0.1:1 --device mill=modbus:127.0.0.1:1", "given twice"},
+      {run + "--realtime --device mill=modbus:127.0.0.1:1", "cannot be reached"},
+  };
+  for (const auto& c : cases) {
+    const auto r = cli.run(c.args);
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;
+    EXPECT_THAT(r.err, HasSubstr(c.message)) << c.args;
+  }
+}
+
+}  // namespace

@@ -9,8 +9,11 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <string>
 #include <thread>
 
 #include "cellwright/twin/scene.hpp"
@@ -105,6 +108,38 @@ TEST_F(RenderTest, OverheadCameraSeesEachWorkpieceWhereTheSceneHasIt) {
   const cv::Mat later = renderer.render_camera(s.data(), s.camera_id("overhead"), cam.width, cam.height);
   expect_parts_seen(s, later);
   EXPECT_LT(similarity(colour_at(later, project(cam, a_before)), paper_cell().workpieces[0].rgba.head<3>()), 0.95);
+}
+
+// Whether OSMesa's library is mapped into this process.
+bool osmesa_loaded() {
+  std::ifstream maps("/proc/self/maps");
+  std::string line;
+  while (std::getline(maps, line)) {
+    if (line.find("libOSMesa") != std::string::npos) return true;
+  }
+  return false;
+}
+
+// A process that renders nothing does not load OSMesa (and with it llvmpipe and libLLVM, about 0.1 s of CPU at every
+// start): the first Renderer loads it. The check runs in a fresh process (the "threadsafe" death-test style
+// re-executes this program for this test alone), where no other test has made a Renderer yet.
+TEST_F(RenderTest, OSMesaIsLoadedByTheFirstRendererOnly) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  EXPECT_EXIT(
+      {
+        Scene s = build_scene(paper_cell());
+        s.step(10);
+        if (osmesa_loaded()) {
+          std::fputs("OSMesa loaded before any Renderer was made\n", stderr);
+          std::exit(3);
+        }
+        {
+          Renderer renderer(s.model(), 64, 48);
+          if (renderer.render_overview(s.data(), 64, 48).empty()) std::exit(4);
+        }
+        std::exit(osmesa_loaded() ? 0 : 5);
+      },
+      ::testing::ExitedWithCode(0), "");
 }
 
 TEST_F(RenderTest, RenderingIsRepeatable) {

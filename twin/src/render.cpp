@@ -2,6 +2,7 @@
 #include "cellwright/twin/render.hpp"
 
 #include <GL/osmesa.h>
+#include <dlfcn.h>
 
 #include <opencv2/imgproc.hpp>
 
@@ -17,11 +18,45 @@
 #include "cellwright/common/error.hpp"
 #include "cellwright/twin/scene.hpp"
 
+#ifndef CW_OSMESA_LIBRARY
+#error "CW_OSMESA_LIBRARY (the path of libOSMesa) must be defined by the build"
+#endif
+
 namespace cellwright::twin {
 
 namespace {
 constexpr int kMaxSide = 4096;
 constexpr int kMaxGeoms = 4000;  // visual geoms per frame: the cell has a few hundred
+
+// OSMesa's entry points. The library is loaded when the first Renderer is made, not with the program (render.hpp):
+// it brings Mesa's llvmpipe, libLLVM and a dozen more libraries, whose loading cost every process about 0.1 s of CPU.
+struct OsMesa {
+  decltype(&OSMesaCreateContextExt) create = nullptr;
+  decltype(&OSMesaMakeCurrent) make_current = nullptr;
+  decltype(&OSMesaDestroyContext) destroy = nullptr;
+};
+
+const OsMesa& osmesa() {
+  // Loaded once and kept for the life of the process. RTLD_GLOBAL: MuJoCo looks its OpenGL functions up in the
+  // process (mjr_makeContext), as when the program linked OSMesa. A failure throws, and the next call tries again.
+  static const OsMesa api = [] {
+    void* lib = dlopen(CW_OSMESA_LIBRARY, RTLD_NOW | RTLD_GLOBAL);
+    if (lib == nullptr) {
+      const char* e = dlerror();
+      throw std::runtime_error(
+          fmt::format("cannot load OSMesa ({}): {}", CW_OSMESA_LIBRARY, e != nullptr ? e : "unknown reason"));
+    }
+    OsMesa out;
+    out.create = reinterpret_cast<decltype(out.create)>(dlsym(lib, "OSMesaCreateContextExt"));
+    out.make_current = reinterpret_cast<decltype(out.make_current)>(dlsym(lib, "OSMesaMakeCurrent"));
+    out.destroy = reinterpret_cast<decltype(out.destroy)>(dlsym(lib, "OSMesaDestroyContext"));
+    if (out.create == nullptr || out.make_current == nullptr || out.destroy == nullptr) {
+      throw std::runtime_error(fmt::format("OSMesa ({}) lacks its context functions", CW_OSMESA_LIBRARY));
+    }
+    return out;
+  }();
+  return api;
+}
 }  // namespace
 
 struct Renderer::Impl {
@@ -34,10 +69,10 @@ struct Renderer::Impl {
   bool scene_made = false, context_made = false;
 
   ~Impl() {
-    if (gl != nullptr) OSMesaMakeCurrent(gl, framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1);
+    if (gl != nullptr) osmesa().make_current(gl, framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1);
     if (context_made) mjr_freeContext(&context);
     if (scene_made) mjv_freeScene(&scene);
-    if (gl != nullptr) OSMesaDestroyContext(gl);
+    if (gl != nullptr) osmesa().destroy(gl);
   }
 };
 
@@ -51,10 +86,10 @@ Renderer::Renderer(const mjModel* model, int max_width, int max_height)
   CW_CHECK(max_width > 0 && max_height > 0 && max_width <= kMaxSide && max_height <= kMaxSide,
            "renderer size {}x{} outside 1..{}", max_width, max_height, kMaxSide);
   Impl& r = *impl_;
-  r.gl = OSMesaCreateContextExt(OSMESA_RGBA, 24, 8, 0, nullptr);
+  r.gl = osmesa().create(OSMESA_RGBA, 24, 8, 0, nullptr);
   if (r.gl == nullptr) throw std::runtime_error("OSMesa could not create an OpenGL context");
   r.framebuffer.resize(4);
-  if (!OSMesaMakeCurrent(r.gl, r.framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
+  if (!osmesa().make_current(r.gl, r.framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
     throw std::runtime_error("OSMesa could not make its OpenGL context current");
   }
   mjv_defaultOption(&r.option);
@@ -156,7 +191,7 @@ cv::Mat Renderer::render(mjData* data, const mjvCamera& camera, int width, int h
   CW_CHECK(width >= 1 && height >= 1 && width <= max_width_ && height <= max_height_,
            "image size {}x{} outside 1x1..{}x{}", width, height, max_width_, max_height_);
   Impl& r = *impl_;
-  if (!OSMesaMakeCurrent(r.gl, r.framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
+  if (!osmesa().make_current(r.gl, r.framebuffer.data(), GL_UNSIGNED_BYTE, 1, 1)) {
     throw std::runtime_error("OSMesa could not make its OpenGL context current");
   }
   mjvCamera cam = camera;

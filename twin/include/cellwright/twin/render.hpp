@@ -2,6 +2,8 @@
 //
 // MuJoCo 2.2.2 loads its OpenGL functions at run time from whatever context is current when mjr_makeContext runs;
 // the Renderer makes an OSMesa context current first, so MuJoCo renders with OSMesa whatever MUJOCO_GL says.
+// The program does not link OSMesa: the first Renderer loads it (Mesa's llvmpipe brings libLLVM, whose loading cost
+// every process about 0.1 s of CPU, rendering or not), and a library that cannot be loaded is its runtime_error.
 //
 // Threads: an OpenGL context is bound to one thread. A Renderer is created, used and destroyed on one thread (its
 // methods check this and throw InternalError otherwise); several Renderers may live on different threads. Rendering
@@ -35,8 +37,8 @@ enum class RenderQuality {
 class Renderer {
  public:
   // An OSMesa context and MuJoCo's rendering context for `model`, able to render images up to max_width x
-  // max_height pixels. `model` must outlive the Renderer. Throws std::runtime_error if no OpenGL context can be made
-  // or MuJoCo cannot render offscreen with it; InternalError if a size is not positive.
+  // max_height pixels. `model` must outlive the Renderer. Throws std::runtime_error if OSMesa cannot be loaded, no
+  // OpenGL context can be made or MuJoCo cannot render offscreen with it; InternalError if a size is not positive.
   Renderer(const mjModel* model, int max_width, int max_height);
   ~Renderer();
   Renderer(const Renderer&) = delete;

@@ -162,6 +162,38 @@ TEST_P(PipelinedScenario, DeliversEveryFedPartWithoutACollision) {
 
 INSTANTIATE_TEST_SUITE_P(RunCli, PipelinedScenario, ::testing::Values("pipeline.yaml", "pipeline_single.yaml"));
 
+// A named part relayed between robots (docs/scenarios.md, "Relaying a part between robots"), run in lock-step: over
+// the stand of scenes/relay.yaml (the PUMA puts A down, the MELFA takes it to the output conveyor), and over two belts
+// between three arms (tests/data/relay/relay_named.yaml: each taker waits until the belt has brought A to rest at its
+// stop). Both were refused before: the scenario's stand was unknown, the belt's taker was checked where A was let go.
+class RelayScenario : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
+
+TEST_P(RelayScenario, TheTakerTakesThePartWhereTheGiverLeftItAndItEndsWhereExpected) {
+  TwinCli cli("cw-run-relay");
+  const fs::path out = cli.dir() / "out";
+  const Outcome r =
+      cli.run("run " + shell_quote(source_path(GetParam().first)) + " --quiet -o " + shell_quote(out.string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const nlohmann::json report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(report["result"], "ok");
+  EXPECT_EQ(report["parts_completed"], 1);
+  EXPECT_TRUE(report["collisions"].empty()) << report["collisions"].dump();
+  int a = 0;
+  for (const auto& w : report["workpieces"]) {
+    if (w["name"] != "A") continue;
+    ++a;
+    EXPECT_EQ(w["ok"], true) << w.dump();
+  }
+  EXPECT_EQ(a, 1);
+  EXPECT_THAT(r.out, HasSubstr(GetParam().second));
+  EXPECT_THAT(slurp(out / "events.jsonl"), Not(HasSubstr("fault_detected")));
+}
+
+INSTANTIATE_TEST_SUITE_P(RunCli, RelayScenario,
+                         ::testing::Values(std::make_pair("scenes/relay.yaml", "A: expected output, is output"),
+                                           std::make_pair("tests/data/relay/relay_named.yaml",
+                                                          "A: expected t3_top, is t3_top")));
+
 TEST(RunCli, WrongExpectedOutcomeExitsOneNamingIt) {
   TwinCli cli("cw-run-cli-wrong");
   const fs::path scenario = exchange_copy(cli.dir(), {{"  A: output", "  A: machine_fixture"}});

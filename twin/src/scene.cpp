@@ -864,6 +864,16 @@ struct Builder {
                       {"group", "5"},
                       {"rgba", "0.9 0.9 0.1 0.6"}});
     }
+    for (const auto& l : cell.locations) {
+      if (!l.stand) continue;
+      // A stand a scenario built under its location: static, like a machine (its top is where the part rests).
+      x.leaf("geom", {{"name", "stand/" + l.name},
+                      {"type", "box"},
+                      {"pos", nums({l.pose.xyz.x(), l.pose.xyz.y(), l.pose.xyz.z() / 2})},
+                      {"quat", quat(l.pose.rotation())},
+                      {"size", nums({l.stand->x() / 2, l.stand->y() / 2, l.pose.xyz.z() / 2})},
+                      {"material", "machine"}});
+    }
     if (cell.handover) {
       x.leaf("site", {{"name", "handover/" + cell.handover->name},
                       {"pos", vec(cell.handover->pose.xyz)},
@@ -1295,7 +1305,9 @@ Side side_of(const Scene& scene, int geom) {
   const std::string body = bn != nullptr ? bn : "";
   const auto starts = [](const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; };
   if (b == 0) {
-    out.name = gname == "floor" ? "the floor" : fmt::format("'{}'", gname);
+    out.name = gname == "floor"            ? "the floor"
+               : starts(gname, "stand/") ? fmt::format("the stand of location '{}'", gname.substr(6))
+                                         : fmt::format("'{}'", gname);
     for (std::size_t r = 0; r < scene.robots().size(); ++r) {
       if (gname == scene.robots()[r].name + "/pedestal") {
         out.mount_of = static_cast<int>(r);

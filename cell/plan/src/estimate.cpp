@@ -453,6 +453,10 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
               const Eigen::Vector3d bottom = ws.pose.translation() - Eigen::Vector3d(0, 0, ws.size().z() / 2);
               if (const models::ConveyorSpec* belt = running_belt_under(s.cell, bottom)) {
                 on_belt[w] = {belt->name, c.source};
+                // It rides on to the stop bar (or the end): the next robot to go for it finds it there, at rest
+                // (robot control waits until a part rests before it goes for it).
+                const double along = (belt->pose.transform().inverse() * bottom).x() + belt->length / 2;
+                ride_to_pick(*belt, *s.cell.find_workpiece(w), along, ws.pose);
               }
             }
             held.erase(arm.cell);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <optional>
+#include <set>
 
 #include "cellwright/cell/estimate.hpp"
 #include "cellwright/common/error.hpp"
@@ -23,6 +24,8 @@ struct Spot {
   double grasp_height = 0.02;
   double approach_height = 0.08;
   bool handover = false;  // at the hand-over (reach is checked with the hand-over grasps)
+  std::string put_by;     // "robot 'puma' put it there (relay.task:12:3 'Place S')", if a robot did
+  std::string gone;       // why no robot can take the part from here (it rode off a belt's end), else ""
 };
 
 Spot location_spot(const models::LocationSpec& l) {
@@ -32,6 +35,16 @@ Spot location_spot(const models::LocationSpec& l) {
   s.yaw = l.pose.rpy.z();
   s.grasp_height = l.grasp_height;
   s.approach_height = l.approach_height;
+  return s;
+}
+
+// Where a part riding conveyor `c` comes to rest: against its stop bar, or at its end (where it falls off).
+Spot belt_spot(const models::ConveyorSpec& c, const models::WorkpieceSpec& w) {
+  Spot s;
+  s.yaw = c.pose.rpy.z();
+  s.grasp_height = w.size.z() / 2;
+  s.point = c.belt_point(c.leave - (c.stop ? w.size.x() / 2 : 0.0));
+  s.text = fmt::format("workpiece '{}' at the {} of conveyor '{}'", w.name, c.stop ? "stop" : "end", c.name);
   return s;
 }
 
@@ -47,8 +60,8 @@ Spot initial_spot(const models::CellDescription& cell, const models::WorkpieceSp
   s.yaw = w.pose.rpy.z();
   s.grasp_height = w.size.z() / 2;
   if (const models::ConveyorSpec* c = cell.find_conveyor(conveyor)) {
-    s.point = c->belt_point(c->leave - (c->stop ? w.size.x() / 2 : 0.0));
-    s.text = fmt::format("workpiece '{}' at the {} of conveyor '{}'", w.name, c->stop ? "stop" : "end", c->name);
+    s = belt_spot(*c, w);
+    s.yaw = w.pose.rpy.z();
   } else {
     s.point = w.pose.xyz - Eigen::Vector3d(0, 0, w.size.z() / 2);
     s.text = fmt::format("workpiece '{}' where it starts", w.name);
@@ -61,6 +74,28 @@ Spot initial_spot(const models::CellDescription& cell, const models::WorkpieceSp
     }
   }
   return s;
+}
+
+// Whether, in every run of `net`, transition `first` fires before transition `then` can: with `first` never firing,
+// no reachable marking enables `then`. nullopt when the net has more than `limit` markings without `first`.
+std::optional<bool> always_before(const petri::Net& net, petri::TransitionId first, petri::TransitionId then,
+                                  std::size_t limit) {
+  std::set<petri::Marking> seen{net.initial_marking()};
+  std::vector<petri::Marking> todo{net.initial_marking()};
+  while (!todo.empty()) {
+    const petri::Marking m = std::move(todo.back());
+    todo.pop_back();
+    if (petri::is_enabled(net, m, then)) return false;
+    for (petri::TransitionId t : petri::enabled(net, m)) {
+      if (t == first) continue;
+      petri::Marking next = petri::fire(net, m, t);
+      if (seen.insert(next).second) {
+        if (seen.size() > limit) return std::nullopt;
+        todo.push_back(std::move(next));
+      }
+    }
+  }
+  return true;
 }
 
 std::string command_text(const task::Primitive& p) {
@@ -84,6 +119,55 @@ Preflight preflight(const Scenario& s, const CollisionSweep* collisions) {
                                        report.substr(0, report.find('\n'))));
     return out;  // a program that cannot finish is not worth a reach check
   }
+
+  // A relay: a named part one robot lets go of and another goes to. The net must order the two commands, one way or
+  // the other, in every run: else the taker may go for the part before it has been put down (or the giver let go of
+  // it while the taker is on its way), and the run follows no fixed order of where the part is.
+  constexpr std::size_t kOrderLimit = 200'000;  // markings: as the sweep's full exploration
+  std::set<std::pair<std::string, std::string>> unordered;
+  for (std::size_t x = 0; x < s.program.robots.size(); ++x) {
+    const auto& goes = s.program.programs[x].primitives;
+    for (std::size_t k = 0; k < goes.size(); ++k) {
+      const task::Primitive& go = goes[k];
+      const bool to_object = go.kind == task::PrimitiveKind::kMove &&
+                             (go.target.kind == task::TargetKind::kAbove || go.target.kind == task::TargetKind::kAt);
+      if (!to_object || std::find(s.program.workpieces.begin(), s.program.workpieces.end(), go.target.object) ==
+                            s.program.workpieces.end()) {
+        continue;
+      }
+      for (std::size_t y = 0; y < s.program.robots.size(); ++y) {
+        const auto& lets = s.program.programs[y].primitives;
+        for (std::size_t j = 0; y != x && j < lets.size(); ++j) {
+          const task::Primitive& let = lets[j];
+          if (let.kind != task::PrimitiveKind::kOpen || let.workpiece != go.target.object) continue;
+          if (unordered.count({command_text(go), command_text(let)}) != 0) continue;
+          const auto id = [&](std::size_t robot, std::size_t primitive) {
+            return *out.net.find_transition(task::transition_id(s.program.robots[robot], primitive));
+          };
+          const std::optional<bool> after = always_before(out.net, id(y, j + 1), id(x, k), kOrderLimit);
+          const std::optional<bool> before =
+              after.value_or(false) ? after : always_before(out.net, id(x, k), id(y, j), kOrderLimit);
+          if (after.value_or(false) || before.value_or(false)) continue;
+          unordered.insert({command_text(go), command_text(let)});
+          const std::string how =
+              "order them: a semaphore signalled after the put-down and waited for before the pick, or the two on "
+              "later lines of the steps table (docs/scenarios.md, \"Relaying a part between robots\")";
+          out.problems.push_back(
+              after && before
+                  ? fmt::format("robot '{}' goes to workpiece '{}' ({}) that robot '{}' lets go of ({}), but nothing in "
+                                "the program orders the two: a run may start the one before the other has finished, "
+                                "in either order; {}",
+                                s.robot_of(s.program.robots[x]), s.workpiece_of(go.target.object), command_text(go),
+                                s.robot_of(s.program.robots[y]), command_text(let), how)
+                  : fmt::format("robot '{}' goes to workpiece '{}' ({}) that robot '{}' lets go of ({}), but the net "
+                                "has more than {} markings: whether the program orders the two was not shown; {}",
+                                s.robot_of(s.program.robots[x]), s.workpiece_of(go.target.object), command_text(go),
+                                s.robot_of(s.program.robots[y]), command_text(let), kOrderLimit, how));
+        }
+      }
+    }
+  }
+  if (!out.problems.empty()) return out;  // where a part is depends on the run: the reach checks would mislead
 
   // Follow one run of the net (any run: the analysis shows every run reaches the end) to learn where each workpiece is
   // when a robot goes to it. Primitives start when their transition fires.
@@ -143,7 +227,12 @@ Preflight preflight(const Scenario& s, const CollisionSweep* collisions) {
         case task::PrimitiveKind::kMove: {
           const task::Target& target = p.target;
           if (target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt) {
-            if (auto spot = spot_of_object(robot, target.object)) {
+            if (auto spot = spot_of_object(robot, target.object); spot && !spot->gone.empty()) {
+              if (seen.insert({robot, spot->gone}).second) {
+                out.problems.push_back(fmt::format("robot '{}' goes to workpiece '{}' ({}), but {}", robot,
+                                                   s.workpiece_of(target.object), command_text(p), spot->gone));
+              }
+            } else if (spot) {
               need(robot, *spot, p);
               last_target[robot] = *spot;
             }
@@ -171,6 +260,22 @@ Preflight preflight(const Scenario& s, const CollisionSweep* collisions) {
             if (auto it = last_target.find(robot); it != last_target.end()) {
               Spot put = it->second;
               put.text = put.handover ? put.text : fmt::format("workpiece '{}' on {}", w, it->second.text);
+              put.put_by = fmt::format("robot '{}' put it there ({})", robot, command_text(p));
+              put.gone.clear();
+              // Let go of on a running belt, the part rides on: to the stop bar, where a robot may take it once it
+              // rests there (robot control waits until it does), or off the belt's end.
+              if (const models::ConveyorSpec* belt = put.handover ? nullptr : running_belt_under(s.cell, put.point)) {
+                put = belt_spot(*belt, *s.cell.find_workpiece(w));
+                put.put_by = fmt::format("robot '{}' let go of it on the running conveyor '{}' ({}), which carries it "
+                                         "there",
+                                         robot, belt->name, command_text(p));
+                if (!belt->stop) {
+                  put.gone = fmt::format("robot '{}' lets go of it on conveyor '{}' ({}), which carries it off its "
+                                         "end: give the belt a stop bar (stop: true), and the part is taken where it "
+                                         "stops",
+                                         robot, belt->name, command_text(p));
+                }
+              }
               where_is[w] = put;
             }
             holding.erase(robot);
@@ -233,15 +338,18 @@ Preflight preflight(const Scenario& s, const CollisionSweep* collisions) {
   for (std::size_t k = 0; k < out.reach.size(); ++k) {
     models::ReachCheck& c = out.reach[k];
     const bool at_location = k < 2 * location_need.size();
-    const ReachNeed& n = out.needs[at_location ? location_need[k / 2] : handover_need[k - 2 * location_need.size()]];
+    const std::size_t i = at_location ? location_need[k / 2] : handover_need[k - 2 * location_need.size()];
+    const ReachNeed& n = out.needs[i];
     c.target = at_location ? fmt::format("{} ({})", n.target, k % 2 == 0 ? "grasp" : "approach") : n.target;
+    const std::string& put_by = needs[i].second.put_by;
     c.where = {s.source.string(), 0, 0};
     if (c.reachable) continue;
     out.problems.push_back(fmt::format(
         "robot '{}' cannot reach {}, needed by {}: the gripper pose at ({:.3f}, {:.3f}, {:.3f}) is {:.3f} m from its "
-        "first joint (maximum reach {:.3f} m){}",
+        "first joint (maximum reach {:.3f} m){}{}",
         c.robot, c.target, n.why, c.tcp_world.translation().x(), c.tcp_world.translation().y(),
-        c.tcp_world.translation().z(), c.distance, c.max_reach, c.reason.empty() ? "" : ": " + c.reason));
+        c.tcp_world.translation().z(), c.distance, c.max_reach, c.reason.empty() ? "" : ": " + c.reason,
+        put_by.empty() ? "" : "; " + put_by));
   }
 
   // Every move as robot control will make it: a part held from the side is put down from the side, a taker waits

@@ -357,7 +357,8 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
     wait_for_sensor(g.transition, fmt::format("workpiece '{}'", g.workpiece), g.conveyor,
                     fmt::format(" (at {:.1f} s by the plan)", g.ready));
   }
-  // A named part let go of on a running belt rides on from where the plan has it: no program can wait for it there.
+  // A named part let go of on a running belt rides on to the belt's stop (the plan has it there): no program can wait
+  // for it there, as no sensor tells which part has come.
   for (const cell::MotionPlan::BeltRide& ride : plan.belt_rides) {
     const petri::Transition& t = pre.net.transitions()[ride.transition];
     CW_CHECK(t.starts_robot.has_value(), "a belt ride on a transition that starts no primitive");
@@ -365,8 +366,8 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
     const task::Primitive& p = prog.programs[r].primitives[static_cast<std::size_t>(t.starts_primitive)];
     throw InputError(p.where,
                      fmt::format("robot '{}' ({}) goes to workpiece '{}' ('{}') after {} let go of it on conveyor "
-                                 "'{}', which carries it on: where it comes to rest is not planned, and no sensor "
-                                 "tells the program it is there; take it as a part of a class at the conveyor's stop "
+                                 "'{}', which carries it on: no sensor tells the program when it has come to rest at "
+                                 "the belt's stop; take it as a part of a class at the conveyor's stop "
                                  "(`workpiece part from LOC`, LOC at the stop, the belt with a sensor)",
                                  s.robot_of(prog.robots[r]), prog.robots[r], ride.workpiece, p.task, ride.put,
                                  ride.conveyor));

@@ -42,6 +42,8 @@ constexpr double kMaxSeconds = 1e6;
 constexpr Range kDuration{0, kMaxSeconds, true, "s"};     // a period, a timeout, a limit: more than 0
 constexpr Range kInstant{0, kMaxSeconds, false, "s"};     // a start time: 0 or later
 constexpr Range kLength{0, models::bounds::kMaxReach, true, "m"};  // a height, a clearance, a tolerance
+constexpr Range kStandSize{models::bounds::kMinSize, models::bounds::kMaxReach, false, "m"};  // a stand's footprint
+constexpr double kMinStandHeight = 0.01;  // m: a location lower than this rests on the floor, not on a stand
 
 std::string list_names(const std::vector<std::string>& names) {
   if (names.empty()) return "none";
@@ -152,7 +154,7 @@ std::vector<std::string> cell_names(const models::CellDescription& c) {
 // grasp and approach heights. Which robots must reach it follows from the program (preflight).
 models::LocationSpec read_location(const Doc& doc, const models::CellDescription& cell, const YAML::Node& n) {
   const Fields f(doc, n, "a location of the scenario",
-                 {"name", "at", "offset", "pose", "yaw", "grasp_height", "approach_height"});
+                 {"name", "at", "offset", "pose", "yaw", "grasp_height", "approach_height", "stand"});
   models::LocationSpec l;
   l.where = doc.at(n);
   l.name = f.word("name");
@@ -213,6 +215,22 @@ models::LocationSpec read_location(const Doc& doc, const models::CellDescription
   }
   l.grasp_height = f.within_or("grasp_height", l.grasp_height, kLength);
   l.approach_height = f.within_or("approach_height", l.approach_height, kLength);
+  if (f.has("stand")) {
+    // A stand built under the location: its footprint [x, y]; it reaches from the floor up to the location.
+    const YAML::Node& v = f.node("stand");
+    if (!v.IsSequence() || v.size() != 2) {
+      doc.fail(v, fmt::format("{} must be a list of 2 sizes [x, y] in m", f.field("stand")));
+    }
+    Eigen::Vector2d size;
+    for (std::size_t i = 0; i < 2; ++i) {
+      size[static_cast<Eigen::Index>(i)] = f.within_of(v[i], f.field("stand"), kStandSize);
+    }
+    if (l.pose.xyz.z() < kMinStandHeight) {
+      doc.fail(v, fmt::format("location '{}' is {:.3f} m above the floor: a stand under it must be at least {} m high",
+                              l.name, l.pose.xyz.z(), kMinStandHeight));
+    }
+    l.stand = size;
+  }
   return l;
 }
 

@@ -227,6 +227,10 @@ struct LocationSpec {
   std::vector<std::string> reach;  // robots that must reach it
   double grasp_height = 0.02;      // tool centre point above the location when grasping
   double approach_height = 0.08;   // extra height of the approach point above the grasp point
+  // A stand under it (a scenario's location, docs/scenarios.md): a box from the floor up to the location, this wide
+  // along x and y of the location's yaw, centred under it; the scene builds it as static geometry ("stand/<name>").
+  // Empty: nothing is built (the location is on something the cell has, or in the air).
+  std::optional<Eigen::Vector2d> stand;
   SourceLocation where;
 };
 

@@ -115,8 +115,9 @@ struct MotionPlan {
     bool fed = false;
   };
   std::vector<ClassTake> class_takes;
-  // The first move to a named part after an open let go of it on a running belt, which carries it on: the plan keeps
-  // the part where it was let go, so the robot programs refuse it (robot_programs.hpp).
+  // The first move to a named part after an open let go of it on a running belt, which carries it on: the plan puts
+  // the part where the belt stops it (its stop bar, or its end), at rest; the estimate does not time the ride, and
+  // the robot programs refuse it (robot_programs.hpp).
   struct BeltRide {
     petri::TransitionId transition = 0;
     std::string workpiece;  // cell workpiece

@@ -57,10 +57,15 @@ struct Preflight {
 
 // Builds the program's Petri net and analyses it as twin check does (petri::analyze with stubborn-set reduction, whose
 // verdicts are those of full exploration; `analysis.states` counts the markings explored: the run is refused unless
-// the analysis is complete, deadlock-free, bounded and every region exclusive), and checks the reach of every target the
-// program's moves need: for each program robot, the grasp and approach poses of the locations it moves to, of the
-// places where it picks workpieces (their initial pose, or a conveyor's pick point: the stop bar when it has one),
-// and its grasp at the hand-over when it puts or gets (a robot missing from the cell's hand-over grasps is a problem).
+// the analysis is complete, deadlock-free, bounded and every region exclusive). A named part that one robot lets go
+// of and another goes to (a relay, docs/scenarios.md) must be ordered by the net: each such pair of commands comes in
+// one order in every run (explored in full, up to 200,000 markings), else it is a problem naming both commands. Then
+// it checks the reach of every target the program's moves need: for each program robot, the grasp and approach poses
+// of the locations it moves to, of the places where it picks workpieces (their initial pose, or a conveyor's pick
+// point: the stop bar when it has one; a part let go of on a running belt is followed to the belt's stop, and a move
+// to it after it rode off a belt without a stop is a problem), and its grasp at the hand-over when it puts or gets
+// (a robot missing from the cell's hand-over grasps is a problem); a part a robot put down names that robot and
+// command in the reach problem.
 // When all of that holds, it also plans every move as robot control will make it (estimate.hpp plan_motions, with
 // options.handover_clearance; kept in `plan`) and reports each move that cannot be made: a part held from the side
 // that cannot be put down from the side, a taker that cannot wait backed off from the hand-over. When every move can

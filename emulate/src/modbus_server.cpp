@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <charconv>
 #include <cstring>
 #include <utility>
 
@@ -97,6 +98,20 @@ ModbusServer::~ModbusServer() {
   ::close(listen_fd_);
   ::close(wake_[0]);
   ::close(wake_[1]);
+}
+
+ModbusServerOptions parse_listen_address(std::string_view host_port, const SourceLocation& where) {
+  ModbusServerOptions out;
+  const std::size_t colon = host_port.rfind(':');
+  const std::string_view port = colon == std::string_view::npos ? std::string_view() : host_port.substr(colon + 1);
+  const auto [end, ec] = std::from_chars(port.data(), port.data() + port.size(), out.port);
+  if (colon == std::string_view::npos || colon == 0 || port.empty() || ec != std::errc() ||
+      end != port.data() + port.size() || out.port < 0 || out.port > 65535) {
+    throw InputError(where, fmt::format("'{}' is not HOST:PORT with a port within 0..65535 (0: a free one)",
+                                        host_port));
+  }
+  out.host = std::string(host_port.substr(0, colon));
+  return out;
 }
 
 std::string ModbusServer::endpoint() const { return fmt::format("{}:{}", options_.host, port_); }

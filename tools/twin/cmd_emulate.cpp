@@ -1,6 +1,8 @@
 // `twin emulate movemaster|val2 --link PATH [...]`: a robot controller emulator on a pseudo-terminal, with the
 // project's kinematics behind it; `twin emulate --scenario SCENARIO --robot ROBOT=LANGUAGE:LINK ...`: the controllers
-// of a cell, each driving the twin's MuJoCo arm (virtual commissioning). Runs until SIGINT or SIGTERM; exit 0 then,
+// of a cell, each driving the twin's MuJoCo arm, and/or `--io modbus:HOST:PORT[/UNIT] [--lockstep [--scan S]]`: the
+// twin's I/O served to a PLC in virtual time (virtual commissioning: cell/sim/emulated_cell.hpp, docs/devices.md).
+// Runs until SIGINT or SIGTERM; exit 0 then,
 // 2 on bad input. docs/real-robots.md says what each emulator speaks and how it can be told to misbehave.
 // A twin built for real robots only (CW_SIM=OFF) has the first form (the emulators need no MuJoCo), not --scenario.
 // `twin emulate io --listen HOST:PORT`: the cell's I/O on Modbus TCP (emulate_io.hpp).
@@ -8,11 +10,13 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <exception>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -71,7 +75,8 @@ void add_emulate(CLI::App& app, Command* run) {
       "emulate",
       "Emulate robot controllers on pseudo-terminals: one controller with the project's kinematics "
       "(`emulate movemaster|val2 --link PATH`), or a cell's controllers driving the twin's arms (`emulate --scenario "
-      "SCENARIO --robot ROBOT=movemaster:LINK ...`); or the cell's I/O on Modbus TCP (`emulate io --listen HOST:PORT`). "
+      "SCENARIO --robot ROBOT=movemaster:LINK ...`), with the twin's I/O on Modbus TCP for a PLC (`--io "
+      "modbus:HOST:PORT`, alone or with --robot); or the cell's I/O alone (`emulate io --listen HOST:PORT`). "
       "Runs until Ctrl-C or SIGTERM; exit 0, or 2 on bad input.");
   struct Args {
     std::string language;
@@ -82,6 +87,9 @@ void add_emulate(CLI::App& app, Command* run) {
     double speed = 1.0;
     std::string scenario;
     std::vector<std::string> robots;
+    std::string twin_io;  // --io modbus:HOST:PORT[/UNIT]
+    bool lockstep = false;
+    double scan = 0.01;
     std::uint64_t seed = 1;
     std::vector<std::string> misbehave;
     bool no_echo = false;
@@ -110,6 +118,15 @@ void add_emulate(CLI::App& app, Command* run) {
                   "twin run --realtime --speed X against them")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--robot", args->robots, "with --scenario: ROBOT=movemaster:LINK or ROBOT=val2:LINK (repeatable)");
+  cmd->add_option("--io", args->twin_io,
+                  "with --scenario: serve the twin's I/O (the cell's coils and discrete inputs) on Modbus TCP at "
+                  "modbus:HOST:PORT[/UNIT] (port 0: a free one, printed), answering between simulation steps");
+  cmd->add_flag("--lockstep", args->lockstep,
+                "with --io alone: the twin advances only when the client reads the discrete inputs, by --scan of "
+                "simulated time each, so the same requests get the same replies run to run");
+  cmd->add_option("--scan", args->scan,
+                  "with --lockstep: seconds of simulated time per read of the discrete inputs (default 0.01; a "
+                  "whole number of the cell's timesteps)");
   cmd->add_option("--seed", args->seed, "seed of the random misbehaviours");
   cmd->add_option("--misbehave", args->misbehave,
                   "KIND@LINE or KIND~PROBABILITY (late: late@LINE:SECONDS); with --scenario ROBOT:KIND@LINE; "
@@ -146,7 +163,8 @@ void add_emulate(CLI::App& app, Command* run) {
           const bool robots = name.rfind("--", 0) == 0 && name != "--verbose" && name != "--help" &&
                               o->get_description().rfind("io: ", 0) != 0;
           if (robots && o->count() > 0) {
-            throw InputError(cli, fmt::format("{} is for a robot controller, not `twin emulate io`", name));
+            throw InputError(cli, fmt::format("{} is for a robot controller or --scenario, not `twin emulate io`",
+                                              name));
           }
         }
         return emulate_io(args->io, args->verbose);
@@ -165,6 +183,11 @@ void add_emulate(CLI::App& app, Command* run) {
                                             name));
         }
       }
+      for (const char* name : {"--io", "--lockstep", "--scan"}) {
+        if (args->scenario.empty() && cmd->count(name) > 0) {
+          throw InputError(cli, fmt::format("{} is for --scenario (the twin's I/O)", name));
+        }
+      }
       if (!args->scenario.empty()) {
 #if !CW_SIM
         needs_simulator("twin emulate --scenario (the controllers on the twin's arms)");
@@ -174,7 +197,24 @@ void add_emulate(CLI::App& app, Command* run) {
                            "--scenario emulates the cell's controllers given by --robot; a language, --link and "
                            "--pace are for one controller alone");
         }
-        if (args->robots.empty()) throw InputError(cli, "--scenario needs at least one --robot ROBOT=LANGUAGE:LINK");
+        if (args->lockstep && args->twin_io.empty()) throw InputError(cli, "--lockstep is for the I/O: add --io");
+        if (args->robots.empty() && args->twin_io.empty()) {
+          throw InputError(cli, "--scenario needs at least one --robot ROBOT=LANGUAGE:LINK, or --io modbus:HOST:PORT");
+        }
+        if (args->lockstep && !args->robots.empty()) {
+          throw InputError(cli, "--lockstep serves the I/O alone: the robot controllers' serial lines run on the "
+                                "wall clock (leave out --robot, or leave out --lockstep)");
+        }
+        if (args->lockstep && cmd->count("--speed") > 0) {
+          throw InputError(cli, "--speed is for the paced twin; with --lockstep the client's reads set the pace");
+        }
+        if (!args->lockstep && cmd->count("--scan") > 0) throw InputError(cli, "--scan is for --lockstep");
+        if (args->lockstep && !(args->scan > 0 && args->scan <= 3600)) {
+          throw InputError({"--scan", 0, 0}, fmt::format("the scan must be within (0, 3600] seconds, got {}",
+                                                          args->scan));
+        }
+        std::optional<emulate::ModbusServerOptions> served_io;
+        if (!args->twin_io.empty()) served_io = cell::parse_served_io(args->twin_io, {"--io", 0, 0});
         const cell::Scenario s = cell::load_scenario(args->scenario);
         std::vector<cell::EmulatedController> controllers;
         for (const std::string& r : args->robots) {
@@ -199,14 +239,31 @@ void add_emulate(CLI::App& app, Command* run) {
         options.seed = args->seed;
         options.echo = !args->no_echo;
         options.speed = args->speed;
+        options.io = served_io;
+        if (args->lockstep) {
+          options.lockstep = std::chrono::round<std::chrono::nanoseconds>(std::chrono::duration<double>(args->scan));
+        }
         if (args->verbose) options.log = print;
         std::string names;
         for (const auto& c : controllers) {
           names += fmt::format("{}{} ({}) at {}", names.empty() ? "" : ", ", c.robot,
                                cell::to_string(c.language), c.link.string());
         }
-        options.on_ready = [&] { print(fmt::format("emulating {}; Ctrl-C to stop", names)); };
-        cell::EmulatedCell cell(s, std::move(controllers), std::move(options), cli);
+        std::unique_ptr<cell::EmulatedCell> emulated;
+        options.on_ready = [&] {
+          std::string what = names;
+          if (served_io) {
+            what += fmt::format("{}the twin's I/O on Modbus TCP at {}, unit {} ({})", what.empty() ? "" : "; ",
+                                emulated->io_endpoint(), served_io->unit,
+                                args->lockstep ? fmt::format("lock-step: {} s of simulated time per read of the "
+                                                             "discrete inputs",
+                                                             args->scan)
+                                               : fmt::format("paced at {}x real time", args->speed));
+          }
+          print(fmt::format("emulating {}; Ctrl-C to stop", what));
+        };
+        emulated = std::make_unique<cell::EmulatedCell>(s, std::move(controllers), std::move(options), cli);
+        cell::EmulatedCell& cell = *emulated;
         run_until_signal([&] { cell.run(); }, [&] { cell.stop(); });
         for (const cell::FinalPose& p : cell.final_poses()) {
           if (!p.present) continue;

@@ -3,10 +3,8 @@
 #include <fmt/format.h>
 
 #include <atomic>
-#include <charconv>
 #include <chrono>
 #include <cstdio>
-#include <string_view>
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/emulate/cell_io_emulator.hpp"
@@ -30,18 +28,8 @@ void add_emulate_io_options(CLI::App* cmd, EmulateIoArgs& args) {
 int emulate_io(const EmulateIoArgs& args, bool verbose) {
   const SourceLocation listen_at{"--listen", 0, 0};
   if (args.listen.empty()) throw InputError(listen_at, "emulate io needs --listen HOST:PORT");
-  const std::size_t colon = args.listen.rfind(':');
-  emulate::ModbusServerOptions server;
+  emulate::ModbusServerOptions server = emulate::parse_listen_address(args.listen, listen_at);
   server.unit = args.unit;
-  const std::string_view port =
-      colon == std::string::npos ? std::string_view() : std::string_view(args.listen).substr(colon + 1);
-  const auto [end, ec] = std::from_chars(port.data(), port.data() + port.size(), server.port);
-  if (colon == std::string::npos || colon == 0 || port.empty() || ec != std::errc() ||
-      end != port.data() + port.size() || server.port < 0 || server.port > 65535) {
-    throw InputError(listen_at, fmt::format("'{}' is not HOST:PORT with a port within 0..65535 (0: a free one)",
-                                            args.listen));
-  }
-  server.host = args.listen.substr(0, colon);
   emulate::CellIoEmulatorOptions cell;
   cell.process_time = args.process_time;
   cell.take_out_after = args.take_out_after;

@@ -3,6 +3,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -17,6 +19,7 @@
 #include "cellwright/emulate/val2_emulator.hpp"
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/sim/twin_io.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
 
 namespace cellwright::cell {
@@ -27,6 +30,30 @@ namespace {
 
 // The simulation thread's step: the cell's control period (the twin's World advances by whole timesteps).
 constexpr std::chrono::milliseconds kPeriod{10};
+
+// The I/O image in lock-step: each read of the discrete inputs first advances the twin by one scan (`advance`, on the
+// serving thread, which is the simulation thread), then reads the inputs as of after it. Everything else passes.
+class LockstepIo final : public drivers::DigitalIo {
+ public:
+  LockstepIo(drivers::DigitalIo& image, std::function<void()> advance)
+      : image_(image), advance_(std::move(advance)) {}
+  std::string describe() const override { return image_.describe(); }
+  drivers::IoResult connect() override { return image_.connect(); }
+  void close() override { image_.close(); }
+  bool is_open() const override { return image_.is_open(); }
+  drivers::IoResult write_coil(std::uint16_t address, bool value) override { return image_.write_coil(address, value); }
+  drivers::IoResult read_coils(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) override {
+    return image_.read_coils(first, count, values);
+  }
+  drivers::IoResult read_inputs(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) override {
+    advance_();
+    return image_.read_inputs(first, count, values);
+  }
+
+ private:
+  drivers::DigitalIo& image_;
+  std::function<void()> advance_;
+};
 
 }  // namespace
 
@@ -48,12 +75,48 @@ struct EmulatedCell::Impl {
   std::unique_ptr<sim::World> world;
   std::unique_ptr<sim::WorldPlant> plant;
   std::vector<Robot> robots;
+  std::atomic<std::int64_t> sim_ns{0};  // the World's time after the last advance, for sim_time()
+  // The I/O (options.io): the image, its lock-step decorator, the server in front of one of them.
+  std::unique_ptr<sim::TwinIo> twin_io;
+  std::unique_ptr<LockstepIo> lockstep_io;
+  std::unique_ptr<emulate::ModbusServer> server;
 
   std::mutex mutex;
   std::condition_variable cv;
   bool stopping = false;
+  std::atomic<bool> stop_requested{false};  // the same, read by the serving loop without the lock
+
+  // Steps the World by dt (on the simulation thread).
+  void advance(std::chrono::nanoseconds dt) {
+    plant->advance(dt);
+    sim_ns = world->now().count();
+  }
+
+  // The simulation thread with the I/O served: paced, or lock-step (emulated_cell.hpp).
+  void simulate_serving(std::chrono::steady_clock::duration wall_period) {
+    if (options.lockstep) {
+      // The World advances only inside reads of the discrete inputs (LockstepIo); the wait bounds how soon a stop is
+      // seen.
+      while (!stop_requested) server->serve(std::chrono::milliseconds(100));
+      return;
+    }
+    auto next = std::chrono::steady_clock::now();
+    while (!stop_requested) {
+      next += wall_period;
+      // Serves what arrives until the next period is due: between two steps, never during one. At least once a
+      // period, so that a twin slower than the wall clock still answers.
+      auto now = std::chrono::steady_clock::now();
+      do {
+        server->serve(std::max(std::chrono::nanoseconds(0), std::chrono::nanoseconds(next - now)));
+        now = std::chrono::steady_clock::now();
+      } while (now < next && !stop_requested);
+      if (stop_requested) break;
+      advance(kPeriod);
+    }
+  }
 
   void stop_all() {
+    stop_requested = true;
     {
       std::lock_guard lock(mutex);
       stopping = true;
@@ -104,6 +167,32 @@ EmulatedController parse_emulated_controller(const std::string& spec, const Sour
   return c;
 }
 
+emulate::ModbusServerOptions parse_served_io(std::string_view spec, const SourceLocation& where) {
+  constexpr std::string_view kScheme = "modbus:";
+  if (spec.substr(0, kScheme.size()) != kScheme) {
+    throw InputError(where, fmt::format("'{}': write modbus:HOST:PORT or modbus:HOST:PORT/UNIT", spec));
+  }
+  std::string_view rest = spec.substr(kScheme.size());
+  int unit = 1;
+  if (const std::size_t slash = rest.rfind('/'); slash != std::string_view::npos) {
+    const std::string_view u = rest.substr(slash + 1);
+    const auto [end, ec] = std::from_chars(u.data(), u.data() + u.size(), unit);
+    if (u.empty() || ec != std::errc() || end != u.data() + u.size() || unit < 0 || unit > 255) {
+      throw InputError(where, fmt::format("'{}': the unit '{}' is not a number within 0..255", spec, u));
+    }
+    rest = rest.substr(0, slash);
+  }
+  emulate::ModbusServerOptions out;
+  try {
+    out = emulate::parse_listen_address(rest, where);
+  } catch (const InputError&) {
+    throw InputError(where, fmt::format("'{}': '{}' is not HOST:PORT with a port within 0..65535 (0: a free one)",
+                                        spec, rest));
+  }
+  out.unit = unit;
+  return out;
+}
+
 EmulatedCell::EmulatedCell(const Scenario& scenario, std::vector<EmulatedController> controllers,
                            EmulatedCellOptions options, const SourceLocation& where)
     : impl_(std::make_unique<Impl>(scenario, std::move(options))) {
@@ -122,9 +211,43 @@ EmulatedCell::EmulatedCell(const Scenario& scenario, std::vector<EmulatedControl
       throw InputError(where, fmt::format("robot '{}': only movemaster and val2 controllers are emulated", c.robot));
     }
   }
+  if (m.options.lockstep && !m.options.io) throw InputError(where, "lock-step is for the I/O (--io)");
+  if (controllers.empty() && !m.options.io) {
+    throw InputError(where, "nothing to emulate: give a robot controller or the I/O (--robot, --io)");
+  }
+  if (m.options.lockstep && !controllers.empty()) {
+    throw InputError(where, "lock-step serves the I/O alone: the robot controllers' serial lines run on the wall "
+                            "clock (leave out --robot, or run paced)");
+  }
   CellWorld cell = make_cell_world(scenario);
   m.world = std::move(cell.world);
   m.plant = std::make_unique<sim::WorldPlant>(*m.world, std::move(cell.feed));
+  if (m.options.lockstep) {
+    const std::chrono::nanoseconds scan = *m.options.lockstep;
+    const std::chrono::nanoseconds step = m.world->timestep();
+    if (scan.count() <= 0 || scan.count() % step.count() != 0) {
+      throw InputError(where, fmt::format("the lock-step scan must be a positive whole number of the cell's timestep "
+                                          "({} s), got {} s",
+                                          std::chrono::duration<double>(step).count(),
+                                          std::chrono::duration<double>(scan).count()));
+    }
+  }
+  if (m.options.io) {
+    m.twin_io = std::make_unique<sim::TwinIo>(*m.world);
+    drivers::DigitalIo* served = m.twin_io.get();
+    if (m.options.lockstep) {
+      m.lockstep_io = std::make_unique<LockstepIo>(*m.twin_io, [&m] { m.advance(*m.options.lockstep); });
+      served = m.lockstep_io.get();
+    }
+    m.server = std::make_unique<emulate::ModbusServer>(*served, *m.options.io, SourceLocation{"--io", 0, 0});
+    if (m.options.log) {
+      m.server->set_hook([log = m.options.log](const emulate::ServedRequest& r) {
+        log(fmt::format("modbus client {}: function {}, {} value(s) from {}: {}", r.client, r.function, r.count,
+                        r.address, r.exception_code == 0 ? std::string("ok")
+                                                         : fmt::format("exception {}", r.exception_code)));
+      });
+    }
+  }
   std::uint64_t index = 0;
   for (EmulatedController& c : controllers) {
     Impl::Robot r;
@@ -185,13 +308,17 @@ void EmulatedCell::run() {
   const auto wall_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(kPeriod) / m.options.speed);
   std::thread sim([&m, wall_period] {
+    if (m.server) {
+      m.simulate_serving(wall_period);
+      return;
+    }
     auto next = std::chrono::steady_clock::now();
     std::unique_lock lock(m.mutex);
     while (!m.stopping) {
       next += wall_period;
       if (m.cv.wait_until(lock, next, [&] { return m.stopping; })) break;
       lock.unlock();
-      m.plant->advance(kPeriod);
+      m.advance(kPeriod);
       lock.lock();
     }
   });
@@ -223,6 +350,14 @@ void EmulatedCell::run() {
 
 std::vector<FinalPose> EmulatedCell::final_poses() const {
   return final_poses_of(*impl_->world);
+}
+
+std::string EmulatedCell::io_endpoint() const {
+  return impl_->server ? impl_->server->endpoint() : std::string();
+}
+
+std::chrono::nanoseconds EmulatedCell::sim_time() const {
+  return std::chrono::nanoseconds(impl_->sim_ns.load());
 }
 
 }  // namespace cellwright::cell

@@ -21,6 +21,13 @@ line, and answers each with one line on stdout. It ends when stdin closes.
                           read_coils A N | read_inputs A N | read_holding A N | write_coil A 0|1 |
                           write_coils A V,V,...  -> "ok" followed by the bits read (reads), "exception CODE", or
                                                     "error TEXT" (no valid answer)
+  peer.py plc PORT MAX_SCANS
+                        a PLC program on pymodbus's TCP client (unit 1), for virtual commissioning against the twin
+                        (`twin emulate --scenario ... --io`): runs the input conveyor (coil 0 on), then scans: reads
+                        discrete inputs 0..3 until input 0 (the input conveyor's photo-eye) is on, at most MAX_SCANS
+                        times; then stops the belt (coil 0 off) and reads coils 0..2. Prints "ready", one line per
+                        reply ("SCAN TID PDU": the scan it came in, the transaction id, the reply's PDU in hex as
+                        pymodbus encodes it), then "eye at scan N" (or "no eye in MAX_SCANS scans"), then "end".
 """
 import asyncio
 import logging
@@ -148,14 +155,22 @@ def run_raw_server(answer, late=None):
         pass
 
 
-def run_client(port, unit):
+def connected_client(port):
+    """pymodbus's TCP client (timeout 3 s) connected to 127.0.0.1:PORT, having said "ready"; None, having said why."""
     from pymodbus.client import ModbusTcpClient
 
     client = ModbusTcpClient("127.0.0.1", port=port, timeout=3, retries=0, retry_on_empty=False)
     if not client.connect():
         say("error cannot connect")
-        return
+        return None
     say("ready")
+    return client
+
+
+def run_client(port, unit):
+    client = connected_client(port)
+    if client is None:
+        return
     for line in sys.stdin:
         words = line.split()
         if not words:
@@ -188,6 +203,36 @@ def run_client(port, unit):
     client.close()
 
 
+def run_plc(port, max_scans):
+    client = connected_client(port)
+    if client is None:
+        return
+    scan = [0]
+
+    def log(reply):
+        if not hasattr(reply, "function_code"):  # no valid answer
+            say("error " + str(reply).replace("\n", " "))
+            return None
+        pdu = bytes([reply.function_code]) + reply.encode()
+        say("%d %d %s" % (scan[0], reply.transaction_id, pdu.hex()))
+        return reply
+
+    log(client.write_coil(0, True, slave=1))
+    eye = None
+    while eye is None and scan[0] < max_scans:
+        scan[0] += 1
+        reply = log(client.read_discrete_inputs(0, 4, slave=1))
+        if reply is None or reply.isError():
+            break
+        if reply.bits[0]:
+            eye = scan[0]
+    log(client.write_coil(0, False, slave=1))
+    log(client.read_coils(0, 3, slave=1))
+    say("eye at scan %d" % eye if eye is not None else "no eye in %d scans" % max_scans)
+    say("end")
+    client.close()
+
+
 def main():
     mode = sys.argv[1] if len(sys.argv) > 1 else ""
     if mode == "server":
@@ -200,6 +245,8 @@ def main():
         run_raw_server(True, late=float(sys.argv[2]))
     elif mode == "client" and len(sys.argv) >= 3:
         run_client(int(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) > 3 else 1)
+    elif mode == "plc" and len(sys.argv) >= 4:
+        run_plc(int(sys.argv[2]), int(sys.argv[3]))
     else:
         sys.stderr.write(__doc__)
         sys.exit(2)

@@ -42,6 +42,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -59,6 +60,10 @@ struct ModbusServerOptions {
   int unit = 1;                    // the unit identifier it answers as, 0..255 (Modbus TCP devices often use 255)
   int max_clients = 16;            // further connections are accepted and closed at once
 };
+
+// Parses where to listen, `HOST:PORT` (port 0..65535, 0: a free one), into options (the other fields as defaulted).
+// Throws InputError naming `where` and the text when it is not that. The host is resolved when the server is made.
+ModbusServerOptions parse_listen_address(std::string_view host_port, const SourceLocation& where);
 
 // One request served, for the hook.
 struct ServedRequest {

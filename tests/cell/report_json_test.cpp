@@ -196,6 +196,72 @@ TEST(ReportJson, PartsFromTheControllersModelAreSaidSoAndComeBack) {
   EXPECT_THAT(input_error([&] { from_json(bad, kFile); }), HasSubstr("\"parts_from\" must be \"controller_model\""));
 }
 
+// The devices' figures (a log with device events) come back as written, each of their fields required by its kind;
+// a report without devices has no "devices" key (a run without them is unchanged).
+TEST(ReportJson, DevicesComeBackAsWrittenAndTheirFieldsAreRequired) {
+  Scenario s;
+  Report r = full_report();
+  EXPECT_FALSE(to_json(s, r).contains("devices"));
+  DeviceTimeline mill;
+  mill.device = "mill";
+  mill.kind = "machine";
+  mill.state = "busy";
+  mill.workpiece = "B";
+  mill.busy = 12.5;
+  mill.done = 1.25;
+  mill.idle = 17.48456;
+  mill.utilisation = 0.4;
+  mill.cycles_started = 2;
+  mill.cycles_finished = 1;
+  mill.processed = {"A"};
+  DeviceTimeline belt;
+  belt.device = "input";
+  belt.kind = "conveyor";
+  belt.state = "stopped";
+  belt.running = 15.5;
+  belt.stopped = 15.73456;
+  belt.starts = 3;
+  DeviceTimeline eye;
+  eye.device = "input_eye";
+  eye.kind = "sensor";
+  eye.state = "off";
+  eye.on = 2.0;
+  eye.off = 29.23456;
+  eye.starts = 2;
+  r.timeline.devices = {mill, belt, eye};
+  expect_round_trip(s, r);
+  const Report back = from_json(to_json(s, r), kFile);
+  ASSERT_EQ(back.timeline.devices.size(), 3u);
+  EXPECT_EQ(back.timeline.devices[0].processed, std::vector<std::string>{"A"});
+  EXPECT_EQ(back.timeline.devices[0].state, "busy");
+  EXPECT_EQ(back.timeline.devices[1].starts, 3u);
+  EXPECT_EQ(back.timeline.devices[2].on, 2.0);
+  const json full = to_json(s, r);
+  for (const char* field : {"busy", "done_waiting", "idle", "utilisation", "cycles_started", "cycles_finished",
+                            "processed", "workpiece", "state", "device", "kind"}) {
+    json j = full;
+    j["devices"][0].erase(field);
+    EXPECT_THAT(input_error([&] { from_json(j, kFile); }),
+                HasSubstr(fmt::format("\"devices[0].{}\" is missing", field)));
+  }
+  for (const char* field : {"running", "stopped", "starts"}) {
+    json j = full;
+    j["devices"][1].erase(field);
+    EXPECT_THAT(input_error([&] { from_json(j, kFile); }),
+                HasSubstr(fmt::format("\"devices[1].{}\" is missing", field)));
+  }
+  for (const char* field : {"on", "off", "times_on"}) {
+    json j = full;
+    j["devices"][2].erase(field);
+    EXPECT_THAT(input_error([&] { from_json(j, kFile); }),
+                HasSubstr(fmt::format("\"devices[2].{}\" is missing", field)));
+  }
+  json bad = full;
+  bad["devices"][1]["kind"] = "robot";
+  EXPECT_THAT(input_error([&] { from_json(bad, kFile); }),
+              HasSubstr("\"devices[1].kind\" must be one of machine, conveyor, sensor"));
+}
+
 // Runs a scenario as `twin run` does (lock-step, in this process), checks its report's round trip and returns it.
 Report run_and_round_trip(const Scenario& s) {
   const Preflight pre = preflight(s, &twin_port());

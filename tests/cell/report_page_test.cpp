@@ -230,6 +230,42 @@ TEST_F(ReportPageTest, RobotsShowBusyWaitingBlockedAndABarOfTheirShares) {
                                 "style=\"width:10.00%\"></span><span class=\"blocked\" style=\"width:20.00%\">"));
 }
 
+// A run with device events has a Devices section: the mill's busy / done / idle time, utilisation, cycles and the
+// parts processed, a mill still busy at the end said so with its part not processed; the conveyors and sensors with
+// their running / on time. A run without them has no such section.
+TEST_F(ReportPageTest, DevicesShowTheMillsTimesUtilisationAndThePartsProcessed) {
+  EXPECT_THAT(page(), Not(HasSubstr("id=\"devices\"")));
+  DeviceTimeline mill;
+  mill.device = "mill";
+  mill.kind = "machine";
+  mill.state = "idle";
+  mill.busy = 12.6;
+  mill.done = 3.15;
+  mill.idle = 15.75;
+  mill.utilisation = 0.4;
+  mill.cycles_started = 1;
+  mill.cycles_finished = 1;
+  mill.processed = {"A"};
+  DeviceTimeline belt;
+  belt.device = "input";
+  belt.kind = "conveyor";
+  belt.state = "stopped";
+  belt.running = 15.75;
+  belt.stopped = 15.75;
+  belt.starts = 1;
+  report_.timeline.devices = {mill, belt};
+  const std::string devices = between(page(), "<section id=\"devices\">", "</section>");
+  EXPECT_THAT(devices, HasSubstr("<tr><td>mill</td><td class=\"num\">12.60&nbsp;s</td><td class=\"num\">3.15&nbsp;s"
+                                 "</td><td class=\"num\">15.75&nbsp;s</td><td class=\"num\">40&nbsp;%</td>"
+                                 "<td class=\"num\">1</td><td class=\"num\">1</td><td>A</td><td>idle</td>"));
+  EXPECT_THAT(devices, HasSubstr("<td>input <span class=\"small\">(conveyor)</span></td><td class=\"num\">15.75&nbsp;s"
+                                 "</td><td class=\"num\">15.75&nbsp;s</td><td class=\"num\">1</td><td>stopped</td>"));
+  EXPECT_THAT(devices, HasSubstr("style=\"width:50.00%;background:#56b4e9\""));
+  report_.timeline.devices[0].state = "busy";
+  report_.timeline.devices[0].workpiece = "B";
+  EXPECT_THAT(page(), HasSubstr("<span class=\"badge fail\">busy</span> with B (not processed)"));
+}
+
 TEST_F(ReportPageTest, CollisionsAndFaultsAreListedAndTheirAbsenceSaid) {
   std::string html = page();
   const std::string collisions = between(html, "<section id=\"collisions\">", "</section>");

@@ -22,6 +22,7 @@
 #include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/cell/sim/sweep.hpp"
+#include "cell/report_files.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -202,32 +203,11 @@ TEST(ReportJson, DevicesComeBackAsWrittenAndTheirFieldsAreRequired) {
   Scenario s;
   Report r = full_report();
   EXPECT_FALSE(to_json(s, r).contains("devices"));
-  DeviceTimeline mill;
-  mill.device = "mill";
-  mill.kind = "machine";
-  mill.state = "busy";
+  DeviceTimeline mill = test_reports::machine_figures("mill", 12.5, 1.25, 17.48456, true, "busy");
   mill.workpiece = "B";
-  mill.busy = 12.5;
-  mill.done = 1.25;
-  mill.idle = 17.48456;
-  mill.utilisation = 0.4;
   mill.cycles_started = 2;
-  mill.cycles_finished = 1;
-  mill.processed = {"A"};
-  DeviceTimeline belt;
-  belt.device = "input";
-  belt.kind = "conveyor";
-  belt.state = "stopped";
-  belt.running = 15.5;
-  belt.stopped = 15.73456;
-  belt.starts = 3;
-  DeviceTimeline eye;
-  eye.device = "input_eye";
-  eye.kind = "sensor";
-  eye.state = "off";
-  eye.on = 2.0;
-  eye.off = 29.23456;
-  eye.starts = 2;
+  const DeviceTimeline belt = test_reports::switch_figures("input", "conveyor", 15.5, 15.73456, 3, "stopped");
+  const DeviceTimeline eye = test_reports::switch_figures("input_eye", "sensor", 2.0, 29.23456, 2, "off");
   r.timeline.devices = {mill, belt, eye};
   expect_round_trip(s, r);
   const Report back = from_json(to_json(s, r), kFile);

@@ -20,6 +20,7 @@
 #include "cellwright/common/files.hpp"
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/cell/scenario.hpp"
+#include "cell/report_files.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -235,24 +236,8 @@ TEST_F(ReportPageTest, RobotsShowBusyWaitingBlockedAndABarOfTheirShares) {
 // their running / on time. A run without them has no such section.
 TEST_F(ReportPageTest, DevicesShowTheMillsTimesUtilisationAndThePartsProcessed) {
   EXPECT_THAT(page(), Not(HasSubstr("id=\"devices\"")));
-  DeviceTimeline mill;
-  mill.device = "mill";
-  mill.kind = "machine";
-  mill.state = "idle";
-  mill.busy = 12.6;
-  mill.done = 3.15;
-  mill.idle = 15.75;
-  mill.utilisation = 0.4;
-  mill.cycles_started = 1;
-  mill.cycles_finished = 1;
-  mill.processed = {"A"};
-  DeviceTimeline belt;
-  belt.device = "input";
-  belt.kind = "conveyor";
-  belt.state = "stopped";
-  belt.running = 15.75;
-  belt.stopped = 15.75;
-  belt.starts = 1;
+  const DeviceTimeline mill = test_reports::machine_figures("mill", 12.6, 3.15, 15.75, true, "idle");
+  const DeviceTimeline belt = test_reports::switch_figures("input", "conveyor", 15.75, 15.75, 1, "stopped");
   report_.timeline.devices = {mill, belt};
   const std::string devices = between(page(), "<section id=\"devices\">", "</section>");
   EXPECT_THAT(devices, HasSubstr("<tr><td>mill</td><td class=\"num\">12.60&nbsp;s</td><td class=\"num\">3.15&nbsp;s"

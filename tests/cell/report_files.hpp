@@ -63,4 +63,36 @@ inline void write_report(const std::filesystem::path& file, const Report& r) {
   std::ofstream(file, std::ios::binary) << report_text(r);
 }
 
+// A machine's figures as the report has them from its device events: `busy`, `done` and `idle` seconds, one cycle
+// started and `finished` (0 or 1), the part processed when finished, and its state at the end.
+inline DeviceTimeline machine_figures(const std::string& name, double busy, double done, double idle, bool finished,
+                                      const std::string& state) {
+  DeviceTimeline d;
+  d.device = name;
+  d.kind = "machine";
+  d.state = state;
+  d.busy = busy;
+  d.done = done;
+  d.idle = idle;
+  d.utilisation = busy / (busy + done + idle);
+  d.cycles_started = 1;
+  d.cycles_finished = finished ? 1 : 0;
+  if (finished) d.processed = {"A"};
+  return d;
+}
+
+// A conveyor's or sensor's figures: `active` s running (on), `inactive` s stopped (off), started (came on) `starts`
+// times, `state` at the end.
+inline DeviceTimeline switch_figures(const std::string& name, const std::string& kind, double active, double inactive,
+                                     std::size_t starts, const std::string& state) {
+  DeviceTimeline d;
+  d.device = name;
+  d.kind = kind;
+  d.state = state;
+  (kind == "conveyor" ? d.running : d.on) = active;
+  (kind == "conveyor" ? d.stopped : d.off) = inactive;
+  d.starts = starts;
+  return d;
+}
+
 }  // namespace cellwright::cell::test_reports

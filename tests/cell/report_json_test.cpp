@@ -22,6 +22,7 @@
 #include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/cell/sim/sweep.hpp"
+#include "cell/report_files.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -194,6 +195,51 @@ TEST(ReportJson, PartsFromTheControllersModelAreSaidSoAndComeBack) {
   json bad = j;
   bad["parts_from"] = "twin";
   EXPECT_THAT(input_error([&] { from_json(bad, kFile); }), HasSubstr("\"parts_from\" must be \"controller_model\""));
+}
+
+// The devices' figures (a log with device events) come back as written, each of their fields required by its kind;
+// a report without devices has no "devices" key (a run without them is unchanged).
+TEST(ReportJson, DevicesComeBackAsWrittenAndTheirFieldsAreRequired) {
+  Scenario s;
+  Report r = full_report();
+  EXPECT_FALSE(to_json(s, r).contains("devices"));
+  DeviceTimeline mill = test_reports::machine_figures("mill", 12.5, 1.25, 17.48456, true, "busy");
+  mill.workpiece = "B";
+  mill.cycles_started = 2;
+  const DeviceTimeline belt = test_reports::switch_figures("input", "conveyor", 15.5, 15.73456, 3, "stopped");
+  const DeviceTimeline eye = test_reports::switch_figures("input_eye", "sensor", 2.0, 29.23456, 2, "off");
+  r.timeline.devices = {mill, belt, eye};
+  expect_round_trip(s, r);
+  const Report back = from_json(to_json(s, r), kFile);
+  ASSERT_EQ(back.timeline.devices.size(), 3u);
+  EXPECT_EQ(back.timeline.devices[0].processed, std::vector<std::string>{"A"});
+  EXPECT_EQ(back.timeline.devices[0].state, "busy");
+  EXPECT_EQ(back.timeline.devices[1].starts, 3u);
+  EXPECT_EQ(back.timeline.devices[2].on, 2.0);
+  const json full = to_json(s, r);
+  for (const char* field : {"busy", "done_waiting", "idle", "utilisation", "cycles_started", "cycles_finished",
+                            "processed", "workpiece", "state", "device", "kind"}) {
+    json j = full;
+    j["devices"][0].erase(field);
+    EXPECT_THAT(input_error([&] { from_json(j, kFile); }),
+                HasSubstr(fmt::format("\"devices[0].{}\" is missing", field)));
+  }
+  for (const char* field : {"running", "stopped", "starts"}) {
+    json j = full;
+    j["devices"][1].erase(field);
+    EXPECT_THAT(input_error([&] { from_json(j, kFile); }),
+                HasSubstr(fmt::format("\"devices[1].{}\" is missing", field)));
+  }
+  for (const char* field : {"on", "off", "times_on"}) {
+    json j = full;
+    j["devices"][2].erase(field);
+    EXPECT_THAT(input_error([&] { from_json(j, kFile); }),
+                HasSubstr(fmt::format("\"devices[2].{}\" is missing", field)));
+  }
+  json bad = full;
+  bad["devices"][1]["kind"] = "robot";
+  EXPECT_THAT(input_error([&] { from_json(bad, kFile); }),
+              HasSubstr("\"devices[1].kind\" must be one of machine, conveyor, sensor"));
 }
 
 // Runs a scenario as `twin run` does (lock-step, in this process), checks its report's round trip and returns it.

@@ -20,6 +20,7 @@
 #include "cellwright/common/files.hpp"
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/cell/scenario.hpp"
+#include "cell/report_files.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -228,6 +229,26 @@ TEST_F(ReportPageTest, RobotsShowBusyWaitingBlockedAndABarOfTheirShares) {
   // 15.75 / 31.5 = 50 %, 3.15 / 31.5 = 10 %, 6.3 / 31.5 = 20 %.
   EXPECT_THAT(robots, HasSubstr("<span class=\"busy\" style=\"width:50.00%\"></span><span class=\"waiting\" "
                                 "style=\"width:10.00%\"></span><span class=\"blocked\" style=\"width:20.00%\">"));
+}
+
+// A run with device events has a Devices section: the mill's busy / done / idle time, utilisation, cycles and the
+// parts processed, a mill still busy at the end said so with its part not processed; the conveyors and sensors with
+// their running / on time. A run without them has no such section.
+TEST_F(ReportPageTest, DevicesShowTheMillsTimesUtilisationAndThePartsProcessed) {
+  EXPECT_THAT(page(), Not(HasSubstr("id=\"devices\"")));
+  const DeviceTimeline mill = test_reports::machine_figures("mill", 12.6, 3.15, 15.75, true, "idle");
+  const DeviceTimeline belt = test_reports::switch_figures("input", "conveyor", 15.75, 15.75, 1, "stopped");
+  report_.timeline.devices = {mill, belt};
+  const std::string devices = between(page(), "<section id=\"devices\">", "</section>");
+  EXPECT_THAT(devices, HasSubstr("<tr><td>mill</td><td class=\"num\">12.60&nbsp;s</td><td class=\"num\">3.15&nbsp;s"
+                                 "</td><td class=\"num\">15.75&nbsp;s</td><td class=\"num\">40&nbsp;%</td>"
+                                 "<td class=\"num\">1</td><td class=\"num\">1</td><td>A</td><td>idle</td>"));
+  EXPECT_THAT(devices, HasSubstr("<td>input <span class=\"small\">(conveyor)</span></td><td class=\"num\">15.75&nbsp;s"
+                                 "</td><td class=\"num\">15.75&nbsp;s</td><td class=\"num\">1</td><td>stopped</td>"));
+  EXPECT_THAT(devices, HasSubstr("style=\"width:50.00%;background:#56b4e9\""));
+  report_.timeline.devices[0].state = "busy";
+  report_.timeline.devices[0].workpiece = "B";
+  EXPECT_THAT(page(), HasSubstr("<span class=\"badge fail\">busy</span> with B (not processed)"));
 }
 
 TEST_F(ReportPageTest, CollisionsAndFaultsAreListedAndTheirAbsenceSaid) {

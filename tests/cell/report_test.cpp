@@ -1046,5 +1046,205 @@ TEST(Gantt, ShortBlockedSpansStayVisibleAndTheLegendShowsEveryColour) {
   EXPECT_GT(cv::countNonZero(green), 10);
 }
 
+// --- The devices: their rows, figures and pages, from hand-written device events ---------------------------------------
+
+void device(LogWriter& w, double t, const std::string& name, const std::string& kind, const std::string& state,
+            const std::string& part = "") {
+  w.event(t, "device",
+          fmt::format(R"("device":"{}","kind":"{}","state":"{}","workpiece":"{}")", name, kind, state, part));
+}
+
+// A 10 s run of the exchange cell with a mill cycle: the mill idle from the start, busy with A from 2 s to 6 s, done
+// (A waiting to be taken out) until 7 s, then idle; the input conveyor running for the first half of the run and its
+// photo-eye on from 4 s to 5 s. `outcome` and the end: as given.
+std::string device_log(const std::string& outcome = "finished", bool finish_cycle = true) {
+  LogWriter w;
+  w.start();
+  device(w, 0, "mill", "machine", "idle");
+  device(w, 0, "input", "conveyor", "running");
+  device(w, 0, "input_eye", "sensor", "off");
+  device(w, 2, "mill", "machine", "busy", "A");
+  device(w, 4, "input_eye", "sensor", "on");
+  device(w, 5, "input_eye", "sensor", "off");
+  device(w, 5, "input", "conveyor", "stopped");
+  if (finish_cycle) {
+    device(w, 6, "mill", "machine", "done", "A");
+    device(w, 7, "mill", "machine", "idle");
+  }
+  w.end(10, outcome, outcome == "finished" ? "" : "the cell was stopped", 0);
+  return w.text();
+}
+
+Report device_report(const std::string& log) {
+  const Scenario s = exchange_scenario();
+  return make_report(s, runtime::decode_log(log, "e"), {on_output(s, 0.1)}, std::nullopt);
+}
+
+TEST(DeviceReport, AMillCycleIsBusyDoneAndIdleTimeWithItsPartProcessed) {
+  const Report r = device_report(device_log());
+  ASSERT_EQ(r.timeline.devices.size(), 3u);
+  const DeviceTimeline& mill = r.timeline.devices[0];
+  EXPECT_EQ(mill.device, "mill");
+  EXPECT_EQ(mill.kind, "machine");
+  EXPECT_DOUBLE_EQ(mill.busy, 4.0);
+  EXPECT_DOUBLE_EQ(mill.done, 1.0);
+  EXPECT_DOUBLE_EQ(mill.idle, 5.0);  // the run (10 s) minus busy and done
+  EXPECT_DOUBLE_EQ(mill.utilisation, 0.4);
+  EXPECT_EQ(mill.cycles_started, 1u);
+  EXPECT_EQ(mill.cycles_finished, 1u);
+  EXPECT_THAT(mill.processed, ElementsAre("A"));
+  EXPECT_EQ(mill.state, "idle");
+  std::vector<std::string> bars;
+  for (const DeviceBar& b : mill.bars) bars.push_back(fmt::format("{} {}-{} {}", to_string(b.activity), b.start, b.end, b.workpiece));
+  EXPECT_THAT(bars, ElementsAre("busy 2-6 A", "done 6-7 A"));
+
+  const Scenario s = exchange_scenario();
+  const nlohmann::json j = to_json(s, r);
+  ASSERT_EQ(j["devices"].size(), 3u);
+  EXPECT_EQ(j["devices"][0]["device"], "mill");
+  EXPECT_EQ(j["devices"][0]["busy"], 4.0);
+  EXPECT_EQ(j["devices"][0]["done_waiting"], 1.0);
+  EXPECT_EQ(j["devices"][0]["idle"], 5.0);
+  EXPECT_EQ(j["devices"][0]["utilisation"], 0.4);
+  EXPECT_EQ(j["devices"][0]["cycles_finished"], 1);
+  EXPECT_EQ(j["devices"][0]["processed"], nlohmann::json::array({"A"}));
+  EXPECT_THAT(format_summary(r), HasSubstr("mill (machine): busy 4.00 s (40 %), done waiting 1.00 s, idle 5.00 s; "
+                                           "cycles 1 started, 1 finished; processed A\n"));
+}
+
+// "A report is true when the run goes badly": a run that stops during the cycle shows the mill busy to the end and
+// its part not processed.
+TEST(DeviceReport, ARunThatStopsWithTheMillBusyShowsItBusyToTheEndAndThePartNotProcessed) {
+  const Report r = device_report(device_log("stopped", false));
+  const DeviceTimeline& mill = r.timeline.devices[0];
+  EXPECT_DOUBLE_EQ(mill.busy, 8.0);  // 2 s to the end at 10 s
+  EXPECT_DOUBLE_EQ(mill.done, 0.0);
+  EXPECT_DOUBLE_EQ(mill.idle, 2.0);
+  EXPECT_EQ(mill.cycles_started, 1u);
+  EXPECT_EQ(mill.cycles_finished, 0u);
+  EXPECT_TRUE(mill.processed.empty());
+  EXPECT_EQ(mill.state, "busy");
+  EXPECT_EQ(mill.workpiece, "A");
+  ASSERT_EQ(mill.bars.size(), 1u);
+  EXPECT_DOUBLE_EQ(mill.bars[0].end, 10.0);
+  const nlohmann::json j = to_json(exchange_scenario(), r);
+  EXPECT_EQ(j["devices"][0]["state"], "busy");
+  EXPECT_EQ(j["devices"][0]["processed"], nlohmann::json::array());
+  EXPECT_THAT(format_summary(r), HasSubstr("processed none; busy at the end with A (not processed)"));
+  // A machine that went done without having been busy processed nothing either.
+  LogWriter w;
+  w.start();
+  device(w, 0, "mill", "machine", "idle");
+  device(w, 1, "mill", "machine", "done", "A");
+  w.end(2, "finished", "", 0);
+  EXPECT_TRUE(device_report(w.text()).timeline.devices[0].processed.empty());
+}
+
+TEST(DeviceReport, AConveyorStoppedHalfTheRunAndAPhotoEyeOnForASecond) {
+  const Report r = device_report(device_log());
+  const DeviceTimeline& input = r.timeline.devices[1];
+  EXPECT_EQ(input.kind, "conveyor");
+  EXPECT_DOUBLE_EQ(input.running, 5.0);
+  EXPECT_DOUBLE_EQ(input.stopped, 5.0);
+  EXPECT_EQ(input.starts, 1u);
+  EXPECT_EQ(input.state, "stopped");
+  const DeviceTimeline& eye = r.timeline.devices[2];
+  EXPECT_EQ(eye.kind, "sensor");
+  EXPECT_DOUBLE_EQ(eye.on, 1.0);
+  EXPECT_DOUBLE_EQ(eye.off, 9.0);
+  EXPECT_EQ(eye.starts, 1u);
+  const nlohmann::json j = to_json(exchange_scenario(), r);
+  EXPECT_EQ(j["devices"][1]["running"], 5.0);
+  EXPECT_EQ(j["devices"][1]["stopped"], 5.0);
+  EXPECT_EQ(j["devices"][2]["on"], 1.0);
+  const std::string summary = format_summary(r);
+  EXPECT_THAT(summary, HasSubstr("input (conveyor): running 5.00 s (50 %), stopped 5.00 s"));
+  EXPECT_THAT(summary, HasSubstr("input_eye (sensor): on 1.00 s (10 %), off 9.00 s"));
+}
+
+// A log from before the devices (none of their events) gives the report it gave: no "devices" key, the same summary
+// lines; and the device events of a log change nothing else of its report.
+TEST(DeviceReport, ALogWithoutDeviceEventsGivesTheReportItGave) {
+  const Scenario s = exchange_scenario();
+  const std::string plain = exchange_log();
+  const Report before = make_report(s, runtime::decode_log(plain, "e"), {on_output(s, 0.1)}, 14.25);
+  EXPECT_TRUE(before.timeline.devices.empty());
+  const nlohmann::json j = to_json(s, before);
+  EXPECT_FALSE(j.contains("devices"));
+  EXPECT_THAT(format_summary(before), ::testing::Not(HasSubstr("(machine)")));
+  std::string with_devices = plain;
+  const std::size_t after_start = with_devices.find('\n') + 1;
+  with_devices.insert(after_start,
+                      R"({"t":0.0000,"type":"device","device":"mill","kind":"machine","state":"idle","workpiece":""})"
+                      "\n"
+                      R"({"t":0.0000,"type":"device","device":"input","kind":"conveyor","state":"running","workpiece":""})"
+                      "\n");
+  const Report with = make_report(s, runtime::decode_log(with_devices, "e"), {on_output(s, 0.1)}, 14.25);
+  ASSERT_EQ(with.timeline.devices.size(), 2u);
+  nlohmann::json jw = to_json(s, with);
+  jw.erase("devices");
+  EXPECT_EQ(jw.dump(1), j.dump(1));
+  // The chart of a log without devices has the robots' rows only (the same height as before).
+  const cv::Mat chart = draw_gantt(before.timeline);
+  EXPECT_EQ(chart.rows, 15 + 2 * GanttOptions{}.row_height + 60 + 84);
+  EXPECT_GT(draw_gantt(with.timeline).rows, chart.rows + 2 * GanttOptions{}.row_height);
+}
+
+TEST(DeviceReport, ADeviceEventOfAnUnknownKindOrStateIsRefusedWithItsLine) {
+  const Scenario s = exchange_scenario();
+  struct Case {
+    std::string lines, what;
+  };
+  for (const Case& c : std::vector<Case>{
+           {R"({"t":1.0000,"type":"device","device":"mill","kind":"press","state":"busy","workpiece":""})",
+            "kind \"press\""},
+           {R"({"t":1.0000,"type":"device","device":"mill","kind":"machine","state":"running","workpiece":""})",
+            "state \"running\"; a machine is idle, busy, done"},
+           {R"({"t":1.0000,"type":"device","device":"mill","kind":"machine","state":"busy","workpiece":""})"
+            "\n"
+            R"({"t":2.0000,"type":"device","device":"mill","kind":"sensor","state":"on","workpiece":""})",
+            "device mill is a machine (its first event), not a sensor"}}) {
+    std::string log = exchange_log();
+    log.insert(log.find('\n') + 1, c.lines + "\n");
+    try {
+      make_report(s, runtime::decode_log(log, "e.jsonl"), {on_output(s, 0.1)}, std::nullopt, "e.jsonl");
+      ADD_FAILURE() << c.what;
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), HasSubstr(c.what));
+      EXPECT_THAT(e.what(), HasSubstr("e.jsonl"));
+      EXPECT_GE(e.where().line, 2);
+    }
+  }
+}
+
+// The chart has a row per device after the robots' rows: the mill busy (vermillion) and done (green) told apart, the
+// conveyor running (sky blue), the photo-eye on (dark grey); and a legend line for them.
+TEST(Gantt, DrawsARowPerDeviceAfterTheRobots) {
+  const Report r = device_report(device_log());
+  GanttOptions o;
+  const cv::Mat img = draw_gantt(r.timeline, o);
+  const int left = 170, right = 40, title = 15;
+  // The axis maps [0, 10] s onto x.
+  auto x_of = [&](double t) { return left + static_cast<int>(std::lround((o.width - left - right) * t / 10.0)); };
+  auto colour_at = [&](int row, double t) {
+    const cv::Vec3b c = img.at<cv::Vec3b>(title + row * o.row_height + o.row_height - 12, x_of(t));
+    return cv::Scalar(c[0], c[1], c[2]);
+  };
+  // Rows 0 and 1 are the robots; the mill is row 2, the conveyor 3, the eye 4.
+  EXPECT_EQ(colour_at(2, 4.0), device_colour(DeviceActivity::kBusy));
+  EXPECT_EQ(colour_at(2, 6.5), device_colour(DeviceActivity::kDone));
+  EXPECT_NE(colour_at(2, 8.5), device_colour(DeviceActivity::kBusy));  // idle: no bar
+  EXPECT_EQ(colour_at(3, 2.5), device_colour(DeviceActivity::kRunning));
+  EXPECT_NE(colour_at(3, 7.5), device_colour(DeviceActivity::kRunning));  // stopped
+  EXPECT_EQ(colour_at(4, 4.5), device_colour(DeviceActivity::kOn));
+  EXPECT_NE(colour_at(4, 2.5), device_colour(DeviceActivity::kOn));
+  const cv::Mat legend = img(cv::Rect(0, title + 5 * o.row_height + 60, o.width, img.rows - title - 5 * o.row_height - 60));
+  for (DeviceActivity a : {DeviceActivity::kBusy, DeviceActivity::kDone, DeviceActivity::kRunning, DeviceActivity::kOn}) {
+    cv::Mat mask;
+    cv::inRange(legend, device_colour(a), device_colour(a), mask);
+    EXPECT_GT(cv::countNonZero(mask), 300) << to_string(a);
+  }
+}
+
 }  // namespace
 }  // namespace cellwright::cell

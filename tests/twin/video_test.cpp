@@ -25,6 +25,7 @@ extern "C" {
 #include "cellwright/twin/render.hpp"
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/sim/world.hpp"
 
 namespace cellwright::twin {
 namespace {
@@ -257,6 +258,41 @@ TEST_F(Video, RecorderFramesAreTheCellWithTheTextOverIt) {
   }
   EXPECT_LT(mean_difference(d.frames[0], verdict), 4.0) << "no verdict while running";
   EXPECT_GT(mean_difference(d.frames[7], verdict), 20.0) << "the verdict on the last frames";
+}
+
+// What a viewer of a run with devices reads under the robots' lines: each machine's state with its part and the
+// process time left, each conveyor running, stopped or held by a part at its stop, and its photo-eyes that see a part.
+TEST(VideoDevices, EachMachineAndConveyorHasALineWithItsStateAndItsPart) {
+  sim::DeviceStates d;
+  sim::MachineDevice mill;
+  mill.name = "mill";
+  mill.state = sim::MachineState::busy;
+  mill.part = "A";
+  mill.busy_left = std::chrono::milliseconds(2400);
+  sim::MachineDevice press;
+  press.name = "press";
+  press.state = sim::MachineState::done;
+  press.part = "B";
+  sim::MachineDevice drill;
+  drill.name = "drill";
+  d.machines = {mill, press, drill};
+  sim::ConveyorDevice input;
+  input.name = "input";
+  input.run = true;
+  input.running = false;
+  input.stop_eye = true;
+  sim::ConveyorDevice output;
+  output.name = "output";
+  output.run = false;
+  output.running = false;
+  output.drop_eye = true;
+  sim::ConveyorDevice feed;
+  feed.name = "feed";
+  d.conveyors = {input, output, feed};
+  EXPECT_EQ(device_lines(d), (std::vector<std::string>{"mill: busy A (2.4 s left)", "press: done B (to unload)",
+                                                       "drill: idle", "input: held (accumulating), stop eye on",
+                                                       "output: stopped, drop eye on", "feed: running"}));
+  EXPECT_TRUE(device_lines(sim::DeviceStates{}).empty());
 }
 
 TEST_F(Video, AFileThatCannotBeWrittenIsRefusedBeforeTheRun) {

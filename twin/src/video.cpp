@@ -24,6 +24,7 @@
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/twin/render.hpp"
+#include "cellwright/twin/sim/world.hpp"
 
 extern char** environ;
 
@@ -248,6 +249,25 @@ void VideoWriter::close() {
     throw InputError({path_.string(), 0, 0}, message);
   }
   release();
+}
+
+std::vector<std::string> device_lines(const sim::DeviceStates& devices) {
+  std::vector<std::string> out;
+  for (const sim::MachineDevice& m : devices.machines) {
+    std::string line = fmt::format("{}: {}", m.name, sim::to_string(m.state));
+    if (m.state != sim::MachineState::idle && !m.part.empty()) line += " " + m.part;
+    if (m.busy()) line += fmt::format(" ({:.1f} s left)", std::chrono::duration<double>(m.busy_left).count());
+    if (m.done()) line += " (to unload)";
+    out.push_back(std::move(line));
+  }
+  for (const sim::ConveyorDevice& c : devices.conveyors) {
+    std::string line =
+        fmt::format("{}: {}", c.name, c.running ? "running" : c.run ? "held (accumulating)" : "stopped");
+    if (c.stop_eye) line += ", stop eye on";
+    if (c.drop_eye) line += ", drop eye on";
+    out.push_back(std::move(line));
+  }
+  return out;
 }
 
 void draw_overlay(cv::Mat& image, const Overlay& overlay) {

@@ -104,6 +104,21 @@ cv::Scalar activity_colour(Activity a) {
   return {0, 0, 0};
 }
 
+cv::Scalar device_colour(DeviceActivity a) {
+  // Okabe-Ito's colours the robots' bars leave: vermillion, bluish green, sky blue; and a dark grey.
+  switch (a) {
+    case DeviceActivity::kBusy:
+      return {0, 94, 213};
+    case DeviceActivity::kDone:
+      return {115, 158, 0};
+    case DeviceActivity::kRunning:
+      return {233, 180, 86};
+    case DeviceActivity::kOn:
+      return {80, 80, 80};
+  }
+  return {0, 0, 0};
+}
+
 double tick_step(double span, int max_ticks) {
   CW_CHECK(span > 0 && max_ticks > 0, "tick_step({}, {})", span, max_ticks);
   double power = std::pow(10.0, std::floor(std::log10(span / max_ticks)));
@@ -118,9 +133,10 @@ double tick_step(double span, int max_ticks) {
 cv::Mat draw_gantt(const Timeline& timeline, const GanttOptions& options) {
   CW_CHECK(options.width >= 400 && options.row_height >= 50, "Gantt chart of {} px with rows of {} px", options.width,
            options.row_height);
-  const int rows = std::max<int>(1, static_cast<int>(timeline.robots.size()));
+  const int rows = std::max<int>(1, static_cast<int>(timeline.robots.size() + timeline.devices.size()));
   const int title_h = options.title.empty() ? 15 : 50;
-  const int left = 170, right = 40, axis_h = 60, legend_h = 84;
+  // A chart with devices has a third legend line, for their states.
+  const int left = 170, right = 40, axis_h = 60, legend_h = timeline.devices.empty() ? 84 : 120;
   const int height = title_h + rows * options.row_height + axis_h + legend_h;
   cv::Mat img(height, options.width, CV_8UC3, cv::Scalar(255, 255, 255));
 
@@ -186,6 +202,35 @@ cv::Mat draw_gantt(const Timeline& timeline, const GanttOptions& options) {
     cv::line(img, {0, y + options.row_height}, {options.width, y + options.row_height}, {180, 180, 180}, 1);
   }
 
+  // The devices' rows, after the robots': a bar per span of a state that has one (a machine busy or done, labelled
+  // with its part where it fits; a conveyor running; a sensor on).
+  for (std::size_t i = 0; i < timeline.devices.size(); ++i) {
+    const DeviceTimeline& d = timeline.devices[i];
+    const std::size_t r = timeline.robots.size() + i;
+    const int y = y_top + static_cast<int>(r) * options.row_height;
+    if (r % 2 == 1) {
+      cv::Mat band = img(cv::Rect(0, y, options.width, options.row_height));
+      band -= cv::Scalar(8, 8, 8);
+    }
+    put_text(img, d.device, {12, y + options.row_height / 2 - 2}, 0.7, {0, 0, 0}, 2);
+    put_text(img, d.kind, {12, y + options.row_height / 2 + 20}, 0.5, {90, 90, 90});
+    const int bar_top = y + 22, bar_bottom = y + options.row_height - 8;
+    for (const DeviceBar& b : d.bars) {
+      const int bx0 = x_of(b.start), bx1 = std::max(x_of(b.end), bx0 + 1);
+      cv::rectangle(img, {bx0, bar_top}, {bx1, bar_bottom}, device_colour(b.activity), cv::FILLED);
+      if (bx1 - bx0 >= 3) cv::rectangle(img, {bx0, bar_top}, {bx1, bar_bottom}, {255, 255, 255}, 1);
+      const double scale = 0.42;
+      const std::string text = b.workpiece.empty() ? std::string() : fmt::format("{} {}", to_string(b.activity), b.workpiece);
+      for (const std::string& t : {text, b.workpiece}) {
+        if (t.empty() || text_size(t, scale).width + 6 > bx1 - bx0) continue;
+        put_text(img, t, {bx0 + 3, (bar_top + bar_bottom + text_size(t, scale).height) / 2}, scale,
+                 b.activity == DeviceActivity::kOn ? cv::Scalar(255, 255, 255) : cv::Scalar(30, 30, 30));
+        break;
+      }
+    }
+    cv::line(img, {0, y + options.row_height}, {options.width, y + options.row_height}, {180, 180, 180}, 1);
+  }
+
   // Time axis: a line, ticks and their labels, and the axis title.
   cv::line(img, {x0, y_axis}, {x1, y_axis}, {0, 0, 0}, 2);
   cv::line(img, {x0, y_top}, {x0, y_axis}, {0, 0, 0}, 1);
@@ -219,6 +264,20 @@ cv::Mat draw_gantt(const Timeline& timeline, const GanttOptions& options) {
     const std::string text = fmt::format("workpiece {}", to_string(s));
     put_text(img, text, {lx + 36, ly + 10}, 0.5, {0, 0, 0});
     lx += 36 + text_size(text, 0.5).width + 30;
+  }
+  if (!timeline.devices.empty()) {
+    lx = x0;
+    ly += 26;
+    const std::pair<DeviceActivity, const char*> entries[] = {{DeviceActivity::kBusy, "machine busy"},
+                                                              {DeviceActivity::kDone, "machine done (part to unload)"},
+                                                              {DeviceActivity::kRunning, "conveyor running"},
+                                                              {DeviceActivity::kOn, "sensor on"}};
+    for (const auto& [a, text] : entries) {
+      cv::rectangle(img, {lx, ly}, {lx + 28, ly + 20}, device_colour(a), cv::FILLED);
+      cv::rectangle(img, {lx, ly}, {lx + 28, ly + 20}, {60, 60, 60}, 1);
+      put_text(img, text, {lx + 36, ly + 16}, 0.5, {0, 0, 0});
+      lx += 36 + text_size(text, 0.5).width + 30;
+    }
   }
   return img;
 }

@@ -36,6 +36,20 @@ const char* to_string(Activity a) {
   return "?";
 }
 
+const char* to_string(DeviceActivity a) {
+  switch (a) {
+    case DeviceActivity::kBusy:
+      return "busy";
+    case DeviceActivity::kDone:
+      return "done";
+    case DeviceActivity::kRunning:
+      return "running";
+    case DeviceActivity::kOn:
+      return "on";
+  }
+  return "?";
+}
+
 const char* to_string(JourneyStep s) {
   switch (s) {
     case JourneyStep::kPicked:
@@ -76,6 +90,117 @@ std::size_t primitive_of(std::size_t k, std::string_view type, const std::string
 
 namespace {
 
+// The devices' rows built one event at a time (DeviceTimeline): each device's current state and since when; a span
+// of a state with a bar becomes a bar when the state changes (or at the run's end).
+class DeviceRows {
+ public:
+  explicit DeviceRows(std::string file) : file_(std::move(file)) {}
+
+  void add(const ev::Device& e, int line, double t) {
+    auto it = index_.find(e.device);
+    if (it == index_.end()) {
+      if (e.kind != "machine" && e.kind != "conveyor" && e.kind != "sensor") {
+        throw InputError({file_, line, 0}, fmt::format("device {} has kind \"{}\"; a device is a machine, a conveyor "
+                                                       "or a sensor",
+                                                       e.device, e.kind));
+      }
+      DeviceTimeline d;
+      d.device = e.device;
+      d.kind = e.kind;
+      d.state = resting(e.kind);
+      it = index_.emplace(e.device, rows_.size()).first;
+      rows_.push_back(std::move(d));
+      current_.push_back({0.0, std::string()});
+    }
+    DeviceTimeline& d = rows_[it->second];
+    Current& c = current_[it->second];
+    if (e.kind != d.kind) {
+      throw InputError({file_, line, 0}, fmt::format("device {} is a {} (its first event), not a {}", d.device,
+                                                     d.kind, e.kind));
+    }
+    const std::vector<std::string>& states = states_of(d.kind);
+    if (std::find(states.begin(), states.end(), e.state) == states.end()) {
+      throw InputError({file_, line, 0}, fmt::format("device {} ({}) has state \"{}\"; a {} is {}", d.device, d.kind,
+                                                     e.state, d.kind, fmt::join(states, ", ")));
+    }
+    const std::string part = d.kind == "machine" ? e.workpiece : std::string();
+    if (e.state == d.state) {  // no change of state: the part the model has in it may have become known
+      if (c.workpiece.empty()) c.workpiece = part;
+      d.workpiece = part.empty() ? d.workpiece : part;
+      return;
+    }
+    close(d, c, t);
+    if (e.state == "busy") ++d.cycles_started;
+    if (d.state == "busy" && e.state == "done") {
+      ++d.cycles_finished;
+      const std::string processed = part.empty() ? c.workpiece : part;
+      if (!processed.empty()) d.processed.push_back(processed);
+    }
+    if (e.state == "running" || e.state == "on") ++d.starts;
+    d.state = e.state;
+    d.workpiece = part;
+    c = {t, part};
+  }
+
+  std::vector<DeviceTimeline> finish(double end) && {
+    for (std::size_t i = 0; i < rows_.size(); ++i) {
+      DeviceTimeline& d = rows_[i];
+      close(d, current_[i], end);
+      for (const DeviceBar& b : d.bars) {
+        const double span = b.end - b.start;
+        switch (b.activity) {
+          case DeviceActivity::kBusy:
+            d.busy += span;
+            break;
+          case DeviceActivity::kDone:
+            d.done += span;
+            break;
+          case DeviceActivity::kRunning:
+            d.running += span;
+            break;
+          case DeviceActivity::kOn:
+            d.on += span;
+            break;
+        }
+      }
+      d.idle = d.kind == "machine" ? std::max(0.0, end - d.busy - d.done) : 0.0;
+      d.utilisation = d.kind == "machine" && end > 0 ? d.busy / end : 0.0;
+      d.stopped = d.kind == "conveyor" ? std::max(0.0, end - d.running) : 0.0;
+      d.off = d.kind == "sensor" ? std::max(0.0, end - d.on) : 0.0;
+    }
+    return std::move(rows_);
+  }
+
+ private:
+  struct Current {
+    double since = 0;
+    std::string workpiece;  // a machine's part since then
+  };
+
+  static std::string resting(const std::string& kind) {
+    return kind == "machine" ? "idle" : kind == "conveyor" ? "stopped" : "off";
+  }
+  static const std::vector<std::string>& states_of(const std::string& kind) {
+    static const std::vector<std::string> machine{"idle", "busy", "done"}, conveyor{"running", "stopped"},
+        sensor{"on", "off"};
+    return kind == "machine" ? machine : kind == "conveyor" ? conveyor : sensor;
+  }
+  // The bar of d's current state up to `t`, when that state has one.
+  static void close(DeviceTimeline& d, const Current& c, double t) {
+    std::optional<DeviceActivity> a;
+    if (d.state == "busy") a = DeviceActivity::kBusy;
+    if (d.state == "done") a = DeviceActivity::kDone;
+    if (d.state == "running") a = DeviceActivity::kRunning;
+    if (d.state == "on") a = DeviceActivity::kOn;
+    if (a && t > c.since) d.bars.push_back({c.since, t, *a, c.workpiece});
+  }
+
+  std::string file_;
+  std::vector<DeviceTimeline> rows_;
+  std::vector<Current> current_;  // as rows_
+  std::map<std::string, std::size_t> index_;
+};
+
 // A robot's timeline built one event at a time: the robot's path through its program, in firing order. Each firing
 // of one of its transitions starts a visit of the primitive it begins (k for transition k, the body's first for a
 // loop's again; n: the program's end). A visit lasts until the robot's next firing; its command ended at the first
@@ -84,12 +209,17 @@ namespace {
 // most once.
 class TimelineBuilder {
  public:
-  TimelineBuilder(const task::CompiledProgram& program, std::string file) : program_(program), file_(std::move(file)) {}
+  TimelineBuilder(const task::CompiledProgram& program, std::string file)
+      : program_(program), file_(std::move(file)), devices_(file_) {}
 
   void add(const LoggedEvent& le) {
     const double t = seconds(runtime::time_of(le.event));
     tl_.end = std::max(tl_.end, t);
     if (std::holds_alternative<ev::RunEnd>(le.event)) tl_.end = t;
+    if (const auto* device = std::get_if<ev::Device>(&le.event)) {
+      devices_.add(*device, le.line, t);
+      return;
+    }
     if (const auto* run_start = std::get_if<ev::RunStart>(&le.event)) {
       if (!started_) start(*run_start, le.line);
       return;
@@ -160,6 +290,7 @@ class TimelineBuilder {
       }
       rt.idle = std::max(0.0, tl_.end - rt.busy - rt.waiting - rt.blocked);
     }
+    tl_.devices = std::move(devices_).finish(tl_.end);
     return std::move(tl_);
   }
 
@@ -287,6 +418,7 @@ class TimelineBuilder {
 
   const task::CompiledProgram& program_;
   std::string file_;
+  DeviceRows devices_;
   bool started_ = false;
   Timeline tl_;
   std::vector<Robot> robots_;                                                    // as tl_.robots
@@ -965,6 +1097,33 @@ json to_json(const Scenario& s, const Report& r) {
                       {"idle", round4(t.idle)}});
   }
   j["robots"] = std::move(robots);
+  // Only for a log with device events, so that the report of a run without them is what it was.
+  if (!r.timeline.devices.empty()) {
+    json devices = json::array();
+    for (const DeviceTimeline& d : r.timeline.devices) {
+      json dj = {{"device", d.device}, {"kind", d.kind}, {"state", d.state}};
+      if (d.kind == "machine") {
+        dj["workpiece"] = d.workpiece;
+        dj["busy"] = round4(d.busy);
+        dj["done_waiting"] = round4(d.done);
+        dj["idle"] = round4(d.idle);
+        dj["utilisation"] = round4(d.utilisation);
+        dj["cycles_started"] = d.cycles_started;
+        dj["cycles_finished"] = d.cycles_finished;
+        dj["processed"] = d.processed;
+      } else if (d.kind == "conveyor") {
+        dj["running"] = round4(d.running);
+        dj["stopped"] = round4(d.stopped);
+        dj["starts"] = d.starts;
+      } else {
+        dj["on"] = round4(d.on);
+        dj["off"] = round4(d.off);
+        dj["times_on"] = d.starts;
+      }
+      devices.push_back(std::move(dj));
+    }
+    j["devices"] = std::move(devices);
+  }
   json collisions = json::array();
   for (const auto& c : r.collisions) {
     collisions.push_back({{"t", round4(c.t)}, {"a", c.a}, {"b", c.b}, {"depth", c.depth}});
@@ -1035,6 +1194,30 @@ json to_json(const Scenario& s, const Report& r) {
   return j;
 }
 
+std::string describe_device(const DeviceTimeline& d, double end) {
+  const auto share = [end](double x) { return end > 0 ? x / end * 100.0 : 0.0; };
+  if (d.kind == "machine") {
+    std::string out = fmt::format(
+        "{} (machine): busy {:.2f} s ({:.0f} %), done waiting {:.2f} s, idle {:.2f} s; cycles {} started, {} finished; "
+        "processed {}",
+        d.device, d.busy, d.utilisation * 100.0, d.done, d.idle, d.cycles_started, d.cycles_finished,
+        d.processed.empty() ? std::string("none") : fmt::format("{}", fmt::join(d.processed, ", ")));
+    if (d.state == "busy") {
+      out += fmt::format("; busy at the end{} (not processed)",
+                         d.workpiece.empty() ? std::string() : " with " + d.workpiece);
+    } else if (d.state == "done" && !d.workpiece.empty()) {
+      out += fmt::format("; {} still in it at the end", d.workpiece);
+    }
+    return out;
+  }
+  if (d.kind == "conveyor") {
+    return fmt::format("{} (conveyor): running {:.2f} s ({:.0f} %), stopped {:.2f} s; started {} time(s); {} at the end",
+                       d.device, d.running, share(d.running), d.stopped, d.starts, d.state);
+  }
+  return fmt::format("{} (sensor): on {:.2f} s ({:.0f} %), off {:.2f} s; on {} time(s); {} at the end", d.device, d.on,
+                     share(d.on), d.off, d.starts, d.state);
+}
+
 std::string describe_driver(const DriverUse& d) {
   if (!d.real()) return fmt::format("{} simulated", d.robot);
   return fmt::format("{} {} {} on {}", d.robot, d.emulated ? "emulated" : "real", d.kind, d.port);
@@ -1079,6 +1262,7 @@ std::string format_summary(const Report& r) {
     out += fmt::format("  {} ({}): busy {:.2f} s, waiting {:.2f} s (for parts {:.2f} s), blocked {:.2f} s, idle {:.2f} s\n",
                        t.robot, t.cell, t.busy, t.waiting, t.waiting_for_part, t.blocked, t.idle);
   }
+  for (const DeviceTimeline& d : r.timeline.devices) out += "  " + describe_device(d, r.timeline.end) + "\n";
   for (const WorkpieceReport& w : r.workpieces) {
     if (!w.expected) continue;
     out +=

@@ -231,6 +231,34 @@ RobotTimeline robot(const Fields& f) {
   return t;
 }
 
+DeviceTimeline device(const Fields& f) {
+  DeviceTimeline d;
+  d.device = f.str("device");
+  d.kind = f.str("kind");
+  d.state = f.str("state");
+  if (d.kind == "machine") {
+    d.workpiece = f.str("workpiece");
+    d.busy = f.number("busy");
+    d.done = f.number("done_waiting");
+    d.idle = f.number("idle");
+    d.utilisation = f.number("utilisation");
+    d.cycles_started = f.count("cycles_started");
+    d.cycles_finished = f.count("cycles_finished");
+    d.processed = f.strings("processed");
+  } else if (d.kind == "conveyor") {
+    d.running = f.number("running");
+    d.stopped = f.number("stopped");
+    d.starts = f.count("starts");
+  } else if (d.kind == "sensor") {
+    d.on = f.number("on");
+    d.off = f.number("off");
+    d.starts = f.count("times_on");
+  } else {
+    f.fail(f.path_of("kind"), "must be one of machine, conveyor, sensor", json(d.kind));
+  }
+  return d;
+}
+
 void flow(const Fields& f, Report& r) {
   const json& placed_at = f.array("placed_at");
   for (std::size_t i = 0; i < placed_at.size(); ++i) {
@@ -305,6 +333,10 @@ Report from_json(const json& j, const std::string& file) {
   }
 
   for (const Fields& t : f.objects("robots")) r.timeline.robots.push_back(robot(t));
+  // Written only for a log with device events; absent: none.
+  if (j.contains("devices")) {
+    for (const Fields& d : f.objects("devices")) r.timeline.devices.push_back(device(d));
+  }
   for (const Fields& c : f.objects("collisions")) {
     r.collisions.push_back({c.number("t"), c.str("a"), c.str("b"), c.number("depth")});
   }

@@ -262,6 +262,68 @@ void robots(std::string& out, const Report& r) {
          "<span class=\"key idle\"></span>idle (before its first command, after its last)</p>\n</section>\n";
 }
 
+// The devices (only for a log with device events, so that a page without them is what it was): the machines with
+// their times, utilisation, cycles and the parts processed, then the conveyors and sensors; the bars in the Gantt
+// chart's device colours (gantt.cpp), inline so that the page's style sheet stays as it was.
+void devices(std::string& out, const Report& r) {
+  if (r.timeline.devices.empty()) return;
+  const double span = std::max(r.timeline.end, 1e-9);
+  auto pct = [&](double v) { return std::clamp(v / span * 100.0, 0.0, 100.0); };
+  out += "<section id=\"devices\">\n<h2>Devices</h2>\n";
+  const bool machines = std::any_of(r.timeline.devices.begin(), r.timeline.devices.end(),
+                                    [](const DeviceTimeline& d) { return d.kind == "machine"; });
+  if (machines) {
+    out += "<table>\n<tr><th>machine</th><th class=\"num\">busy</th><th class=\"num\">done, waiting</th>"
+           "<th class=\"num\">idle</th><th class=\"num\">utilisation</th><th class=\"num\">cycles started</th>"
+           "<th class=\"num\">cycles finished</th><th>parts processed</th><th>at the end</th><th>share of the run</th>"
+           "</tr>\n";
+    for (const DeviceTimeline& d : r.timeline.devices) {
+      if (d.kind != "machine") continue;
+      std::string parts;
+      for (const std::string& p : d.processed) parts += (parts.empty() ? "" : ", ") + esc(p);
+      std::string end = esc(d.state);
+      if (d.state == "busy") {
+        end = fmt::format("<span class=\"badge fail\">busy</span>{} (not processed)",
+                          d.workpiece.empty() ? std::string() : " with " + esc(d.workpiece));
+      } else if (!d.workpiece.empty()) {
+        end += " with " + esc(d.workpiece);
+      }
+      out += fmt::format(
+          "<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
+          "<td class=\"num\">{:.0f}&nbsp;%</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td>{}</td>"
+          "<td>{}</td><td><div class=\"bar\" title=\"busy {:.0f}%, done {:.0f}%, idle {:.0f}%\"><span "
+          "style=\"width:{:.2f}%;background:#d55e00\"></span><span style=\"width:{:.2f}%;background:#009e73\">"
+          "</span></div></td></tr>\n",
+          esc(d.device), seconds(d.busy), seconds(d.done), seconds(d.idle), d.utilisation * 100.0, d.cycles_started,
+          d.cycles_finished, parts.empty() ? std::string(none_cell()) : parts, end, pct(d.busy), pct(d.done),
+          pct(d.idle), pct(d.busy), pct(d.done));
+    }
+    out += "</table>\n<p class=\"small\"><span class=\"key\" style=\"background:#d55e00\"></span>busy (its "
+           "cycle runs)<span class=\"key\" style=\"background:#009e73\"></span>done (the processed part waits to "
+           "be taken out)<span class=\"key idle\"></span>idle. A part is processed when the machine went from busy "
+           "to done with it in.</p>\n";
+  }
+  if (!std::all_of(r.timeline.devices.begin(), r.timeline.devices.end(),
+                   [](const DeviceTimeline& d) { return d.kind == "machine"; })) {
+    out += "<table>\n<tr><th>device</th><th class=\"num\">running / on</th><th class=\"num\">stopped / off</th>"
+           "<th class=\"num\">started / came on</th><th>at the end</th><th>share of the run</th></tr>\n";
+    for (const DeviceTimeline& d : r.timeline.devices) {
+      if (d.kind == "machine") continue;
+      const bool conveyor = d.kind == "conveyor";
+      const double active = conveyor ? d.running : d.on;
+      const char* colour = conveyor ? "#56b4e9" : "#505050";
+      out += fmt::format(
+          "<tr><td>{} <span class=\"small\">({})</span></td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
+          "<td class=\"num\">{}</td><td>{}</td><td><div class=\"bar\" title=\"{} {:.0f}%\"><span "
+          "style=\"width:{:.2f}%;background:{}\"></span></div></td></tr>\n",
+          esc(d.device), esc(d.kind), seconds(active), seconds(conveyor ? d.stopped : d.off), d.starts, esc(d.state),
+          conveyor ? "running" : "on", pct(active), pct(active), colour);
+    }
+    out += "</table>\n";
+  }
+  out += "</section>\n";
+}
+
 void collisions(std::string& out, const Report& r) {
   out += fmt::format("<section id=\"collisions\">\n<h2>Collisions ({})</h2>\n", r.collisions.size());
   if (r.collisions.empty()) {
@@ -369,13 +431,18 @@ std::string render_report_page(const Scenario& scenario, const Report& report, c
   cycle(out, report);
   parts(out, scenario, report);
   robots(out, report);
+  devices(out, report);
   collisions(out, report);
   faults(out, report);
-  picture(out, "gantt", "Gantt chart", media.gantt_png, "Gantt chart",
-          "Each robot's commands over time: move (blue), grip (orange), wait for the part (yellow), wait for a "
-          "signal (grey), blocked (red-purple); each workpiece's journey marked: picked (green), handed over "
-          "(purple), placed (black)",
-          kGanttFile);
+  std::string gantt_caption =
+      "Each robot's commands over time: move (blue), grip (orange), wait for the part (yellow), wait for a "
+      "signal (grey), blocked (red-purple); each workpiece's journey marked: picked (green), handed over "
+      "(purple), placed (black)";
+  if (!report.timeline.devices.empty()) {
+    gantt_caption += "; below them a row per device: a machine busy (vermillion) and done (green), a conveyor running "
+                     "(sky blue), a sensor on (dark grey)";
+  }
+  picture(out, "gantt", "Gantt chart", media.gantt_png, "Gantt chart", gantt_caption.c_str(), kGanttFile);
   picture(out, "final", "Final snapshot", media.final_png, "final snapshot",
           "The overview camera's view of the cell at the end of the run", kFinalFile);
   video(out, media.video);

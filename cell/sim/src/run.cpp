@@ -364,13 +364,20 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
       if (streamed_) streamed_->remove();
       throw;
     }
-    // The video watches the run: an observer of the runtime's, which knows nothing of videos.
-    config.observers.push_back({video_->frame_period(), true, [this](const runtime::Observation& o) {
+    // The video watches the run: an observer of the runtime's, which knows nothing of videos. A program with
+    // devices also shows the twin's devices, under the robots (a run without them looks as it did).
+    const bool devices = !s.program.machines.empty() || !s.program.conveyors.empty() || !s.program.sensors.empty();
+    config.observers.push_back({video_->frame_period(), true, [this, devices](const runtime::Observation& o) {
                                   std::vector<std::string> lines;
                                   for (const runtime::RobotView& r : o.robots) {
                                     lines.push_back(r.done ? fmt::format("{}: done", r.robot)
                                                            : fmt::format("{}: {} {}", r.robot,
                                                                          runtime::to_string(r.activity), r.command));
+                                  }
+                                  if (devices) {
+                                    for (std::string& l : twin::device_lines(world_->devices())) {
+                                      lines.push_back(std::move(l));
+                                    }
                                   }
                                   // copies positions: the World is untouched
                                   if (video_) video_->record(world_->data(), o.time, std::move(lines));

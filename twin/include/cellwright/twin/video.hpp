@@ -36,6 +36,10 @@
 
 namespace cellwright::twin {
 
+namespace sim {
+struct DeviceStates;
+}
+
 class VideoWriter {
  public:
   VideoWriter();
@@ -89,6 +93,13 @@ struct Overlay {
   bool verdict_ok = false;  // green when true, red when not
 };
 
+// The devices' lines of a frame's overlay (drawn under the robots' lines), one per device of the twin as its I/O image
+// has them (sim::World::devices()): a machine "mill: busy A (2.4 s left)", "mill: done A (to unload)", "mill: loaded
+// A", "mill: idle"; a conveyor "input: running", "input: stopped", or "input: held (accumulating)" when its run
+// command is on but a part at the stop holds it, with ", stop eye on" / ", drop eye on" while a photo-eye sees a part.
+// Machines first, in the cell's order, then conveyors.
+std::vector<std::string> device_lines(const sim::DeviceStates& devices);
+
 // Draws the overlay on `image` (CV_8UC3): the lines on a darkened band at the top left, the verdict on a band across
 // the bottom. Used by VideoRecorder; public so that its tests can compare.
 void draw_overlay(cv::Mat& image, const Overlay& overlay);
@@ -108,7 +119,7 @@ class VideoRecorder {
   runtime::SimDuration frame_period() const;
 
   // A frame of `data`'s state now (joint positions, mocap bodies) at simulation time t, with one line of text per
-  // robot. Called by the thread that steps `data` (the simulation thread), with nothing stepping it meanwhile. Waits
+  // robot (and, after them, any other lines: the devices', device_lines()). Called by the thread that steps `data` (the simulation thread), with nothing stepping it meanwhile. Waits
   // while the recording thread is a few frames behind (lock-step: the run waits for the video; never drops a frame).
   // Does nothing after an error or finish().
   void record(const mjData* data, runtime::SimDuration t, std::vector<std::string> robot_lines);

@@ -1,5 +1,7 @@
 // The Gantt chart of a run: one row per robot, one bar per command coloured by what the robot does (move, grip,
-// wait for a signal, wait for the part, blocked), the workpieces' journeys marked on the rows of the robots that
+// wait for a signal, wait for the part, blocked), then one row per device of the log's device events (a machine's
+// busy and done spans told apart and labelled with its part, a conveyor's running spans, a sensor's on spans; the
+// legend gets a line for them; a chart without devices is what it was), the workpieces' journeys marked on the rows of the robots that
 // picked, handed over and placed them (a triangle with the workpiece's name above the bar; a row per workpiece would
 // repeat the robots' rows and grow with a shift's parts), a time axis with ticks and labels in seconds, and a legend
 // of the colours and marks. Drawn with OpenCV from a Timeline
@@ -18,7 +20,7 @@ namespace cellwright::cell {
 
 struct GanttOptions {
   int width = 1600;     // px of the whole image
-  int row_height = 80;  // px per robot row (its bars and, above them, the journey marks)
+  int row_height = 80;  // px per robot or device row (its bars and, above a robot's, the journey marks)
   std::string title;    // drawn above the chart; empty: none
 };
 
@@ -31,6 +33,10 @@ cv::Mat draw_gantt(const Timeline& timeline, const GanttOptions& options = {});
 
 // The colour (BGR) of an activity's bars and legend entry.
 cv::Scalar activity_colour(Activity a);
+
+// The colour (BGR) of a device's bars and legend entry: a machine busy vermillion, done bluish green; a conveyor
+// running sky blue; a sensor on dark grey.
+cv::Scalar device_colour(DeviceActivity a);
 
 // The tick step draw_gantt uses for an axis of `span` seconds (> 0): the smallest of 1, 2, 5 x 10^k giving at most
 // `max_ticks` intervals.

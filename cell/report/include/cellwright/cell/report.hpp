@@ -1,6 +1,7 @@
 // What a run did, told from its event log (runtime/event_log.hpp) and the workpieces' final poses: what the run used
 // (perception, drivers, faults asked for), the robots' timelines (what the Gantt chart draws), per-robot
-// busy/waiting/blocked/idle time, each workpiece's cycle time and final location against the expected outcome,
+// busy/waiting/blocked/idle time, the devices' rows and figures (a machine's busy/done/idle time, utilisation, cycles
+// and parts processed; a conveyor's running time; a sensor's on time), each workpiece's cycle time and final location against the expected outcome,
 // throughput, collisions, the account of every workpiece (in place, elsewhere, held, lost, not arrived), each
 // injected fault matched to its detection, diagnosis and recovery, the faults detected that no injection explains
 // (unexplained faults) and the detections with nothing physically wrong (false alarms), and the verdict `twin run`
@@ -83,9 +84,50 @@ struct RobotTimeline {
   std::size_t commands = 0;  // move/open/close commands started
 };
 
+// What a device of the cell is doing during a bar of its Gantt row, from the log's `device` events (a machine's,
+// conveyor's or photo-eye's state as device control sees it through its I/O). The states with no bar are the gaps:
+// a machine idle, a conveyor stopped, a sensor off.
+enum class DeviceActivity {
+  kBusy,     // a machine's cycle runs (state "busy")
+  kDone,     // a machine's cycle is over and its part waits to be taken out (state "done")
+  kRunning,  // a conveyor's run coil is on (state "running")
+  kOn,       // a sensor's input is on (state "on")
+};
+
+// "busy", "done", "running", "on".
+const char* to_string(DeviceActivity a);
+
+struct DeviceBar {
+  double start = 0, end = 0;  // s, end > start
+  DeviceActivity activity = DeviceActivity::kBusy;
+  std::string workpiece;  // a machine's part in it (the controller's model), "" none; "" for other devices
+};
+
+// A device's row and its figures. Before its first event a device counts as in its resting state (idle, stopped,
+// off); a span still open at the run's end lasts to the end (a run that stops with the mill busy shows it busy to
+// the end, its part not processed).
+struct DeviceTimeline {
+  std::string device;  // the cell's device name
+  std::string kind;    // "machine" | "conveyor" | "sensor"
+  std::vector<DeviceBar> bars;  // in time order, not overlapping
+  std::string state;      // its state at the end (the last event's)
+  std::string workpiece;  // a machine's part at the end, "" none
+  // Machine: seconds busy, done (its processed part waiting to be taken out) and idle (the run minus both); busy
+  // over the run (0 for a run of no length); cycles started (each change into busy) and finished (each change from
+  // busy to done); the parts processed, in order: a part counts only when the machine went from busy to done with
+  // it in (the done event's part, else the busy one's).
+  double busy = 0, done = 0, idle = 0, utilisation = 0;
+  std::size_t cycles_started = 0, cycles_finished = 0;
+  std::vector<std::string> processed;
+  // Conveyor: seconds running and stopped (the run minus running). Sensor: seconds on and off.
+  double running = 0, stopped = 0, on = 0, off = 0;
+  std::size_t starts = 0;  // conveyor: times it started running; sensor: times it came on
+};
+
 struct Timeline {
   double end = 0;                     // s: the run's end (run_end), else the last event's time
   std::vector<RobotTimeline> robots;  // in the order of run_start's robots (program order)
+  std::vector<DeviceTimeline> devices;  // in the order of their first `device` event; none in a log without them
 };
 
 // Builds the robots' timelines from the events of a run of `program`. A primitive k of robot r spans the time from
@@ -94,11 +136,19 @@ struct Timeline {
 // no time (a blocked bar if its next transition fired later). A move/open/close during which the robot control logged
 // "waiting_for_part" is a part_wait bar up to its "part_ready" sensor event (or, without one, up to its command_end or
 // the visit's end: the command ended or the run stopped before the part came) and a move/grip bar after it. The
-// journey marks come from the "gripped" and "released" sensor events of Pick, Put and Place commands. Throws InputError
-// naming `file` and the event's line when the events contradict the program (an unknown robot or primitive), lack
-// run_start, or have a fire or command event before it.
+// journey marks come from the "gripped" and "released" sensor events of Pick, Put and Place commands. The devices'
+// rows come from the `device` events (DeviceTimeline). Throws InputError naming `file` and the event's line when the
+// events contradict the program (an unknown robot or primitive), lack run_start, or have a fire or command event
+// before it, or when a device event has a kind other than machine, conveyor or sensor, a state its kind does not
+// have, or another kind than the device's first event.
 Timeline build_timeline(const std::vector<runtime::LoggedEvent>& events, const task::CompiledProgram& program,
                         const std::string& file = "events.jsonl");
+
+// One device's figures on one line, for the summary and the page: "mill (machine): busy 4.00 s (40 %), done waiting
+// 1.00 s, idle 5.00 s; cycles 1 started, 1 finished; processed A", with "; busy at the end with B (not processed)"
+// for a machine still busy when the run ended; a conveyor's running and stopped time, a sensor's on and off time,
+// with their share of the run (`end`, s), how often each started or came on, and its state at the end.
+std::string describe_device(const DeviceTimeline& device, double end);
 
 // --- Where workpieces ended up ---------------------------------------------------------------------------------------
 
@@ -328,13 +378,14 @@ Report make_report(const Scenario& scenario, std::istream& jsonl, const std::vec
                    std::optional<double> estimated_cycle_time, const std::string& file = "events.jsonl",
                    std::optional<RunSetup> setup = std::nullopt);
 
-// report.json (docs/scenarios.md). Times in seconds rounded to 4 decimals, so equal runs give equal bytes.
+// report.json (docs/scenarios.md). Times in seconds rounded to 4 decimals, so equal runs give equal bytes. "devices"
+// (each device's figures, by kind) only when the log has device events: a run without them gives the report it gave.
 nlohmann::json to_json(const Scenario& scenario, const Report& report);
 
 // The summary printed at the end of `twin run`: the verdict, what the run used (perception, drivers, faults asked
 // for), estimated vs measured cycle time, throughput, each expectation that failed and why, the account of the parts
 // that are not in place, collisions, the injected faults and what became of them, the unexplained faults with their
-// diagnosis, false alarms. Ends with a newline.
+// diagnosis, false alarms; after the robots' times, a line per device (describe_device). Ends with a newline.
 std::string format_summary(const Report& report);
 
 }  // namespace cellwright::cell

@@ -9,9 +9,11 @@
 // `false_alarms` the number of `false_alarm_detections`; `flow.placed` the length of `flow.placed_at`; the account's
 // entry i of workpieces[i] with the same `expected`; a detected fault has `detected_at`, a recovered one
 // `recovery_time`; a workpiece with an expectation has `ok`; the steady throughput and cycle are both given or both
-// null. Fields it does not know are ignored (a report.json may carry more than this reader needs).
+// null. Fields it does not know are ignored (a report.json may carry more than this reader needs). "devices" may be
+// absent (a run without device events: none); when present, each entry has the fields of its kind.
 //
-// What to_json does not write stays as a default Report has it: the timelines' bars and journey marks, and
+// What to_json does not write stays as a default Report has it: the timelines' bars and journey marks (the devices'
+// bars too), and
 // WorkpieceReport::arrived; Timeline::end is `end_time`. So for every report r of scenario s:
 //   to_json(s, from_json(to_json(s, r), file)) == to_json(s, r).
 //

@@ -87,8 +87,9 @@ std::string input_error(F f) {
 
 TEST(SuiteDiscovery, TheShippedScenesAreTheScenariosNotTheCellTheTreeOrTheSoak) {
   const Discovery d = discover({kScenes});
-  EXPECT_THAT(names(d.scenarios), ElementsAre("exchange.yaml", "pipeline.yaml", "pipeline_shift.yaml",
-                                              "pipeline_single.yaml", "relay.yaml", "single.yaml", "vision.yaml"));
+  EXPECT_THAT(names(d.scenarios), ElementsAre("exchange.yaml", "machine.yaml", "pipeline.yaml",
+                                              "pipeline_shift.yaml", "pipeline_single.yaml", "relay.yaml",
+                                              "single.yaml", "vision.yaml"));
   const auto s = skipped(d);
   ASSERT_EQ(s.size(), 3u);
   EXPECT_EQ(s.at("cell.yaml"), "a cell description (docs/cell-description.md), not a scenario");
@@ -96,10 +97,10 @@ TEST(SuiteDiscovery, TheShippedScenesAreTheScenariosNotTheCellTheTreeOrTheSoak) 
   EXPECT_EQ(s.at("soak"), "a subfolder (not entered unless named)");
   // Named, the subfolder is entered: its scenario is found after the folder's.
   const Discovery both = discover({kScenes, kScenes / "soak"});
-  EXPECT_EQ(both.scenarios.size(), 8u);
+  EXPECT_EQ(both.scenarios.size(), 9u);
   EXPECT_EQ(both.scenarios.back().path, kScenes / "soak" / "shift_1000.yaml");
   // The scenarios' wall-time limits (single.yaml: 600 s, the soak: 3600 s).
-  EXPECT_EQ(both.scenarios[5].wall_time, 600);
+  EXPECT_EQ(both.scenarios[6].wall_time, 600);
   EXPECT_EQ(both.scenarios.back().wall_time, 3600);
 }
 

@@ -468,7 +468,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
         case task::PrimitiveKind::kSignal:
         case task::PrimitiveKind::kWait:
         case task::PrimitiveKind::kLoop:
-        case task::PrimitiveKind::kDevice:  // the device's own time is not planned here (issue 26: the lead's part)
+        case task::PrimitiveKind::kDevice:  // no motion: its time is the estimate's (estimate_cycle_time)
           break;
       }
     }
@@ -568,6 +568,28 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
         }
         fingers = rt.finger_closed;  // the ramp runs on to fully closed (see the top)
         ce.seconds = lockstep_span(ce.motion, false, period, step);
+      } else if (c.kind == task::PrimitiveKind::kDevice) {
+        // Device control takes a command in the round task control sends it; a machine answers its start at the next
+        // physics step and is done process_time after (on the twin: world.hpp), counted from the wait's start (the
+        // wait is taken to follow the start at once); a belt's coil and a photo-eye that is on take the round itself
+        // (a part's arrival is the pick's gate, not the eye's).
+        const task::Primitive& p = prog.programs[r].primitives[c.primitive];
+        const models::MachineSpec* machine = nullptr;
+        for (const auto& m : s.cell.machines) {
+          if (m.name == p.device) machine = &m;
+        }
+        if (p.op == task::DeviceOp::kStart) {
+          ce.motion = step;
+          ce.basis = fmt::format("machine {} answers its start at the next physics step", p.device);
+          ce.seconds = lockstep_span(ce.motion, false, period, step);
+        } else if (p.op == task::DeviceOp::kAwaitDone && machine != nullptr) {
+          ce.motion = machine->process_time;
+          ce.basis = fmt::format("machine {} processes for {:.2f} s", p.device, machine->process_time);
+          ce.seconds = lockstep_span(ce.motion, false, period, step);
+        } else {
+          ce.basis = "device command, done in its round";
+          ce.seconds = period;
+        }
       } else {
         ce.basis = "net only";  // signal, wait, a loop's end
       }

@@ -538,13 +538,16 @@ TEST(RuntimeRun, AMissingLocationOrWorkpieceIsRefused) {
   expect_refused(cell3, "scenario.yaml:8:3", "'Q' is not a workpiece or location of the program");
 }
 
-TEST(RuntimeRun, AProgramWithDeviceCommandsIsRefusedBeforeAnythingMoves) {
-  // Device control is not there yet: a program that drives a belt is refused at its command, no driver connected.
+TEST(RuntimeRun, AProgramDeviceTheCellDoesNotHaveOrDoesNotWireIsRefusedBeforeAnythingMoves) {
+  // A belt the cell does not have, at its declaration's scenario entry; then the cell's belt, on no I/O unit.
   ScriptedCell cell;
   cell.config.program = task::compile(task::parse_program(
       "robot r1 r2\nworkpiece A\nlocation B\nconveyor IN\nsequence r1\n  run IN\n  stop IN\nend\n", "belt.task"));
-  expect_refused(cell, "belt.task:6:3", "robot r1: 'run IN' drives device 'IN', and this controller cannot run device "
-                                        "commands yet");
+  expect_refused(cell, "", "program conveyor 'IN' is not a conveyor of the cell (cell conveyors: input, output)");
+  cell.config.program = task::compile(task::parse_program(
+      "robot r1 r2\nworkpiece A\nlocation B\nconveyor input\nsequence r1\n  run input\n  stop input\nend\n",
+      "belt.task"));
+  expect_refused(cell, "", "program device 'input' (cell device 'input') is on no I/O unit");
 }
 
 TEST(RuntimeRun, ARobotWithoutADriverIsRefused) {

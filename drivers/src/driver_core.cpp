@@ -121,7 +121,12 @@ bool DriverCore::Controller::fail(CommandId id, ErrorCode error, std::string mes
       c.fail_all(ErrorCode::cancelled, fmt::format("cancelled: command {} failed", id));
     }
   }
-  if (fatal(error) && c.state_ != DriverState::disconnected) c.state_ = DriverState::fault;
+  if (fatal(error) && c.state_ != DriverState::disconnected) {
+    if (auto st = c.statuses_.find(id); c.state_ != DriverState::fault && st != c.statuses_.end()) {
+      c.fault_cause_ = st->second.message;
+    }
+    c.state_ = DriverState::fault;
+  }
   return true;
 }
 
@@ -141,7 +146,10 @@ void DriverCore::Controller::raise_fault(ErrorCode error, std::string message) {
   DriverCore& c = *core_;
   c.fail_all(error, message);
   if (error == ErrorCode::connection_lost) c.link_up_ = false;
-  if (c.state_ != DriverState::disconnected) c.state_ = DriverState::fault;
+  if (c.state_ != DriverState::disconnected) {
+    if (c.state_ != DriverState::fault) c.fault_cause_ = message;
+    c.state_ = DriverState::fault;
+  }
   c.changed_ = true;
 }
 
@@ -264,8 +272,12 @@ Submitted DriverCore::submit(const Command& command) {
   std::lock_guard lock(mutex_);
   ++calls_.submit;
   if (state_ != DriverState::active) {
+    // In fault: what put it there, so that a command refused a moment after a failure still names its cause.
     return refuse(ErrorCode::wrong_state,
-                  fmt::format("{} refused: the driver is {}, not active", describe(command), to_string(state_)));
+                  fmt::format("{} refused: the driver is {}, not active{}", describe(command), to_string(state_),
+                              state_ == DriverState::fault && !fault_cause_.empty()
+                                  ? fmt::format(" (in fault since: {})", fault_cause_)
+                                  : std::string()));
   }
   if (Refusal r = check_command(command, capabilities_)) return refuse(r.error, std::move(r.message));
   if (Refusal r = check_hook(command)) return refuse(r.error, std::move(r.message));

@@ -151,6 +151,7 @@ TEST(MachineCli, ADeviceThatCannotBeUsedIsRefusedBeforeAnythingRuns) {
       {run + "--realtime --device mill=modbus:127.0.0.1", "modbus:127.0.0.1"},
       {run + "--realtime --device mill", "expected NAME=modbus:HOST:PORT[/UNIT]"},
       {run + "--realtime --device mill=modbus:127.0.0.1:1 --device mill=modbus:127.0.0.1:1", "given twice"},
+      {run + "--realtime --device output=modbus:127.0.0.1:1", "does not declare device 'output'"},
       {run + "--realtime --device mill=modbus:127.0.0.1:1", "cannot be reached"},
   };
   for (const auto& c : cases) {

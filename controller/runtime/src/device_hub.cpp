@@ -64,6 +64,12 @@ void DeviceHub::connect() {
 }
 
 void DeviceHub::close() {
+  // No start left asserted: a machine's next start must be a rising edge (a failed start may have left it on).
+  for (const Device& d : devices_) {
+    if (d.wiring.kind == DeviceKind::kMachine && d.wiring.coil >= 0 && units_[d.unit].io->is_open()) {
+      (void)units_[d.unit].io->write_coil(static_cast<std::uint16_t>(d.wiring.coil), false);
+    }
+  }
   for (const IoUnit& u : units_) u.io->close();
 }
 
@@ -116,11 +122,11 @@ void DeviceHub::advance(Device& d, SimDuration now) {
     return;
   }
   d.begun = false;
-  fault(d, s.timed_out ? Symptom::device_timeout : Symptom::io_failed, s.reason, now);
+  fault(d, s.timed_out ? Symptom::device_timeout : Symptom::io_failed, s.reason, now, true);
 }
 
-void DeviceHub::fault(Device& d, Symptom symptom, const std::string& detail, SimDuration now) {
-  const MotionCommand* c = d.queue.empty() ? nullptr : &d.queue.front();
+void DeviceHub::fault(Device& d, Symptom symptom, const std::string& detail, SimDuration now, bool of_command) {
+  const MotionCommand* c = !of_command || d.queue.empty() ? nullptr : &d.queue.front();
   const std::string robot = c != nullptr ? program_.robots.at(c->robot) : std::string();
   const int primitive = c != nullptr ? static_cast<int>(c->index) : -1;
   log_.fault_detected(now, robot, primitive, to_string(symptom), detail);
@@ -197,7 +203,7 @@ void DeviceHub::watch(Device& d, SimDuration now) {
       fault(d, Symptom::io_failed,
             fmt::format("device {}: reading its {} ({} {}) on {} failed: {} {}", w.name, what, coil ? "coil" : "input",
                         address, io.describe(), drivers::to_string(r.status), r.message),
-            now);
+            now, false);
       return false;
     }
     on = v.at(0);
@@ -229,7 +235,7 @@ void DeviceHub::watch(Device& d, SimDuration now) {
           fault(d, Symptom::device_contradiction,
                 fmt::format("photo-eye {} on {} has seen a part for {} s where the environment model has none",
                             w.name, io.describe(), format_sim_time(recovery_.contradiction_time)),
-                now);
+                now, false);
         }
       } else {
         d.contradicted_since.reset();
@@ -237,6 +243,8 @@ void DeviceHub::watch(Device& d, SimDuration now) {
       break;
     }
   }
+  // Read without a fault: with no command pending, the unit's recoveries so far are behind it.
+  if (d.queue.empty()) d.attempts = 0;
   // A machine's part is told with its state, once: the model's guess may flicker while a robot carries it.
   if (state == d.state) return;
   d.state = state;

@@ -836,6 +836,7 @@ RunResult Runtime::finish() {
   if (im.error) std::rethrow_exception(im.error);
   if (im.result) return *im.result;
   im.detach_drivers();
+  if (im.devices) im.devices->close();  // its thread has ended: no machine's start is left on
   RunResult r;
   r.end_time = im.clock.now();
   im.task->account_until(r.end_time);

@@ -199,6 +199,33 @@ TEST(DeviceHub, ARealEyeSeeingAPartTheModelHasIsNoFault) {
   EXPECT_TRUE(c.take().empty());
 }
 
+TEST(DeviceHub, AStartThatFailedLeavesNoStartCoilOnOnceTheRunIsOver) {
+  // Busy never comes: the start times out with its coil still set; the end of the run clears it, so that the next
+  // run's start is a rising edge the machine sees.
+  Cell c;
+  c.send(0, 2, device("M", task::DeviceOp::kStart));
+  c.hub->step(seconds(1));
+  c.hub->step(seconds(17));
+  ASSERT_EQ(c.take().size(), 1u);
+  EXPECT_TRUE(c.io.coil(2));
+  c.hub->close();
+  EXPECT_FALSE(c.io.coil(2));
+}
+
+TEST(DeviceHub, ScatteredFailuresOfTheStateReadsDoNotAddUpToAStop) {
+  // A unit that loses a request now and then over a long run: each is recovered, and none counts against the next.
+  Cell c;
+  for (int i = 0; i < 6; ++i) {
+    c.io.fail_next(drivers::IoStatus::timeout);
+    c.hub->step(seconds(2 * i + 1));  // the read fails: connected again
+    c.hub->step(seconds(2 * i + 2));  // the reads come back
+  }
+  EXPECT_TRUE(c.take().empty());
+  EXPECT_EQ(c.lines("fault_detected").size(), 6u);
+  for (const std::string& l : c.lines("fault_detected")) EXPECT_THAT(l, HasSubstr(R"("robot":"","primitive":-1)"));
+  EXPECT_THAT(c.lines("diagnosis").back(), HasSubstr(R"("action":"retry")"));
+}
+
 TEST(DeviceHub, WithRecoveryOffTheFirstFaultFailsTheCommand) {
   RecoveryOptions r;
   r.enabled = false;

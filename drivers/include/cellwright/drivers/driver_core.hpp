@@ -220,6 +220,7 @@ class DriverCore : public RobotDriver {
   Capabilities capabilities_;
   mutable std::mutex mutex_;
   DriverState state_ = DriverState::disconnected;
+  std::string fault_cause_;  // the message of the failure that put the driver in fault (kept until the next fault)
   bool link_up_ = false;
   CommandId next_id_ = 1;
   std::deque<Job> queue_;

@@ -16,7 +16,8 @@
 // Faults, never a hang: a request that fails (timeout, exception, disconnected, protocol) ends the primitive with
 // kFault and the unit's message; an awaited input that is not seen within the device's `limit` (for a machine's busy
 // and done: set from its process_time by the caller) ends it with kFault naming the device, the input and the limit.
-// The decision tree's action for both is to stop the cell with this reason (docs/faults.md).
+// The decision tree's action (device_hub.hpp, docs/faults.md): a failed request is tried again after connecting the
+// unit again (io_failed), an input that never comes stops the cell (device_timeout).
 #pragma once
 
 #include <Eigen/Core>

@@ -72,7 +72,8 @@ class DeviceHub {
   void connect();
   // One turn (see the top). Non-blocking beyond the units' own request timeouts.
   void step(SimDuration now);
-  // Closes every unit (the run is over).
+  // The run is over: clears every machine's start coil (a start that failed may have left it on, and a machine's
+  // next start must be a rising edge), then closes every unit. Called by the Runtime once its threads have ended.
   void close();
 
  private:
@@ -90,9 +91,9 @@ class DeviceHub {
   void take_commands(SimDuration now);
   void advance(Device& d, SimDuration now);
   void watch(Device& d, SimDuration now);
-  // A device fault: logged, diagnosed, acted on. `robot` is the program robot index of the command (none: the
-  // device's state read).
-  void fault(Device& d, Symptom symptom, const std::string& detail, SimDuration now);
+  // A device fault: logged, diagnosed, acted on. `of_command`: the device's pending command failed (its robot's
+  // fault); false: the device's state read (the cell's: robot "").
+  void fault(Device& d, Symptom symptom, const std::string& detail, SimDuration now, bool of_command);
   void answer(const MotionCommand& c, CommandOutcome outcome, const std::string& reason, bool stop_cell,
               SimDuration now);
   std::string machine_workpiece(const Device& d) const;

@@ -852,6 +852,14 @@ const ConveyorSpec* CellDescription::find_conveyor(std::string_view n) const {
 const MachineSpec* CellDescription::find_machine(std::string_view n) const {
   return find_named(machines, n);
 }
+const LocationSpec* CellDescription::fixture_location(const MachineSpec& m) const {
+  const Eigen::Vector3d top = m.fixture_top().xyz;
+  const LocationSpec* found = nullptr;
+  for (const LocationSpec& l : locations) {
+    if ((l.pose.xyz - top).norm() < 1e-3) found = &l;
+  }
+  return found;
+}
 const WorkpieceSpec* CellDescription::find_workpiece(std::string_view n) const {
   return find_named(workpieces, n);
 }

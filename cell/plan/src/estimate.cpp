@@ -574,10 +574,7 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
         // wait is taken to follow the start at once); a belt's coil and a photo-eye that is on take the round itself
         // (a part's arrival is the pick's gate, not the eye's).
         const task::Primitive& p = prog.programs[r].primitives[c.primitive];
-        const models::MachineSpec* machine = nullptr;
-        for (const auto& m : s.cell.machines) {
-          if (m.name == p.device) machine = &m;
-        }
+        const models::MachineSpec* machine = s.cell.find_machine(p.device);
         if (p.op == task::DeviceOp::kStart) {
           ce.motion = step;
           ce.basis = fmt::format("machine {} answers its start at the next physics step", p.device);

@@ -434,19 +434,14 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   // A program machine is the cell machine of its name, and robots reach into it at its fixture: the machine's label
   // stands for the location at the fixture (`at: M.fixture`) in every move (`Place M`), for the plan as for the run.
   for (const std::string& label : s.program.machines) {
-    const models::MachineSpec* m = nullptr;
-    for (const auto& spec : s.cell.machines) {
-      if (spec.name == label) m = &spec;
-    }
+    const models::MachineSpec* m = s.cell.find_machine(label);
     if (m == nullptr) {
       doc.fail(program_node, fmt::format("the program declares machine '{}', which is not a machine of the cell {} "
                                          "(machines: {})",
                                          label, s.cell_file.filename().string(), list_names(names_of(s.cell.machines))));
     }
-    std::string fixture;
-    for (const auto& l : s.cell.locations) {
-      if ((l.pose.xyz - m->fixture_top().xyz).norm() < 1e-3) fixture = l.name;
-    }
+    const models::LocationSpec* at = s.cell.fixture_location(*m);
+    const std::string fixture = at != nullptr ? at->name : std::string();
     if (fixture.empty()) {
       doc.fail(program_node, fmt::format("machine '{}' has no location at its fixture, where robots put parts into "
                                          "it: add one to the cell's or the scenario's locations, e.g. `- {{name: "

@@ -412,13 +412,7 @@ void ScenarioRun::wire_devices(runtime::RunConfig& config, const std::vector<std
                                           text, scenario_.cell.source.string(), name,
                                           known.empty() ? std::string("none") : known));
     }
-    const task::CompiledProgram& prog = scenario_.program;
-    const bool used = std::count(prog.machines.begin(), prog.machines.end(), name) +
-                          std::count(prog.conveyors.begin(), prog.conveyors.end(), name) +
-                          std::count_if(prog.sensors.begin(), prog.sensors.end(),
-                                        [&](const task::SensorDecl& d) { return d.name == name; }) >
-                      0;
-    if (!used) {
+    if (!task::declares_device(scenario_.program, name)) {
       throw InputError(where, fmt::format("'{}': the program {} does not declare device '{}', so nothing would drive "
                                           "it (declare it: `machine`, `conveyor` or `sensor ... on`)",
                                           text, scenario_.program_file.filename().string(), name));

@@ -111,16 +111,8 @@ NameMap check_binding(const RunConfig& c) {
   for (const auto& w : c.program.workpieces) object(w, true);
   for (const auto& l : c.program.locations) object(l, false);
   for (const task::WorkpieceClass& w : c.program.classes) names.classes[w.name] = names.objects.at(w.from);
-  const auto is_device = [&](const std::string& label) {
-    const auto& p = c.program;
-    return std::count(p.machines.begin(), p.machines.end(), label) + std::count(p.conveyors.begin(), p.conveyors.end(),
-                                                                               label) +
-               std::count_if(p.sensors.begin(), p.sensors.end(),
-                             [&](const task::SensorDecl& s) { return s.name == label; }) >
-           0;
-  };
   for (const auto& [label, entry] : b.objects) {
-    if (names.objects.count(label) == 0 && !is_device(label)) {
+    if (names.objects.count(label) == 0 && !task::declares_device(c.program, label)) {
       throw InputError(entry.where,
                        fmt::format("'{}' is not a workpiece or location of the program (workpieces: {}; locations: {})",
                                    label, joined(c.program.workpieces), joined(c.program.locations)));
@@ -179,21 +171,15 @@ std::map<std::string, std::string> check_devices(RunConfig& c, NameMap& names) {
   };
   for (const std::string& label : p.machines) {
     const auto [cell, where] = bound_device(c.binding, label);
-    const models::MachineSpec* m = nullptr;
-    for (const auto& spec : c.cell.machines) {
-      if (spec.name == cell) m = &spec;
-    }
+    const models::MachineSpec* m = c.cell.find_machine(cell);
     if (m == nullptr) {
       throw InputError(where, fmt::format("program machine '{}' is {}not a machine of the cell (cell machines: {})",
                                           label, cell == label ? "" : fmt::format("bound to '{}', which is ", cell),
                                           joined(names_of(c.cell.machines))));
     }
     // Its fixture: the location at the fixture's top (`at: M.fixture` in the cell description).
-    const Eigen::Vector3d top = m->fixture_top().xyz;
-    std::string fixture;
-    for (const auto& l : c.cell.locations) {
-      if ((l.pose.xyz - top).norm() < 1e-3) fixture = l.name;
-    }
+    const models::LocationSpec* at = c.cell.fixture_location(*m);
+    const std::string fixture = at != nullptr ? at->name : std::string();
     if (fixture.empty()) {
       throw InputError(m->where, fmt::format("machine '{}' has no location at its fixture, where robots put parts "
                                              "into it: add one to the cell's locations, e.g. `- {{name: {}_fixture, "
@@ -246,10 +232,9 @@ std::map<std::string, std::string> check_devices(RunConfig& c, NameMap& names) {
       if (w.limit.count() > 0) continue;
       if (w.kind == DeviceKind::kSensor) w.limit = r.sensor_wait;
       if (w.kind != DeviceKind::kMachine) continue;
-      for (const auto& m : c.cell.machines) {
-        if (m.name != w.name) continue;
+      if (const models::MachineSpec* m = c.cell.find_machine(w.name)) {
         w.limit = std::chrono::duration_cast<SimDuration>(
-                      std::chrono::duration<double>(m.process_time * r.machine_time_factor)) +
+                      std::chrono::duration<double>(m->process_time * r.machine_time_factor)) +
                   r.machine_time_margin;
       }
     }

@@ -59,6 +59,12 @@ std::string loop_exit_event(const Loop& loop, const std::string& follower) {
   return fmt::format("{}.{}>{}.exit", loop.name, loop.leader, follower);
 }
 
+bool declares_device(const CompiledProgram& p, const std::string& name) {
+  return std::find(p.machines.begin(), p.machines.end(), name) != p.machines.end() ||
+         std::find(p.conveyors.begin(), p.conveyors.end(), name) != p.conveyors.end() ||
+         std::any_of(p.sensors.begin(), p.sensors.end(), [&](const SensorDecl& s) { return s.name == name; });
+}
+
 const WorkpieceClass* find_class(const CompiledProgram& program, const std::string& name) {
   for (const WorkpieceClass& c : program.classes) {
     if (c.name == name) return &c;

@@ -147,6 +147,9 @@ struct CompiledProgram {
   std::vector<RegionUse> regions;
 };
 
+// Whether the program declares a machine, conveyor or sensor named `name`.
+bool declares_device(const CompiledProgram& program, const std::string& name);
+
 // The class named `name`, or nullptr if it is a named workpiece (or not declared).
 const WorkpieceClass* find_class(const CompiledProgram& program, const std::string& name);
 

@@ -318,6 +318,10 @@ struct CellDescription {
   const WorkpieceSpec* find_workpiece(std::string_view name) const;
   const LocationSpec* find_location(std::string_view name) const;
   const CameraSpec* find_camera(std::string_view name) const;
+  // Where robots put parts into machine `m`: the location at its fixture's top (`at: M.fixture`), the last one listed
+  // when there are several (a scenario's locations come after the cell's, so a scenario may give its own grasp);
+  // nullptr when there is none.
+  const LocationSpec* fixture_location(const MachineSpec& m) const;
 };
 
 // One reachability check: a robot's tool centre point at a target pose, solved with the robot's inverse kinematics.

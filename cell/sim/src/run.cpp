@@ -23,6 +23,7 @@
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/fault_injector.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
+#include "cellwright/drivers/mirrored_io.hpp"
 #include "cellwright/drivers/modbus/modbus_io.hpp"
 #include "cellwright/vision/camera_model.hpp"
 #include "cellwright/vision/cell_detector.hpp"
@@ -74,33 +75,6 @@ drivers::FaultPlan driver_plan(const Scenario& s, const std::string& robot) {
   plan.seed = s.seed;
   return plan;
 }
-
-// A real I/O unit whose coils are also written into the twin's I/O image, so that the twin mirrors the real devices:
-// reads are the real unit's; a coil written there is written into the twin after it (the twin refusing it changes
-// nothing for the controller, which drives the real unit).
-class MirroredIo final : public drivers::DigitalIo {
- public:
-  MirroredIo(std::unique_ptr<drivers::DigitalIo> real, drivers::DigitalIo& twin) : real_(std::move(real)), twin_(twin) {}
-  std::string describe() const override { return real_->describe(); }
-  drivers::IoResult connect() override { return real_->connect(); }
-  void close() override { real_->close(); }
-  bool is_open() const override { return real_->is_open(); }
-  drivers::IoResult write_coil(std::uint16_t address, bool value) override {
-    const drivers::IoResult r = real_->write_coil(address, value);
-    if (r.ok()) (void)twin_.write_coil(address, value);
-    return r;
-  }
-  drivers::IoResult read_coils(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) override {
-    return real_->read_coils(first, count, values);
-  }
-  drivers::IoResult read_inputs(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) override {
-    return real_->read_inputs(first, count, values);
-  }
-
- private:
-  std::unique_ptr<drivers::DigitalIo> real_;
-  drivers::DigitalIo& twin_;
-};
 
 }  // namespace
 
@@ -394,6 +368,7 @@ void ScenarioRun::wire_devices(runtime::RunConfig& config, const std::vector<std
   // Real units by endpoint, and the devices on each.
   std::map<std::string, std::size_t> unit_of;
   std::vector<runtime::IoUnit> units;
+  std::vector<drivers::MirroredIo*> mirrors;  // the real units, as units[] has them
   std::set<std::string> taken;
   for (const std::string& text : real) {
     const SourceLocation where{"--device", 0, 0};
@@ -428,10 +403,13 @@ void ScenarioRun::wire_devices(runtime::RunConfig& config, const std::vector<std
     auto [it, fresh] = unit_of.emplace(address.str(), units.size());
     if (fresh) {
       (void)twin_io_->connect();  // the mirror writes into it
-      real_io_.push_back(std::make_unique<MirroredIo>(std::make_unique<drivers::ModbusIo>(address, drivers::ModbusIoOptions{}, where),
-                                                      *twin_io_));
+      auto mirror = std::make_unique<drivers::MirroredIo>(
+          std::make_unique<drivers::ModbusIo>(address, drivers::ModbusIoOptions{}, where), *twin_io_);
+      mirrors.push_back(mirror.get());
+      real_io_.push_back(std::move(mirror));
       units.push_back(runtime::IoUnit{real_io_.back().get(), true, {}});
     }
+    mirrors[it->second]->mirror_coil(dev->coil);
     units[it->second].devices.push_back(*dev);
   }
   runtime::IoUnit twin{twin_io_.get(), false, {}};

@@ -24,7 +24,7 @@ const char* to_string(DeviceKind kind) {
 DeviceControl::DeviceControl(drivers::DigitalIo& io, std::vector<DeviceWiring> devices)
     : io_(io), devices_(std::move(devices)) {}
 
-void DeviceControl::begin(const task::Primitive& p, SimDuration now) {
+void DeviceControl::begin(const task::Primitive& p, SimDuration now, bool again) {
   CW_CHECK(!current_, "device primitive '{}' begun while '{}' is pending", task::to_string(p),
            task::to_string(*current_));
   CW_CHECK(p.kind == task::PrimitiveKind::kDevice, "'{}' is not a device primitive", task::to_string(p));
@@ -35,6 +35,8 @@ void DeviceControl::begin(const task::Primitive& p, SimDuration now) {
   }
   since_ = now;
   written_ = false;
+  again_ = again;
+  done_before_ = false;
 }
 
 DeviceStep DeviceControl::fault(std::string reason) {
@@ -52,7 +54,7 @@ DeviceStep DeviceControl::write(int address, bool value, const char* what) {
   return {DeviceOutcome::kDone, {}};
 }
 
-bool DeviceControl::input_on(int address, const char* what, SimDuration now, DeviceStep& out) {
+bool DeviceControl::read_input(int address, const char* what, bool& on, DeviceStep& out) {
   if (address < 0) {
     out = fault(fmt::format("device {}: its {} input is not wired", device_->name, what));
     return false;
@@ -64,12 +66,23 @@ bool DeviceControl::input_on(int address, const char* what, SimDuration now, Dev
                             io_.describe(), drivers::to_string(r.status), r.message));
     return false;
   }
-  if (values.at(0)) return true;
-  if (device_->limit.count() > 0 && now - since_ > device_->limit) {
-    out = fault(fmt::format("device {}: {} (input {}) not seen within {:.3f} s", device_->name, what, address,
-                            std::chrono::duration<double>(device_->limit).count()));
-    out.timed_out = true;
-  }
+  on = values.at(0);
+  return true;
+}
+
+bool DeviceControl::overdue(int address, const char* what, SimDuration now, DeviceStep& out) {
+  if (device_->limit.count() <= 0 || now - since_ <= device_->limit) return false;
+  out = fault(fmt::format("device {}: {} (input {}) not seen within {:.3f} s", device_->name, what, address,
+                          std::chrono::duration<double>(device_->limit).count()));
+  out.timed_out = true;
+  return true;
+}
+
+bool DeviceControl::input_on(int address, const char* what, SimDuration now, DeviceStep& out) {
+  bool on = false;
+  if (!read_input(address, what, on, out)) return false;
+  if (on) return true;
+  (void)overdue(address, what, now, out);
   return false;
 }
 
@@ -81,17 +94,37 @@ DeviceStep DeviceControl::poll(SimDuration now) {
   DeviceStep step;
   DeviceStep end{DeviceOutcome::kDone, {}};
   switch (current_->op) {
-    case task::DeviceOp::kStart:
+    case task::DeviceOp::kStart: {
+      bool busy = false;
+      bool done = false;
       if (!written_) {
+        if (!read_input(device_->busy, "busy", busy, step) ||
+            (device_->input >= 0 && !read_input(device_->input, "done", done, step))) {
+          return step;
+        }
+        if (again_ && (busy || done)) {
+          // The start written before the fault started the cycle: only clear it.
+          end = write(device_->coil, false, "start");
+          break;
+        }
+        done_before_ = done;
         step = write(device_->coil, true, "start");
         if (step.outcome == DeviceOutcome::kFault) return step;
         written_ = true;
         since_ = now;
-        step = {};  // pending until busy is seen
+        step = {};  // pending until busy (or a new done) is seen
       }
-      if (!input_on(device_->busy, "busy", now, step)) return step;
+      if (!read_input(device_->busy, "busy", busy, step) ||
+            (device_->input >= 0 && !read_input(device_->input, "done", done, step))) {
+        return step;
+      }
+      if (!busy && !(done && !done_before_)) {
+        (void)overdue(device_->busy, "busy", now, step);
+        return step;
+      }
       end = write(device_->coil, false, "start");
       break;
+    }
     case task::DeviceOp::kAwaitDone:
       if (!input_on(device_->input, "done", now, step)) return step;
       break;

@@ -63,10 +63,19 @@ void DeviceHub::connect() {
   }
 }
 
-void DeviceHub::close() {
-  // No start left asserted: a machine's next start must be a rising edge (a failed start may have left it on).
+void DeviceHub::start(SimDuration now) {
+  unit_down_.assign(units_.size(), false);
+  for (Device& d : devices_) {
+    if (!stopped_ && !unit_down_[d.unit]) watch(d, now);
+  }
+}
+
+void DeviceHub::close(bool cell_stopped) {
   for (const Device& d : devices_) {
-    if (d.wiring.kind == DeviceKind::kMachine && d.wiring.coil >= 0 && units_[d.unit].io->is_open()) {
+    if (d.wiring.coil < 0 || !units_[d.unit].io->is_open()) continue;
+    // No start left asserted: a machine's next start must be a rising edge (a failed start may have left it on).
+    // After a stop, no belt keeps running: a part must not be carried on while nobody tends the cell.
+    if (d.wiring.kind == DeviceKind::kMachine || (cell_stopped && d.wiring.kind == DeviceKind::kConveyor)) {
       (void)units_[d.unit].io->write_coil(static_cast<std::uint16_t>(d.wiring.coil), false);
     }
   }
@@ -74,12 +83,15 @@ void DeviceHub::close() {
 }
 
 void DeviceHub::step(SimDuration now) {
+  // A unit that fails a request is not asked again this turn: its other devices would each wait out the timeout and
+  // connect it again.
+  unit_down_.assign(units_.size(), false);
   take_commands(now);
   for (Device& d : devices_) {
-    if (!stopped_) advance(d, now);
+    if (!stopped_ && !unit_down_[d.unit]) advance(d, now);
   }
   for (Device& d : devices_) {
-    if (!stopped_) watch(d, now);
+    if (!stopped_ && !unit_down_[d.unit]) watch(d, now);
   }
 }
 
@@ -108,7 +120,7 @@ void DeviceHub::advance(Device& d, SimDuration now) {
   if (!d.begun) {
     task::Primitive p = c.primitive;
     p.device = d.wiring.name;  // the control knows the device by its cell name
-    d.control->begin(p, now);
+    d.control->begin(p, now, d.attempts > 0);  // again after a fault: a start may already have been taken
     d.begun = true;
   }
   const DeviceStep s = d.control->poll(now);
@@ -122,6 +134,7 @@ void DeviceHub::advance(Device& d, SimDuration now) {
     return;
   }
   d.begun = false;
+  if (!s.timed_out) unit_down_[d.unit] = true;
   fault(d, s.timed_out ? Symptom::device_timeout : Symptom::io_failed, s.reason, now, true);
 }
 
@@ -145,14 +158,27 @@ void DeviceHub::fault(Device& d, Symptom symptom, const std::string& detail, Sim
     return false;  // the parts' and robots' questions are not about a device
   });
   log_.diagnosis(now, robot, to_string(symptom), dg.cause, to_string(dg.action), dg.path);
-  if (dg.action == Action::retry || dg.action == Action::reset_rehome) {
+  // retry (reset_rehome: a unit has nothing to home) connects the unit again; go_on and wait_clear only do it again.
+  // Each is counted, whatever the tree asked, so that a fault that keeps coming ends with the attempts.
+  const bool reconnect = dg.action == Action::retry || dg.action == Action::reset_rehome;
+  const bool again = reconnect || dg.action == Action::go_on || dg.action == Action::wait_clear;
+  if (again && d.attempts < recovery_.max_attempts) {
     ++d.attempts;
+    const std::string what = c != nullptr ? "the command is done" : "the state is read";
+    if (!reconnect) {
+      log_.recovery_end(now, robot, dg.cause, to_string(dg.action), true,
+                        fmt::format("{} again (attempt {} of {})", what, d.attempts, recovery_.max_attempts),
+                        SimDuration{0});
+      return;
+    }
     drivers::DigitalIo& io = *units_[d.unit].io;
     io.close();
     const drivers::IoResult r = io.connect();
     if (r.ok()) {
       log_.recovery_end(now, robot, dg.cause, to_string(dg.action), true,
-                        fmt::format("{} connected again; the command is done again", io.describe()), SimDuration{0});
+                        fmt::format("{} connected again; {} again (attempt {} of {})", io.describe(), what,
+                                    d.attempts, recovery_.max_attempts),
+                        SimDuration{0});
       return;  // the head command (if any) begins again next turn
     }
     log_.recovery_end(now, robot, dg.cause, to_string(dg.action), false,
@@ -162,14 +188,11 @@ void DeviceHub::fault(Device& d, Symptom symptom, const std::string& detail, Sim
     // Connecting failed: the unit is gone; the next request fails again and the attempts run out.
     return;
   }
-  if (dg.action == Action::go_on || dg.action == Action::wait_clear) {
-    if (c != nullptr) {
-      log_.recovery_end(now, robot, dg.cause, to_string(dg.action), true, "the command is done again", SimDuration{0});
-    }
-    return;
-  }
   // stop_cell, and any action that is not about devices (a tree file may say so): the cell is stopped.
-  log_.recovery_end(now, robot, dg.cause, to_string(dg.action), false, "the cell is stopped", SimDuration{0});
+  log_.recovery_end(now, robot, dg.cause, to_string(dg.action), false,
+                    again ? fmt::format("{} attempts failed: the cell is stopped", d.attempts)
+                          : std::string("the cell is stopped"),
+                    SimDuration{0});
   stopped_ = true;
   const std::string reason = fmt::format("{}: {}", to_string(symptom), detail);
   if (c != nullptr) {
@@ -200,6 +223,7 @@ void DeviceHub::watch(Device& d, SimDuration now) {
     const auto a = static_cast<std::uint16_t>(address);
     const drivers::IoResult r = coil ? io.read_coils(a, 1, v) : io.read_inputs(a, 1, v);
     if (!r.ok()) {
+      unit_down_[d.unit] = true;
       fault(d, Symptom::io_failed,
             fmt::format("device {}: reading its {} ({} {}) on {} failed: {} {}", w.name, what, coil ? "coil" : "input",
                         address, io.describe(), drivers::to_string(r.status), r.message),

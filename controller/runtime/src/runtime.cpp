@@ -164,6 +164,19 @@ std::map<std::string, std::string> check_devices(RunConfig& c, NameMap& names) {
         if (w.name == cell) return;
       }
     }
+    // A machine needs all three of its addresses; say which are missing when some are given.
+    std::vector<std::string> missing;
+    if (const models::MachineSpec* m = c.cell.find_machine(cell)) {
+      if (m->start_io.address < 0) missing.push_back("start");
+      if (m->busy_io.address < 0) missing.push_back("busy");
+      if (m->done_io.address < 0) missing.push_back("done");
+      if (missing.size() < 3) {
+        throw InputError(m->where, fmt::format("program device '{}' (cell machine '{}') is on no I/O unit: the cell "
+                                               "description's `io` of machine '{}' lacks {}, and device control "
+                                               "needs start, busy and done (docs/cell-description.md, \"io\")",
+                                               label, cell, cell, joined(missing)));
+      }
+    }
     throw InputError(where, fmt::format("program device '{}' (cell device '{}') is on no I/O unit: the cell "
                                         "description gives it no `io` addresses, so device control cannot drive it "
                                         "(docs/cell-description.md, \"io\")",
@@ -776,6 +789,7 @@ void Runtime::start() {
   }
   log_->run_start(im.clock.now(), config_.program.file, config_.cell.name, to_string(config_.mode), config_.period,
                   names);
+  if (im.devices) im.devices->start(im.clock.now());  // every device's state from the start (no thread runs yet)
   im.next_observation.assign(config_.observers.size(), SimDuration{0});
   for (const RunObserver& o : config_.observers) im.observed_robots = im.observed_robots || o.robots;
   if (im.observed_robots) im.observed_robots_view = im.task->view().robots;  // the first observation's, before any step
@@ -821,7 +835,8 @@ RunResult Runtime::finish() {
   if (im.error) std::rethrow_exception(im.error);
   if (im.result) return *im.result;
   im.detach_drivers();
-  if (im.devices) im.devices->close();  // its thread has ended: no machine's start is left on
+  // Its thread has ended: no machine's start is left on, and after a stop no belt runs.
+  if (im.devices) im.devices->close(im.outcome != Outcome::kFinished);
   RunResult r;
   r.end_time = im.clock.now();
   im.task->account_until(r.end_time);

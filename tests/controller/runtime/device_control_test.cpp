@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "cellwright/drivers/memory_io.hpp"
+#include "controller/runtime/device_primitive.hpp"
 
 namespace cellwright::runtime {
 namespace {
@@ -13,13 +14,8 @@ namespace {
 using std::chrono::seconds;
 using ::testing::HasSubstr;
 
-task::Primitive device(const std::string& name, task::DeviceOp op) {
-  task::Primitive p;
-  p.kind = task::PrimitiveKind::kDevice;
-  p.device = name;
-  p.op = op;
-  return p;
-}
+using cellwright::testing::device_primitive;
+constexpr auto device = device_primitive;
 
 // The paper's I/O list: coils 0 input belt run, 2 mill start; inputs 0 input stop eye, 2 mill busy, 3 mill done.
 struct Unit {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "cellwright/drivers/memory_io.hpp"
+#include "controller/runtime/device_primitive.hpp"
 
 namespace cellwright::runtime {
 namespace {
@@ -16,13 +17,8 @@ using std::chrono::milliseconds;
 using std::chrono::seconds;
 using ::testing::HasSubstr;
 
-task::Primitive device(const std::string& name, task::DeviceOp op) {
-  task::Primitive p;
-  p.kind = task::PrimitiveKind::kDevice;
-  p.device = name;
-  p.op = op;
-  return p;
-}
+using cellwright::testing::device_primitive;
+constexpr auto device = device_primitive;
 
 // The paper's I/O list on one unit: coil 0 input belt run, coil 2 mill start; input 0 the input stop eye, 2 mill
 // busy, 3 mill done. The mill's fixture is at (0, 0.6, 0.43), the eye looks at (0.6, -0.55, 0.5).
@@ -208,8 +204,97 @@ TEST(DeviceHub, AStartThatFailedLeavesNoStartCoilOnOnceTheRunIsOver) {
   c.hub->step(seconds(17));
   ASSERT_EQ(c.take().size(), 1u);
   EXPECT_TRUE(c.io.coil(2));
-  c.hub->close();
+  c.hub->close(false);
   EXPECT_FALSE(c.io.coil(2));
+}
+
+TEST(DeviceHub, TheStartLogsEveryDevicesStateAtTheRunsFirstInstant) {
+  // A report counts a device's time from the run's start: its first state must be there at 0, not at the first turn.
+  Cell c;
+  c.hub->start(SimDuration{0});
+  ASSERT_EQ(c.lines("device").size(), 3u);
+  for (const std::string& l : c.lines("device")) EXPECT_THAT(l, HasSubstr(R"({"t":0.0000,"type":"device")"));
+  c.hub->step(milliseconds(10));
+  EXPECT_EQ(c.lines("device").size(), 3u);
+}
+
+TEST(DeviceHub, AStopLeavesNoBeltRunningAndACompletedRunLeavesThemAsTheProgramDid) {
+  {
+    Cell c;
+    c.send(0, 1, device("IN", task::DeviceOp::kRun));
+    c.hub->step(milliseconds(10));
+    ASSERT_TRUE(c.io.coil(0));
+    c.hub->close(true);
+    EXPECT_FALSE(c.io.coil(0));
+  }
+  Cell c;
+  c.send(0, 1, device("IN", task::DeviceOp::kRun));
+  c.hub->step(milliseconds(10));
+  c.hub->close(false);
+  EXPECT_TRUE(c.io.coil(0));
+}
+
+TEST(DeviceHub, AStartDoneAgainAfterAFailureDoesNotStartTheMachineTwice) {
+  // The start coil was written, then the unit failed before busy was read: connected again, the command is begun
+  // again. The machine is busy already (it took the first start): the start is only cleared, never written again.
+  Cell c;
+  c.hub->step(milliseconds(10));
+  c.send(0, 2, device("M", task::DeviceOp::kStart));
+  c.hub->step(milliseconds(20));  // busy and done read, start written; busy not yet on
+  ASSERT_TRUE(c.io.coil(2));
+  c.io.set_input(2, true);        // the mill is busy
+  c.io.fail_next(drivers::IoStatus::disconnected);
+  c.hub->step(milliseconds(30));  // the busy read fails: connected again
+  ASSERT_THAT(c.lines("recovery_end").at(0), HasSubstr(R"("action":"retry","ok":true)"));
+  const int writes = c.io.writes();
+  c.hub->step(milliseconds(40));
+  const auto s = c.take();
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_EQ(s[0].outcome, CommandOutcome::kDone);
+  EXPECT_FALSE(c.io.coil(2));
+  EXPECT_EQ(c.io.writes(), writes + 1);  // the clear alone
+}
+
+TEST(DeviceHub, AShortCycleWhoseBusyFallsBetweenTwoReadsStillEndsTheStart) {
+  // Busy came and went between two turns; done is new: the start was taken.
+  Cell c;
+  c.send(0, 2, device("M", task::DeviceOp::kStart));
+  c.hub->step(milliseconds(10));
+  ASSERT_TRUE(c.io.coil(2));
+  c.io.set_input(3, true);
+  c.hub->step(milliseconds(20));
+  const auto s = c.take();
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_EQ(s[0].outcome, CommandOutcome::kDone);
+  EXPECT_FALSE(c.io.coil(2));
+}
+
+TEST(DeviceHub, ADeadUnitIsAskedOnceATurnNotOnceForEachOfItsDevices) {
+  Cell c;
+  c.hub->step(milliseconds(10));
+  const int before = c.io.requests();
+  c.io.fail_next(drivers::IoStatus::timeout);
+  c.hub->step(milliseconds(20));  // the first read fails: the unit's two other devices are not read this turn
+  EXPECT_EQ(c.io.requests(), before + 1);
+  EXPECT_EQ(c.lines("fault_detected").size(), 1u);
+}
+
+TEST(DeviceHub, ATreeThatAnswersGoOnToADeviceFaultHasItDoneAgainOnlyMaxAttemptsTimes) {
+  RecoveryOptions r;
+  r.max_attempts = 2;
+  r.tree = std::make_shared<DecisionTree>(DecisionTree::parse(R"(
+io_failed: {cause: flaky_unit, action: go_on}
+)", "test.yaml"));
+  Cell c(false, r);
+  c.send(0, 3, device("IN", task::DeviceOp::kRun));
+  for (int i = 0; i < 3; ++i) c.io.fail_next(drivers::IoStatus::exception, 4);
+  for (int i = 1; i <= 3; ++i) c.hub->step(milliseconds(10 * i));
+  const auto s = c.take();
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_EQ(s[0].outcome, CommandOutcome::kFailed);
+  EXPECT_TRUE(s[0].stop_cell);
+  EXPECT_EQ(c.lines("fault_detected").size(), 3u);
+  EXPECT_THAT(c.lines("recovery_end").back(), HasSubstr("2 attempts failed: the cell is stopped"));
 }
 
 TEST(DeviceHub, ScatteredFailuresOfTheStateReadsDoNotAddUpToAStop) {

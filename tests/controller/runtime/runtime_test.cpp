@@ -550,6 +550,20 @@ TEST(RuntimeRun, AProgramDeviceTheCellDoesNotHaveOrDoesNotWireIsRefusedBeforeAny
   expect_refused(cell, "", "program device 'input' (cell device 'input') is on no I/O unit");
 }
 
+TEST(RuntimeRun, AMachineWithSomeOfItsAddressesIsRefusedNamingTheMissingOnes) {
+  ScriptedCell cell;
+  ASSERT_FALSE(cell.config.cell.machines.empty());
+  models::MachineSpec& mill = cell.config.cell.machines[0];
+  ASSERT_EQ(mill.name, "mill");
+  mill.busy_io.address = -1;
+  mill.done_io.address = -1;
+  cell.config.program = task::compile(task::parse_program(
+      "robot r1 r2\nworkpiece A\nlocation B\nmachine mill\nsequence r1\n  start mill\n  wait mill\nend\n",
+      "mill.task"));
+  expect_refused(cell, "cell.yaml", "the cell description's `io` of machine 'mill' lacks busy, done, and device "
+                                    "control needs start, busy and done");
+}
+
 TEST(RuntimeRun, ARobotWithoutADriverIsRefused) {
   ScriptedCell cell;
   cell.config.drivers.erase("melfa");

@@ -8,7 +8,10 @@
 // blocks beyond one request. The runtime's device-control participant (device_hub.hpp) owns one per device.
 //
 // What each operation does on the unit (the device's addresses come from the cell description's `io` keys):
-//   start       machine: write start = 1; poll busy until on; write start = 0; done
+//   start       machine: read busy and done; write start = 1; poll until busy is on, or done comes on (a cycle
+//               shorter than a poll); write start = 0; done. Begun again after a failure (`again`): when busy or done
+//               is already on, the earlier write started the cycle, so start is only cleared (a machine is never
+//               started twice for one command).
 //   await done  machine: poll done until on; done
 //   run         conveyor: write run = 1; done (accumulate: the same, the belt stops itself at its stop eye)
 //   stop        conveyor: write run = 0; done
@@ -65,23 +68,30 @@ class DeviceControl {
   DeviceControl(drivers::DigitalIo& io, std::vector<DeviceWiring> devices);
 
   // Starts device primitive `p` at `now`. InternalError if another primitive is still pending or `p` is not a
-  // device primitive; a device this unit does not wire is a fault reported by the next poll().
-  void begin(const task::Primitive& p, SimDuration now);
+  // device primitive; a device this unit does not wire is a fault reported by the next poll(). `again`: the same
+  // primitive is begun again after a fault (the unit may have done part of it: see start at the top).
+  void begin(const task::Primitive& p, SimDuration now, bool again = false);
   // Advances the pending primitive (see the top); kDone or kFault end it. Without a pending primitive: kDone.
   DeviceStep poll(SimDuration now);
 
  private:
   DeviceStep fault(std::string reason);
   DeviceStep write(int address, bool value, const char* what);
+  // Reads input `address` into `on`; false with a fault in `out` when it is not wired or the request failed.
+  bool read_input(int address, const char* what, bool& on, DeviceStep& out);
   // true when input `address` is on; a fault (request failed, or the limit passed) in `out`.
   bool input_on(int address, const char* what, SimDuration now, DeviceStep& out);
+  // Whether the awaited input is overdue (the device's limit passed since since_): the fault in `out` if so.
+  bool overdue(int address, const char* what, SimDuration now, DeviceStep& out);
 
   drivers::DigitalIo& io_;
   std::vector<DeviceWiring> devices_;
   std::optional<task::Primitive> current_;
   const DeviceWiring* device_ = nullptr;
   SimDuration since_{0};
-  bool written_ = false;  // start: the start coil is set, waiting for busy
+  bool written_ = false;      // start: the start coil is set, waiting for busy
+  bool again_ = false;        // begun again after a fault
+  bool done_before_ = false;  // start: the done input was on before the start was written
 };
 
 }  // namespace cellwright::runtime

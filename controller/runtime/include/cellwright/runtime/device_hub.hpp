@@ -15,8 +15,10 @@
 // FAULTS (docs/faults.md), each sensed, diagnosed by the decision tree and acted on, never a hang:
 //   io_failed         a request to the unit failed (timeout, Modbus exception, connection lost, garbled reply): the
 //                     tree's `retry` closes and connects the unit again and does the command again (at most
-//                     RecoveryOptions::max_attempts times for one command); a failed state read in step 3 is the same
-//                     symptom for the cell ("" robot);
+//                     RecoveryOptions::max_attempts times for one command; a machine's start begun again is not
+//                     written twice when busy or done shows it was taken); a failed state read in step 3 is the same
+//                     symptom for the cell ("" robot). A tree that answers go_on or wait_clear has the command (or
+//                     the read) done again, counted the same way: when the attempts run out the cell stops;
 //   device_timeout    an awaited input did not come within the device's limit (a machine never done, a photo-eye never
 //                     on): the tree stops the cell;
 //   device_contradiction  a photo-eye on a unit that is not the twin says a part is there and the environment model
@@ -70,11 +72,16 @@ class DeviceHub {
 
   // Connects every unit; InputError naming the unit and the reason when one cannot be reached (no thread runs yet).
   void connect();
-  // One turn (see the top). Non-blocking beyond the units' own request timeouts.
+  // The run starts at `now`: reads and logs every device's state (step 3 alone), so that the log has each device's
+  // state from the start. Called once, after connect(), before the first step(), by the thread that will own it.
+  void start(SimDuration now);
+  // One turn (see the top). Non-blocking beyond the units' own request timeouts. A unit whose request failed is not
+  // asked again in the same turn (its other devices wait for the next one).
   void step(SimDuration now);
   // The run is over: clears every machine's start coil (a start that failed may have left it on, and a machine's
-  // next start must be a rising edge), then closes every unit. Called by the Runtime once its threads have ended.
-  void close();
+  // next start must be a rising edge); `cell_stopped` (the run did not complete): stops every conveyor too; then
+  // closes every unit. Called by the Runtime once its threads have ended.
+  void close(bool cell_stopped);
 
  private:
   struct Device {
@@ -109,6 +116,7 @@ class DeviceHub {
   const SharedEnvironment& env_;
   RecoveryOptions recovery_;
   bool stopped_ = false;  // the cell was stopped by a device fault: no further commands are executed
+  std::vector<bool> unit_down_;  // per unit: a request failed this turn
 };
 
 }  // namespace cellwright::runtime

@@ -65,6 +65,20 @@ void DeviceHub::connect() {
 
 void DeviceHub::start(SimDuration now) {
   unit_down_.assign(units_.size(), false);
+  // The program's belts start stopped (its net's `C.stopped`), as a PLC's outputs are at power-up: a belt left running
+  // by an earlier run or another program would carry a part on before the program runs it.
+  for (Device& d : devices_) {
+    if (d.wiring.kind != DeviceKind::kConveyor || d.wiring.coil < 0 || unit_down_[d.unit]) continue;
+    drivers::DigitalIo& io = *units_[d.unit].io;
+    const drivers::IoResult r = io.write_coil(static_cast<std::uint16_t>(d.wiring.coil), false);
+    if (!r.ok()) {
+      unit_down_[d.unit] = true;
+      fault(d, Symptom::io_failed,
+            fmt::format("device {}: stopping it at the start (coil {}) on {} failed: {} {}", d.wiring.name,
+                        d.wiring.coil, io.describe(), drivers::to_string(r.status), r.message),
+            now, false);
+    }
+  }
   for (Device& d : devices_) {
     if (!stopped_ && !unit_down_[d.unit]) watch(d, now);
   }

@@ -208,10 +208,14 @@ TEST(DeviceHub, AStartThatFailedLeavesNoStartCoilOnOnceTheRunIsOver) {
   EXPECT_FALSE(c.io.coil(2));
 }
 
-TEST(DeviceHub, TheStartLogsEveryDevicesStateAtTheRunsFirstInstant) {
+TEST(DeviceHub, TheStartStopsTheProgramsBeltsAndLogsEveryDevicesStateAtTheRunsFirstInstant) {
   // A report counts a device's time from the run's start: its first state must be there at 0, not at the first turn.
+  // A belt left running (by a PLC, an earlier run) is stopped: the program's net starts it stopped.
   Cell c;
+  ASSERT_TRUE(c.io.write_coil(0, true).ok());
   c.hub->start(SimDuration{0});
+  EXPECT_FALSE(c.io.coil(0));
+  EXPECT_THAT(c.lines("device").at(0), HasSubstr(R"("device":"input","kind":"conveyor","state":"stopped")"));
   ASSERT_EQ(c.lines("device").size(), 3u);
   for (const std::string& l : c.lines("device")) EXPECT_THAT(l, HasSubstr(R"({"t":0.0000,"type":"device")"));
   c.hub->step(milliseconds(10));

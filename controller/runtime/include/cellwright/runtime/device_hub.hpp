@@ -72,8 +72,9 @@ class DeviceHub {
 
   // Connects every unit; InputError naming the unit and the reason when one cannot be reached (no thread runs yet).
   void connect();
-  // The run starts at `now`: reads and logs every device's state (step 3 alone), so that the log has each device's
-  // state from the start. Called once, after connect(), before the first step(), by the thread that will own it.
+  // The run starts at `now`: stops every conveyor of the program (its net starts them stopped, as a PLC's outputs are
+  // at power-up), then reads and logs every device's state (step 3 alone), so that the log has each device's state
+  // from the start. Called once, after connect(), before the first step(), by the thread that will own it.
   void start(SimDuration now);
   // One turn (see the top). Non-blocking beyond the units' own request timeouts. A unit whose request failed is not
   // asked again in the same turn (its other devices wait for the next one).

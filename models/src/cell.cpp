@@ -426,10 +426,21 @@ void read_eye(const Doc& doc, Names& names, const Fields& f, const std::string& 
   if (f.has("io")) io = read_io_address(doc, f, "io");
 }
 
+// One of the cell's digital signals (a wire between the robot controllers and a sensor or a belt's drive): a whole
+// number 1..kCellSignals.
+int read_signal(const Doc& doc, const Fields& f, const char* key) {
+  const double v = f.number(key);
+  if (v != std::floor(v) || v < 1 || v > kCellSignals) {
+    doc.fail(f.node(key), fmt::format("{} must be a whole number 1..{} (the cell's digital signals), got {}",
+                                      f.field(key), kCellSignals, v));
+  }
+  return static_cast<int>(v);
+}
+
 ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
   Fields f(doc, n, "conveyor",
            {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop", "sensor", "drop_sensor",
-            "accumulate", "io"},
+            "accumulate", "io", "run_signal"},
            true);
   ConveyorSpec c;
   c.where = doc.at(n);
@@ -469,12 +480,7 @@ ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
     Fields sf(doc, f.node("sensor"), fmt::format("the sensor of conveyor '{}'", c.name), {"signal", "name", "io"});
     c.stop_eye = true;
     if (sf.has("signal")) {
-      const double v = sf.number("signal");
-      if (v != std::floor(v) || v < 1 || v > kCellSignals) {
-        doc.fail(sf.node("signal"), fmt::format("{} must be a whole number 1..{} (the cell's digital signals), got {}",
-                                                sf.field("signal"), kCellSignals, v));
-      }
-      c.sensor = static_cast<int>(v);
+      c.sensor = read_signal(doc, sf, "signal");
       c.sensor_where = doc.at(sf.node("signal"));
     }
     read_eye(doc, names, sf, c.name + "_stop", c.stop_eye_name, c.stop_eye_io);
@@ -491,6 +497,10 @@ ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
              fmt::format("conveyor '{}' accumulates while a part blocks the photo-eye at its stop bar, and has none: "
                          "add 'sensor: {{}}' (with 'stop: true')",
                          c.name));
+  }
+  if (f.has("run_signal")) {
+    c.run_signal = read_signal(doc, f, "run_signal");
+    c.run_signal_where = doc.at(f.node("run_signal"));
   }
   if (f.has("io")) {
     Fields io(doc, f.node("io"), fmt::format("the io of conveyor '{}'", c.name), {"run"});
@@ -933,6 +943,23 @@ CellDescription parse_cell(std::string_view yaml_text, const std::filesystem::pa
                  fmt::format("conveyor '{}': signal {} is already the sensor of conveyor '{}' "
                              "(line {}); each sensor needs its own input",
                              c.name, c.sensor, cell.conveyors[i].name, cell.conveyors[i].sensor_where.line));
+      }
+    }
+    // A belt's run wire is its own: no sensor drives it, no other belt shares it.
+    for (std::size_t i = 0; i < cell.conveyors.size(); ++i) {
+      const ConveyorSpec& o = cell.conveyors[i];
+      const bool self = i + 1 == cell.conveyors.size();
+      if (c.run_signal != 0 && c.run_signal == o.sensor) {
+        doc.fail(c.run_signal_where, fmt::format("conveyor '{}': signal {} is the sensor of conveyor '{}' (line {}); a "
+                                                 "belt's run_signal needs a wire of its own",
+                                                 c.name, c.run_signal, o.name, o.sensor_where.line));
+      }
+      if (!self && o.run_signal != 0 && (o.run_signal == c.run_signal || o.run_signal == c.sensor)) {
+        const bool run = o.run_signal == c.run_signal;
+        doc.fail(run ? c.run_signal_where : c.sensor_where,
+                 fmt::format("conveyor '{}': signal {} is already the run_signal of conveyor '{}' (line {}); each "
+                             "wire has one use",
+                             c.name, o.run_signal, o.name, o.run_signal_where.line));
       }
     }
   }

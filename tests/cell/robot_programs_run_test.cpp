@@ -44,29 +44,42 @@ std::vector<std::vector<std::size_t>> per_robot(const Order& order, std::size_t 
   return out;
 }
 
-// The events in the order they were signalled across the cell.
-std::vector<std::string> signal_order(const Order& order, const task::CompiledProgram& prog) {
+// Whether `event` is carried by a wire between the controllers (not a device's state, which the device holds).
+bool wired(const RobotPrograms& programs, const std::string& event) {
+  return std::any_of(programs.channels.begin(), programs.channels.end(),
+                     [&](const IoChannel& c) { return c.event == event; });
+}
+
+// The wired events in the order they were signalled across the cell. The two robots of a steps-table line signal the
+// end of the line to each other at the same time (`stepN.r1>r2`, `stepN.r2>r1`): which comes first is a race, so each
+// is told as its line's barrier (`stepN`).
+std::vector<std::string> signal_order(const Order& order, const task::CompiledProgram& prog,
+                                      const RobotPrograms& programs) {
   std::vector<std::string> out;
   for (const auto& [r, k] : order) {
     const task::Primitive& p = prog.programs[r].primitives[k];
-    if (p.kind == task::PrimitiveKind::kSignal) out.push_back(p.event);
+    if (p.kind != task::PrimitiveKind::kSignal || !wired(programs, p.event)) continue;
+    out.push_back(p.event.starts_with("step") ? p.event.substr(0, p.event.find('.')) : p.event);
   }
   return out;
 }
 
-// Checks that every wait ended after its event was signalled: the primitive after the wait starts after the signal.
-void expect_waits_after_signals(const Order& order, const task::CompiledProgram& prog, const std::string& run) {
+// Checks that every wait on a wire ended after its event was signalled: the next primitive after the wait that the
+// run tells (a device's state has no line in a robot program) starts after the signal.
+void expect_waits_after_signals(const Order& order, const task::CompiledProgram& prog, const RobotPrograms& programs,
+                                const std::string& run) {
   std::map<std::pair<std::size_t, std::size_t>, std::size_t> at;
   for (std::size_t i = 0; i < order.size(); ++i) at[order[i]] = i;
   for (std::size_t r = 0; r < prog.programs.size(); ++r) {
     const auto& prims = prog.programs[r].primitives;
     for (std::size_t k = 0; k + 1 < prims.size(); ++k) {
-      if (prims[k].kind != task::PrimitiveKind::kWait) continue;
+      if (prims[k].kind != task::PrimitiveKind::kWait || !wired(programs, prims[k].event)) continue;
       for (std::size_t s = 0; s < prog.programs.size(); ++s) {
         for (std::size_t j = 0; j < prog.programs[s].primitives.size(); ++j) {
           const task::Primitive& p = prog.programs[s].primitives[j];
           if (p.kind != task::PrimitiveKind::kSignal || p.event != prims[k].event) continue;
-          const std::pair<std::size_t, std::size_t> signal{s, j}, after{r, k + 1};
+          std::pair<std::size_t, std::size_t> signal{s, j}, after{r, k + 1};
+          while (after.second + 1 < prims.size() && at.count(after) == 0) ++after.second;
           ASSERT_TRUE(at.count(signal) && at.count(after)) << run << ": " << p.event;
           EXPECT_LT(at[signal], at[after])
               << run << ": " << prog.robots[r] << " went on past 'wait " << p.event << "' before it was signalled";
@@ -76,8 +89,11 @@ void expect_waits_after_signals(const Order& order, const task::CompiledProgram&
   }
 }
 
-TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
-  Scenario s = cell::load_scenario(kScenes + "/exchange.yaml");
+// Generates the programs of `scenario` (the PUMA in VAL II, the MELFA in Movemaster EX), runs them on the emulated
+// cell and checks them against twin run (see the top); `wait` is the PUMA's wait for the photo-eye, which its program
+// must have.
+void expect_programs_fire_as_twin_run(const fs::path& scenario, const std::string& wait) {
+  Scenario s = cell::load_scenario(scenario);
   set_language(s, "puma=val2", {"test", 0, 0});
   set_language(s, "melfa=movemaster", {"test", 0, 0});
   const cell::Preflight pre = cell::preflight(s, &twin_port());
@@ -106,7 +122,7 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
   }
 
   // The emulated cell: the programs sent over the lines, then run; the lines each controller runs recorded.
-  const fs::path dir = fs::path(::testing::TempDir()) / "robot_programs_run";
+  const fs::path dir = fs::path(::testing::TempDir()) / ("robot_programs_run_" + scenario.stem().string());
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::mutex mutex;
@@ -152,7 +168,7 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
     // Both started at once, each host waiting on its own thread for its program's end. A rides the input conveyor
     // for about 20 s: the PUMA's program waits for the part-present sensor at its stop before its first move to A, as
     // twin run's robot control waits until it sees A there.
-    EXPECT_THAT(programs.robots[0].text, ::testing::HasSubstr("WAIT SIG(1016)"));
+    EXPECT_THAT(programs.robots[0].text, ::testing::HasSubstr(wait));
     for (std::size_t i = 0; i < hosts.size(); ++i) {
       emulate::testing::ProgramHost* host = hosts[i].get();
       const RobotProgram& p = programs.robots[i];
@@ -176,7 +192,7 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
     EXPECT_THAT(cell::places_of(s.cell, a, f, s.expect.at(0).tolerance), ::testing::Contains("output"));
   }
 
-  // The lines run, told as primitives.
+  // The lines run, told as primitives (a device's states have none: the device holds them).
   Order emulated_order;
   for (const auto& [robot, line] : lines_run) {
     for (std::size_t r = 0; r < n; ++r) {
@@ -188,15 +204,30 @@ TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
   }
   const auto twin_robots = per_robot(twin_order, n), emulated_robots = per_robot(emulated_order, n);
   for (std::size_t r = 0; r < n; ++r) {
-    std::vector<std::size_t> all(prog.programs[r].primitives.size());
-    for (std::size_t k = 0; k < all.size(); ++k) all[k] = k;
+    std::vector<std::size_t> all, with_lines;
+    for (std::size_t k = 0; k < prog.programs[r].primitives.size(); ++k) {
+      all.push_back(k);
+      if (programs.robots[r].primitive_line[k] >= 0) with_lines.push_back(k);
+    }
     EXPECT_EQ(twin_robots[r], all) << "twin run, " << prog.robots[r];
-    EXPECT_EQ(emulated_robots[r], all) << "robot programs, " << prog.robots[r];
+    EXPECT_EQ(emulated_robots[r], with_lines) << "robot programs, " << prog.robots[r];
   }
-  expect_waits_after_signals(twin_order, prog, "twin run");
-  expect_waits_after_signals(emulated_order, prog, "robot programs");
-  EXPECT_EQ(signal_order(emulated_order, prog), signal_order(twin_order, prog));
+  expect_waits_after_signals(twin_order, prog, programs, "twin run");
+  expect_waits_after_signals(emulated_order, prog, programs, "robot programs");
+  EXPECT_EQ(signal_order(emulated_order, prog, programs), signal_order(twin_order, prog, programs));
   fs::remove_all(dir);
+}
+
+TEST(RobotProgramsRun, ExchangeProgramsOnTheEmulatedCellFireAsTwinRun) {
+  expect_programs_fire_as_twin_run(kScenes + "/exchange.yaml", "WAIT SIG(1016)");
+}
+
+// Issue 26: the program runs the input belt and waits for its photo-eye itself (tests/data/eye). In the generated
+// programs the PUMA sets output 15, which runs the twin's belt (the cell's run_signal: it stands still until then),
+// and waits on input 16, which the twin's photo-eye sets when A comes to rest at the stop.
+TEST(RobotProgramsRun, ProgramsThatRunTheBeltAndWaitForTheEyeFireAsTwinRun) {
+  expect_programs_fire_as_twin_run(std::string(CW_SOURCE_DIR) + "/tests/data/eye/eye.yaml",
+                                   "; eye.task:14:3 wait input_eye\n  WAIT SIG(1016)\n");
 }
 
 }  // namespace

@@ -444,6 +444,175 @@ TEST_F(RobotProgramsTest, RefusesAProgramThatFailsThePreflight) {
   expect_refused(s, "s.yaml", 0, "must pass the preflight");
 }
 
+// Issue 26: device commands in a generated program. tests/data/eye: the cell wires the input belt's drive to the
+// controllers' output 15 (`run_signal`) and its photo-eye to their input 16; eye.task runs the belt, waits for the
+// eye, picks A and hands it over.
+const std::string kEye = std::string(CW_SOURCE_DIR) + "/tests/data/eye";
+
+// eye.task on tests/data/eye's cell (or `cell`), r1 (the PUMA) in `puma`, r2 (the MELFA) in `melfa`.
+Scenario eye_scenario(const fs::path& dir, const std::string& puma, const std::string& melfa,
+                      const std::string& program = read_file(kEye + "/eye.task"),
+                      const std::string& cell = kEye + "/cell.yaml") {
+  std::ofstream(dir / "eye.task") << program;
+  std::ofstream(dir / "s.yaml") << fmt::format("cell: {}\nprogram: eye.task\nrobots: {{r1: puma, r2: melfa}}\n{}", cell,
+                                               program.find("location B") != std::string::npos
+                                                   ? "bind: {B: output_drop}\n"
+                                                   : "");
+  Scenario s = cell::load_scenario(dir / "s.yaml");
+  set_language(s, "puma=" + puma, {"test", 0, 0});
+  set_language(s, "melfa=" + melfa, {"test", 0, 0});
+  return s;
+}
+
+// tests/data/eye's cell, copied into `dir` as cell.yaml with `from` replaced by `to`; returns the copy's text.
+std::string eye_cell_with(const fs::path& dir, const std::string& from, const std::string& to) {
+  return copy_cell_with(kEye + "/cell.yaml", dir, from, to, "../../../models/urdf/");
+}
+
+// The program's lines from the first after the set-up (VAL II: after `SIGNAL -...`; Movemaster: from `line`).
+std::string from_line(const std::string& text, const std::string& line) {
+  const std::size_t at = text.find(line);
+  EXPECT_NE(at, std::string::npos) << line << " in\n" << text;
+  return at == std::string::npos ? std::string() : text.substr(at);
+}
+
+TEST_F(RobotProgramsTest, AWaitForAPhotoEyeWiredToTheControllerIsAWaitOnItsInputInVal2) {
+  const Scenario s = eye_scenario(dir_, "val2", "movemaster");
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  const RobotProgram& puma = p.robots.at(0);
+  // The header names both wires; the set-up turns the belt's output off (the net's belt starts stopped); `accumulate
+  // input` sets output 15, `wait input_eye` waits on input 16, and the Pick right after it does not wait again.
+  EXPECT_THAT(puma.text, HasSubstr("; I/O 16: WAIT SIG(1016) = a part at the stop of conveyor input (its sensor)\n"
+                                   "; I/O 15: SIGNAL 15 / SIGNAL -15 = run / stop conveyor input (its drive)\n"));
+  const std::string program = from_line(puma.text, "  SPEED 50\n");
+  // (The steps table's lines end in barriers: the events 1..11.)
+  EXPECT_EQ(program.substr(0, program.find(".LOCATIONS")), R"(  SPEED 50
+  SIGNAL -1,-3,-5,-7,-9,-10,-15
+; eye.task:13:3 accumulate input
+  SIGNAL 15
+; eye.task:13:3 end of step 1
+  SIGNAL 1
+  WAIT SIG(1002)
+; eye.task:14:3 wait input_eye
+  WAIT SIG(1016)
+; eye.task:14:3 end of step 2
+  SIGNAL 3
+  WAIT SIG(1004)
+; eye.task:15:3 Pick A
+  OPENI
+  MOVE above.A
+  MOVE at.A
+  CLOSEI
+  MOVE above.A
+; eye.task:15:3 end of step 3
+  SIGNAL 5
+  WAIT SIG(1006)
+; eye.task:16:3 Put r2
+  MOVE hover.r2
+  SIGNAL 7
+  WAIT SIG(1008)
+  OPENI
+  SIGNAL 9
+; eye.task:16:3 end of step 4
+  SIGNAL 10
+  WAIT SIG(1011)
+; end
+.END
+)");
+  // The device primitives' lines: accumulate (step of SIGNAL 15) and the eye's wait.
+  const auto& prims = s.program.programs[0].primitives;
+  for (std::size_t k = 0; k < prims.size(); ++k) {
+    if (prims[k].kind == task::PrimitiveKind::kDevice) {
+      EXPECT_GT(puma.primitive_line[k], 0) << k;
+    }
+  }
+}
+
+TEST_F(RobotProgramsTest, AWaitForAPhotoEyeWiredToTheControllerIsAWaitOnItsInputInMovemaster) {
+  const Scenario s = eye_scenario(dir_, "movemaster", "val2");
+  const RobotPrograms p = generate_robot_programs(s, cell::preflight(s, &twin_port()));
+  const RobotProgram& puma = p.robots.at(0);
+  ASSERT_EQ(puma.language, models::DriverKind::kMovemaster);
+  EXPECT_THAT(puma.text, HasSubstr("' I/O 16: TB -16 = a part at the stop of conveyor input (its sensor)\n"
+                                   "' I/O 15: OB +15 / OB -15 = run / stop conveyor input (its drive)\n"));
+  // After the positions: the speed, the event outputs and the belt's output 15 off, the belt run, the barrier of the
+  // table's first line, the jump onto its own line while input 16 is off, the next barrier, then the Pick.
+  EXPECT_THAT(puma.text, HasSubstr("\n40 SP 4\n50 OB -1\n60 OB -3\n70 OB -5\n80 OB -7\n90 OB -9\n100 OB -10\n"
+                                   "110 OB -15\n120 OB +15\n130 OB +1\n140 TB -2,140\n150 TB -16,150\n160 OB +3\n"
+                                   "170 TB -4,170\n180 GO\n190 MO 1\n"));
+}
+
+// The refusals, each at the command's line, saying what a generated program does and how to run it instead.
+TEST_F(RobotProgramsTest, RefusesARunOfABeltWiredToNoControllerOutput) {
+  // The shipped cell: the input belt runs by coil 0 of the cell's I/O unit only.
+  const Scenario s = eye_scenario(dir_, "val2", "movemaster", read_file(kEye + "/eye.task"), kScenes + "/cell.yaml");
+  expect_refused(s, "eye.task", 13,
+                 "robot 'puma' (r1): 'accumulate input' cannot be written as a VAL II program: conveyor 'input' has "
+                 "no drive wired to a robot controller output (it runs by coil 0 of the cell's I/O unit); a generated "
+                 "program waits for a photo-eye wired to its controller's input");
+  expect_refused(s, "eye.task", 13, "Wire its drive to an output (`run_signal: n` in cell.yaml), or run the program "
+                                    "with twin run");
+}
+
+TEST_F(RobotProgramsTest, RefusesAWaitForAPhotoEyeWiredToNoControllerInput) {
+  // The eye without its input; no part is picked (a Pick of A would wait for the sensor: refused as before).
+  eye_cell_with(dir_, "{signal: 16, name: input_eye", "{name: input_eye");
+  const Scenario s = eye_scenario(dir_, "movemaster", "val2",
+                                  "robot r1 r2\nconveyor input\nsensor input_eye on input\nsequence r1\n"
+                                  "  accumulate input\n  wait input_eye\nend\n",
+                                  (dir_ / "cell.yaml").string());
+  expect_refused(s, "eye.task", 6,
+                 "robot 'puma' (r1): 'wait input_eye' cannot be written as a Movemaster EX program: photo-eye "
+                 "'input_eye' is wired to no robot controller input; a generated program waits for");
+}
+
+TEST_F(RobotProgramsTest, RefusesAWaitForADropEye) {
+  // The output conveyor's drop eye (output_eye) is on the cell's I/O unit only, and no drop eye can be on a wire.
+  // (Its belt's drive on output 14, so that the program can run it.)
+  eye_cell_with(dir_, "    io: {run: 1} ", "    run_signal: 14\n    io: {run: 1} ");
+  std::string program = read_file(kEye + "/eye.task");
+  program.replace(program.find("conveyor input\nsensor input_eye on input"), 40,
+                  "conveyor output\nsensor output_eye on output");
+  program.replace(program.find("accumulate input"), 16, "run output      ");
+  program.replace(program.find("wait input_eye  "), 16, "wait output_eye ");
+  const Scenario s = eye_scenario(dir_, "val2", "movemaster", program, (dir_ / "cell.yaml").string());
+  expect_refused(s, "eye.task", 14,
+                 "'wait output_eye' cannot be written as a VAL II program: photo-eye 'output_eye' is wired to no "
+                 "robot controller input (only a stop eye can be)");
+}
+
+TEST_F(RobotProgramsTest, RefusesAMachineCycle) {
+  // The PUMA puts A into the mill (D taken out of the cell) and starts it: the mill's start coil, busy and done are
+  // the cell's I/O unit's.
+  eye_cell_with(dir_, "  - {name: D, shape: cylinder", "  # - {name: D, shape: cylinder");
+  const Scenario s = eye_scenario(dir_, "val2", "movemaster",
+                                  "robot r1 r2\nworkpiece A\nmachine mill\nconveyor input\nsensor input_eye on input\n"
+                                  "sequence r1\n  accumulate input\n  wait input_eye\n  Pick A\n  Place mill\n"
+                                  "  start mill\nend\n",
+                                  (dir_ / "cell.yaml").string());
+  expect_refused(s, "eye.task", 11,
+                 "robot 'puma' (r1): 'start mill' cannot be written as a VAL II program: machine 'mill' is started "
+                 "and watched through the cell's I/O unit (its start coil, its busy and done inputs), which no robot "
+                 "controller drives");
+  expect_refused(s, "eye.task", 11, "Run the program with twin run (`--device mill=modbus:...` for the real machine)");
+}
+
+TEST_F(RobotProgramsTest, RefusesABeltRunByTwoControllers) {
+  const Scenario s = eye_scenario(dir_, "val2", "movemaster",
+                                  "robot r1 r2\nconveyor input\nsemaphore go\nsequence r1\n  run input\n"
+                                  "  signal go\nend\nsequence r2\n  wait go\n  stop input\nend\n");
+  expect_refused(s, "eye.task", 10,
+                 "robot 'melfa' (r2): 'stop input': conveyor 'input' is also run or stopped by robot 'puma' (r1)");
+}
+
+TEST_F(RobotProgramsTest, RefusesABeltDriveOnAnEventWire) {
+  const std::string cell = eye_cell_with(dir_, "    run_signal: 15 ", "    run_signal: 1  ");
+  const Scenario s = eye_scenario(dir_, "val2", "movemaster", read_file(kEye + "/eye.task"),
+                                  (dir_ / "cell.yaml").string());
+  expect_refused(s, "cell.yaml", line_of(cell, "    run_signal: 1  "),
+                 "output 1 runs conveyor 'input', but the program's events need the wires 1..");
+}
+
 TEST_F(RobotProgramsTest, SetLanguageRefusesBadSpecs) {
   Scenario s = load(kSmall);
   EXPECT_THROW(set_language(s, "puma", {"x", 0, 0}), InputError);

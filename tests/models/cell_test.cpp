@@ -455,6 +455,28 @@ TEST(CellErrors, SensorWiring) {
                line_of(shared, "sensor: {signal: 9}\nmachines"));
 }
 
+// A belt's drive on a robot controllers' output (`run_signal`, issue 26): one of the 16 signals, a wire of its own.
+TEST(CellErrors, RunSignalWiring) {
+  const std::string stop = with(base_yaml(), "    speed: 0.05\n", "    speed: 0.05\n    stop: true\n");
+  const std::string good = with(stop, "    stop: true\n", "    stop: true\n    sensor: {signal: 9}\n    run_signal: 8\n");
+  EXPECT_EQ(parse(good).find_conveyor("belt")->run_signal, 8);
+  EXPECT_EQ(parse(stop).find_conveyor("belt")->run_signal, 0);
+  const std::string range = with(good, "run_signal: 8", "run_signal: 17");
+  expect_error(range, "field 'run_signal' of conveyor 'belt' must be a whole number 1..16 (the cell's digital "
+               "signals), got 17", line_of(range, "run_signal"));
+  const std::string on_sensor = with(good, "run_signal: 8", "run_signal: 9");
+  expect_error(on_sensor, "conveyor 'belt': signal 9 is the sensor of conveyor 'belt' (line",
+               line_of(on_sensor, "run_signal"));
+  const std::string belt2 = "  - name: belt2\n    pose: {xyz: [-0.5, 0.55, 0], yaw: 0}\n    length: 1.2\n"
+                            "    width: 0.2\n    height: 0.5\n    speed: 0.05\n    stop: true\n";
+  const std::string shared = with(good, "machines:\n", belt2 + "    run_signal: 8\nmachines:\n");
+  expect_error(shared, "conveyor 'belt2': signal 8 is already the run_signal of conveyor 'belt' (line",
+               line_of(shared, "run_signal: 8\nmachines"));
+  const std::string sensor_on_run = with(good, "machines:\n", belt2 + "    sensor: {signal: 8}\nmachines:\n");
+  expect_error(sensor_on_run, "conveyor 'belt2': signal 8 is already the run_signal of conveyor 'belt' (line",
+               line_of(sensor_on_run, "sensor: {signal: 8}"));
+}
+
 // Devices on the cell's I/O unit: addresses 0..65535, each signal its own, photo-eyes named in the one name space.
 TEST(CellErrors, IoWiring) {
   const std::string stop = with(base_yaml(), "    speed: 0.05\n", "    speed: 0.05\n    stop: true\n");

@@ -37,6 +37,37 @@ std::string where_text(const SourceLocation& w) {
   return fmt::format("{}:{}:{}", file_name(w.file), w.line, w.column);
 }
 
+std::string language_name(models::DriverKind k) {
+  return k == models::DriverKind::kMovemaster ? "Movemaster EX" : "VAL II";
+}
+
+// Input n of a controller waited for: VAL II `WAIT SIG(1000+n)`; the Movemaster jumps back onto its own line while
+// input n is off (`TB -n,L`, L filled in when the lines are numbered).
+std::string wait_input(models::DriverKind k, int n) {
+  return k == models::DriverKind::kMovemaster ? fmt::format("TB -{},{{}}", n) : fmt::format("WAIT SIG({})", 1000 + n);
+}
+
+// Output n of a controller set on or off: VAL II `SIGNAL n` / `SIGNAL -n`, the Movemaster `OB +n` / `OB -n`.
+std::string set_output(models::DriverKind k, int n, bool on) {
+  return k == models::DriverKind::kMovemaster ? fmt::format("OB {}{}", on ? '+' : '-', n)
+                                              : fmt::format("SIGNAL {}{}", on ? "" : "-", n);
+}
+
+// What a generated program does with devices, for the refusals.
+constexpr const char* kGenerated =
+    "a generated program waits for a photo-eye wired to its controller's input (`sensor: {signal: n}`) and runs a "
+    "belt wired to its controller's output (`run_signal: n`); machines, and whatever is wired only to the cell's I/O "
+    "unit, are driven by the cell controller (twin run) or a PLC (docs/devices.md, \"Generated robot programs and the "
+    "I/O\")";
+
+// The stop eye named `name` of a conveyor of the cell (nullptr: none; a drop eye is not one).
+const models::ConveyorSpec* stop_eye_conveyor(const models::CellDescription& cell, const std::string& name) {
+  for (const models::ConveyorSpec& c : cell.conveyors) {
+    if (c.stop_eye && c.stop_eye_name == name) return &c;
+  }
+  return nullptr;
+}
+
 // How an event or region of the program is carried out.
 struct EventUse {
   std::vector<std::pair<std::size_t, std::size_t>> signals, waits;  // (program robot, primitive)
@@ -66,7 +97,9 @@ std::vector<IoChannel> assign_channels(const Scenario& s, std::set<std::string>&
     std::set<std::size_t> robots;
     for (const auto& [r, k] : u.signals) robots.insert(r);
     for (const auto& [r, k] : u.waits) robots.insert(r);
-    if (robots.empty()) continue;
+    // A device's states order its commands in the net; the device itself holds them (a waited eye is on or not):
+    // no wire. Its commands are written, or refused, one by one (Writer::device).
+    if (robots.empty() || !sem.device.empty()) continue;
     const std::string kind = sem.region ? "region" : sem.inserted ? "event" : "semaphore";
     if (sem.region) {
       if (robots.size() > 1) {
@@ -141,6 +174,7 @@ struct Writer {
   std::set<std::string> location_names;  // upper case (VAL II names are case-insensitive)
 
   std::vector<std::string> lines;  // program lines, not numbered yet
+  int eye_waited = 0;  // the input of the photo-eye the program waited for since its last move (0: none)
 
   bool movemaster() const { return language == models::DriverKind::kMovemaster; }
 
@@ -156,6 +190,62 @@ struct Writer {
   int add(const std::string& text) {
     lines.push_back(text);
     return static_cast<int>(lines.size()) - 1;
+  }
+
+  // Whether `event` is a device's state (a place of the net that the device itself holds: no line).
+  bool device_state(const std::string& event) const {
+    for (const task::Semaphore& sem : s.program.semaphores) {
+      if (sem.name == event) return !sem.device.empty();
+    }
+    return false;
+  }
+
+  // A device primitive on the robot controller's own wires: a wait for a photo-eye wired to its input, a belt run or
+  // stopped by its output; refused otherwise (a machine, a device on the cell's I/O unit only).
+  int device(const task::Primitive& p) {
+    const std::string head = fmt::format("robot '{}' ({}): '{}' cannot be written as a {} program: ", out.cell_robot,
+                                         out.robot, p.task, language_name(language));
+    switch (p.op) {
+      case task::DeviceOp::kAwaitOn: {
+        const models::ConveyorSpec* c = stop_eye_conveyor(s.cell, p.device);
+        if (c == nullptr || c->sensor == 0) {
+          throw InputError(p.where, fmt::format("{}photo-eye '{}' is wired to no robot controller input{}; {}. Wire "
+                                                "it to an input (a stop eye's `sensor: {{signal: n}}` in {}), or run "
+                                                "the program with twin run",
+                                                head, p.device, c == nullptr ? " (only a stop eye can be)" : "",
+                                                kGenerated, file_name(s.cell_file)));
+        }
+        eye_waited = c->sensor;
+        return add(wait_input(language, c->sensor));
+      }
+      case task::DeviceOp::kRun:
+      case task::DeviceOp::kAccumulate:
+      case task::DeviceOp::kStop: {
+        const models::ConveyorSpec* c = s.cell.find_conveyor(p.device);
+        CW_CHECK(c != nullptr, "device {} of a preflight that passed is no conveyor of the cell", p.device);
+        if (c->run_signal == 0) {
+          throw InputError(p.where,
+                           fmt::format("{}conveyor '{}' has no drive wired to a robot controller output{}; {}. Wire "
+                                       "its drive to an output (`run_signal: n` in {}), or run the program with "
+                                       "twin run",
+                                       head, p.device,
+                                       c->run_io.wired() ? fmt::format(" (it runs by coil {} of the cell's I/O unit)",
+                                                                       c->run_io.address)
+                                                         : std::string(),
+                                       kGenerated, file_name(s.cell_file)));
+        }
+        // Accumulating is the belt's own doing (its stop eye holds it): the program only runs it.
+        return add(set_output(language, c->run_signal, p.op != task::DeviceOp::kStop));
+      }
+      case task::DeviceOp::kStart:
+      case task::DeviceOp::kAwaitDone:
+        throw InputError(p.where, fmt::format("{}machine '{}' is started and watched through the cell's I/O unit "
+                                              "(its start coil, its busy and done inputs), which no robot controller "
+                                              "drives; {}. Run the program with twin run (`--device {}=modbus:...` "
+                                              "for the real machine)",
+                                              head, p.device, kGenerated, p.device));
+    }
+    throw InternalError(fmt::format("device operation {} not handled", static_cast<int>(p.op)));
   }
 
   // The name (VAL II) or number (Movemaster) of the location with these values, added when new.
@@ -196,16 +286,11 @@ struct Writer {
         return add(movemaster() ? "GC" : "CLOSEI");
       case PrimitiveKind::kSignal:
       case PrimitiveKind::kWait: {
-        if (local_regions.count(p.event) != 0) return -1;
+        if (local_regions.count(p.event) != 0 || device_state(p.event)) return -1;
         const IoChannel& c = *channel_of(p.event);
-        if (p.kind == PrimitiveKind::kSignal) {
-          return add(movemaster() ? fmt::format("OB +{}", c.channel) : fmt::format("SIGNAL {}", c.channel));
-        }
-        if (movemaster()) {
-          // Jumps back onto itself while input n is off: the controller waits here for the other's output.
-          return add(fmt::format("TB -{},{{}}", c.channel));
-        }
-        return add(fmt::format("WAIT SIG({})", 1000 + c.channel));
+        if (p.kind == PrimitiveKind::kSignal) return add(set_output(language, c.channel, true));
+        // The Movemaster jumps back onto itself while input n is off: it waits here for the other's output.
+        return add(wait_input(language, c.channel));
       }
       case PrimitiveKind::kLoop:
         // A loop needs a counter and a jump in the controller's language (and, with several robots, the leader's
@@ -214,14 +299,11 @@ struct Writer {
                                               "run from the cell controller only",
                                               out.robot, p.task, movemaster() ? "Movemaster EX" : "VAL II"));
       case PrimitiveKind::kDevice:
-        // Device actions go to the cell's I/O unit from the cell controller (runtime/device_control.hpp); a
-        // generated robot program does not drive the I/O.
-        throw InputError(p.where, fmt::format("robot '{}': '{}' cannot be written as a {} program: devices are "
-                                              "driven from the cell controller only",
-                                              out.robot, p.task, movemaster() ? "Movemaster EX" : "VAL II"));
+        return device(p);
       case PrimitiveKind::kMove:
         break;
     }
+    eye_waited = 0;
     if (p.target.kind == TargetKind::kPark) {
       throw InputError(p.where, fmt::format("robot '{}': '{}' cannot be written as a {} program yet: park poses are "
                                             "run from the cell controller only",
@@ -250,10 +332,6 @@ struct Writer {
     return add(fmt::format("MOVE {}", location(values, p.target)));
   }
 };
-
-std::string language_name(models::DriverKind k) {
-  return k == models::DriverKind::kMovemaster ? "Movemaster EX" : "VAL II";
-}
 
 }  // namespace
 
@@ -317,13 +395,40 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
   }
   result.check = check_text(pre.analysis, !prog.regions.empty());
 
-  // The sensors' inputs are wired to every controller: no event wire may use one's number.
+  // The sensors' inputs and the belts' drives are wired to every controller: no event wire may use their numbers.
   for (const models::ConveyorSpec& c : s.cell.conveyors) {
     if (c.sensor != 0 && c.sensor <= highest) {
       throw InputError(c.sensor_where,
                        fmt::format("input {} is the part-present sensor of conveyor '{}', but the program's events "
                                    "need the wires 1..{}; wire the sensor to a higher input",
                                    c.sensor, c.name, highest));
+    }
+    if (c.run_signal != 0 && c.run_signal <= highest) {
+      throw InputError(c.run_signal_where,
+                       fmt::format("output {} runs conveyor '{}', but the program's events need the wires 1..{}; "
+                                   "wire the belt's drive to a higher output",
+                                   c.run_signal, c.name, highest));
+    }
+  }
+  // A belt's drive hangs on one wire: one controller runs and stops it (two outputs on it could not stop it).
+  std::map<std::string, std::size_t> belt_driver;  // conveyor -> the program robot that runs it
+  for (std::size_t r = 0; r < prog.robots.size(); ++r) {
+    for (const task::Primitive& p : prog.programs[r].primitives) {
+      if (p.kind != PrimitiveKind::kDevice || p.op == task::DeviceOp::kStart || p.op == task::DeviceOp::kAwaitDone ||
+          p.op == task::DeviceOp::kAwaitOn) {
+        continue;
+      }
+      const models::ConveyorSpec* c = s.cell.find_conveyor(p.device);
+      if (c == nullptr || c->run_signal == 0) continue;  // refused where it stands (Writer::device)
+      const auto [it, first] = belt_driver.emplace(p.device, r);
+      if (!first && it->second != r) {
+        throw InputError(p.where,
+                         fmt::format("robot '{}' ({}): '{}': conveyor '{}' is also run or stopped by robot '{}' ({}); "
+                                     "its drive hangs on one wire, which one controller's output drives: let one "
+                                     "robot run and stop it",
+                                     s.robot_of(prog.robots[r]), prog.robots[r], p.task, p.device,
+                                     s.robot_of(prog.robots[it->second]), prog.robots[it->second]));
+      }
     }
   }
 
@@ -406,6 +511,12 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
     for (const IoChannel& c : result.channels) {
       if (c.from == label) outputs.push_back(c.channel);
     }
+    // The belts this robot runs (stopped at the start, as the net has them), by output.
+    std::map<int, const models::ConveyorSpec*> belts_here;
+    for (const auto& [conveyor, driver] : belt_driver) {
+      if (driver == r) belts_here.emplace(s.cell.find_conveyor(conveyor)->run_signal, s.cell.find_conveyor(conveyor));
+    }
+    for (const auto& [n, c] : belts_here) outputs.push_back(n);
     if (w.movemaster()) {
       for (const int n : outputs) w.add(fmt::format("OB -{}", n));
     } else if (!outputs.empty()) {
@@ -420,9 +531,9 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
       const std::string task_line = fmt::format("; {} {}", where_text(p.where), p.task);
       if (!w.movemaster() && task_line != last_task) w.add(task_line);
       last_task = task_line;
-      if (const auto it = sensor_waits.find({r, k}); it != sensor_waits.end()) {
-        const int n = it->second->sensor;
-        w.add(w.movemaster() ? fmt::format("TB -{},{{}}", n) : fmt::format("WAIT SIG({})", 1000 + n));
+      // (Not again when the program has just waited for that eye itself: `wait S` before the Pick.)
+      if (const auto it = sensor_waits.find({r, k}); it != sensor_waits.end() && w.eye_waited != it->second->sensor) {
+        w.add(wait_input(w.language, it->second->sensor));
       }
       w.out.primitive_line.push_back(w.primitive(p, plan.commands[r][k], chain));
     }
@@ -451,13 +562,23 @@ RobotPrograms generate_robot_programs(const Scenario& s, const cell::Preflight& 
       header.push_back(fmt::format("{} I/O {}: {} = {} {} {} ({})", c, ch.channel, io, ch.event,
                                    out_here ? "to" : "from", other, out_here ? ch.to : ch.from));
     }
-    std::set<const models::ConveyorSpec*> sensors_here;
+    // The photo-eyes it waits for (before a move to a part its belt brings, or at `wait S`) and the belts it runs.
+    std::map<int, const models::ConveyorSpec*> eyes_here;
     for (const auto& [at, conveyor] : sensor_waits) {
-      if (at.first != r || !sensors_here.insert(conveyor).second) continue;
-      const int n = conveyor->sensor;
+      if (at.first == r) eyes_here.emplace(conveyor->sensor, conveyor);
+    }
+    for (const task::Primitive& p : prims) {
+      if (p.kind != PrimitiveKind::kDevice || p.op != task::DeviceOp::kAwaitOn) continue;
+      if (const models::ConveyorSpec* eye = stop_eye_conveyor(s.cell, p.device)) eyes_here.emplace(eye->sensor, eye);
+    }
+    for (const auto& [n, conveyor] : eyes_here) {
+      const std::string wait = wait_input(w.language, n);
       header.push_back(fmt::format("{} I/O {}: {} = a part at the stop of conveyor {} (its sensor)", c, n,
-                                   w.movemaster() ? fmt::format("TB -{}", n) : fmt::format("WAIT SIG({})", 1000 + n),
-                                   conveyor->name));
+                                   wait.substr(0, wait.find(',')), conveyor->name));
+    }
+    for (const auto& [n, conveyor] : belts_here) {
+      header.push_back(fmt::format("{} I/O {}: {} / {} = run / stop conveyor {} (its drive)", c, n,
+                                   set_output(w.language, n, true), set_output(w.language, n, false), conveyor->name));
     }
     if (!local_regions.empty()) {
       std::string names;

@@ -86,8 +86,13 @@ struct EmulatedCell::Impl {
   bool stopping = false;
   std::atomic<bool> stop_requested{false};  // the same, read by the serving loop without the lock
 
-  // Steps the World by dt (on the simulation thread).
+  // Steps the World by dt (on the simulation thread); first a belt whose drive hangs on a controller's output
+  // (`run_signal`) is run or stopped as that wire is now.
   void advance(std::chrono::nanoseconds dt) {
+    const auto& conveyors = scenario.cell.conveyors;
+    for (std::size_t c = 0; c < conveyors.size(); ++c) {
+      if (conveyors[c].run_signal != 0) world->set_belt_run(c, world->signals().get(conveyors[c].run_signal));
+    }
     plant->advance(dt);
     sim_ns = world->now().count();
   }

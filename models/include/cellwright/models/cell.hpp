@@ -173,6 +173,12 @@ struct ConveyorSpec {
   int sensor = 0;
   SourceLocation where;
   SourceLocation sensor_where;  // of the `signal` value, for errors about the wiring
+  // The robot controllers' output that runs the belt (`run_signal: n`, 1..16), 0: none. A wire of the cell like a
+  // sensor's, the other way: the generated robot programs (cell/plan/robot_programs.hpp) run and stop the belt by
+  // setting output n, and the emulated cell (cell/sim/emulated_cell.hpp) runs the twin's belt while signal n is on.
+  // `twin run` drives the belt through `run_io` instead (device control).
+  int run_signal = 0;
+  SourceLocation run_signal_where;
 
   // Devices on the cell's I/O unit (drivers/digital_io.hpp; docs/cell-description.md, "io").
   IoAddress run_io;  // the coil that runs the belt (on: running)

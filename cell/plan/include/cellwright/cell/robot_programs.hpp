@@ -27,6 +27,15 @@
 // put its parts there, ordered by the program's events). Event wires count up from 1; a sensor's input must lie above
 // them.
 //
+// Devices (issue 26; docs/devices.md, "Generated robot programs and the I/O"): a program runs on its controller
+// alone, so a device command is written only when the cell wires the device to the controllers' own I/O. `wait S`, S
+// a conveyor's stop eye on input n (ConveyorSpec::sensor), waits on that input as above (and the next move does not
+// wait for it again); `run C` / `accumulate C` / `stop C`, C a conveyor whose drive is on output n
+// (ConveyorSpec::run_signal), set output n on / off (VAL II `SIGNAL n` / `SIGNAL -n`, Movemaster `OB +n` / `OB -n`;
+// turned off in the set-up, as the net starts belts stopped). A device's states (task::Semaphore::device) are no
+// wires: the device holds them. Refused: a machine's start and wait (its coil and inputs are on the cell's I/O unit),
+// a photo-eye on no controller input, a belt without run_signal, a belt run or stopped by two robots.
+//
 // Output is deterministic: the same inputs give the same bytes (no date, file names without directories).
 //
 // Thread safety: pure functions of their arguments; any thread may call them.
@@ -100,7 +109,9 @@ void set_language(cell::Scenario& scenario, const std::string& spec, const Sourc
 //    conveyor's line in the cell, the robot and the task line), a class's location lies on a running belt where no
 //    part comes to rest (no stop, or more than 0.25 m before the stop bar: naming the location's line), a robot goes
 //    to a named part after it was let go of on a running belt (cell::MotionPlan::belt_rides: naming the move's task
-//    line), or a sensor's input is one of the event wires' channels (naming the sensor's line);
+//    line), or a sensor's input or a belt's run_signal is one of the event wires' channels (naming its line);
+//  - a device command the robot controllers are not wired for (see Devices above; naming the command's line and
+//    saying what is generated and how to run the program instead), or a belt run or stopped by two robots;
 //  - a Movemaster move needs a tool pose the 5-axis rule cannot express (its approach axis out of the arm's vertical
 //    plane by more than 0.5°, or the tool point on the base's z axis).
 RobotPrograms generate_robot_programs(const cell::Scenario& scenario, const cell::Preflight& preflight);

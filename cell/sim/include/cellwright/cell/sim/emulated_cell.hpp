@@ -8,7 +8,9 @@
 // simulation thread; for each emulated robot, its SimDriver behind an emulate::DriverArm, and the emulator of its
 // language (Movemaster EX, VAL II) serving its link on a thread of its own, which is the SimDriver's owner. Robots
 // that are not emulated hold where they are. The robots' digital I/O is the World's signal table: an output one
-// controller sets (VAL II `SIGNAL n`) is input n of every other (`WAIT SIG(1000+n)`).
+// controller sets (VAL II `SIGNAL n`) is input n of every other (`WAIT SIG(1000+n)`). A conveyor whose drive the cell
+// wires to the controllers' output n (`run_signal: n`) runs while signal n is on and stands still while it is off,
+// from the start and whatever its coil on the I/O below says; the other belts run from the start (or by their coil).
 //
 // THE I/O, IN VIRTUAL TIME (options.io). The World's TwinIo (twin/sim/twin_io.hpp: the coils and discrete inputs the
 // cell description wires, any other address refused with exception 2) behind an emulate::ModbusServer. Requests are

@@ -76,8 +76,10 @@ drivers::FaultPlan driver_plan(const Scenario& s, const std::string& robot) {
 }
 
 // A real I/O unit whose coils are also written into the twin's I/O image, so that the twin mirrors the real devices:
-// reads are the real unit's; a coil written there is written into the twin after it (the twin refusing it changes
-// nothing for the controller, which drives the real unit).
+// reads are the real unit's; a coil written there is written into the twin after it, and so is a coil read there
+// (device control reads every belt's run coil each period, so the twin's belt follows the real one from the first
+// period on, whatever state the unit started in or whoever else switched it). The twin refusing it changes nothing
+// for the controller, which drives the real unit.
 class MirroredIo final : public drivers::DigitalIo {
  public:
   MirroredIo(std::unique_ptr<drivers::DigitalIo> real, drivers::DigitalIo& twin) : real_(std::move(real)), twin_(twin) {}
@@ -91,7 +93,13 @@ class MirroredIo final : public drivers::DigitalIo {
     return r;
   }
   drivers::IoResult read_coils(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) override {
-    return real_->read_coils(first, count, values);
+    const drivers::IoResult r = real_->read_coils(first, count, values);
+    if (r.ok()) {
+      for (std::size_t i = 0; i < values.size(); ++i) {
+        (void)twin_.write_coil(static_cast<std::uint16_t>(first + i), values[i]);
+      }
+    }
+    return r;
   }
   drivers::IoResult read_inputs(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) override {
     return real_->read_inputs(first, count, values);
@@ -437,6 +445,12 @@ void ScenarioRun::wire_devices(runtime::RunConfig& config, const std::vector<std
   runtime::IoUnit twin{twin_io_.get(), false, {}};
   for (const runtime::DeviceWiring& w : all) {
     if (taken.count(w.name) == 0) twin.devices.push_back(w);
+  }
+  // A belt the program declares is the program's: it starts stopped, as the program's net has it (`C.stopped`) and as
+  // a PLC's outputs are at power-up, and runs when the program runs it. (Belts no program drives run from the start,
+  // as they always did.) A belt on a real unit then follows that unit's coil (MirroredIo).
+  for (std::size_t c = 0; c < scenario_.cell.conveyors.size(); ++c) {
+    if (task::declares_device(scenario_.program, scenario_.cell.conveyors[c].name)) world_->set_belt_run(c, false);
   }
   units.insert(units.begin(), std::move(twin));
   config.io_units = std::move(units);

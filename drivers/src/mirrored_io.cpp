@@ -34,7 +34,13 @@ IoResult MirroredIo::write_coil(std::uint16_t address, bool value) {
 }
 
 IoResult MirroredIo::read_coils(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) {
-  return real_->read_coils(first, count, values);
+  const IoResult r = real_->read_coils(first, count, values);
+  if (r.ok()) {
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      (void)mirror_.write_coil(static_cast<std::uint16_t>(first + i), values[i]);
+    }
+  }
+  return r;
 }
 
 IoResult MirroredIo::read_inputs(std::uint16_t first, std::uint16_t count, std::vector<bool>& values) {

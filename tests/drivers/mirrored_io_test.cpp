@@ -51,6 +51,18 @@ TEST(MirroredIo, AWriteTheRealUnitTakesIsMirroredAndOneItRefusesIsNot) {
   EXPECT_FALSE(p.mirror.coil(0));
 }
 
+TEST(MirroredIo, ACoilReadFromTheRealUnitIsShownOnTheMirror) {
+  // Someone else (the PLC's own logic) stopped the belt: the next read shows it in the mirror.
+  Pair p;
+  ASSERT_TRUE(p.unit->connect().ok());
+  ASSERT_TRUE(p.unit->write_coil(0, true).ok());
+  ASSERT_TRUE(p.real->write_coil(0, false).ok());
+  std::vector<bool> v;
+  ASSERT_TRUE(p.unit->read_coils(0, 1, v).ok());
+  EXPECT_FALSE(v.at(0));
+  EXPECT_FALSE(p.mirror.coil(0));
+}
+
 TEST(MirroredIo, ReadsAndTheLinksStateAreTheRealUnits) {
   Pair p;
   EXPECT_FALSE(p.unit->is_open());

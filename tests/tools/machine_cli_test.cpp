@@ -1,7 +1,8 @@
-// scenes/machine.yaml as a user runs it (issue 26): the PUMA clears the mill, loads it with A, starts its cycle, waits
-// for it, unloads A and hands it over; the MELFA puts it on the output conveyor. On the twin's devices in lock-step,
-// and with the mill on Modbus TCP against `twin emulate io` (the emulated PLC, a process of its own) in real time;
-// a mill that never finishes stops the cell, and a device that cannot be used is refused before anything runs.
+// scenes/machine.yaml as a user runs it (issue 26): the PUMA runs the input belt, clears the mill, loads it with A,
+// starts its cycle, waits for it, unloads A and hands it over; the MELFA puts it on the stopped output belt, runs it
+// and waits for the drop eye. On the twin's devices in lock-step; with the mill, and with the mill and both belts, on
+// Modbus TCP against `twin emulate io` (the emulated PLC, a process of its own) in real time; a mill that never
+// finishes stops the cell, and a device that cannot be used is refused before anything runs.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -10,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tools/twin_cli.hpp"
@@ -43,6 +45,23 @@ std::vector<std::string> mill_states(const fs::path& file) {
     if (e["device"] == "mill") out.push_back(e["state"].get<std::string>() + ":" + e["workpiece"].get<std::string>());
   }
   return out;
+}
+
+// A device's states in order ("stopped", "running", ...).
+std::vector<std::string> states_of(const fs::path& file, const std::string& device) {
+  std::vector<std::string> out;
+  for (const auto& e : events_of(file, "device")) {
+    if (e["device"] == device) out.push_back(e["state"].get<std::string>());
+  }
+  return out;
+}
+
+// The time of a robot's command `command`'s start, and the unit its detail names; -1 and "" when it never started.
+std::pair<double, std::string> command_started(const fs::path& file, const std::string& command) {
+  for (const auto& e : events_of(file, "command_start")) {
+    if (e["command"] == command) return {e["t"].get<double>(), e["detail"].get<std::string>()};
+  }
+  return {-1, ""};
 }
 
 // `twin emulate io` on a free port: the mill busy `process` seconds, its part taken out 1 s after done.
@@ -89,6 +108,20 @@ TEST(MachineCli, InLockStepTheMillProcessesAAndEveryDeviceStateIsLogged) {
   }
   EXPECT_NEAR(done - busy, 5.0, 0.02);
   EXPECT_TRUE(events_of(log, "fault_detected").empty());
+  // Both belts are the program's: stopped until it runs them. The input belt runs first (and stops itself once A
+  // rests at its stop); the output belt only after the MELFA has put A down on it, and the drop eye then sees A.
+  const auto run_input = command_started(log, "device input accumulate");
+  const auto run_output = command_started(log, "device output accumulate");
+  const auto output_eye = command_started(log, "device output_eye await on");
+  EXPECT_EQ(run_input.second, "twin input");
+  EXPECT_EQ(run_output.second, "twin output");
+  EXPECT_GT(run_output.first, done);
+  EXPECT_GT(output_eye.first, run_output.first);
+  EXPECT_EQ(states_of(log, "output"), (std::vector<std::string>{"stopped", "running"}));
+  // The input belt is run in the program's first round (0.01 s), before device control first logs the belts.
+  EXPECT_EQ(run_input.first, 0.01);
+  EXPECT_EQ(states_of(log, "input"), (std::vector<std::string>{"running"}));
+  EXPECT_THAT(states_of(log, "output_eye"), ::testing::Contains("on"));
   // The same bytes again.
   const fs::path again = cli.dir() / "again";
   ASSERT_EQ(cli.run("run " + shell_quote(kScenario) + " -o " + shell_quote(again.string()) + " --quiet").status, 0);
@@ -117,6 +150,42 @@ TEST(MachineCli, WithTheMillOnModbusAgainstAnEmulatedPlcTheRunFinishesTheSame) {
     }
   }
   EXPECT_TRUE(on_modbus);
+  EXPECT_EQ(plc.twin.stop(), 0) << plc.twin.output();
+}
+
+// What a user checks of a run with devices on a Modbus unit at `port`: it passed, A processed and on the output belt,
+// D aside, each device in `on_modbus` commanded on the unit (the command's detail names it), and the twin's belts
+// followed the unit's coils (the output belt ran only once the program ran it).
+void expect_cell_done_on_modbus(const cellwright::testing::Outcome& r, const fs::path& log, const std::string& port,
+                                const std::vector<std::pair<std::string, std::string>>& on_modbus) {
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
+  EXPECT_THAT(r.out, HasSubstr("ok   D: expected aside, is aside"));
+  EXPECT_THAT(r.out, HasSubstr("1 finished; processed A")) << r.out;
+  for (const auto& [command, device] : on_modbus) {
+    EXPECT_EQ(command_started(log, command).second, "modbus 127.0.0.1:" + port + " unit 1 " + device) << command;
+  }
+  EXPECT_THAT(states_of(log, "output"), ::testing::Contains("running"));
+  EXPECT_TRUE(events_of(log, "fault_detected").empty());
+}
+
+TEST(MachineCli, WithTheMillAndBothBeltsOnModbusAgainstAnEmulatedPlcTheRunFinishesTheSame) {
+  EmulatedPlc plc("1.25");
+  ASSERT_FALSE(plc.port.empty());
+  TwinCli cli("machine-belts-modbus");
+  const fs::path out = cli.dir() / "out";
+  const std::string unit = "=modbus:127.0.0.1:" + plc.port;
+  const auto r = cli.run("run " + shell_quote(kScenario) + " --realtime --speed 4 --device mill" + unit +
+                         " --device input" + unit + " --device output" + unit + " -o " + shell_quote(out.string()) +
+                         " --quiet");
+  const fs::path log = out / "events.jsonl";
+  expect_cell_done_on_modbus(r, log, plc.port,
+                             {{"device mill start", "mill"},
+                              {"device input accumulate", "input"},
+                              {"device output accumulate", "output"}});
+  // The emulated PLC's coils start off: the output belt, read from it, is stopped until the MELFA runs it (the input
+  // belt is run in the program's first round: whether device control reads it before is the wall clock's).
+  EXPECT_EQ(states_of(log, "output"), (std::vector<std::string>{"stopped", "running"}));
   EXPECT_EQ(plc.twin.stop(), 0) << plc.twin.output();
 }
 
@@ -151,7 +220,9 @@ TEST(MachineCli, ADeviceThatCannotBeUsedIsRefusedBeforeAnythingRuns) {
       {run + "--realtime --device mill=modbus:127.0.0.1", "modbus:127.0.0.1"},
       {run + "--realtime --device mill", "expected NAME=modbus:HOST:PORT[/UNIT]"},
       {run + "--realtime --device mill=modbus:127.0.0.1:1 --device mill=modbus:127.0.0.1:1", "given twice"},
-      {run + "--realtime --device output=modbus:127.0.0.1:1", "does not declare device 'output'"},
+      // machine.task declares every device the cell wires; exchange.task none.
+      {"run " + shell_quote(source_path("scenes/exchange.yaml")) + " --realtime --device output=modbus:127.0.0.1:1",
+       "does not declare device 'output'"},
       {run + "--realtime --device mill=modbus:127.0.0.1:1", "cannot be reached"},
   };
   for (const auto& c : cases) {

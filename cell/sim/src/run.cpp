@@ -416,6 +416,12 @@ void ScenarioRun::wire_devices(runtime::RunConfig& config, const std::vector<std
   for (const runtime::DeviceWiring& w : all) {
     if (taken.count(w.name) == 0) twin.devices.push_back(w);
   }
+  // A belt the program declares is the program's: it starts stopped, as the program's net has it (`C.stopped`) and as
+  // a PLC's outputs are at power-up, and runs when the program runs it. (Belts no program drives run from the start,
+  // as they always did.) A belt on a real unit then follows that unit's coil (MirroredIo).
+  for (std::size_t c = 0; c < scenario_.cell.conveyors.size(); ++c) {
+    if (task::declares_device(scenario_.program, scenario_.cell.conveyors[c].name)) world_->set_belt_run(c, false);
+  }
   units.insert(units.begin(), std::move(twin));
   config.io_units = std::move(units);
 }

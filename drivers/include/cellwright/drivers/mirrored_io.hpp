@@ -6,7 +6,9 @@
 // refuses an address changes nothing for it). connect() connects the real unit and then copies into the mirror the
 // real unit's value of every coil named with mirror_coil(), so that a belt a PLC left stopped is stopped in the mirror
 // too, at the start of a run and again after a reconnect; a coil that cannot be read then is left as the mirror has
-// it (the run's own requests meet that failure). Inputs are not copied: the mirror's inputs are its own (the twin's
+// it (the run's own requests meet that failure). Coils read from the real unit are written into the mirror too (device
+// control reads every belt's run coil each period, so the mirror follows whoever else switches it). Inputs are not
+// copied: the mirror's inputs are its own (the twin's
 // sensors), and the controller reads the real ones.
 //
 // THREADS. The DigitalIo rule: one owner calls it. The mirror must be open (connected by its owner) before this unit

@@ -3,9 +3,12 @@
 
 #include <fmt/format.h>
 
+#include <map>
+#include <memory>
 #include <utility>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/drivers/modbus/modbus_io.hpp"
 #include "cellwright/cell/commissioning.hpp"
 #include "cellwright/cell/real_drivers.hpp"
 #include "cellwright/cell/run_wiring.hpp"
@@ -27,6 +30,19 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
                                             "twin moves real robots only: give it one with --driver {}=movemaster:PORT "
                                             "or --driver {}=val2:PORT",
                                             b.name, b.label, b.name, b.name));
+    }
+  }
+  // Every device of the program on real I/O: a run without the twin has no twin I/O image.
+  const std::vector<runtime::DeviceWiring> wired = cell_devices(s.cell);
+  for (const runtime::DeviceWiring& w : wired) {
+    if (!task::declares_device(s.program, w.name)) continue;
+    const DeviceChoice* choice = find_device_choice(s, w.name);
+    if (choice == nullptr || !choice->real()) {
+      throw InputError(choice != nullptr ? choice->where : SourceLocation{s.source.string(), 0, 0},
+                       fmt::format("device '{}' of the program {} is on the twin's I/O, and a run without the twin "
+                                   "has no twin I/O: give it --device {}=modbus:HOST:PORT[/UNIT] (or `devices: {{{}: "
+                                   "modbus:HOST:PORT}}` in the scenario)",
+                                   w.name, s.program_file.filename().string(), w.name, w.name));
     }
   }
   if (s.feed) {
@@ -68,6 +84,20 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
     robots_.push_back({b.label, b.name,
                        fmt::format("{} on {}", to_string(choice.kind), choice.serial ? choice.serial->port : ""),
                        driver.capabilities().senses_grip});
+  }
+  // One Modbus unit per endpoint, with the program's devices on it (connected when the run starts: InputError naming
+  // the unit when one cannot be reached).
+  std::map<std::string, std::size_t> unit_of;
+  for (const runtime::DeviceWiring& w : wired) {
+    const DeviceChoice* choice = find_device_choice(s, w.name);
+    if (choice == nullptr || !choice->real() || !task::declares_device(s.program, w.name)) continue;
+    auto [it, fresh] = unit_of.emplace(choice->modbus->str(), config.io_units.size());
+    if (fresh) {
+      io_.push_back(std::make_unique<drivers::ModbusIo>(*choice->modbus, drivers::ModbusIoOptions{}, choice->where));
+      config.io_units.push_back(runtime::IoUnit{io_.back().get(), true, {}});
+    }
+    config.io_units[it->second].devices.push_back(w);
+    devices_.push_back({w.name, io_[it->second]->describe()});
   }
   config.plant = nullptr;  // nothing simulated: the robots move by themselves
   config.mode = runtime::Mode::kRealtime;

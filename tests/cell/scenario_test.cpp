@@ -270,6 +270,76 @@ TEST_F(ScenarioFiles, DriverUnknown) {
                "'kuka', which is not a robot of the cell");
 }
 
+// machine.task's bindings and places (as scenes/machine.yaml has them): lines 3 to 7; the caller's lines follow from 8.
+const std::string kMachineHead =
+    "robots: {r1: puma, r2: melfa}\nbind: {OUT: output_drop, ASIDE: aside}\nlocations:\n"
+    "  - {name: aside, at: mill.fixture, offset: [0, -0.12, -0.03], yaw: 90}\n"
+    "  - {name: mill_slot, at: mill.fixture, yaw: 90, grasp_height: 0.05}\n";
+
+TEST_F(ScenarioFiles, DevicesPutEachOnTheTwinOrAModbusUnit) {
+  const Scenario s =
+      load_scenario(scenario(kMachineHead + "devices: {mill: 'modbus:127.0.0.1:1502/3', input: twin}\n", "machine.task"));
+  ASSERT_EQ(s.devices.size(), 2u);
+  EXPECT_EQ(s.devices[0].device, "mill");
+  ASSERT_TRUE(s.devices[0].real());
+  EXPECT_EQ(s.devices[0].modbus->host, "127.0.0.1");
+  EXPECT_EQ(s.devices[0].modbus->port, 1502);
+  EXPECT_EQ(s.devices[0].modbus->unit, 3);
+  EXPECT_EQ(s.devices[0].where.line, 8);
+  EXPECT_EQ(s.devices[1].device, "input");
+  EXPECT_FALSE(s.devices[1].real());
+  EXPECT_TRUE(uses_real_devices(s));
+  EXPECT_EQ(find_device_choice(s, "input_eye"), nullptr);  // on the twin by default
+  // Without the key every device is the twin's.
+  EXPECT_FALSE(uses_real_devices(load_scenario(scenario(kMachineHead, "machine.task"))));
+}
+
+TEST_F(ScenarioFiles, DevicesErrors) {
+  const auto error = [&](const std::string& devices, const std::string& text) {
+    expect_error(scenario(kMachineHead + devices, "machine.task"), 8, text);
+  };
+  error("devices: {drill: 'modbus:127.0.0.1:1502'}\n",
+        "the cell cell.yaml has no device 'drill' (its machines, conveyors and photo-eyes: mill, input, input_eye, "
+        "output, output_end, output_eye)");
+  error("devices: {output_end: 'modbus:127.0.0.1:1502'}\n",
+        "device 'output_end' is not wired to I/O in the cell cell.yaml: photo-eye 'output_end' of conveyor 'output' "
+        "needs `io: INPUT`");
+  error("devices: {output: 'modbus:127.0.0.1:1502'}\n", "the program machine.task does not declare device 'output'");
+  error("devices: {mill: 'modbus:127.0.0.1'}\n", "'modbus:127.0.0.1': the port is missing");
+  error("devices: {mill: 'modbus:127.0.0.1:1502/300'}\n", "the unit '300' is not a number within 0..247");
+  error("devices: {mill: plc}\n", "device 'mill': the unit must be twin or modbus:HOST:PORT[/UNIT], got 'plc'");
+  error("devices: {mill: twin, mill: twin}\n", "'mill' is given twice");
+  error("devices: [mill]\n", "must be a mapping of names");
+}
+
+TEST_F(ScenarioFiles, CommandLineDeviceReplacesOrAddsToTheScenariosChoice) {
+  Scenario s = load_scenario(scenario(kMachineHead + "devices: {mill: twin, input: 'modbus:10.0.0.1:502'}\n",
+                                      "machine.task"));
+  const SourceLocation cli{"--device", 0, 0};
+  set_devices(s, {"mill=modbus:127.0.0.1:1502", "input_eye=modbus:127.0.0.1:1502/2", "input=twin"}, cli);
+  ASSERT_EQ(s.devices.size(), 3u);
+  ASSERT_TRUE(find_device_choice(s, "mill")->real());
+  EXPECT_EQ(find_device_choice(s, "mill")->modbus->str(), "127.0.0.1:1502 unit 1");
+  EXPECT_EQ(find_device_choice(s, "mill")->where.file, "--device");
+  EXPECT_EQ(find_device_choice(s, "input_eye")->modbus->unit, 2);
+  EXPECT_FALSE(find_device_choice(s, "input")->real());
+  const auto refused = [&](const std::vector<std::string>& specs, const std::string& text) {
+    try {
+      set_devices(s, specs, cli);
+      ADD_FAILURE() << specs.back() << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.where().file, "--device");
+      EXPECT_THAT(e.what(), HasSubstr(text));
+    }
+  };
+  refused({"mill"}, "'mill': expected NAME=modbus:HOST:PORT[/UNIT] or NAME=twin");
+  refused({"drill=twin"}, "'drill=twin': the cell cell.yaml has no device 'drill'");
+  refused({"output_end=twin"}, "not wired to I/O");
+  refused({"output=modbus:127.0.0.1:1"}, "does not declare device 'output'");
+  refused({"mill=modbus:127.0.0.1"}, "the port is missing");
+  refused({"mill=twin", "mill=modbus:127.0.0.1:1"}, "device 'mill' is given twice");
+}
+
 TEST_F(ScenarioFiles, FeedErrors) {
   const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
   expect_error(scenario(head + "feed: {conveyor: belt, workpieces: [A]}\n"), 5, "conveyor 'belt' is not a conveyor");

@@ -64,21 +64,38 @@ std::pair<double, std::string> command_started(const fs::path& file, const std::
   return {-1, ""};
 }
 
-// `twin emulate io` on a free port: the mill busy `process` seconds, its part taken out 1 s after done.
+// `twin emulate io` on a free port: the mill busy `process` seconds, its part taken out 1 s after done; `more`: further
+// options (a photo-eye's changes).
 struct EmulatedPlc {
-  explicit EmulatedPlc(const std::string& process)
-      : twin({"emulate", "io", "--listen", "127.0.0.1:0", "--process-time", process, "--take-out-after", "1"}) {
+  explicit EmulatedPlc(const std::string& process, const std::vector<std::string>& more = {})
+      : twin(with(more, {"emulate", "io", "--listen", "127.0.0.1:0", "--process-time", process, "--take-out-after",
+                         "1"})) {
     EXPECT_TRUE(twin.wait_for("Ctrl-C to stop\n", 20s)) << twin.output();
     std::smatch m;
     const std::string out = twin.output();
     EXPECT_TRUE(std::regex_search(out, m, std::regex("at 127\\.0\\.0\\.1:([0-9]+), unit 1"))) << out;
     port = m[1].str();
   }
+  static std::vector<std::string> with(const std::vector<std::string>& more, std::vector<std::string> args) {
+    args.insert(args.end(), more.begin(), more.end());
+    return args;
+  }
   BackgroundTwin twin;
   std::string port;
 };
 
 const std::string kScenario = source_path("scenes/machine.yaml");
+
+// scenes/machine.yaml written into `dir` with the cell and program by absolute path and `extra` lines added at its end
+// (line 27 on).
+fs::path machine_with(const fs::path& dir, const std::string& extra) {
+  std::string yaml = slurp(kScenario);
+  yaml.replace(yaml.find("cell: cell.yaml"), 15, "cell: " + source_path("scenes/cell.yaml"));
+  yaml.replace(yaml.find("program: machine.task"), 21, "program: " + source_path("scenes/machine.task"));
+  const fs::path file = dir / "machine_devices.yaml";
+  std::ofstream(file) << yaml << extra;
+  return file;
+}
 
 TEST(MachineCli, InLockStepTheMillProcessesAAndEveryDeviceStateIsLogged) {
   TwinCli cli("machine-lockstep");
@@ -216,7 +233,8 @@ TEST(MachineCli, ADeviceThatCannotBeUsedIsRefusedBeforeAnythingRuns) {
     std::string message;
   } cases[] = {
       {run + "--device mill=modbus:127.0.0.1:1502", "a real device runs on the wall clock"},
-      {run + "--realtime --device drill=modbus:127.0.0.1:1502", "has no device 'drill' wired to I/O"},
+      {run + "--realtime --device drill=modbus:127.0.0.1:1502", "has no device 'drill'"},
+      {run + "--realtime --device output_end=modbus:127.0.0.1:1502", "is not wired to I/O"},
       {run + "--realtime --device mill=modbus:127.0.0.1", "modbus:127.0.0.1"},
       {run + "--realtime --device mill", "expected NAME=modbus:HOST:PORT[/UNIT]"},
       {run + "--realtime --device mill=modbus:127.0.0.1:1 --device mill=modbus:127.0.0.1:1", "given twice"},
@@ -230,6 +248,64 @@ TEST(MachineCli, ADeviceThatCannotBeUsedIsRefusedBeforeAnythingRuns) {
     EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;
     EXPECT_THAT(r.err, HasSubstr(c.message)) << c.args;
   }
+}
+
+// The scenario's own `devices:` key does what --device does: the mill on the emulated PLC, its commands on Modbus.
+TEST(MachineCli, TheScenariosDevicesKeyPutsTheMillOnModbus) {
+  EmulatedPlc plc("1.25");
+  ASSERT_FALSE(plc.port.empty());
+  TwinCli cli("machine-devices-key");
+  const fs::path scenario = machine_with(cli.dir(), "devices: {mill: 'modbus:127.0.0.1:" + plc.port + "'}\n");
+  // Lock-step is refused, at the key's line.
+  const auto lockstep = cli.run("run " + shell_quote(scenario.string()) + " --quiet");
+  EXPECT_EQ(lockstep.status, 2) << lockstep.out << lockstep.err;
+  EXPECT_THAT(lockstep.err, HasSubstr("machine_devices.yaml:27"));
+  EXPECT_THAT(lockstep.err, HasSubstr("device 'mill' is on real I/O (modbus 127.0.0.1:" + plc.port +
+                                      " unit 1): a real device runs on the wall clock"));
+  const fs::path out = cli.dir() / "out";
+  const auto r = cli.run("run " + shell_quote(scenario.string()) + " --realtime --speed 4 -o " +
+                         shell_quote(out.string()) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("ok   A: expected output, is output"));
+  const fs::path log = out / "events.jsonl";
+  bool on_modbus = false;
+  for (const auto& e : events_of(log, "command_start")) {
+    if (e["command"] == "device mill start") on_modbus = e["detail"] == "modbus 127.0.0.1:" + plc.port + " unit 1 mill";
+  }
+  EXPECT_TRUE(on_modbus);
+  const auto states = mill_states(log);
+  ASSERT_GE(states.size(), 3u);
+  EXPECT_EQ(states[2], "done:A");
+  // --device puts it back on the twin, lock-step as the scene is.
+  const auto twin = cli.run("run " + shell_quote(scenario.string()) + " --device mill=twin --quiet");
+  EXPECT_EQ(twin.status, 0) << twin.out << twin.err;
+  EXPECT_EQ(plc.twin.stop(), 0) << plc.twin.output();
+}
+
+// `--dry` reads every input of each device on real I/O and writes no output: the mill's busy and done, the eye's
+// input (on: the emulated PLC's photo-eye is on from the start).
+TEST(MachineCli, DryReadsEveryInputOfEachRealDevice) {
+  EmulatedPlc plc("1000", {"--input", "0:0=1"});
+  ASSERT_FALSE(plc.port.empty());
+  TwinCli cli("machine-dry");
+  const std::string unit = "modbus:127.0.0.1:" + plc.port;
+  const auto r = cli.run("run " + shell_quote(kScenario) + " --dry --device mill=" + unit +
+                         " --device input_eye=" + unit + " --device input=" + unit);
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("mill on modbus 127.0.0.1:" + plc.port + " unit 1\n  read busy (input 2): off\n"
+                               "  read done (input 3): off\n"));
+  EXPECT_THAT(r.out, HasSubstr("input on modbus 127.0.0.1:" + plc.port + " unit 1\n  read run (coil 0): off\n"));
+  EXPECT_THAT(r.out, HasSubstr("input_eye on modbus 127.0.0.1:" + plc.port + " unit 1\n  read part seen (input 0): on\n"));
+  EXPECT_THAT(r.out, HasSubstr("every device's unit answered; nothing was moved but homing; no output was written"));
+  EXPECT_EQ(plc.twin.stop(), 0) << plc.twin.output();
+}
+
+TEST(MachineCli, DryFailsOnADeadUnitNamingTheDeviceAndTheUnit) {
+  TwinCli cli("machine-dry-dead");
+  const auto r = cli.run("run " + shell_quote(kScenario) + " --dry --device mill=modbus:127.0.0.1:1");
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("PROBLEM: device mill on modbus 127.0.0.1:1 unit 1: cannot reach it: "));
+  EXPECT_THAT(r.out, HasSubstr("dry run: problems above"));
 }
 
 }  // namespace

@@ -127,7 +127,8 @@ void add_run(CLI::App& app, Command* run) {
       ->check(CLI::IsMember({"always", "failed", "never"}));
   cmd->add_flag("--dry", args->dry,
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
-                "program; nothing else moves and nothing is written. Exit 0 when all is well, 1 when not");
+                "program, and read every input of each device on real I/O; nothing else moves and no output is "
+                "written. Exit 0 when all is well, 1 when not");
   cmd->callback([run, args, cmd] {
     *run = [args, cmd] {
       using namespace cellwright::cell;
@@ -162,10 +163,11 @@ void add_run(CLI::App& app, Command* run) {
       }
 
       if (args->dry) {
-        if (!uses_real_drivers(s)) {
+        if (!uses_real_drivers(s) && !uses_real_devices(s)) {
           throw InputError({"--dry", 0, 0},
-                           "a dry run is for real drivers, and every robot of the program is "
-                           "simulated: give one with --driver ROBOT=movemaster:PORT or val2:PORT");
+                           "a dry run is for real drivers and devices, and every robot and device of the program is "
+                           "simulated: give one with --driver ROBOT=movemaster:PORT or val2:PORT, or --device "
+                           "NAME=modbus:HOST:PORT");
         }
         const DryRunReport dry = dry_run(s, pre);
         std::printf("%s", format_dry_run(dry).c_str());

@@ -62,9 +62,9 @@ void add_run_options(CLI::App& cmd, RunArgs& args) {
                  "--realtime) or a recording, NAME=file:VIDEO or NAME=file:GLOB,fps=N (image files in sorted order; "
                  "frame i is the picture of time i/fps); NAME the camera vision looks through (docs/vision.md)");
   cmd.add_option("--device", args.devices,
-                 "put a device of the cell on real I/O: NAME=modbus:HOST:PORT[/UNIT] (Modbus TCP, unit 1 by default; "
-                 "NAME a machine, conveyor or photo-eye the cell's io keys wire; repeatable; needs --realtime; "
-                 "docs/devices.md)");
+                 "put a device of the cell on real I/O, instead of the scenario's choice: NAME=modbus:HOST:PORT[/UNIT] "
+                 "(Modbus TCP, unit 1 by default) or NAME=twin; NAME a machine, conveyor or photo-eye the cell's io "
+                 "keys wire; repeatable; real I/O needs --realtime; docs/devices.md)");
   cmd.add_option("--record-camera", args.record_camera,
                  "write each frame of vision's camera (plain, as captured) as DIR/frame_<i>.png (6 digits, i the "
                  "vision period it belongs to): lossless, to be read back with --camera NAME=file:DIR/frame_*.png,"
@@ -80,6 +80,7 @@ cell::Scenario load_scenario_with(const RunArgs& args) {
   if (!args.record_camera.empty()) check_writable_dir(args.record_camera);
   Scenario s = load_scenario(args.scenario);
   for (const std::string& d : args.drivers) set_driver(s, d, {"--driver", 0, 0});
+  set_devices(s, args.devices, {"--device", 0, 0});
   for (const std::string& f : args.faults) s.faults.push_back(parse_fault_text(f, s.cell, "--fault"));
   if (args.seed) s.seed = *args.seed;
   return s;
@@ -165,7 +166,6 @@ cell::RunOptions run_options_for(const RunArgs& args, const cell::Scenario& s) {
     };
   }
   options.cameras = args.cameras;
-  options.devices = args.devices;
   if (!args.output.empty()) options.events_file = streamed_events_file(args.output);
   return options;
 }

@@ -42,10 +42,10 @@ struct RunArgs {
 // --video, --video-fps, --video-size, --allow-collisions, --camera, --record-camera, --device.
 void add_run_options(CLI::App& cmd, RunArgs& args);
 
-// The scenario with --driver, --fault and --seed applied, after checking that the -o and --save-frames directories
-// can be written (check_writable_dir; for -o also that it is Cellwright's or holds none of the run's files, unless
+// The scenario with --driver, --device (set_devices), --fault and --seed applied, after checking that the -o and
+// --save-frames directories can be written (check_writable_dir; for -o also that it is Cellwright's or holds none of the run's files, unless
 // --force: cell::check_output_directory), before anything is loaded or run, so that a bad one costs no run.
-// InputError (as check_output_directory, check_writable_dir, load_scenario, set_driver, parse_fault_text) on bad
+// InputError (as check_output_directory, check_writable_dir, load_scenario, set_driver, set_devices, parse_fault_text) on bad
 // input.
 cell::Scenario load_scenario_with(const RunArgs& args);
 

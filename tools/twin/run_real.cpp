@@ -84,6 +84,9 @@ int run_real_cell(const CLI::App& cmd, const RunArgs& a, const cell::Scenario& s
   for (const RealRobot& r : run->robots()) {
     std::printf("  %s (real %s, no twin): %s\n", r.robot.c_str(), r.driver.c_str(), describe_sensing(r).c_str());
   }
+  for (const RealDevice& d : run->devices()) {
+    std::printf("  %s (real I/O, no twin): %s\n", d.device.c_str(), d.unit.c_str());
+  }
   if (!a.output.empty()) std::printf("outputs in %s\n", a.output.c_str());
   return report.ok() ? 0 : 1;
 }

@@ -1,5 +1,6 @@
 // `twin run` of a cell of real robots with no twin (a `twin` built with CW_SIM=OFF, docs/real-robots.md): every robot
-// of the program on its real driver (--driver ROBOT=movemaster|val2:PORT), in real time, nothing simulated
+// of the program on its real driver (--driver ROBOT=movemaster|val2:PORT) and every device of the program on its
+// Modbus unit (--device NAME=modbus:HOST:PORT or the scenario's `devices`), in real time, nothing simulated
 // (cell/rig's RealRun). Writes what a simulated run writes with -o DIR but the final picture: events.jsonl,
 // report.json, gantt.png and index.html, the parts where the controller's model has them, said so. Ctrl-C or SIGTERM
 // stops the cell safely and writes the outputs so far.

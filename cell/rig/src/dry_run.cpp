@@ -3,7 +3,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
+#include <memory>
 
 #include "cellwright/drivers/movemaster/movemaster_driver.hpp"
 #include "cellwright/drivers/movemaster/movemaster_protocol.hpp"
@@ -13,6 +16,8 @@
 #include "cellwright/common/error.hpp"
 #include "cellwright/cell/commissioning.hpp"
 #include "cellwright/cell/real_drivers.hpp"
+#include "cellwright/cell/run_wiring.hpp"
+#include "cellwright/drivers/modbus/modbus_io.hpp"
 
 namespace cellwright::cell {
 
@@ -24,8 +29,58 @@ bool DryRunReport::ok() const {
       if (!t.problem.empty()) return false;
     }
   }
-  return true;
+  return std::all_of(devices.begin(), devices.end(), [](const DryDevice& d) { return d.problem.empty(); });
 }
+
+namespace {
+
+// Reads every input of each device on real I/O (and a conveyor's run coil) from its unit; writes nothing.
+std::vector<DryDevice> check_devices(const Scenario& s) {
+  std::vector<DryDevice> out;
+  std::map<std::string, std::unique_ptr<drivers::ModbusIo>> units;  // by endpoint, connected once
+  for (const runtime::DeviceWiring& w : cell_devices(s.cell)) {
+    const DeviceChoice* choice = find_device_choice(s, w.name);
+    if (choice == nullptr || !choice->real()) continue;
+    DryDevice d;
+    d.device = w.name;
+    auto& io = units[choice->modbus->str()];
+    if (!io) {
+      io = std::make_unique<drivers::ModbusIo>(*choice->modbus, drivers::ModbusIoOptions{}, choice->where);
+      if (const drivers::IoResult r = io->connect(); !r.ok()) d.problem = fmt::format("cannot reach it: {}", r.message);
+    } else if (!io->is_open()) {
+      d.problem = "cannot reach it (see above)";
+    }
+    d.unit = io->describe();
+    const auto read_one = [&](const char* what, int address, bool coil) {
+      if (address < 0 || !d.problem.empty()) return;
+      std::vector<bool> v;
+      const auto a = static_cast<std::uint16_t>(address);
+      const drivers::IoResult r = coil ? io->read_coils(a, 1, v) : io->read_inputs(a, 1, v);
+      if (!r.ok()) {
+        d.problem = r.message;
+        return;
+      }
+      d.reads.push_back({fmt::format("{} ({} {})", what, coil ? "coil" : "input", address), v.at(0)});
+    };
+    switch (w.kind) {
+      case runtime::DeviceKind::kMachine:
+        read_one("busy", w.busy, false);
+        read_one("done", w.input, false);
+        break;
+      case runtime::DeviceKind::kConveyor:
+        read_one("run", w.coil, true);
+        break;
+      case runtime::DeviceKind::kSensor:
+        read_one("part seen", w.input, false);
+        break;
+    }
+    out.push_back(std::move(d));
+  }
+  for (auto& [endpoint, io] : units) io->close();
+  return out;
+}
+
+}  // namespace
 
 DryRunReport dry_run(const Scenario& s, const Preflight& pre, const DryRunOptions& options) {
   DryRunReport report;
@@ -90,6 +145,7 @@ DryRunReport dry_run(const Scenario& s, const Preflight& pre, const DryRunOption
     }
     report.robots.push_back(std::move(r));
   }
+  report.devices = check_devices(s);
   return report;
 }
 
@@ -118,9 +174,17 @@ std::string format_dry_run(const DryRunReport& report) {
                          t.problem.empty() ? t.controller : t.problem, t.source);
     }
   }
-  out += report.ok() ? "dry run: every target can be reached and expressed, and the read-backs agree with the "
-                       "kinematics and the home; nothing was moved but homing\n"
-                     : "dry run: problems above; nothing was moved but homing\n";
+  for (const DryDevice& d : report.devices) {
+    out += fmt::format("{} on {}\n", d.device, d.unit);
+    for (const DryDevice::Read& r : d.reads) out += fmt::format("  read {}: {}\n", r.what, r.value ? "on" : "off");
+    if (!d.problem.empty()) out += fmt::format("  PROBLEM: device {} on {}: {}\n", d.device, d.unit, d.problem);
+  }
+  const std::string devices = report.devices.empty() ? "" : ", and every device's unit answered";
+  const std::string untouched = report.devices.empty() ? "" : "; no output was written";
+  out += report.ok() ? fmt::format("dry run: every target can be reached and expressed, and the read-backs agree with "
+                                   "the kinematics and the home{}; nothing was moved but homing{}\n",
+                                   devices, untouched)
+                     : fmt::format("dry run: problems above; nothing was moved but homing{}\n", untouched);
   return out;
 }
 

@@ -3,9 +3,12 @@
 
 #include <fmt/format.h>
 
+#include <map>
+#include <memory>
 #include <utility>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/drivers/modbus/modbus_io.hpp"
 #include "cellwright/cell/commissioning.hpp"
 #include "cellwright/cell/real_drivers.hpp"
 #include "cellwright/cell/run_wiring.hpp"
@@ -29,11 +32,25 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
                                             b.name, b.label, b.name, b.name));
     }
   }
+  // Every device of the program on real I/O: a run without the twin has no twin I/O image.
+  const std::vector<runtime::DeviceWiring> wired = cell_devices(s.cell);
+  for (const runtime::DeviceWiring& w : wired) {
+    if (!task::declares_device(s.program, w.name)) continue;
+    const DeviceChoice* choice = find_device_choice(s, w.name);
+    if (choice == nullptr || !choice->real()) {
+      throw InputError(choice != nullptr ? choice->where : SourceLocation{s.source.string(), 0, 0},
+                       fmt::format("device '{}' of the program {} is on the twin's I/O, and a run without the twin "
+                                   "has no twin I/O: give it --device {}=modbus:HOST:PORT[/UNIT] (or `devices: {{{}: "
+                                   "modbus:HOST:PORT}}` in the scenario)",
+                                   w.name, s.program_file.filename().string(), w.name, w.name));
+    }
+  }
   if (s.feed) {
     throw InputError(s.feed->where,
-                     fmt::format("the feed puts parts on conveyor '{}' while the run goes, and a run of real robots "
-                                 "without the twin has nothing that sees a part arrive on a belt (no part sensor is "
-                                 "read yet: real I/O devices come with issue 26); run the feed on the twin",
+                     fmt::format("the feed is the twin putting parts on conveyor '{}' while the run goes, and a run "
+                                 "of real robots without the twin has no twin to put them there nor an environment "
+                                 "model that learns where a real part arrived (a photo-eye on real I/O says only that "
+                                 "one is there); run the feed on the twin",
                                  s.feed->conveyor));
   }
   for (const FaultSpec& f : s.faults) {
@@ -68,6 +85,20 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
     robots_.push_back({b.label, b.name,
                        fmt::format("{} on {}", to_string(choice.kind), choice.serial ? choice.serial->port : ""),
                        driver.capabilities().senses_grip});
+  }
+  // One Modbus unit per endpoint, with the program's devices on it (connected when the run starts: InputError naming
+  // the unit when one cannot be reached).
+  std::map<std::string, std::size_t> unit_of;
+  for (const runtime::DeviceWiring& w : wired) {
+    const DeviceChoice* choice = find_device_choice(s, w.name);
+    if (choice == nullptr || !choice->real() || !task::declares_device(s.program, w.name)) continue;
+    auto [it, fresh] = unit_of.emplace(choice->modbus->str(), config.io_units.size());
+    if (fresh) {
+      io_.push_back(std::make_unique<drivers::ModbusIo>(*choice->modbus, drivers::ModbusIoOptions{}, choice->where));
+      config.io_units.push_back(runtime::IoUnit{io_.back().get(), true, {}});
+    }
+    config.io_units[it->second].devices.push_back(w);
+    devices_.push_back({w.name, io_[it->second]->describe()});
   }
   config.plant = nullptr;  // nothing simulated: the robots move by themselves
   config.mode = runtime::Mode::kRealtime;

@@ -116,6 +116,66 @@ void check_driver(const DriverChoice& d) {
   }
 }
 
+// What device control needs of cell device `name` and its `io` key lacks: "" when it is all there, "?" when the cell
+// has no machine, conveyor or photo-eye of that name.
+std::string io_lacking(const models::CellDescription& cell, const std::string& name) {
+  if (const models::MachineSpec* m = cell.find_machine(name)) {
+    if (m->start_io.address >= 0 && m->busy_io.address >= 0 && m->done_io.address >= 0) return "";
+    return fmt::format("machine '{}' needs `io: {{start: COIL, busy: INPUT, done: INPUT}}`", name);
+  }
+  if (const models::ConveyorSpec* c = cell.find_conveyor(name)) {
+    return c->run_io.address >= 0 ? "" : fmt::format("conveyor '{}' needs `io: {{run: COIL}}`", name);
+  }
+  for (const models::ConveyorSpec& c : cell.conveyors) {
+    if ((c.stop_eye && c.stop_eye_name == name) || (c.drop_eye && c.drop_eye_name == name)) {
+      const models::IoAddress& io = c.stop_eye && c.stop_eye_name == name ? c.stop_eye_io : c.drop_eye_io;
+      return io.address >= 0 ? "" : fmt::format("photo-eye '{}' of conveyor '{}' needs `io: INPUT`", name, c.name);
+    }
+  }
+  return "?";
+}
+
+// The unit `text` ("twin", "modbus:HOST:PORT[/UNIT]") chosen for device `name` of the scenario's cell and program.
+// InputError at `where_name` for the device, at `where_text` for the unit.
+DeviceChoice choose_device(const Scenario& s, const std::string& name, const std::string& text,
+                           const SourceLocation& where_name, const SourceLocation& where_text) {
+  const std::string lacking = io_lacking(s.cell, name);
+  if (lacking == "?") {
+    std::vector<std::string> known;
+    for (const models::MachineSpec& m : s.cell.machines) known.push_back(m.name);
+    for (const models::ConveyorSpec& c : s.cell.conveyors) {
+      known.push_back(c.name);
+      if (c.stop_eye) known.push_back(c.stop_eye_name);
+      if (c.drop_eye) known.push_back(c.drop_eye_name);
+    }
+    throw InputError(where_name, fmt::format("the cell {} has no device '{}' (its machines, conveyors and photo-eyes: "
+                                             "{})",
+                                             s.cell_file.filename().string(), name, list_names(known)));
+  }
+  if (!lacking.empty()) {
+    throw InputError(where_name, fmt::format("device '{}' is not wired to I/O in the cell {}: {} "
+                                             "(docs/cell-description.md, \"io\")",
+                                             name, s.cell_file.filename().string(), lacking));
+  }
+  if (!task::declares_device(s.program, name)) {
+    throw InputError(where_name, fmt::format("the program {} does not declare device '{}', so nothing would drive it "
+                                             "(declare it: `machine`, `conveyor` or `sensor ... on`)",
+                                             s.program_file.filename().string(), name));
+  }
+  DeviceChoice d;
+  d.device = name;
+  d.where = where_text;
+  if (text != "twin") {
+    if (!text.starts_with("modbus:")) {
+      throw InputError(where_text, fmt::format("device '{}': the unit must be twin or modbus:HOST:PORT[/UNIT], got "
+                                               "'{}'",
+                                               name, text));
+    }
+    d.modbus = drivers::parse_modbus_address(text, where_text);
+  }
+  return d;
+}
+
 // Reads an error of another file (the cell, the program) and says that the scenario led there, keeping the other
 // file's position: that is where the user must look.
 template <typename F>
@@ -255,6 +315,45 @@ void set_driver(Scenario& scenario, const std::string& spec, const SourceLocatio
   }
 }
 
+void set_devices(Scenario& scenario, const std::vector<std::string>& specs, const SourceLocation& where) {
+  std::vector<std::string> given;
+  for (const std::string& spec : specs) {
+    const std::size_t eq = spec.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      throw InputError(where, fmt::format("'{}': expected NAME=modbus:HOST:PORT[/UNIT] or NAME=twin", spec));
+    }
+    const std::string name = spec.substr(0, eq);
+    if (std::find(given.begin(), given.end(), name) != given.end()) {
+      throw InputError(where, fmt::format("'{}': device '{}' is given twice", spec, name));
+    }
+    given.push_back(name);
+    DeviceChoice d;
+    try {
+      d = choose_device(scenario, name, spec.substr(eq + 1), where, where);
+    } catch (const InputError& e) {
+      throw InputError(where, fmt::format("'{}': {}", spec, e.problem()));
+    }
+    auto it = std::find_if(scenario.devices.begin(), scenario.devices.end(),
+                           [&](const DeviceChoice& c) { return c.device == name; });
+    if (it != scenario.devices.end()) {
+      *it = std::move(d);
+    } else {
+      scenario.devices.push_back(std::move(d));
+    }
+  }
+}
+
+const DeviceChoice* find_device_choice(const Scenario& scenario, std::string_view name) {
+  for (const DeviceChoice& d : scenario.devices) {
+    if (d.device == name) return &d;
+  }
+  return nullptr;
+}
+
+bool uses_real_devices(const Scenario& scenario) {
+  return std::any_of(scenario.devices.begin(), scenario.devices.end(), [](const DeviceChoice& d) { return d.real(); });
+}
+
 bool uses_real_drivers(const Scenario& scenario) {
   for (const DriverChoice& d : scenario.drivers) {
     if (!d.real()) continue;
@@ -325,8 +424,8 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   const YAML::Node root = models::yaml::load(yaml_text, doc, "not a valid YAML file");
   if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
   const Fields f(doc, root, "the scenario",
-                 {"cell", "program", "seed", "locations", "drivers", "robots", "bind", "feed", "limits", "expect",
-                  "tolerance", "options", "perception", "vision", "perturb", "faults", "recovery"});
+                 {"cell", "program", "seed", "locations", "drivers", "devices", "robots", "bind", "feed", "limits",
+                  "expect", "tolerance", "options", "perception", "vision", "perturb", "faults", "recovery"});
   const std::filesystem::path dir = source.parent_path();
 
   Scenario s;
@@ -480,6 +579,15 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
     }
     check_driver(d);
     s.drivers.push_back(std::move(d));
+  }
+
+  // --- devices: the twin's I/O unless the scenario puts one on a unit ---
+  if (f.has("devices")) {
+    for (const auto& [name, nodes] : f.word_map("devices")) {
+      const YAML::Node& v = nodes.second;
+      const std::string text = f.word_of(v, fmt::format("the unit of device '{}'", name));
+      s.devices.push_back(choose_device(s, name, text, doc.at(nodes.first), doc.at(v)));
+    }
   }
 
   // --- feed ---

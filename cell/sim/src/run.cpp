@@ -357,64 +357,43 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
                                   if (video_) video_->record(world_->data(), o.time, std::move(lines));
                                 }});
   }
-  wire_devices(config, options.devices);
+  wire_devices(config);
   runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
   world_plant_->log_injections_to(&runtime_->log());
 }
 
-void ScenarioRun::wire_devices(runtime::RunConfig& config, const std::vector<std::string>& real) {
+void ScenarioRun::wire_devices(runtime::RunConfig& config) {
   std::vector<runtime::DeviceWiring> all = cell_devices(scenario_.cell);
   twin_io_ = std::make_unique<sim::TwinIo>(*world_);
-  // Real units by endpoint, and the devices on each.
+  // Real units by endpoint, and the devices on each (the scenario loader checked every choice against the cell and
+  // the program).
   std::map<std::string, std::size_t> unit_of;
   std::vector<runtime::IoUnit> units;
   std::vector<drivers::MirroredIo*> mirrors;  // the real units, as units[] has them
-  std::set<std::string> taken;
-  for (const std::string& text : real) {
-    const SourceLocation where{"--device", 0, 0};
-    const auto eq = text.find('=');
-    if (eq == std::string::npos || eq == 0) {
-      throw InputError(where, fmt::format("'{}': expected NAME=modbus:HOST:PORT[/UNIT]", text));
-    }
-    const std::string name = text.substr(0, eq);
-    const drivers::ModbusAddress address = drivers::parse_modbus_address(text.substr(eq + 1), where);
-    auto dev = std::find_if(all.begin(), all.end(), [&](const runtime::DeviceWiring& w) { return w.name == name; });
-    if (dev == all.end()) {
-      std::string known;
-      for (const auto& w : all) known += (known.empty() ? "" : ", ") + w.name;
-      throw InputError(where, fmt::format("'{}': the cell {} has no device '{}' wired to I/O (its devices with `io` "
-                                          "addresses: {})",
-                                          text, scenario_.cell.source.string(), name,
-                                          known.empty() ? std::string("none") : known));
-    }
-    if (!task::declares_device(scenario_.program, name)) {
-      throw InputError(where, fmt::format("'{}': the program {} does not declare device '{}', so nothing would drive "
-                                          "it (declare it: `machine`, `conveyor` or `sensor ... on`)",
-                                          text, scenario_.program_file.filename().string(), name));
-    }
-    if (!taken.insert(name).second) {
-      throw InputError(where, fmt::format("'{}': device '{}' is given twice", text, name));
+  runtime::IoUnit twin{twin_io_.get(), false, {}};
+  for (const runtime::DeviceWiring& w : all) {
+    const DeviceChoice* choice = find_device_choice(scenario_, w.name);
+    if (choice == nullptr || !choice->real()) {
+      twin.devices.push_back(w);
+      continue;
     }
     if (!realtime_) {
-      throw InputError(where, fmt::format("'{}': a real device runs on the wall clock and cannot wait for the "
-                                          "simulation's steps; run with --realtime",
-                                          text));
+      throw InputError(choice->where, fmt::format("device '{}' is on real I/O (modbus {}): a real device runs on the "
+                                                  "wall clock and cannot wait for the simulation's steps; run with "
+                                                  "--realtime",
+                                                  w.name, choice->modbus->str()));
     }
-    auto [it, fresh] = unit_of.emplace(address.str(), units.size());
+    auto [it, fresh] = unit_of.emplace(choice->modbus->str(), units.size());
     if (fresh) {
       (void)twin_io_->connect();  // the mirror writes into it
       auto mirror = std::make_unique<drivers::MirroredIo>(
-          std::make_unique<drivers::ModbusIo>(address, drivers::ModbusIoOptions{}, where), *twin_io_);
+          std::make_unique<drivers::ModbusIo>(*choice->modbus, drivers::ModbusIoOptions{}, choice->where), *twin_io_);
       mirrors.push_back(mirror.get());
       real_io_.push_back(std::move(mirror));
       units.push_back(runtime::IoUnit{real_io_.back().get(), true, {}});
     }
-    mirrors[it->second]->mirror_coil(dev->coil);
-    units[it->second].devices.push_back(*dev);
-  }
-  runtime::IoUnit twin{twin_io_.get(), false, {}};
-  for (const runtime::DeviceWiring& w : all) {
-    if (taken.count(w.name) == 0) twin.devices.push_back(w);
+    mirrors[it->second]->mirror_coil(w.coil);
+    units[it->second].devices.push_back(w);
   }
   // A belt the program declares is the program's: it starts stopped, as the program's net has it (`C.stopped`) and as
   // a PLC's outputs are at power-up, and runs when the program runs it. (Belts no program drives run from the start,

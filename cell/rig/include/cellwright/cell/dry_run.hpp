@@ -13,6 +13,11 @@
 // opinion of a target is only had by moving to it, which a dry run does not do.
 //
 // Robots on the sim driver are listed and left alone.
+//
+// Every device on real I/O (Scenario::devices, DeviceChoice::real) is checked on its Modbus unit: the unit is
+// connected (one connection per HOST:PORT/UNIT) and each of the device's inputs read (a machine's busy and done, a
+// photo-eye's input) and a conveyor's run coil read back; no output is written. A unit that cannot be reached or a
+// read that fails is the device's problem, naming the unit. Devices on the twin's I/O are not listed.
 #pragma once
 
 #include <chrono>
@@ -45,9 +50,23 @@ struct DryRobot {
   std::vector<DryTarget> targets;
 };
 
+// One device on real I/O and what its unit answered.
+struct DryDevice {
+  std::string device;  // cell device name
+  std::string unit;    // "modbus 127.0.0.1:1502 unit 1"
+  struct Read {
+    std::string what;  // "busy (input 2)", "run (coil 0)"
+    bool value = false;
+  };
+  std::vector<Read> reads;  // every input of the device, and a conveyor's run coil, as read
+  std::string problem;      // "" when the unit was reached and every read answered
+};
+
 struct DryRunReport {
   std::vector<DryRobot> robots;
-  bool ok() const;  // every real robot homed, read and cross-checked, every target of theirs without a problem
+  std::vector<DryDevice> devices;  // the devices on real I/O, in the cell's order
+  // Every real robot homed, read and cross-checked, every target of theirs without a problem; every real device read.
+  bool ok() const;
 };
 
 struct DryRunOptions {
@@ -55,11 +74,13 @@ struct DryRunOptions {
   std::chrono::nanoseconds read_timeout = std::chrono::seconds(5);
 };
 
-// Runs the dry run. `preflight` is preflight(scenario, ...), passed (its plan is what is checked). Throws InputError when a real driver cannot be made or
-// connected (the port does not exist, the controller does not answer), naming the driver's place and the problem.
+// Runs the dry run. `preflight` is preflight(scenario, ...), passed (its plan is what is checked). Throws InputError
+// when a real driver cannot be made or connected (the port does not exist, the controller does not answer), naming the
+// driver's place and the problem. A device's unit that cannot be reached is no exception: its DryDevice's problem.
 DryRunReport dry_run(const Scenario& scenario, const Preflight& preflight, const DryRunOptions& options = {});
 
-// The report as text: per robot, what was done and each target with its verdict.
+// The report as text: per robot, what was done and each target with its verdict; per real device, its unit and what
+// was read.
 std::string format_dry_run(const DryRunReport& report);
 
 }  // namespace cellwright::cell

@@ -8,6 +8,9 @@
 //  - the sensors the drivers have (sensors.hpp): a grip sensor on a driver that can sense its grip
 //    (capabilities().senses_grip: a DriverGripSensor), none on one that cannot (the Movemaster EX and VAL II
 //    drivers: a close is then taken as done); no wrist force, safety or part sensor (none of the cell's is wired yet);
+//  - the program's devices (its machines, conveyors and photo-eyes) on their Modbus units (Scenario::devices: every
+//    one must be on real I/O, since there is no twin I/O image), one connection per HOST:PORT/UNIT, at the cell's `io`
+//    addresses;
 //  - perception from the cell description only (Perception::kCad: the controller's model keeps what it knows of the
 //    parts, each held part moving with its hand).
 // There is no truth: where the parts end up is what the controller's environment model says at the end (model()),
@@ -31,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/drivers/digital_io.hpp"
 #include "cellwright/drivers/serial/serial_driver.hpp"
 #include "cellwright/petri/net.hpp"
 #include "cellwright/runtime/runtime.hpp"
@@ -52,6 +56,12 @@ struct RealRunOptions {
   std::ostream* log_stream = nullptr;
 };
 
+// One device of the run on real I/O, for a person.
+struct RealDevice {
+  std::string device;  // cell device name
+  std::string unit;    // "modbus 127.0.0.1:1502 unit 1"
+};
+
 // One robot of the run, for a person and the report.
 struct RealRobot {
   std::string label, robot;  // program label, cell robot
@@ -66,10 +76,12 @@ class RealRun {
  public:
   // Builds the drivers, connects them, wires the sensors and builds the Runtime (no thread starts). Throws InputError
   // (nothing runs) when a robot of the program has no real driver (naming it and saying how to give one: --driver
-  // ROBOT=movemaster:PORT or val2:PORT), the scenario asks for faults (the twin injects them), the perception asked
-  // for is the twin's (truth from --perception, vision), the scenario has a feed (parts put on a belt while the run
-  // goes, which nothing real senses yet; naming the feed), a driver cannot be made or connected, or the runtime
-  // refuses the configuration.
+  // ROBOT=movemaster:PORT or val2:PORT), a device of the program is not on real I/O (naming it and saying how to
+  // put it there: --device NAME=modbus:HOST:PORT), the scenario asks for faults (the twin injects them), the
+  // perception asked for is the twin's (truth from --perception, vision), the scenario has a feed (parts put on a
+  // belt while the run goes, which nothing real senses yet; naming the feed), a driver cannot be made or connected,
+  // or the runtime refuses the configuration. The devices' units are connected when run() starts (InputError naming
+  // the unit when one cannot be reached, before anything moves).
   RealRun(const Scenario& scenario, const petri::Net& net, RealRunOptions options = {});
   ~RealRun();
   RealRun(const RealRun&) = delete;
@@ -79,6 +91,8 @@ class RealRun {
   const runtime::Runtime& runtime() const { return *runtime_; }
   // The program's robots, in program order.
   const std::vector<RealRobot>& robots() const { return robots_; }
+  // The program's devices, each on its unit, in the cell's order.
+  const std::vector<RealDevice>& devices() const { return devices_; }
   runtime::Perception perception() const { return runtime::Perception::kCad; }
 
   // Runs to the end (runtime().run()), keeps the result and returns it.
@@ -90,6 +104,8 @@ class RealRun {
   std::vector<std::unique_ptr<drivers::SerialDriver>> drivers_;
   std::vector<std::unique_ptr<runtime::GripSensor>> grip_sensors_;
   std::vector<RealRobot> robots_;
+  std::vector<std::unique_ptr<drivers::DigitalIo>> io_;  // the Modbus units, one per endpoint
+  std::vector<RealDevice> devices_;
   std::unique_ptr<runtime::Runtime> runtime_;
   std::optional<runtime::RunResult> result_;
 };

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/drivers/modbus/modbus_io.hpp"
 #include "cellwright/models/cell.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/net.hpp"
@@ -66,6 +67,18 @@ struct DriverChoice {
   SourceLocation where;  // the `drivers` entry, or the robot in the cell file when the cell's choice is used
   std::optional<models::SerialSettings> serial;  // set for a real driver whose port is known
   bool real() const { return kind != models::DriverKind::kSim; }
+};
+
+// Where one device of the cell gets its I/O (docs/devices.md, "Which unit"): the twin's I/O image, or a Modbus TCP
+// unit at the cell's `io` addresses (a PLC, a remote-I/O module: real I/O). Chosen in the scenario (`devices: {mill:
+// modbus:127.0.0.1:1502/1, input: twin}`) or on the command line (`--device NAME=modbus:HOST:PORT[/UNIT]`, which
+// replaces the scenario's choice). `device` is a machine, conveyor or photo-eye of the cell that its `io` keys wire
+// and that the program declares.
+struct DeviceChoice {
+  std::string device;                            // cell device name
+  std::optional<drivers::ModbusAddress> modbus;  // set: on this Modbus TCP unit; unset: the twin's I/O
+  SourceLocation where;                          // the `devices` entry or `--device`
+  bool real() const { return modbus.has_value(); }
 };
 
 // Workpieces put on a conveyor during the run, one every `period` seconds from `start` on, in the listed order. They
@@ -163,6 +176,9 @@ struct Scenario {
   std::vector<Binding> workpieces;    // one per program workpiece, in program order
   std::vector<Binding> locations;     // one per program location, in program order
   std::vector<DriverChoice> drivers;  // one per cell robot, in cell order
+  // The devices put on a unit explicitly (`devices:`, then `--device`), in the order given, each device once; a
+  // device of the program not listed is on the twin's I/O.
+  std::vector<DeviceChoice> devices;
   std::optional<Feed> feed;
   Limits limits;
   std::vector<Expectation> expect;  // in file order
@@ -195,7 +211,9 @@ struct Scenario {
 // one of sim/movemaster/val2, or is a real driver (movemaster, val2) whose serial port is not known; the feed names an
 // unknown conveyor or workpiece, a workpiece twice, or lacks a period for several workpieces; an expectation names an
 // unknown workpiece or place (`lost` is always a place); a fault is wrong (faults.hpp: parse_fault), or needs
-// perception vision (frame_lost, detection_noise) and the scenario's perception is not vision.
+// perception vision (frame_lost, detection_noise) and the scenario's perception is not vision; a `devices` entry names
+// no machine, conveyor or photo-eye of the cell, one whose `io` lacks an address device control needs, one the
+// program does not declare, or a unit that is neither `twin` nor a well-formed modbus:HOST:PORT[/UNIT].
 Scenario load_scenario(const std::filesystem::path& yaml_file);
 
 // As load_scenario, from YAML text; `source` names the text in errors and its directory resolves relative paths.
@@ -211,5 +229,16 @@ const char* to_string(models::DriverKind kind);
 void set_driver(Scenario& scenario, const std::string& spec, const SourceLocation& where);
 // True when some robot the program uses runs on a real driver.
 bool uses_real_drivers(const Scenario& scenario);
+
+// Puts devices on units as `specs` say, each "NAME=modbus:HOST:PORT[/UNIT]" or "NAME=twin" (the command line's
+// `--device`), replacing the scenario's choice for NAME or adding one; nothing else of the scenario changes. Throws
+// InputError naming `where` and the text when a spec is malformed, NAME is no device of the cell, has no complete
+// `io` addresses or is not declared by the program, the address is bad (drivers::parse_modbus_address), or two
+// specs name one device.
+void set_devices(Scenario& scenario, const std::vector<std::string>& specs, const SourceLocation& where);
+// The choice for cell device `name`, or nullptr when it is on the twin's I/O by default.
+const DeviceChoice* find_device_choice(const Scenario& scenario, std::string_view name);
+// True when some device is on real I/O (a Modbus unit).
+bool uses_real_devices(const Scenario& scenario);
 
 }  // namespace cellwright::cell

@@ -92,13 +92,6 @@ struct RunOptions {
   // needs a real-time run; the twin's camera faults (frame_lost, detection_noise) cannot be injected into a real
   // camera. The source is opened (its first frame read) when the ScenarioRun is built: InputError otherwise.
   std::vector<std::string> cameras;
-  // Devices on real I/O (`--device NAME=modbus:HOST:PORT[/UNIT]`, docs/devices.md), added to the scenario's
-  // `devices:`: NAME a machine, conveyor or photo-eye of the cell that its `io` keys wire; the device's commands and
-  // states go to that Modbus unit (one connection per HOST:PORT/UNIT) at the cell's addresses, and every coil written
-  // there is written into the twin too, so that the twin mirrors the device (its belt runs, its mill cycles). The
-  // other devices are the twin's (TwinIo). A real device needs a real-time run (InputError otherwise); the units are
-  // connected when the run starts (InputError naming the unit when one cannot be reached).
-  std::vector<std::string> devices;
 };
 
 // The scenario's cell as it really is, compiled: its parts where the scenario's perturbation puts them (drawn with its
@@ -141,8 +134,12 @@ class ScenarioRun {
   // A robot on a real driver (DriverChoice::real) is driven through it, its simulation driver being the copy that
   // follows it in the twin (sim::MirroredDriver); its driver is connected here, so that a port that cannot be opened
   // or a controller that does not answer is an error before anything runs. Real drivers need real time.
+  // A device on real I/O (Scenario::devices, DeviceChoice::real) is driven on its Modbus unit (one connection per
+  // HOST:PORT/UNIT) at the cell's addresses, and every coil written there is written into the twin's I/O image too,
+  // so that the twin mirrors it; the other devices are the twin's (TwinIo). Real devices need real time too; their
+  // units are connected when the run starts (InputError naming the unit when one cannot be reached).
   // Throws InputError if MuJoCo rejects the cell, a driver's configuration cannot work, a real driver cannot connect,
-  // or a real driver would run lock-step; nothing runs yet.
+  // or a real driver or device would run lock-step; nothing runs yet.
   ScenarioRun(const Scenario& scenario, const Preflight& preflight, RunOptions options = {});
   ~ScenarioRun();
   ScenarioRun(const ScenarioRun&) = delete;
@@ -185,8 +182,9 @@ class ScenarioRun {
   std::filesystem::path finish_video(const Report& report);
 
  private:
-  // The I/O units (RunConfig::io_units): the twin's, and RunOptions::devices' real ones, mirrored into it.
-  void wire_devices(runtime::RunConfig& config, const std::vector<std::string>& real);
+  // The I/O units (RunConfig::io_units): the twin's, and the real ones of Scenario::devices, mirrored into it.
+  // InputError (naming the choice) for a real device in a lock-step run.
+  void wire_devices(runtime::RunConfig& config);
 
   const Scenario& scenario_;
   std::unique_ptr<StreamedLog> streamed_;  // the event log's file (RunOptions::events_file), or none
@@ -201,7 +199,7 @@ class ScenarioRun {
   std::unique_ptr<runtime::Plant> plant_;
   sim::WorldPlant* world_plant_ = nullptr;  // plant_, the World's
   std::unique_ptr<sim::TwinIo> twin_io_;                       // the twin's I/O image: the simulated devices' unit
-  std::vector<std::unique_ptr<drivers::DigitalIo>> real_io_;  // RunOptions::devices' units, mirrored into twin_io_
+  std::vector<std::unique_ptr<drivers::DigitalIo>> real_io_;  // Scenario::devices' real units, mirrored into twin_io_
   Estimate estimate_;
   std::unique_ptr<twin::VideoRecorder> video_;  // with RunOptions::video; fed by the simulation thread
   std::filesystem::path video_file_;      // its file, kept when finish_video() has closed it

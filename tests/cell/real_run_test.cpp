@@ -97,8 +97,8 @@ TEST_F(RealRunTest, AFeedIsRefusedBeforeAnythingConnects) {
   } catch (const InputError& e) {
     EXPECT_EQ(fs::path(e.where().file).filename(), "pipeline.yaml") << e.what();
     EXPECT_EQ(e.where().line, 10) << e.what();  // feed: {conveyor: input, ...}
-    EXPECT_NE(std::string(e.what()).find("the feed puts parts on conveyor 'input'"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("nothing that sees a part arrive on a belt"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("the feed is the twin putting parts on conveyor 'input'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("run the feed on the twin"), std::string::npos) << e.what();
   }
 }
 

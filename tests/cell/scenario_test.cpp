@@ -304,7 +304,10 @@ TEST_F(ScenarioFiles, DevicesErrors) {
   error("devices: {output_end: 'modbus:127.0.0.1:1502'}\n",
         "device 'output_end' is not wired to I/O in the cell cell.yaml: photo-eye 'output_end' of conveyor 'output' "
         "needs `io: INPUT`");
-  error("devices: {output: 'modbus:127.0.0.1:1502'}\n", "the program machine.task does not declare device 'output'");
+  // machine.task declares every device the cell wires; exchange.task none.
+  expect_error(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\ndevices: {output: 'modbus:127.0.0.1:1502'}\n",
+                        "exchange.task"),
+               5, "the program exchange.task does not declare device 'output'");
   error("devices: {mill: 'modbus:127.0.0.1'}\n", "'modbus:127.0.0.1': the port is missing");
   error("devices: {mill: 'modbus:127.0.0.1:1502/300'}\n", "the unit '300' is not a number within 0..247");
   error("devices: {mill: plc}\n", "device 'mill': the unit must be twin or modbus:HOST:PORT[/UNIT], got 'plc'");
@@ -335,9 +338,15 @@ TEST_F(ScenarioFiles, CommandLineDeviceReplacesOrAddsToTheScenariosChoice) {
   refused({"mill"}, "'mill': expected NAME=modbus:HOST:PORT[/UNIT] or NAME=twin");
   refused({"drill=twin"}, "'drill=twin': the cell cell.yaml has no device 'drill'");
   refused({"output_end=twin"}, "not wired to I/O");
-  refused({"output=modbus:127.0.0.1:1"}, "does not declare device 'output'");
   refused({"mill=modbus:127.0.0.1"}, "the port is missing");
   refused({"mill=twin", "mill=modbus:127.0.0.1:1"}, "device 'mill' is given twice");
+  Scenario exchange = load_scenario(scenario("robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n", "exchange.task"));
+  try {
+    set_devices(exchange, {"output=modbus:127.0.0.1:1"}, cli);
+    ADD_FAILURE() << "a device exchange.task does not declare was accepted";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("does not declare device 'output'"));
+  }
 }
 
 TEST_F(ScenarioFiles, FeedErrors) {

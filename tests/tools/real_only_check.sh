@@ -42,7 +42,7 @@ expect 2 "needs the simulator" -- "$twin" emulate --scenario scenes/exchange.yam
 [[ ! -e $scratch/c && ! -e $scratch/cell.png ]] || fail "a refused command wrote something"
 # Refused before anything connects (the ports do not exist): a feed, which nothing real sees arrive, and --speed above
 # 1 with a real arm (a port that is not a pseudo-terminal).
-expect 2 "the feed puts parts on conveyor 'input'" -- "$twin" run scenes/pipeline.yaml \
+expect 2 "the feed is the twin putting parts on conveyor 'input'" -- "$twin" run scenes/pipeline.yaml \
   --driver "puma=val2:$scratch/none" --driver "melfa=movemaster:$scratch/none"
 expect 2 "robot 'puma' is a real arm" -- "$twin" run scenes/exchange.yaml --speed 4 \
   --driver "puma=val2:$scratch/none" --driver "melfa=movemaster:$scratch/none"

@@ -3,7 +3,6 @@
 
 #include <fmt/format.h>
 
-#include <map>
 #include <memory>
 #include <utility>
 
@@ -88,17 +87,10 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
   }
   // One Modbus unit per endpoint, with the program's devices on it (connected when the run starts: InputError naming
   // the unit when one cannot be reached).
-  std::map<std::string, std::size_t> unit_of;
-  for (const runtime::DeviceWiring& w : wired) {
-    const DeviceChoice* choice = find_device_choice(s, w.name);
-    if (choice == nullptr || !choice->real() || !task::declares_device(s.program, w.name)) continue;
-    auto [it, fresh] = unit_of.emplace(choice->modbus->str(), config.io_units.size());
-    if (fresh) {
-      io_.push_back(std::make_unique<drivers::ModbusIo>(*choice->modbus, drivers::ModbusIoOptions{}, choice->where));
-      config.io_units.push_back(runtime::IoUnit{io_.back().get(), true, {}});
-    }
-    config.io_units[it->second].devices.push_back(w);
-    devices_.push_back({w.name, io_[it->second]->describe()});
+  for (RealIoUnit& u : real_io_units(s)) {
+    io_.push_back(std::make_unique<drivers::ModbusIo>(u.address, drivers::ModbusIoOptions{}, u.where));
+    for (const runtime::DeviceWiring& w : u.devices) devices_.push_back({w.name, io_.back()->describe()});
+    config.io_units.push_back(runtime::IoUnit{io_.back().get(), true, std::move(u.devices)});
   }
   config.plant = nullptr;  // nothing simulated: the robots move by themselves
   config.mode = runtime::Mode::kRealtime;

@@ -75,6 +75,19 @@ std::vector<runtime::DeviceWiring> cell_devices(const models::CellDescription& c
   return out;
 }
 
+std::vector<RealIoUnit> real_io_units(const Scenario& scenario) {
+  std::vector<RealIoUnit> out;
+  for (const runtime::DeviceWiring& w : cell_devices(scenario.cell)) {
+    const DeviceChoice* choice = find_device_choice(scenario, w.name);
+    if (choice == nullptr || !choice->real()) continue;
+    auto unit = std::find_if(out.begin(), out.end(),
+                             [&](const RealIoUnit& u) { return u.address.str() == choice->modbus->str(); });
+    if (unit == out.end()) unit = out.insert(out.end(), RealIoUnit{*choice->modbus, choice->where, {}});
+    unit->devices.push_back(w);
+  }
+  return out;
+}
+
 void refuse_lockstep_with_real_drivers(const Scenario& s, bool realtime) {
   if (!uses_real_drivers(s) || realtime) return;
   for (const DriverChoice& d : s.drivers) {

@@ -363,45 +363,30 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
 }
 
 void ScenarioRun::wire_devices(runtime::RunConfig& config) {
-  std::vector<runtime::DeviceWiring> all = cell_devices(scenario_.cell);
   twin_io_ = std::make_unique<sim::TwinIo>(*world_);
-  // Real units by endpoint, and the devices on each (the scenario loader checked every choice against the cell and
-  // the program).
-  std::map<std::string, std::size_t> unit_of;
-  std::vector<runtime::IoUnit> units;
-  std::vector<drivers::MirroredIo*> mirrors;  // the real units, as units[] has them
-  runtime::IoUnit twin{twin_io_.get(), false, {}};
-  for (const runtime::DeviceWiring& w : all) {
+  // The twin's unit first, with every device not on real I/O (the scenario loader checked every choice against the
+  // cell and the program).
+  std::vector<runtime::IoUnit> units{runtime::IoUnit{twin_io_.get(), false, {}}};
+  for (const runtime::DeviceWiring& w : cell_devices(scenario_.cell)) {
     const DeviceChoice* choice = find_device_choice(scenario_, w.name);
     if (choice == nullptr || !choice->real()) {
-      twin.devices.push_back(w);
-      continue;
-    }
-    if (!realtime_) {
+      units.front().devices.push_back(w);
+    } else if (!realtime_) {
       throw InputError(choice->where, fmt::format("device '{}' is on real I/O (modbus {}): a real device runs on the "
                                                   "wall clock and cannot wait for the simulation's steps; run with "
                                                   "--realtime",
                                                   w.name, choice->modbus->str()));
     }
-    auto [it, fresh] = unit_of.emplace(choice->modbus->str(), units.size());
-    if (fresh) {
-      (void)twin_io_->connect();  // the mirror writes into it
-      auto mirror = std::make_unique<drivers::MirroredIo>(
-          std::make_unique<drivers::ModbusIo>(*choice->modbus, drivers::ModbusIoOptions{}, choice->where), *twin_io_);
-      mirrors.push_back(mirror.get());
-      real_io_.push_back(std::move(mirror));
-      units.push_back(runtime::IoUnit{real_io_.back().get(), true, {}});
-    }
-    mirrors[it->second]->mirror_coil(w.coil);
-    units[it->second].devices.push_back(w);
   }
-  // A belt the program declares is the program's: it starts stopped, as the program's net has it (`C.stopped`) and as
-  // a PLC's outputs are at power-up, and runs when the program runs it. (Belts no program drives run from the start,
-  // as they always did.) A belt on a real unit then follows that unit's coil (MirroredIo).
-  for (std::size_t c = 0; c < scenario_.cell.conveyors.size(); ++c) {
-    if (task::declares_device(scenario_.program, scenario_.cell.conveyors[c].name)) world_->set_belt_run(c, false);
+  // Each real unit mirrored into the twin's I/O image (its coils, written and read, shown by the twin's devices).
+  for (RealIoUnit& u : real_io_units(scenario_)) {
+    (void)twin_io_->connect();  // the mirror writes into it
+    auto mirror = std::make_unique<drivers::MirroredIo>(
+        std::make_unique<drivers::ModbusIo>(u.address, drivers::ModbusIoOptions{}, u.where), *twin_io_);
+    for (const runtime::DeviceWiring& w : u.devices) mirror->mirror_coil(w.coil);
+    real_io_.push_back(std::move(mirror));
+    units.push_back(runtime::IoUnit{real_io_.back().get(), true, std::move(u.devices)});
   }
-  units.insert(units.begin(), std::move(twin));
   config.io_units = std::move(units);
 }
 

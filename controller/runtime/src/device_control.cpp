@@ -95,13 +95,15 @@ DeviceStep DeviceControl::poll(SimDuration now) {
   DeviceStep end{DeviceOutcome::kDone, {}};
   switch (current_->op) {
     case task::DeviceOp::kStart: {
+      // Busy and done as the machine has them now (done only when wired); false with the fault in `step`.
       bool busy = false;
       bool done = false;
+      const auto read_state = [&] {
+        return read_input(device_->busy, "busy", busy, step) &&
+               (device_->input < 0 || read_input(device_->input, "done", done, step));
+      };
       if (!written_) {
-        if (!read_input(device_->busy, "busy", busy, step) ||
-            (device_->input >= 0 && !read_input(device_->input, "done", done, step))) {
-          return step;
-        }
+        if (!read_state()) return step;
         if (again_ && (busy || done)) {
           // The start written before the fault started the cycle: only clear it.
           end = write(device_->coil, false, "start");
@@ -114,10 +116,7 @@ DeviceStep DeviceControl::poll(SimDuration now) {
         since_ = now;
         step = {};  // pending until busy (or a new done) is seen
       }
-      if (!read_input(device_->busy, "busy", busy, step) ||
-            (device_->input >= 0 && !read_input(device_->input, "done", done, step))) {
-        return step;
-      }
+      if (!read_state()) return step;
       if (!busy && !(done && !done_before_)) {
         (void)overdue(device_->busy, "busy", now, step);
         return step;

@@ -27,6 +27,17 @@ runtime::RunConfig scenario_run_config(const Scenario& scenario, const petri::Ne
 // is left out (the runtime then refuses a program that uses it). Limits are left 0 (the runtime sets them).
 std::vector<runtime::DeviceWiring> cell_devices(const models::CellDescription& cell);
 
+// One Modbus unit the scenario puts devices on (its `devices:` key and --device), and those devices' wiring.
+struct RealIoUnit {
+  drivers::ModbusAddress address;
+  SourceLocation where;  // the choice of the unit's first device (for the unit's errors)
+  std::vector<runtime::DeviceWiring> devices;
+};
+
+// The scenario's devices on real I/O, one entry per HOST:PORT/UNIT in the order its first device has in the cell,
+// each with its devices in the cell's order (cell_devices). Devices on the twin's I/O are not in it.
+std::vector<RealIoUnit> real_io_units(const Scenario& scenario);
+
 // Refuses a lock-step run (`realtime` false) of a scenario with a robot on a real driver: a real arm moves on the
 // wall clock and cannot wait for the simulation's steps. Throws InputError naming the driver's place.
 void refuse_lockstep_with_real_drivers(const Scenario& scenario, bool realtime);

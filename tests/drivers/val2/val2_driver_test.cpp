@@ -106,6 +106,9 @@ class Peer {
   }
 
   void write_all(const std::string& bytes) {
+    // Held across the write: once the driver has read a byte of it, written() includes it (recorded after the
+    // unlocked write, a test reading written() as soon as the driver was done could miss the last answer).
+    std::lock_guard lock(mutex_);
     std::size_t done = 0;
     while (done < bytes.size() && !pty_.hung_up()) {
       const ssize_t n = ::write(pty_.master(), bytes.data() + done, bytes.size() - done);
@@ -116,7 +119,6 @@ class Peer {
         ::poll(&p, 1, 100);
       }
     }
-    std::lock_guard lock(mutex_);
     written_ += bytes;
   }
 

@@ -104,10 +104,11 @@ TEST_F(SceneTest, BuildsTheWholeCellWithNamedParts) {
   EXPECT_EQ(m->geom_condim[mj_name2id(m, mjOBJ_GEOM, "puma/finger_left/finger_left_pad")], 4);
   EXPECT_EQ(m->opt.cone, mjCONE_ELLIPTIC);
   EXPECT_DOUBLE_EQ(m->opt.impratio, 10);
-  // Euler with one noslip iteration, and buffers sized to what a run needs: one mjData stays a few MB
-  // (docs/simulation.md).
+  // Euler without a noslip pass, sparse constraint Jacobians, and buffers sized to what a run needs: one mjData stays
+  // a few MB (docs/simulation.md).
   EXPECT_EQ(m->opt.integrator, mjINT_EULER);
-  EXPECT_EQ(m->opt.noslip_iterations, 1);
+  EXPECT_EQ(m->opt.noslip_iterations, 0);
+  EXPECT_EQ(m->opt.jacobian, mjJAC_SPARSE);
   EXPECT_LE(m->njmax, 500);
   EXPECT_LE(m->nconmax, 200);
   // The same description always gives the same model text.

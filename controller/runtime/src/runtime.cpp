@@ -550,10 +550,7 @@ struct Runtime::Impl {
   // step with TaskControl::step: a turn skipped that had something to do changes the run (the runtime tests compare
   // the log with and without skipping).
   bool task_watches_time() const {
-    if (!cfg.motion.recovery.enabled || task->state() != TaskControl::State::kRunning) return false;
-    const TaskView v = task->view();
-    return std::any_of(v.robots.begin(), v.robots.end(),
-                       [](const RobotView& r) { return r.activity == RobotActivity::kWaiting; });
+    return cfg.motion.recovery.enabled && task->state() == TaskControl::State::kRunning && task->any_waiting();
   }
 
   // Seats (lock-step turns): simulation, image processing (with vision), task control, device control (with

@@ -324,6 +324,10 @@ void TaskControl::watch_waits(SimDuration now, bool dead) {
   }
 }
 
+bool TaskControl::any_waiting() const {
+  return std::find(activity_.begin(), activity_.end(), RobotActivity::kWaiting) != activity_.end();
+}
+
 TaskView TaskControl::view() const {
   TaskView v;
   v.time = last_step_;

@@ -130,6 +130,9 @@ class TaskControl {
   const std::vector<ActivityTime>& activity_time() const { return time_; }
   // A copy of the view after the last step.
   TaskView view() const;
+  // Whether some robot waits for an event after the last step (view()'s kWaiting, without building the view: the
+  // lock-step runtime asks every turn).
+  bool any_waiting() const;
 
  private:
   void drain_statuses(SimDuration now);

@@ -167,6 +167,19 @@ TEST_F(ScenarioFiles, ProgramErrorsPointIntoTheProgram) {
   }
 }
 
+TEST_F(ScenarioFiles, CoordinatedBlocksAreRefusedAtTheBlockUntilTheRunCanExecuteThem) {
+  // scenes/beam.task passes `twin check`, but no rig executes coordinated motion yet (issue 27): refused at the
+  // block, before anything is bound or run.
+  try {
+    load_scenario(write("s.yaml", fmt::format("cell: {}/cell.yaml\nprogram: {}/beam.task\n", kScenes, kScenes)));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.where().file, HasSubstr("beam.task"));
+    EXPECT_EQ(e.where().line, 8);
+    EXPECT_THAT(e.what(), HasSubstr("coordinated block 'carry': twin run cannot execute coordinated motion yet"));
+  }
+}
+
 TEST_F(ScenarioFiles, ProgramRobotBoundToNothing) {
   // r1 and r2 are not cell robots, and no `robots` field binds them: reported at the `program` field.
   expect_error(scenario("seed: 1\n"), 2, "program robot 'r1' (exchange.task) is bound to nothing in the cell");

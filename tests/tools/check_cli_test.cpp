@@ -61,6 +61,36 @@ TEST(CheckCli, StateLimitStopsWithAClearMessageAndNonZeroExit) {
   EXPECT_THAT(r.out, HasSubstr("state limit"));
 }
 
+// Issue 27's coordinated level: the shipped carry passes; the same block run by one robot only is refused before the
+// run with the firing sequence that leaves the other waiting at the block's first barrier; a malformed block is bad
+// input with its line.
+TEST(CheckCli, ACoordinatedBlockOnlyOneRobotReachesIsRefused) {
+  TwinCli cli("cw-check");
+  const Outcome ok = cli.run("check " + scene("beam.task"));
+  EXPECT_EQ(ok.status, 0) << ok.out << ok.err;
+  EXPECT_THAT(ok.out, HasSubstr("OK"));
+  const Outcome listing = cli.run("compile " + scene("beam.task"));
+  EXPECT_EQ(listing.status, 0) << listing.err;
+  EXPECT_THAT(listing.out, HasSubstr("carry (8:13): master left, follower right, carrying beam, 10 segments"));
+
+  const auto one = cli.dir() / "one.task";
+  std::ofstream(one) << "robot left right\nworkpiece beam\nlocation FIX\n"
+                        "coordinated carry master left follower right\n  Pick beam\n  Place FIX\nend\n"
+                        "sequence left\n  coordinate carry\nend\nsequence right\n  home\nend\n";
+  const Outcome bad = cli.run("check " + shell_quote(one.string()));
+  EXPECT_EQ(bad.status, 1) << bad.out << bad.err;
+  EXPECT_THAT(bad.out, HasSubstr("deadlock after"));
+  EXPECT_THAT(bad.out, HasSubstr("left: waiting for event carry.s1.right>left (line 9 'coordinate carry')"));
+
+  const auto broken = cli.dir() / "broken.task";
+  std::ofstream(broken) << "robot left right\nworkpiece beam\ncoordinated carry master left follower right\n"
+                           "  Pick beam\nend\n";
+  const Outcome refused = cli.run("check " + shell_quote(broken.string()));
+  EXPECT_EQ(refused.status, 2);
+  EXPECT_THAT(refused.err, HasSubstr("broken.task:5:1: error: coordinated block 'carry' (line 3) ends without a "
+                                     "Place"));
+}
+
 TEST(CheckCli, BadProgramNamesFileLineAndProblem) {
   TwinCli cli("cw-check");
   const auto path = cli.dir() / "bad.task";

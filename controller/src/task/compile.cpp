@@ -120,6 +120,19 @@ class Compiler {
         add_state(d, kRunning, 0);
       }
     }
+    // The coordinated blocks and their segments, compiled into a robot's program where it runs the block.
+    for (const CoordinatedBlock& b : program_.blocks) {
+      CoordinatedUse use;
+      use.name = b.name;
+      use.where = b.where;
+      use.master = b.master;
+      use.follower = b.follower;
+      use.workpiece = b.body.front().argument;
+      block_index_[b.name] = out_.coordinated.size();
+      out_.coordinated.push_back(std::move(use));
+      block_segments_.push_back(segments_of(b));
+      for (const SegmentPlan& seg : block_segments_.back()) out_.coordinated.back().segments.push_back(seg.motion);
+    }
     // Blocks in source order, so the first error in the file is the one reported.
     bool table_done = !program_.steps.has_value();
     for (const Sequence& seq : program_.sequences) {
@@ -297,12 +310,136 @@ class Compiler {
         st.inside.erase(it);
         return;
       }
+      case CommandKind::kCoordinate:
+        compile_coordinate(r, cmd, table);
+        return;
+      case CommandKind::kVia:
+        CW_CHECK(false, "'via' outside a coordinated block at line {}; was the program made by parse_program?",
+                 cmd.where.line);
+        return;
       case CommandKind::kPut:
       case CommandKind::kGet:
         fail(cmd.where, fmt::format("{} is only allowed in the steps table, where the matching {} stands on the "
                                     "same line",
                                     to_string(cmd.kind), cmd.kind == CommandKind::kPut ? "Get" : "Put"));
     }
+  }
+
+  // One segment of a coordinated block: a move to a target, or a gripper action.
+  struct SegmentPlan {
+    PrimitiveKind kind = PrimitiveKind::kMove;
+    Target target;          // kMove
+    std::string workpiece;  // kOpen/kClose
+    std::string motion;     // "approach beam"
+  };
+
+  // The segments of a block's body: Pick W (open, above W, at W, close W, above W), each via X (above X), Place X
+  // (above X, at X, open W, above X).
+  static std::vector<SegmentPlan> segments_of(const CoordinatedBlock& b) {
+    std::vector<SegmentPlan> out;
+    const std::string& w = b.body.front().argument;
+    auto move = [&](TargetKind k, const std::string& object, std::string motion) {
+      out.push_back({PrimitiveKind::kMove, {k, object}, {}, std::move(motion)});
+    };
+    auto grip = [&](PrimitiveKind k, const std::string& workpiece, std::string motion) {
+      out.push_back({k, {}, workpiece, std::move(motion)});
+    };
+    for (const Command& cmd : b.body) {
+      const std::string& x = cmd.argument;
+      switch (cmd.kind) {
+        case CommandKind::kPick:
+          grip(PrimitiveKind::kOpen, "", "open for " + w);
+          move(TargetKind::kAbove, w, "approach " + w);
+          move(TargetKind::kAt, w, "grasp " + w);
+          grip(PrimitiveKind::kClose, w, "grasp " + w);
+          move(TargetKind::kAbove, w, "lift up " + w);
+          break;
+        case CommandKind::kVia:
+          move(TargetKind::kAbove, x, "carry " + w + " via " + x);
+          break;
+        case CommandKind::kPlace:
+          move(TargetKind::kAbove, x, "approach " + x);
+          move(TargetKind::kAt, x, "put down " + w);
+          grip(PrimitiveKind::kOpen, w, "release " + w);
+          move(TargetKind::kAbove, x, "depart " + x);
+          break;
+        default:
+          CW_CHECK(false, "coordinated block {}: '{}' in its body; was the program made by parse_program?", b.name,
+                   to_string(cmd));
+      }
+    }
+    return out;
+  }
+
+  // `coordinate B` by robot r: the block's segments, each between barrier pairs with the other robot of the block.
+  void compile_coordinate(std::size_t r, const Command& cmd, const std::vector<std::size_t>& table) {
+    const std::string& name = out_.robots[r];
+    const auto bi = block_index_.find(cmd.argument);
+    CW_CHECK(bi != block_index_.end(), "'{}' is not a coordinated block", cmd.argument);
+    CoordinatedUse& use = out_.coordinated[bi->second];
+    const std::vector<SegmentPlan>& segments = block_segments_[bi->second];
+    if (name != use.master && name != use.follower) {
+      fail(cmd.argument_where, fmt::format("{} cannot run coordinated block {}: its robots are {} (master) and {} "
+                                           "(follower), declared on line {}",
+                                           name, use.name, use.master, use.follower, use.where.line));
+    }
+    for (const CoordinatedUse::Run& run : use.runs) {
+      if (run.robot == name) {
+        fail(cmd.where, fmt::format("{} already runs coordinated block {} on line {}: a robot runs a block at one "
+                                    "place in its program (put it in a loop to repeat it, or declare a second "
+                                    "block)",
+                                    name, use.name, run.where.line));
+      }
+    }
+    RobotState& st = state_[r];
+    if (st.holding) {
+      fail(cmd.where, fmt::format("{} cannot run coordinated block {}: it is holding {}, and the block begins by "
+                                  "picking {}",
+                                  name, use.name, held_since(*st.holding), use.workpiece));
+    }
+    for (std::size_t other : table) {
+      const auto& h = state_[other].holding;
+      if (other != r && h && h->workpiece == use.workpiece) {
+        fail(cmd.where, fmt::format("{} cannot run coordinated block {}: robot {} is holding {} (since line {})", name,
+                                    use.name, out_.robots[other], use.workpiece, h->line));
+      }
+    }
+    const std::string& partner = name == use.master ? use.follower : use.master;
+    const int count = static_cast<int>(segments.size());
+    if (use.runs.empty()) {
+      // The block's events, once, in barrier order.
+      for (int k = 1; k <= count + 1; ++k) {
+        add_event(segment_event(use.name, k, count, use.master, use.follower), use.where);
+        add_event(segment_event(use.name, k, count, use.follower, use.master), use.where);
+      }
+    }
+    std::vector<Primitive>& prims = primitives(r);
+    const std::size_t begin = prims.size();
+    Emitter emit(prims, cmd.where, to_string(cmd));
+    auto barrier = [&](int k) {
+      emit.motion(k <= count ? fmt::format("start segment {} together", k) : std::string("stop together"))
+          .signal(segment_event(use.name, k, count, name, partner))
+          .wait(segment_event(use.name, k, count, partner, name));
+    };
+    for (int k = 1; k <= count; ++k) {
+      barrier(k);
+      const SegmentPlan& seg = segments[static_cast<std::size_t>(k - 1)];
+      emit.motion(seg.motion);
+      switch (seg.kind) {
+        case PrimitiveKind::kMove:
+          emit.move(seg.target.kind, seg.target.object);
+          break;
+        case PrimitiveKind::kOpen:
+          emit.open(seg.workpiece);
+          break;
+        default:
+          emit.close(seg.workpiece);
+          break;
+      }
+      prims.back().segment = task::Segment{use.name, k, count, use.master, use.follower};
+    }
+    barrier(count + 1);
+    use.runs.push_back({name, cmd.where, begin, prims.size()});
   }
 
   void expect_outside_regions(std::size_t r) const {
@@ -520,6 +657,8 @@ class Compiler {
   std::map<std::string, std::size_t> robot_index_;
   std::map<std::string, std::size_t> region_index_;
   std::map<std::string, std::string> sensor_conveyor_;  // sensor -> its conveyor
+  std::map<std::string, std::size_t> block_index_;       // coordinated block -> index in out_.coordinated
+  std::vector<std::vector<SegmentPlan>> block_segments_;     // per coordinated block, its segments
   std::vector<RobotState> state_;
 };
 

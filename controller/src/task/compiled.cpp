@@ -59,6 +59,10 @@ std::string loop_exit_event(const Loop& loop, const std::string& follower) {
   return fmt::format("{}.{}>{}.exit", loop.name, loop.leader, follower);
 }
 
+std::string segment_event(const std::string& block, int k, int count, const std::string& from, const std::string& to) {
+  return k > count ? fmt::format("{}.end.{}>{}", block, from, to) : fmt::format("{}.s{}.{}>{}", block, k, from, to);
+}
+
 bool declares_device(const CompiledProgram& p, const std::string& name) {
   return std::find(p.machines.begin(), p.machines.end(), name) != p.machines.end() ||
          std::find(p.conveyors.begin(), p.conveyors.end(), name) != p.conveyors.end() ||
@@ -116,7 +120,9 @@ std::string to_string(const Target& t) {
   return fmt::format("{}({})", target_kind_name(t.kind), t.object);
 }
 
-std::string to_string(const Primitive& p) {
+namespace {
+
+std::string plain_text(const Primitive& p) {
   switch (p.kind) {
     case PrimitiveKind::kMove:
       return fmt::format("move {}", to_string(p.target));
@@ -134,6 +140,14 @@ std::string to_string(const Primitive& p) {
       return fmt::format("device {} {}", p.device, to_string(p.op));
   }
   return "?";
+}
+
+}  // namespace
+
+std::string to_string(const Primitive& p) {
+  if (!p.segment) return plain_text(p);
+  const Segment& s = *p.segment;
+  return fmt::format("{} [{} {}/{}: {} follows {}]", plain_text(p), s.block, s.index, s.count, s.follower, s.master);
 }
 
 std::string format_listing(const CompiledProgram& compiled) {
@@ -203,6 +217,19 @@ std::string format_listing(const CompiledProgram& compiled) {
       out += fmt::format("  {}: {}\n", r.name, spans.empty() ? "not used" : fmt::format("{}", fmt::join(spans, ", ")));
     }
   }
+  if (!compiled.coordinated.empty()) {
+    out += "\ncoordinated blocks (primitive index ranges [first barrier, after the last) per robot)\n";
+    for (const CoordinatedUse& c : compiled.coordinated) {
+      std::vector<std::string> runs;
+      for (const CoordinatedUse::Run& r : c.runs) {
+        runs.push_back(fmt::format("{} [{}, {}) line {}", r.robot, r.begin, r.end, r.where.line));
+      }
+      out += fmt::format("  {} ({}): master {}, follower {}, carrying {}, {} segments: {}\n", c.name,
+                         location(c.where), c.master, c.follower, c.workpiece, c.segments.size(),
+                         runs.empty() ? "not run" : fmt::format("{}", fmt::join(runs, ", ")));
+      for (std::size_t k = 0; k < c.segments.size(); ++k) out += fmt::format("    {:>2}. {}\n", k + 1, c.segments[k]);
+    }
+  }
   return out;
 }
 
@@ -234,6 +261,13 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
           j["device"] = p.device;
           j["op"] = to_string(p.op);
           break;
+      }
+      if (p.segment) {
+        j["segment"] = {{"block", p.segment->block},
+                        {"index", p.segment->index},
+                        {"count", p.segment->count},
+                        {"master", p.segment->master},
+                        {"follower", p.segment->follower}};
       }
       prims.push_back(std::move(j));
     }
@@ -279,6 +313,24 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
           {"programs", std::move(programs)},
           {"semaphores", std::move(semaphores)},
           {"regions", std::move(regions)}};
+  // Coordinated blocks only when the program has some, so that the JSON of a program without them is as before.
+  if (!compiled.coordinated.empty()) {
+    nlohmann::json blocks = nlohmann::json::array();
+    for (const CoordinatedUse& c : compiled.coordinated) {
+      nlohmann::json runs = nlohmann::json::array();
+      for (const CoordinatedUse::Run& r : c.runs) {
+        runs.push_back({{"robot", r.robot}, {"where", location_json(r.where)}, {"begin", r.begin}, {"end", r.end}});
+      }
+      blocks.push_back({{"name", c.name},
+                        {"where", location_json(c.where)},
+                        {"master", c.master},
+                        {"follower", c.follower},
+                        {"workpiece", c.workpiece},
+                        {"segments", c.segments},
+                        {"runs", std::move(runs)}});
+    }
+    out["coordinated"] = std::move(blocks);
+  }
   // Devices only when the program declares some, so that the JSON of a program without them is as before.
   if (!compiled.machines.empty() || !compiled.conveyors.empty() || !compiled.sensors.empty()) {
     out["machines"] = compiled.machines;

@@ -36,6 +36,8 @@ const char* to_string(NameKind k) {
       return "conveyor";
     case NameKind::kSensor:
       return "sensor";
+    case NameKind::kBlock:
+      return "coordinated block";
   }
   return "?";
 }
@@ -70,6 +72,10 @@ const char* to_string(CommandKind k) {
       return "home";
     case CommandKind::kPark:
       return "park";
+    case CommandKind::kCoordinate:
+      return "coordinate";
+    case CommandKind::kVia:
+      return "via";
   }
   return "?";
 }
@@ -83,6 +89,13 @@ std::string to_string(const Command& c) {
 const Declaration* find_declaration(const Program& program, std::string_view name) {
   for (const Declaration& d : program.declarations) {
     if (d.name == name) return &d;
+  }
+  return nullptr;
+}
+
+const CoordinatedBlock* find_block(const Program& program, std::string_view name) {
+  for (const CoordinatedBlock& b : program.blocks) {
+    if (b.name == name) return &b;
   }
   return nullptr;
 }
@@ -160,14 +173,19 @@ constexpr std::array<CommandSpec, 8> kCommands{{
 // `machine` or `home`, so they are recognised by position only (a command at the start of a cell or a sequence line)
 // and are not reserved: a program may still name a region `machine` (scenes/pick_place.task does). `needs` is
 // empty for a command without argument.
-constexpr std::array<CommandSpec, 6> kDeviceCommands{{
+constexpr std::array<CommandSpec, 7> kDeviceCommands{{
     {"start", CommandKind::kStart, "a machine"},
     {"run", CommandKind::kRun, "a conveyor"},
     {"stop", CommandKind::kStop, "a conveyor"},
     {"accumulate", CommandKind::kAccumulate, "a conveyor"},
     {"home", CommandKind::kHome, ""},
     {"park", CommandKind::kPark, ""},
+    // Coordinated motion came later too: `coordinate NAME` runs a coordinated block.
+    {"coordinate", CommandKind::kCoordinate, "a coordinated block"},
 }};
+
+// `via LOCATION` stands only in a coordinated block's body (recognised there by position, not reserved).
+constexpr CommandSpec kVia{"via", CommandKind::kVia, "a location"};
 
 // Statements that open a top-level line. Also reserved: they cannot be names.
 constexpr std::array<const char*, 8> kStatements{"robot",  "workpiece", "location", "semaphore",
@@ -202,6 +220,7 @@ const CommandSpec& spec_of(CommandKind kind) {
   for (const CommandSpec& c : kDeviceCommands) {
     if (c.kind == kind) return c;
   }
+  if (kind == CommandKind::kVia) return kVia;
   return kCommands[0];
 }
 
@@ -229,7 +248,7 @@ bool is_top_level_statement(const Token& t) {
 }
 
 constexpr const char* kCommandList =
-    "Pick, Put, Get, Place, signal, wait, enter, leave, start, run, stop, accumulate, home or park";
+    "Pick, Put, Get, Place, signal, wait, enter, leave, start, run, stop, accumulate, home, park or coordinate";
 
 bool is_word(const Token& t, std::string_view keyword) {
   return t.kind == TokenKind::kName && lower(t.text) == keyword;
@@ -263,7 +282,7 @@ class Parser {
       throw InputError(open_loop_->where, "the loop opened here has no matching 'end' before the end of the file");
     }
     if (mode_ != Mode::kTop) {
-      const char* what = mode_ == Mode::kSequence ? "sequence" : "steps";
+      const char* what = block_kind();
       throw InputError(block_where_, fmt::format("the {} block opened here has no matching 'end' before the end "
                                                  "of the file{}",
                                                  what, closed_loop_note()));
@@ -285,7 +304,12 @@ class Parser {
   }
 
  private:
-  enum class Mode : std::uint8_t { kTop, kStepsHeader, kSteps, kSequence };
+  enum class Mode : std::uint8_t { kTop, kStepsHeader, kSteps, kSequence, kBlock };
+
+  // The name of the open block's kind, for messages.
+  const char* block_kind() const {
+    return mode_ == Mode::kSequence ? "sequence" : mode_ == Mode::kBlock ? "coordinated" : "steps";
+  }
 
   SourceLocation at(int column) const { return {program_.file, line_, column}; }
   SourceLocation at(const Token& t) const { return at(t.column); }
@@ -340,6 +364,7 @@ class Parser {
       case Mode::kStepsHeader:
       case Mode::kSteps:
       case Mode::kSequence:
+      case Mode::kBlock:
         parse_block_line();
         return;
     }
@@ -366,7 +391,7 @@ class Parser {
     const Token& first = tokens_.front();
     if (first.kind != TokenKind::kName) {
       fail(first, fmt::format("expected a statement (robot, workpiece, location, semaphore, region, machine, "
-                              "conveyor, sensor, steps or sequence), found {}",
+                              "conveyor, sensor, steps, sequence or coordinated), found {}",
                               quoted(first)));
     }
     const std::string word = lower(first.text);
@@ -387,6 +412,8 @@ class Parser {
       for (std::size_t i = 1; i < tokens_.size(); ++i) declare(kind, expect_new_name(i, to_string(kind)), 0);
     } else if (word == "sensor") {
       parse_sensor(first);
+    } else if (word == "coordinated") {
+      parse_block_header(first);
     } else if (word == "semaphore") {
       if (tokens_.size() == 1) fail(first, fmt::format("'{}' needs at least one name", first.text));
       std::size_t i = 1;
@@ -432,11 +459,13 @@ class Parser {
       fail(first, "'end' without an open steps or sequence block");
     } else if (find_any_command(word) != nullptr || word == "repeat") {
       fail(first, fmt::format("'{}' must stand inside a steps or sequence block", first.text));
+    } else if (word == "via") {
+      fail(first, "'via' stands in the body of a coordinated block ('coordinated NAME master ROBOT follower ROBOT')");
     } else if (word == "from") {
       fail(first, "'from' stands in a workpiece class declaration: 'workpiece NAME from LOCATION'");
     } else {
       fail(first, fmt::format("unknown statement '{}' (expected robot, workpiece, location, semaphore, region, "
-                              "machine, conveyor, sensor, steps or sequence)",
+                              "machine, conveyor, sensor, steps, sequence or coordinated)",
                               first.text));
     }
   }
@@ -584,12 +613,17 @@ class Parser {
 
   void parse_block_line() {
     const Token& first = tokens_.front();
-    const char* block = mode_ == Mode::kSequence ? "sequence" : "steps";
-    const std::size_t next =
-        mode_ == Mode::kSequence ? program_.sequences.back().commands.size() : program_.steps->lines.size();
+    const char* block = block_kind();
+    const std::size_t next = mode_ == Mode::kSequence ? program_.sequences.back().commands.size()
+                             : mode_ == Mode::kBlock  ? program_.blocks.back().body.size()
+                                                      : program_.steps->lines.size();
     if (first.kind == TokenKind::kName && is_statement(first.text, "end")) {
       expect_alone(first);
       if (mode_ == Mode::kStepsHeader) fail(first, "the steps block has no header line naming its robot columns");
+      if (mode_ == Mode::kBlock) {
+        close_block(first);
+        return;
+      }
       if (open_loop_) {
         close_loop(first, next);
         return;
@@ -607,6 +641,11 @@ class Parser {
                               block, block_where_.line, closed_loop_note()));
     }
     if (is_word(first, "repeat")) {
+      if (mode_ == Mode::kBlock) {
+        fail(first, fmt::format("a coordinated block has no loops (the block opened on line {}): put "
+                                "'coordinate {}' inside a loop of the robots' programs instead",
+                                block_where_.line, program_.blocks.back().name));
+      }
       if (mode_ == Mode::kStepsHeader) {
         fail(first, "the first line of a steps block is its header naming the robot columns (like 'r1 | r2'), found "
                     "'repeat': a loop opens after the header");
@@ -625,9 +664,108 @@ class Parser {
       case Mode::kSequence:
         parse_sequence_line();
         return;
+      case Mode::kBlock:
+        parse_block_body_line();
+        return;
       case Mode::kTop:
         return;
     }
+  }
+
+  // `coordinated NAME master ROBOT follower ROBOT`: opens a coordinated block. The robots are resolved after the whole
+  // file.
+  void parse_block_header(const Token& first) {
+    constexpr const char* kShape = "'coordinated NAME master ROBOT follower ROBOT'";
+    if (tokens_.size() == 1) fail(first, fmt::format("'coordinated' needs a name and its two robots: {}", kShape));
+    const Token& name = expect_new_name(1, "coordinated block");
+    const char* words[2] = {"master", "follower"};
+    for (std::size_t k = 0; k < 2; ++k) {
+      const std::size_t w = 2 + 2 * k;
+      if (tokens_.size() <= w || !is_word(tokens_[w], words[k])) {
+        fail(tokens_.size() <= w ? tokens_.back() : tokens_[w],
+             fmt::format("coordinated block '{}' needs its {} robot: {}{}", name.text, words[k], kShape,
+                         tokens_.size() <= w ? std::string() : fmt::format(", found {}", quoted(tokens_[w]))));
+      }
+      if (tokens_.size() <= w + 1 || tokens_[w + 1].kind != TokenKind::kName) {
+        fail(tokens_.size() <= w + 1 ? tokens_[w] : tokens_[w + 1],
+             fmt::format("'{}' in coordinated block '{}' needs a robot name", words[k], name.text));
+      }
+    }
+    if (tokens_.size() > 6) {
+      fail(tokens_[6], fmt::format("unexpected {} after the follower robot: {}", quoted(tokens_[6]), kShape));
+    }
+    declare(NameKind::kBlock, name, 0);
+    CoordinatedBlock b;
+    b.name = name.text;
+    b.where = at(name);
+    b.master = tokens_[3].text;
+    b.master_where = at(tokens_[3]);
+    b.follower = tokens_[5].text;
+    b.follower_where = at(tokens_[5]);
+    program_.blocks.push_back(std::move(b));
+    block_where_ = at(first);
+    last_loop_end_ = 0;
+    mode_ = Mode::kBlock;
+  }
+
+  // One command of a coordinated block's body: Pick W, via LOCATION or Place X.
+  void parse_block_body_line() {
+    CoordinatedBlock& b = program_.blocks.back();
+    for (const Token& t : tokens_) {
+      if (t.kind == TokenKind::kBar) {
+        fail(t, "'|' separates the columns of the steps table; a coordinated block has one command per line");
+      }
+    }
+    const Token& word = tokens_.front();
+    Command cmd;
+    if (is_word(word, "via")) {
+      if (tokens_.size() < 2) fail(word, "via needs an argument: a location name");
+      const Token& arg = tokens_[1];
+      if (arg.kind != TokenKind::kName) fail(arg, fmt::format("via needs a location name, found {}", quoted(arg)));
+      if (tokens_.size() > 2) {
+        fail(tokens_[2], fmt::format("extra argument {} after 'via {}': via takes one location", quoted(tokens_[2]),
+                                     arg.text));
+      }
+      cmd.kind = CommandKind::kVia;
+      cmd.where = at(word);
+      cmd.argument = arg.text;
+      cmd.argument_where = at(arg);
+    } else {
+      cmd = parse_command(0, tokens_.size(), b.master, "coordinated block");
+    }
+    const bool has_pick = !b.body.empty();
+    const bool placed = has_pick && b.body.back().kind == CommandKind::kPlace;
+    const std::string shape = fmt::format("the body of a coordinated block is 'Pick WORKPIECE', any number of 'via "
+                                          "LOCATION', then 'Place X' (block '{}', line {})",
+                                          b.name, b.where.line);
+    switch (cmd.kind) {
+      case CommandKind::kPick:
+        if (has_pick) fail(word, fmt::format("a second Pick: {}", shape));
+        if (!cmd.machine.empty()) {
+          fail(tokens_[2], fmt::format("'Pick ... from MACHINE' is not allowed in a coordinated block: {}", shape));
+        }
+        break;
+      case CommandKind::kVia:
+      case CommandKind::kPlace:
+        if (!has_pick) fail(word, fmt::format("{} before the block's Pick: {}", to_string(cmd.kind), shape));
+        if (placed) fail(word, fmt::format("{} after the block's Place: {}", to_string(cmd.kind), shape));
+        break;
+      default:
+        fail(word, fmt::format("'{}' is not allowed in a coordinated block: {}", to_string(cmd), shape));
+    }
+    b.body.push_back(std::move(cmd));
+  }
+
+  // The `end` of a coordinated block: its body must be complete.
+  void close_block(const Token& end) {
+    CoordinatedBlock& b = program_.blocks.back();
+    if (b.body.empty() || b.body.back().kind != CommandKind::kPlace) {
+      fail(end, fmt::format("coordinated block '{}' (line {}) ends {}: its body is 'Pick WORKPIECE', any number of "
+                            "'via LOCATION', then 'Place X'",
+                            b.name, b.where.line, b.body.empty() ? "with an empty body" : "without a Place"));
+    }
+    b.end_where = at(end);
+    mode_ = Mode::kTop;
   }
 
   // Splits the line's tokens at '|' into [begin, end) index ranges, one per cell.
@@ -826,6 +964,12 @@ class Parser {
       case CommandKind::kLeave:
         allowed = {NameKind::kRegion};
         break;
+      case CommandKind::kCoordinate:
+        allowed = {NameKind::kBlock};
+        break;
+      case CommandKind::kVia:
+        allowed = {NameKind::kLocation};
+        break;
     }
     if (d == nullptr) {
       // "a workpiece" -> "unknown workpiece 'X'"
@@ -875,6 +1019,35 @@ class Parser {
     for (Command& cmd : seq.commands) resolve_command(cmd);
   }
 
+  // A coordinated block: two distinct robots; a named workpiece picked; a location or named workpiece placed on.
+  void resolve_block(CoordinatedBlock& b) const {
+    expect_robot(b.master, b.master_where);
+    expect_robot(b.follower, b.follower_where);
+    if (b.master == b.follower) {
+      fail_at(b.follower_where, fmt::format("coordinated block '{}' needs two robots, but its master and follower are "
+                                            "both '{}'",
+                                            b.name, b.master));
+    }
+    for (Command& cmd : b.body) {
+      resolve_command(cmd);
+      const Declaration* d = find_declaration(program_, cmd.argument);
+      if (cmd.kind == CommandKind::kPick && !d->from.empty()) {
+        fail_at(cmd.argument_where, fmt::format("coordinated block '{}' carries one named workpiece, but '{}' is a "
+                                                "workpiece class (whichever part arrives at {})",
+                                                b.name, cmd.argument, d->from));
+      }
+      if (cmd.kind == CommandKind::kPlace && cmd.argument == b.body.front().argument) {
+        fail_at(cmd.argument_where, fmt::format("coordinated block '{}' cannot place {} on itself", b.name,
+                                                cmd.argument));
+      }
+      if (cmd.kind == CommandKind::kPlace && cmd.argument_kind == NameKind::kMachine) {
+        fail_at(cmd.argument_where, fmt::format("coordinated block '{}' cannot place into machine '{}': a machine "
+                                                "is loaded by one robot",
+                                                b.name, cmd.argument));
+      }
+    }
+  }
+
   // The conveyor a sensor sees the parts of.
   void resolve_sensor(const Declaration& c) const {
     const Declaration* d = find_declaration(program_, c.from);
@@ -909,6 +1082,7 @@ class Parser {
       }
     }
     if (program_.steps) work.emplace_back(program_.steps->where.line, [this] { resolve_table(*program_.steps); });
+    for (CoordinatedBlock& b : program_.blocks) work.emplace_back(b.where.line, [this, &b] { resolve_block(b); });
     for (std::size_t i = 0; i < program_.sequences.size(); ++i) {
       work.emplace_back(program_.sequences[i].where.line, [this, i] { resolve_sequence(program_.sequences[i], i); });
     }

@@ -16,33 +16,22 @@
 #include <string>
 #include <vector>
 
+#include "controller/task/task_test_helpers.hpp"
+
 namespace cellwright::task {
 namespace {
 
 const std::filesystem::path kScenes = std::filesystem::path(CW_SOURCE_DIR) / "scenes";
 
-CompiledProgram compile_text(const std::string& text) {
-  return compile(parse_program(text, "t.task"));
-}
+using test::compile_text;
+using test::Failure;
+using test::program_of;
 
 std::vector<std::string> texts(const RobotProgram& prog) {
   std::vector<std::string> out;
   for (const Primitive& p : prog.primitives) out.push_back(to_string(p));
   return out;
 }
-
-const RobotProgram& program_of(const CompiledProgram& c, const std::string& robot) {
-  for (const RobotProgram& p : c.programs) {
-    if (p.robot == robot) return p;
-  }
-  throw std::runtime_error("no program for " + robot);
-}
-
-struct Failure {
-  int line = 0;
-  int column = 0;
-  std::string problem;
-};
 
 Failure compile_failure(const std::string& text) {
   const Program program = parse_program(text, "t.task");  // must parse: these are semantic errors

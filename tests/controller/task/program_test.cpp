@@ -419,10 +419,10 @@ TEST(ParseErrors, StatementsOutOfPlace) {
   expect_failure("robot r1\nworkpiece A\n  Pick A\n", 3, 3, "'Pick' must stand inside a steps or sequence block");
   expect_failure("robots r1\n", 1, 1,
                  "unknown statement 'robots' (expected robot, workpiece, location, semaphore, region, machine, "
-                 "conveyor, sensor, steps or sequence)");
+                 "conveyor, sensor, steps, sequence or coordinated)");
   expect_failure("| r1\n", 1, 1,
                  "expected a statement (robot, workpiece, location, semaphore, region, machine, conveyor, sensor, "
-                 "steps or sequence), found '|'");
+                 "steps, sequence or coordinated), found '|'");
   expect_failure("robot r1\nsteps\nr1\nend\nsteps\nr1\nend\n", 5, 1,
                  "only one steps block is allowed; the first is on line 2");
   expect_failure("robot r1\nsteps now\n", 2, 7, "unexpected 'now' after 'steps'");
@@ -434,11 +434,11 @@ TEST(ParseErrors, StatementsOutOfPlace) {
 
 TEST(ParseErrors, UnknownCommand) {
   expect_failure("robot r1\nworkpiece A\nsequence r1\n  Pik A\nend\n", 4, 3,
-                 "unknown command 'Pik' (expected Pick, Put, Get, Place, signal, wait, enter, leave, start, run, stop, accumulate, home or "
-                 "park)");
+                 "unknown command 'Pik' (expected Pick, Put, Get, Place, signal, wait, enter, leave, start, run, stop, accumulate, home, park or "
+                 "coordinate)");
   expect_failure("robot r1 r2\nsteps\nr1 | r2\n | 7\nend\n", 4, 4,
                  "expected a command (Pick, Put, Get, Place, signal, wait, enter, leave, start, run, stop, accumulate, "
-                 "home or park), found '7'");
+                 "home, park or coordinate), found '7'");
 }
 
 TEST(ParseErrors, MissingOrExtraArguments) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,18 @@ struct Target {
   std::string object;  // workpiece, location or robot label; empty for kHome
 };
 
+// A segment of a coordinated block (compiled.hpp CoordinatedUse; docs/task-language.md "Coordinated motion"): one
+// move or gripper action that the block's two robots do together, starting and stopping together. Both robots'
+// primitives of a segment carry the master's symbolic target; the master goes there, the follower to the master's
+// target composed with the fixed grasp transform between the two grasp points on the workpiece.
+struct Segment {
+  std::string block;     // the coordinated block's name
+  int index = 0;         // 1-based, in the block's order
+  int count = 0;         // segments in the block
+  std::string master;    // the robot whose target it is
+  std::string follower;  // the robot that follows it
+};
+
 struct Primitive {
   PrimitiveKind kind = PrimitiveKind::kMove;
   Target target;          // kMove only
@@ -54,6 +67,7 @@ struct Primitive {
   int loop = -1;          // kLoop: index into RobotProgram::loops of the loop it closes; -1 for the other kinds
   std::string device;     // kDevice: the machine, conveyor or sensor
   DeviceOp op = DeviceOp::kStart;  // kDevice: what it does
+  std::optional<Segment> segment;  // kMove/kOpen/kClose of a coordinated block: which segment; nullopt otherwise
   // Provenance, for listings and for analysis results told in program terms.
   SourceLocation where;   // the task-level command (or signal/wait/enter/leave statement) in the source
   std::string task;       // task-level command as written, e.g. "Pick A"
@@ -133,6 +147,30 @@ struct SensorDecl {
   std::string conveyor;
 };
 
+// A coordinated block as compiled: its robots, what they carry, its segments, and where each robot runs it.
+// The block's synchronisation is by inserted events: before each segment k, and after the last (k = count + 1,
+// written "end"), each robot signals `NAME.sK.SELF>OTHER` and waits for `NAME.sK.OTHER>SELF` (a barrier pair), so that
+// in the Petri net neither robot can begin a segment, or leave the block, without the other; a block only one of them
+// reaches deadlocks there, and `twin check` refuses it with the firing sequence.
+struct CoordinatedUse {
+  std::string name;
+  SourceLocation where;  // the `coordinated` statement's name
+  std::string master, follower;
+  std::string workpiece;              // the named workpiece the block picks
+  std::vector<std::string> segments;  // each segment's motion-level command ("approach beam"), in order
+  struct Run {
+    std::string robot;
+    SourceLocation where;   // the robot's `coordinate NAME` command
+    std::size_t begin = 0;  // its first primitive for the block (the first barrier)
+    std::size_t end = 0;    // one past its last (the last barrier's wait)
+  };
+  std::vector<Run> runs;  // in compilation order; a robot that never runs the block has none
+};
+
+// The barrier events of a coordinated block: before segment k (1-based; k = count + 1 after the last), from robot
+// `from` to robot `to`: "carry.s3.left>right", "carry.end.left>right".
+std::string segment_event(const std::string& block, int k, int count, const std::string& from, const std::string& to);
+
 struct CompiledProgram {
   std::string file;
   std::vector<std::string> robots;       // declaration order
@@ -145,6 +183,7 @@ struct CompiledProgram {
   std::vector<RobotProgram> programs;    // one per robot, same order as robots
   std::vector<Semaphore> semaphores;     // user semaphores, regions, and the events the compiler inserted
   std::vector<RegionUse> regions;
+  std::vector<CoordinatedUse> coordinated;  // declaration order
 };
 
 // Whether the program declares a machine, conveyor or sensor named `name`.

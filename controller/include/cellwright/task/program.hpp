@@ -25,10 +25,12 @@ namespace cellwright::task {
 
 // The kinds of declared names. All names share one namespace.
 // Devices (kMachine, kConveyor, kSensor) are the cell's ancillary equipment: the process machine, the belts and their
-// photo-eyes (docs/task-language.md, "Devices").
-enum class NameKind : std::uint8_t { kRobot, kWorkpiece, kLocation, kSemaphore, kRegion, kMachine, kConveyor, kSensor };
+// photo-eyes (docs/task-language.md, "Devices"). kBlock names a coordinated block (`coordinated NAME ...`, below).
+enum class NameKind : std::uint8_t {
+  kRobot, kWorkpiece, kLocation, kSemaphore, kRegion, kMachine, kConveyor, kSensor, kBlock
+};
 
-// "robot", "workpiece", "location", "semaphore", "region", "machine", "conveyor", "sensor".
+// "robot", "workpiece", "location", "semaphore", "region", "machine", "conveyor", "sensor", "coordinated block".
 const char* to_string(NameKind k);
 
 // One declared name, e.g. `semaphore s = 2` or one of the names of `robot r1 r2`.
@@ -48,12 +50,15 @@ struct Declaration {
 // conveyor); `wait` also takes a machine (until its cycle is done) or a sensor (until it sees a part), `Place` a
 // machine (put the held part into it) and `Pick W from M` takes W out of machine M. kHome and kPark send the robot to
 // its home or park pose and take no argument.
+// kCoordinate runs a coordinated block (`coordinate NAME`, in the programs of both of the block's robots); kVia stands
+// only in a coordinated block's body (`via LOCATION`: carry the workpiece over that location).
 enum class CommandKind : std::uint8_t {
-  kPick, kPut, kGet, kPlace, kSignal, kWait, kEnter, kLeave, kStart, kRun, kStop, kAccumulate, kHome, kPark
+  kPick, kPut, kGet, kPlace, kSignal, kWait, kEnter, kLeave, kStart, kRun, kStop, kAccumulate, kHome, kPark,
+  kCoordinate, kVia
 };
 
 // The canonical spelling of the command keyword: "Pick", "Put", "Get", "Place", "signal", "wait", "enter", "leave",
-// "start", "run", "stop", "accumulate", "home", "park".
+// "start", "run", "stop", "accumulate", "home", "park", "coordinate", "via".
 const char* to_string(CommandKind k);
 
 // One task-level command with its argument (none for home and park).
@@ -105,8 +110,31 @@ struct Sequence {
   std::vector<LoopBlock> loops;  // in source order, indexes into `commands`
 };
 
+// A coordinated block (docs/task-language.md, "Coordinated motion: two robots carry one workpiece"):
+//
+//   coordinated carry master left follower right
+//     Pick beam        # both grasp the workpiece, each at its own grasp point
+//     via MID          # carry it over MID (any number of these)
+//     Place FIX        # put it down together
+//   end
+//
+// Both robots run it with `coordinate carry` in their own program (a table cell or a sequence line). Every segment of
+// the block (each move and each gripper action) is done by both robots together: the master goes to its target at
+// the programmed speed, the follower to the master's target composed with the fixed grasp transform between the two
+// grasp points; both start and stop each segment together. The body is one Pick of a named workpiece, then any
+// number of `via LOCATION`, then one Place.
+struct CoordinatedBlock {
+  std::string name;
+  SourceLocation where;  // the block's name in the `coordinated` statement
+  std::string master, follower;
+  SourceLocation master_where, follower_where;
+  std::vector<Command> body;  // kPick, kVia..., kPlace (checked by parse_program)
+  SourceLocation end_where;   // the block's `end`
+};
+
 // A parsed, name-resolved program.
 // Invariants (established by parse_program): every name is declared once; the table's robots are distinct robots;
+// a coordinated block's master and follower are two distinct robots and its body is Pick, via..., Place;
 // no robot is both a table column and a sequence, and no robot has two sequences; every command argument is
 // declared with the kind the command needs (`argument_kind` says which).
 struct Program {
@@ -114,7 +142,11 @@ struct Program {
   std::vector<Declaration> declarations;  // in source order
   std::optional<StepTable> steps;
   std::vector<Sequence> sequences;  // in source order
+  std::vector<CoordinatedBlock> blocks;  // in source order; each name is also a kBlock declaration
 };
+
+// The coordinated block named `name`, or nullptr.
+const CoordinatedBlock* find_block(const Program& program, std::string_view name);
 
 // The declaration of `name`, or nullptr if it is not declared.
 const Declaration* find_declaration(const Program& program, std::string_view name);

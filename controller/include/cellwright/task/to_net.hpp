@@ -23,6 +23,9 @@
 // The iteration count is not in the net: both of the leader's transitions are enabled together, so an analysis holds
 // for any count and costs the same for 3 iterations or 3,000; whoever executes the net chooses by the count
 // (task/loop_control.hpp).
+// A coordinated block (compiled.hpp CoordinatedUse) needs nothing of its own: the barrier pair before each of its
+// segments (and after the last) is a signal and a wait on inserted events, so neither robot begins a segment or leaves
+// the block without the other, and a block only one robot reaches is a dead marking the analysis reports.
 // One token per robot; the final marking has every robot in its done place.
 #pragma once
 

@@ -900,7 +900,7 @@ AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
         decided->deadlock_proof = fmt::format(
             "no marking the state equation allows is dead without being a proper end (integer program{})", traps);
       } else if (se.verdict == StateEquationResult::Verdict::kCandidate) {
-        if (auto path = guided_deadlock_search(net, se.firings)) {
+        if (auto path = guided_deadlock_search(net, se.firings, 20'000)) {
           decided = std::move(r);
           Marking m = net.initial_marking();
           for (TransitionId t : *path) fire_in_place(net, m, t);

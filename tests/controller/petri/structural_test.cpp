@@ -219,8 +219,12 @@ void compare(const Net& net, Tally& tally) {
   if (!fast.complete) {
     // Not decided: the stated reason is there, and nothing definite it says is wrong.
     EXPECT_FALSE(fast.stop_reason.empty());
-    if (fast.deadlocks > 0) EXPECT_GT(full.deadlocks, 0u);
-    if (!fast.bounded) EXPECT_FALSE(full.bounded);
+    if (fast.deadlocks > 0 && full.complete) {
+      EXPECT_GT(full.deadlocks, 0u);
+    }
+    if (!fast.bounded) {
+      EXPECT_FALSE(full.bounded);
+    }
     return;
   }
   ++tally.decided;
@@ -271,7 +275,7 @@ TEST(Structural, SameVerdictsAsFullExplorationOnRandomNets) {
 TEST(Structural, SameVerdictsAsFullExplorationOnRandomPrograms) {
   // Tables, sequences, regions, semaphores and loops (testnets::random_looping_program), and the generated shapes.
   Tally t;
-  for (std::uint64_t seed = 1; seed <= 300; ++seed) {
+  for (std::uint64_t seed = 1; seed <= 200; ++seed) {
     const std::string text = testnets::random_looping_program(seed);
     SCOPED_TRACE(text);
     compare(program_net(text), t);
@@ -282,7 +286,7 @@ TEST(Structural, SameVerdictsAsFullExplorationOnRandomPrograms) {
     compare(program_net(generators::lockstep_program(robots, 5)), t);
   }
   print("random programs", t);
-  EXPECT_GE(t.compared, 280);
+  EXPECT_GE(t.compared, 190);
   EXPECT_GE(t.proved_free, 20);
   EXPECT_GE(t.guided, 10);
   EXPECT_GE(t.regions_proved, 50);

@@ -76,8 +76,8 @@ struct StateEquationResult {
 };
 
 struct StateEquationOptions {
-  std::size_t max_traps = 64;   // trap refinements before giving a candidate back
-  double time_limit_s = 10.0;   // per solve of the integer program
+  std::size_t max_traps = 8;    // trap refinements before giving a candidate back
+  double time_limit_s = 0.1;    // per solve of the integer program (past it: kUnknown, and analyze() explores on)
 };
 
 StateEquationResult deadlock_free_by_state_equation(const Net& net, const StateEquationOptions& options = {});

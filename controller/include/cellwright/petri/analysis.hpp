@@ -171,9 +171,10 @@ std::string describe_marking(const Net& net, const Marking& m);
 std::string format_report(const Net& net, const AnalysisResult& r);
 // The JSON report. Keys: ok, complete, stop_reason, states, edges, deadlocks, final_states, bounded, mutex_ok,
 // stored_bytes, reduction ("none"/"stubborn", as asked), reduced (states and edges count a reduced exploration),
-// reduction_note, deadlock_path_shortest, unbounded_places (place ids), unbounded_path, dead_transitions (transition
+// reduction_note, deadlock_path_shortest, explored_all, deadlock_proof, deadlocks_counted, unbounded_places (place ids), unbounded_path, dead_transitions (transition
 // ids; null unless complete and not reduced), place_bounds ({place id: max tokens}; null unless complete and not
-// reduced), regions ([{name, exclusive, max_inside, capacity, witness_path, witness_shortest, witness_marking}]),
+// reduced), regions ([{name, exclusive, max_inside, capacity, witness_path, witness_shortest, witness_marking,
+// by_invariant, invariant_bound (null unless by_invariant)}]),
 // deadlock_path, deadlock_marking ({place id: tokens}, non-zero places only),
 // deadlock_description (describe_marking), deadlock_examples ([{path, marking}]). A path is a list of {transition
 // (id), name, robot, line, task, motion} ("" and 0 where the net has no origin); absent paths and markings are null.

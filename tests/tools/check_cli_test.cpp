@@ -133,6 +133,65 @@ TEST(CheckCli, ReducedByDefaultWithTheSameVerdictsAsFullExploration) {
   EXPECT_THAT(exact.out, Not(HasSubstr("(reduced)")));
 }
 
+// Issue 27's shapes as a user writes them: N free sequences sharing one region (each enters it twice), and N
+// "philosophers" taking their own region and their neighbour's.
+std::string shared_region(int n) {
+  std::string s = "robot";
+  for (int i = 1; i <= n; ++i) s += " r" + std::to_string(i);
+  s += "\nworkpiece";
+  for (int i = 1; i <= n; ++i) s += " A" + std::to_string(i);
+  s += "\nlocation";
+  for (int i = 1; i <= n; ++i) s += " F" + std::to_string(i) + " O" + std::to_string(i);
+  s += "\nregion zone\n";
+  for (int i = 1; i <= n; ++i) {
+    const std::string k = std::to_string(i);
+    s += "sequence r" + k + "\n  Pick A" + k + "\n  enter zone\n  Place F" + k + "\n  leave zone\n  home\n  enter zone\n" +
+         "  Pick A" + k + "\n  leave zone\n  Place O" + k + "\nend\n";
+  }
+  return s;
+}
+std::string philosophers(int n) {
+  std::string s = "robot";
+  for (int i = 1; i <= n; ++i) s += " r" + std::to_string(i);
+  s += "\nworkpiece";
+  for (int i = 1; i <= n; ++i) s += " A" + std::to_string(i);
+  s += "\nlocation";
+  for (int i = 1; i <= n; ++i) s += " F" + std::to_string(i);
+  s += "\nregion";
+  for (int i = 1; i <= n; ++i) s += " Z" + std::to_string(i);
+  s += "\n";
+  for (int i = 1; i <= n; ++i) {
+    const std::string k = std::to_string(i), next = std::to_string(i % n + 1);
+    s += "sequence r" + k + "\n  Pick A" + k + "\n  enter Z" + k + "\n  enter Z" + next + "\n  Place F" + k +
+         "\n  leave Z" + next + "\n  leave Z" + k + "\n  home\nend\n";
+  }
+  return s;
+}
+
+TEST(CheckCli, SharedRegionPassesAndPhilosophersAreRefusedFromTheNetsStructure) {
+  TwinCli cli("cw-check");
+  const auto shared = cli.dir() / "shared.task";
+  std::ofstream(shared) << shared_region(12);
+  const Outcome ok = cli.run("check " + shell_quote(shared.string()));
+  EXPECT_EQ(ok.status, 0) << ok.out << ok.err;
+  EXPECT_THAT(ok.out, HasSubstr("OK: no deadlock, bounded, mutual exclusion holds"));
+  EXPECT_THAT(ok.out, HasSubstr("no deadlock: no marking the state equation allows is dead"));
+  EXPECT_THAT(ok.out, HasSubstr("region zone: exclusive, by a place invariant (never more than 1 inside"));
+
+  const auto table = cli.dir() / "philosophers.task";
+  std::ofstream(table) << philosophers(50);
+  const Outcome bad = cli.run("check --json " + shell_quote(table.string()));
+  EXPECT_EQ(bad.status, 1) << bad.out << bad.err;
+  const auto j = nlohmann::json::parse(bad.out);
+  EXPECT_EQ(j["ok"], false);
+  EXPECT_EQ(j["complete"], true);
+  EXPECT_EQ(j["explored_all"], false);
+  EXPECT_EQ(j["deadlock_path_shortest"], false);
+  EXPECT_EQ(j["deadlocks_counted"], false);
+  EXPECT_FALSE(j["deadlock_path"].empty());
+  EXPECT_THAT(j["deadlock_description"].get<std::string>(), HasSubstr("r50: waiting for region Z1 free"));
+}
+
 TEST(CheckCli, UnknownReductionIsBadInput) {
   TwinCli cli("cw-check");
   const Outcome r = cli.run("check --reduction symmetric " + scene("exchange.task"));

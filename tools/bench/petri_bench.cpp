@@ -2,12 +2,15 @@
 // <= 64 bytes per stored marking, counting packed markings, parent links and hash table), and the token-game rate
 // the task-control thread can sustain on a 100-transition net. Rates are per CPU second (the machine is shared; CPU
 // time is what one core delivers), Google Benchmark's default. And `twin check` at scale: a lock-step program of 12
-// robots and 20 lines (target: under 1 s with the stubborn-set reduction), full vs reduced markings where full
+// robots and 20 lines (target: under 1 s with the stubborn-set reduction), the shared-region and philosophers programs
+// of 12 and 50 robots (issue 27; target under 1 s each, decided by the structural checks past the exploration budget), full vs reduced markings where full
 // exploration is feasible; the same table inside a `repeat` (a cyclic net, shown bounded by a weighting of its places
 // before the reduced search is trusted), and the shift program of the pipeline written for a shift.
 //
 //   cmake --build build --target petri_bench && build/tools/petri_bench
 //   taskset -c 0 build/tools/petri_bench --benchmark_filter=Check --benchmark_repetitions=5
+//   taskset -c 0 build/tools/petri_bench --benchmark_filter='CheckSharedRegion|CheckPhilosophers|CheckLockStep/robots:12'
+//       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 //       (add --benchmark_report_aggregates_only=true for the medians alone)
 #include <benchmark/benchmark.h>
 #include <fmt/format.h>
@@ -87,6 +90,7 @@ void check(benchmark::State& state, const std::string& text, bool stubborn) {
   state.counters["transitions"] = static_cast<double>(transitions);
   state.counters["ok"] = r.ok() ? 1 : 0;
   state.counters["reduced"] = r.reduced ? 1 : 0;
+  state.counters["explored_all"] = r.explored_all ? 1 : 0;  // 0: past the exploration budget, decided structurally
 }
 
 // A generated lock-step program (generators::lockstep_program).
@@ -150,6 +154,20 @@ BENCHMARK(BM_CheckShift)
     ->Args({1, 1})
     ->Args({6, 1})
     ->Unit(benchmark::kMillisecond);
+
+// Issue 27's shapes: free sequences that each enter one shared region twice (must pass: the region is exclusive by
+// its place invariant, deadlock freedom by the state equation), and "philosophers" that each take their own region
+// and their neighbour's (must be refused: the deadlock is found by a search guided by the state equation's solution).
+// Target: under 1 s for 12 and for 50 robots.
+void BM_CheckSharedRegion(benchmark::State& state) {
+  check(state, generators::shared_region_program(static_cast<int>(state.range(0))), true);
+}
+BENCHMARK(BM_CheckSharedRegion)->ArgNames({"robots"})->Arg(12)->Arg(50)->Unit(benchmark::kMillisecond);
+
+void BM_CheckPhilosophers(benchmark::State& state) {
+  check(state, generators::philosophers_program(static_cast<int>(state.range(0))), true);
+}
+BENCHMARK(BM_CheckPhilosophers)->ArgNames({"robots"})->Arg(12)->Arg(50)->Unit(benchmark::kMillisecond);
 
 // The token game as the task-control thread plays it: choose a maximal fair step, fire it. 10 robots x 10 steps =
 // 100 transitions, sharing three regions.

@@ -22,6 +22,9 @@
 #include <memory>
 #include <stdexcept>
 
+#include "cellwright/common/error.hpp"
+#include "cellwright/petri/firing.hpp"
+#include "cellwright/petri/structural.hpp"
 #include "cellwright/petri/stubborn.hpp"
 
 namespace cellwright::petri {
@@ -679,6 +682,7 @@ class Explorer {
     const std::uint32_t known = store_.find(w, h);
     if (known != kNone) return known <= at;
     if (store_.size() >= max_states_) {
+      state_limit_ = true;
       stop(fmt::format("state limit of {} markings reached; raise --max-states", max_states_));
       return false;
     }
@@ -749,6 +753,8 @@ class Explorer {
   AnalysisResult finish() {
     r_.states = store_.size();
     r_.complete = !stopped_;
+    r_.explored_all = r_.complete;
+    r_.state_limit_reached = state_limit_;
     r_.reduced = stubborn_ != nullptr;
     if (!r_.reduced) r_.place_bounds = max_seen_;
     if (r_.complete && !r_.reduced) {
@@ -790,6 +796,7 @@ class Explorer {
 
   AnalysisResult r_;
   bool stopped_ = false;
+  bool state_limit_ = false;
   std::vector<Tokens> max_seen_;
   std::vector<bool> ever_enabled_;
   std::vector<std::uint32_t> region_witness_;
@@ -831,15 +838,98 @@ Reduction parse_reduction(std::string_view name) {
   throw std::invalid_argument(fmt::format("unknown reduction '{}' (expected none or stubborn)", name));
 }
 
+namespace {
+
+// Region proofs into the result: each proved region is exclusive whatever the exploration saw.
+void apply_region_proofs(AnalysisResult& r, const std::vector<std::optional<RegionProof>>& proofs) {
+  for (std::size_t k = 0; k < proofs.size() && k < r.regions.size(); ++k) {
+    if (!proofs[k]) continue;
+    RegionCheck& rc = r.regions[k];
+    CW_CHECK(rc.exclusive, "region {} was proved exclusive by a place invariant but explored not exclusive", rc.name);
+    rc.by_invariant = true;
+    rc.invariant_bound = static_cast<Tokens>(proofs[k]->bound);
+  }
+}
+
+}  // namespace
+
 AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
   if (options.max_states == 0) throw std::invalid_argument("analysis: max_states must be at least 1");
   if (options.reduction == Reduction::kNone) return Explorer(net, options, nullptr, false).run();
 
-  // Deadlocks need no proviso; regions do once runs can be infinite (the state space may have cycles).
+  // Regions shown exclusive by a place invariant need no observing: they leave condition V and the proviso.
+  std::vector<std::optional<RegionProof>> proofs;
+  std::vector<bool> watched;
+  bool any_watched = false;
+  for (std::size_t k = 0; k < net.regions().size(); ++k) {
+    proofs.push_back(prove_region_exclusive(net, k));
+    watched.push_back(!proofs.back());
+    any_watched = any_watched || watched.back();
+  }
+  // Deadlocks need no proviso; watched regions do once runs can be infinite (the state space may have cycles).
   const bool finite = finite_runs(net);
-  StubbornSets stubborn(net);
-  AnalysisResult r = Explorer(net, options, &stubborn, !finite && !net.regions().empty()).run();
-  r.reduction = Reduction::kStubborn;
+  StubbornSets stubborn(net, watched);
+  const bool proviso = !finite && any_watched;
+  auto finish = [&](AnalysisResult r) {
+    r.reduction = Reduction::kStubborn;
+    apply_region_proofs(r, proofs);
+    return r;
+  };
+
+  const bool budgeted = options.exploration_budget > 0 && options.exploration_budget < options.max_states;
+  AnalysisOptions first = options;
+  if (budgeted) first.max_states = options.exploration_budget;
+  AnalysisResult r = Explorer(net, first, &stubborn, proviso).run();
+  if (budgeted && r.state_limit_reached) {
+    // The budget ran out. What the structure decides is taken from it; anything else is explored on.
+    const bool bounded = finite || structurally_bounded(net);
+    std::string why_not;
+    if (!bounded) why_not = "the net is not shown bounded by its structure";
+    if (any_watched) why_not = "a region has no place invariant showing it exclusive";
+    std::optional<AnalysisResult> decided;
+    if (why_not.empty() && r.deadlocks > 0) {
+      // A deadlock already found (breadth-first: on a shortest path); the others are not counted.
+      decided = std::move(r);
+      decided->deadlock_proof = "found by the exploration before its budget ran out; further deadlocks not counted";
+    } else if (why_not.empty()) {
+      const StateEquationResult se = deadlock_free_by_state_equation(net);
+      const std::string traps =
+          se.traps == 0 ? std::string() : fmt::format(", {} trap constraint{}", se.traps, se.traps == 1 ? "" : "s");
+      if (se.verdict == StateEquationResult::Verdict::kDeadlockFree) {
+        decided = std::move(r);
+        decided->deadlock_proof = fmt::format(
+            "no marking the state equation allows is dead without being a proper end (integer program{})", traps);
+      } else if (se.verdict == StateEquationResult::Verdict::kCandidate) {
+        if (auto path = guided_deadlock_search(net, se.firings, 20'000)) {
+          decided = std::move(r);
+          Marking m = net.initial_marking();
+          for (TransitionId t : *path) fire_in_place(net, m, t);
+          decided->deadlocks = 1;
+          decided->deadlock_examples.assign(1, Deadlock{m, *path});
+          decided->deadlock_path_shortest = false;
+          decided->deadlock_proof = fmt::format(
+              "found by a search guided by the state equation's firing counts{} (not necessarily shortest; "
+              "further deadlocks not counted)",
+              traps);
+        } else {
+          why_not = fmt::format(
+              "the state equation allows a dead marking{} that a search guided by it could not reach", traps);
+        }
+      } else {
+        why_not = "the state equation was not decided: " + se.reason;
+      }
+    }
+    if (decided) {
+      decided->complete = true;
+      decided->stop_reason.clear();
+      decided->deadlocks_counted = false;
+      decided->bounded = true;
+      return finish(std::move(*decided));
+    }
+    // Explore on, up to the state limit.
+    r = Explorer(net, options, &stubborn, proviso).run();
+    if (!r.complete && r.state_limit_reached) r.stop_reason += "; past the exploration budget, " + why_not;
+  }
   // A complete reduced search without a covering says nothing about boundedness unless the structure does.
   if (r.complete && !finite && !structurally_bounded(net)) {
     AnalysisResult full = Explorer(net, options, nullptr, false).run();
@@ -850,7 +940,7 @@ AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
         "show boundedness";
     return full;
   }
-  return r;
+  return finish(std::move(r));
 }
 
 }  // namespace cellwright::petri

@@ -221,6 +221,48 @@ std::string lockstep_program(int robots, int lines, std::uint32_t repeat) {
   return out;
 }
 
+std::string shared_region_program(int robots) {
+  if (robots < 1) throw std::invalid_argument(fmt::format("shared_region_program: need robots >= 1; got {}", robots));
+  std::string out =
+      fmt::format("# {} free sequences sharing one region, each entering it twice (generators::shared_region_program)\n",
+                  robots);
+  out += "robot";
+  for (int i = 1; i <= robots; ++i) out += fmt::format(" r{}", i);
+  out += "\nworkpiece";
+  for (int i = 1; i <= robots; ++i) out += fmt::format(" A{}", i);
+  out += "\nlocation";
+  for (int i = 1; i <= robots; ++i) out += fmt::format(" F{} O{}", i, i);
+  out += "\nregion zone\n";
+  for (int i = 1; i <= robots; ++i) {
+    out += fmt::format(
+        "sequence r{0}\n  Pick A{0}\n  enter zone\n  Place F{0}\n  leave zone\n  home\n  enter zone\n  Pick A{0}\n"
+        "  leave zone\n  Place O{0}\nend\n",
+        i);
+  }
+  return out;
+}
+
+std::string philosophers_program(int robots) {
+  if (robots < 2) throw std::invalid_argument(fmt::format("philosophers_program: need robots >= 2; got {}", robots));
+  std::string out = fmt::format(
+      "# {} robots each taking its own region and its neighbour's (generators::philosophers_program)\n", robots);
+  out += "robot";
+  for (int i = 1; i <= robots; ++i) out += fmt::format(" r{}", i);
+  out += "\nworkpiece";
+  for (int i = 1; i <= robots; ++i) out += fmt::format(" A{}", i);
+  out += "\nlocation";
+  for (int i = 1; i <= robots; ++i) out += fmt::format(" F{}", i);
+  out += "\nregion";
+  for (int i = 1; i <= robots; ++i) out += fmt::format(" Z{}", i);
+  out += "\n";
+  for (int i = 1; i <= robots; ++i) {
+    out += fmt::format(
+        "sequence r{0}\n  Pick A{0}\n  enter Z{0}\n  enter Z{1}\n  Place F{0}\n  leave Z{1}\n  leave Z{0}\n  home\nend\n",
+        i, i % robots + 1);
+  }
+  return out;
+}
+
 namespace {
 
 // Deterministic on every platform (the standard distributions are not): values from the engine, reduced by modulo.

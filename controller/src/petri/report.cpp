@@ -168,7 +168,9 @@ std::string describe_marking(const Net& net, const Marking& m) {
 
 std::string format_report(const Net& net, const AnalysisResult& r) {
   std::vector<std::string> problems;
-  if (r.deadlocks > 0) problems.push_back(plural(r.deadlocks, "deadlock", "deadlocks"));
+  if (r.deadlocks > 0) {
+    problems.push_back(r.deadlocks_counted ? plural(r.deadlocks, "deadlock", "deadlocks") : std::string("deadlock"));
+  }
   if (!r.bounded) problems.push_back("unbounded");
   for (const RegionCheck& rc : r.regions) {
     if (!rc.exclusive) problems.push_back(fmt::format("region {} not exclusive", rc.name));
@@ -189,7 +191,12 @@ std::string format_report(const Net& net, const AnalysisResult& r) {
   }
   // Proper ends only mean something when the net declares its final marking.
   if (!net.final_places().empty()) out += ", " + plural(r.final_states, "proper end", "proper ends");
-  out += r.complete ? " (complete)\n" : fmt::format("; stopped: {}\n", r.stop_reason);
+  if (r.complete) {
+    out += r.explored_all ? " (complete)\n" : "; exploration stopped at its budget, the rest decided from the net's structure\n";
+  } else {
+    out += fmt::format("; stopped: {}\n", r.stop_reason);
+  }
+  if (!r.deadlock_proof.empty()) out += (r.deadlocks == 0 ? "no deadlock: " : "deadlock ") + r.deadlock_proof + "\n";
   if (!r.reduction_note.empty())
     out += fmt::format("reduction {} not applied: {}\n", to_string(r.reduction), r.reduction_note);
 
@@ -208,8 +215,14 @@ std::string format_report(const Net& net, const AnalysisResult& r) {
     const RegionCheck& rc = r.regions[k];
     const Tokens cap = k < net.regions().size() ? net.regions()[k].capacity : 1;
     if (rc.exclusive) {
-      out += fmt::format("region {}: exclusive{} (at most {} inside, capacity {})\n", rc.name,
-                         r.complete ? "" : " so far", rc.max_inside, cap);
+      if (rc.by_invariant) {
+        out += fmt::format("region {}: exclusive, by a place invariant (never more than {} inside, capacity {}; at most {} "
+                           "seen)\n",
+                           rc.name, rc.invariant_bound, cap, rc.max_inside);
+      } else {
+        out += fmt::format("region {}: exclusive{} (at most {} inside, capacity {})\n", rc.name,
+                           r.complete ? "" : " so far", rc.max_inside, cap);
+      }
     } else {
       out += fmt::format("region {}: {} inside at once (capacity {})", rc.name, rc.max_inside, cap);
       if (rc.witness) {
@@ -256,6 +269,9 @@ nlohmann::json to_json(const Net& net, const AnalysisResult& r) {
   j["reduced"] = r.reduced;
   j["reduction_note"] = r.reduction_note;
   j["deadlock_path_shortest"] = r.deadlock_path_shortest;
+  j["explored_all"] = r.explored_all;
+  j["deadlock_proof"] = r.deadlock_proof;
+  j["deadlocks_counted"] = r.deadlocks_counted;
 
   nlohmann::json unbounded = nlohmann::json::array();
   for (PlaceId p : r.unbounded_places) unbounded.push_back(net.places()[p].id);
@@ -285,6 +301,8 @@ nlohmann::json to_json(const Net& net, const AnalysisResult& r) {
                           {"capacity", k < net.regions().size() ? net.regions()[k].capacity : 1}};
     reg["witness_path"] = rc.witness ? path_json(net, rc.witness->path) : nlohmann::json();
     reg["witness_shortest"] = rc.witness_shortest;
+    reg["by_invariant"] = rc.by_invariant;
+    reg["invariant_bound"] = rc.by_invariant ? nlohmann::json(rc.invariant_bound) : nlohmann::json();
     reg["witness_marking"] = rc.witness ? marking_json(net, rc.witness->marking) : nlohmann::json();
     regions.push_back(reg);
   }
@@ -335,6 +353,58 @@ std::string size_warning(const AnalysisProgress& p, std::uint64_t max_states) {
                      p.reduced ? "" : "; --reduction stubborn explores fewer interleavings");
 }
 
+std::string width_warning(const Net& net, std::uint64_t max_states) {
+  // Each robot's token runs along its own places: the fewest firings from its start place to its done place.
+  std::vector<std::vector<std::pair<PlaceId, PlaceId>>> moves(net.robots().size());
+  std::uint64_t firings = 0;
+  for (std::size_t r = 0; r < net.robots().size(); ++r) {
+    const std::string& robot = net.robots()[r];
+    std::vector<std::vector<PlaceId>> next(net.num_places());
+    PlaceId start = UINT32_MAX;
+    for (std::size_t p = 0; p < net.num_places(); ++p) {
+      const Place& pl = net.places()[p];
+      if (pl.origin.robot == robot && pl.kind == PlaceKind::kStart) start = static_cast<PlaceId>(p);
+    }
+    if (start == UINT32_MAX) return "";
+    for (const Transition& t : net.transitions()) {
+      for (const Arc& a : t.inputs) {
+        if (net.places()[a.place].origin.robot != robot) continue;
+        for (const Arc& b : t.outputs) {
+          if (net.places()[b.place].origin.robot == robot) next[a.place].push_back(b.place);
+        }
+      }
+    }
+    std::vector<std::uint64_t> dist(net.num_places(), UINT64_MAX);
+    std::vector<PlaceId> queue{start};
+    dist[start] = 0;
+    std::uint64_t to_done = UINT64_MAX;
+    for (std::size_t i = 0; i < queue.size(); ++i) {
+      const PlaceId p = queue[i];
+      if (net.places()[p].kind == PlaceKind::kDone) {
+        to_done = dist[p];
+        break;
+      }
+      for (PlaceId q : next[p]) {
+        if (dist[q] == UINT64_MAX) {
+          dist[q] = dist[p] + 1;
+          queue.push_back(q);
+        }
+      }
+    }
+    if (to_done == UINT64_MAX) return "";
+    firings += to_done;
+  }
+  const std::uint64_t bytes = (net.num_places() + 7) / 8;  // at least one bit per place
+  const double gigabytes = static_cast<double>(firings + 1) * static_cast<double>(bytes) / 1e9;
+  if (firings < max_states && gigabytes < 1.0) return "";
+  return fmt::format(
+      "too wide to explore: a run to the end fires at least {} transitions, and each marking on it takes at least {} "
+      "bytes ({} places), so a complete exploration stores at least {} markings ({:.1f} GB){}; expect the check to stop "
+      "early (Ctrl-C ends it) and split the program or check smaller parts",
+      firings, bytes, net.num_places(), firings + 1, gigabytes,
+      firings >= max_states ? fmt::format(", beyond the state limit of {}", max_states) : std::string());
+}
+
 int check_and_report(const Net& net, std::string_view source, const CheckOptions& options, std::ostream& out) {
   AnalysisOptions analysis = options.analysis;
   ProgressPrinter printer(std::cerr, ::isatty(STDERR_FILENO) == 1);
@@ -351,6 +421,11 @@ int check_and_report(const Net& net, std::string_view source, const CheckOptions
       }
       printer(p);
     };
+  }
+  if (options.progress) {
+    // Said at once, before any exploring: a net too wide to explore would otherwise run for minutes first.
+    const std::string wide = width_warning(net, analysis.max_states);
+    if (!wide.empty()) std::cerr << source << ": note: " << wide << "\n" << std::flush;
   }
   const auto start = std::chrono::steady_clock::now();
   const AnalysisResult result = analyze(net, analysis);

@@ -52,7 +52,7 @@ bool finite_runs(const Net& net) {
   return count == nt;
 }
 
-StubbornSets::StubbornSets(const Net& net)
+StubbornSets::StubbornSets(const Net& net, const std::vector<bool>& watched)
     : net_(net),
       consumers_(net.num_places()),
       raisers_(net.num_places()),
@@ -62,6 +62,7 @@ StubbornSets::StubbornSets(const Net& net)
   const auto eff = detail::effects(net);
   std::vector<std::vector<std::size_t>> regions_of(net.num_places());
   for (std::size_t k = 0; k < net.regions().size(); ++k) {
+    if (!watched.empty() && !watched.at(k)) continue;
     for (PlaceId p : net.regions()[k].inside) regions_of[p].push_back(k);
   }
   for (std::size_t t = 0; t < net.num_transitions(); ++t) {

@@ -2,12 +2,14 @@
 #pragma once
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cstdint>
 #include <deque>
 #include <map>
 #include <optional>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -145,6 +147,162 @@ inline Marking replay(const Net& net, const std::vector<TransitionId>& path) {
   Marking m = net.initial_marking();
   for (TransitionId t : path) fire_in_place(net, m, t);
   return m;
+}
+
+// A random task program with loops, from `seed` (the same text on every platform): 1 to 4 robots, some in a lock-step
+// table whose body runs in a `repeat` (lines before and after it too), the others in free sequences, some of which
+// loop on their own. Commands are drawn so that the program compiles: a robot picks (the class `part`) only with
+// empty hands, places (on OUT) or hands over (Put/Get, table only) only what it holds, enters only regions it is
+// outside of and leaves only those it is in; each loop body ends with lines that bring every robot back to what it
+// held and where it was at the body's start, and the program with lines that leave every region. Semaphores are
+// signalled and waited for at random, so deadlocks, and unbounded semaphores in loops, occur among the seeds.
+inline std::string random_looping_program(std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  auto below = [&](std::uint64_t n) { return rng() % n; };
+  const std::size_t robots = 1 + below(4);
+  const std::size_t table = below(robots + 1);  // the first `table` robots; 0: no table
+  const std::size_t semaphores = below(3), regions = below(3);
+  std::string out = fmt::format("# random looping program {}\nrobot", seed);
+  for (std::size_t r = 0; r < robots; ++r) out += fmt::format(" r{}", r + 1);
+  out += "\nworkpiece part from IN\nlocation IN OUT\n";
+  for (std::size_t k = 0; k < semaphores; ++k) {
+    out += fmt::format("semaphore s{}{}\n", k + 1, below(4) == 0 ? " = 1" : "");
+  }
+  for (std::size_t z = 0; z < regions; ++z) out += fmt::format("region Z{}\n", z + 1);
+
+  struct State {
+    bool holding = false;
+    std::vector<bool> inside;
+    bool operator==(const State&) const = default;
+  };
+  std::vector<State> state(robots, State{false, std::vector<bool>(regions, false)});
+  // One command for robot r that its state allows (empty: none), applied to its state. No Put/Get here.
+  auto command = [&](std::size_t r) -> std::string {
+    State& st = state[r];
+    switch (below(7)) {
+      case 0:
+        if (st.holding) break;
+        st.holding = true;
+        return "Pick part";
+      case 1:
+        if (!st.holding) break;
+        st.holding = false;
+        return "Place OUT";
+      case 2:
+        if (semaphores == 0) break;
+        return fmt::format("signal s{}", 1 + below(semaphores));
+      case 3:
+        if (semaphores == 0) break;
+        return fmt::format("wait s{}", 1 + below(semaphores));
+      case 4: {
+        if (regions == 0) break;
+        const std::size_t z = below(regions);
+        st.inside[z] = !st.inside[z];
+        return fmt::format("{} Z{}", st.inside[z] ? "enter" : "leave", z + 1);
+      }
+      default:
+        break;
+    }
+    return {};
+  };
+  // One step toward `goal` for robot r (empty when it is there).
+  auto restore = [&](std::size_t r, const State& goal) -> std::string {
+    State& st = state[r];
+    for (std::size_t z = 0; z < regions; ++z) {
+      if (st.inside[z] != goal.inside[z]) {
+        st.inside[z] = goal.inside[z];
+        return fmt::format("{} Z{}", goal.inside[z] ? "enter" : "leave", z + 1);
+      }
+    }
+    if (st.holding != goal.holding) {
+      st.holding = goal.holding;
+      return goal.holding ? "Pick part" : "Place OUT";
+    }
+    return {};
+  };
+  auto table_line = [&](bool handover) {
+    std::vector<std::string> cells(table);
+    if (handover && table >= 2 && below(3) == 0) {
+      const std::size_t g = below(table), t = (g + 1 + below(table - 1)) % table;
+      if (state[g].holding && !state[t].holding) {
+        cells[g] = fmt::format("Put r{}", t + 1);
+        cells[t] = fmt::format("Get r{}", g + 1);
+        state[g].holding = false;
+        state[t].holding = true;
+      }
+    }
+    for (std::size_t r = 0; r < table; ++r) {
+      if (cells[r].empty()) cells[r] = command(r);
+    }
+    return cells;
+  };
+  auto emit = [&](const std::vector<std::string>& cells) {
+    if (std::all_of(cells.begin(), cells.end(), [](const std::string& c) { return c.empty(); })) return false;
+    out += "  " + fmt::format("{}", fmt::join(cells, " | ")) + "\n";
+    return true;
+  };
+  // Lines until every table robot is back at `goal` (a loop's start, or outside every region at the end).
+  auto restore_table = [&](const std::vector<State>& goal) {
+    for (;;) {
+      std::vector<std::string> cells(table);
+      for (std::size_t r = 0; r < table; ++r) cells[r] = restore(r, goal[r]);
+      if (!emit(cells)) return;
+    }
+  };
+  auto outside = [&](std::size_t r) { return State{state[r].holding, std::vector<bool>(regions, false)}; };
+
+  if (table > 0) {
+    out += "steps\n  r1";
+    for (std::size_t r = 1; r < table; ++r) out += fmt::format(" | r{}", r + 1);
+    out += "\n";
+    for (std::uint64_t n = below(2); n > 0; --n) emit(table_line(true));
+    const std::vector<State> start(state.begin(), state.end());
+    out += fmt::format("repeat {}\n", 1 + below(5));
+    bool any = false;
+    for (std::uint64_t n = 1 + below(3); n > 0; --n) any = emit(table_line(true)) || any;
+    restore_table(start);
+    if (!any && state == start) {  // a body is not empty: every robot picks or places, then back
+      std::vector<std::string> cells(table);
+      for (std::size_t r = 0; r < table; ++r) {
+        cells[r] = state[r].holding ? "Place OUT" : "Pick part";
+        state[r].holding = !state[r].holding;
+      }
+      emit(cells);
+      restore_table(start);
+    }
+    out += "end\n";
+    for (std::uint64_t n = below(2); n > 0; --n) emit(table_line(true));
+    std::vector<State> goal;
+    for (std::size_t r = 0; r < table; ++r) goal.push_back(outside(r));
+    restore_table(goal);
+    out += "end\n";
+  }
+  for (std::size_t r = table; r < robots; ++r) {
+    out += fmt::format("sequence r{}\n", r + 1);
+    auto line = [&](const std::string& c) {
+      if (!c.empty()) out += "  " + c + "\n";
+      return !c.empty();
+    };
+    for (std::uint64_t n = below(3); n > 0; --n) line(command(r));
+    if (below(2) == 0) {
+      const State start = state[r];
+      out += fmt::format("repeat {}\n", 1 + below(5));
+      bool any = false;
+      for (std::uint64_t n = 1 + below(4); n > 0; --n) any = line(command(r)) || any;
+      while (line(restore(r, start))) any = true;
+      if (!any) {
+        line(state[r].holding ? "Place OUT" : "Pick part");
+        state[r].holding = !state[r].holding;
+        line(restore(r, start));
+      }
+      out += "end\n";
+    }
+    for (std::uint64_t n = below(2); n > 0; --n) line(command(r));
+    while (line(restore(r, outside(r)))) {
+    }
+    out += "end\n";
+  }
+  return out;
 }
 
 }  // namespace cellwright::petri::testnets

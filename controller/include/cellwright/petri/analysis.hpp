@@ -23,6 +23,14 @@
 //    finds no covering in, analyze() explores fully instead and says so in reduction_note;
 //  - `states` and `edges` count what was explored (reduced == true), not the reachability graph; place_bounds and
 //    dead_transitions are not computed.
+// Under kStubborn a region shown exclusive by a place invariant (structural.hpp) is not watched by the search (no
+// condition V for it, no proviso on its account): its verdict is the proof's, and max_inside the most seen. And the
+// reduced search has a budget (AnalysisOptions::exploration_budget): when it runs out, and every region is proved
+// and the net bounded by its structure, deadlock freedom is decided by the state equation as an integer program
+// (proved: OK), or a deadlock is found by a search its solution guides (a real, replayed firing sequence, not
+// necessarily shortest); only what that leaves undecided is explored on up to max_states, and a stop there says why
+// the structural checks did not decide. complete then means every verdict was decided; explored_all whether the
+// exploration itself ended.
 //
 // Thread safety: analyze() and the report functions are re-entrant and share no state; a Net may be analysed from
 // several threads at once. A progress callback runs on the analysing thread.
@@ -75,6 +83,13 @@ struct AnalysisOptions {
   // When set, read (relaxed) every 256 markings expanded: once true, exploration stops with complete == false and
   // stop_reason "interrupted after N markings" (a user's Ctrl-C, set from another thread). Not owned.
   const std::atomic<bool>* stop = nullptr;
+  // Under Reduction::kStubborn: the reduced search stores at most this many markings (or max_states, if smaller)
+  // before the structural checks (structural.hpp) decide what it has not: deadlock freedom by the state equation, a
+  // deadlock by a search guided by it. Past the budget, a region must have been shown exclusive by a place
+  // invariant and the net bounded by its structure, else the search goes on up to max_states as before; so does it
+  // when the state equation leaves a candidate that the guided search cannot reach. 0: no budget (explore up to
+  // max_states; the structural deadlock check is not used).
+  std::uint64_t exploration_budget = 10'000;
 };
 
 struct Deadlock {
@@ -88,12 +103,17 @@ struct RegionCheck {
   Tokens max_inside = 0;            // the most tokens found inside at once
   std::optional<Deadlock> witness;  // a path to a violating marking (Deadlock reused as a path holder)
   bool witness_shortest = true;     // the witness path is a shortest one (false under reduction)
+  // Shown exclusive by a place sub-invariant (structural.hpp; under Reduction::kStubborn, whenever one exists): then
+  // at most `invariant_bound` tokens are ever inside, and max_inside is the most seen by the exploration (<= that).
+  bool by_invariant = false;
+  Tokens invariant_bound = 0;
 };
 
 // Counts and negative findings (a deadlock, an unbounded place, a region violation) are definite; when `complete` is
 // false, the absence of a problem only holds for the part explored.
 struct AnalysisResult {
-  bool complete = false;           // the whole reachability set was explored (no state limit, net bounded)
+  bool complete = false;           // every verdict covers the whole reachable set: it was explored (no state limit,
+                                   // net bounded), or what the exploration left was proved (explored_all false)
   std::string stop_reason;         // why exploration stopped early, empty when complete, e.g.
                                    // "state limit of N markings reached; raise --max-states"
   std::uint64_t states = 0;        // reachable markings found
@@ -113,6 +133,18 @@ struct AnalysisResult {
   bool reduced = false;                    // states/edges count a reduced exploration (stubborn sets were applied)
   bool deadlock_path_shortest = true;      // deadlock_examples hold shortest paths (true in both modes)
   std::string reduction_note;  // why a requested reduction was not applied (then reduced == false), else empty
+  // The exploration covered the whole (reduced) reachability graph. When it stopped at its budget
+  // (AnalysisOptions::exploration_budget) and the structural checks decided every property instead, complete is
+  // true and this is false; states and edges then count what was explored.
+  bool explored_all = false;
+  // How the deadlock verdict was reached when not by a complete exploration (empty otherwise), e.g. "no marking that
+  // the state equation allows is dead (integer program, 2 trap constraints)".
+  std::string deadlock_proof;
+  // deadlocks and final_states count every reachable dead marking (a complete exploration). False when the verdict
+  // came from the structural checks: then deadlocks is 0 (proved) or the number found (1), final_states what the
+  // partial exploration saw.
+  bool deadlocks_counted = true;
+  bool state_limit_reached = false;  // the exploration stopped at its state limit (max_states or the budget)
 
   // Deadlock-free, bounded, every region exclusive, and the exploration was complete.
   bool ok() const { return complete && deadlocks == 0 && bounded && mutex_ok; }
@@ -139,9 +171,10 @@ std::string describe_marking(const Net& net, const Marking& m);
 std::string format_report(const Net& net, const AnalysisResult& r);
 // The JSON report. Keys: ok, complete, stop_reason, states, edges, deadlocks, final_states, bounded, mutex_ok,
 // stored_bytes, reduction ("none"/"stubborn", as asked), reduced (states and edges count a reduced exploration),
-// reduction_note, deadlock_path_shortest, unbounded_places (place ids), unbounded_path, dead_transitions (transition
+// reduction_note, deadlock_path_shortest, explored_all, deadlock_proof, deadlocks_counted, unbounded_places (place ids), unbounded_path, dead_transitions (transition
 // ids; null unless complete and not reduced), place_bounds ({place id: max tokens}; null unless complete and not
-// reduced), regions ([{name, exclusive, max_inside, capacity, witness_path, witness_shortest, witness_marking}]),
+// reduced), regions ([{name, exclusive, max_inside, capacity, witness_path, witness_shortest, witness_marking,
+// by_invariant, invariant_bound (null unless by_invariant)}]),
 // deadlock_path, deadlock_marking ({place id: tokens}, non-zero places only),
 // deadlock_description (describe_marking), deadlock_examples ([{path, marking}]). A path is a list of {transition
 // (id), name, robot, line, task, motion} ("" and 0 where the net has no origin); absent paths and markings are null.
@@ -179,10 +212,18 @@ class ProgressPrinter {
 // exploration may well end soon) or the limit is reached already.
 std::string size_warning(const AnalysisProgress& p, std::uint64_t max_states);
 
+// Word, before any exploring, that `net` is too wide to explore: the fewest firings that take every robot from its
+// start place to its done place (each robot's token moves along its own places, one firing at a time), times the
+// bytes of a marking (one bit per place at least), is at least 1 GB, or those firings reach `max_states`, e.g. "too
+// wide to explore: a run to the end fires at least 3400000 transitions, and each marking on it takes at least 225000
+// bytes ...". Empty otherwise, and for nets without robots (foreign nets) or with a robot that cannot finish.
+std::string width_warning(const Net& net, std::uint64_t max_states);
+
 // Analyses `net` and prints the outcome to `out`: with options.json the JSON report (to_json) indented by 2 and a
 // newline, else "<source>: " and the human report (format_report). An exploration that stopped early (the state limit,
 // an interruption) adds a note on stderr with the figures: markings explored, seconds, markings per second and the
-// limit; with options.progress, a size_warning is printed on stderr (once) as soon as a progress report calls for it. Returns the checking commands' exit status: 0 if the result is ok(), 1 if not. Throws as analyze() does.
+// limit; with options.progress, a width_warning is printed on stderr before the analysis starts and a size_warning
+// (once) as soon as a progress report calls for it. Returns the checking commands' exit status: 0 if the result is ok(), 1 if not. Throws as analyze() does.
 int check_and_report(const Net& net, std::string_view source, const CheckOptions& options, std::ostream& out);
 
 }  // namespace cellwright::petri

@@ -48,6 +48,18 @@ std::uint64_t robot_cell_reachable(int robots, int steps, int regions);
 // end with every hand empty, as the compiler requires).
 std::string lockstep_program(int robots, int lines, std::uint32_t repeat = 0);
 
+// A task-level program of `robots` free sequences (r1..rN, the paper's independent level) that share one region
+// `zone`: robot i picks its workpiece Ai, enters the zone, places it on its fixture Fi, leaves, goes home, enters
+// again, picks Ai back up, leaves and places it on its output Oi. Deadlock-free and the zone is exclusive; every
+// order of entering is a real conflict, so explored markings grow about 3.5 times per robot. Throws
+// std::invalid_argument unless robots >= 1.
+std::string shared_region_program(int robots);
+
+// A task-level program of `robots` "philosophers": regions Z1..ZN, robot i picks Ai, enters Zi, then Z(i mod N + 1),
+// places Ai on Fi, leaves both and goes home. It can deadlock: every robot inside its own region, waiting for its
+// neighbour's (N firings of each robot's first two commands). Throws std::invalid_argument unless robots >= 2.
+std::string philosophers_program(int robots);
+
 // A random net shaped like a compiled cell program, from `seed` (the same seed gives the same net on every platform):
 // 1 to 4 robots, each a chain of places (kStart, kExecuting/kWaiting, kDone) with one token, some looping back to
 // their start; events signalled and waited for at random (kEvent), hand-over handshakes between two robots, lock-step

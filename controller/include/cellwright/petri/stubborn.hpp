@@ -8,8 +8,10 @@
 //  - D2: for every disabled t in S, all transitions that raise one of its insufficiently marked places (the
 //    "scapegoat") are in S (so no sequence outside S can enable t);
 //  - at least one enabled transition (the key);
-//  - V (regions): if S holds an enabled transition that lowers the tokens inside some region, S holds every
-//    transition that raises the tokens inside some region.
+//  - V (regions): if S holds an enabled transition that lowers the tokens inside some watched region, S holds every
+//    transition that raises the tokens inside some watched region (a region is watched unless a place sub-invariant
+//    has shown it exclusive, structural.hpp: then its verdict needs no exploration, and V and the proviso are not
+//    needed for it; deadlocks never need them).
 // Firing only the enabled transitions of S keeps every reachable dead marking reachable, at its BFS distance (so a
 // breadth-first search still reports shortest deadlock paths and the exact number of dead markings), and, with V and
 // the ignoring proviso below, every upward-closed set of region occupancies (so each region's verdict and its largest
@@ -80,7 +82,10 @@ bool structurally_bounded(const Net& net);
 // The stubborn-set computation for one net (precomputed consumers, raisers and region effects).
 class StubbornSets {
  public:
-  explicit StubbornSets(const Net& net);
+  // `watched`, one flag per region (empty: every region), names the regions whose occupancy the exploration must
+  // observe: only they take part in condition V. A region shown exclusive by a place sub-invariant (structural.hpp)
+  // needs no observing, so analyze() leaves it out (it is what made every leave pull in every enter).
+  explicit StubbornSets(const Net& net, const std::vector<bool>& watched = {});
 
   // The enabled transitions of the smallest stubborn set found (closures from each enabled transition as key, the
   // first with a single enabled transition wins), ascending, into `out`. `enabled` lists the enabled transitions,

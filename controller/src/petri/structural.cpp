@@ -265,7 +265,12 @@ class DeadlockProgram {
     ip.tm_lim = static_cast<int>(std::max(1.0, time_limit_s * 1000.0));
     const int code = glp_intopt(lp(), &ip);
     const int status = glp_mip_status(lp());
-    if (status == GLP_NOFEAS) return StateEquationResult::Verdict::kDeadlockFree;
+    if (status == GLP_NOFEAS) {
+      // Branch and cut says no integer point exists, in floating point and without a certificate that exact
+      // arithmetic could check: not a proof. The check explores instead (never a wrong verdict).
+      reason = "the integer program has no solution by GLPK's branch and cut, which is not an exact proof";
+      return StateEquationResult::Verdict::kUnknown;
+    }
     if (status != GLP_OPT && status != GLP_FEAS) {
       reason = code == GLP_ETMLIM ? fmt::format("the integer program found no answer within {:.0f} s", time_limit_s)
                                   : fmt::format("GLPK's branch and cut ended with code {}", code);

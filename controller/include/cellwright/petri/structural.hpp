@@ -21,7 +21,9 @@
 // vacuous (weaker, still sound). Place bounds come from verified sub-invariants: the bounding weighting
 // (stubborn.hpp), each robot's chain (the places with one robot label, when their indicator is a sub-invariant) and
 // the region weightings above. Infeasible: no reachable marking is dead and not a proper end, whatever the order of
-// firing (the program is deadlock-free). Feasible: the solution is a candidate only (the state equation admits
+// firing (the program is deadlock-free). Only an infeasibility with a certificate counts: the linear relaxation's,
+// confirmed by GLPK's exact rational simplex. Branch and cut's "no integer solution" is floating point without one, so
+// it gives kUnknown (the caller explores on). Feasible: the solution is a candidate only (the state equation admits
 // markings that are not reachable). The candidate's unmarked places are then searched for a trap (a set of places that
 // every transition taking from it gives back to) that is marked initially: such a trap stays marked in every reachable
 // marking, so the constraint "the trap holds a token" excludes the candidate and nothing reachable; the program is

@@ -90,4 +90,21 @@ class GlpkProblem {
   glp_prob* lp_;
 };
 
+// Solves `lp` with GLPK's floating-point simplex (presolved) and offers the optimal vertex to `accept` (which reads it
+// and returns a checked answer, or nullopt); when that gives nothing, solves again with the exact rational simplex
+// from the basis found and offers that vertex. `worth`, after the floating-point solve, can give up before any vertex
+// is offered (an optimum too weak to serve). nullopt when a solve does not end optimal or nothing is accepted.
+template <typename Accept, typename Worth>
+auto optimal_vertex(glp_prob* lp, Accept&& accept, Worth&& worth) -> decltype(accept()) {
+  glp_smcp parm;
+  glp_init_smcp(&parm);
+  parm.msg_lev = GLP_MSG_OFF;
+  parm.presolve = GLP_ON;
+  if (glp_simplex(lp, &parm) != 0 || glp_get_status(lp) != GLP_OPT || !worth()) return std::nullopt;
+  if (auto answer = accept()) return answer;
+  parm.presolve = GLP_OFF;
+  if (glp_exact(lp, &parm) != 0 || glp_get_status(lp) != GLP_OPT) return std::nullopt;
+  return accept();
+}
+
 }  // namespace cellwright::petri::detail

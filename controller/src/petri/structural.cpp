@@ -88,25 +88,19 @@ std::optional<RegionProof> region_lp(const Net& net, std::size_t k, const detail
     for (int i = 1; i <= rows; ++i) glp_set_row_bnds(lp, i, GLP_UP, 0.0, 0.0);
     glp_load_matrix(lp, static_cast<int>(ia.size()) - 1, ia.data(), ja.data(), ar.data());
   }
-  glp_smcp parm;
-  glp_init_smcp(&parm);
-  parm.msg_lev = GLP_MSG_OFF;
-  parm.presolve = GLP_ON;
-  if (glp_simplex(lp, &parm) != 0 || glp_get_status(lp) != GLP_OPT) return std::nullopt;
-  if (glp_get_obj_val(lp) >= static_cast<double>(r.capacity) + 1.0) return std::nullopt;  // the LP's best is too weak
-  for (int attempt = 0; attempt < 2; ++attempt) {
-    if (attempt == 1) {
-      parm.presolve = GLP_OFF;
-      if (glp_exact(lp, &parm) != 0 || glp_get_status(lp) != GLP_OPT) return std::nullopt;
-    }
-    const auto w = detail::integral(lp, net.num_places());
-    if (!w) continue;
-    RegionProof proof;
-    proof.weight.assign(w->begin(), w->end());
-    proof.linear_program = true;
-    if (finish_proof(net, k, proof) && is_region_proof(net, k, proof)) return proof;
-  }
-  return std::nullopt;
+  return detail::optimal_vertex(
+      lp,
+      [&]() -> std::optional<RegionProof> {
+        const auto w = detail::integral(lp, net.num_places());
+        if (!w) return std::nullopt;
+        RegionProof proof;
+        proof.weight.assign(w->begin(), w->end());
+        proof.linear_program = true;
+        if (finish_proof(net, k, proof) && is_region_proof(net, k, proof)) return proof;
+        return std::nullopt;
+      },
+      // The LP's best bound on the occupancy must be below capacity + 1, else no weighting from it can show the bound.
+      [&] { return glp_get_obj_val(lp) < static_cast<double>(r.capacity) + 1.0; });
 }
 
 }  // namespace
@@ -114,7 +108,6 @@ std::optional<RegionProof> region_lp(const Net& net, std::size_t k, const detail
 bool is_region_proof(const Net& net, std::size_t k, const RegionProof& proof) {
   const Region& r = net.regions().at(k);
   if (proof.weight.size() != net.num_places() || proof.divisor < 1) return false;
-  if (proof.weight.size() != net.num_places()) return false;
   for (PlaceId p : r.inside) {
     if (proof.weight[p] < proof.divisor) return false;
   }

@@ -355,19 +355,16 @@ std::optional<std::vector<std::int64_t>> solve(const System& s, const std::vecto
     }
     glp_load_matrix(lp, static_cast<int>(ia.size()) - 1, ia.data(), ja.data(), ar.data());
   }
-  glp_smcp parm;
-  glp_init_smcp(&parm);
-  parm.msg_lev = GLP_MSG_OFF;
-  parm.presolve = GLP_ON;
-  if (glp_simplex(lp, &parm) != 0 || glp_get_status(lp) != GLP_OPT) return std::nullopt;
-  auto w = integral(lp, ne);
-  if (w && contracted_feasible(s, rows, *w)) return w;
-  // The floating-point vertex did not give back an exact solution: the exact simplex, from the basis found.
-  parm.presolve = GLP_OFF;
-  if (glp_exact(lp, &parm) != 0 || glp_get_status(lp) != GLP_OPT) return std::nullopt;
-  w = integral(lp, ne);
-  if (w && contracted_feasible(s, rows, *w)) return w;
-  return std::nullopt;
+  // A vertex counts only once it is exact integers that satisfy the rows (the exact simplex is tried when the
+  // floating-point vertex does not give that back).
+  return detail::optimal_vertex(
+      lp,
+      [&]() -> std::optional<std::vector<std::int64_t>> {
+        auto w = integral(lp, ne);
+        if (w && contracted_feasible(s, rows, *w)) return w;
+        return std::nullopt;
+      },
+      [] { return true; });
 }
 
 }  // namespace

@@ -26,10 +26,9 @@ namespace {
 
 using testnets::add_place;
 using testnets::add_transition;
+using testnets::program_net;
+using testnets::replay;
 
-Net program_net(const std::string& text) {
-  return task::to_net(task::compile(task::parse_program(text, "generated.task")));
-}
 
 AnalysisResult check(const Net& net, std::uint64_t budget = AnalysisOptions{}.exploration_budget,
                      std::uint64_t max_states = 5'000'000) {
@@ -40,16 +39,6 @@ AnalysisResult check(const Net& net, std::uint64_t budget = AnalysisOptions{}.ex
   return analyze(net, o);
 }
 
-// Fires `path` from the initial marking with the firing rule; every step must be enabled.
-Marking replay(const Net& net, const std::vector<TransitionId>& path) {
-  Marking m = net.initial_marking();
-  for (TransitionId t : path) {
-    EXPECT_TRUE(is_enabled(net, m, t)) << net.transitions()[t].id;
-    if (!is_enabled(net, m, t)) return m;
-    fire_in_place(net, m, t);
-  }
-  return m;
-}
 
 TEST(Structural, TheLockStepTableOfTwelveRobotsPasses) {
   const Net net = program_net(generators::lockstep_program(12, 20));

@@ -28,6 +28,8 @@ namespace {
 
 using testnets::add_place;
 using testnets::add_transition;
+using testnets::program_net;
+using testnets::replay;
 
 AnalysisResult reduced(const Net& net, std::uint64_t max_states = 5'000'000) {
   AnalysisOptions o;
@@ -36,20 +38,7 @@ AnalysisResult reduced(const Net& net, std::uint64_t max_states = 5'000'000) {
   return analyze(net, o);
 }
 
-// Fires `path` from the initial marking (each step must be enabled) and returns the marking reached.
-Marking replay(const Net& net, const std::vector<TransitionId>& path) {
-  Marking m = net.initial_marking();
-  for (TransitionId t : path) {
-    EXPECT_TRUE(is_enabled(net, m, t)) << net.transitions()[t].id;
-    if (!is_enabled(net, m, t)) return m;
-    fire_in_place(net, m, t);
-  }
-  return m;
-}
 
-Net program_net(const std::string& text) {
-  return task::to_net(task::compile(task::parse_program(text, "generated.task")));
-}
 
 // What the comparison saw, so that the test can insist every kind of net was among the samples.
 struct Tally {

@@ -16,6 +16,9 @@
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/petri/generators.hpp"
 #include "cellwright/petri/net.hpp"
+#include "cellwright/task/compile.hpp"
+#include "cellwright/task/program.hpp"
+#include "cellwright/task/to_net.hpp"
 
 namespace cellwright::petri::testnets {
 
@@ -303,6 +306,11 @@ inline std::string random_looping_program(std::uint64_t seed) {
     out += "end\n";
   }
   return out;
+}
+
+// The net of a task-level program given as text (named generated.task in errors).
+inline Net program_net(const std::string& text) {
+  return task::to_net(task::compile(task::parse_program(text, "generated.task")));
 }
 
 }  // namespace cellwright::petri::testnets

@@ -23,17 +23,8 @@ using drivers::ErrorCode;
 using ::testing::HasSubstr;
 using namespace testing;  // NOLINT: the simulation test helpers
 
-class SimDriverTest : public cellwright::testing::MujocoTest {
+class SimDriverTest : public PaperCellTest {
  protected:
-  void SetUp() override {
-    MujocoTest::SetUp();
-    world_ = std::make_unique<World>(build_scene(paper_cell()));
-  }
-  void TearDown() override {
-    expect_no_data_warnings(world_->data());
-    EXPECT_TRUE(world_->drain_warnings().empty());
-    MujocoTest::TearDown();
-  }
 
   World& world() { return *world_; }
   static RobotTruth truth_of(const WorldTruth& t, const std::string& robot) {
@@ -46,8 +37,6 @@ class SimDriverTest : public cellwright::testing::MujocoTest {
     const auto j = truth_of(world().truth(), robot).joints;
     return Eigen::Map<const Eigen::VectorXd>(j.data(), static_cast<Eigen::Index>(j.size()));
   }
-
-  std::unique_ptr<World> world_;
 };
 
 TEST_F(SimDriverTest, FollowsTheLifecycleTable) {

@@ -13,6 +13,7 @@
 
 #include "cellwright/models/cell.hpp"
 #include "cellwright/twin/sim/world.hpp"
+#include "twin/mujoco_fixture.hpp"
 
 namespace cellwright::twin::sim::testing {
 
@@ -87,5 +88,21 @@ inline drivers::Grip grip(drivers::Grip::Action action) {
   g.action = action;
   return g;
 }
+
+// A fixture with a World of the paper's cell (world_), checked for MuJoCo's warnings when the test ends.
+class PaperCellTest : public cellwright::testing::MujocoTest {
+ protected:
+  void SetUp() override {
+    MujocoTest::SetUp();
+    world_ = std::make_unique<World>(build_scene(paper_cell()));
+  }
+  void TearDown() override {
+    expect_no_data_warnings(world_->data());
+    EXPECT_TRUE(world_->drain_warnings().empty());
+    MujocoTest::TearDown();
+  }
+
+  std::unique_ptr<World> world_;
+};
 
 }  // namespace cellwright::twin::sim::testing

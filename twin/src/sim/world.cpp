@@ -1,6 +1,7 @@
 #include "cellwright/twin/sim/world.hpp"
 
 #include "cellwright/runtime/environment_model.hpp"
+#include "resting_parts.hpp"
 
 #include <fmt/format.h>
 
@@ -18,7 +19,6 @@ constexpr std::size_t npos = std::numeric_limits<std::size_t>::max();
 constexpr double kParkingGap = 0.1;         // m between parked parts, and from the cell to the parking row
 constexpr double kFeedClearance = 0.005;    // m: a part closer than this to the feed spot blocks it
 constexpr double kUprightCos = 0.98480775;  // cos(10 degrees)
-constexpr double kSupportNormal = 0.5;      // a contact supports a part when its normal is this close to vertical
 constexpr std::chrono::nanoseconds kCollisionQuiet = std::chrono::milliseconds(100);  // see check_contacts()
 constexpr double kRestGap = 0.002;  // m: a part this close above a surface rests on it (chatter, see truth())
 // The part-present sensors (world.hpp): how close a part's front face is to the stop bar, and its bottom to the belt.
@@ -88,7 +88,9 @@ Lying lying(const Eigen::Isometry3d& pose, const Eigen::Vector3d& size) {
 }  // namespace
 
 World::World(Scene scene, WorldOptions options)
-    : scene_(std::move(scene)), options_(std::move(options)), signals_(std::max<std::size_t>(options_.signals, 1)) {
+    : scene_(std::move(scene)),
+      physics_(nullptr, mj_deleteModel),
+      options_(std::move(options)), signals_(std::max<std::size_t>(options_.signals, 1)) {
   const mjModel* m = scene_.model();
   const double ns = m->opt.timestep * 1e9;
   if (!(ns >= 1.0) || std::abs(ns - std::round(ns)) > 1e-6) {
@@ -102,6 +104,9 @@ World::World(Scene scene, WorldOptions options)
   drivers_.resize(scene_.robots().size());
   parked_.assign(scene_.workpieces().size(), false);
   classify_bodies();
+  physics_.reset(mj_copyModel(nullptr, m));
+  CW_CHECK(physics_ != nullptr, "mj_copyModel failed");
+  resting_ = std::make_unique<RestingParts>(scene_, physics_.get());
 
   // The parking row: on the floor, beyond everything the cell holds in +x, along y.
   double max_x = -std::numeric_limits<double>::infinity(), min_y = std::numeric_limits<double>::infinity();
@@ -134,6 +139,7 @@ World::World(Scene scene, WorldOptions options)
     }
     place_at_rest(w, parking_pose(w));
     parked_[w] = true;
+    resting_->put_to_sleep(w, scene_.data());
   }
   const models::CellDescription& cell = scene_.cell();
   for (const models::ConveyorSpec& c : cell.conveyors) {
@@ -214,7 +220,8 @@ Eigen::Isometry3d World::parking_pose(std::size_t workpiece) const {
 }
 
 void World::place_at_rest(std::size_t workpiece, const Eigen::Isometry3d& pose) {
-  const mjModel* m = scene_.model();
+  const mjModel* m = physics_.get();
+  resting_->wake(workpiece);
   mjData* d = scene_.data();
   const WorkpieceIds& ids = scene_.workpieces()[workpiece];
   const Eigen::Quaterniond q(pose.linear());
@@ -260,7 +267,7 @@ void World::advance(std::chrono::nanoseconds dt) {
 
 void World::step(std::int64_t n) {
   CW_CHECK(n >= 0, "cannot step {} times", n);
-  const mjModel* m = scene_.model();
+  const mjModel* m = physics_.get();
   mjData* d = scene_.data();
   for (std::int64_t i = 0; i < n; ++i) {
     if (commands_changed_.load(std::memory_order_acquire)) apply_commands();
@@ -269,6 +276,7 @@ void World::step(std::int64_t n) {
     }
     mj_step(m, d);
     scene_.wrap_belts(d);
+    resting_->after_step(d, parked_);
     ++steps_;
     check_contacts();
     check_warnings();
@@ -601,6 +609,7 @@ FeedResult World::park(std::string_view workpiece) {
   if (w == npos) return {FeedStatus::unknown_workpiece, fmt::format("no workpiece '{}' to park", workpiece)};
   place_at_rest(w, parking_pose(w));
   parked_[w] = true;
+  resting_->put_to_sleep(w, scene_.data());
   update_devices(false);
   return {};
 }
@@ -617,9 +626,10 @@ FeedResult World::place(std::string_view workpiece, const Eigen::Isometry3d& pos
 void World::shift(std::string_view workpiece, const Eigen::Vector3d& delta) {
   const std::size_t w = workpiece_index(workpiece);
   CW_CHECK(w != npos, "no workpiece '{}'", workpiece);
+  resting_->wake(w);
   mjtNum* qpos = scene_.data()->qpos + scene_.workpieces()[w].qpos_adr;
   for (int i = 0; i < 3; ++i) qpos[i] += delta[i];
-  mj_forward(scene_.model(), scene_.data());
+  mj_forward(physics_.get(), scene_.data());
 }
 
 double World::clearance_below(std::string_view workpiece) const {
@@ -642,13 +652,20 @@ void World::place_obstacle(std::size_t index, const std::optional<Eigen::Vector3
   const Eigen::Vector3d p = centre.value_or(Eigen::Vector3d(0, 0, -1));
   mjtNum* pos = d->mocap_pos + 3 * scene_.obstacles()[index].mocap;
   for (int i = 0; i < 3; ++i) pos[i] = p[i];
-  mj_forward(scene_.model(), d);
+  resting_->wake_all();  // it may appear where a part sleeps
+  mj_forward(physics_.get(), d);
 }
 
 bool World::parked(std::string_view workpiece) const {
   const std::size_t w = workpiece_index(workpiece);
   CW_CHECK(w != npos, "no workpiece '{}'", workpiece);
   return parked_[w];
+}
+
+bool World::asleep(std::string_view workpiece) const {
+  const std::size_t w = workpiece_index(workpiece);
+  CW_CHECK(w != npos, "no workpiece '{}'", workpiece);
+  return resting_->asleep(w);
 }
 
 WorldTruth World::truth() const {
@@ -701,13 +718,9 @@ WorldTruth World::truth() const {
       if (o.finger) {
         fingers[w][static_cast<std::size_t>(o.robot)][static_cast<std::size_t>(o.finger_side)] = true;
       }
-      // The contact normal points from geom1 to geom2; turned to point from the other body into the part.
-      const double up = (side == 0 ? -1.0 : 1.0) * con.frame[2];
-      if (up < kSupportNormal) continue;
-      mjtNum force[6];
-      mj_contactForce(m, d, c, force);
-      if (force[0] > support_force[w]) {
-        support_force[w] = force[0];
+      const double up = upward_force(m, d, c, side);
+      if (up > support_force[w]) {
+        support_force[w] = up;
         support_geom[w] = other;
       }
     }
@@ -730,6 +743,8 @@ WorldTruth World::truth() const {
         break;
       }
     }
+    // A sleeping part touches nothing (RestingParts): its support is the one it slept on.
+    if (resting_->asleep(w) && !p.parked) support_geom[w] = resting_->support_geom(w);
     if (!p.parked && !p.held_by && support_geom[w] < 0 && p.upright) {
       // Nothing pushes it up, yet it may rest there: a part held against a stop by the belt and the part behind it
       // chatters a fraction of a millimetre off the belt. Then the support is what lies just under its centre.

@@ -22,6 +22,14 @@
 //    part pressed against the stop chatters), else off. Like a photo-eye at the stop, it says
 //    that a part is there, not which one. The sensor owns its signal: anything else setting it is overwritten.
 //
+// RESTING PARTS (twin/src/sim/resting_parts.hpp; docs/simulation.md, "Resting parts"): a part that has been still
+// for 0.2 s on static geometry or a stopped belt (or on parts that rest with it), with no moving geom near, sleeps:
+// it leaves the physics (no contacts; the World steps its own copy of the scene's model, in which the part's geom
+// collides with nothing) and stays exactly where it lies, at rest, keeping the support it rested on for truth(). It
+// wakes, at rest where it slept, when a robot's or an awake part's geom comes within 4 cm (bounding spheres), the belt
+// under it runs, an obstacle is placed, or the World moves it (feed, park, place, shift). Parked parts sleep.
+// asleep() says which.
+//
 // DEVICES (docs/simulation.md, "Devices"): the conveyors, their photo-eyes and the machines, as a real cell's I/O unit
 // sees them (TwinIo, twin_io.hpp, serves them as a DigitalIo). Their state is updated after every step (and at
 // construction, feed(), park() and place()) and read by devices().
@@ -83,6 +91,8 @@
 #include "cellwright/twin/sim/sim_driver.hpp"
 
 namespace cellwright::twin::sim {
+
+class RestingParts;
 
 struct WorldOptions {
   SourceLocation where;              // the scenario (or cell) file, for errors about the options
@@ -281,6 +291,9 @@ class World {
   FeedResult park(std::string_view workpiece);
   // Whether a workpiece waits in the parking row. InternalError if there is no such workpiece.
   bool parked(std::string_view workpiece) const;
+  // Whether a workpiece is asleep: at rest on something still and out of the physics until something could disturb
+  // it (see RESTING PARTS at the top). InternalError if there is no such workpiece.
+  bool asleep(std::string_view workpiece) const;
 
   // ---- Devices (see the top). Any thread. ----
   // The run command of conveyor `conveyor` (index in the cell's conveyors; InternalError outside): on, the belt runs
@@ -336,6 +349,10 @@ class World {
   std::size_t workpiece_index(std::string_view name) const;  // npos when unknown
 
   Scene scene_;
+  // The model the World steps: a copy of the scene's, in which RestingParts switches sleeping parts' contacts off
+  // (the scene's model, read by renderers and the collision sweep, never changes).
+  std::unique_ptr<mjModel, void (*)(mjModel*)> physics_;
+  std::unique_ptr<RestingParts> resting_;
   WorldOptions options_;
   SignalTable signals_;
   std::chrono::nanoseconds timestep_{0};

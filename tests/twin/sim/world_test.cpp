@@ -328,5 +328,38 @@ TEST_F(WorldTest, IdenticalRunsGiveBitIdenticalStates) {
   EXPECT_NE(scripted_run(false), scripted_run(true));
 }
 
+// The World computes MuJoCo's sensors only on the steps after which someone reads them (world.hpp): stepping a
+// period, or 3 s, at a time gives the states, sensor values and grip outcomes of stepping one step at a time, which
+// computes them all. The PUMA closes on the part in the machine's fixture and opens; when each ends is decided by the
+// fingers' touch sensors, and when the open starts moves everything after it.
+TEST_F(WorldTest, SkippingTheSensorsNobodyReadsChangesNothing) {
+  const auto run = [](std::chrono::nanoseconds chunk) {
+    World w(build_scene(paper_cell()));
+    SimDriver& puma = w.add_sim_driver("puma");
+    bring_up(w, puma);
+    const models::LocationSpec& fixture = *paper_cell().find_location("machine_fixture");
+    const Eigen::Vector3d part = fixture.pose.xyz + Eigen::Vector3d(0, 0, fixture.grasp_height);
+    EXPECT_EQ(execute(w, puma, pose_move(down_at(w, "puma", part, fixture.pose.rpy.z()), drivers::Path::joint)).phase,
+              CommandPhase::done);
+    puma.submit(grip(drivers::Grip::Action::close));
+    puma.submit(grip(drivers::Grip::Action::open));
+    for (auto t = 0ns; t < 3s; t += chunk) w.advance(chunk);
+    const mjData* d = w.data();
+    const mjModel* m = w.scene().model();
+    std::vector<double> state(d->qpos, d->qpos + m->nq);
+    state.insert(state.end(), d->qvel, d->qvel + m->nv);
+    state.insert(state.end(), d->sensordata, d->sensordata + m->nsensordata);
+    const std::optional<GripOutcome> g = puma.last_grip();
+    EXPECT_TRUE(g && g->action == drivers::Grip::Action::open) << "the open did not end";
+    return state;
+  };
+  const std::vector<double> one = run(5ms);
+  for (std::chrono::nanoseconds chunk : {std::chrono::nanoseconds(kPeriod), std::chrono::nanoseconds(3s)}) {
+    const std::vector<double> other = run(chunk);
+    ASSERT_EQ(one.size(), other.size());
+    EXPECT_EQ(std::memcmp(one.data(), other.data(), one.size() * sizeof(double)), 0) << chunk.count() << " ns";
+  }
+}
+
 }  // namespace
 }  // namespace cellwright::twin::sim

@@ -419,7 +419,8 @@ void SimDriver::start_head(std::chrono::nanoseconds now, Job& head) {
       *head.command);
 }
 
-bool SimDriver::check_head(Controller& c, std::chrono::nanoseconds now, const mjModel* model, const mjData* data) {
+bool SimDriver::check_head(Controller& c, std::chrono::nanoseconds now, const mjModel* model, const mjData* data,
+                           bool sensors_fresh) {
   Job& head = *c.head();
   SimJob& job = head.as<SimJob>();
   if (!job.problem.empty()) {
@@ -467,7 +468,9 @@ bool SimDriver::check_head(Controller& c, std::chrono::nanoseconds now, const mj
     }
   }
   bool fingers_done = true;
-  if (job.moves_fingers) {
+  if (job.moves_fingers && !sensors_fresh) {
+    fingers_done = false;  // the touch sensors date from an earlier step: decided at the next one
+  } else if (job.moves_fingers) {
     const bool ramp_over = seconds(now - finger_start_) >= finger_duration_;
     const std::array<bool, 2> touching = touch(model, data);
     bool settled = true;
@@ -566,7 +569,7 @@ void SimDriver::write_targets(std::chrono::nanoseconds now, const mjModel* model
   }
 }
 
-void SimDriver::step(std::chrono::nanoseconds now, const mjModel* model, mjData* data) {
+bool SimDriver::step(std::chrono::nanoseconds now, const mjModel* model, mjData* data, bool sensors_fresh) {
   Controller c = controller();  // releases the lock and calls the notifier (if something finished) when it ends
   if (!initialised_) {
     hold_here(now, data);
@@ -595,9 +598,11 @@ void SimDriver::step(std::chrono::nanoseconds now, const mjModel* model, mjData*
   while (!c.reads().empty()) c.complete(c.reads().front().id, reading(c, now, data));
   while (Job* head = c.head()) {
     if (!head->as<SimJob>().started) start_head(now, *head);
-    if (!check_head(c, now, model, data)) break;
+    if (!check_head(c, now, model, data, sensors_fresh)) break;
   }
   write_targets(now, model, data);
+  const Job* head = c.head();
+  return head != nullptr && head->as<SimJob>().moves_fingers;
 }
 
 void SimDriver::release_grip(std::chrono::nanoseconds until) {

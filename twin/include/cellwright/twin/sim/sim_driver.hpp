@@ -139,7 +139,11 @@ class SimDriver final : public drivers::DriverCore {
   // Advances the controller to simulation time `now` (the time of the physics step about to be taken): starts,
   // runs and completes commands, and writes this robot's servo targets into data->ctrl. Reads only this robot's
   // state from `data`. Calls the notifier (lock released) if a command finished.
-  void step(std::chrono::nanoseconds now, const mjModel* model, mjData* data);
+  // `sensors_fresh`: whether data->sensordata is from the last step (the World skips MuJoCo's sensor stage on steps
+  // after which nobody reads it). The fingers' touch sensors decide when a grip or open is done; on a step without
+  // fresh sensors that decision waits for the next one. Returns whether the next step will read them: a command that
+  // moves the fingers is running.
+  bool step(std::chrono::nanoseconds now, const mjModel* model, mjData* data, bool sensors_fresh = true);
 
   // A fault injected on purpose (docs/faults.md, kind drop): the gripper loses its grip force until simulation time
   // `until`: the finger servos are driven fully open whatever the commands say (a command running meanwhile goes on
@@ -188,7 +192,8 @@ class SimDriver final : public drivers::DriverCore {
   // Simulation side, per step: start the head job, check whether it has finished (true when it has, then it was
   // finished with finish_head), and write the servo targets.
   void start_head(std::chrono::nanoseconds now, Job& job);
-  bool check_head(Controller& c, std::chrono::nanoseconds now, const mjModel* model, const mjData* data);
+  bool check_head(Controller& c, std::chrono::nanoseconds now, const mjModel* model, const mjData* data,
+                  bool sensors_fresh);
   // The position reading of the simulation at this step.
   drivers::PositionReading reading(const Controller& c, std::chrono::nanoseconds now, const mjData* data) const;
   void write_targets(std::chrono::nanoseconds now, const mjModel* model, mjData* data);

@@ -5,6 +5,9 @@
 //  - advance(dt) steps the physics a whole number of timesteps. Before every step each SimDriver moves its servo
 //    targets along its trajectory; after every step the belts are wrapped (Scene::wrap_belts), contacts are checked
 //    for collisions and MuJoCo's warning counters are read. Time is counted in whole steps, so now() is exact.
+//    MuJoCo's sensors (touch, wrist force/torque) are computed on the last step of each call, and on the steps after
+//    which a driver reads its fingers' touch: mjData's sensor values are always those of the last step when anyone
+//    reads them (SimDriver::step says when it will).
 //  - truth() reads the ground truth the environment model needs: workpiece poses, velocities, what holds them and
 //    what they rest on; robot joints, tool pose, finger opening, touch and wrist force/torque.
 //  - new_collisions() reports unintended contacts once, when they start (see Collision).
@@ -353,6 +356,7 @@ class World {
   // (the scene's model, read by renderers and the collision sweep, never changes).
   std::unique_ptr<mjModel, void (*)(mjModel*)> physics_;
   std::unique_ptr<RestingParts> resting_;
+  bool sensors_fresh_ = true;  // mjData's sensor values are from the last step (see step())
   WorldOptions options_;
   SignalTable signals_;
   std::chrono::nanoseconds timestep_{0};

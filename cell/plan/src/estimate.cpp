@@ -533,14 +533,19 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
         }
         ce.seconds = lockstep_span(ce.motion, true, period, step);
       } else if (c.kind == task::PrimitiveKind::kOpen) {
-        ce.motion = sim::finger_ramp_duration(fingers, rt.finger_open, rt.finger_speed) + sim::kFingerRestWindow;
-        ce.basis = fmt::format("fingers open from {:.4f} m to {:.4f} m at {:.3f} m/s", fingers, rt.finger_open,
-                               rt.finger_speed);
+        // Letting go of a part the fingers closed on is a release (sim_driver.hpp): from the part's faces to
+        // release_clearance beyond them, the part free at once. Any other open opens fully from where the ramp stands.
+        const bool releases = c.contact && *c.contact > fingers && *c.contact > rt.finger_closed;
+        const double from = releases ? *c.contact : fingers;
+        const double to = releases ? std::min(*c.contact + rt.release_clearance, rt.finger_open) : rt.finger_open;
+        ce.motion = sim::finger_ramp_duration(from, to, rt.finger_speed) + sim::kFingerRestWindow;
+        ce.basis = fmt::format("fingers {} from {:.4f} m to {:.4f} m at {:.3f} m/s", releases ? "release" : "open",
+                               from, to, rt.finger_speed);
         if (auto d = delivery_of.find({r, c.primitive}); d != delivery_of.end()) {
           // The part rides from when the fingers' ramp passes its faces (at once if they no longer press it), and is
           // taken out at the end of the period in which it reaches the exit point.
           const double release =
-              c.contact && *c.contact > fingers
+              !releases && c.contact && *c.contact > fingers
                   ? sim::finger_ramp_time_to(fingers, rt.finger_open, *c.contact, rt.finger_speed).value_or(ce.motion)
                   : 0.0;
           const double out = std::ceil(release / step - 1e-9) * step + plan.deliveries[d->second].ride;
@@ -550,7 +555,7 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
               "a body free again {:.2f} s after the open starts",
               release, plan.deliveries[d->second].distance, plan.deliveries[d->second].conveyor, delivered[d->second]);
         }
-        fingers = rt.finger_open;
+        fingers = to;
         ce.seconds = lockstep_span(ce.motion, false, period, step);
       } else if (c.kind == task::PrimitiveKind::kClose) {
         const std::optional<double> press =

@@ -287,6 +287,13 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   std::size_t next_body = 0;
   std::map<std::string, Eigen::Isometry3d> ready_pose;
   for (const models::WorkpieceSpec& w : s.cell.workpieces) ready_pose[w.name] = model.find_workpiece(w.name)->pose;
+  // A class whose parts another belt than the feed's brings (a relay: one robot lets them go on that belt, another
+  // takes them at its stop) takes no fed body: its moves are planned to its location, as for a class no feed brings.
+  auto relayed_class = [&](const std::string& label) {
+    const models::LocationSpec* from = s.cell.find_location(s.location_of(task::find_class(prog, label)->from));
+    const models::ConveyorSpec* belt = from ? running_belt_under(s.cell, from->pose.transform().translation()) : nullptr;
+    return belt != nullptr && belt->name != s.feed->conveyor;
+  };
   // Sets `fed` when the class takes a new part from the feed.
   auto bind_class = [&](const std::string& robot, const std::string& label, bool* fed = nullptr) -> std::string {
     auto& mine = instance[robot];
@@ -294,7 +301,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
     std::string body;
     if (auto peer = hand_peer.find(robot); peer != hand_peer.end() && held.count(peer->second) != 0) {
       body = held.at(peer->second).first;
-    } else if (s.feed && !s.feed->workpieces.empty()) {
+    } else if (s.feed && !s.feed->workpieces.empty() && !relayed_class(label)) {
       if (fed != nullptr) *fed = true;
       body = s.feed->workpiece_at(next_body++);
       runtime::WorkpieceState& ws = *model.find_workpiece(body);

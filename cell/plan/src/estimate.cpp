@@ -287,6 +287,13 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   std::size_t next_body = 0;
   std::map<std::string, Eigen::Isometry3d> ready_pose;
   for (const models::WorkpieceSpec& w : s.cell.workpieces) ready_pose[w.name] = model.find_workpiece(w.name)->pose;
+  // A class whose parts another belt than the feed's brings (a relay: one robot lets them go on that belt, another
+  // takes them at its stop) takes no fed body: its moves are planned to its location, as for a class no feed brings.
+  auto relayed_class = [&](const std::string& label) {
+    const models::LocationSpec* from = s.cell.find_location(s.location_of(task::find_class(prog, label)->from));
+    const models::ConveyorSpec* belt = from ? running_belt_under(s.cell, from->pose.transform().translation()) : nullptr;
+    return belt != nullptr && belt->name != s.feed->conveyor;
+  };
   // Sets `fed` when the class takes a new part from the feed.
   auto bind_class = [&](const std::string& robot, const std::string& label, bool* fed = nullptr) -> std::string {
     auto& mine = instance[robot];
@@ -294,7 +301,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
     std::string body;
     if (auto peer = hand_peer.find(robot); peer != hand_peer.end() && held.count(peer->second) != 0) {
       body = held.at(peer->second).first;
-    } else if (s.feed && !s.feed->workpieces.empty()) {
+    } else if (s.feed && !s.feed->workpieces.empty() && !relayed_class(label)) {
       if (fed != nullptr) *fed = true;
       body = s.feed->workpiece_at(next_body++);
       runtime::WorkpieceState& ws = *model.find_workpiece(body);
@@ -533,14 +540,19 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
         }
         ce.seconds = lockstep_span(ce.motion, true, period, step);
       } else if (c.kind == task::PrimitiveKind::kOpen) {
-        ce.motion = sim::finger_ramp_duration(fingers, rt.finger_open, rt.finger_speed) + sim::kFingerRestWindow;
-        ce.basis = fmt::format("fingers open from {:.4f} m to {:.4f} m at {:.3f} m/s", fingers, rt.finger_open,
-                               rt.finger_speed);
+        // Letting go of a part the fingers closed on is a release (sim_driver.hpp): from the part's faces to
+        // release_clearance beyond them, the part free at once. Any other open opens fully from where the ramp stands.
+        const bool releases = c.contact && *c.contact > fingers && *c.contact > rt.finger_closed;
+        const double from = releases ? *c.contact : fingers;
+        const double to = releases ? std::min(*c.contact + rt.release_clearance, rt.finger_open) : rt.finger_open;
+        ce.motion = sim::finger_ramp_duration(from, to, rt.finger_speed) + sim::kFingerRestWindow;
+        ce.basis = fmt::format("fingers {} from {:.4f} m to {:.4f} m at {:.3f} m/s", releases ? "release" : "open",
+                               from, to, rt.finger_speed);
         if (auto d = delivery_of.find({r, c.primitive}); d != delivery_of.end()) {
           // The part rides from when the fingers' ramp passes its faces (at once if they no longer press it), and is
           // taken out at the end of the period in which it reaches the exit point.
           const double release =
-              c.contact && *c.contact > fingers
+              !releases && c.contact && *c.contact > fingers
                   ? sim::finger_ramp_time_to(fingers, rt.finger_open, *c.contact, rt.finger_speed).value_or(ce.motion)
                   : 0.0;
           const double out = std::ceil(release / step - 1e-9) * step + plan.deliveries[d->second].ride;
@@ -550,7 +562,7 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
               "a body free again {:.2f} s after the open starts",
               release, plan.deliveries[d->second].distance, plan.deliveries[d->second].conveyor, delivered[d->second]);
         }
-        fingers = rt.finger_open;
+        fingers = to;
         ce.seconds = lockstep_span(ce.motion, false, period, step);
       } else if (c.kind == task::PrimitiveKind::kClose) {
         const std::optional<double> press =

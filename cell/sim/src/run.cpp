@@ -135,6 +135,7 @@ EstimateOptions twin_estimate_options(const Scenario& s, const twin::Scene& scen
     timing.speed = motion_speed;
     timing.min_move_time = driver.min_move_time;
     timing.finger_speed = driver.finger_speed;
+    timing.release_clearance = driver.release_clearance;
     timing.finger_closed = ids->finger_range[0];
     timing.finger_open = ids->finger_range[1];
     // The fingers' servo stiffness (N/m) in the scene: the grip force is reached this far behind the ramp.

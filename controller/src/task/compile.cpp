@@ -143,6 +143,7 @@ class Compiler {
       compile_sequence(seq);
     }
     if (!table_done) compile_table(*program_.steps);
+    join_loops();
     return std::move(out_);
   }
 
@@ -466,6 +467,108 @@ class Compiler {
     CW_CHECK(next_loop == seq.loops.size(), "sequence {}: loop {} of {} was not reached", seq.robot, next_loop,
              seq.loops.size());
     expect_outside_regions(r);
+  }
+
+  // Loops of cooperating sequences (`repeat N with R...`): the loops of a group of sequences become one loop with one
+  // decision (compiled.hpp, Loop). Each sequence names the others of its group; the k-th loop of a robot naming a
+  // group goes with the k-th loop of each other robot of the group naming it; the counts must agree.
+  void join_loops() {
+    struct Member {
+      std::size_t robot = 0;
+      std::size_t loop = 0;  // index in the robot's loops (a sequence's loops are its RobotProgram's, in order)
+      const LoopBlock* block = nullptr;
+    };
+    std::vector<std::vector<std::size_t>> groups;                       // sorted robot indices, by first appearance
+    std::map<std::pair<std::size_t, std::size_t>, std::vector<Member>> of;  // (group, robot) -> its loops, in order
+    for (const Sequence& seq : program_.sequences) {
+      const std::size_t r = robot(seq.robot);
+      for (std::size_t l = 0; l < seq.loops.size(); ++l) {
+        const LoopBlock& block = seq.loops[l];
+        if (block.partners.empty()) continue;
+        std::vector<std::size_t> group{r};
+        for (std::size_t i = 0; i < block.partners.size(); ++i) {
+          const std::string& name = block.partners[i];
+          const SourceLocation& where = block.partner_where[i];
+          const auto it = robot_index_.find(name);
+          if (it == robot_index_.end()) fail(where, fmt::format("'{}' after 'with' is not a declared robot", name));
+          if (it->second == r) fail(where, fmt::format("robot '{}' names its own sequence after 'with'", name));
+          const bool has_sequence = std::any_of(program_.sequences.begin(), program_.sequences.end(),
+                                                [&](const Sequence& s) { return s.robot == name; });
+          if (!has_sequence) {
+            fail(where, fmt::format("robot '{}' has no sequence for this loop to run with (a loop with partners joins "
+                                    "the loops of their sequences)",
+                                    name));
+          }
+          group.push_back(it->second);
+        }
+        std::sort(group.begin(), group.end());
+        const auto g = std::find(groups.begin(), groups.end(), group);
+        const std::size_t gi = static_cast<std::size_t>(g - groups.begin());
+        if (g == groups.end()) groups.push_back(group);
+        of[{gi, r}].push_back({r, l, &block});
+      }
+    }
+    auto names_of = [&](const std::vector<std::size_t>& group, std::size_t except) {
+      std::string names;
+      for (std::size_t m : group) {
+        if (m != except) names += (names.empty() ? "" : " ") + out_.robots[m];
+      }
+      return names;
+    };
+    for (std::size_t gi = 0; gi < groups.size(); ++gi) {
+      const std::vector<std::size_t>& group = groups[gi];
+      // Every member has as many loops naming this group as the others: report the first loop left unmatched.
+      std::size_t most = 0;
+      for (std::size_t m : group) most = std::max(most, of[{gi, m}].size());
+      for (std::size_t k = 0; k < most; ++k) {
+        const Member* first = nullptr;
+        for (std::size_t m : group) {
+          if (k < of[{gi, m}].size()) first = first ? first : &of[{gi, m}][k];
+        }
+        for (std::size_t m : group) {
+          if (k >= of[{gi, m}].size()) {
+            fail(first->block->where,
+                 fmt::format("the loop of {} runs with {}, but the sequence of {} has {} 'with {}' to run "
+                             "with it ({} has {}): write 'repeat {} with {}' in the sequence of {}",
+                             out_.robots[first->robot], names_of(group, first->robot), out_.robots[m],
+                             k == 0 ? std::string("no loop") : fmt::format("only {} loop{}", k, k == 1 ? "" : "s"),
+                             names_of(group, m),
+                             out_.robots[first->robot], of[{gi, first->robot}].size(), first->block->count,
+                             names_of(group, m), out_.robots[m]));
+          }
+          const Member& other = of[{gi, m}][k];
+          if (other.block->count != first->block->count) {
+            fail(other.block->where,
+                 fmt::format("the loop of {} repeats {} times, but the loop of {} it runs with (line {}) repeats {} "
+                             "times: loops with one decision run the same number of iterations",
+                             out_.robots[m], other.block->count, out_.robots[first->robot],
+                             first->block->where.line, first->block->count));
+          }
+        }
+        // One loop: the leader is the group's robot declared first.
+        const std::size_t leader = group.front();
+        const Member& lead = of[{gi, leader}][k];
+        const std::string name = fmt::format("loop{}", lead.block->where.line);
+        std::vector<std::string> followers;
+        for (std::size_t m : group) {
+          if (m != leader) followers.push_back(out_.robots[m]);
+        }
+        for (std::size_t m : group) {
+          Loop& loop = out_.programs[m].loops[of[{gi, m}][k].loop];
+          loop.name = name;
+          loop.leader = out_.robots[leader];
+          loop.followers = m == leader ? followers : std::vector<std::string>{};
+          loop.paced = true;
+        }
+        const Loop& decided = out_.programs[leader].loops[lead.loop];
+        for (const std::string& f : followers) {
+          add_event(loop_again_event(decided, f), lead.block->where);
+          add_event(loop_exit_event(decided, f), lead.block->where);
+          add_event(loop_taken_event(decided, f), lead.block->where);
+          out_.semaphores.back().initial = 1;  // the leader's first decision waits for nothing
+        }
+      }
+    }
   }
 
   static std::string holding_text(const RobotState& st) {

@@ -59,6 +59,10 @@ std::string loop_exit_event(const Loop& loop, const std::string& follower) {
   return fmt::format("{}.{}>{}.exit", loop.name, loop.leader, follower);
 }
 
+std::string loop_taken_event(const Loop& loop, const std::string& follower) {
+  return fmt::format("{}.{}>{}.taken", loop.name, follower, loop.leader);
+}
+
 std::string segment_event(const std::string& block, int k, int count, const std::string& from, const std::string& to) {
   return k > count ? fmt::format("{}.end.{}>{}", block, from, to) : fmt::format("{}.s{}.{}>{}", block, k, from, to);
 }
@@ -193,7 +197,10 @@ std::string format_listing(const CompiledProgram& compiled) {
           l.leader != prog.robot ? fmt::format("{} waits for {}'s decision", l.end, l.leader)
           : l.followers.empty()  ? fmt::format("{} decides again or exit", l.end)
                                  : fmt::format("{} decides again or exit and tells {}", l.end, fmt::join(l.followers, " "));
-      out += fmt::format("  {} (repeat {}): body [{}, {}), {}\n", l.name, l.count, l.begin, l.end, decision);
+      out += fmt::format("  {} (repeat {}): body [{}, {}), {}{}\n", l.name, l.count, l.begin, l.end, decision,
+                         !l.paced                  ? ""
+                         : l.leader == prog.robot ? ", once each has taken the last (cooperating sequences)"
+                                                   : ", and says it has taken it (cooperating sequences)");
     }
   }
   if (compiled.semaphores.empty()) {
@@ -273,13 +280,12 @@ nlohmann::json to_json(const CompiledProgram& compiled) {
     }
     nlohmann::json loops = nlohmann::json::array();
     for (const Loop& l : prog.loops) {
-      loops.push_back({{"name", l.name},
-                       {"where", location_json(l.where)},
-                       {"count", l.count},
-                       {"begin", l.begin},
-                       {"end", l.end},
-                       {"leader", l.leader},
-                       {"followers", l.followers}});
+      nlohmann::json j = {{"name", l.name},        {"where", location_json(l.where)},
+                          {"count", l.count},      {"begin", l.begin},
+                          {"end", l.end},          {"leader", l.leader},
+                          {"followers", l.followers}};
+      if (l.paced) j["paced"] = true;  // a loop of cooperating sequences (compiled.hpp, Loop)
+      loops.push_back(std::move(j));
     }
     programs.push_back({{"robot", prog.robot}, {"primitives", std::move(prims)}, {"loops", std::move(loops)}});
   }

@@ -552,11 +552,32 @@ class Parser {
       fail(n, fmt::format("the number of iterations is too large: {} (at most {})", n.text,
                           std::numeric_limits<std::uint32_t>::max()));
     }
-    if (tokens_.size() > 2) {
-      fail(tokens_[2], fmt::format("unexpected {} after 'repeat {}': the line that opens a loop holds nothing else",
+    LoopBlock loop;
+    if (tokens_.size() > 2 && is_word(tokens_[2], "with")) {
+      // `repeat N with R...`: the loop of cooperating sequences, one decision for all of them.
+      if (mode_ != Mode::kSequence) {
+        fail(tokens_[2], fmt::format("'with' names the sequences a loop runs together with; a loop of the steps "
+                                     "table already runs with every robot of the table (write 'repeat {}')",
+                                     n.text));
+      }
+      if (tokens_.size() == 3) {
+        fail(tokens_[2], fmt::format("'repeat {} with' needs the robots whose sequences loop together with this one",
+                                     n.text));
+      }
+      for (std::size_t i = 3; i < tokens_.size(); ++i) {
+        const Token& t = tokens_[i];
+        if (t.kind != TokenKind::kName) fail(t, fmt::format("expected a robot name after 'with', found {}", quoted(t)));
+        if (std::find(loop.partners.begin(), loop.partners.end(), t.text) != loop.partners.end()) {
+          fail(t, fmt::format("robot '{}' is named twice after 'with'", t.text));
+        }
+        loop.partners.push_back(t.text);
+        loop.partner_where.push_back(at(t));
+      }
+    } else if (tokens_.size() > 2) {
+      fail(tokens_[2], fmt::format("unexpected {} after 'repeat {}': the line that opens a loop holds nothing else "
+                                   "(or 'with' and the robots whose sequences loop together with this one)",
                                    quoted(tokens_[2]), n.text));
     }
-    LoopBlock loop;
     loop.where = at(first);
     loop.count = *value;
     loop.begin = next;

@@ -112,9 +112,10 @@ petri::Net to_net(const CompiledProgram& program) {
       if (prims[k].kind == PrimitiveKind::kLoop) {
         // The leader decides at once (an instant primitive); a follower waits for the leader's decision.
         const Loop& loop = loop_of(k);
+        // A paced leader may wait there too: for each follower to have taken its previous decision.
         p.name = leads(loop) ? fmt::format("{} deciding {} (repeat {})", rp.robot, loop.name, loop.count)
                              : fmt::format("{} waiting for {} decision", rp.robot, loop.name);
-        p.kind = leads(loop) ? petri::PlaceKind::kExecuting : petri::PlaceKind::kWaiting;
+        p.kind = leads(loop) && !loop.paced ? petri::PlaceKind::kExecuting : petri::PlaceKind::kWaiting;
       } else {
         const bool waiting = prims[k].kind == PrimitiveKind::kWait;
         p.name = waiting ? fmt::format("{} waiting for {}", rp.robot, prims[k].event)
@@ -148,9 +149,13 @@ petri::Net to_net(const CompiledProgram& program) {
         if (leads(loop)) {
           for (const std::string& f : loop.followers) {
             t.outputs.push_back({decision_place(rp.robot, prims[k - 1], loop_exit_event(loop, f)), 1});
+            if (loop.paced) t.inputs.push_back({decision_place(rp.robot, prims[k - 1], loop_taken_event(loop, f)), 1});
           }
         } else {
           t.inputs.push_back({decision_place(rp.robot, prims[k - 1], loop_exit_event(loop, rp.robot)), 1});
+          if (loop.paced) {
+            t.outputs.push_back({decision_place(rp.robot, prims[k - 1], loop_taken_event(loop, rp.robot)), 1});
+          }
         }
       }
       if (k < prims.size() && prims[k].kind == PrimitiveKind::kSignal) {
@@ -186,9 +191,11 @@ petri::Net to_net(const CompiledProgram& program) {
       if (leads(loop)) {
         for (const std::string& f : loop.followers) {
           t.outputs.push_back({decision_place(rp.robot, prims[k], loop_again_event(loop, f)), 1});
+          if (loop.paced) t.inputs.push_back({decision_place(rp.robot, prims[k], loop_taken_event(loop, f)), 1});
         }
       } else {
         t.inputs.push_back({decision_place(rp.robot, prims[k], loop_again_event(loop, rp.robot)), 1});
+        if (loop.paced) t.outputs.push_back({decision_place(rp.robot, prims[k], loop_taken_event(loop, rp.robot)), 1});
       }
       if (prims[loop.begin].kind == PrimitiveKind::kSignal) {
         t.outputs.push_back({shared_place(rp.robot, prims[loop.begin]), 1});

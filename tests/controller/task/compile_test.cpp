@@ -87,11 +87,17 @@ void expect_well_formed(const CompiledProgram& c) {
       EXPECT_EQ(loop.end, k);
       EXPECT_LT(loop.begin, loop.end);
       EXPECT_GE(loop.count, 1u);
-      EXPECT_EQ(loop.name, "loop" + std::to_string(loop.where.line));
+      // Named after its repeat line; a follower of cooperating sequences after its leader's.
+      if (!loop.paced || loop.leader == prog.robot) {
+        EXPECT_EQ(loop.name, "loop" + std::to_string(loop.where.line));
+      }
       EXPECT_EQ(p.where.line, loop.where.line);
       for (const std::string& f : loop.followers) {
         EXPECT_TRUE(events.count(loop_again_event(loop, f))) << loop.name;
         EXPECT_TRUE(events.count(loop_exit_event(loop, f))) << loop.name;
+        if (loop.paced) {
+          EXPECT_TRUE(events.count(loop_taken_event(loop, f))) << loop.name;
+        }
       }
       if (loop.leader != prog.robot) {
         EXPECT_TRUE(loop.followers.empty());
@@ -388,6 +394,59 @@ TEST(Compile, KeywordCaseDoesNotChangeTheResult) {
 // ---- semantic errors ---------------------------------------------------------------------------------------------
 
 const std::string kDecl = "robot r1 r2 r3\nworkpiece A C\nlocation B\nsemaphore s\nregion Z\n";  // 5 lines
+
+TEST(Compile, LoopsOfCooperatingSequencesAreOneLoopLedByTheFirstRobot) {
+  // r2's sequence comes first in the file and names r1; r1, declared first, leads all the same.
+  const std::string text = test::stand_relay("repeat 4 with r2", "repeat 4 with r1");
+  const CompiledProgram c = compile(parse_program(text, "relay.task"));
+  expect_well_formed(c);
+  const Loop& lead = test::program_of(c, "r1").loops.at(0);
+  const Loop& follow = test::program_of(c, "r2").loops.at(0);
+  EXPECT_EQ(lead.name, "loop8");  // the leader's repeat line
+  EXPECT_EQ(follow.name, "loop8");
+  EXPECT_EQ(lead.leader, "r1");
+  EXPECT_EQ(follow.leader, "r1");
+  EXPECT_EQ(lead.followers, (std::vector<std::string>{"r2"}));
+  EXPECT_TRUE(follow.followers.empty());
+  EXPECT_TRUE(lead.paced && follow.paced);
+  EXPECT_EQ(follow.where.line, 16);  // each robot's own repeat
+  // The decision's events; the acknowledgement starts at 1.
+  std::map<std::string, std::uint32_t> inserted;
+  for (const Semaphore& s : c.semaphores) {
+    if (s.inserted) inserted[s.name] = s.initial;
+  }
+  EXPECT_EQ(inserted, (std::map<std::string, std::uint32_t>{
+                          {"loop8.r1>r2.again", 0}, {"loop8.r1>r2.exit", 0}, {"loop8.r2>r1.taken", 1}}));
+  EXPECT_NE(format_listing(c).find("once each has taken the last"), std::string::npos) << format_listing(c);
+  EXPECT_EQ(to_json(c)["programs"][1]["loops"][0]["paced"], true);
+  // A loop without partners stays its own leader, unpaced.
+  const CompiledProgram alone = compile(parse_program(test::stand_relay("repeat 4", "repeat 4"), "relay.task"));
+  EXPECT_EQ(test::program_of(alone, "r2").loops.at(0).leader, "r2");
+  EXPECT_FALSE(test::program_of(alone, "r2").loops.at(0).paced);
+}
+
+TEST(CompileErrors, LoopsOfCooperatingSequencesMustMatch) {
+  // The partner's loop decides alone: no loop of r2 names r1.
+  expect_failure(test::stand_relay("repeat 4 with r2", "repeat 4"), 8, 3,
+                 "the loop of r1 runs with r2, but the sequence of r2 has no loop 'with r1' to run with it (r1 has "
+                 "1): write 'repeat 4 with r1' in the sequence of r2");
+  // Counts differ: reported at the follower's repeat.
+  expect_failure(test::stand_relay("repeat 4 with r2", "repeat 5 with r1"), 16, 3,
+                 "the loop of r2 repeats 5 times, but the loop of r1 it runs with (line 8) repeats 4 times: loops "
+                 "with one decision run the same number of iterations");
+  // Partners that are not sequences, not robots, or the robot itself: each reported at the name.
+  const std::pair<const char*, const char*> partners[] = {
+      {"r2", "robot 'r2' has no sequence for this loop to run with (a loop with partners joins the loops of their "
+             "sequences)"},
+      {"r9", "'r9' after 'with' is not a declared robot"},
+      {"r1", "robot 'r1' names its own sequence after 'with'"},
+  };
+  for (const auto& [partner, problem] : partners) {
+    expect_failure(std::string("robot r1 r2\nsemaphore s\nsequence r1\nrepeat 2 with ") + partner +
+                       "\nsignal s\nend\nend\n",
+                   4, 15, problem);
+  }
+}
 
 TEST(CompileErrors, PickWhileHolding) {
   expect_failure(kDecl + "sequence r1\n  Pick A\n  Pick C\nend\n", 8, 3,

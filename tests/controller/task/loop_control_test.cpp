@@ -9,6 +9,7 @@
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/task/compile.hpp"
 #include "cellwright/task/to_net.hpp"
+#include "controller/task/task_test_helpers.hpp"
 
 namespace cellwright::task {
 namespace {
@@ -110,6 +111,22 @@ TEST(LoopControl, IterationsCountUpAndStartAgainAfterTheExit) {
   std::vector<bool> a;
   loops.restrict(a);
   EXPECT_TRUE(a[f_again]);
+}
+
+TEST(LoopControl, CooperatingSequencesRunTheLeadersCountInLockStep) {
+  // The stand relay played as task control plays it: both sequences run the body `count` times, every part put on
+  // the stand is taken from it, and the run ends in the final marking.
+  for (const int count : {1, 3, 8}) {
+    const std::string n = std::to_string(count);
+    const CompiledProgram c = compile(parse_program(test::stand_relay("repeat " + n + " with r2", "repeat " + n + " with r1"),
+                                                    "relay.task"));
+    const petri::Net net = to_net(c);
+    const Played p1 = play(c, net, c.programs[0].loops[0].begin);
+    const Played p2 = play(c, net, c.programs[1].loops[0].begin);
+    EXPECT_TRUE(p1.final) << "count " << count;
+    EXPECT_EQ(p1.began.at("r1"), count) << "count " << count;
+    EXPECT_EQ(p2.began.at("r2"), count) << "count " << count;
+  }
 }
 
 TEST(LoopControl, SequenceLoopAndAProgramWithoutLoops) {

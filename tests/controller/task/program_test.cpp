@@ -276,9 +276,39 @@ TEST(ParseErrors, LoopCounts) {
   expect_failure(head + "repeat s\nsignal s\nend\nend\n", 4, 8,
                  "expected the number of iterations after 'repeat', found 's'");
   expect_failure(head + "repeat 3 4\nsignal s\nend\nend\n", 4, 10,
-                 "unexpected '4' after 'repeat 3': the line that opens a loop holds nothing else");
+                 "unexpected '4' after 'repeat 3': the line that opens a loop holds nothing else (or 'with' and "
+                 "the robots whose sequences loop together with this one)");
   expect_failure("robot r1 r2\nsemaphore s\nsteps\nr1 | r2\nrepeat 3 | signal s\n| wait s\nend\nend\n", 5, 10,
-                 "unexpected '|' after 'repeat 3': the line that opens a loop holds nothing else");
+                 "unexpected '|' after 'repeat 3': the line that opens a loop holds nothing else (or 'with' and "
+                 "the robots whose sequences loop together with this one)");
+}
+
+TEST(ParseProgram, LoopWithPartners) {
+  const Program p = parse_program("robot r1 r2 r3\nsemaphore s\nsequence r1\nrepeat 5 with r2 r3\nsignal s\nend\n"
+                                  "end\n",
+                                  "t");
+  const LoopBlock& loop = p.sequences[0].loops[0];
+  EXPECT_EQ(loop.count, 5u);
+  EXPECT_EQ(loop.partners, (std::vector<std::string>{"r2", "r3"}));
+  ASSERT_EQ(loop.partner_where.size(), 2u);
+  EXPECT_EQ(loop.partner_where[1].line, 4);
+  EXPECT_EQ(loop.partner_where[1].column, 18);
+  // Without 'with' a loop has no partners.
+  EXPECT_TRUE(parse_program("robot r1\nsemaphore s\nsequence r1\nrepeat 5\nsignal s\nend\nend\n", "t")
+                  .sequences[0]
+                  .loops[0]
+                  .partners.empty());
+}
+
+TEST(ParseErrors, LoopWithPartners) {
+  const std::string head = "robot r1 r2\nsemaphore s\nsequence r1\n";
+  expect_failure(head + "repeat 3 with\nsignal s\nend\nend\n", 4, 10,
+                 "'repeat 3 with' needs the robots whose sequences loop together with this one");
+  expect_failure(head + "repeat 3 with 4\nsignal s\nend\nend\n", 4, 15, "expected a robot name after 'with', found '4'");
+  expect_failure(head + "repeat 3 with r2 r2\nsignal s\nend\nend\n", 4, 18, "robot 'r2' is named twice after 'with'");
+  expect_failure("robot r1 r2\nsemaphore s\nsteps\nr1 | r2\nrepeat 3 with r2\nsignal s | wait s\nend\nend\n", 5, 10,
+                 "'with' names the sequences a loop runs together with; a loop of the steps table already runs with "
+                 "every robot of the table (write 'repeat 3')");
 }
 
 TEST(ParseErrors, LoopStructure) {

@@ -11,6 +11,7 @@
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/task/compile.hpp"
+#include "controller/task/task_test_helpers.hpp"
 
 namespace cellwright::task {
 namespace {
@@ -318,6 +319,52 @@ TEST(ToNet, SequenceLoopsDecideIndependentlySoTheCheckSeesOneStopEarly) {
   const auto table = petri::analyze(net_of("robot r1 r2\nsemaphore s t\nsteps\nr1 | r2\nrepeat 3\nsignal s | wait s\n"
                                            "wait t | signal t\nend\nend\n"));
   EXPECT_TRUE(table.ok());
+}
+
+TEST(ToNet, CooperatingSequencesWithOneDecisionPassTheCheckForAnyCount) {
+  // The stand relay: two looping sequences that meet only at the stand. With one decision (`with`) the check
+  // accepts them, and the count is not in the net.
+  const auto shared = petri::analyze(net_of(test::stand_relay("repeat 10 with r2", "repeat 10 with r1")));
+  EXPECT_TRUE(shared.complete) << shared.stop_reason;
+  EXPECT_TRUE(shared.bounded);
+  EXPECT_EQ(shared.deadlocks, 0u);
+  EXPECT_TRUE(shared.ok());
+  const auto more = petri::analyze(net_of(test::stand_relay("repeat 3000 with r2", "repeat 3000 with r1")));
+  EXPECT_EQ(more.states, shared.states);
+  // Each loop deciding alone: refused, with a counterexample in which r1 has left its loop while r2 waits for a part
+  // that never comes.
+  const petri::Net alone = net_of(test::stand_relay("repeat 10", "repeat 10"));
+  const auto refused = petri::analyze(alone);
+  EXPECT_FALSE(refused.ok());
+  ASSERT_FALSE(refused.deadlock_examples.empty());
+  petri::Marking m = alone.initial_marking();
+  for (auto t : refused.deadlock_examples.front().path) petri::fire_in_place(alone, m, t);
+  EXPECT_TRUE(petri::enabled(alone, m).empty());
+  EXPECT_FALSE(alone.is_final(m));
+  EXPECT_EQ(m[place(alone, done_place_id("r1"))], 1u) << petri::describe_marking(alone, m);
+}
+
+TEST(ToNet, APacedLeaderDecidesOnlyOnceItsFollowerHasTakenTheLastDecision) {
+  const CompiledProgram c = compile(parse_program(test::stand_relay("repeat 2 with r2", "repeat 2 with r1"), "t"));
+  const petri::Net net = to_net(c);
+  const Loop& lead = c.programs[0].loops[0];
+  const Loop& follow = c.programs[1].loops[0];
+  const auto taken = place(net, event_place_id("loop8.r2>r1.taken"));
+  EXPECT_EQ(net.initial_marking()[taken], 1u);
+  const auto has = [](const std::vector<petri::Arc>& arcs, petri::PlaceId p) {
+    return std::any_of(arcs.begin(), arcs.end(), [&](const petri::Arc& a) { return a.place == p; });
+  };
+  // The leader's again and exit each take the acknowledgement; the follower's give it back.
+  EXPECT_TRUE(has(transition(net, loop_again_transition_id("r1", lead.end)).inputs, taken));
+  EXPECT_TRUE(has(transition(net, transition_id("r1", lead.end + 1)).inputs, taken));
+  EXPECT_TRUE(has(transition(net, loop_again_transition_id("r2", follow.end)).outputs, taken));
+  EXPECT_TRUE(has(transition(net, transition_id("r2", follow.end + 1)).outputs, taken));
+  // So the follower never finds again and exit signalled at once: every event place of the decision is 1-bounded.
+  const auto r = petri::analyze(net);
+  ASSERT_TRUE(r.complete);
+  for (const char* e : {"loop8.r1>r2.again", "loop8.r1>r2.exit", "loop8.r2>r1.taken"}) {
+    EXPECT_EQ(r.place_bounds[place(net, event_place_id(e))], 1u) << e;
+  }
 }
 
 TEST(ToNet, EmptyProgramGoesStraightToDone) {

@@ -135,7 +135,10 @@ class PickPlaceRun : public PickPlaceTest {
     const Eigen::Vector3d put = target + Eigen::Vector3d(0, 0, g.grasp.z() - g.bottom.z());
     move_to(down(put + Eigen::Vector3d(0, 0, approach), yaw), Path::joint, 0.5, [&] { carried(g); });
     move_to(down(put + Eigen::Vector3d(0, 0, 0.001), yaw), Path::linear, 0.2, [&] { carried(g); });
+    const auto opened = world_->now();
     ASSERT_EQ(execute(*world_, *puma_, grip(drivers::Grip::Action::open), 20s, watch()).phase, CommandPhase::done);
+    release_s_ = std::chrono::duration<double>(world_->now() - opened).count();
+    release_opening_ = puma_->last_grip()->opening;
     move_to(down(put + Eigen::Vector3d(0, 0, approach), yaw), Path::linear, 0.3, watch());
     world_->advance(500ms);
     watch()();
@@ -173,6 +176,7 @@ class PickPlaceRun : public PickPlaceTest {
   }
 
   std::vector<Collision> collisions_;
+  double release_s_ = 0, release_opening_ = 0;  // put_down(): how long its open took, the opening it left
   double slip_ = 0;
   bool always_held_ = true;
 };
@@ -213,6 +217,25 @@ TEST_F(PickPlaceRun, CarriesAPartRoundTheBaseIntoTheMachine) {
   // at the machine's location.
   EXPECT_LT(slip_, 0.015);
   expect_landed(place.pose.xyz, "machine_fixture", "mill", 0.015);
+}
+
+// Letting go of a part is a release (sim_driver.hpp): the fingers open from the part's faces only
+// release_clearance beyond them, not from fully closed to fully open (1.53 s), and the part stays where it was put.
+// The next open, with nothing in the hand, opens fully.
+TEST_F(PickPlaceRun, ALetGoOpensOnlyClearOfThePartAndTheNextOpenOpensFully) {
+  wait_for_part_at_pick();
+  const Grasped g = pick_a();
+  const double yaw = world_->scene().cell().find_location("input_pick")->pose.rpy.z();
+  lift(g, yaw);
+  const models::LocationSpec& table = *world_->scene().cell().find_location("table_top");
+  put_down(g, table.pose.xyz, table.pose.rpy.z(), 0.05);
+  const double width = world_->scene().cell().find_workpiece("A")->size.y();
+  const double clearance = SimDriverOptions{}.release_clearance;
+  EXPECT_LT(release_s_, 0.4) << "a release took as long as a full open";
+  EXPECT_NEAR(release_opening_, width + 2 * clearance, 0.002);
+  expect_landed(table.pose.xyz, "table_top", "table", 0.005);
+  ASSERT_EQ(execute(*world_, *puma_, grip(drivers::Grip::Action::open)).phase, CommandPhase::done);
+  EXPECT_NEAR(puma_->last_grip()->opening, puma_->capabilities().gripper_max_width, 0.001);
 }
 
 TEST_F(PickPlaceRun, AGraspBesideThePartClosesOnNothing) {

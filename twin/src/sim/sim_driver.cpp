@@ -100,6 +100,7 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
   positive("finger_speed", options_.finger_speed);
   positive("finger_tolerance", options_.finger_tolerance);
   positive("finger_settle_speed", options_.finger_settle_speed);
+  positive("release_clearance", options_.release_clearance);
   positive("brake_time", options_.brake_time);
   if (!std::isfinite(options_.min_move_time) || options_.min_move_time < 0.0) {
     throw fail(fmt::format("min_move_time is {}; it must be >= 0", options_.min_move_time));
@@ -375,7 +376,15 @@ void SimDriver::move_fingers(std::chrono::nanoseconds now, double goal, double f
   finger_duration_ = finger_ramp_duration(finger_from_, goal, options_.finger_speed);
 }
 
-void SimDriver::start_head(std::chrono::nanoseconds now, Job& head) {
+std::optional<double> SimDriver::holding_at(const mjModel* model, const mjData* data) const {
+  if (!finger_closing_) return std::nullopt;
+  const std::array<bool, 2> touching = touch(model, data);
+  const double left = finger_position(data, 0), right = finger_position(data, 1);
+  if (!touching[0] || !touching[1] || left + right <= 2.0 * finger_closed_ + kOnPartMargin) return std::nullopt;
+  return 0.5 * (left + right);
+}
+
+void SimDriver::start_head(std::chrono::nanoseconds now, Job& head, const mjModel* model, const mjData* data) {
   SimJob& job = head.as<SimJob>();
   job.started = true;
   job.start = now;
@@ -411,6 +420,14 @@ void SimDriver::start_head(std::chrono::nanoseconds now, Job& head) {
           const bool close = c.action == drivers::Grip::Action::close;
           double goal = close ? finger_closed_ : finger_open_;
           if (c.width) goal = std::clamp(*c.width / 2.0, finger_closed_, finger_open_);
+          const std::optional<double> held = close || c.width ? std::nullopt : holding_at(model, data);
+          if (held) {
+            // A release: from where the fingers rest on the part (not from where the closing ramp ran on to), just
+            // clear of it.
+            finger_duration_ = 0;
+            finger_goal_ = *held;
+            goal = std::min(*held + options_.release_clearance, finger_open_);
+          }
           move_fingers(now, goal, c.force.value_or(grip_force_));
         } else if constexpr (std::is_same_v<C, drivers::WaitInput>) {
           job.deadline = c.timeout.count() > 0 ? now + c.timeout : std::chrono::nanoseconds(0);
@@ -597,12 +614,19 @@ bool SimDriver::step(std::chrono::nanoseconds now, const mjModel* model, mjData*
   // Position requests are answered at this step whatever the arm does (reads_while_moving).
   while (!c.reads().empty()) c.complete(c.reads().front().id, reading(c, now, data));
   while (Job* head = c.head()) {
-    if (!head->as<SimJob>().started) start_head(now, *head);
+    if (!head->as<SimJob>().started) {
+      if (!sensors_fresh && reads_touch(*head)) break;  // it starts where the sensors are fresh
+      start_head(now, *head, model, data);
+    }
     if (!check_head(c, now, model, data, sensors_fresh)) break;
   }
   write_targets(now, model, data);
-  const Job* head = c.head();
-  return head != nullptr && head->as<SimJob>().moves_fingers;
+  const std::deque<Job>& queued = c.queued();
+  return std::any_of(queued.begin(), queued.end(), [](const Job& j) { return reads_touch(j); });
+}
+
+bool SimDriver::reads_touch(const Job& job) {
+  return job.kind == JobKind::home || (job.command && std::holds_alternative<drivers::Grip>(*job.command));
 }
 
 void SimDriver::release_grip(std::chrono::nanoseconds until) {

@@ -81,8 +81,15 @@ struct Primitive {
 // after the barrier that ends the body's last line, and tells each other table robot (a follower, column order) by
 // an inserted event, `loopL.LEADER>FOLLOWER.again` or `loopL.LEADER>FOLLOWER.exit` (L: the source line of `repeat`).
 // A follower's kLoop primitive waits for one of its two events. In a sequence the robot is its own leader and has no
-// followers. The count is not in the Petri net: the net lets the leader choose freely (so its check holds for any
-// number of iterations, and costs the same for 3 or 3,000); task control counts and chooses at run time.
+// followers, unless its loop names partners (`repeat N with R2 ...`, LoopBlock::partners): the loops of those
+// sequences are one loop, named after the leader's `repeat` line, whose leader is the group's robot declared first
+// (`robot` order) and whose followers are the others in that order. Such a loop is `paced`: with no barrier before
+// the decision, the leader could otherwise decide twice before a follower has taken the first decision, and a
+// follower would find again and exit both signalled. So each follower, taking a decision, signals
+// `loopL.FOLLOWER>LEADER.taken` (initially 1), and the leader's again and exit each take one from every follower:
+// the leader is at most one iteration ahead of each follower. The count is not in the Petri net: the net lets the
+// leader choose freely (so its check holds for any number of iterations, and costs the same for 3 or 3,000); task
+// control counts and chooses at run time.
 struct Loop {
   std::string name;          // "loopL", L the line of `repeat`; the prefix of its inserted events
   SourceLocation where;      // the `repeat` keyword
@@ -91,11 +98,14 @@ struct Loop {
   std::size_t end = 0;       // index of the kLoop primitive (begin <= end)
   std::string leader;        // the robot that decides (this robot, in a sequence or as the table's first column)
   std::vector<std::string> followers;  // leader only: the robots it tells, in column order; empty for a follower
+  bool paced = false;        // a loop of cooperating sequences: the `taken` events pace the leader (above)
 };
 
 // The events of a loop's decision: "loopL.r1>r2.again", "loopL.r1>r2.exit".
 std::string loop_again_event(const Loop& loop, const std::string& follower);
 std::string loop_exit_event(const Loop& loop, const std::string& follower);
+// A paced loop's acknowledgement: "loopL.r2>r1.taken" (follower r2 has taken leader r1's last decision).
+std::string loop_taken_event(const Loop& loop, const std::string& follower);
 
 struct RobotProgram {
   std::string robot;

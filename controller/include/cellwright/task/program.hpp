@@ -85,11 +85,17 @@ struct StepLine {
 
 // A `repeat N ... end` block inside a steps table or a sequence: lines (table) or commands (sequence) [begin, end)
 // are its body, run `count` times. Loops do not nest, and a body is never empty.
+//
+// In a sequence, `repeat N with R2 R3 ...` makes the loop one with the loops of the named robots' sequences: one
+// decision for all of them (docs/task-language.md, "Loops in cooperating sequences"). `partners` are those names as
+// written (resolved by compile()); empty for a loop that decides alone and in the steps table.
 struct LoopBlock {
   SourceLocation where;     // the `repeat` keyword
   std::uint32_t count = 1;  // at least 1
   std::size_t begin = 0;
   std::size_t end = 0;
+  std::vector<std::string> partners;          // sequences only: the robots named after `with`, in order
+  std::vector<SourceLocation> partner_where;  // each of them in the source
 };
 
 // The `steps ... end` block.

@@ -154,6 +154,7 @@ struct RobotTiming {
   double finger_open = 0.04;            // m: each finger's position fully open ...
   double finger_closed = 0.0;           // ... and fully closed
   double finger_squeeze = 0.002;        // m: grip force / finger stiffness, the ramp's lead when the fingers press
+  double release_clearance = 0.005;     // m each finger opens beyond a part it lets go of (SimDriverOptions)
 };
 
 struct EstimateOptions {

@@ -35,7 +35,10 @@
 //    max_waypoint_step apart in some joint: a singularity or a change of configuration on the line). The duration
 //    also keeps the tool within max_tool_speed * speed.
 //  - Grip: the finger targets move at finger_speed towards the goal (open: fully open, or `width`; close: fully
-//    closed, or `width`). The grip force (default: the robot's grip_force from the cell, also the maximum) limits the
+//    closed, or `width`). An open without `width` while the fingers hold a part (the last finger motion closed and
+//    both pads touch something short of fully closed) is a release: the targets start from where the fingers are
+//    and open them only release_clearance each beyond it, clear of the part, instead of ramping from fully closed
+//    to fully open; the next open without `width` (an empty open) opens fully. The grip force (default: the robot's grip_force from the cell, also the maximum) limits the
 //    squeeze: each finger's target never gets further than force / stiffness ahead of the finger, so a finger that
 //    meets the part pushes on it with exactly that force. Open completes when both fingers are within
 //    finger_tolerance of the goal and at rest; close completes when the finger targets have reached the goal and both
@@ -88,6 +91,7 @@ struct SimDriverOptions {
   double finger_speed = 0.05;           // m/s of each finger's target
   double finger_tolerance = 0.0005;     // m: an open is done when each finger is this close to its goal ...
   double finger_settle_speed = 0.002;   // m/s: ... and fingers slower than this count as stopped
+  double release_clearance = 0.005;     // m each finger opens beyond the part it lets go of (a release); > 0
   double home_speed = 0.5;              // speed fraction of home()
   double brake_time = 0.3;              // at most, to brake to rest after stop()
   std::size_t queue_depth = 16;         // commands in flight at most
@@ -141,8 +145,9 @@ class SimDriver final : public drivers::DriverCore {
   // state from `data`. Calls the notifier (lock released) if a command finished.
   // `sensors_fresh`: whether data->sensordata is from the last step (the World skips MuJoCo's sensor stage on steps
   // after which nobody reads it). The fingers' touch sensors decide when a grip or open is done; on a step without
-  // fresh sensors that decision waits for the next one. Returns whether the next step will read them: a command that
-  // moves the fingers is running.
+  // fresh sensors that decision waits for the next one, and a command that moves the fingers (a release looks at what
+  // they hold) starts at the next one. Returns whether the next step will read them: a command that moves the
+  // fingers is running or queued.
   bool step(std::chrono::nanoseconds now, const mjModel* model, mjData* data, bool sensors_fresh = true);
 
   // A fault injected on purpose (docs/faults.md, kind drop): the gripper loses its grip force until simulation time
@@ -191,7 +196,9 @@ class SimDriver final : public drivers::DriverCore {
   void plan_pose(SimJob& job, const drivers::MovePose& move) const;
   // Simulation side, per step: start the head job, check whether it has finished (true when it has, then it was
   // finished with finish_head), and write the servo targets.
-  void start_head(std::chrono::nanoseconds now, Job& job);
+  void start_head(std::chrono::nanoseconds now, Job& job, const mjModel* model, const mjData* data);
+  // Whether a job moves the fingers, and so reads the touch sensors from its start (home and Grip).
+  static bool reads_touch(const Job& job);
   bool check_head(Controller& c, std::chrono::nanoseconds now, const mjModel* model, const mjData* data,
                   bool sensors_fresh);
   // The position reading of the simulation at this step.
@@ -199,6 +206,9 @@ class SimDriver final : public drivers::DriverCore {
   void write_targets(std::chrono::nanoseconds now, const mjModel* model, mjData* data);
   // Starts a smooth finger motion to `goal` (finger joint value) with force limit `force`.
   void move_fingers(std::chrono::nanoseconds now, double goal, double force);
+  // Where a release starts from: the fingers' mean position when they hold a part (the last finger motion closed and
+  // both pads touch something short of fully closed); nullopt when they hold nothing.
+  std::optional<double> holding_at(const mjModel* model, const mjData* data) const;
   // Arm and finger targets at time `now`.
   struct ArmTarget {
     Eigen::VectorXd position, velocity, acceleration;

@@ -14,7 +14,8 @@
 // the transitions of a stubborn set are fired from each marking, so a program of many robots that mostly work
 // independently is explored along far fewer interleavings. What the reduced search guarantees, once complete:
 //  - deadlocks: every reachable dead marking is found, so `deadlocks` and `final_states` are exact, and the reported
-//    deadlock path is still a shortest one (deadlock_path_shortest stays true);
+//    deadlock path is still a shortest one (deadlock_path_shortest stays true) unless the net was reduced first
+//    (AnalysisOptions::agglomerate, below);
 //  - mutual exclusion: each region's verdict and its largest occupancy (max_inside) are exact; the witness path to a
 //    violation may be longer than the shortest one (RegionCheck::witness_shortest is false);
 //  - boundedness: an unbounded witness found is real; "bounded" is claimed only for nets shown bounded structurally
@@ -23,6 +24,11 @@
 //    finds no covering in, analyze() explores fully instead and says so in reduction_note;
 //  - `states` and `edges` count what was explored (reduced == true), not the reachability graph; place_bounds and
 //    dead_transitions are not computed.
+// Under kStubborn the net is first reduced (agglomerate.hpp: commands that always follow one another fused; a
+// lock-step barrier becomes one transition per robot) unless AnalysisOptions::agglomerate is false, and the reduced
+// net is analysed as below; its results are told in the original net's terms (paths expanded and replayed, place ids
+// mapped), with the same verdicts and counts of dead markings, paths not necessarily shortest, and states and edges
+// counting the reduced net's markings (AnalysisResult::net_reduction says how far it was reduced).
 // Under kStubborn a region shown exclusive by a place invariant (structural.hpp) is not watched by the search (no
 // condition V for it, no proviso on its account): its verdict is the proof's, and max_inside the most seen. And the
 // reduced search has a budget (AnalysisOptions::exploration_budget): when it runs out, and every region is proved

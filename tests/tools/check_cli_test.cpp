@@ -118,9 +118,16 @@ TEST(CheckCli, ReducedByDefaultWithTheSameVerdictsAsFullExploration) {
     EXPECT_EQ(f["reduced"], false);
     for (const char* key : {"ok", "deadlocks", "final_states", "bounded", "mutex_ok"}) EXPECT_EQ(r[key], f[key]) << key;
     EXPECT_LE(r["states"].get<std::uint64_t>(), f["states"].get<std::uint64_t>());
-    EXPECT_EQ(r["deadlock_path_shortest"], true);
+    // The net reduction (commands that always follow one another fused) keeps the verdicts and the counts above;
+    // its deadlock path is the program's own firing sequence, only not necessarily a shortest one.
+    const bool agglomerated = !r["net_reduction"].get<std::string>().empty();
+    EXPECT_TRUE(agglomerated) << "every shipped program has commands in a row";
+    EXPECT_THAT(r["net_reduction"].get<std::string>(), HasSubstr("before exploring, the net was reduced from"));
+    EXPECT_EQ(f["net_reduction"], "");
+    EXPECT_EQ(r["deadlock_path_shortest"], !agglomerated);
     if (!f["deadlock_path"].is_null()) {
-      EXPECT_EQ(r["deadlock_path"].size(), f["deadlock_path"].size());
+      EXPECT_GE(r["deadlock_path"].size(), f["deadlock_path"].size());
+      EXPECT_EQ(r["deadlock_marking"], f["deadlock_marking"]);  // deadlock.task has one dead marking
     }
     // A fast check prints no progress line.
     EXPECT_EQ(red.err, "");
@@ -190,6 +197,30 @@ TEST(CheckCli, SharedRegionPassesAndPhilosophersAreRefusedFromTheNetsStructure) 
   EXPECT_EQ(j["deadlocks_counted"], false);
   EXPECT_FALSE(j["deadlock_path"].empty());
   EXPECT_THAT(j["deadlock_description"].get<std::string>(), HasSubstr("r50: waiting for region Z1 free"));
+}
+
+TEST(CheckCli, ExplorationBudgetIsAnOptionAndBadValuesAreRefused) {
+  TwinCli cli("cw-check");
+  const auto shared = cli.dir() / "shared.task";
+  std::ofstream(shared) << shared_region(3);
+  // A budget of one marking: deadlock freedom comes from the state equation, not from exploring to the end.
+  const Outcome small = cli.run("check --json --exploration-budget 1 " + shell_quote(shared.string()));
+  ASSERT_EQ(small.status, 0) << small.out << small.err;
+  const auto j = nlohmann::json::parse(small.out);
+  EXPECT_FALSE(j["explored_all"].get<bool>());
+  EXPECT_THAT(j["deadlock_proof"].get<std::string>(), HasSubstr("state equation"));
+  // No budget: explored to the end, the same verdict.
+  const Outcome none = cli.run("check --json --exploration-budget 0 " + shell_quote(shared.string()));
+  ASSERT_EQ(none.status, 0) << none.out << none.err;
+  const auto n = nlohmann::json::parse(none.out);
+  EXPECT_TRUE(n["explored_all"].get<bool>());
+  EXPECT_EQ(n["deadlock_proof"], "");
+  for (const char* bad : {"-1", "many", "1.5", "''"}) {
+    const Outcome r = cli.run(std::string("check --exploration-budget ") + bad + " " + scene("exchange.task"));
+    EXPECT_EQ(r.status, 2) << bad;
+    EXPECT_THAT(r.err, HasSubstr("--exploration-budget")) << bad << ": " << r.err;
+    EXPECT_THAT(r.err, HasSubstr("a whole number of markings, 0 or more")) << bad << ": " << r.err;
+  }
 }
 
 TEST(CheckCli, UnknownReductionIsBadInput) {

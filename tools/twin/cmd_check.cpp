@@ -1,4 +1,6 @@
 // `twin check <program>`: compile a task-level program, build its Petri net and analyse it before anything runs.
+#include <charconv>
+#include <cstdint>
 #include <iostream>
 #include <string>
 
@@ -20,6 +22,7 @@ void add_check(CLI::App& app, Command* run) {
     bool json = false;
     std::uint64_t max_states = petri::AnalysisOptions{}.max_states;
     std::string reduction = "stubborn";
+    std::uint64_t exploration_budget = petri::AnalysisOptions{}.exploration_budget;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("program", args->program, "task-level program (.task)")->required();
@@ -30,11 +33,27 @@ void add_check(CLI::App& app, Command* run) {
                   "which interleavings to explore: none (all) or stubborn (partial-order reduction); "
                   "default stubborn")
       ->check(CLI::IsMember({"none", "stubborn"}));
+  cmd->add_option("--exploration-budget", args->exploration_budget,
+                  "with --reduction stubborn: markings explored before the structural checks (place invariants, the "
+                  "state equation) decide what the exploration has not; 0: no budget, explore up to --max-states; "
+                  "default 10000")
+      ->check(CLI::Validator(
+          [](const std::string& value) -> std::string {
+            std::uint64_t n = 0;
+            const char* end = value.data() + value.size();
+            const auto [ptr, ec] = std::from_chars(value.data(), end, n);
+            if (value.empty() || ec != std::errc() || ptr != end) {
+              return "'" + value + "' is not a whole number of markings, 0 or more (0: no budget)";
+            }
+            return {};
+          },
+          "N>=0"));
   cmd->callback([run, args] {
     *run = [args] {
       petri::CheckOptions options;
       options.analysis.max_states = args->max_states;
       options.analysis.reduction = petri::parse_reduction(args->reduction);
+      options.analysis.exploration_budget = args->exploration_budget;
       options.progress = true;
       options.json = args->json;
       const petri::Net net = task::to_net(task::compile_file(args->program));

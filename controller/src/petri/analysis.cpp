@@ -23,6 +23,7 @@
 #include <stdexcept>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/petri/agglomerate.hpp"
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/petri/structural.hpp"
 #include "cellwright/petri/stubborn.hpp"
@@ -420,12 +421,15 @@ std::string place_list(const Net& net, const std::vector<PlaceId>& places) {
 class Explorer {
  public:
   // With `stubborn`, only the enabled transitions of a stubborn set are fired from each marking; with `proviso` too,
-  // a marking whose reduced successors include an already expanded one is expanded fully (stubborn.hpp).
-  Explorer(const Net& net, const AnalysisOptions& options, StubbornSets* stubborn, bool proviso)
+  // a marking whose reduced successors include an already expanded one is expanded fully (stubborn.hpp). `finite`:
+  // every run is known to be finite (finite_runs()), so no marking can cover an ancestor and the Karp-Miller test is
+  // skipped (it scans the places of every ancestor of each marking that raises the token total).
+  Explorer(const Net& net, const AnalysisOptions& options, StubbornSets* stubborn, bool proviso, bool finite = false)
       : net_(net),
         options_(options),
         stubborn_(stubborn),
         proviso_(proviso),
+        finite_(finite),
         f_(flatten(net)),
         max_states_(std::min<std::uint64_t>(options.max_states, UINT32_MAX - 1)),
         max_examples_(options.max_deadlocks_reported),
@@ -715,7 +719,7 @@ class Explorer {
       }
       note_inside(reg, cur_inside_[reg] + static_cast<std::uint64_t>(f_.reg_delta[k]), next);
     }
-    if (adds && total > parent_max) check_covering(at, next, w);
+    if (adds && total > parent_max && !finite_) check_covering(at, next, w);
     return false;
   }
 
@@ -731,7 +735,10 @@ class Explorer {
     for (std::uint32_t a = parent; a != kNone; a = store_.parent(a)) {
       store_.load(a, anc_w_.data());
       bool covers = true;
-      for (std::size_t p = 0; p < f_.places && covers; ++p) {
+      if (layout_.unit) {  // one bit per place: no bit set in the ancestor that is clear in w
+        for (std::uint32_t i = 0; i < layout_.words && covers; ++i) covers = (anc_w_[i] & ~w[i]) == 0;
+      }
+      for (std::size_t p = 0; p < f_.places && covers && !layout_.unit; ++p) {
         covers = value(w, static_cast<PlaceId>(p)) >= value(anc_w_.data(), static_cast<PlaceId>(p));
       }
       if (!covers) continue;
@@ -786,6 +793,7 @@ class Explorer {
   const AnalysisOptions& options_;
   StubbornSets* const stubborn_;
   const bool proviso_;
+  const bool finite_;
   std::chrono::steady_clock::time_point start_, next_progress_;
   const FlatNet f_;
   const std::uint64_t max_states_;
@@ -853,9 +861,11 @@ void apply_region_proofs(AnalysisResult& r, const std::vector<std::optional<Regi
 
 }  // namespace
 
-AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
-  if (options.max_states == 0) throw std::invalid_argument("analysis: max_states must be at least 1");
-  if (options.reduction == Reduction::kNone) return Explorer(net, options, nullptr, false).run();
+namespace {
+
+// The stubborn-set analysis of `net` (analysis.hpp: the budget, the structural checks, the fallback to full
+// exploration).
+AnalysisResult analyze_stubborn(const Net& net, const AnalysisOptions& options) {
 
   // Regions shown exclusive by a place invariant need no observing: they leave condition V and the proviso.
   std::vector<std::optional<RegionProof>> proofs;
@@ -879,7 +889,7 @@ AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
   const bool budgeted = options.exploration_budget > 0 && options.exploration_budget < options.max_states;
   AnalysisOptions first = options;
   if (budgeted) first.max_states = options.exploration_budget;
-  AnalysisResult r = Explorer(net, first, &stubborn, proviso).run();
+  AnalysisResult r = Explorer(net, first, &stubborn, proviso, finite).run();
   if (budgeted && r.state_limit_reached) {
     // The budget ran out. What the structure decides is taken from it; anything else is explored on.
     const bool bounded = finite || structurally_bounded(net);
@@ -927,7 +937,7 @@ AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
       return finish(std::move(*decided));
     }
     // Explore on, up to the state limit.
-    r = Explorer(net, options, &stubborn, proviso).run();
+    r = Explorer(net, options, &stubborn, proviso, finite).run();
     if (!r.complete && r.state_limit_reached) r.stop_reason += "; past the exploration budget, " + why_not;
   }
   // A complete reduced search without a covering says nothing about boundedness unless the structure does.
@@ -941,6 +951,78 @@ AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
     return full;
   }
   return finish(std::move(r));
+}
+
+// A firing sequence of agg.net replayed in `original`: the marking reached, or nullopt if the expansion does not fire
+// (which the rules exclude).
+std::optional<Marking> replay_expanded(const Net& original, const std::vector<TransitionId>& path) {
+  Marking m = original.initial_marking();
+  for (TransitionId t : path) {
+    if (!is_enabled(original, m, t)) return std::nullopt;
+    fire_in_place(original, m, t);
+  }
+  return m;
+}
+
+// The result of analysing agg.net told in terms of `original`: paths expanded, markings replayed (a deadlock's
+// completed by the delayed transitions), place ids mapped. nullopt if a counterexample does not carry over (the
+// caller then analyses `original` itself).
+std::optional<AnalysisResult> lift(const Net& original, const Agglomeration& agg, AnalysisResult r) {
+  for (Deadlock& d : r.deadlock_examples) {
+    d.path = agg.expand(d.path);
+    std::optional<Marking> m = replay_expanded(original, d.path);
+    if (!m) return std::nullopt;
+    m = complete_dead(original, agg, std::move(*m), d.path);
+    if (!m || original.is_final(*m)) return std::nullopt;
+    d.marking = std::move(*m);
+  }
+  if (r.unbounded_witness) {
+    r.unbounded_witness->path = agg.expand(r.unbounded_witness->path);
+    std::optional<Marking> m = replay_expanded(original, r.unbounded_witness->path);
+    if (!m) return std::nullopt;
+    r.unbounded_witness->marking = std::move(*m);
+  }
+  for (PlaceId& p : r.unbounded_places) p = agg.place(p);
+  std::sort(r.unbounded_places.begin(), r.unbounded_places.end());
+  for (std::size_t k = 0; k < r.regions.size(); ++k) {
+    RegionCheck& rc = r.regions[k];
+    if (!rc.witness) continue;
+    rc.witness->path = agg.expand(rc.witness->path);
+    std::optional<Marking> m = replay_expanded(original, rc.witness->path);
+    if (!m) return std::nullopt;
+    std::uint64_t inside = 0;
+    for (PlaceId p : original.regions()[k].inside) inside += (*m)[p];
+    if (inside <= original.regions()[k].capacity) return std::nullopt;
+    rc.witness->marking = std::move(*m);
+    rc.witness_shortest = false;
+  }
+  // Full exploration of the reduced net (its fallback) counts and bounds the reduced net's markings only.
+  r.place_bounds.clear();
+  r.dead_transitions.clear();
+  r.reduced = true;
+  r.deadlock_path_shortest = false;
+  std::size_t fused = 0;
+  for (const auto& e : agg.expansion) fused += e.size() > 1 ? 1 : 0;
+  r.net_reduction = fmt::format(
+      "before exploring, the net was reduced from {} places and {} transitions to {} and {} ({} fused transitions: "
+      "commands that always follow one another, {} post- and {} pre-agglomerations)",
+      original.num_places(), original.num_transitions(), agg.net.num_places(), agg.net.num_transitions(), fused,
+      agg.post, agg.pre);
+  return r;
+}
+
+}  // namespace
+
+AnalysisResult analyze(const Net& net, const AnalysisOptions& options) {
+  if (options.max_states == 0) throw std::invalid_argument("analysis: max_states must be at least 1");
+  if (options.reduction == Reduction::kNone) return Explorer(net, options, nullptr, false).run();
+  if (options.agglomerate) {
+    const Agglomeration agg = agglomerate(net);
+    if (agg.changed()) {
+      if (std::optional<AnalysisResult> r = lift(net, agg, analyze_stubborn(agg.net, options))) return std::move(*r);
+    }
+  }
+  return analyze_stubborn(net, options);
 }
 
 }  // namespace cellwright::petri

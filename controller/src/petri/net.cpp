@@ -114,6 +114,8 @@ Net NetBuilder::build() && {
   }
   net.place_index_.clear();
   net.transition_index_.clear();
+  net.place_index_.reserve(net.places_.size());
+  net.transition_index_.reserve(net.transitions_.size());
   for (std::size_t p = 0; p < net.places_.size(); ++p) {
     const std::string& id = net.places_[p].id;
     if (id.empty()) invalid(net, fmt::format("place #{} has an empty id", p));

@@ -197,6 +197,7 @@ std::string format_report(const Net& net, const AnalysisResult& r) {
     out += fmt::format("; stopped: {}\n", r.stop_reason);
   }
   if (!r.deadlock_proof.empty()) out += (r.deadlocks == 0 ? "no deadlock: " : "deadlock ") + r.deadlock_proof + "\n";
+  if (!r.net_reduction.empty()) out += r.net_reduction + "\n";
   if (!r.reduction_note.empty())
     out += fmt::format("reduction {} not applied: {}\n", to_string(r.reduction), r.reduction_note);
 
@@ -268,6 +269,7 @@ nlohmann::json to_json(const Net& net, const AnalysisResult& r) {
   j["reduction"] = to_string(r.reduction);
   j["reduced"] = r.reduced;
   j["reduction_note"] = r.reduction_note;
+  j["net_reduction"] = r.net_reduction;
   j["deadlock_path_shortest"] = r.deadlock_path_shortest;
   j["explored_all"] = r.explored_all;
   j["deadlock_proof"] = r.deadlock_proof;

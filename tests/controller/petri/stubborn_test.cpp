@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/petri/agglomerate.hpp"
 #include "cellwright/petri/analysis.hpp"
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/petri/generators.hpp"
@@ -31,10 +32,13 @@ using testnets::add_transition;
 using testnets::program_net;
 using testnets::replay;
 
-AnalysisResult reduced(const Net& net, std::uint64_t max_states = 5'000'000) {
+// The stubborn-set search alone (agglomerate false: its own guarantees, shortest deadlock paths included, are checked
+// here), or after the net reduction (agglomerate.hpp), as `twin check` runs it.
+AnalysisResult reduced(const Net& net, std::uint64_t max_states = 5'000'000, bool agglomerate = false) {
   AnalysisOptions o;
   o.reduction = Reduction::kStubborn;
   o.max_states = max_states;
+  o.agglomerate = agglomerate;
   return analyze(net, o);
 }
 
@@ -43,8 +47,63 @@ AnalysisResult reduced(const Net& net, std::uint64_t max_states = 5'000'000) {
 // What the comparison saw, so that the test can insist every kind of net was among the samples.
 struct Tally {
   int compared = 0, deadlocking = 0, violating = 0, unbounded = 0, cyclic_regions_reduced = 0, fell_back = 0,
-      smaller = 0, skipped = 0, linear_program = 0;
+      smaller = 0, skipped = 0, linear_program = 0, agglomerated = 0, delayed = 0;
 };
+
+// A violation witness is a firing sequence of `net` to the marking given, with more than the capacity inside.
+void expect_violation_witness(const Net& net, std::size_t k, const RegionCheck& rc) {
+  ASSERT_TRUE(rc.witness.has_value());
+  const Marking m = replay(net, rc.witness->path);
+  EXPECT_EQ(m, rc.witness->marking);
+  Tokens inside = 0;
+  for (PlaceId p : net.regions()[k].inside) inside += m[p];
+  EXPECT_GT(inside, net.regions()[k].capacity);
+}
+
+// The stubborn-set search after the net reduction (agglomerate.hpp) gives full exploration's verdicts, the exact
+// numbers of deadlocks and proper ends, each region's largest occupancy, and counterexamples that are firing
+// sequences of the original net.
+void compare_agglomerated(const Net& net, const AnalysisResult& full, Tally& tally) {
+  SCOPED_TRACE("agglomerated");
+  constexpr std::uint64_t kLimit = 200'000;
+  const AnalysisResult red = reduced(net, kLimit, true);
+  const Agglomeration agg = agglomerate(net);
+  EXPECT_EQ(red.net_reduction.empty(), !agg.changed());
+  if (agg.changed()) ++tally.agglomerated;
+  if (agg.pre > 0) ++tally.delayed;
+  EXPECT_EQ(red.bounded, full.bounded) << format_report(net, red);
+  if (!full.bounded) {
+    ASSERT_TRUE(red.unbounded_witness.has_value());
+    EXPECT_EQ(replay(net, red.unbounded_witness->path), red.unbounded_witness->marking);
+    return;
+  }
+  ASSERT_TRUE(red.complete) << red.stop_reason;
+  EXPECT_EQ(red.deadlocks, full.deadlocks);
+  EXPECT_EQ(red.final_states, full.final_states);
+  if (full.deadlocks > 0) {
+    ASSERT_FALSE(red.deadlock_examples.empty());
+    const Deadlock& d = red.deadlock_examples.front();
+    EXPECT_EQ(replay(net, d.path), d.marking);
+    EXPECT_TRUE(is_dead(net, d.marking));
+    EXPECT_FALSE(net.is_final(d.marking));
+    if (red.net_reduction.empty()) {
+      EXPECT_EQ(d.path.size(), full.deadlock_examples.front().path.size());
+    }
+  }
+  EXPECT_EQ(red.mutex_ok, full.mutex_ok);
+  ASSERT_EQ(red.regions.size(), full.regions.size());
+  for (std::size_t k = 0; k < full.regions.size(); ++k) {
+    SCOPED_TRACE(full.regions[k].name);
+    EXPECT_EQ(red.regions[k].exclusive, full.regions[k].exclusive);
+    if (red.regions[k].by_invariant) {
+      EXPECT_LE(red.regions[k].max_inside, full.regions[k].max_inside);
+    } else {
+      EXPECT_EQ(red.regions[k].max_inside, full.regions[k].max_inside);
+    }
+    if (!red.regions[k].exclusive) expect_violation_witness(net, k, red.regions[k]);
+  }
+  EXPECT_EQ(red.ok(), full.ok());
+}
 
 __extension__ typedef unsigned __int128 Wide;
 
@@ -82,6 +141,7 @@ void compare(const Net& net, Tally& tally) {
     ++tally.skipped;
     return;
   }
+  compare_agglomerated(net, full, tally);
   const AnalysisResult red = reduced(net, kLimit);
   ++tally.compared;
   if (const auto w = bounding_weights(net)) {
@@ -137,12 +197,7 @@ void compare(const Net& net, Tally& tally) {
       EXPECT_EQ(red.regions[k].max_inside, full.regions[k].max_inside);
     }
     if (!red.regions[k].exclusive) {
-      ASSERT_TRUE(red.regions[k].witness.has_value());
-      const Marking m = replay(net, red.regions[k].witness->path);
-      EXPECT_EQ(m, red.regions[k].witness->marking);
-      Tokens inside = 0;
-      for (PlaceId p : net.regions()[k].inside) inside += m[p];
-      EXPECT_GT(inside, net.regions()[k].capacity);
+      expect_violation_witness(net, k, red.regions[k]);
       EXPECT_EQ(red.regions[k].witness_shortest, !red.reduced);
     }
   }
@@ -157,9 +212,11 @@ void compare_random(const char* what, std::uint64_t count, Make make, const Tall
   for (std::uint64_t seed = 1; seed <= count; ++seed) compare(make(seed), tally);
   std::printf(
       "%s: %d compared (%d skipped at the state limit), %d deadlocking, %d violating, %d unbounded, "
-      "%d cyclic with regions reduced, %d fell back, %d smaller, %d shown bounded by the linear program\n",
+      "%d cyclic with regions reduced, %d fell back, %d smaller, %d shown bounded by the linear program, "
+      "%d agglomerated (%d with delayed transitions)\n",
       what, tally.compared, tally.skipped, tally.deadlocking, tally.violating, tally.unbounded,
-      tally.cyclic_regions_reduced, tally.fell_back, tally.smaller, tally.linear_program);
+      tally.cyclic_regions_reduced, tally.fell_back, tally.smaller, tally.linear_program, tally.agglomerated,
+      tally.delayed);
   EXPECT_GE(tally.compared, at_least.compared);
   EXPECT_GE(tally.deadlocking, at_least.deadlocking);
   EXPECT_GE(tally.violating, at_least.violating);
@@ -168,6 +225,8 @@ void compare_random(const char* what, std::uint64_t count, Make make, const Tall
   EXPECT_GE(tally.fell_back, at_least.fell_back);
   EXPECT_GE(tally.smaller, at_least.smaller);
   EXPECT_GE(tally.linear_program, at_least.linear_program);
+  EXPECT_GE(tally.agglomerated, at_least.agglomerated);
+  EXPECT_GE(tally.delayed, at_least.delayed);
 }
 
 using testnets::random_looping_program;
@@ -182,6 +241,8 @@ TEST(Stubborn, SameVerdictsAsFullExplorationOnRandomCellPrograms) {
   at_least.fell_back = 1;  // bounded, but not for every initial marking
   at_least.smaller = 100;
   at_least.linear_program = 10;
+  at_least.agglomerated = 400;
+  at_least.delayed = 200;
   compare_random("random cells", 600, generators::random_cell, at_least);
 }
 
@@ -205,6 +266,8 @@ TEST(Stubborn, SameVerdictsOnGeneratedLockStepProgramsAndTheShippedExamples) {
   }
   EXPECT_EQ(tally.skipped, 0);
   EXPECT_GE(tally.deadlocking, 1);  // scenes/deadlock.task
+  // Every table of two robots or more has a barrier, whose waits the net reduction fuses (12 tables and the scenes).
+  EXPECT_GE(tally.delayed, 12);
 }
 
 TEST(Stubborn, SameVerdictsAsFullExplorationOnRandomLoopingPrograms) {
@@ -221,15 +284,40 @@ TEST(Stubborn, SameVerdictsAsFullExplorationOnRandomLoopingPrograms) {
   }
   std::printf(
       "random looping programs: %d compared (%d skipped at the state limit, %d cyclic), %d deadlocking, %d unbounded, "
-      "%d fell back, %d smaller, %d shown bounded by the linear program\n",
+      "%d fell back, %d smaller, %d shown bounded by the linear program, %d agglomerated (%d with delayed "
+      "transitions)\n",
       tally.compared, tally.skipped, looping, tally.deadlocking, tally.unbounded, tally.fell_back, tally.smaller,
-      tally.linear_program);
+      tally.linear_program, tally.agglomerated, tally.delayed);
   EXPECT_GE(tally.compared, 380);
   EXPECT_GE(looping, 300);
   EXPECT_GE(tally.deadlocking, 30);
   EXPECT_GE(tally.unbounded, 20);
   EXPECT_GE(tally.smaller, 100);
   EXPECT_GE(tally.linear_program, 90);
+  EXPECT_GE(tally.agglomerated, 350);
+  EXPECT_GE(tally.delayed, 180);
+}
+
+TEST(Stubborn, SameVerdictsAsFullExplorationOnRandomProgramsWithDevices) {
+  // The looping programs again, now commanding a machine, a belt and its photo-eye too (issue 27: every kind of
+  // command a cell program has), with and without the net reduction.
+  Tally tally;
+  for (std::uint64_t seed = 1; seed <= 200; ++seed) {
+    const std::string text = random_looping_program(seed, true);
+    SCOPED_TRACE(text);
+    Net net;
+    ASSERT_NO_THROW(net = program_net(text));
+    compare(net, tally);
+  }
+  std::printf(
+      "random programs with devices: %d compared (%d skipped at the state limit), %d deadlocking, %d unbounded, "
+      "%d fell back, %d smaller, %d agglomerated (%d with delayed transitions)\n",
+      tally.compared, tally.skipped, tally.deadlocking, tally.unbounded, tally.fell_back, tally.smaller,
+      tally.agglomerated, tally.delayed);
+  EXPECT_GE(tally.compared, 150);
+  EXPECT_GE(tally.deadlocking, 50);
+  EXPECT_GE(tally.agglomerated, 150);
+  EXPECT_GE(tally.delayed, 20);
 }
 
 TEST(Stubborn, LoopingLockStepTablesAreReducedAndShownBounded) {

@@ -159,7 +159,12 @@ inline Marking replay(const Net& net, const std::vector<TransitionId>& path) {
 // outside of and leaves only those it is in; each loop body ends with lines that bring every robot back to what it
 // held and where it was at the body's start, and the program with lines that leave every region. Semaphores are
 // signalled and waited for at random, so deadlocks, and unbounded semaphores in loops, occur among the seeds.
-inline std::string random_looping_program(std::uint64_t seed) {
+// With `devices`, the program also declares a machine `mill`, a conveyor `belt` and a photo-eye `eye` on it, and the
+// robots command them at random: load the mill (Place mill) and unload it (Pick part from mill) as their hands allow,
+// start it and wait for its cycle, run, accumulate and stop the belt, wait for the eye (docs/task-language.md,
+// "Devices"): device commands out of order deadlock in the net, and a robot's device commands run between its waits
+// for the device's states, so the net reduction fuses around them.
+inline std::string random_looping_program(std::uint64_t seed, bool devices = false) {
   std::mt19937_64 rng(seed);
   auto below = [&](std::uint64_t n) { return rng() % n; };
   const std::size_t robots = 1 + below(4);
@@ -172,6 +177,7 @@ inline std::string random_looping_program(std::uint64_t seed) {
     out += fmt::format("semaphore s{}{}\n", k + 1, below(4) == 0 ? " = 1" : "");
   }
   for (std::size_t z = 0; z < regions; ++z) out += fmt::format("region Z{}\n", z + 1);
+  if (devices) out += "machine mill\nconveyor belt\nsensor eye on belt\n";
 
   struct State {
     bool holding = false;
@@ -182,7 +188,7 @@ inline std::string random_looping_program(std::uint64_t seed) {
   // One command for robot r that its state allows (empty: none), applied to its state. No Put/Get here.
   auto command = [&](std::size_t r) -> std::string {
     State& st = state[r];
-    switch (below(7)) {
+    switch (below(devices ? 13 : 7)) {
       case 0:
         if (st.holding) break;
         st.holding = true;
@@ -203,6 +209,22 @@ inline std::string random_looping_program(std::uint64_t seed) {
         st.inside[z] = !st.inside[z];
         return fmt::format("{} Z{}", st.inside[z] ? "enter" : "leave", z + 1);
       }
+      case 7:
+        if (!st.holding) break;
+        st.holding = false;
+        return "Place mill";
+      case 8:
+        if (st.holding) break;
+        st.holding = true;
+        return "Pick part from mill";
+      case 9:
+        return below(2) == 0 ? "start mill" : "wait mill";
+      case 10:
+        return below(2) == 0 ? "run belt" : "accumulate belt";
+      case 11:
+        return "stop belt";
+      case 12:
+        return "wait eye";
       default:
         break;
     }

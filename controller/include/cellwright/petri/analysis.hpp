@@ -14,7 +14,8 @@
 // the transitions of a stubborn set are fired from each marking, so a program of many robots that mostly work
 // independently is explored along far fewer interleavings. What the reduced search guarantees, once complete:
 //  - deadlocks: every reachable dead marking is found, so `deadlocks` and `final_states` are exact, and the reported
-//    deadlock path is still a shortest one (deadlock_path_shortest stays true);
+//    deadlock path is still a shortest one (deadlock_path_shortest stays true) unless the net was reduced first
+//    (AnalysisOptions::agglomerate, below);
 //  - mutual exclusion: each region's verdict and its largest occupancy (max_inside) are exact; the witness path to a
 //    violation may be longer than the shortest one (RegionCheck::witness_shortest is false);
 //  - boundedness: an unbounded witness found is real; "bounded" is claimed only for nets shown bounded structurally
@@ -23,6 +24,11 @@
 //    finds no covering in, analyze() explores fully instead and says so in reduction_note;
 //  - `states` and `edges` count what was explored (reduced == true), not the reachability graph; place_bounds and
 //    dead_transitions are not computed.
+// Under kStubborn the net is first reduced (agglomerate.hpp: commands that always follow one another fused; a
+// lock-step barrier becomes one transition per robot) unless AnalysisOptions::agglomerate is false, and the reduced
+// net is analysed as below; its results are told in the original net's terms (paths expanded and replayed, place ids
+// mapped), with the same verdicts and counts of dead markings, paths not necessarily shortest, and states and edges
+// counting the reduced net's markings (AnalysisResult::net_reduction says how far it was reduced).
 // Under kStubborn a region shown exclusive by a place invariant (structural.hpp) is not watched by the search (no
 // condition V for it, no proviso on its account): its verdict is the proof's, and max_inside the most seen. And the
 // reduced search has a budget (AnalysisOptions::exploration_budget): when it runs out, and every region is proved
@@ -90,6 +96,12 @@ struct AnalysisOptions {
   // when the state equation leaves a candidate that the guided search cannot reach. 0: no budget (explore up to
   // max_states; the structural deadlock check is not used).
   std::uint64_t exploration_budget = 10'000;
+  // Under Reduction::kStubborn: reduce the net first (agglomerate.hpp: commands that always follow one another fused
+  // into one transition) and explore the reduced net. Verdicts, the numbers of deadlocks and proper ends, and each
+  // region's largest occupancy are the original net's; counterexamples are the original net's firing sequences
+  // (expanded and replayed), not necessarily shortest (deadlock_path_shortest false); states and edges count the
+  // reduced net's markings. No effect when no rule applies (a copy of the net would be explored).
+  bool agglomerate = true;
 };
 
 struct Deadlock {
@@ -145,6 +157,9 @@ struct AnalysisResult {
   // partial exploration saw.
   bool deadlocks_counted = true;
   bool state_limit_reached = false;  // the exploration stopped at its state limit (max_states or the budget)
+  // How the net was reduced before exploring (AnalysisOptions::agglomerate), e.g. "before exploring, the net was
+  // reduced from 143000 places and 98000 transitions to ...", empty when it was not.
+  std::string net_reduction;
 
   // Deadlock-free, bounded, every region exclusive, and the exploration was complete.
   bool ok() const { return complete && deadlocks == 0 && bounded && mutex_ok; }
@@ -171,7 +186,7 @@ std::string describe_marking(const Net& net, const Marking& m);
 std::string format_report(const Net& net, const AnalysisResult& r);
 // The JSON report. Keys: ok, complete, stop_reason, states, edges, deadlocks, final_states, bounded, mutex_ok,
 // stored_bytes, reduction ("none"/"stubborn", as asked), reduced (states and edges count a reduced exploration),
-// reduction_note, deadlock_path_shortest, explored_all, deadlock_proof, deadlocks_counted, unbounded_places (place ids), unbounded_path, dead_transitions (transition
+// reduction_note, net_reduction, deadlock_path_shortest, explored_all, deadlock_proof, deadlocks_counted, unbounded_places (place ids), unbounded_path, dead_transitions (transition
 // ids; null unless complete and not reduced), place_bounds ({place id: max tokens}; null unless complete and not
 // reduced), regions ([{name, exclusive, max_inside, capacity, witness_path, witness_shortest, witness_marking,
 // by_invariant, invariant_bound (null unless by_invariant)}]),

@@ -24,6 +24,15 @@ Refusal check_speed(double speed) {
   return {};
 }
 
+Refusal check_duration(const std::optional<double>& duration, const Capabilities& caps) {
+  if (!duration) return {};
+  if (!caps.timed_motion) return refuse(ErrorCode::unsupported, "this robot's moves cannot be given a duration");
+  if (!std::isfinite(*duration) || *duration <= 0.0) {
+    return refuse(ErrorCode::invalid_command, fmt::format("duration {} s is not a positive time", *duration));
+  }
+  return {};
+}
+
 Refusal check(const MoveJoints& c, const Capabilities& caps) {
   if (!caps.joint_control) return refuse(ErrorCode::unsupported, "this robot takes no joint-level moves");
   if (c.positions.size() != caps.joints) {
@@ -35,6 +44,7 @@ Refusal check(const MoveJoints& c, const Capabilities& caps) {
       return refuse(ErrorCode::invalid_command, fmt::format("joint {} position is {}", i + 1, c.positions[i]));
     }
   }
+  if (Refusal bad = check_duration(c.duration, caps)) return bad;
   return check_speed(c.speed);
 }
 
@@ -51,6 +61,7 @@ Refusal check(const MovePose& c, const Capabilities& caps) {
                   fmt::format("the target orientation is not a rotation (|R^T R - I| = {:.3g}, det R = {:.6f})", off,
                               r.determinant()));
   }
+  if (Refusal bad = check_duration(c.duration, caps)) return bad;
   return check_speed(c.speed);
 }
 
@@ -109,8 +120,14 @@ std::string fixed_list(const double* v, std::size_t n) {
   return s + "]";
 }
 
+// " duration 1.250000" for a timed move, nothing otherwise (so untimed moves read as they always did).
+std::string duration_suffix(const std::optional<double>& duration) {
+  return duration ? fmt::format(" duration {}", fixed(*duration)) : std::string();
+}
+
 std::string describe_one(const MoveJoints& c) {
-  return fmt::format("move_joints {} speed {}", fixed_list(c.positions.data(), c.positions.size()), fixed(c.speed));
+  return fmt::format("move_joints {} speed {}{}", fixed_list(c.positions.data(), c.positions.size()), fixed(c.speed),
+                     duration_suffix(c.duration));
 }
 
 std::string describe_one(const MovePose& c) {
@@ -125,8 +142,8 @@ std::string describe_one(const MovePose& c) {
     break;
   }
   const Eigen::Vector3d p = c.pose.translation();
-  return fmt::format("move_pose {} xyz {} quat_wxyz {} speed {}", c.path == Path::linear ? "linear" : "joint",
-                     fixed_list(p.data(), 3), fixed_list(wxyz, 4), fixed(c.speed));
+  return fmt::format("move_pose {} xyz {} quat_wxyz {} speed {}{}", c.path == Path::linear ? "linear" : "joint",
+                     fixed_list(p.data(), 3), fixed_list(wxyz, 4), fixed(c.speed), duration_suffix(c.duration));
 }
 
 std::string describe_one(const Grip& c) {

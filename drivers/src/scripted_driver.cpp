@@ -1,5 +1,7 @@
 #include "cellwright/drivers/scripted_driver.hpp"
 
+#include <cmath>
+
 #include <fmt/format.h>
 
 #include <type_traits>
@@ -39,8 +41,7 @@ void ScriptedDriver::accept_hook(Job& job) {
       work->remaining = config_.position_ticks;
       break;
     case JobKind::command:
-      work->remaining = config_.ticks_for ? config_.ticks_for(*job.command) : config_.command_ticks;
-      CW_CHECK(work->remaining > 0, "ticks_for gave 0 ticks for {}", describe(*job.command));
+      work->remaining = command_ticks(*job.command);
       accepted_.emplace_back(job.id, *job.command);
       break;
   }
@@ -207,6 +208,25 @@ bool ScriptedDriver::gripper_closed() const {
 void ScriptedDriver::set_grip_sense(std::optional<GripSense> sense) {
   const auto l = lock();
   grip_sense_ = sense;
+}
+
+std::uint64_t ScriptedDriver::command_ticks(const Command& command) const {
+  const std::uint64_t own = config_.ticks_for ? config_.ticks_for(command) : config_.command_ticks;
+  CW_CHECK(own > 0, "ticks_for gave 0 ticks for {}", describe(command));
+  std::optional<double> duration;
+  if (const auto* m = std::get_if<MoveJoints>(&command)) duration = m->duration;
+  if (const auto* m = std::get_if<MovePose>(&command)) duration = m->duration;
+  if (!duration) return own;
+  const double tick = std::chrono::duration<double>(config_.tick).count();
+  // The least whole number of ticks that lasts the duration (a hair of rounding below a whole tick is that tick).
+  const auto stretched = static_cast<std::uint64_t>(std::ceil(*duration / tick - 1e-9));
+  return std::max(own, stretched);
+}
+
+std::optional<double> ScriptedDriver::least_duration(const Command& command) const {
+  if (!config_.capabilities.timed_motion || state() != DriverState::active) return std::nullopt;
+  if (check_command(command, config_.capabilities)) return std::nullopt;
+  return static_cast<double>(command_ticks(command)) * std::chrono::duration<double>(config_.tick).count();
 }
 
 std::optional<GripSense> ScriptedDriver::grip_sense() const {

@@ -167,17 +167,18 @@ TEST_F(ScenarioFiles, ProgramErrorsPointIntoTheProgram) {
   }
 }
 
-TEST_F(ScenarioFiles, CoordinatedBlocksAreRefusedAtTheBlockUntilTheRunCanExecuteThem) {
-  // scenes/beam.task passes `twin check`, but no rig executes coordinated motion yet (issue 27): refused at the
-  // block, before anything is bound or run.
-  try {
-    load_scenario(write("s.yaml", fmt::format("cell: {}/cell.yaml\nprogram: {}/beam.task\n", kScenes, kScenes)));
-    ADD_FAILURE();
-  } catch (const InputError& e) {
-    EXPECT_THAT(e.where().file, HasSubstr("beam.task"));
-    EXPECT_EQ(e.where().line, 8);
-    EXPECT_THAT(e.what(), HasSubstr("coordinated block 'carry': twin run cannot execute coordinated motion yet"));
-  }
+TEST_F(ScenarioFiles, TheShippedCoordinatedCarryLoadsWithItsBlockAndBindings) {
+  // scenes/beam.yaml runs scenes/beam.task's coordinated block (issue 27): it loads like any scenario.
+  const Scenario s = load_scenario(kScenes + "/beam.yaml");
+  ASSERT_EQ(s.program.coordinated.size(), 1u);
+  EXPECT_EQ(s.program.coordinated.front().master, "left");
+  EXPECT_EQ(s.program.coordinated.front().follower, "right");
+  ASSERT_EQ(s.robots.size(), 2u);
+  EXPECT_EQ(s.robots[0].label + "=" + s.robots[0].name, "left=puma");
+  EXPECT_EQ(s.robots[1].label + "=" + s.robots[1].name, "right=melfa");
+  bool fix = false;
+  for (const Binding& b : s.locations) fix = fix || (b.label == "FIX" && b.name == "beam_fix");
+  EXPECT_TRUE(fix);
 }
 
 TEST_F(ScenarioFiles, ProgramRobotBoundToNothing) {

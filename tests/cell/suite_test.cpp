@@ -87,21 +87,22 @@ std::string input_error(F f) {
 
 TEST(SuiteDiscovery, TheShippedScenesAreTheScenariosNotTheCellTheTreeOrTheSoak) {
   const Discovery d = discover({kScenes});
-  EXPECT_THAT(names(d.scenarios), ElementsAre("exchange.yaml", "machine.yaml", "pipeline.yaml",
+  EXPECT_THAT(names(d.scenarios), ElementsAre("beam.yaml", "exchange.yaml", "machine.yaml", "pipeline.yaml",
                                               "pipeline_shift.yaml", "pipeline_single.yaml", "relay.yaml",
                                               "relay_belt.yaml", "relay_single.yaml", "single.yaml", "vision.yaml"));
   const auto s = skipped(d);
-  ASSERT_EQ(s.size(), 4u);
+  ASSERT_EQ(s.size(), 5u);
   EXPECT_EQ(s.at("cell.yaml"), "a cell description (docs/cell-description.md), not a scenario");
+  EXPECT_EQ(s.at("beam_cell.yaml"), "a cell description (docs/cell-description.md), not a scenario");
   EXPECT_EQ(s.at("relay_cell.yaml"), "a cell description (docs/cell-description.md), not a scenario");
   EXPECT_EQ(s.at("recovery.yaml"), "a decision tree (docs/faults.md), not a scenario");
   EXPECT_EQ(s.at("soak"), "a subfolder (not entered unless named)");
   // Named, the subfolder is entered: its scenario is found after the folder's.
   const Discovery both = discover({kScenes, kScenes / "soak"});
-  EXPECT_EQ(both.scenarios.size(), 11u);
+  EXPECT_EQ(both.scenarios.size(), 12u);
   EXPECT_EQ(both.scenarios.back().path, kScenes / "soak" / "shift_1000.yaml");
   // The scenarios' wall-time limits (single.yaml: 600 s, the soak: 3600 s).
-  EXPECT_EQ(both.scenarios[8].wall_time, 600);
+  EXPECT_EQ(both.scenarios[9].wall_time, 600);
   EXPECT_EQ(both.scenarios.back().wall_time, 3600);
 }
 

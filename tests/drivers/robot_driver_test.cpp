@@ -71,6 +71,25 @@ TEST(DriverCheckCommand, RefusesWhatTheRobotCannotDoAsUnsupported) {
   EXPECT_EQ(check_command(Grip{}, no_gripper).error, ErrorCode::unsupported);
 }
 
+TEST(DriverCheckCommand, ATimedMoveNeedsATimedRobotAndAPositiveDuration) {
+  Capabilities caps = full_robot();
+  MoveJoints timed{{0, 0, 0, 0, 0, 0}, 0.5, 1.25};
+  MovePose timed_pose{pose_at(0.3, 0, 0.2, 0), Path::linear, 0.5, 1.25};
+  // A robot whose controller times its own moves (Movemaster, VAL II) cannot promise a duration: refused, not ignored.
+  EXPECT_EQ(check_command(timed, caps).error, ErrorCode::unsupported);
+  EXPECT_EQ(check_command(timed_pose, caps).message, "this robot's moves cannot be given a duration");
+  caps.timed_motion = true;
+  EXPECT_FALSE(check_command(timed, caps));
+  EXPECT_FALSE(check_command(timed_pose, caps));
+  timed.duration = 0.0;
+  EXPECT_EQ(check_command(timed, caps).message, "duration 0 s is not a positive time");
+  timed_pose.duration = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(check_command(timed_pose, caps).error, ErrorCode::invalid_command);
+  // The log shows the duration of a timed move; an untimed one reads as before.
+  EXPECT_EQ(describe(MoveJoints{{0, 1}, 0.5, 2.0}), "move_joints [0.000000, 1.000000] speed 0.500000 duration 2.000000");
+  EXPECT_EQ(describe(MoveJoints{{0, 1}, 0.5}), "move_joints [0.000000, 1.000000] speed 0.500000");
+}
+
 TEST(DriverCheckCommand, RefusesBadValuesNamingThem) {
   const Capabilities caps = full_robot();
   const double nan = std::numeric_limits<double>::quiet_NaN();

@@ -370,6 +370,14 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           c.from = rs.joints;
           if (auto h = held.find(arm.cell); h != held.end()) std::tie(c.held, c.grip) = h->second;
           if (auto f = closed.find(arm.cell); f != closed.end()) c.closed = f->second;
+          if (p.segment) {
+            // A coordinated block's segment: each arm goes to its own grasp point and the follower follows the
+            // master, solved by robot control when the segment runs (docs/runtime.md, "Coordinated blocks"); this
+            // plan neither checks nor times it (the arm stays where it was).
+            c.target = fmt::format("{} (coordinated: solved at run time)", task::to_string(p.target));
+            c.goal = rs.joints;
+            break;
+          }
           const runtime::MotionTarget mt = runtime::resolve_target(model, arm.cell, target, targets);
           if (mt.resolution != runtime::MotionTarget::Resolution::kOk) {
             c.problem = mt.reason;

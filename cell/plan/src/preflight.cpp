@@ -233,7 +233,9 @@ Preflight preflight(const Scenario& s, const CollisionSweep* collisions) {
                                                    s.workpiece_of(target.object), command_text(p), spot->gone));
               }
             } else if (spot) {
-              need(robot, *spot, p);
+              // A coordinated block's robots go to their own grasp points on the workpiece, not its centre: robot
+              // control solves each arm's target when the segment runs (docs/runtime.md, "Coordinated blocks").
+              if (!p.segment) need(robot, *spot, p);
               last_target[robot] = *spot;
             }
           } else if (target.kind == task::TargetKind::kHandover || target.kind == task::TargetKind::kHandApproach ||

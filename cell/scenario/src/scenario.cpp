@@ -438,16 +438,6 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   s.program_file = resolve(dir, f.word("program"));
   s.program = with_context(doc, f.node("program"), fmt::format("field 'program' names '{}'", f.word("program")),
                            [&] { return task::compile_file(s.program_file); });
-  // Coordinated blocks (two robots carrying one workpiece) are compiled and checked, but no rig executes them yet:
-  // refused here rather than run as if each robot moved alone (issue 27).
-  if (!s.program.coordinated.empty()) {
-    const task::CoordinatedUse& c = s.program.coordinated.front();
-    throw InputError(c.where, fmt::format("coordinated block '{}': twin run cannot execute coordinated motion yet "
-                                          "(twin check and twin compile can); see docs/task-language.md, "
-                                          "\"Coordinated motion\"",
-                                          c.name));
-  }
-
   if (f.has("seed")) {
     const YAML::Node& n = f.node("seed");
     std::uint64_t seed = 0;

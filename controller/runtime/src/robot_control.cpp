@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <utility>
 
 #include "cellwright/common/error.hpp"
@@ -79,7 +80,7 @@ RobotControl::RobotControl(std::size_t index, std::string label, std::string cel
                            models::KinematicChain chain, double grip_force, NameMap names,
                            SharedEnvironment& environment, MessageQueue<MotionCommand>& inbox,
                            MessageQueue<RobotStatus>& status_out, EventLog& log, MotionOptions options,
-                           bool await_fresh_truth)
+                           bool await_fresh_truth, Coordination* coordination)
     : index_(index),
       label_(std::move(label)),
       cell_(std::move(cell_name)),
@@ -92,7 +93,8 @@ RobotControl::RobotControl(std::size_t index, std::string label, std::string cel
       status_out_(status_out),
       log_(log),
       options_(std::move(options)),
-      await_fresh_truth_(await_fresh_truth) {
+      await_fresh_truth_(await_fresh_truth),
+      coordination_(coordination) {
   CW_CHECK(options_.speed > 0.0 && options_.speed <= 1.0, "motion speed {} outside (0, 1]", options_.speed);
   CW_CHECK(options_.position_tolerance > 0.0, "position tolerance {} must be positive", options_.position_tolerance);
   CW_CHECK(options_.read_line_share >= 0.0 && options_.read_line_share <= 1.0, "read line share {} outside [0, 1]",
@@ -323,7 +325,11 @@ bool RobotControl::submit_current(SimDuration now) {
     skip_current(now, "its workpiece is lost");
     return false;
   }
-  if (p.kind == task::PrimitiveKind::kMove) {
+  if (p.segment && !current_->step) {
+    std::optional<drivers::Command> c = segment_command(now);
+    if (!c) return false;
+    cmd = std::move(*c);
+  } else if (p.kind == task::PrimitiveKind::kMove) {
     task::Target target = p.target;
     target.object = bound(target.object);
     if (target.kind == task::TargetKind::kHandApproach || target.kind == task::TargetKind::kHandGrasp) {
@@ -399,22 +405,9 @@ bool RobotControl::submit_current(SimDuration now) {
       fail(now, fmt::format("the driver of {} takes neither joint nor pose motions", cell_));
       return false;
     }
-    if (pose_command) {
-      const drivers::Path path =
-          caps.linear_motion && straight_from(last_target_, target) ? drivers::Path::linear : drivers::Path::joint;
-      cmd = drivers::MovePose{goal->pose_in_base, path, options_.speed};
-    } else {
-      cmd = drivers::MoveJoints{goal->joints, options_.speed};
-    }
-    current_->goal = goal->joints;
-    current_->goal_pose = goal->pose_in_base;
-    current_->pose_command = pose_command;
-    current_->target = target;
+    cmd = move_command(*goal, pose_command, caps.linear_motion && straight_from(last_target_, target), target);
   } else {
-    drivers::Grip grip;
-    grip.action = p.kind == task::PrimitiveKind::kClose ? drivers::Grip::Action::close : drivers::Grip::Action::open;
-    if (caps.gripper_force && grip_force_ > 0.0) grip.force = std::min(grip_force_, caps.gripper_max_force);
-    cmd = grip;
+    cmd = grip_command(p.kind);
   }
   const drivers::Submitted s = driver_.submit(cmd);
   current_->detail = drivers::describe(cmd);
@@ -431,6 +424,11 @@ bool RobotControl::submit_current(SimDuration now) {
       fail(now, reason);
     }
     return false;
+  }
+  if (p.segment && !current_->step) {
+    const bool master = p.segment->master == label_;
+    coordination_->taken(p.segment->block, segments_submitted_[p.segment->block]++, master);
+    if (p.segment->index == p.segment->count) carry_.erase(p.segment->block);  // the block's last segment
   }
   current_->id = s.id;
   current_->submitted_at = now;
@@ -455,6 +453,203 @@ bool RobotControl::submit_current(SimDuration now) {
     current_->ready_logged = true;
   }
   return true;
+}
+
+drivers::Command RobotControl::move_command(const Goal& goal, bool pose_command, bool linear,
+                                            const task::Target& target) {
+  current_->goal = goal.joints;
+  current_->goal_pose = goal.pose_in_base;
+  current_->pose_command = pose_command;
+  current_->target = target;
+  if (!pose_command) return drivers::MoveJoints{goal.joints, options_.speed};
+  return drivers::MovePose{goal.pose_in_base, linear ? drivers::Path::linear : drivers::Path::joint, options_.speed};
+}
+
+drivers::Command RobotControl::grip_command(task::PrimitiveKind kind) const {
+  const drivers::Capabilities& caps = driver_.capabilities();
+  drivers::Grip grip;
+  grip.action = kind == task::PrimitiveKind::kClose ? drivers::Grip::Action::close : drivers::Grip::Action::open;
+  if (caps.gripper_force && grip_force_ > 0.0) grip.force = std::min(grip_force_, caps.gripper_max_force);
+  return grip;
+}
+
+std::optional<drivers::Command> RobotControl::segment_command(SimDuration now) {
+  const task::Primitive& p = current_->command.primitive;
+  const task::Segment& seg = *p.segment;
+  const bool master = seg.master == label_;
+  if (coordination_ == nullptr) {
+    fail(now, fmt::format("coordinated block {}: this run has no coordination between its robots", seg.block));
+    return std::nullopt;
+  }
+  const std::uint64_t n = segments_submitted_[seg.block];
+  const drivers::Capabilities& caps = driver_.capabilities();
+  if (!current_->prepared) {
+    drivers::Command cmd;
+    std::optional<Eigen::Isometry3d> target_world;
+    if (p.kind == task::PrimitiveKind::kMove) {
+      std::optional<Eigen::Isometry3d> master_target;
+      if (!master) {
+        const std::optional<SegmentPost> mp = coordination_->master_post(seg.block, n);
+        if (!mp) {
+          phase_ = RobotPhase::kResolving;
+          current_->waiting_for = fmt::format("{}'s target for segment {} of {}", seg.master, seg.index, seg.block);
+          return std::nullopt;
+        }
+        master_target = mp->target;
+      }
+      task::Target target = p.target;
+      target.object = bound(target.object);
+      bool linear = false;
+      const MotionTarget resolved = segment_target(target, seg, master_target, &linear);
+      if (resolved.resolution == MotionTarget::Resolution::kWait) {
+        phase_ = RobotPhase::kResolving;
+        current_->waiting_for = resolved.reason;
+        return std::nullopt;
+      }
+      if (resolved.resolution == MotionTarget::Resolution::kFail) {
+        fail(now, fmt::format("coordinated block {}, segment {}: {}", seg.block, seg.index, resolved.reason));
+        return std::nullopt;
+      }
+      const auto [joints, base] = env_.read([&](const EnvironmentModel& m) {
+        const RobotState* r = m.find_robot(cell_);
+        return std::pair{r->joints, r->base()};
+      });
+      std::string why;
+      const std::optional<Goal> goal = choose_goal(resolved, joints, base, &why);
+      if (!goal) {
+        fail(now, fmt::format("coordinated block {}, segment {}: {} is unreachable for {}: {}", seg.block, seg.index,
+                              resolved.description, cell_, why));
+        return std::nullopt;
+      }
+      const bool pose_command =
+          caps.cartesian_control && ((linear && caps.linear_motion) || caps.prefers_pose || !caps.joint_control);
+      cmd = move_command(*goal, pose_command, linear && caps.linear_motion, target);
+      target_world = base * goal->pose_in_base;
+    } else {
+      cmd = grip_command(p.kind);
+    }
+    const std::optional<double> least = driver_.least_duration(cmd);
+    if (!least) {
+      const drivers::Refusal refusal = drivers::check_command(cmd, caps);
+      fail(now, fmt::format("coordinated block {}, segment {}: the driver of {} cannot tell how long '{}' takes{}{}",
+                            seg.block, seg.index, cell_, drivers::describe(cmd),
+                            caps.timed_motion ? "" : " (its moves cannot be timed, which moving together needs)",
+                            refusal ? ": " + refusal.message : std::string()));
+      return std::nullopt;
+    }
+    current_->prepared = cmd;
+    coordination_->post(seg.block, n, master, SegmentPost{master ? target_world : std::nullopt, *least, now});
+  }
+  const std::optional<double> agreed = coordination_->agreed(seg.block, n, now);
+  if (!agreed) {
+    phase_ = RobotPhase::kResolving;
+    current_->waiting_for = fmt::format("{} to be ready for segment {} of {}", master ? seg.follower : seg.master,
+                                        seg.index, seg.block);
+    return std::nullopt;
+  }
+  drivers::Command cmd = *current_->prepared;
+  if (auto* m = std::get_if<drivers::MoveJoints>(&cmd)) m->duration = *agreed;
+  if (auto* m = std::get_if<drivers::MovePose>(&cmd)) m->duration = *agreed;
+  return cmd;
+}
+
+MotionTarget RobotControl::segment_target(const task::Target& target, const task::Segment& seg,
+                                          const std::optional<Eigen::Isometry3d>& master_target, bool* linear) {
+  const bool master = seg.master == label_;
+  Carry& carry = carry_[seg.block];
+  MotionTarget out;
+  out.resolution = MotionTarget::Resolution::kFail;
+  const std::string what = task::to_string(target);
+  return env_.read([&](const EnvironmentModel& m) -> MotionTarget {
+    const RobotState* self = m.find_robot(cell_);
+    const RobotState* lead = m.find_robot(names_.robots.at(seg.master));
+    const WorkpieceState* w = m.find_workpiece(target.object);
+    const bool holding = self->hold.has_value();
+    const Eigen::Isometry3d tcp = tool_in_world(*self);
+    *linear = true;
+    auto one = [&](const Eigen::Isometry3d& pose, const char* how) {
+      out.resolution = MotionTarget::Resolution::kOk;
+      out.poses = {pose};
+      out.rank = {0};
+      const Eigen::Vector3d p = pose.translation();
+      out.description = fmt::format("{} ({}): tool at ({:.3f}, {:.3f}, {:.3f})", what, how, p.x(), p.y(), p.z());
+      return out;
+    };
+    if (w != nullptr && !holding) {
+      // Before the grasp: this robot's end of the workpiece's long axis (the master's end is the one nearer its base),
+      // at the heights the workpiece's own targets have, the fingers closing across the axis.
+      task::Target at = target;
+      at.kind = task::TargetKind::kAt;
+      task::Target above = target;
+      above.kind = task::TargetKind::kAbove;
+      const MotionTarget r_at = resolve_target(m, cell_, at, options_.targets);
+      const MotionTarget r_above = resolve_target(m, cell_, above, options_.targets);
+      if (r_at.resolution != MotionTarget::Resolution::kOk) return r_at;
+      if (r_above.resolution != MotionTarget::Resolution::kOk) return r_above;
+      carry.approach = r_above.poses.front().translation().z() - r_at.poses.front().translation().z();
+      Eigen::Index k = 0;
+      const double length = w->size().maxCoeff(&k);
+      const Eigen::Vector3d axis = w->pose.linear().col(k);
+      const Eigen::Vector3d centre = w->pose.translation();
+      const double half = length / 2.0;
+      const double reach = half - std::min(0.06, half / 2.0);  // from the centre to a grasp point
+      const double toward_master = axis.dot(lead->base().translation() - centre) >= 0.0 ? 1.0 : -1.0;
+      const Eigen::Vector3d point_xy = centre + (master ? toward_master : -toward_master) * reach * axis;
+      const double z = (target.kind == task::TargetKind::kAt ? r_at : r_above).poses.front().translation().z();
+      const Eigen::Vector3d point(point_xy.x(), point_xy.y(), z);
+      const double yaw = std::atan2(axis.y(), axis.x()) + std::numbers::pi / 2.0;
+      const Eigen::Isometry3d first = models::grasp_pose(point, models::Approach::kDown, yaw, self->base());
+      Eigen::Isometry3d turned = first;
+      turned.linear() = first.linear() * Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitZ());
+      out.resolution = MotionTarget::Resolution::kOk;
+      out.poses = {first, turned};
+      out.rank = {0, 0};
+      out.description = fmt::format("{} ({} end): tool at ({:.3f}, {:.3f}, {:.3f})", what, master ? "master's" : "follower's",
+                                    point.x(), point.y(), point.z());
+      *linear = target.kind == task::TargetKind::kAt;  // the first approach comes from anywhere
+      return out;
+    }
+    if (!master) {
+      // The master's target composed with the grasp transform, measured once both hold the workpiece.
+      if (!master_target) {
+        out.reason = fmt::format("{} posted no target for segment {}", seg.master, seg.index);
+        return out;
+      }
+      if (!carry.grasp) {
+        if (!holding || !lead->tcp || !lead->hold) {
+          out.reason = fmt::format("the grasp transform between {} and {} is not known: both must hold {}",
+                                   seg.master, seg.follower, holding ? self->hold->workpiece : target.object);
+          return out;
+        }
+        carry.grasp = lead->tcp->inverse() * tcp;
+      }
+      return one(*master_target * *carry.grasp, "following the master");
+    }
+    // The master while carrying, or departing after the put-down: a translation of its tool.
+    Eigen::Isometry3d goal = tcp;
+    if (w != nullptr) {  // the lift: straight up by the pick's approach height
+      goal.translation().z() += carry.approach;
+      return one(goal, "lift");
+    }
+    const CellLocation* l = m.find_location(target.object);
+    if (l == nullptr) {
+      out.reason = fmt::format("{} is neither a workpiece nor a location of the cell", target.object);
+      return out;
+    }
+    const double raise = target.kind == task::TargetKind::kAbove ? l->approach_height : 0.0;
+    if (!holding) {  // after the put-down: straight up from where the hand opened
+      goal.translation().z() += l->approach_height;
+      return one(goal, "depart");
+    }
+    const WorkpieceState* held = m.find_workpiece(self->hold->workpiece);
+    const Eigen::Isometry3d part = tcp * self->hold->in_hand;
+    // The part's half height along the world's vertical, so that its bottom lands on the location.
+    const Eigen::Vector3d up_in_part = part.linear().transpose() * Eigen::Vector3d::UnitZ();
+    const double half_height = 0.5 * up_in_part.cwiseAbs().dot(held != nullptr ? held->size() : Eigen::Vector3d::Zero());
+    const Eigen::Vector3d landing = l->pose.translation() + Eigen::Vector3d(0, 0, half_height + raise);
+    goal.translation() += landing - part.translation();
+    return one(goal, "carry");
+  });
 }
 
 void RobotControl::complete(SimDuration now) {

@@ -266,6 +266,7 @@ struct Runtime::Impl {
   std::vector<std::string> cells;        // per program robot
   std::vector<std::string> cell_robots;  // every cell robot, in the cell's order (the sensors are read so)
   SharedEnvironment env;
+  Coordination coordination;  // the robots' rendezvous for coordinated blocks (coordination.hpp)
   std::vector<std::unique_ptr<MessageQueue<MotionCommand>>> inboxes;
   MessageQueue<RobotStatus> statuses;
   std::unique_ptr<TaskControl> task;
@@ -699,7 +700,8 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     im.cells.push_back(cell);
     im.robots.push_back(std::make_unique<RobotControl>(
         r, label, cell, *config_.drivers.at(cell), models::robot_chain(spec), spec.grip_force,
-        im.names, im.env, *im.inboxes[r], im.statuses, *log_, config_.motion, config_.mode == Mode::kRealtime));
+        im.names, im.env, *im.inboxes[r], im.statuses, *log_, config_.motion, config_.mode == Mode::kRealtime,
+        &im.coordination));
   }
 }
 

@@ -141,6 +141,7 @@ SimDriver::SimDriver(const Scene& scene, std::size_t robot, SignalTable& signals
   caps.reads_joints = true;
   caps.reads_pose = true;
   caps.reads_while_moving = true;  // the simulation's joints can be read at any step
+  caps.timed_motion = true;        // its trajectories are its own: a move can be stretched to a duration
   set_capabilities(std::move(caps));
 
   // Until the first step reads the simulation, plan from the home configuration the scene starts in.
@@ -158,16 +159,48 @@ void SimDriver::accept_hook(Job& job) {
   if (job.kind == JobKind::home) {
     plan_joints(*plan, home_, options_.home_speed);
   } else if (job.kind == JobKind::command) {
-    if (const auto* move = std::get_if<drivers::MoveJoints>(&*job.command)) {
-      plan_joints(
-          *plan,
-          Eigen::Map<const Eigen::VectorXd>(move->positions.data(), static_cast<Eigen::Index>(move->positions.size())),
-          move->speed);
-    } else if (const auto* pose = std::get_if<drivers::MovePose>(&*job.command)) {
-      plan_pose(*plan, *pose);
-    }
+    plan_command(*plan, *job.command);
   }
   job.data = std::move(plan);
+}
+
+void SimDriver::plan_command(SimJob& job, const drivers::Command& command) const {
+  if (const auto* move = std::get_if<drivers::MoveJoints>(&command)) {
+    plan_joints(
+        job,
+        Eigen::Map<const Eigen::VectorXd>(move->positions.data(), static_cast<Eigen::Index>(move->positions.size())),
+        move->speed);
+    job.min_duration = move->duration;
+  } else if (const auto* pose = std::get_if<drivers::MovePose>(&command)) {
+    plan_pose(job, *pose);
+    job.min_duration = pose->duration;
+  }
+}
+
+double SimDriver::planned_duration(const SimJob& job, std::vector<Eigen::VectorXd> points) const {
+  const JointPath path(std::move(points), job.arc);
+  double duration = path.min_duration(max_speed_, job.speed, options_.min_move_time);
+  if (!job.arc.empty()) {
+    duration = std::max(duration, kQuinticPeakSpeed * job.tool_distance / (options_.max_tool_speed * job.speed));
+  }
+  return std::max(duration, job.min_duration.value_or(0.0));
+}
+
+std::optional<double> SimDriver::least_duration(const drivers::Command& command) const {
+  if (state() != drivers::DriverState::active || drivers::check_command(command, capabilities())) return std::nullopt;
+  const auto l = lock();
+  if (const auto* grip = std::get_if<drivers::Grip>(&command)) {
+    double goal = grip->action == drivers::Grip::Action::close ? finger_closed_ : finger_open_;
+    if (grip->width) goal = std::clamp(*grip->width / 2.0, finger_closed_, finger_open_);
+    return finger_ramp_duration(finger_goal_, goal, options_.finger_speed);
+  }
+  if (!std::holds_alternative<drivers::MoveJoints>(command) && !std::holds_alternative<drivers::MovePose>(command)) {
+    return std::nullopt;
+  }
+  SimJob job;
+  plan_command(job, command);
+  if (!job.problem.empty() || job.points.empty()) return std::nullopt;
+  return planned_duration(job, job.points);
 }
 
 void SimDriver::halt_hook() {
@@ -393,12 +426,8 @@ void SimDriver::start_head(std::chrono::nanoseconds now, Job& head, const mjMode
     job.moves_arm = true;
     // The planned start is where the targets were expected to come to rest; start exactly from where they are.
     job.points.front() = arm_target(now).position;
-    JointPath path(job.points, job.arc);
-    double duration = path.min_duration(max_speed_, job.speed, options_.min_move_time);
-    if (!job.arc.empty()) {
-      duration = std::max(duration, kQuinticPeakSpeed * job.tool_distance / (options_.max_tool_speed * job.speed));
-    }
-    arm_path_.emplace(std::move(path));
+    const double duration = planned_duration(job, job.points);
+    arm_path_.emplace(job.points, job.arc);
     arm_start_ = now;
     arm_duration_ = duration;
     braking_ = false;

@@ -130,6 +130,9 @@ class FaultyDriver final : public RobotDriver {
   void set_notifier(std::function<void()> notify) override;
   void set_clock(Clock clock) override;
   std::optional<GripSense> grip_sense() const override { return inner_.grip_sense(); }
+  std::optional<double> least_duration(const Command& command) const override {
+    return inner_.least_duration(command);
+  }
 
   // ---- Queries (the owner thread) ----
   const Injected& injected() const { return injected_; }

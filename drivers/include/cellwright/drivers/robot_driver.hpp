@@ -130,9 +130,16 @@ inline constexpr std::size_t kStatusRetention = 1024;
 // Joint-interpolated move to joint positions, in the robot's joint order (the order of its URDF). Joint-level
 // control: VAL II `MOVE #PPOINT(...)`. The Movemaster driver has none (its `MJ` is relative and `WH` reports no
 // joints: docs/real-robots.md).
+//
+// TIMED MOVES (MoveJoints::duration, MovePose::duration): a move given a duration takes that long when it is longer
+// than the driver's own time for the move (the driver stretches its profile to it, the path unchanged); a shorter one
+// is no constraint. Two robots that must start and stop together (a coordinated block, docs/task-language.md) are
+// each given the longer of their two least times (RobotDriver::least_duration), as ABB MultiMove's synchronised moves
+// do. Only a driver with Capabilities::timed_motion takes a duration; the others refuse it (unsupported).
 struct MoveJoints {
   std::vector<double> positions;
   double speed = 1.0;  // fraction of the robot's maximum speed, in (0, 1]
+  std::optional<double> duration{};  // seconds, > 0: take at least this long (TIMED MOVES); nullopt: the driver's time
 };
 
 enum class Path : std::uint8_t {
@@ -148,6 +155,7 @@ struct MovePose {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   Path path = Path::joint;
   double speed = 1.0;  // fraction of the robot's maximum speed, in (0, 1]
+  std::optional<double> duration{};  // seconds, > 0: take at least this long (TIMED MOVES); nullopt: the driver's time
 };
 
 // Opens or closes the gripper. Without a width it opens or closes fully (Movemaster `GO`/`GC`, VAL II
@@ -208,6 +216,9 @@ struct Capabilities {
   // and VAL II drivers cannot: neither controller's protocol, as far as it is known here, has a query of the hand's
   // state (docs/real-robots.md).
   bool senses_grip = false;
+  // Moves may be given a duration (TIMED MOVES) and least_duration() tells a move's least time: a simulation, whose
+  // trajectory is its own. The Movemaster EX and VAL II drivers cannot (their controllers time their own moves).
+  bool timed_motion = false;
 };
 
 // What a gripper's own sensor tells (RobotDriver::grip_sense()).
@@ -304,6 +315,12 @@ class RobotDriver {
   // simulation thread, runtime/sensors.hpp): a reading the driver keeps, never a request to the controller; it must
   // not block. The default: cannot tell.
   virtual std::optional<GripSense> grip_sense() const { return std::nullopt; }
+
+  // How long `command` would take if it were submitted now (behind whatever is queued), in seconds: for a move, the
+  // least time of its trajectory at its speed (its duration, if it has one and that is longer); for the gripper, its
+  // ramp. nullopt when the driver cannot tell (no Capabilities::timed_motion, not active, or the move could not be
+  // planned: submit() then says why). Owner thread; it plans but changes nothing. The default: cannot tell.
+  virtual std::optional<double> least_duration(const Command& /*command*/) const { return std::nullopt; }
 };
 
 // Why a call was refused, if it was.

@@ -8,6 +8,9 @@
 // is the target; homing puts both at the configured home values. Position read-backs report those, stamped with the
 // virtual time at which they complete (or, after set_clock(), with the clock's time then).
 //
+// A timed move (capabilities.timed_motion, robot_driver.hpp TIMED MOVES) takes at least the ticks that last its
+// duration; least_duration() tells a command's ticks times the tick.
+//
 // Time: advance(n) runs n ticks. On each tick the command at the head of the queue (the running one) does one tick of
 // work; a command of duration d completes on the d-th tick after it reached the head, and the next one becomes
 // running at once but starts working on the following tick. A WaitInput instead checks its input on each tick, and
@@ -96,8 +99,13 @@ class ScriptedDriver final : public DriverCore {
   // claims one). nullopt (the start): cannot tell.
   void set_grip_sense(std::optional<GripSense> sense);
   std::optional<GripSense> grip_sense() const override;
+  // With capabilities.timed_motion: the command's ticks (below) times the tick.
+  std::optional<double> least_duration(const Command& command) const override;
 
  private:
+  // A command's ticks: ticks_for or command_ticks; a timed move (MoveJoints/MovePose::duration) at least as many as
+  // last its duration.
+  std::uint64_t command_ticks(const Command& command) const;
   struct Work : JobData {
     std::uint64_t remaining = 0;  // ticks of work left
     std::uint64_t waited = 0;     // ticks a WaitInput has waited

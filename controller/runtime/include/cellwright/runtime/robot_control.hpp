@@ -27,6 +27,15 @@
 //    Path::linear for a straight approach, grasp or lift (at(X) right after above(X) or the reverse, hand_grasp right
 //    after hand_approach or the reverse) when the driver moves linearly. home goes straight to the home joints.
 //  - open/close: Grip open/close (with the robot's grip force if the driver takes a force).
+//  - COORDINATED BLOCKS (a primitive with a task::Segment; docs/runtime.md "Coordinated blocks"): the master's tool
+//    target is its grasp point on the workpiece (the end of its long axis nearer the master's base, fingers across
+//    it) before it holds it, and while carrying a pure translation of its tool (the workpiece keeps its orientation:
+//    it is not twisted): up by the pick's approach height for the lift, to where the workpiece's centre lands on (or
+//    approach height above) a location, straight up from the put-down. The follower takes the other end before the
+//    grasp; once both hold, its target is the master's target composed with the grasp transform measured then
+//    (master tool -> own tool). Both post to the Coordination board and submit with the agreed (longest) duration;
+//    every move after the first approach is a straight line (MovePose linear) where the driver has one. A driver
+//    that cannot time its moves (Capabilities::timed_motion) fails the segment, naming itself.
 //  - A driver that is busy (its queue full, e.g. with a position read) is asked again next turn.
 //  - The command is then polled each turn. When the driver reports done, the place's sensor condition is checked:
 //      move:  position reached, on a position read-back requested after the driver said done: every joint within
@@ -74,6 +83,7 @@
 
 #include "cellwright/drivers/robot_driver.hpp"
 #include "cellwright/models/kinematics.hpp"
+#include "cellwright/runtime/coordination.hpp"
 #include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/runtime/event_log.hpp"
 #include "cellwright/runtime/message_queue.hpp"
@@ -147,13 +157,15 @@ class RobotControl {
   // `index` is the robot's index in the program (its RobotStatus::robot); `label` its program label, `cell_name` its
   // cell robot; `chain` its kinematics (base_link..tcp); `grip_force` the cell's grip force (N). The driver, queues,
   // environment and log must outlive the RobotControl.
+  // `coordination`: the board shared with the other robots, which a program with coordinated blocks needs (nullptr:
+  // a segment of a block fails, naming it).
   // `await_fresh_truth`: check a completed command's sensor condition only on an environment model updated after the
   // completion was seen. Real-time mode needs it (the simulation thread may not have written the step's truth yet);
   // in lock-step the simulation's turn always precedes the robot's, so the model is fresh and the check is immediate.
   RobotControl(std::size_t index, std::string label, std::string cell_name, drivers::RobotDriver& driver,
                models::KinematicChain chain, double grip_force, NameMap names, SharedEnvironment& environment,
                MessageQueue<MotionCommand>& inbox, MessageQueue<RobotStatus>& status_out, EventLog& log,
-               MotionOptions options = {}, bool await_fresh_truth = false);
+               MotionOptions options = {}, bool await_fresh_truth = false, Coordination* coordination = nullptr);
 
   // Main thread, before the threads start: connects a disconnected driver. Throws InputError when the driver's
   // configuration cannot work, InternalError if the driver refuses for another reason.
@@ -194,6 +206,8 @@ class RobotControl {
     std::vector<double> joints_at_start;       // what Question::motion_blocked compares with
     std::optional<Eigen::Vector3d> force_at_start;
     std::optional<SimDuration> stalled_since;  // since when it has waited for its part (no_progress)
+    // A coordinated segment (COORDINATED BLOCKS above): its command, prepared and posted, waiting for the agreement.
+    std::optional<drivers::Command> prepared;
   };
   // A recovery under way for the current command (docs/faults.md).
   struct Recovery {
@@ -242,6 +256,14 @@ class RobotControl {
   void start_next(SimDuration now);
   // Resolves and submits the current command; false when it must wait for its target.
   bool submit_current(SimDuration now);
+  // Open or close, with the robot's grip force where the driver takes one.
+  drivers::Command grip_command(task::PrimitiveKind kind) const;
+  // A segment of a coordinated block: prepares its command and posts it (once), then gives it with the agreed
+  // duration once the partner has posted too; nullopt while it waits (or when it failed).
+  std::optional<drivers::Command> segment_command(SimDuration now);
+  // The tool target (world poses, alternatives) of a coordinated segment's move, and whether it goes straight.
+  MotionTarget segment_target(const task::Target& target, const task::Segment& segment,
+                              const std::optional<Eigen::Isometry3d>& master_target, bool* linear);
   void poll_current(SimDuration now);
   void complete(SimDuration now);
   void fail(SimDuration now, std::string reason);
@@ -306,6 +328,8 @@ class RobotControl {
   };
   std::optional<Goal> choose_goal(const MotionTarget& target, const std::vector<double>& joints,
                                   const Eigen::Isometry3d& base, std::string* why) const;
+  // The driver command of a move to `goal` (MovePose, straight when `linear`, or MoveJoints), noted in current_.
+  drivers::Command move_command(const Goal& goal, bool pose_command, bool linear, const task::Target& target);
 
   const std::size_t index_;
   const std::string label_, cell_;
@@ -335,6 +359,17 @@ class RobotControl {
 
   std::map<std::string, std::string> instances_;  // class label -> the cell workpiece it means now (bind_class)
   std::string hand_peer_;  // cell robot whose hand this robot's last hand-approach or hand-grasp move went to
+
+  // Coordinated blocks: the board, the segments of each block this robot has submitted (its occurrence counter),
+  // and per block under way its carry: the grasp transform (follower: master tool -> own tool, measured once both
+  // hold) and the approach height at the pick.
+  Coordination* coordination_ = nullptr;
+  std::map<std::string, std::uint64_t> segments_submitted_;
+  struct Carry {
+    std::optional<Eigen::Isometry3d> grasp;
+    double approach = 0.08;
+  };
+  std::map<std::string, Carry> carry_;
 
   std::optional<Recovery> recovery_;
   std::string carrying_lost_;  // the lost part this robot would be carrying: skip until the open that releases it

@@ -34,6 +34,10 @@
 //    a pose has no IK solution, or a linear path would need a jump of the arm (two successive waypoints more than
 //    max_waypoint_step apart in some joint: a singularity or a change of configuration on the line). The duration
 //    also keeps the tool within max_tool_speed * speed.
+//  - A timed move (MoveJoints/MovePose::duration; Capabilities::timed_motion; robot_driver.hpp TIMED MOVES) lasts
+//    its duration when that is longer than the time above: the same path, the quintic stretched. least_duration()
+//    plans the command from where the queue ends (as submit() would) and tells the time above (for a Grip, the
+//    fingers' ramp from their current goal; other commands: nullopt).
 //  - Grip: the finger targets move at finger_speed towards the goal (open: fully open, or `width`; close: fully
 //    closed, or `width`). An open without `width` while the fingers hold a part (the last finger motion closed and
 //    both pads touch something short of fully closed) is a release: the targets start from where the fingers are
@@ -128,6 +132,7 @@ class SimDriver final : public drivers::DriverCore {
   SimDriver& operator=(const SimDriver&) = delete;
 
   // The RobotDriver methods (the owner thread) come from DriverCore: see drivers/robot_driver.hpp and the notes above.
+  std::optional<double> least_duration(const drivers::Command& command) const override;
 
   // ---- Queries (any thread) ----
 
@@ -170,6 +175,7 @@ class SimDriver final : public drivers::DriverCore {
     std::vector<double> arc;
     double speed = 1.0;
     double tool_distance = 0;
+    std::optional<double> min_duration;  // a timed move's duration (seconds)
     drivers::ErrorCode problem_code = drivers::ErrorCode::none;
     std::string problem;
     // Execution (simulation side).
@@ -194,6 +200,11 @@ class SimDriver final : public drivers::DriverCore {
   // Planning at submission (owner thread).
   void plan_joints(SimJob& job, const Eigen::VectorXd& goal, double speed) const;
   void plan_pose(SimJob& job, const drivers::MovePose& move) const;
+  // Plans a MoveJoints or MovePose from where the queue ends (accept_hook's planning).
+  void plan_command(SimJob& job, const drivers::Command& command) const;
+  // A planned motion's duration from `start` (its first point replaced): the least time at its speed, kept within
+  // max_tool_speed on a straight line, at least min_move_time and its min_duration.
+  double planned_duration(const SimJob& job, std::vector<Eigen::VectorXd> points) const;
   // Simulation side, per step: start the head job, check whether it has finished (true when it has, then it was
   // finished with finish_head), and write the servo targets.
   void start_head(std::chrono::nanoseconds now, Job& job, const mjModel* model, const mjData* data);

@@ -69,13 +69,14 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"exchange.yaml", "lost_signal:n=1", "wait_timeout", "resignal", 0}));
 
 // The safety layer: a box appears in the way of the MELFA's move (the obstacle fault puts it 15 cm ahead of the
-// moving tool, for 2 s). The robot is stopped before it gets there, stays stopped while the box is there, and does
-// its move once the way has been clear for 0.2 s; nothing touched the box.
+// moving tool, for 2 s; at 28.3 s the MELFA is carrying A from the hand-over towards B, a 1.9 s move). The robot is
+// stopped before it gets there, stays stopped while the box is there, and does its move once the way has been clear
+// for 0.2 s; nothing touched the box.
 TEST(TwinRunSafety, AnObstacleInTheWayStopsTheRobotUntilItIsGone) {
   TwinCli cli("cw-fault-safety");
   const fs::path out = cli.dir() / "out";
   const Outcome r = cli.run("run " + shell_quote(source_path("scenes/exchange.yaml")) +
-                            " --quiet --seed 3 --fault obstacle:robot=melfa,time=27.1 -o " + shell_quote(out.string()));
+                            " --quiet --seed 3 --fault obstacle:robot=melfa,time=28.3 -o " + shell_quote(out.string()));
   EXPECT_EQ(r.status, 0) << r.out << r.err;
   double injected = -1, stopped = -1, released = -1, recovered = -1;
   int stops = 0;

@@ -823,30 +823,38 @@ bool RobotControl::request_position(SimDuration now) {
   return true;
 }
 
-void RobotControl::collect_position(SimDuration now) {
-  if (position_request_ == 0) return;
+bool RobotControl::collect_position(SimDuration now) {
+  if (position_request_ == 0) return false;
   const drivers::CommandStatus st = driver_.poll(position_request_);
-  if (st.phase == drivers::CommandPhase::pending || st.phase == drivers::CommandPhase::running) return;
+  if (st.phase == drivers::CommandPhase::pending || st.phase == drivers::CommandPhase::running) return false;
   position_request_ = 0;
-  if (st.phase == drivers::CommandPhase::done) return adopt_reading();
+  if (st.phase == drivers::CommandPhase::done) {
+    adopt_reading();
+    return false;
+  }
   last_failure_ = fmt::format("the position read-back failed: {}: {}", drivers::to_string(st.error), st.message);
   // Cancelled: stopped on purpose or behind another failure, which is reported where it happened. A recovery under
   // way reads and resets the driver itself.
   if (st.error == drivers::ErrorCode::cancelled || st.error == drivers::ErrorCode::unknown_command || halted_ ||
       recovery_ || phase_ == RobotPhase::kBringUp) {
-    return;
+    return false;
   }
   // A command in flight reports a failure of its own; idle, a move done and waiting for its read-back, or a command
   // cancelled behind the read (the read's fault is the cause), nothing else would say why.
   if (current_ && current_->id != 0) {
     const drivers::CommandStatus c = driver_.poll(current_->id);
     const bool cancelled = c.phase == drivers::CommandPhase::failed && c.error == drivers::ErrorCode::cancelled;
-    if (c.phase != drivers::CommandPhase::done && !cancelled) return;
+    if (c.phase != drivers::CommandPhase::done && !cancelled) return false;
   }
-  if (options_.recovery.enabled) return symptom(now, symptom_of(st.error), last_failure_, std::string());
-  if (current_) return fail(now, last_failure_);
-  phase_ = RobotPhase::kFailed;
-  report(now, CommandOutcome::kFailed, last_failure_);
+  if (options_.recovery.enabled) {
+    symptom(now, symptom_of(st.error), last_failure_, std::string());
+  } else if (current_) {
+    fail(now, last_failure_);
+  } else {
+    phase_ = RobotPhase::kFailed;
+    report(now, CommandOutcome::kFailed, last_failure_);
+  }
+  return true;
 }
 
 void RobotControl::adopt_reading() {
@@ -881,6 +889,9 @@ void RobotControl::poll_current(SimDuration now) {
       }
       return;
     case drivers::CommandPhase::failed: {
+      // Cancelled behind a position read that failed after this turn's collect_position looked (the driver fails
+      // both at once): the read's failure is the cause, and collect_position reports it.
+      if (st.error == drivers::ErrorCode::cancelled && collect_position(now)) return;
       const std::string reason = fmt::format("the driver failed '{}': {}: {}", current_->detail,
                                              drivers::to_string(st.error), st.message);
       if (!options_.recovery.enabled || halted_) return fail(now, reason);

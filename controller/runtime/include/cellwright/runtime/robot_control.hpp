@@ -238,7 +238,9 @@ class RobotControl {
   // Writes a position read-back that arrived into the model. A read that failed while no command of this robot
   // would report the failure itself (idle, a move done and waiting for its read-back, or a command cancelled behind
   // the read) is a symptom at once, with the driver's message (docs/faults.md section 2).
-  void collect_position(SimDuration now);
+  // Takes the position read-back in flight if it has ended. Returns true when its failure was reported (a symptom,
+  // or the robot failed).
+  bool collect_position(SimDuration now);
   // Writes the driver's newest reading into the model if it is newer than the last one written.
   void adopt_reading();
   // Bring-up, then the commands: take, submit, poll, check.

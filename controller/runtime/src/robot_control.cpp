@@ -413,6 +413,10 @@ bool RobotControl::submit_current(SimDuration now) {
   current_->detail = drivers::describe(cmd);
   if (s.error == drivers::ErrorCode::busy) return false;  // its queue is full (a position read, say): next turn
   if (!s.accepted()) {
+    // Refused by a driver that went to fault on a position read after this turn's collect_position looked (the
+    // driver fails the read and enters fault at once): the read's failure is the cause, and collect_position reports
+    // it.
+    if (driver_.state() == drivers::DriverState::fault && collect_position(now)) return false;
     std::string reason =
         fmt::format("the driver refused '{}': {}: {}", current_->detail, drivers::to_string(s.error), s.message);
     if (driver_.state() == drivers::DriverState::fault && !last_failure_.empty()) {

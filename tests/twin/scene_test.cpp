@@ -116,6 +116,38 @@ TEST_F(SceneTest, BuildsTheWholeCellWithNamedParts) {
   expect_no_data_warnings(s.data());
 }
 
+// Bodies fixed to the world are excluded from each other's collision tests (they can never touch in MuJoCo; the
+// exclusion only saves the broadphase's geom tests), and nothing that moves is excluded from what it could hit: every
+// excluded pair is two fixed bodies, two bodies of one robot, or a conveyor and its own belt.
+TEST_F(SceneTest, OnlyPairsThatCannotTouchAreExcluded) {
+  Scene s = build_scene(paper_cell());
+  const mjModel* m = s.model();
+  const auto name = [&](int b) { return std::string(mj_id2name(m, mjOBJ_BODY, b) ? mj_id2name(m, mjOBJ_BODY, b) : "world"); };
+  const auto robot_of = [&](int b) {
+    for (const RobotIds& r : s.robots()) {
+      if (name(b).rfind(r.name + "/", 0) == 0) return r.name;
+    }
+    return std::string();
+  };
+  int fixed_pairs = 0;
+  for (int i = 0; i < m->nexclude; ++i) {
+    const int b1 = (m->exclude_signature[i] >> 16) - 1, b2 = (m->exclude_signature[i] & 0xFFFF) - 1;
+    const bool fixed = m->body_weldid[b1] == 0 && m->body_weldid[b2] == 0 && m->body_mocapid[b1] < 0 &&
+                       m->body_mocapid[b2] < 0;
+    const bool same_robot = !robot_of(b1).empty() && robot_of(b1) == robot_of(b2);
+    const bool own_belt = name(b2) == name(b1) + "/belt" || name(b1) == name(b2) + "/belt";
+    EXPECT_TRUE(fixed || same_robot || own_belt) << name(b1) << " and " << name(b2) << " are excluded";
+    fixed_pairs += fixed ? 1 : 0;
+  }
+  // The world, the floor, the MELFA's pedestal, two robot bases, two conveyor frames and the machine: every pair of
+  // the eight.
+  EXPECT_EQ(fixed_pairs, 8 * 7 / 2);
+  // The world body holds no geom: MuJoCo would test each of them against every geom of the cell on every step.
+  EXPECT_EQ(m->body_geomnum[0], 0);
+  EXPECT_TRUE(is_scenery_body(m, mj_name2id(m, mjOBJ_BODY, "scenery/floor")));
+  EXPECT_FALSE(is_scenery_body(m, mj_name2id(m, mjOBJ_BODY, "conveyor/input")));
+}
+
 // The arms in MuJoCo move exactly as their URDFs say: the tool centre point site agrees with the kinematics library's
 // forward kinematics (a separate reading of the same URDF) at random configurations within the limits.
 TEST_F(SceneTest, RobotsFollowTheirUrdfKinematics) {

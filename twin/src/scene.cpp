@@ -302,6 +302,10 @@ struct Builder {
   std::vector<Deferred> sensors;
   Origins origins;  // of the elements written so far
   std::vector<std::pair<std::string, std::string>> excludes;
+  // Bodies fixed to the world (no joint on the way to it): the world itself, robot bases, conveyor frames, machines.
+  // MuJoCo never lets two of them touch, but its broadphase pairs them whenever their boxes overlap and then tests
+  // every pair of their geoms; excluded, the pair costs one lookup (a quarter of a step's geom tests in the cell).
+  std::vector<std::string> fixed_bodies{"world"};
   std::vector<std::pair<std::string, std::string>> couplings;  // joints that move together (joint1 = joint2)
   // Robot meshes: <mesh> assets {name, file MuJoCo reads, scale}, written after the worldbody; by source and scale.
   std::vector<std::array<std::string, 3>> meshes;
@@ -578,6 +582,20 @@ struct Builder {
     }
   }
 
+  // A geom of the cell's fixed scenery (the floor, a pedestal, a stand, a plate), in a body of its own named
+  // "scenery/<geom>" rather than on the world body: MuJoCo's broadphase tests every geom of the world body against
+  // every geom of every other body on every step, but pairs a body of its own only with what comes near it (the floor,
+  // a plane, is still tested against everything). The body sits at the origin; the geom keeps its pose.
+  void scenery(const Attrs& geom) {
+    const auto name = std::find_if(geom.begin(), geom.end(), [](const auto& a) { return a.first == "name"; });
+    CW_CHECK(name != geom.end(), "a scenery geom needs a name");
+    const std::string body = std::string(kSceneryPrefix) + name->second;
+    fixed_bodies.push_back(body);
+    x.open("body", {{"name", body}});
+    x.leaf("geom", geom);
+    x.close();
+  }
+
   void robot(const RobotModel& r) {
     const models::RobotSpec& spec = *r.spec;
     x.comment(fmt::format("robot '{}' from {}{}", spec.name, spec.urdf.string(),
@@ -587,7 +605,7 @@ struct Builder {
     if (spec.base.xyz.z() > 1e-3) {
       // A robot mounted above the floor stands on a pedestal.
       from({spec.where, "its pedestal (the cell's base height)", &spec});
-      x.leaf("geom", {{"name", spec.name + "/pedestal"},
+      scenery({{"name", spec.name + "/pedestal"},
                       {"type", "box"},
                       {"pos", vec(Eigen::Vector3d(spec.base.xyz.x(), spec.base.xyz.y(), spec.base.xyz.z() / 2))},
                       {"quat", quat(Eigen::Matrix3d(Eigen::AngleAxisd(spec.base.rpy.z(), Eigen::Vector3d::UnitZ())))},
@@ -597,6 +615,7 @@ struct Builder {
     // The base link stands at the robot's base; links above it (a `world` root) are left out (load_robot checked
     // that they are fixed to it).
     from({r.mounted->arm.link_at(spec.base_link), fmt::format("link '{}'", spec.base_link), &spec});
+    fixed_bodies.push_back(spec.name + "/" + spec.base_link);
     x.open("body", {{"name", spec.name + "/" + spec.base_link},
                     {"pos", vec(spec.base.xyz)},
                     {"quat", quat(spec.base.rotation())}});
@@ -625,6 +644,7 @@ struct Builder {
     const std::string name = "conveyor/" + c.name;
     const double l = c.length, w = c.width, h = c.height, t = kBeltThickness;
     x.comment(fmt::format("conveyor '{}': belt top {} m above the floor, {} m/s", c.name, num(h), num(c.speed)));
+    fixed_bodies.push_back(name);
     x.open("body", {{"name", name}, {"pos", vec(c.pose.xyz)}, {"quat", quat(c.pose.rotation())}});
     // The frame reaches up to kFrameGap under the belt top: it is what robots touch there (the belt below collides
     // with workpieces only, see kBeltBits), with the conveyor's true extent.
@@ -690,6 +710,7 @@ struct Builder {
   void machine(const models::MachineSpec& m) {
     const std::string name = "machine/" + m.name;
     x.comment(fmt::format("machine '{}': process time {} s", m.name, num(m.process_time)));
+    fixed_bodies.push_back(name);
     x.open("body", {{"name", name}, {"pos", vec(m.pose.xyz)}, {"quat", quat(m.pose.rotation())}});
     x.leaf("geom", {{"name", name + "/body"},
                     {"type", "box"},
@@ -832,7 +853,7 @@ struct Builder {
     const Eigen::AlignedBox3d box = extent();
     const Eigen::Vector3d centre = box.center();
     const Eigen::Vector3d half = box.sizes() / 2 + Eigen::Vector3d::Constant(1.5);
-    x.leaf("geom", {{"name", "floor"},
+    scenery({{"name", "floor"},
                     {"type", "plane"},
                     {"pos", nums({centre.x(), centre.y(), 0})},
                     {"size", nums({half.x(), half.y(), 0.1})},
@@ -870,7 +891,7 @@ struct Builder {
     for (const auto& l : cell.locations) {
       if (!l.stand) continue;
       // A stand a scenario built under its location: static, like a machine (its top is where the part rests).
-      x.leaf("geom", {{"name", "stand/" + l.name},
+      scenery({{"name", "stand/" + l.name},
                       {"type", "box"},
                       {"pos", nums({l.pose.xyz.x(), l.pose.xyz.y(), l.pose.xyz.z() / 2})},
                       {"quat", quat(l.pose.rotation())},
@@ -900,7 +921,7 @@ struct Builder {
     }
     for (std::size_t i = 0; i < options.plates.size(); ++i) {
       const Plate& p = options.plates[i];
-      x.leaf("geom", {{"name", fmt::format("plate/{}", i + 1)},
+      scenery({{"name", fmt::format("plate/{}", i + 1)},
                       {"type", "box"},
                       {"pos", vec(p.pose.translation())},
                       {"quat", quat(Eigen::Matrix3d(p.pose.linear()))},
@@ -920,6 +941,9 @@ struct Builder {
         x.leaf("mesh", {{"name", name}, {"file", file}, {"scale", scale}});
       }
       x.close();
+    }
+    for (std::size_t a = 0; a < fixed_bodies.size(); ++a) {
+      for (std::size_t b = a + 1; b < fixed_bodies.size(); ++b) excludes.emplace_back(fixed_bodies[a], fixed_bodies[b]);
     }
     x.open("contact");
     for (const auto& [a, b] : excludes) x.leaf("exclude", {{"body1", a}, {"body2", b}});
@@ -1115,6 +1139,12 @@ Mjcf build_mjcf(const models::CellDescription& cell, const SceneOptions& options
 
 }  // namespace
 
+bool is_scenery_body(const mjModel* m, int body) {
+  if (body == 0) return true;
+  const char* name = mj_id2name(m, mjOBJ_BODY, body);
+  return name != nullptr && std::string_view(name).starts_with(kSceneryPrefix);
+}
+
 std::string scene_mjcf(const models::CellDescription& cell, const SceneOptions& options) {
   return build_mjcf(cell, options).text;
 }
@@ -1307,7 +1337,7 @@ Side side_of(const Scene& scene, int geom) {
   const char* bn = mj_id2name(m, mjOBJ_BODY, b);
   const std::string body = bn != nullptr ? bn : "";
   const auto starts = [](const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; };
-  if (b == 0) {
+  if (is_scenery_body(m, b)) {
     out.name = gname == "floor"            ? "the floor"
                : starts(gname, "stand/") ? fmt::format("the stand of location '{}'", gname.substr(6))
                                          : fmt::format("'{}'", gname);

@@ -63,7 +63,7 @@ std::vector<GeomInfo> classify(const Scene& scene) {
     const char* bname = mj_id2name(m, mjOBJ_BODY, b);
     const std::string body = bname != nullptr ? bname : "";
     info.owner = Owner::kStatic;
-    if (b == 0) {
+    if (twin::is_scenery_body(m, b)) {
       info.name = geom == "floor" ? "the floor" : fmt::format("'{}'", geom);
       for (std::size_t r = 0; r < scene.robots().size(); ++r) {
         if (geom == scene.robots()[r].name + "/pedestal") {

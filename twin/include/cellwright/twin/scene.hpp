@@ -159,6 +159,13 @@ class Scene {
   std::vector<ObstacleIds> obstacles_;
 };
 
+// The cell's fixed scenery (the floor, robots' pedestals, the stands of locations, plates) is not on MuJoCo's world
+// body: each such geom is in a fixed body of its own named kSceneryPrefix + the geom's name ("scenery/floor",
+// "scenery/melfa/pedestal"), so that the broadphase pairs it only with what comes near it. Code that asks "is this
+// geom part of the fixed scenery?" asks is_scenery_body of the geom's body (true for the world body too).
+inline constexpr std::string_view kSceneryPrefix = "scenery/";
+bool is_scenery_body(const mjModel* m, int body);
+
 // The MJCF text of the whole cell. Reads each robot's URDF (boxes, cylinders, spheres and meshes) and the gripper
 // mounted on it. Throws InputError naming the URDF's file and line when it cannot be read or lacks what the scene
 // needs (the cell's base, flange and tool links; prismatic joints finger_left_joint and finger_right_joint, in the

@@ -440,7 +440,7 @@ int read_signal(const Doc& doc, const Fields& f, const char* key) {
 ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
   Fields f(doc, n, "conveyor",
            {"name", "pose", "length", "width", "height", "speed", "enter", "leave", "stop", "sensor", "drop_sensor",
-            "accumulate", "io", "run_signal"},
+            "accumulate", "guides", "io", "run_signal"},
            true);
   ConveyorSpec c;
   c.where = doc.at(n);
@@ -489,6 +489,11 @@ ConveyorSpec read_conveyor(const Doc& doc, Names& names, const YAML::Node& n) {
     Fields df(doc, f.node("drop_sensor"), fmt::format("the drop sensor of conveyor '{}'", c.name), {"name", "io"});
     c.drop_eye = true;
     read_eye(doc, names, df, c.name + "_drop", c.drop_eye_name, c.drop_eye_io);
+  }
+  c.guides = f.non_negative_or("guides", 0.0);
+  if (c.guides > 0.2) {
+    doc.fail(f.node("guides"), fmt::format("{} is the guides' height above the belt, 0..0.2 m, got {}",
+                                           f.field("guides"), c.guides));
   }
   // A belt that accumulates stops while its stop photo-eye is blocked: it needs one.
   c.accumulate = f.boolean_or("accumulate", c.stop_eye);

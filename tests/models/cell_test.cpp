@@ -518,6 +518,17 @@ TEST(CellErrors, IoWiring) {
                line_of(colour, "processed_colour"));
 }
 
+// Side guides: their height above the belt, none by default; a height out of 0..0.2 m is refused at its line.
+TEST(CellErrors, ConveyorGuides) {
+  EXPECT_EQ(parse(base_yaml()).find_conveyor("belt")->guides, 0.0);
+  const std::string guided = with(base_yaml(), "    speed: 0.05\n", "    speed: 0.05\n    guides: 0.03\n");
+  EXPECT_DOUBLE_EQ(parse(guided).find_conveyor("belt")->guides, 0.03);
+  const std::string high = with(guided, "guides: 0.03", "guides: 0.5");
+  expect_error(high, "is the guides' height above the belt, 0..0.2 m, got 0.5", line_of(high, "guides:"));
+  const std::string negative = with(guided, "guides: 0.03", "guides: -0.01");
+  expect_error(negative, "guides", line_of(negative, "guides:"));
+}
+
 TEST(CellErrors, NegativeSize) {
   const std::string text = with(base_yaml(), "size: [0.04, 0.04, 0.06]", "size: [0.04, -0.04, 0.06]");
   expect_error(text, "field 'size' of workpiece 'A' must be greater than 0", line_of(text, "size: [0.04, -0.04"));

@@ -59,6 +59,7 @@ constexpr double kBeltWrap = 0.05;
 constexpr const char* kBeltBits = "2";
 constexpr const char* kPartBits = "3";
 constexpr double kFrameGap = 0.002;  // m between the frame's top and the belt's top
+constexpr double kGuideThickness = 0.01;  // m, of a conveyor's side guides
 constexpr double kBeltMass = 2.0;
 // The belt's speed servo, force = kv (ctrl - v), is split into joint damping kv (which the Euler integrator treats
 // implicitly: as an actuator's velocity gain it would be explicit, and kv h / mass = 5 at a 5 ms step oscillates) and a
@@ -677,6 +678,18 @@ struct Builder {
                       // holds its face wedges it down onto the belt with many times its weight.
                       {"priority", "1"},
                       {"friction", "0.1 0.005 0.0001"}});
+    }
+    if (c.guides > 0) {
+      // Side guides: rails along both edges of the belt, from its top up to `guides`, the conveyor's whole length.
+      for (const auto& [side, sign] : {std::pair{"left", 1.0}, std::pair{"right", -1.0}}) {
+        x.leaf("geom", {{"name", fmt::format("{}/guide_{}", name, side)},
+                        {"type", "box"},
+                        {"pos", nums({0, sign * (w / 2 + kGuideThickness / 2), h + c.guides / 2})},
+                        {"size", nums({l / 2, kGuideThickness / 2, c.guides / 2})},
+                        {"material", "stop"},
+                        {"priority", "1"},
+                        {"friction", "0.1 0.005 0.0001"}});  // smooth, like the stop bar
+      }
     }
     // The belt: kBeltWrap longer than the conveyor, reaching kBeltWrap upstream at q = 0, so that for q in
     // [0, kBeltWrap) its top covers the whole conveyor. Collision only: the visible belt is the static plate above.
@@ -1351,7 +1364,10 @@ Side side_of(const Scene& scene, int geom) {
     const std::string name = body.substr(9);
     if (name.find('/') != std::string::npos) return out;  // the belt
     out.name = fmt::format("conveyor '{}' ({})", name,
-                           gname == body + "/stop" ? "stop bar" : gname == body + "/frame" ? "frame" : gname);
+                           gname == body + "/stop"                       ? "stop bar"
+                           : gname == body + "/frame"                    ? "frame"
+                           : gname.starts_with(body + "/guide_")         ? "side guide"
+                                                                         : gname);
   } else if (starts(body, "machine/")) {
     out.name = fmt::format("machine '{}'{}", body.substr(8), gname == body + "/fixture" ? " (fixture)" : "");
   } else if (!starts(body, "workpiece/") && !starts(body, "obstacle/")) {

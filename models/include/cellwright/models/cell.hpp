@@ -185,6 +185,10 @@ struct ConveyorSpec {
   // An accumulating conveyor stops while a part blocks the photo-eye at its stop bar (and runs again when it is
   // taken), so that a queue of parts rests still instead of sliding against a running belt. Default: true with a stop.
   bool accumulate = false;
+  // Side guides (`guides: h`): a rail along each side of the belt, h m above its top (0: none). They keep a queue
+  // that a running belt pushes against the stop bar in its lane: pushed from behind, the front parts of a long queue
+  // turn and are squeezed out sideways.
+  double guides = 0;
   // The photo-eye at the stop bar (`sensor:`): present with a stop; its name (default "<conveyor>_stop", in the
   // cell's one name space) and the discrete input it is wired to.
   bool stop_eye = false;

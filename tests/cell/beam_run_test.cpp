@@ -1,7 +1,7 @@
 // The shipped coordinated carry (scenes/beam.yaml, issue 27) in the MuJoCo twin, lock-step: the PUMA and the MELFA
 // carry a 0.8 m beam held by friction at its ends from the input stand to the fixture. What a user checks in the
-// event log and the outcome: every segment of the block starts on both arms in the same control period with the same
-// driver duration, ends close together, and the beam lies level on the fixture.
+// event log, the report and the outcome: every segment of the block starts on both arms in the same control period
+// with the same driver duration, ends on both within one control period, and the beam lies level on the fixture.
 #include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/cell/sim/sweep.hpp"
@@ -19,7 +19,7 @@ namespace {
 
 const std::string kScenes = std::string(CW_SOURCE_DIR) + "/scenes";
 
-TEST(BeamRun, BothArmsStartEverySegmentTogetherAndPutTheBeamDownLevelOnTheFixture) {
+TEST(BeamRun, BothArmsStartAndStopEverySegmentTogetherAndPutTheBeamDownLevelOnTheFixture) {
   const Scenario s = load_scenario(kScenes + "/beam.yaml");
   const Preflight pre = preflight(s, &twin_port());
   ASSERT_TRUE(pre.ok()) << pre.problems.front();
@@ -52,6 +52,7 @@ TEST(BeamRun, BothArmsStartEverySegmentTogetherAndPutTheBeamDownLevelOnTheFixtur
     }
   }
   ASSERT_EQ(seg.size(), 10u);
+  const double period = s.options.control_period;
   for (const auto& [k, t] : seg) {
     ASSERT_EQ(t.start.size(), 2u) << "segment " << k;
     EXPECT_EQ(t.start.at("left"), t.start.at("right")) << "segment " << k;
@@ -59,9 +60,20 @@ TEST(BeamRun, BothArmsStartEverySegmentTogetherAndPutTheBeamDownLevelOnTheFixtur
     if (!t.duration.empty()) {
       EXPECT_EQ(t.duration.at("left"), t.duration.at("right")) << "segment " << k;
     }
-    // The trajectories end together; a command is done when its arm has settled, which the load of the beam on the
-    // arms can delay by a few periods on one of them (measured: at most 0.09 s, in the carry to above the fixture).
-    EXPECT_LE(std::abs(t.end.at("left") - t.end.at("right")), 0.15) << "segment " << k;
+    // ... and stops on both within one control period (the issue's stop skew): the trajectories end at the same
+    // physics step, and a timed move is done once its arm is at rest where its servo holds it under the beam's load.
+    EXPECT_LE(std::abs(t.end.at("left") - t.end.at("right")), period + 1e-9) << "segment " << k;
+  }
+  // The report says the same: ten segments, their largest start and end skews.
+  const Report report = run.report();
+  ASSERT_EQ(report.segments.size(), 10u);
+  ASSERT_TRUE(report.max_start_skew && report.max_end_skew);
+  EXPECT_EQ(*report.max_start_skew, 0.0);
+  EXPECT_LE(*report.max_end_skew, period + 1e-9);
+  for (const SegmentTiming& g : report.segments) {
+    EXPECT_EQ(g.block, "carry");
+    EXPECT_EQ(g.master, "left");
+    EXPECT_EQ(g.start_skew, std::abs(seg.at(g.index).start.at("left") - seg.at(g.index).start.at("right")));
   }
   // Every move of the block is timed: 7 moves, 3 grips.
   int timed = 0;

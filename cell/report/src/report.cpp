@@ -5,12 +5,14 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <istream>
 #include <map>
 #include <set>
 #include <system_error>
+#include <tuple>
 
 #include "cellwright/task/to_net.hpp"
 
@@ -807,6 +809,7 @@ class ReportBuilder {
     for (const auto& [t, last] : placed_) {
       if (last) r.placed_at.push_back(t);
     }
+    coordination(r);
     if (r.placed_at.size() >= 3) {
       const double span = r.placed_at.back() - r.placed_at[1];
       const auto parts = static_cast<double>(r.placed_at.size() - 2);
@@ -830,6 +833,7 @@ class ReportBuilder {
     const auto& prims = s_.program.programs[static_cast<std::size_t>(it - s_.program.robots.begin())].primitives;
     const std::size_t k = primitive_of(primitive, runtime::type_of(le.event), robot, prims.size(), file_, le.line);
     const task::Primitive& p = prims[k];
+    if (p.segment) segment_event(robot, *p.segment, task::to_string(p), start, t);
     if (start) {
       if (p.task.starts_with("Pick ")) pick_start_.try_emplace(p.task.substr(5), t);
       return;
@@ -877,6 +881,50 @@ class ReportBuilder {
     }
   }
 
+  // A command event of a coordinated segment: the n-th start of (block, index) by `robot` opens its n-th run; an end
+  // closes that robot's latest run of it.
+  void segment_event(const std::string& robot, const task::Segment& seg, std::string command, bool start, double t) {
+    const bool master = robot == seg.master;
+    std::size_t& started = segment_runs_[{robot, seg.block, seg.index}];
+    if (start) {
+      const auto key = std::tuple{seg.block, seg.index, started++};
+      auto [it, fresh] = segment_at_.try_emplace(key, segments_.size());
+      if (fresh) {
+        SegmentTiming s;
+        s.block = seg.block;
+        s.index = seg.index;
+        s.run = std::get<2>(key);
+        s.master = seg.master;
+        s.follower = seg.follower;
+        segments_.push_back({std::move(s), {false, false}});
+      }
+      auto& [timing, seen] = segments_[it->second];
+      (master ? timing.master_start : timing.follower_start) = t;
+      if (master) timing.command = std::move(command);
+      seen[master ? 0 : 1] = true;
+      return;
+    }
+    if (started == 0) return;
+    const auto it = segment_at_.find(std::tuple{seg.block, seg.index, started - 1});
+    if (it == segment_at_.end()) return;
+    SegmentTiming& timing = segments_[it->second].first;
+    (master ? timing.master_end : timing.follower_end) = t;
+  }
+
+  // The segments both robots started, with their skews (Report::segments).
+  void coordination(Report& r) {
+    for (auto& [s, seen] : segments_) {
+      if (!seen[0] || !seen[1]) continue;
+      s.start_skew = std::abs(s.master_start - s.follower_start);
+      if (s.master_end && s.follower_end) s.end_skew = std::abs(*s.master_end - *s.follower_end);
+      r.max_start_skew = std::max(r.max_start_skew.value_or(0.0), s.start_skew);
+      if (s.end_skew) r.max_end_skew = std::max(r.max_end_skew.value_or(0.0), *s.end_skew);
+      r.segments.push_back(std::move(s));
+    }
+    std::stable_sort(r.segments.begin(), r.segments.end(),
+                     [](const SegmentTiming& a, const SegmentTiming& b) { return a.master_start < b.master_start; });
+  }
+
   void account(Report& r, const std::vector<FinalPose>& finals, const std::map<std::string, double>& place_end);
 
   const Scenario& s_;
@@ -897,6 +945,10 @@ class ReportBuilder {
   std::map<std::string, std::size_t> placement_of_;
   std::map<std::pair<std::string, std::size_t>, std::string> released_;  // (robot, Place's open) -> the part let go
   std::map<std::string, bool> placed_last_;  // by cell workpiece: a Place let it go after its last Pick gripped it
+  // Coordinated segments: each run (with which robots started it), by (block, index, run); starts per robot.
+  std::vector<std::pair<SegmentTiming, std::array<bool, 2>>> segments_;
+  std::map<std::tuple<std::string, int, std::size_t>, std::size_t> segment_at_;
+  std::map<std::tuple<std::string, std::string, int>, std::size_t> segment_runs_;  // (robot, block, index) -> starts
 };
 void ReportBuilder::account(Report& r, const std::vector<FinalPose>& finals,
                             const std::map<std::string, double>& place_end) {
@@ -1067,6 +1119,24 @@ json to_json(const Scenario& s, const Report& r) {
                {"delivered", r.parts_delivered},
                {"steady_throughput_parts_per_min", opt(r.steady_throughput)},
                {"steady_cycle_s", opt(r.steady_cycle)}};
+  if (!r.segments.empty()) {  // only a program with coordinated blocks: the other reports stay as they were
+    json segments = json::array();
+    for (const SegmentTiming& g : r.segments) {
+      segments.push_back({{"block", g.block},
+                          {"index", g.index},
+                          {"run", g.run},
+                          {"command", g.command},
+                          {"master", g.master},
+                          {"follower", g.follower},
+                          {"start", {round4(g.master_start), round4(g.follower_start)}},
+                          {"end", {opt(g.master_end), opt(g.follower_end)}},
+                          {"start_skew", round4(g.start_skew)},
+                          {"end_skew", opt(g.end_skew)}});
+    }
+    j["coordination"] = {{"segments", std::move(segments)},
+                         {"max_start_skew", opt(r.max_start_skew)},
+                         {"max_end_skew", opt(r.max_end_skew)}};
+  }
   json wps = json::array();
   for (const WorkpieceReport& w : r.workpieces) {
     json wj;
@@ -1257,6 +1327,10 @@ std::string format_summary(const Report& r) {
     out += fmt::format("parts placed {} (fed {}, delivered {}); steady state from the 2nd: {:.2f} parts/min, {:.2f} s "
                        "per part\n",
                        r.placed_at.size(), r.parts_fed, r.parts_delivered, *r.steady_throughput, *r.steady_cycle);
+  }
+  if (!r.segments.empty()) {
+    out += fmt::format("coordinated segments {}: start skew at most {}, end skew at most {}\n", r.segments.size(),
+                       seconds(r.max_start_skew), seconds(r.max_end_skew));
   }
   for (const RobotTimeline& t : r.timeline.robots) {
     out += fmt::format("  {} ({}): busy {:.2f} s, waiting {:.2f} s (for parts {:.2f} s), blocked {:.2f} s, idle {:.2f} s\n",

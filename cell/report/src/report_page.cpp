@@ -180,6 +180,30 @@ void cycle(std::string& out, const Report& r) {
   out += "</section>\n";
 }
 
+// Coordinated blocks (only for a program with them, so that the other pages stay as they were): per segment when
+// the master and the follower started and ended it, and the skews.
+void coordination(std::string& out, const Report& r) {
+  if (r.segments.empty()) return;
+  const auto ms = [](const std::optional<double>& t) {
+    return t ? fmt::format("{:.0f}&nbsp;ms", *t * 1000.0) : std::string("&ndash;");
+  };
+  out += "<section id=\"coordination\">\n<h2>Coordinated segments</h2>\n";
+  out += fmt::format("<p>Start skew at most <b>{}</b>, end skew at most <b>{}</b> (the two robots' command starts and "
+                     "ends).</p>\n",
+                     ms(r.max_start_skew), ms(r.max_end_skew));
+  out += "<table>\n<tr><th>segment</th><th>command</th><th class=\"num\">start (master, follower)</th>"
+         "<th class=\"num\">end (master, follower)</th><th class=\"num\">start skew</th>"
+         "<th class=\"num\">end skew</th></tr>\n";
+  for (const SegmentTiming& g : r.segments) {
+    out += fmt::format(
+        "<tr><td>{} {}{}</td><td>{}</td><td class=\"num\">{}, {}</td><td class=\"num\">{}, {}</td>"
+        "<td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
+        esc(g.block), g.index, g.run > 0 ? fmt::format(" (run {})", g.run + 1) : std::string(), esc(g.command), seconds(g.master_start), seconds(g.follower_start),
+        seconds(g.master_end), seconds(g.follower_end), ms(g.start_skew), ms(g.end_skew));
+  }
+  out += "</table>\n</section>\n";
+}
+
 std::string state_cell(const WorkpieceReport& w) {
   const bool good = w.status == PartStatus::kInPlace || (w.expected == kLostPlace && w.ok && *w.ok);
   std::string s = fmt::format("<span class=\"badge{}\">{}</span>",
@@ -429,6 +453,7 @@ std::string render_report_page(const Scenario& scenario, const Report& report, c
   header(out, scenario, report);
   verdict(out, report);
   cycle(out, report);
+  coordination(out, report);
   parts(out, scenario, report);
   robots(out, report);
   devices(out, report);

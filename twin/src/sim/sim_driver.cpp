@@ -501,7 +501,16 @@ bool SimDriver::check_head(Controller& c, std::chrono::nanoseconds now, const mj
   if (job.moves_arm) {
     const Eigen::VectorXd error = joints(data) - arm_goal_;
     const Eigen::VectorXd speed = joint_speeds(data);
-    arm_done = seconds(now - job.start) >= job.duration && error.cwiseAbs().maxCoeff() <= options_.joint_tolerance &&
+    Eigen::VectorXd off = error;
+    if (job.min_duration) {
+      // A timed move: what is left of the error once the servo's deflection under its external load (the constraint
+      // forces on the joint: a held workpiece, the other arm through it) is taken out.
+      for (std::size_t j = 0; j < ids_.actuator.size(); ++j) {
+        const double kp = model->actuator_gainprm[ids_.actuator[j] * mjNGAIN];
+        off[static_cast<Eigen::Index>(j)] -= data->qfrc_constraint[ids_.dof_adr[j]] / kp;
+      }
+    }
+    arm_done = seconds(now - job.start) >= job.duration && off.cwiseAbs().maxCoeff() <= options_.joint_tolerance &&
                speed.cwiseAbs().maxCoeff() <= options_.settle_speed;
     if (!arm_done && now >= job.deadline) {
       finish_head(c, head, ErrorCode::timeout,

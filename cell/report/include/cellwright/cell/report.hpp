@@ -301,6 +301,20 @@ struct Detection {
   std::string truth;
 };
 
+// One segment of a coordinated block as the two robots ran it (docs/task-language.md, "Coordinated motion"): when
+// each started its command (command_start) and ended it (command_end), and the skews between them.
+struct SegmentTiming {
+  std::string block;       // the coordinated block's name
+  int index = 0;           // 1-based, in the block's order
+  std::size_t run = 0;     // which execution of the segment (0 the first; a block in a loop runs again)
+  std::string command;     // the master's primitive as written ("move above(FIX)")
+  std::string master, follower;  // program labels
+  double master_start = 0, follower_start = 0;
+  std::optional<double> master_end, follower_end;  // nullopt when a command did not end (the run stopped)
+  double start_skew = 0;                           // s: |master_start - follower_start|
+  std::optional<double> end_skew;                  // s: |master_end - follower_end| when both ended
+};
+
 struct Report {
   RunSetup setup;                   // what the run used
   std::string outcome = "timeout";  // run_end's outcome: "finished", "failed", "timeout", "stopped"; "unfinished"
@@ -339,6 +353,10 @@ struct Report {
   std::vector<Detection> unexplained;
   std::vector<Detection> false_alarms;
   std::vector<std::string> failures;    // why the run is not ok, one line each; empty when ok
+  // Coordinated blocks: every segment both robots started, in the order the master started them, and the largest
+  // skews over them (nullopt without segments; the end skew over the segments both robots ended).
+  std::vector<SegmentTiming> segments;
+  std::optional<double> max_start_skew, max_end_skew;
 
   // The run finished and every expected outcome holds (a lost part counts against it unless expected lost).
   bool ok() const { return failures.empty(); }

@@ -35,7 +35,14 @@
 //    max_waypoint_step apart in some joint: a singularity or a change of configuration on the line). The duration
 //    also keeps the tool within max_tool_speed * speed.
 //  - A timed move (MoveJoints/MovePose::duration; Capabilities::timed_motion; robot_driver.hpp TIMED MOVES) lasts
-//    its duration when that is longer than the time above: the same path, the quintic stretched. least_duration()
+//    its duration when that is longer than the time above: the same path, the quintic stretched. Its arm is done
+//    when the trajectory has ended, every joint is slower than settle_speed and within joint_tolerance of where the
+//    servo holds it under its external load: the goal plus the deflection the constraint forces on the joint (a held
+//    workpiece, a second arm holding it too) give against the servo's stiffness. Two arms carrying one workpiece in
+//    a coordinated segment pull each other a few milliradians off their goals, and how long that took to creep
+//    under joint_tolerance differed between them (by up to 90 ms); now both are done at their trajectories' end.
+//    (A blocked arm is then done once at rest against what blocks it: robot control's read-back check, its
+//    position_tolerance, tells the miss.) least_duration()
 //    plans the command from where the queue ends (as submit() would) and tells the time above (for a Grip, the
 //    fingers' ramp from their current goal; other commands: nullopt).
 //  - Grip: the finger targets move at finger_speed towards the goal (open: fully open, or `width`; close: fully

@@ -655,6 +655,25 @@ TEST_F(ScenarioRecovery, ATreeFileAndTheWatchdogTimesAreRead) {
   EXPECT_FALSE(off.recovery.enabled);
 }
 
+TEST_F(ScenarioRecovery, TheCarryLimitsOfTheSafetyLayerAreReadWithDefaults) {
+  const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
+  const Scenario plain = load_scenario(scenario(head));
+  EXPECT_DOUBLE_EQ(plain.safety.carry_error, runtime::SafetyOptions{}.carry_error);
+  EXPECT_DOUBLE_EQ(plain.safety.squeeze_force, runtime::SafetyOptions{}.squeeze_force);
+  const Scenario s =
+      load_scenario(scenario(head + "safety: {carry_error: 0.004, carry_turn: 1.5, squeeze_force: 25}\n"));
+  EXPECT_DOUBLE_EQ(s.safety.carry_error, 0.004);
+  EXPECT_NEAR(s.safety.carry_turn, 1.5 * M_PI / 180.0, 1e-12);
+  EXPECT_DOUBLE_EQ(s.safety.squeeze_force, 25.0);
+  EXPECT_DOUBLE_EQ(s.safety.force_limit, runtime::SafetyOptions{}.force_limit);  // the rest as they were
+  expect_error(scenario(head + "safety:\n  squeeze_force: -5\n"), 6,
+               "field 'squeeze_force' of field 'safety' must be greater than 0 and at most 10000 N, got -5");
+  expect_error(scenario(head + "safety:\n  carry_error: 2\n"), 6,
+               "field 'carry_error' of field 'safety' must be greater than 0 and at most 0.5 m, got 2");
+  expect_error(scenario(head + "safety: {carry_turn: 0}\n"), 5, "must be greater than 0 and at most 90 degrees");
+  expect_error(scenario(head + "safety: {squeeze: 5}\n"), 5, "unknown field 'squeeze'");
+}
+
 TEST_F(ScenarioRecovery, BadRecoverySettingsNameTheFieldOrTheTreeFile) {
   const std::string head = "robots: {r1: puma, r2: melfa}\nbind: {B: output_drop}\n";
   expect_error(scenario(head + "recovery: {tree: t.yaml, retries: 2}\n"), 5, "unknown field 'retries'");

@@ -740,6 +740,34 @@ class ReportBuilder {
  public:
   ReportBuilder(const Scenario& s, std::string file) : s_(s), file_(std::move(file)), timeline_(s.program, file_) {}
 
+  // One sample of a coordinated carry: added to the carry under way of that workpiece and those robots, or begins
+  // one.
+  void carry(double t, const ev::Carry& c) {
+    CarryReport* open = nullptr;
+    for (CarryReport& k : r_.carries) {
+      if (k.workpiece == c.workpiece && k.a == c.a && k.b == c.b && t - k.end <= 0.05 + 1e-9) open = &k;
+    }
+    if (open == nullptr) {
+      r_.carries.push_back({c.workpiece, c.a, c.b, t, t, 0, c.squeeze, t, c.error, t, c.turn, c.tilt, t});
+      open = &r_.carries.back();
+    }
+    open->end = t;
+    ++open->samples;
+    if (std::abs(c.squeeze) > std::abs(open->peak_squeeze)) {
+      open->peak_squeeze = c.squeeze;
+      open->peak_squeeze_t = t;
+    }
+    if (c.error > open->max_error) {
+      open->max_error = c.error;
+      open->max_error_t = t;
+    }
+    open->max_turn = std::max(open->max_turn, c.turn);
+    if (c.tilt > open->max_tilt) {
+      open->max_tilt = c.tilt;
+      open->max_tilt_t = t;
+    }
+  }
+
   void add(const LoggedEvent& le) {
     timeline_.add(le);
     const runtime::LogEvent& e = le.event;
@@ -759,6 +787,8 @@ class ReportBuilder {
       last_fire_ = t;
     } else if (const auto* c = std::get_if<ev::Collision>(&e)) {
       r_.collisions.push_back({t, c->a, c->b, c->depth});
+    } else if (const auto* sample = std::get_if<ev::Carry>(&e)) {
+      carry(t, *sample);
     } else if (const auto* arrived = std::get_if<ev::WorkpieceArrived>(&e)) {
       const std::string w = cell_workpiece(s_, arrived->workpiece);
       arrived_.insert(w);
@@ -1199,6 +1229,18 @@ json to_json(const Scenario& s, const Report& r) {
     collisions.push_back({{"t", round4(c.t)}, {"a", c.a}, {"b", c.b}, {"depth", c.depth}});
   }
   j["collisions"] = std::move(collisions);
+  // Written only for a run with coordinated carries.
+  if (!r.carries.empty()) {
+    json carries = json::array();
+    for (const CarryReport& c : r.carries) {
+      carries.push_back({{"workpiece", c.workpiece}, {"a", c.a}, {"b", c.b}, {"start", round4(c.start)},
+                         {"end", round4(c.end)}, {"samples", c.samples}, {"peak_squeeze", c.peak_squeeze},
+                         {"peak_squeeze_t", round4(c.peak_squeeze_t)}, {"max_error", c.max_error},
+                         {"max_error_t", round4(c.max_error_t)}, {"max_turn", c.max_turn}, {"max_tilt", c.max_tilt},
+                         {"max_tilt_t", round4(c.max_tilt_t)}});
+    }
+    j["carries"] = std::move(carries);
+  }
 
   json account = json::array();
   for (const WorkpieceReport& w : r.workpieces) {
@@ -1359,6 +1401,15 @@ std::string format_summary(const Report& r) {
     }
     if (w.unaccounted) line += ": UNACCOUNTED";
     out += line + believed + "\n";
+  }
+  for (const CarryReport& c : r.carries) {
+    out += fmt::format(
+        "  carry of {} by {} and {}, t = {:.2f} .. {:.2f} s ({} periods): peak squeeze {:.1f} N {} (t = {:.2f} s), "
+        "relative tool error up to {:.1f} mm (t = {:.2f} s) and {:.2f} degrees, tilt up to {:.2f} degrees (t = {:.2f} "
+        "s)\n",
+        c.workpiece, c.a, c.b, c.start, c.end, c.samples, std::abs(c.peak_squeeze),
+        c.peak_squeeze >= 0 ? "pushing" : "pulling", c.peak_squeeze_t, c.max_error, c.max_error_t, c.max_turn,
+        c.max_tilt, c.max_tilt_t);
   }
   out += fmt::format("collisions: {}\n", r.collisions.size());
   for (const auto& c : r.collisions) out += fmt::format("  t = {:.3f} s: {} - {} ({:.4f} m)\n", c.t, c.a, c.b, c.depth);

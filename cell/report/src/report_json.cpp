@@ -340,6 +340,15 @@ Report from_json(const json& j, const std::string& file) {
   for (const Fields& c : f.objects("collisions")) {
     r.collisions.push_back({c.number("t"), c.str("a"), c.str("b"), c.number("depth")});
   }
+  // Written only for a run with coordinated carries; absent: none.
+  if (j.contains("carries")) {
+    for (const Fields& c : f.objects("carries")) {
+      r.carries.push_back({c.str("workpiece"), c.str("a"), c.str("b"), c.number("start"), c.number("end"),
+                           c.count("samples"), c.number("peak_squeeze"), c.number("peak_squeeze_t"),
+                           c.number("max_error"), c.number("max_error_t"), c.number("max_turn"), c.number("max_tilt"),
+                           c.number("max_tilt_t")});
+    }
+  }
   r.stopped_at = f.opt_number("stopped_at");
   for (const Fields& x : f.objects("faults")) r.faults.push_back(fault(x));
   for (const Fields& d : f.objects("unexplained_faults")) r.unexplained.push_back(detection(d));

@@ -363,6 +363,28 @@ void collisions(std::string& out, const Report& r) {
   out += "</table>\n</section>\n";
 }
 
+// The coordinated carries as the twin measured them; no section in a run without one.
+void carries(std::string& out, const Report& r) {
+  if (r.carries.empty()) return;
+  out += fmt::format("<section id=\"carries\">\n<h2>Coordinated carries ({})</h2>\n", r.carries.size());
+  out += "<p class=\"small\">Measured by the twin every control period while both hands hold the part: the internal "
+         "(squeeze) force along it from the two wrist force sensors (&gt; 0 pushing the ends together), the relative "
+         "tool error (the second robot's tool against the grasp transform taken when both held it) and the part's "
+         "tilt from horizontal.</p>\n";
+  out += "<table>\n<tr><th>part</th><th>robots</th><th class=\"num\">from</th><th class=\"num\">to</th>"
+         "<th class=\"num\">peak squeeze</th><th class=\"num\">relative tool error</th><th class=\"num\">turn</th>"
+         "<th class=\"num\">tilt</th></tr>\n";
+  for (const CarryReport& c : r.carries) {
+    out += fmt::format(
+        "<tr><td>{}</td><td>{}, {}</td><td class=\"num\">{:.2f}&nbsp;s</td><td class=\"num\">{:.2f}&nbsp;s</td>"
+        "<td class=\"num\">{:.1f}&nbsp;N at {:.2f}&nbsp;s</td><td class=\"num\">{:.1f}&nbsp;mm at {:.2f}&nbsp;s</td>"
+        "<td class=\"num\">{:.2f}&deg;</td><td class=\"num\">{:.2f}&deg; at {:.2f}&nbsp;s</td></tr>\n",
+        esc(c.workpiece), esc(c.a), esc(c.b), c.start, c.end, c.peak_squeeze, c.peak_squeeze_t, c.max_error,
+        c.max_error_t, c.max_turn, c.max_tilt, c.max_tilt_t);
+  }
+  out += "</table>\n</section>\n";
+}
+
 void faults(std::string& out, const Report& r) {
   out += fmt::format("<section id=\"faults\">\n<h2>Faults ({} injected, {} unexplained, {} false alarms)</h2>\n",
                      r.faults.size(), r.unexplained.size(), r.false_alarms.size());
@@ -457,6 +479,7 @@ std::string render_report_page(const Scenario& scenario, const Report& report, c
   parts(out, scenario, report);
   robots(out, report);
   devices(out, report);
+  carries(out, report);
   collisions(out, report);
   faults(out, report);
   std::string gantt_caption =

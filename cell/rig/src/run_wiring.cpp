@@ -39,6 +39,7 @@ runtime::RunConfig scenario_run_config(const Scenario& s, const petri::Net& net)
       std::chrono::duration<double>(s.limits.wall_time));
   config.motion.targets.handover_clearance = s.options.handover_clearance;
   config.motion.recovery = s.recovery;
+  config.motion.safety = s.safety;
   return config;
 }
 

@@ -425,7 +425,8 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
   if (!root.IsDefined() || root.IsNull()) throw InputError({doc.file(), 1, 0}, "the scenario file is empty");
   const Fields f(doc, root, "the scenario",
                  {"cell", "program", "seed", "locations", "drivers", "devices", "robots", "bind", "feed", "limits",
-                  "expect", "tolerance", "options", "perception", "vision", "perturb", "faults", "recovery"});
+                  "expect", "tolerance", "options", "perception", "vision", "perturb", "faults", "recovery",
+                  "safety"});
   const std::filesystem::path dir = source.parent_path();
 
   Scenario s;
@@ -720,6 +721,16 @@ Scenario parse_scenario(std::string_view yaml_text, const std::filesystem::path&
       s.recovery_file = resolve(dir, tree);
       s.recovery.tree = std::make_shared<const runtime::DecisionTree>(runtime::DecisionTree::load(s.recovery_file));
     }
+  }
+  if (f.has("safety")) {
+    // The limits of a coordinated carry (docs/runtime.md, "Coordinated blocks"): {carry_error (m), carry_turn
+    // (degrees), squeeze_force (N)}.
+    const Fields sf(doc, f.node("safety"), "field 'safety'", {"carry_error", "carry_turn", "squeeze_force"});
+    s.safety.carry_error = sf.within_or("carry_error", s.safety.carry_error, Range{0, 0.5, true, "m"});
+    s.safety.carry_turn =
+        sf.within_or("carry_turn", s.safety.carry_turn * 180.0 / std::numbers::pi, Range{0, 90, true, "degrees"}) *
+        std::numbers::pi / 180.0;
+    s.safety.squeeze_force = sf.within_or("squeeze_force", s.safety.squeeze_force, Range{0, 10000, true, "N"});
   }
   if (f.has("perturb")) {
     const Fields pf(doc, f.node("perturb"), "field 'perturb'", {"workpieces", "offset", "yaw"});

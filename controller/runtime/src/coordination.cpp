@@ -34,4 +34,40 @@ void Coordination::taken(const std::string& block, std::uint64_t n, bool master)
   if (it->second.taken[0] && it->second.taken[1]) entries_.erase(it);
 }
 
+void Coordination::set_grasp(const std::string& block, const Eigen::Isometry3d& grasp) {
+  std::lock_guard lock(m_);
+  carries_[block].grasp = grasp;
+}
+
+std::optional<Eigen::Isometry3d> Coordination::grasp(const std::string& block) const {
+  std::lock_guard lock(m_);
+  const auto it = carries_.find(block);
+  return it == carries_.end() ? std::nullopt : it->second.grasp;
+}
+
+bool Coordination::claim_watch(const std::string& block, SimDuration now) {
+  std::lock_guard lock(m_);
+  CarryWatch& w = carries_[block];
+  if (w.watched && *w.watched >= now) return false;
+  w.watched = now;
+  return true;
+}
+
+void Coordination::stop(const std::string& block, const std::string& reason) {
+  std::lock_guard lock(m_);
+  stops_.emplace(block, reason);
+}
+
+std::optional<std::string> Coordination::stopped(const std::string& block) const {
+  std::lock_guard lock(m_);
+  const auto it = stops_.find(block);
+  if (it == stops_.end()) return std::nullopt;
+  return it->second;
+}
+
+void Coordination::forget_carry(const std::string& block) {
+  std::lock_guard lock(m_);
+  carries_.erase(block);
+}
+
 }  // namespace cellwright::runtime

@@ -215,6 +215,16 @@ void fields(F& f, E& e) {
   f("held", e.held);
   f("obstacles", e.obstacles);
 }
+template <class F, Is<events::Carry> E>
+void fields(F& f, E& e) {
+  f("workpiece", e.workpiece);
+  f("a", e.a);
+  f("b", e.b);
+  f("squeeze", fixed(e.squeeze, 2));
+  f("error", fixed(e.error, 2));
+  f("turn", fixed(e.turn, 3));
+  f("tilt", fixed(e.tilt, 3));
+}
 template <class F, Is<events::RunEnd> E>
 void fields(F& f, E& e) {
   f("outcome", e.outcome);

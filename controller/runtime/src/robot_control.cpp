@@ -432,7 +432,10 @@ bool RobotControl::submit_current(SimDuration now) {
   if (p.segment && !current_->step) {
     const bool master = p.segment->master == label_;
     coordination_->taken(p.segment->block, segments_submitted_[p.segment->block]++, master);
-    if (p.segment->index == p.segment->count) carry_.erase(p.segment->block);  // the block's last segment
+    if (p.segment->index == p.segment->count) {  // the block's last segment
+      carry_.erase(p.segment->block);
+      coordination_->forget_carry(p.segment->block);
+    }
   }
   current_->id = s.id;
   current_->submitted_at = now;
@@ -486,6 +489,13 @@ std::optional<drivers::Command> RobotControl::segment_command(SimDuration now) {
     return std::nullopt;
   }
   const std::uint64_t n = segments_submitted_[seg.block];
+  {
+    Carry& carry = carry_[seg.block];
+    carry.master = seg.master;
+    carry.follower = seg.follower;
+    carry.master_cell = names_.robots.at(seg.master);
+    carry.follower_cell = names_.robots.at(seg.follower);
+  }
   const drivers::Capabilities& caps = driver_.capabilities();
   if (!current_->prepared) {
     drivers::Command cmd;
@@ -626,6 +636,7 @@ MotionTarget RobotControl::segment_target(const task::Target& target, const task
           return out;
         }
         carry.grasp = lead->tcp->inverse() * tcp;
+        coordination_->set_grasp(seg.block, *carry.grasp);  // for the carry's safety watch
       }
       return one(*master_target * *carry.grasp, "following the master");
     }
@@ -921,6 +932,10 @@ void RobotControl::start_next(SimDuration now) {
 
 void RobotControl::step(SimDuration now) {
   if (phase_ == RobotPhase::kFailed) return;
+  if (options_.safety.enabled && phase_ != RobotPhase::kBringUp) {
+    watch_carry(now);
+    if (phase_ == RobotPhase::kFailed) return;
+  }
   collect_position(now);
   if (phase_ == RobotPhase::kFailed) return;
   track_held_part();
@@ -1573,6 +1588,7 @@ void RobotControl::stop_cell(SimDuration now, const std::string& reason) {
 void RobotControl::watch_grip(SimDuration now) {
   if (!current_ || current_->step || current_->id == 0 || recovery_) return;
   if (active().kind != task::PrimitiveKind::kMove) return;  // a grip changes what is between the fingers
+  if (active().segment && options_.safety.enabled) return;    // a coordinated carry: watch_carry watches both ends
   struct Seen {
     std::optional<Hold> hold;
     std::optional<GripReading> between;
@@ -1702,6 +1718,15 @@ void RobotControl::watch_safety(SimDuration now) {
     const std::vector<double>& to = protective_ ? protective_goal_ : goal;
     return check_safety(m, cell_, chain_, r->joints, to, options_.safety);
   });
+  if (v.stop && !protective_ && coordination_ != nullptr) {
+    for (const auto& [block, carry] : carry_) {
+      if (carry.master.empty()) continue;
+      // A robot of a coordinated block stopped for its own reason stops its partner too (watch_carry).
+      const std::string why = fmt::format("{} ({}) stopped by the safety layer: {}", label_, cell_, v.reason);
+      coordination_->stop(block, why);
+      return stop_carry(now, block, why, "protective_stop", v.obstacle ? "obstacle" : "safety_stop", true);
+    }
+  }
   if (v.stop && !protective_) {
     protective_ = true;
     protective_goal_ = goal;
@@ -1731,6 +1756,79 @@ void RobotControl::watch_safety(SimDuration now) {
   protective_ = false;
   log_.protective_release(now, label_);
   if (driver_.state() == drivers::DriverState::stopped) (void)driver_.activate();
+}
+
+void RobotControl::watch_carry(SimDuration now) {
+  if (coordination_ == nullptr) return;
+  for (auto& [block, carry] : carry_) {
+    if (carry.master.empty()) continue;
+    if (const std::optional<std::string> why = coordination_->stopped(block)) {
+      return stop_carry(now, block, *why, "", "", false);
+    }
+    if (!coordination_->claim_watch(block, now)) continue;
+    struct Seen {
+      std::string workpiece;  // "" unless both hold the same workpiece
+      CarryHand hands[2];
+      std::optional<GripReading> grips[2];
+    };
+    const Seen seen = env_.read([&](const EnvironmentModel& m) {
+      Seen s;
+      const RobotState* r[2] = {m.find_robot(carry.master_cell), m.find_robot(carry.follower_cell)};
+      if (r[0] == nullptr || r[1] == nullptr || !r[0]->hold || !r[1]->hold ||
+          r[0]->hold->workpiece != r[1]->hold->workpiece) {
+        return s;
+      }
+      s.workpiece = r[0]->hold->workpiece;
+      for (int i = 0; i < 2; ++i) {
+        s.hands[i].tcp = r[i]->tcp;
+        s.hands[i].force = r[i]->wrist_force;
+        s.grips[i] = r[i]->grip;
+      }
+      return s;
+    });
+    if (seen.workpiece.empty()) {  // not carrying (yet, or any more)
+      carry.grip_missing[0] = carry.grip_missing[1] = 0;
+      carry.seen_at.reset();
+      continue;
+    }
+    CarryHand hands[2] = {seen.hands[0], seen.hands[1]};
+    hands[0].label = carry.master;
+    hands[0].cell = carry.master_cell;
+    hands[1].label = carry.follower;
+    hands[1].cell = carry.follower_cell;
+    // While this robot opens or closes (and so does its partner: the segment is common), what is between the fingers
+    // changes on purpose.
+    const bool gripping = current_ && active().kind != task::PrimitiveKind::kMove;
+    for (int i = 0; i < 2; ++i) {
+      const bool missing = !gripping && seen.grips[i] && !seen.grips[i]->holds(seen.workpiece);
+      carry.grip_missing[i] = missing ? carry.grip_missing[i] + 1 : 0;
+      hands[i].grip_lost = carry.grip_missing[i] >= options_.recovery.grip_lost_periods;
+      if (!hands[i].tcp) continue;
+      const Eigen::Vector3d p = hands[i].tcp->translation();
+      if (carry.seen_at && now > *carry.seen_at) {
+        hands[i].velocity = (p - carry.seen[i]) / std::chrono::duration<double>(now - *carry.seen_at).count();
+      }
+      carry.seen[i] = p;
+    }
+    carry.seen_at = now;
+    const CarryVerdict v = check_carry(hands[0], hands[1], coordination_->grasp(block), seen.workpiece,
+                                       options_.safety);
+    if (!v.stop) continue;
+    coordination_->stop(block, v.reason);
+    return stop_carry(now, block, v.reason, v.symptom, v.cause, true);
+  }
+}
+
+void RobotControl::stop_carry(SimDuration now, const std::string& block, const std::string& reason,
+                              const std::string& symptom, const std::string& cause, bool detected) {
+  driver_.stop();
+  log_.protective_stop(now, label_, reason);
+  if (detected) {
+    ++symptoms_;
+    log_.fault_detected(now, label_, current_ ? static_cast<int>(current_->command.index) : -1, symptom, reason);
+    log_.diagnosis(now, label_, symptom, cause, "stop_cell", "coordinated_carry=yes");
+  }
+  stop_cell(now, fmt::format("coordinated block {}: both arms stopped: {}", block, reason));
 }
 
 void RobotControl::check_misplaced(SimDuration now, const task::Target& target) {

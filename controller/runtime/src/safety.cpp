@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace cellwright::runtime {
 
@@ -97,6 +98,60 @@ SafetyVerdict check_safety(const EnvironmentModel& model, const std::string& rob
       v.reason = fmt::format("robot {} {:.3f} m from the arm's way (limit {:.3f} m)", other.name, d,
                              options.robot_distance);
       return v;
+    }
+  }
+  return v;
+}
+
+CarryVerdict check_carry(const CarryHand& master, const CarryHand& follower,
+                         const std::optional<Eigen::Isometry3d>& grasp, const std::string& workpiece,
+                         const SafetyOptions& options) {
+  CarryVerdict v;
+  const auto name = [](const CarryHand& h) { return fmt::format("{} ({})", h.label, h.cell); };
+  for (const CarryHand* h : {&master, &follower}) {
+    if (!h->grip_lost) continue;
+    v.stop = true;
+    v.symptom = "grip_lost";
+    v.cause = "end_slipped";
+    v.reason = fmt::format("{}'s end of {} slipped: its grip sensor no longer has it", name(*h), workpiece);
+    return v;
+  }
+  if (master.tcp && follower.tcp && grasp) {
+    const Eigen::Isometry3d expected = *master.tcp * *grasp;
+    const Eigen::Isometry3d off = expected.inverse() * *follower.tcp;
+    v.error = off.translation().norm();
+    v.turn = Eigen::AngleAxisd(off.linear()).angle();
+    if (v.error > options.carry_error || v.turn > options.carry_turn) {
+      v.stop = true;
+      v.symptom = "protective_stop";
+      v.cause = "arm_lagging";
+      const Eigen::Vector3d ahead = follower.tcp->translation() - expected.translation();  // the follower's lead
+      const Eigen::Vector3d motion = master.velocity + follower.velocity;
+      std::string who;
+      if (motion.norm() > 1e-3 && std::abs(ahead.dot(motion.normalized())) > 0.5 * v.error) {
+        who = ahead.dot(motion) < 0 ? fmt::format("{} lags {}", name(follower), name(master))
+                                    : fmt::format("{} lags {}", name(master), name(follower));
+      } else {
+        who = fmt::format("{} is off its place next to {}", name(follower), name(master));
+      }
+      v.reason = fmt::format("{} carrying {}: relative tool error {:.1f} mm, {:.2f} degrees (limits {:.1f} mm, {:.2f} degrees)",
+                             who, workpiece, v.error * 1000.0, v.turn * 180.0 / std::numbers::pi, options.carry_error * 1000.0,
+                             options.carry_turn * 180.0 / std::numbers::pi);
+      return v;
+    }
+  }
+  if (master.tcp && follower.tcp && master.force && follower.force) {
+    const Eigen::Vector3d between = follower.tcp->translation() - master.tcp->translation();
+    if (between.norm() > 1e-9) {
+      v.squeeze = (*master.force - *follower.force).dot(between.normalized()) / 2.0;
+      if (std::abs(*v.squeeze) > options.squeeze_force) {
+        v.stop = true;
+        v.symptom = "protective_stop";
+        v.cause = "squeeze_over_limit";
+        v.reason = fmt::format("{} and {} {} {}: internal force {:.2f} N over the limit of {} N", name(master),
+                               name(follower), *v.squeeze > 0 ? "squeeze" : "pull apart", workpiece,
+                               std::abs(*v.squeeze), options.squeeze_force);
+      }
     }
   }
   return v;

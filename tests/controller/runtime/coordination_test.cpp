@@ -46,6 +46,27 @@ TEST(Coordination, AgreesOnTheLongerLeastTimeOnlyAfterBothPostedAndTheNextTurn) 
   EXPECT_FALSE(board.master_post("carry", 0).has_value());  // forgotten once both took it
 }
 
+TEST(Coordination, TheCarryWatchIsClaimedOncePerPeriodAndAStopIsSeenByBoth) {
+  Coordination board;
+  EXPECT_FALSE(board.grasp("carry").has_value());
+  board.set_grasp("carry", Eigen::Isometry3d(Eigen::Translation3d(0.68, 0, 0)));
+  ASSERT_TRUE(board.grasp("carry").has_value());
+  EXPECT_DOUBLE_EQ(board.grasp("carry")->translation().x(), 0.68);
+  EXPECT_TRUE(board.claim_watch("carry", milliseconds(100)));    // the first robot of the period checks
+  EXPECT_FALSE(board.claim_watch("carry", milliseconds(100)));   // the second does not
+  EXPECT_TRUE(board.claim_watch("carry", milliseconds(110)));    // the next period anew
+  EXPECT_TRUE(board.claim_watch("other", milliseconds(110)));    // another block on its own
+  EXPECT_FALSE(board.stopped("carry").has_value());
+  board.stop("carry", "right lags left");
+  board.stop("carry", "a later reason");
+  ASSERT_TRUE(board.stopped("carry").has_value());
+  EXPECT_EQ(*board.stopped("carry"), "right lags left");  // the first reason stays
+  EXPECT_FALSE(board.stopped("other").has_value());
+  board.forget_carry("carry");
+  EXPECT_FALSE(board.grasp("carry").has_value());
+  EXPECT_TRUE(board.stopped("carry").has_value());  // a stop stays
+}
+
 // A scripted arm that times its moves: a move takes 1 ms per `ms_per_mrad` of its largest joint change (at least
 // 50 ticks), a grip 40 ticks; a timed move at least its duration.
 drivers::ScriptedDriverConfig timed_arm(const models::RobotSpec& spec, double ms_per_mrad) {

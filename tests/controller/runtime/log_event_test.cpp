@@ -125,9 +125,12 @@ LogEvent random_event(std::size_t index, Random& r) {
       for (int n = r.pick(0, 3); n > 0; --n) e.held.push_back({r.text(), r.text()});
       return e;
     }
-    case 19:
-      return ev::RunEnd{t, r.text(), r.text(), r.flag() ? std::numeric_limits<std::uint64_t>::max() : 12u};
+    case 19:  // squeeze either way; error, turn and tilt (mm, degrees) of any size
+      return ev::Carry{t, r.text(), r.text(), r.text(), r.length(50.0), r.length(20.0),
+                       r.length(5.0), r.length(90.0)};
     case 20:
+      return ev::RunEnd{t, r.text(), r.text(), r.flag() ? std::numeric_limits<std::uint64_t>::max() : 12u};
+    case 21:
       return ev::Device{t, r.text(), r.text(), r.text(), r.text()};
     default:
       ADD_FAILURE() << "no random event for alternative " << index;

@@ -248,5 +248,107 @@ TEST_F(SafetyTest, ARobotTheModelDoesNotKnowIsNotStopped) {
   EXPECT_FALSE(check_safety(model_, "kuka", puma_, home_, goal_, SafetyOptions{}).stop);
 }
 
+// ---- check_carry: a coordinated carry (two robots holding one beam) ----
+
+// The master's tool at the origin pointing down, the follower's 0.68 m along x (the grasp transform), both moving
+// along +y at 0.1 m/s.
+struct Carry {
+  CarryHand master, follower;
+  Eigen::Isometry3d grasp = Eigen::Isometry3d(Eigen::Translation3d(0.68, 0, 0));
+  Carry() {
+    master = {"left", "puma", Eigen::Isometry3d::Identity(), Eigen::Vector3d(0, 0, 20), false,
+              Eigen::Vector3d(0, 0.1, 0)};
+    follower = {"right", "melfa", grasp, Eigen::Vector3d(0, 0, 20), false, Eigen::Vector3d(0, 0.1, 0)};
+  }
+};
+
+TEST(CarrySafety, BothToolsOnTheGraspTransformWithNoInternalForcePass) {
+  const Carry c;
+  const CarryVerdict v = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
+  EXPECT_FALSE(v.stop) << v.reason;
+  EXPECT_NEAR(v.error, 0.0, 1e-12);
+  ASSERT_TRUE(v.squeeze.has_value());
+  EXPECT_NEAR(*v.squeeze, 0.0, 1e-12);  // the two weights are vertical: nothing along the beam
+}
+
+TEST(CarrySafety, AnEndTheGripSensorLostStopsNamingThatArm) {
+  Carry c;
+  c.follower.grip_lost = true;
+  const CarryVerdict v = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
+  EXPECT_TRUE(v.stop);
+  EXPECT_EQ(v.symptom, "grip_lost");
+  EXPECT_EQ(v.cause, "end_slipped");
+  EXPECT_THAT(v.reason, HasSubstr("right (melfa)'s end of beam slipped"));
+}
+
+TEST(CarrySafety, AFollowerBehindAlongTheMotionLags) {
+  Carry c;
+  c.follower.tcp->translation().y() -= 0.015;  // 15 mm behind, the pair moving along +y
+  const CarryVerdict v = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
+  EXPECT_TRUE(v.stop);
+  EXPECT_EQ(v.cause, "arm_lagging");
+  EXPECT_NEAR(v.error, 0.015, 1e-9);
+  EXPECT_THAT(v.reason, HasSubstr("right (melfa) lags left (puma)"));
+  EXPECT_THAT(v.reason, HasSubstr("relative tool error 15.0 mm"));
+  EXPECT_THAT(v.reason, HasSubstr("limits 10.0 mm"));
+}
+
+TEST(CarrySafety, AFollowerAheadMeansTheMasterLags) {
+  Carry c;
+  c.follower.tcp->translation().y() += 0.02;
+  const CarryVerdict v = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
+  EXPECT_TRUE(v.stop);
+  EXPECT_THAT(v.reason, HasSubstr("left (puma) lags right (melfa)"));
+}
+
+TEST(CarrySafety, AnErrorUnderTheLimitOrWithoutAGraspPasses) {
+  Carry c;
+  c.follower.tcp->translation().y() -= 0.008;
+  EXPECT_FALSE(check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{}).stop);
+  c.follower.tcp->translation().y() -= 0.1;
+  EXPECT_FALSE(check_carry(c.master, c.follower, std::nullopt, "beam", SafetyOptions{}).stop);  // not measured yet
+  SafetyOptions tight;
+  tight.carry_error = 0.005;
+  c.follower.tcp->translation().y() += 0.1;
+  EXPECT_TRUE(check_carry(c.master, c.follower, c.grasp, "beam", tight).stop);
+}
+
+TEST(CarrySafety, ATurnedFollowerToolIsARelativeError) {
+  Carry c;
+  c.follower.tcp->linear() = Eigen::AngleAxisd(0.07, Eigen::Vector3d::UnitZ()).toRotationMatrix();  // 4 degrees
+  const CarryVerdict v = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
+  EXPECT_TRUE(v.stop);
+  EXPECT_NEAR(v.turn, 0.07, 1e-9);
+  EXPECT_THAT(v.reason, HasSubstr("4.01 degrees"));
+}
+
+TEST(CarrySafety, TheInternalForceAlongTheBeamOverTheLimitStopsWithItsFigures) {
+  Carry c;
+  // The beam pushes the master's hand back (-x) and the follower's (+x), so the arms push them on (+x, -x): the hands
+  // push the ends together with 45 N, on top of the same extra 30 N sideways on both (carried, not internal).
+  c.master.force = Eigen::Vector3d(45, 30, 20);
+  c.follower.force = Eigen::Vector3d(-45, 30, 20);
+  const CarryVerdict v = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
+  EXPECT_TRUE(v.stop);
+  EXPECT_EQ(v.cause, "squeeze_over_limit");
+  ASSERT_TRUE(v.squeeze.has_value());
+  EXPECT_NEAR(*v.squeeze, 45.0, 1e-9);
+  EXPECT_THAT(v.reason, HasSubstr("squeeze beam: internal force 45.00 N over the limit of 40 N"));
+  // Pulling it apart is as bad.
+  std::swap(c.master.force, c.follower.force);
+  const CarryVerdict pull = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
+  EXPECT_TRUE(pull.stop);
+  EXPECT_NEAR(*pull.squeeze, -45.0, 1e-9);
+  EXPECT_THAT(pull.reason, HasSubstr("pull apart beam"));
+}
+
+TEST(CarrySafety, NoWristForceSensorsNoSqueezeCheck) {
+  Carry c;
+  c.master.force.reset();
+  const CarryVerdict v = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
+  EXPECT_FALSE(v.stop);
+  EXPECT_FALSE(v.squeeze.has_value());
+}
+
 }  // namespace
 }  // namespace cellwright::runtime

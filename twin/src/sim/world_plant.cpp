@@ -84,7 +84,23 @@ void WorldPlant::advance(runtime::SimDuration dt) {
   if (injector_) injector_->update();
   for (std::string& w : world_.drain_warnings()) warnings_.push_back(std::move(w));
   elapsed_ += dt;
-  sensors_.update(truth());
+  const WorldTruth w = world_.truth();
+  runtime::Truth now = truth_of(w);
+  if (log_ != nullptr) {
+    // A coordinated carry, measured every period while two hands hold one part (carry_meter.hpp).
+    std::vector<CarryHand> hands;
+    for (std::size_t r = 0; r < w.robots.size() && r < now.robots.size(); ++r) {
+      hands.push_back({now.robots[r].name, w.robots[r].tcp, now.robots[r].between_fingers.value_or(""),
+                       now.robots[r].wrist_force.value_or(Eigen::Vector3d::Zero())});
+    }
+    std::vector<CarryPart> parts;
+    for (const WorkpieceTruth& p : w.workpieces) {
+      const models::WorkpieceSpec* spec = world_.scene().cell().find_workpiece(p.name);
+      if (!p.parked && spec != nullptr) parts.push_back({p.name, p.pose, spec->size});
+    }
+    for (const runtime::events::Carry& c : carry_meter_.measure(elapsed_, hands, parts)) log_->log(c);
+  }
+  sensors_.update(std::move(now));
   // The injections of this period, logged by the plant itself on the simulation thread (fixed order in lock-step).
   {
     std::lock_guard lock(reported_mutex_);
@@ -101,7 +117,10 @@ void WorldPlant::advance(runtime::SimDuration dt) {
 }
 
 runtime::Truth WorldPlant::truth() const {
-  const WorldTruth w = world_.truth();
+  return truth_of(world_.truth());
+}
+
+runtime::Truth WorldPlant::truth_of(const WorldTruth& w) const {
   runtime::Truth t;
   t.time = w.time;
   std::vector<runtime::PartBox> boxes;  // what a gripper may hold: the parts in the cell

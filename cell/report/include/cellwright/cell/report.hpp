@@ -315,6 +315,24 @@ struct SegmentTiming {
   std::optional<double> end_skew;                  // s: |master_end - follower_end| when both ended
 };
 
+// A coordinated carry as the twin measured it (the `carry` events, docs/runtime.md "Coordinated blocks"): the
+// samples of one workpiece held by the same two robots, period after period (a gap of more than 0.05 s, or other
+// robots, begins another carry).
+struct CarryReport {
+  std::string workpiece;  // cell workpiece
+  std::string a, b;       // cell robots (the cell's order)
+  double start = 0, end = 0;  // s: the first and the last sample
+  std::size_t samples = 0;
+  double peak_squeeze = 0;    // N: the internal force of the largest magnitude (> 0 pushing, < 0 pulling)
+  double peak_squeeze_t = 0;  // s
+  double max_error = 0;       // mm: the largest relative tool error
+  double max_error_t = 0;     // s
+  double max_turn = 0;        // degrees: the largest relative turn
+  double max_tilt = 0;        // degrees: the largest tilt of the workpiece's long axis from horizontal
+  double max_tilt_t = 0;      // s
+  bool operator==(const CarryReport&) const = default;
+};
+
 struct Report {
   RunSetup setup;                   // what the run used
   std::string outcome = "timeout";  // run_end's outcome: "finished", "failed", "timeout", "stopped"; "unfinished"
@@ -346,6 +364,7 @@ struct Report {
     double depth = 0;
   };
   std::vector<CollisionEntry> collisions;
+  std::vector<CarryReport> carries;  // coordinated carries, in the order they began
   std::optional<double> stopped_at;  // s: the cell_stopped event (else run_end) of a run that ended "stopped"
   std::vector<FaultReport> faults;    // one per fault_injected event, in log order
   // fault_detected events not matched, with no fault_injected before them: a false alarm when the twin's truth shows

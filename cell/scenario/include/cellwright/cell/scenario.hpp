@@ -190,6 +190,9 @@ struct Scenario {
   // the scenario names a file) and the watchdogs' times.
   runtime::RecoveryOptions recovery;
   std::filesystem::path recovery_file;  // absolute; empty: the standard tree
+  // The safety layer (`safety:`): the limits of a coordinated carry (carry_error m, carry_turn degrees in the file,
+  // squeeze_force N); the rest as runtime::SafetyOptions has them.
+  runtime::SafetyOptions safety;
   // Faults to inject on purpose (`faults:`, and `twin run --fault`), in file order (docs/faults.md).
   std::vector<FaultSpec> faults;
 

@@ -10,6 +10,12 @@
 // Segments are keyed by the block's name and the occurrence: the n-th segment of that block the robot executes,
 // counted by each robot from 0 (both execute the same segments in the same order: the net enforces it).
 //
+// The carry's safety watch (docs/runtime.md, "Coordinated blocks"; RobotControl::watch_carry): while both robots
+// hold the workpiece, the first of the two to take its turn in a control period checks the pair for both
+// (claim_watch), from the grasp transform the follower measured (set_grasp) and what the controller senses of both;
+// a trip is recorded here (stop) and the other robot, seeing it (stopped) in its own turn, stops too: in lock-step
+// in the same period. forget_carry() clears a block's carry when its last segment is submitted.
+//
 // Threads: any robot-control thread; every call takes the board's own mutex, briefly. No call blocks or waits for the
 // other robot: a robot whose partner has not posted yet asks again on its next turn.
 #pragma once
@@ -47,7 +53,26 @@ class Coordination {
   // is forgotten.
   void taken(const std::string& block, std::uint64_t n, bool master);
 
+  // The follower's grasp transform of `block` (master tool -> follower tool, measured once both hold the workpiece);
+  // nullopt before.
+  void set_grasp(const std::string& block, const Eigen::Isometry3d& grasp);
+  std::optional<Eigen::Isometry3d> grasp(const std::string& block) const;
+  // True for the first call for `block` at time `now` (later times count anew): that robot checks the pair.
+  bool claim_watch(const std::string& block, SimDuration now);
+  // The carry of `block` must stop: `reason` says why (the first reason recorded stays).
+  void stop(const std::string& block, const std::string& reason);
+  // Why the carry of `block` was stopped; nullopt while it was not.
+  std::optional<std::string> stopped(const std::string& block) const;
+  // The block's carry is over: its grasp and watch are forgotten (a stop stays).
+  void forget_carry(const std::string& block);
+
  private:
+  struct CarryWatch {
+    std::optional<Eigen::Isometry3d> grasp;
+    std::optional<SimDuration> watched;  // the last period a robot claimed
+  };
+  std::map<std::string, CarryWatch> carries_;
+  std::map<std::string, std::string> stops_;
   struct Entry {
     std::optional<SegmentPost> posts[2];  // [0] master, [1] follower
     bool taken[2] = {false, false};

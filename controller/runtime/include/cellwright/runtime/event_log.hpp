@@ -37,9 +37,13 @@
 //                     their fingers), obstacles (how many objects the safety sensor sees): the plant's physical state,
 //                     logged by the simulation thread in the period after a fault_detected, so that a report can tell
 //                     a detection with nothing physically wrong (a false alarm) from a real fault
+//   carry             workpiece, a, b (cell robots), squeeze (N), error (mm), turn (degrees), tilt (degrees), 2 decimals
+//                     for N and mm, 3 for degrees: one period of a coordinated carry as the twin measures it, logged
+//                     by the plant every period while both hands hold the workpiece (docs/runtime.md, "Coordinated
+//                     blocks")
 //   run_end           outcome ("finished"|"failed"|"timeout"|"stopped"), reason, firings
-// Strings are JSON-escaped. Numbers other than "t", period, duration, depth, x/y/z and the vision event's are
-// integers.
+// Strings are JSON-escaped. Numbers other than "t", period, duration, depth, x/y/z, the vision event's and the carry
+// event's are integers.
 //
 // Typed observers: add_observer() registers a function that is handed each event as it is logged (the value, not
 // its line), e.g. RunConfig::event_observers. It is called on the thread that logs, under the log's lock, in log

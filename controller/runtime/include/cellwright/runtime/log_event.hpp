@@ -278,6 +278,21 @@ struct Physical {
   bool operator==(const Physical&) const = default;
 };
 
+// One control period of two robots holding one workpiece together (a coordinated carry, issue 27), as the twin
+// measures it (logged by the plant every period while both hands hold it; never read by the controller). `a` and `b`
+// in the cell's robot order.
+struct Carry {
+  static constexpr std::string_view kType = "carry";
+  SimDuration t{0};
+  std::string workpiece;  // cell workpiece
+  std::string a, b;       // cell robot names
+  double squeeze = 0;     // N, the internal force along the workpiece's axis: > 0 pushing the ends together
+  double error = 0;       // mm, how far b's tool is from where a's tool and the grasp transform put it
+  double turn = 0;        // degrees, the rotation between the two (the same comparison)
+  double tilt = 0;        // degrees, the workpiece's long axis from horizontal
+  bool operator==(const Carry&) const = default;
+};
+
 // The run ended.
 struct RunEnd {
   static constexpr std::string_view kType = "run_end";
@@ -310,7 +325,7 @@ using LogEvent = std::variant<events::RunStart, events::Fire, events::CommandSta
                               events::Collision, events::WorkpieceArrived, events::WorkpieceLeft, events::Vision,
                               events::FaultInjected, events::FaultDetected, events::Diagnosis, events::RecoveryEnd,
                               events::ProtectiveStop, events::ProtectiveRelease, events::WorkpieceLost, events::Skipped,
-                              events::CellStopped, events::Physical, events::RunEnd, events::Device>;
+                              events::CellStopped, events::Physical, events::Carry, events::RunEnd, events::Device>;
 
 // The event's time and its "type" ("run_start", ...).
 SimDuration time_of(const LogEvent& e);

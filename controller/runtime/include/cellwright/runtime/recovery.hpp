@@ -186,6 +186,10 @@ struct SafetyOptions {
   double robot_distance = 0.10;     // m: ... this close to another robot's tool or wrist, outside a hand-over
   double handover_zone = 0.30;      // m: both tools this close to the hand-over pose are in a hand-over
   double force_limit = 250.0;       // N: wrist force beyond this stops the robot
+  // A coordinated carry (two robots holding one workpiece; safety.hpp check_carry) stops both robots when ...
+  double carry_error = 0.01;        // m: ... the follower's tool is this far from where the master's and the grasp put it
+  double carry_turn = 0.0524;       // rad (3 degrees): ... or turned this much from it
+  double squeeze_force = 40.0;      // N: ... or the internal force along the workpiece is beyond this, pushing or pulling
   SimDuration clear_time = std::chrono::milliseconds(200);  // clear this long before the stop is released
 };
 

@@ -308,6 +308,15 @@ class RobotControl {
   // The watches run every period: grip (a held part lost or shifted) and the safety layer.
   void watch_grip(SimDuration now);
   void watch_safety(SimDuration now);
+  // The carry's safety watch (COORDINATED BLOCKS; safety.hpp check_carry): at the start of the turn, before this
+  // robot's read-back of the period is written (so that both tools are those of the same read-backs), the first robot
+  // of the pair to take its turn in a period checks the pair; a trip, or a stop the partner recorded, stops this
+  // robot (stop_carry).
+  void watch_carry(SimDuration now);
+  // Stops this robot for its carry of `block`: protective_stop, then (`detected`: this robot found it) fault_detected
+  // and diagnosis, then the cell stops. Both robots of the carry come here in the same period (lock-step).
+  void stop_carry(SimDuration now, const std::string& block, const std::string& reason, const std::string& symptom,
+                  const std::string& cause, bool detected);
   // After a move, with the robot standing still: a held part far from where the hold puts it is part_shifted.
   // A part no longer between the fingers is grip_lost; true when that interrupted the command.
   bool check_shift(SimDuration now);
@@ -370,6 +379,12 @@ class RobotControl {
   struct Carry {
     std::optional<Eigen::Isometry3d> grasp;
     double approach = 0.08;
+    // The pair (program labels, cell robots), and what watch_carry keeps between its checks: how many checks running
+    // each grip sensor has missed the workpiece, and the tools where the last check saw them.
+    std::string master, follower, master_cell, follower_cell;
+    int grip_missing[2] = {0, 0};
+    std::optional<SimDuration> seen_at;
+    Eigen::Vector3d seen[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   };
   std::map<std::string, Carry> carry_;
 

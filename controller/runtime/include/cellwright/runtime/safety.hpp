@@ -12,6 +12,13 @@
 //    robot whose motion closes the distance is stopped;
 //  - whose wrist force exceeds force_limit.
 //
+// check_carry() is the check of a coordinated carry (two robots holding one workpiece, docs/runtime.md "Coordinated
+// blocks"), made once per period for both robots (RobotControl::watch_carry) from what the controller senses: the
+// two tools' poses from the drivers' read-backs, the two wrist forces and grip readings from the sensor port. It
+// stops both robots when one end is no longer held, when the follower's tool is off the grasp transform by more than
+// SafetyOptions::carry_error / carry_turn (one arm lags), or when the internal force along the workpiece exceeds
+// squeeze_force.
+//
 // Threads: pure; any thread, on values it owns.
 #pragma once
 
@@ -40,6 +47,36 @@ std::vector<Eigen::Vector3d> watched_points(const models::KinematicChain& chain,
 
 // Distance from a point to an axis-aligned box (0 inside).
 double distance_to_box(const Eigen::Vector3d& p, const Eigen::Vector3d& centre, const Eigen::Vector3d& size);
+
+// One robot of a coordinated carry as the controller senses it.
+struct CarryHand {
+  std::string label, cell;                  // program label, cell robot
+  std::optional<Eigen::Isometry3d> tcp;     // its tool (world), from its read-back; nullopt: not known
+  // its wrist force sensor (N, world; the twin's reads the force the arm exerts on the hand and its load, upward
+  // against their weight); nullopt: no sensor
+  std::optional<Eigen::Vector3d> force;
+  bool grip_lost = false;                   // its grip sensor has missed the workpiece grip_lost_periods running
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  // m/s of its tool, from the last two read-backs
+};
+
+struct CarryVerdict {
+  bool stop = false;
+  std::string symptom;  // the fault_detected symptom: "grip_lost" (an end slipped), "protective_stop" (the rest)
+  std::string cause;    // "end_slipped", "arm_lagging", "squeeze_over_limit"
+  std::string reason;   // what and which arm, with the figures and the limit
+  double error = 0, turn = 0;  // m, rad: the follower's tool off the grasp transform (when both tools are known)
+  std::optional<double> squeeze;  // N, > 0 pushing the ends together (when both forces are known)
+};
+
+// The check of a carry of `workpiece` by `master` and `follower` with grasp transform `grasp` (master tool ->
+// follower tool), in this order: a lost end, the relative tool error (the lagging arm is the one behind along the
+// tools' common motion; with both standing still the follower is named off), the squeeze ((F_master - F_follower) .
+// u / 2, u the unit vector from the master's tool to the follower's: the part of the two wrist forces that cancels;
+// > 0 when the hands push the ends together: the workpiece pushes each hand back, each arm pushes on).
+// A grasp not known yet (nullopt: the follower measures it at the first move after both closed) skips the error.
+CarryVerdict check_carry(const CarryHand& master, const CarryHand& follower,
+                         const std::optional<Eigen::Isometry3d>& grasp, const std::string& workpiece,
+                         const SafetyOptions& options);
 
 // `robot` (cell name) is at `joints` and moving to `goal_joints` (empty: standing still).
 SafetyVerdict check_safety(const EnvironmentModel& model, const std::string& robot,

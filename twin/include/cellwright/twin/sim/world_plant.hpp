@@ -19,6 +19,9 @@
 //    reported, and the rig's own before the run), then the injector's. Without a log they wait for take_injected().
 //    truth() lists the obstacles in the cell and each robot's wrist force (the World's wrist force sensor, turned
 //    into the world frame).
+//  - A coordinated carry (two robots holding one part): with a log, every advance() logs a `carry` event per part
+//    two hands hold, measured by a CarryMeter (carry_meter.hpp) after the faults of the period, before the injections
+//    are logged.
 //  - sensors() are the twin's sensors for the runtime (runtime/sensors.hpp): each robot's grip sensor (between_fingers
 //    above, named), its wrist force sensor, the safety sensor (the obstacles) and the parts' truth, all as truth() has
 //    them at the end of the last advance().
@@ -38,6 +41,7 @@
 #include <vector>
 
 #include "cellwright/runtime/event_log.hpp"
+#include "cellwright/twin/sim/carry_meter.hpp"
 #include "cellwright/runtime/plant.hpp"
 #include "cellwright/runtime/sensors.hpp"
 #include "cellwright/twin/render.hpp"
@@ -115,6 +119,8 @@ class WorldPlant final : public runtime::Plant {
   std::vector<BeltExit> exits_;      // recycle_at(): the exit conveyors, their belts' frames fixed for the run
   std::vector<std::string> bodies_;  // recycle_at(): the fed bodies, in order of first arrival
   void take_out_delivered();
+  runtime::Truth truth_of(const WorldTruth& w) const;
+  CarryMeter carry_meter_;
   std::vector<std::string> warnings_;
   std::unique_ptr<Renderer> renderer_;  // made by capture() on the simulation thread
   std::unique_ptr<FaultInjector> injector_;  // nullptr without faults

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <set>
@@ -127,6 +128,10 @@ struct Span {
   std::vector<std::vector<Sphere>> spheres;
   std::vector<Eigen::AlignedBox3d> box;
   Eigen::AlignedBox3d all;
+  // Its geoms that contacts are counted on (of_span: the robot's collision geoms and its part's), and per sample where
+  // MuJoCo's kinematics put them (geom_xpos, geom_xmat, sample after sample): the contacts are found on these.
+  std::vector<int> touch;
+  std::vector<mjtNum> xpos, xmat;
 
   Eigen::VectorXd at(std::size_t i) const {
     if (samples <= 1) return to;
@@ -151,40 +156,51 @@ class Poser {
   Poser& operator=(const Poser&) = delete;
   ~Poser() { mj_deleteData(d_); }
 
-  const mjData* data() const { return d_; }
-
-  // Poses the spans' robots at their samples (everything else as at the start, parts parked), and computes the
-  // contacts when `collide`.
-  void pose(const std::vector<std::pair<const Span*, std::size_t>>& at, bool collide) {
+  // Poses the span's robot at sample i (everything else as at the start, parts parked, its part in its hand): MuJoCo's
+  // kinematics, no collision detection.
+  void pose(const Span& span, std::size_t i) {
     std::copy(baseline_.begin(), baseline_.end(), d_->qpos);
-    bool parts = false;
-    for (const auto& [span, i] : at) {
-      const RobotIds& r = scene_.robots()[static_cast<std::size_t>(span->scene_robot)];
-      const Eigen::VectorXd q = span->at(i);
-      for (std::size_t j = 0; j < r.qpos_adr.size(); ++j) d_->qpos[r.qpos_adr[j]] = q[static_cast<Eigen::Index>(j)];
-      for (int f = 0; f < 2; ++f) d_->qpos[r.finger_qpos_adr[static_cast<std::size_t>(f)]] = span->fingers;
-      parts = parts || span->part >= 0;
-    }
+    const RobotIds& r = scene_.robots()[static_cast<std::size_t>(span.scene_robot)];
+    const Eigen::VectorXd q = span.at(i);
+    for (std::size_t j = 0; j < r.qpos_adr.size(); ++j) d_->qpos[r.qpos_adr[j]] = q[static_cast<Eigen::Index>(j)];
+    for (int f = 0; f < 2; ++f) d_->qpos[r.finger_qpos_adr[static_cast<std::size_t>(f)]] = span.fingers;
     mj_kinematics(m_, d_);
-    if (parts) {
-      std::set<int> placed;
-      for (const auto& [span, i] : at) {
-        if (span->part < 0 || !placed.insert(span->part).second) continue;  // a part two hands hold: the first's
-        const RobotIds& r = scene_.robots()[static_cast<std::size_t>(span->scene_robot)];
-        Eigen::Isometry3d tcp = Eigen::Isometry3d::Identity();
-        tcp.translation() = Eigen::Map<const Eigen::Vector3d>(d_->site_xpos + 3 * r.tcp_site);
-        tcp.linear() = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(d_->site_xmat + 9 * r.tcp_site);
-        const Eigen::Isometry3d pose = tcp * span->grip;
-        const Eigen::Quaterniond q(pose.linear());
-        const int adr = scene_.workpieces()[static_cast<std::size_t>(span->part)].qpos_adr;
-        const double v[7] = {
-            pose.translation().x(), pose.translation().y(), pose.translation().z(), q.w(), q.x(), q.y(), q.z()};
-        std::copy(v, v + 7, d_->qpos + adr);
-      }
+    if (span.part >= 0) {
+      Eigen::Isometry3d tcp = Eigen::Isometry3d::Identity();
+      tcp.translation() = Eigen::Map<const Eigen::Vector3d>(d_->site_xpos + 3 * r.tcp_site);
+      tcp.linear() = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(d_->site_xmat + 9 * r.tcp_site);
+      const Eigen::Isometry3d pose = tcp * span.grip;
+      const Eigen::Quaterniond rot(pose.linear());
+      const int adr = scene_.workpieces()[static_cast<std::size_t>(span.part)].qpos_adr;
+      const double v[7] = {
+          pose.translation().x(), pose.translation().y(), pose.translation().z(), rot.w(), rot.x(), rot.y(), rot.z()};
+      std::copy(v, v + 7, d_->qpos + adr);
       mj_kinematics(m_, d_);
     }
-    if (collide) mj_collision(m_, d_);
   }
+
+  // Keeps where the last pose() put the span's `touch` geoms as its sample i.
+  void record(Span& span, std::size_t i) const {
+    const std::size_t n = span.touch.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      const int g = span.touch[k];
+      std::copy(d_->geom_xpos + 3 * g, d_->geom_xpos + 3 * g + 3, span.xpos.begin() + 3 * (i * n + k));
+      std::copy(d_->geom_xmat + 9 * g, d_->geom_xmat + 9 * g + 9, span.xmat.begin() + 9 * (i * n + k));
+    }
+  }
+
+  // Puts the span's `touch` geoms where its sample i had them, the other geoms staying where the last pose() left
+  // them (the static cell's never move): the data for the narrow phase (Contacts).
+  void place(const Span& span, std::size_t i) {
+    const std::size_t n = span.touch.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      const int g = span.touch[k];
+      std::copy_n(span.xpos.begin() + 3 * (i * n + k), 3, d_->geom_xpos + 3 * g);
+      std::copy_n(span.xmat.begin() + 9 * (i * n + k), 9, d_->geom_xmat + 9 * g);
+    }
+  }
+
+  mjData* data() { return d_; }
 
   Sphere sphere(int g) const { return {Eigen::Map<const Eigen::Vector3d>(d_->geom_xpos + 3 * g), m_->geom_rbound[g]}; }
   Eigen::Matrix3d rotation(int g) const {
@@ -203,18 +219,140 @@ bool of_span(const GeomInfo& g, const Span& sp) {
   return (g.owner == Owner::kRobot && g.index == sp.scene_robot) || (g.owner == Owner::kPart && g.index == sp.part);
 }
 
-// Calls f(mine, other, depth) for each contact of the posed scene deeper than `depth` with a side `mine` on `sp`.
+// Calls f(mine, other, depth) if the contact of geoms g1 and g2 at distance `dist` is deeper than `depth` and has a side
+// `mine` on `sp`.
 template <typename F>
-void each_deep_contact(const mjData* d, double depth, const std::vector<GeomInfo>& geoms, const Span& sp, F&& f) {
-  for (int c = 0; c < d->ncon; ++c) {
-    const mjContact& con = d->contact[c];
-    if (con.dist >= -depth) continue;
-    const GeomInfo* g1 = &geoms[static_cast<std::size_t>(con.geom1)];
-    const GeomInfo* g2 = &geoms[static_cast<std::size_t>(con.geom2)];
-    if (!of_span(*g1, sp)) std::swap(g1, g2);
-    if (of_span(*g1, sp)) f(*g1, *g2, -con.dist);
-  }
+void if_deep(int g1, int g2, mjtNum dist, double depth, const std::vector<GeomInfo>& geoms, const Span& sp, F&& f) {
+  if (dist >= -depth) return;
+  const GeomInfo* a = &geoms[static_cast<std::size_t>(g1)];
+  const GeomInfo* b = &geoms[static_cast<std::size_t>(g2)];
+  if (!of_span(*a, sp)) std::swap(a, b);
+  if (of_span(*a, sp)) f(*a, *b, -dist);
 }
+
+// MuJoCo's collision detection (mj_collision) on chosen pairs of geoms only: the pairs it would test (its filters that
+// depend on the model alone, made once: contype/conaffinity, same or parent weld body, <exclude>d body pairs, no
+// collision function), tested as mj_collideGeoms tests them (its bounding-sphere and plane filters, the pair's
+// collision function with the larger margin, box-box duplicates dropped), in the order mj_collision gives its
+// contacts (body pairs by id, then the lower body's geoms, then the higher's). The contacts of these pairs are
+// therefore mj_collision's, bit for bit (same geom poses, same functions, same order); what it is spared is every
+// other pair of the scene (the static cell against itself, the robots at home, the parked parts) and the broad phase.
+// Two differences, neither in a pose the shipped cells reach: mj_collision keeps at most the scene's nconmax
+// contacts in all (these pairs alone are never cut short), and its broad phase (boxes in float) might drop a pair
+// that only grazes, never one deeper than a sweep's depth.
+class Contacts {
+ public:
+  struct Pair {
+    int g1 = -1, g2 = -1;  // ordered by geom type, as mj_collideGeoms orders them
+    mjtNum margin = 0;
+    mjfCollision test = nullptr;
+    std::uint64_t order = 0;  // mj_collision's: body pair, then geom pair
+  };
+
+  explicit Contacts(const mjModel* m) : m_(m) {
+    CW_CHECK(m->npair == 0, "the sweep does not model explicit contact pairs (the scene has {})", m->npair);
+    enabled_ = !(m->opt.disableflags & (mjDSBL_CONSTRAINT | mjDSBL_CONTACT)) && m->nconmax > 0 && m->nbody >= 2 &&
+               m->opt.collision != mjCOL_PAIR;
+    excluded_.assign(m->exclude_signature, m->exclude_signature + m->nexclude);
+    std::sort(excluded_.begin(), excluded_.end());
+  }
+
+  // The pairs of a geom of `a` and a geom of `b` (distinct) that mj_collision tests, in its order.
+  std::vector<Pair> pairs(const std::vector<int>& a, const std::vector<int>& b) const {
+    std::vector<Pair> out;
+    if (!enabled_) return out;
+    const int* bodyid = m_->geom_bodyid;
+    for (int x : a) {
+      for (int y : b) {
+        if (x == y) continue;
+        int lo = x, hi = y;  // mj_collision's order: the geom of the lower body first
+        if (bodyid[lo] > bodyid[hi]) std::swap(lo, hi);
+        const int b1 = bodyid[lo], b2 = bodyid[hi];
+        if (b1 == b2) continue;  // one body: mj_collision never pairs it with itself
+        const int signature = ((b1 + 1) << 16) + (b2 + 1);
+        if (std::binary_search(excluded_.begin(), excluded_.end(), signature)) continue;
+        Pair p;
+        p.g1 = lo;
+        p.g2 = hi;
+        if (m_->geom_type[p.g1] > m_->geom_type[p.g2]) std::swap(p.g1, p.g2);
+        p.test = mjCOLLISIONFUNC[m_->geom_type[p.g1]][m_->geom_type[p.g2]];
+        if (p.test == nullptr) continue;
+        if (mjcb_contactfilter == nullptr && filtered(p.g1, p.g2)) continue;
+        p.margin = std::max(m_->geom_margin[p.g1], m_->geom_margin[p.g2]);
+        if (m_->opt.enableflags & mjENBL_OVERRIDE) p.margin = m_->opt.o_margin;
+        p.order = (static_cast<std::uint64_t>(signature) << 32) |
+                  (static_cast<std::uint64_t>(lo - m_->body_geomadr[b1]) << 16) |
+                  static_cast<std::uint64_t>(hi - m_->body_geomadr[b2]);
+        out.push_back(p);
+      }
+    }
+    std::sort(out.begin(), out.end(), [](const Pair& p, const Pair& q) { return p.order < q.order; });
+    out.erase(std::unique(out.begin(), out.end(), [](const Pair& p, const Pair& q) { return p.order == q.order; }),
+              out.end());
+    return out;
+  }
+
+  // Tests the pairs on `d`'s geom poses and calls f(geom1, geom2, dist) for each contact, in mj_collision's order.
+  template <typename F>
+  void collide(mjData* d, const std::vector<Pair>& pairs, F&& f) const {
+    mjContact con[mjMAXCONPAIR];
+    for (const Pair& p : pairs) {
+      const int g1 = p.g1, g2 = p.g2;
+      if (mjcb_contactfilter != nullptr && mjcb_contactfilter(m_, d, g1, g2)) continue;
+      const mjtNum r1 = m_->geom_rbound[g1], r2 = m_->geom_rbound[g2];
+      if (r1 > 0 && r2 > 0 && mju_dist3(d->geom_xpos + 3 * g1, d->geom_xpos + 3 * g2) > r1 + r2 + p.margin) continue;
+      if (m_->geom_type[g1] == mjGEOM_PLANE && r2 > 0 && above_plane(d, g1, g2) > p.margin + r2) continue;
+      if (m_->geom_type[g2] == mjGEOM_PLANE && r1 > 0 && above_plane(d, g2, g1) > p.margin + r1) continue;
+      int n = p.test(m_, d, con, g1, g2, p.margin);
+      CW_CHECK(n <= mjMAXCONPAIR, "{} contacts from one pair of geoms", n);
+      if (m_->geom_type[g1] == mjGEOM_BOX && m_->geom_type[g2] == mjGEOM_BOX) n = drop_repeated(con, n);
+      for (int c = 0; c < n; ++c) f(g1, g2, con[c].dist);
+    }
+  }
+
+ private:
+  // mj_contactFilter's tests, with its arguments as mj_collideGeoms gives them.
+  bool filtered(int g1, int g2) const {
+    const int w1 = m_->body_weldid[m_->geom_bodyid[g1]], w2 = m_->body_weldid[m_->geom_bodyid[g2]];
+    if (!(m_->geom_contype[g1] & m_->geom_conaffinity[g2]) && !(m_->geom_contype[g2] & m_->geom_conaffinity[g1])) {
+      return true;
+    }
+    if (w1 == w2) return true;
+    const bool parent = !(m_->opt.disableflags & mjDSBL_FILTERPARENT) && w1 != 0 && w2 != 0;
+    return parent && (w1 == m_->body_weldid[m_->body_parentid[w2]] || w2 == m_->body_weldid[m_->body_parentid[w1]]);
+  }
+  // How far geom g's centre is above plane geom `plane`, as mj_collideGeoms measures it.
+  static mjtNum above_plane(const mjData* d, int plane, int g) {
+    const mjtNum* mat = d->geom_xmat + 9 * plane;
+    const mjtNum normal[3] = {mat[2], mat[5], mat[8]};
+    mjtNum dif[3];
+    mju_sub3(dif, d->geom_xpos + 3 * g, d->geom_xpos + 3 * plane);
+    return mju_dot3(dif, normal);
+  }
+  // Box-box contacts at one point: the later kept, as mj_collideGeoms keeps them.
+  static int drop_repeated(mjContact* con, int n) {
+    bool bad[mjMAXCONPAIR] = {};
+    for (int i = 0; i + 1 < n; ++i) {
+      for (int j = i + 1; j < n; ++j) {
+        if (con[i].pos[0] == con[j].pos[0] && con[i].pos[1] == con[j].pos[1] && con[i].pos[2] == con[j].pos[2]) {
+          bad[i] = true;
+          break;
+        }
+      }
+    }
+    int kept = 0;
+    for (int j = 0; j < n; ++j) {
+      if (bad[j]) continue;
+      if (kept < j) con[kept] = con[j];
+      ++kept;
+    }
+    return kept;
+  }
+
+  const mjModel* m_;
+  bool enabled_ = true;
+  std::vector<int> excluded_;
+};
 
 struct MarkingHash {
   std::size_t operator()(const petri::Marking& m) const {
@@ -265,6 +403,39 @@ SweepReport sweep_motions(const Scene& scene, const Scenario& s, const petri::Ne
     std::vector<int> out = robot_geoms[static_cast<std::size_t>(sp.scene_robot)];
     if (sp.part >= 0) out.push_back(m->body_geomadr[scene.workpieces()[static_cast<std::size_t>(sp.part)].body]);
     return out;
+  };
+
+  // The pairs of geoms whose contacts count (MuJoCo's narrow phase on these only, Contacts), made once per robot and
+  // part carried: a span's against the static cell but its robot's pedestal, and two spans' against each other (with
+  // a part both hold left out: both grip it).
+  const Contacts contacts(m);
+  std::vector<int> fixed;
+  for (int g = 0; g < m->ngeom; ++g) {
+    if (geoms[static_cast<std::size_t>(g)].owner == Owner::kStatic) fixed.push_back(g);
+  }
+  std::map<std::pair<int, int>, std::vector<Contacts::Pair>> static_cache;
+  auto static_pairs = [&](const Span& sp) -> const std::vector<Contacts::Pair>& {
+    auto [it, made] = static_cache.try_emplace({sp.scene_robot, sp.part});
+    if (made) {
+      std::vector<int> others;
+      for (int g : fixed) {
+        if (geoms[static_cast<std::size_t>(g)].mount_of != sp.scene_robot) others.push_back(g);
+      }
+      it->second = contacts.pairs(sp.touch, others);
+    }
+    return it->second;
+  };
+  std::map<std::tuple<int, int, int, int>, std::vector<Contacts::Pair>> pair_cache;
+  auto pair_pairs = [&](const Span& sa, const Span& sb, bool shared) -> const std::vector<Contacts::Pair>& {
+    auto [it, made] = pair_cache.try_emplace({sa.scene_robot, sa.part, sb.scene_robot, sb.part});
+    if (made) {
+      auto gripped = [&](int g) { return shared && geoms[static_cast<std::size_t>(g)].owner == Owner::kPart; };
+      std::vector<int> x, y;
+      std::copy_if(sa.touch.begin(), sa.touch.end(), std::back_inserter(x), [&](int g) { return !gripped(g); });
+      std::copy_if(sb.touch.begin(), sb.touch.end(), std::back_inserter(y), [&](int g) { return !gripped(g); });
+      it->second = contacts.pairs(x, y);
+    }
+    return it->second;
   };
 
   // A contact of two bodies: the deepest pair names the collision, the others are listed.
@@ -372,17 +543,24 @@ SweepReport sweep_motions(const Scene& scene, const Scenario& s, const petri::Ne
         const double step = (sp.to - sp.from).cwiseAbs().maxCoeff();
         sp.samples = std::max<std::size_t>(2, static_cast<std::size_t>(std::ceil(step / 0.01)) + 1);
       }
+      sp.touch.clear();
+      for (int g = 0; g < m->ngeom; ++g) {
+        if (of_span(geoms[static_cast<std::size_t>(g)], sp)) sp.touch.push_back(g);
+      }
+      // Sample; refine the sampling until no point moves more than the resolution between two samples. Only the
+      // kinematics: the contacts are looked for on the samples kept.
       for (int attempt = 0;; ++attempt) {
         sp.spheres.assign(sp.samples, {});
         sp.box.assign(sp.samples, Eigen::AlignedBox3d());
         sp.all.setEmpty();
-        std::map<StaticKey, PredictedCollision> hits;
+        sp.xpos.assign(3 * sp.samples * sp.touch.size(), 0);
+        sp.xmat.assign(9 * sp.samples * sp.touch.size(), 0);
         double worst_step = 0;
         std::vector<Eigen::Vector3d> prev_c;
         std::vector<Eigen::Matrix3d> prev_r;
         for (std::size_t i = 0; i < sp.samples; ++i) {
-          poser.pose({{&sp, i}}, sweep_static);
-          if (sweep_static) ++report.pose_checks;
+          poser.pose(sp, i);
+          poser.record(sp, i);
           for (std::size_t gi = 0; gi < swept.size(); ++gi) {
             const Sphere sph = poser.sphere(swept[gi]);
             sp.spheres[i].push_back(sph);
@@ -400,33 +578,36 @@ SweepReport sweep_motions(const Scene& scene, const Scenario& s, const petri::Ne
             }
           }
           sp.all.extend(sp.box[i]);
-          if (!sweep_static) continue;
-          each_deep_contact(poser.data(), depth, geoms, sp,
-                            [&](const GeomInfo& mine, const GeomInfo& other, double deep) {
-                              if (other.owner != Owner::kStatic || other.mount_of == sp.scene_robot)
-                                return;  // (its own pedestal)
-                              PredictedCollision& pc = hits[{r, k, other.name}];
-                              if (pc.a.robot.empty()) {
-                                pc.a = {scene.robots()[static_cast<std::size_t>(sp.scene_robot)].name,
-                                        mine.name,
-                                        sp.command,
-                                        sp.source,
-                                        i,
-                                        sp.samples};
-                                pc.b = {"", other.name, "", "", 0, 1};
-                              }
-                              note(pc, mine.name, other.name, deep);
-                            });
         }
-        if (worst_step <= options.resolution || attempt >= 4) {
-          found_static.insert(hits.begin(), hits.end());
-          if (sweep_static) report.samples += sp.samples;
-          break;
-        }
+        if (worst_step <= options.resolution || attempt >= 4) break;
         sp.samples = static_cast<std::size_t>(
                          std::ceil(static_cast<double>(sp.samples - 1) * worst_step / options.resolution * 1.1)) +
                      1;
       }
+      if (!sweep_static) continue;
+      // Each sample against the static cell but the robot's own pedestal (its mount).
+      const std::vector<Contacts::Pair>& against = static_pairs(sp);
+      for (std::size_t i = 0; i < sp.samples; ++i) {
+        poser.place(sp, i);
+        ++report.pose_checks;
+        contacts.collide(poser.data(), against, [&](int g1, int g2, mjtNum dist) {
+          if_deep(g1, g2, dist, depth, geoms, sp, [&](const GeomInfo& mine, const GeomInfo& other, double deep) {
+            if (other.owner != Owner::kStatic || other.mount_of == sp.scene_robot) return;  // (its own pedestal)
+            PredictedCollision& pc = found_static[{r, k, other.name}];
+            if (pc.a.robot.empty()) {
+              pc.a = {scene.robots()[static_cast<std::size_t>(sp.scene_robot)].name,
+                      mine.name,
+                      sp.command,
+                      sp.source,
+                      i,
+                      sp.samples};
+              pc.b = {"", other.name, "", "", 0, 1};
+            }
+            note(pc, mine.name, other.name, deep);
+          });
+        });
+      }
+      report.samples += sp.samples;
     }
   }
   for (auto& [key, pc] : found_static) report.collisions.push_back(std::move(pc));
@@ -513,34 +694,36 @@ SweepReport sweep_motions(const Scene& scene, const Scenario& s, const petri::Ne
     ++report.pairs;
     if (!sa.all.intersects(sb.all)) continue;
     const bool shared = sa.part >= 0 && sa.part == sb.part;  // both hands on one part (a hand-over)
+    const std::vector<Contacts::Pair>& between = pair_pairs(sa, sb, shared);
     for (std::size_t i = 0; i < sa.samples; ++i) {
       if (!sa.box[i].intersects(sb.all)) continue;
       for (std::size_t j = 0; j < sb.samples; ++j) {
         if (!sa.box[i].intersects(sb.box[j]) || !overlap(sa.spheres[i], sb.spheres[j])) continue;
-        poser.pose({{&sa, i}, {&sb, j}}, true);
+        poser.place(sa, i);
+        poser.place(sb, j);
         ++report.pose_checks;
-        each_deep_contact(poser.data(), depth, geoms, sa,
-                          [&](const GeomInfo& mine, const GeomInfo& other, double deep) {
-                            if (!of_span(other, sb)) return;
-                            if (shared && (mine.owner == Owner::kPart || other.owner == Owner::kPart))
-                              return;  // both hands grip it
-                            PredictedCollision& pc = found_pairs[key];
-                            if (pc.a.robot.empty()) {
-                              pc.a = {scene.robots()[static_cast<std::size_t>(sa.scene_robot)].name,
-                                      mine.name,
-                                      sa.command,
-                                      sa.source,
-                                      i,
-                                      sa.samples};
-                              pc.b = {scene.robots()[static_cast<std::size_t>(sb.scene_robot)].name,
-                                      other.name,
-                                      sb.command,
-                                      sb.source,
-                                      j,
-                                      sb.samples};
-                            }
-                            note(pc, mine.name, other.name, deep);
-                          });
+        contacts.collide(poser.data(), between, [&](int g1, int g2, mjtNum dist) {
+          if_deep(g1, g2, dist, depth, geoms, sa, [&](const GeomInfo& mine, const GeomInfo& other, double deep) {
+            if (!of_span(other, sb)) return;
+            if (shared && (mine.owner == Owner::kPart || other.owner == Owner::kPart)) return;  // both hands grip it
+            PredictedCollision& pc = found_pairs[key];
+            if (pc.a.robot.empty()) {
+              pc.a = {scene.robots()[static_cast<std::size_t>(sa.scene_robot)].name,
+                      mine.name,
+                      sa.command,
+                      sa.source,
+                      i,
+                      sa.samples};
+              pc.b = {scene.robots()[static_cast<std::size_t>(sb.scene_robot)].name,
+                      other.name,
+                      sb.command,
+                      sb.source,
+                      j,
+                      sb.samples};
+            }
+            note(pc, mine.name, other.name, deep);
+          });
+        });
       }
     }
   }

@@ -88,7 +88,7 @@ struct SweepReport {
   std::size_t motions = 0;        // moves swept
   std::size_t samples = 0;        // poses checked against the static cell
   std::size_t pairs = 0;          // pairs of commands of two robots that can run at once, swept
-  std::uint64_t pose_checks = 0;  // mj_collision calls in all
+  std::uint64_t pose_checks = 0;  // poses checked for contacts in all (against the cell and robot against robot)
   std::uint64_t states = 0;       // markings explored for concurrency
   bool exhaustive = true;         // the markings were all explored (false: every two commands taken as concurrent)
   std::string concurrency;        // how concurrency was found, one sentence

@@ -1,6 +1,13 @@
 // The plan's collision sweep (cell/sweep.hpp) in the twin: each pose of a swept motion is set on its own data of the
-// cell's compiled MuJoCo scene (scene.hpp) and MuJoCo's collision detection (mj_kinematics + mj_collision, with the
-// scene's own collision filters) finds the contacts deeper than SweepOptions::depth. And the twin as the plan's port
+// cell's compiled MuJoCo scene (scene.hpp) and MuJoCo finds the contacts deeper than SweepOptions::depth. MuJoCo's
+// kinematics (mj_kinematics) poses each sample once and the sweep keeps where it put the moving robot's collision
+// geoms and its part; MuJoCo's narrow phase (its collision functions, mjCOLLISIONFUNC) then tests only the pairs of
+// geoms whose contacts count (the moving robot and its part against the static cell; two robots' against each
+// other), with mj_collision's own filters (contype/conaffinity, weld and parent bodies, the scene's <exclude>s, the
+// bounding-sphere and plane tests, the larger margin) and in mj_collision's order: the same contacts, bit for bit, as
+// a full mj_collision of the posed scene gives for those pairs, without testing every other pair of the scene at
+// every pose (mj_collision also stops at the scene's nconmax contacts in all; the sweep's pairs never are). And the
+// twin as the plan's port
 // (cell/twin_port.hpp): it compiles a scenario's cell once (TwinModel), sweeps on it, and estimates on it from the
 // preflight's plan with the simulation drivers' timing, building no run.
 //

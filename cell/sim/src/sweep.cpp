@@ -78,7 +78,10 @@ std::vector<GeomInfo> classify(const Scene& scene) {
         info.owner = Owner::kIgnored;  // the belt: it carries parts, robots meet the frame
         continue;
       }
-      const std::string what = geom == body + "/stop" ? "stop bar" : geom == body + "/frame" ? "frame" : geom;
+      const std::string what = geom == body + "/stop"                   ? "stop bar"
+                               : geom == body + "/frame"                ? "frame"
+                               : starts_with(geom, body + "/guide_")    ? "side guide"
+                                                                        : geom;
       info.name = fmt::format("conveyor '{}' ({})", name, what);
     } else if (starts_with(body, "machine/")) {
       const std::string name = body.substr(8);

@@ -245,6 +245,12 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
 
   auto plant = std::make_unique<sim::WorldPlant>(*world_, std::move(cell.feed), s.faults, s.seed);
   world_plant_ = plant.get();
+  {
+    // The carries the twin measures: the workpieces the coordinated blocks pick.
+    std::vector<std::string> carried;
+    for (const task::CoordinatedUse& b : s.program.coordinated) carried.push_back(s.workpiece_of(b.workpiece));
+    plant->measure_carries_of(std::move(carried));
+  }
   if (s.feed && s.feed->recycles()) {
     // A shift: parts leave the cell at the end of every conveyor but the feed's, and their bodies are fed again.
     std::vector<std::string> exits;

@@ -86,7 +86,7 @@ void WorldPlant::advance(runtime::SimDuration dt) {
   elapsed_ += dt;
   const WorldTruth w = world_.truth();
   runtime::Truth now = truth_of(w);
-  if (log_ != nullptr) {
+  if (log_ != nullptr && !carried_.empty()) {
     // A coordinated carry, measured every period while two hands hold one part (carry_meter.hpp).
     std::vector<CarryHand> hands;
     for (std::size_t r = 0; r < w.robots.size() && r < now.robots.size(); ++r) {
@@ -96,7 +96,8 @@ void WorldPlant::advance(runtime::SimDuration dt) {
     std::vector<CarryPart> parts;
     for (const WorkpieceTruth& p : w.workpieces) {
       const models::WorkpieceSpec* spec = world_.scene().cell().find_workpiece(p.name);
-      if (!p.parked && spec != nullptr) parts.push_back({p.name, p.pose, spec->size});
+      const bool carried = std::find(carried_.begin(), carried_.end(), p.name) != carried_.end();
+      if (!p.parked && spec != nullptr && carried) parts.push_back({p.name, p.pose, spec->size});
     }
     for (const runtime::events::Carry& c : carry_meter_.measure(elapsed_, hands, parts)) log_->log(c);
   }

@@ -21,7 +21,8 @@
 //    into the world frame).
 //  - A coordinated carry (two robots holding one part): with a log, every advance() logs a `carry` event per part
 //    two hands hold, measured by a CarryMeter (carry_meter.hpp) after the faults of the period, before the injections
-//    are logged.
+//    are logged; only for the parts measure_carries_of() named (the workpieces of coordinated blocks: a hand-over,
+//    where both hands hold a part for a moment, is no carry).
 //  - sensors() are the twin's sensors for the runtime (runtime/sensors.hpp): each robot's grip sensor (between_fingers
 //    above, named), its wrist force sensor, the safety sensor (the obstacles) and the parts' truth, all as truth() has
 //    them at the end of the last advance().
@@ -95,6 +96,10 @@ class WorldPlant final : public runtime::Plant {
   // (and the events after it wait too). Call before the run.
   void recycle_at(std::vector<std::string> conveyors);
 
+  // The workpieces whose carries by two robots are measured and logged (the parts coordinated blocks carry); none by
+  // default. Call before the run.
+  void measure_carries_of(std::vector<std::string> workpieces) { carried_ = std::move(workpieces); }
+
   // Every MuJoCo warning raised so far, as the World words them.
   const std::vector<std::string>& warnings() const { return warnings_; }
 
@@ -121,6 +126,7 @@ class WorldPlant final : public runtime::Plant {
   void take_out_delivered();
   runtime::Truth truth_of(const WorldTruth& w) const;
   CarryMeter carry_meter_;
+  std::vector<std::string> carried_;  // measure_carries_of()
   std::vector<std::string> warnings_;
   std::unique_ptr<Renderer> renderer_;  // made by capture() on the simulation thread
   std::unique_ptr<FaultInjector> injector_;  // nullptr without faults

@@ -1,6 +1,7 @@
 #include "cellwright/common/files.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "cellwright/common/error.hpp"
 
@@ -12,7 +13,10 @@ namespace fs = std::filesystem;
 class Files : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / fmt::format("cw_files_{}", ::testing::UnitTest::GetInstance()->random_seed());
+    // Named by the process (ctest runs each test in a process of its own, two at a time): gtest's random seed, taken
+    // from the clock, was the same for two tests started in the same millisecond, which then shared the directory.
+    dir_ = fs::temp_directory_path() /
+           fmt::format("cw_files_{}_{}", ::getpid(), ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }

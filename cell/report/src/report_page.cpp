@@ -198,8 +198,9 @@ void coordination(std::string& out, const Report& r) {
     out += fmt::format(
         "<tr><td>{} {}{}</td><td>{}</td><td class=\"num\">{}, {}</td><td class=\"num\">{}, {}</td>"
         "<td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
-        esc(g.block), g.index, g.run > 0 ? fmt::format(" (run {})", g.run + 1) : std::string(), esc(g.command), seconds(g.master_start), seconds(g.follower_start),
-        seconds(g.master_end), seconds(g.follower_end), ms(g.start_skew), ms(g.end_skew));
+        esc(g.block), g.index, g.run > 0 ? fmt::format(" (run {})", g.run + 1) : std::string(), esc(g.command),
+        seconds(g.master_start), seconds(g.follower_start), seconds(g.master_end), seconds(g.follower_end),
+        ms(g.start_skew), ms(g.end_skew));
   }
   out += "</table>\n</section>\n";
 }

@@ -489,8 +489,7 @@ std::optional<drivers::Command> RobotControl::segment_command(SimDuration now) {
     return std::nullopt;
   }
   const std::uint64_t n = segments_submitted_[seg.block];
-  {
-    Carry& carry = carry_[seg.block];
+  if (Carry& carry = carry_[seg.block]; carry.master.empty()) {  // the block's robots, once per carry
     carry.master = seg.master;
     carry.follower = seg.follower;
     carry.master_cell = names_.robots.at(seg.master);

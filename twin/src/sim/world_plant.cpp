@@ -95,9 +95,10 @@ void WorldPlant::advance(runtime::SimDuration dt) {
     }
     std::vector<CarryPart> parts;
     for (const WorkpieceTruth& p : w.workpieces) {
-      const models::WorkpieceSpec* spec = world_.scene().cell().find_workpiece(p.name);
-      const bool carried = std::find(carried_.begin(), carried_.end(), p.name) != carried_.end();
-      if (!p.parked && spec != nullptr && carried) parts.push_back({p.name, p.pose, spec->size});
+      if (p.parked || std::find(carried_.begin(), carried_.end(), p.name) == carried_.end()) continue;
+      if (const models::WorkpieceSpec* spec = world_.scene().cell().find_workpiece(p.name)) {
+        parts.push_back({p.name, p.pose, spec->size});
+      }
     }
     for (const runtime::events::Carry& c : carry_meter_.measure(elapsed_, hands, parts)) log_->log(c);
   }

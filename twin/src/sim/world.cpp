@@ -1,6 +1,7 @@
 #include "cellwright/twin/sim/world.hpp"
 
 #include "cellwright/runtime/environment_model.hpp"
+#include "cellwright/twin/sim/contact_pairs.hpp"
 #include "resting_parts.hpp"
 
 #include <fmt/format.h>
@@ -106,6 +107,7 @@ World::World(Scene scene, WorldOptions options)
   classify_bodies();
   physics_.reset(mj_copyModel(nullptr, m));
   CW_CHECK(physics_ != nullptr, "mj_copyModel failed");
+  pairs_ = std::make_unique<ContactPairs>(physics_.get());  // from the scene's collision masks, before any sleeps
   resting_ = std::make_unique<RestingParts>(scene_, physics_.get());
 
   // The parking row: on the floor, beyond everything the cell holds in +x, along y.
@@ -220,7 +222,6 @@ Eigen::Isometry3d World::parking_pose(std::size_t workpiece) const {
 }
 
 void World::place_at_rest(std::size_t workpiece, const Eigen::Isometry3d& pose) {
-  const mjModel* m = physics_.get();
   resting_->wake(workpiece);
   mjData* d = scene_.data();
   const WorkpieceIds& ids = scene_.workpieces()[workpiece];
@@ -238,7 +239,7 @@ void World::place_at_rest(std::size_t workpiece, const Eigen::Isometry3d& pose) 
     d->qacc_warmstart[ids.dof_adr + i] = 0;
   }
   // Positions, contacts and sensors follow the move at once (the state itself is only what was set above).
-  mj_forward(m, d);
+  pairs_->forward(scene_.data());
 }
 
 SimDriver& World::add_sim_driver(std::string_view robot, SimDriverOptions options) {
@@ -279,7 +280,7 @@ void World::step(std::int64_t n) {
     }
     sensors_fresh_ = touch_read || i + 1 == n;
     if (!sensors_fresh_) physics_->opt.disableflags |= mjDSBL_SENSOR;
-    mj_step(m, d);
+    pairs_->step(d);
     physics_->opt.disableflags &= ~mjDSBL_SENSOR;
     scene_.wrap_belts(d);
     resting_->after_step(d, parked_);
@@ -635,7 +636,7 @@ void World::shift(std::string_view workpiece, const Eigen::Vector3d& delta) {
   resting_->wake(w);
   mjtNum* qpos = scene_.data()->qpos + scene_.workpieces()[w].qpos_adr;
   for (int i = 0; i < 3; ++i) qpos[i] += delta[i];
-  mj_forward(physics_.get(), scene_.data());
+  pairs_->forward(scene_.data());
 }
 
 double World::clearance_below(std::string_view workpiece) const {
@@ -659,7 +660,7 @@ void World::place_obstacle(std::size_t index, const std::optional<Eigen::Vector3
   mjtNum* pos = d->mocap_pos + 3 * scene_.obstacles()[index].mocap;
   for (int i = 0; i < 3; ++i) pos[i] = p[i];
   resting_->wake_all();  // it may appear where a part sleeps
-  mj_forward(physics_.get(), d);
+  pairs_->forward(scene_.data());
 }
 
 bool World::parked(std::string_view workpiece) const {

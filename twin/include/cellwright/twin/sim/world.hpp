@@ -96,6 +96,7 @@
 namespace cellwright::twin::sim {
 
 class RestingParts;
+class ContactPairs;
 
 struct WorldOptions {
   SourceLocation where;              // the scenario (or cell) file, for errors about the options
@@ -355,6 +356,7 @@ class World {
   // The model the World steps: a copy of the scene's, in which RestingParts switches sleeping parts' contacts off
   // (the scene's model, read by renderers and the collision sweep, never changes).
   std::unique_ptr<mjModel, void (*)(mjModel*)> physics_;
+  std::unique_ptr<ContactPairs> pairs_;  // declared before resting_: both take the physics model's masks
   std::unique_ptr<RestingParts> resting_;
   bool sensors_fresh_ = true;  // mjData's sensor values are from the last step (see step())
   WorldOptions options_;

@@ -194,14 +194,18 @@ class BeamSafety : public ::testing::Test {
   fs::path dir_;
 };
 
+// One gripper loses its force 2 s into its first carry (in the carry over the gap): its end of the beam falls.
+// Either arm's: the World knows both holders of a part carried together.
 TEST_F(BeamSafety, OneEndDroppedStopsBothArmsNamingTheArmWhoseEndSlipped) {
-  // The PUMA's gripper loses its force 2 s into its first carry (in the carry over the gap): its end of the beam
-  // falls. (The World names the first of two holders as the carrier, so a drop is injected on the PUMA.)
-  const Stopped r = run("faults:\n  - {kind: drop, robot: puma, carry: 1, after: 2.0}\n");
-  expect_both_stopped(r, "grip_lost", "left (puma)'s end of beam slipped");
-  ASSERT_EQ(r.report.faults.size(), 1u);
-  EXPECT_TRUE(r.report.faults[0].detected);
-  EXPECT_TRUE(r.report.faults[0].stopped_safely);
+  for (const auto& [robot, label] : {std::pair{"puma", "left"}, std::pair{"melfa", "right"}}) {
+    SCOPED_TRACE(robot);
+    const Stopped r = run(fmt::format("faults:\n  - {{kind: drop, robot: {}, carry: 1, after: 2.0}}\n", robot));
+    expect_both_stopped(r, "grip_lost", fmt::format("{} ({})'s end of beam slipped", label, robot));
+    ASSERT_EQ(r.report.faults.size(), 1u);
+    EXPECT_EQ(r.report.faults[0].robot, robot);
+    EXPECT_TRUE(r.report.faults[0].detected);
+    EXPECT_TRUE(r.report.faults[0].stopped_safely);
+  }
 }
 
 TEST_F(BeamSafety, ASqueezeOverTheLimitStopsBothArmsWithTheForceAndTheLimit) {

@@ -1814,18 +1814,24 @@ void RobotControl::watch_carry(SimDuration now) {
                                        options_.safety);
     if (!v.stop) continue;
     coordination_->stop(block, v.reason);
-    return stop_carry(now, block, v.reason, v.symptom, v.cause, true);
+    return stop_carry(now, block, v.reason, v.symptom, v.cause, true, v.arm);
   }
 }
 
 void RobotControl::stop_carry(SimDuration now, const std::string& block, const std::string& reason,
-                              const std::string& symptom, const std::string& cause, bool detected) {
+                              const std::string& symptom, const std::string& cause, bool detected,
+                              const std::string& arm) {
   driver_.stop();
   log_.protective_stop(now, label_, reason);
   if (detected) {
     ++symptoms_;
-    log_.fault_detected(now, label_, current_ ? static_cast<int>(current_->command.index) : -1, symptom, reason);
-    log_.diagnosis(now, label_, symptom, cause, "stop_cell", "coordinated_carry=yes");
+    // The fault is the arm's it is on (its partner's, when this robot watched the carry in this period); its
+    // command is then not this robot's to name.
+    const bool mine = arm.empty() || arm == label_;
+    const std::string& robot = mine ? label_ : arm;
+    log_.fault_detected(now, robot, mine && current_ ? static_cast<int>(current_->command.index) : -1, symptom,
+                        reason);
+    log_.diagnosis(now, robot, symptom, cause, "stop_cell", "coordinated_carry=yes");
   }
   stop_cell(now, fmt::format("coordinated block {}: both arms stopped: {}", block, reason));
 }

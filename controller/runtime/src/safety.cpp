@@ -114,6 +114,7 @@ CarryVerdict check_carry(const CarryHand& master, const CarryHand& follower,
     v.symptom = "grip_lost";
     v.cause = "end_slipped";
     v.reason = fmt::format("{}'s end of {} slipped: its grip sensor no longer has it", name(*h), workpiece);
+    v.arm = h->label;
     return v;
   }
   if (master.tcp && follower.tcp && grasp) {
@@ -129,10 +130,13 @@ CarryVerdict check_carry(const CarryHand& master, const CarryHand& follower,
       const Eigen::Vector3d motion = master.velocity + follower.velocity;
       std::string who;
       if (motion.norm() > 1e-3 && std::abs(ahead.dot(motion.normalized())) > 0.5 * v.error) {
-        who = ahead.dot(motion) < 0 ? fmt::format("{} lags {}", name(follower), name(master))
-                                    : fmt::format("{} lags {}", name(master), name(follower));
+        const bool follower_lags = ahead.dot(motion) < 0;
+        const CarryHand& lagging = follower_lags ? follower : master;
+        who = fmt::format("{} lags {}", name(lagging), name(follower_lags ? master : follower));
+        v.arm = lagging.label;
       } else {
         who = fmt::format("{} is off its place next to {}", name(follower), name(master));
+        v.arm = follower.label;
       }
       v.reason = fmt::format("{} carrying {}: relative tool error {:.1f} mm, {:.2f} degrees (limits {:.1f} mm, {:.2f} degrees)",
                              who, workpiece, v.error * 1000.0, v.turn * 180.0 / std::numbers::pi, options.carry_error * 1000.0,

@@ -279,6 +279,7 @@ TEST(CarrySafety, AnEndTheGripSensorLostStopsNamingThatArm) {
   EXPECT_EQ(v.symptom, "grip_lost");
   EXPECT_EQ(v.cause, "end_slipped");
   EXPECT_THAT(v.reason, HasSubstr("right (melfa)'s end of beam slipped"));
+  EXPECT_EQ(v.arm, "right");  // the fault is the follower's, whichever robot watched the carry
 }
 
 TEST(CarrySafety, AFollowerBehindAlongTheMotionLags) {
@@ -289,6 +290,7 @@ TEST(CarrySafety, AFollowerBehindAlongTheMotionLags) {
   EXPECT_EQ(v.cause, "arm_lagging");
   EXPECT_NEAR(v.error, 0.015, 1e-9);
   EXPECT_THAT(v.reason, HasSubstr("right (melfa) lags left (puma)"));
+  EXPECT_EQ(v.arm, "right");
   EXPECT_THAT(v.reason, HasSubstr("relative tool error 15.0 mm"));
   EXPECT_THAT(v.reason, HasSubstr("limits 10.0 mm"));
 }
@@ -299,6 +301,7 @@ TEST(CarrySafety, AFollowerAheadMeansTheMasterLags) {
   const CarryVerdict v = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});
   EXPECT_TRUE(v.stop);
   EXPECT_THAT(v.reason, HasSubstr("left (puma) lags right (melfa)"));
+  EXPECT_EQ(v.arm, "left");
 }
 
 TEST(CarrySafety, AnErrorUnderTheLimitOrWithoutAGraspPasses) {
@@ -334,6 +337,8 @@ TEST(CarrySafety, TheInternalForceAlongTheBeamOverTheLimitStopsWithItsFigures) {
   ASSERT_TRUE(v.squeeze.has_value());
   EXPECT_NEAR(*v.squeeze, 45.0, 1e-9);
   EXPECT_THAT(v.reason, HasSubstr("squeeze beam: internal force 45.00 N over the limit of 40 N"));
+  EXPECT_EQ(v.arm, "");  // both arms'
+
   // Pulling it apart is as bad.
   std::swap(c.master.force, c.follower.force);
   const CarryVerdict pull = check_carry(c.master, c.follower, c.grasp, "beam", SafetyOptions{});

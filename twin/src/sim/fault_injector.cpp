@@ -260,7 +260,7 @@ void FaultInjector::update_carries(const WorldTruth& truth) {
   for (std::size_t r = 0; r < carries_.size(); ++r) {
     Carry& c = carries_[r];
     if (c.part >= 0) {
-      if (truth.workpieces[static_cast<std::size_t>(c.part)].held_by == r) {
+      if (truth.workpieces[static_cast<std::size_t>(c.part)].held_by_robot(r)) {
         c.last_held = now;
       } else if (now - c.last_held >= kCarryEnd) {
         c.part = -1;
@@ -268,7 +268,7 @@ void FaultInjector::update_carries(const WorldTruth& truth) {
     }
     if (c.part >= 0) continue;
     for (std::size_t w = 0; w < truth.workpieces.size(); ++w) {
-      if (truth.workpieces[w].held_by != r) continue;
+      if (!truth.workpieces[w].held_by_robot(r)) continue;
       c.part = static_cast<int>(w);
       c.since = c.last_held = now;
       ++c.count;
@@ -353,7 +353,7 @@ void FaultInjector::update() {
     const std::size_t r = robot_index(f.robot);
     const Carry& c = carries_[r];
     const std::string& part = truth.workpieces[static_cast<std::size_t>(a.part)].name;
-    const bool held = truth.workpieces[static_cast<std::size_t>(a.part)].held_by == r;
+    const bool held = truth.workpieces[static_cast<std::size_t>(a.part)].held_by_robot(r);
     if (a.slip_left > 0) {  // sliding
       const double step = std::min(a.slip_left, f.distance / kSlipPeriods);
       if (!held || world_.clearance_below(part) < step + kSlipClearance) {

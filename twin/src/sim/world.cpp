@@ -745,11 +745,9 @@ WorldTruth World::truth() const {
     p.upright = p.pose.linear()(2, 2) >= kUprightCos;
     p.parked = parked_[w];
     for (std::size_t r = 0; r < scene_.robots().size(); ++r) {
-      if (fingers[w][r][0] && fingers[w][r][1]) {
-        p.held_by = r;
-        break;
-      }
+      if (fingers[w][r][0] && fingers[w][r][1]) p.holders.push_back(r);
     }
+    if (!p.holders.empty()) p.held_by = p.holders.front();
     // A sleeping part touches nothing (RestingParts): its support is the one it slept on.
     if (resting_->asleep(w) && !p.parked) support_geom[w] = resting_->support_geom(w);
     if (!p.parked && !p.held_by && support_geom[w] < 0 && p.upright) {

@@ -314,9 +314,10 @@ class RobotControl {
   // robot (stop_carry).
   void watch_carry(SimDuration now);
   // Stops this robot for its carry of `block`: protective_stop, then (`detected`: this robot found it) fault_detected
-  // and diagnosis, then the cell stops. Both robots of the carry come here in the same period (lock-step).
+  // and diagnosis of the arm the fault is on (`arm`, a program label; this robot when "" or its own), then the cell
+  // stops. Both robots of the carry come here in the same period (lock-step).
   void stop_carry(SimDuration now, const std::string& block, const std::string& reason, const std::string& symptom,
-                  const std::string& cause, bool detected);
+                  const std::string& cause, bool detected, const std::string& arm = "");
   // After a move, with the robot standing still: a held part far from where the hold puts it is part_shifted.
   // A part no longer between the fingers is grip_lost; true when that interrupted the command.
   bool check_shift(SimDuration now);

@@ -64,6 +64,9 @@ struct CarryVerdict {
   std::string symptom;  // the fault_detected symptom: "grip_lost" (an end slipped), "protective_stop" (the rest)
   std::string cause;    // "end_slipped", "arm_lagging", "squeeze_over_limit"
   std::string reason;   // what and which arm, with the figures and the limit
+  // The program label of the arm the fault is on (the one whose end slipped, the lagging one, the follower off its
+  // place); "" for a squeeze, which is both arms'.
+  std::string arm;
   double error = 0, turn = 0;  // m, rad: the follower's tool off the grasp transform (when both tools are known)
   std::optional<double> squeeze;  // N, > 0 pushing the ends together (when both forces are known)
 };

@@ -73,6 +73,7 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -128,6 +129,12 @@ struct WorkpieceTruth {
   Eigen::Vector3d linear_velocity = Eigen::Vector3d::Zero();   // m/s, world frame
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  // rad/s, world frame
   std::optional<std::size_t> held_by;  // index of the robot (scene().robots()) whose two finger pads both touch it
+  // Every such robot, in robot order (two for a part carried together, docs/runtime.md "Coordinated blocks"); held_by
+  // is the first of them.
+  std::vector<std::size_t> holders;
+  bool held_by_robot(std::size_t robot) const {
+    return std::find(holders.begin(), holders.end(), robot) != holders.end();
+  }
   SupportKind support = SupportKind::none;
   std::string support_name;  // see SupportKind
   std::string location;      // the cell location whose point the part's bottom centre is at (WorldOptions), or ""

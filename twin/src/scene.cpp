@@ -1330,19 +1330,9 @@ void write_mjcf(const std::string& mjcf, const std::filesystem::path& path) {
   }
 }
 
-namespace {
-
-// What a collision geom of the scene is, for start_overlaps: a robot's body (robot >= 0), a fixed object (robot -1,
-// `name` set), or nothing to judge (a part, a belt, an obstacle, a visual geom: `name` empty).
-struct Side {
-  int robot = -1;
-  int mount_of = -1;  // the robot whose pedestal this is, else -1
-  std::string name;
-};
-
-Side side_of(const Scene& scene, int geom) {
+GeomRole geom_role(const Scene& scene, int geom) {
   const mjModel* m = scene.model();
-  Side out;
+  GeomRole out;
   if (m->geom_contype[geom] == 0 && m->geom_conaffinity[geom] == 0) return out;
   const char* g = mj_id2name(m, mjOBJ_GEOM, geom);
   const std::string gname = g != nullptr ? g : "";
@@ -1350,6 +1340,7 @@ Side side_of(const Scene& scene, int geom) {
   const char* bn = mj_id2name(m, mjOBJ_BODY, b);
   const std::string body = bn != nullptr ? bn : "";
   const auto starts = [](const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; };
+  out.kind = GeomRole::Kind::fixed;
   if (is_scenery_body(m, b)) {
     out.name = gname == "floor"            ? "the floor"
                : starts(gname, "stand/") ? fmt::format("the stand of location '{}'", gname.substr(6))
@@ -1362,27 +1353,39 @@ Side side_of(const Scene& scene, int geom) {
     }
   } else if (starts(body, "conveyor/")) {
     const std::string name = body.substr(9);
-    if (name.find('/') != std::string::npos) return out;  // the belt
+    if (name.find('/') != std::string::npos) {
+      out.kind = GeomRole::Kind::belt;
+      return out;
+    }
     out.name = fmt::format("conveyor '{}' ({})", name,
-                           gname == body + "/stop"                       ? "stop bar"
-                           : gname == body + "/frame"                    ? "frame"
-                           : gname.starts_with(body + "/guide_")         ? "side guide"
-                                                                         : gname);
+                           gname == body + "/stop"               ? "stop bar"
+                           : gname == body + "/frame"            ? "frame"
+                           : gname.starts_with(body + "/guide_") ? "side guide"
+                                                                 : gname);
   } else if (starts(body, "machine/")) {
     out.name = fmt::format("machine '{}'{}", body.substr(8), gname == body + "/fixture" ? " (fixture)" : "");
-  } else if (!starts(body, "workpiece/") && !starts(body, "obstacle/")) {
+  } else if (starts(body, "obstacle/")) {
+    out.kind = GeomRole::Kind::obstacle;
+  } else if (starts(body, "workpiece/")) {
+    out.kind = GeomRole::Kind::workpiece;
+    for (std::size_t w = 0; w < scene.workpieces().size(); ++w) {
+      if (scene.workpieces()[w].body == b) out.index = static_cast<int>(w);
+    }
+    CW_CHECK(out.index >= 0, "workpiece body {} not among the scene's workpieces", body);
+    out.name = fmt::format("workpiece '{}'", body.substr(10));
+  } else {
+    out.name = fmt::format("'{}'", body);
     for (std::size_t r = 0; r < scene.robots().size(); ++r) {
       const std::string prefix = scene.robots()[r].name + "/";
       if (starts(body, prefix)) {
-        out.robot = static_cast<int>(r);
+        out.kind = GeomRole::Kind::robot;
+        out.index = static_cast<int>(r);
         out.name = fmt::format("link '{}'", body.substr(prefix.size()));
       }
     }
   }
   return out;
 }
-
-}  // namespace
 
 std::string StartOverlap::text() const {
   return fmt::format("robot '{}''s {} and {} overlap by {:.0f} mm", robot, body,
@@ -1396,16 +1399,20 @@ std::vector<StartOverlap> start_overlaps(const Scene& scene, double depth) {
   for (int c = 0; c < d->ncon; ++c) {
     const mjContact& con = d->contact[c];
     if (con.dist >= -depth) continue;
-    Side a = side_of(scene, con.geom1), b = side_of(scene, con.geom2);
-    if (a.name.empty() || b.name.empty()) continue;
-    if (a.robot < 0 || (b.robot >= 0 && b.robot < a.robot)) std::swap(a, b);
-    if (a.robot < 0 || a.robot == b.robot || a.robot == b.mount_of) continue;
+    // A robot's body against another robot's or the fixed cell (parts, belts and obstacles are not judged here).
+    GeomRole a = geom_role(scene, con.geom1), b = geom_role(scene, con.geom2);
+    using Kind = GeomRole::Kind;
+    const auto judged = [](const GeomRole& r) { return r.kind == Kind::robot || r.kind == Kind::fixed; };
+    if (!judged(a) || !judged(b)) continue;
+    if (a.kind != Kind::robot || (b.kind == Kind::robot && b.index < a.index)) std::swap(a, b);
+    if (a.kind != Kind::robot || (b.kind == Kind::robot && a.index == b.index) || a.index == b.mount_of) continue;
     const auto& robots = scene.robots();
-    const std::string other_robot = b.robot >= 0 ? robots[static_cast<std::size_t>(b.robot)].name : std::string();
-    const auto key = std::make_pair(a.robot, b.robot >= 0 ? "robot " + other_robot : b.name);
+    const bool two_robots = b.kind == Kind::robot;
+    const std::string other_robot = two_robots ? robots[static_cast<std::size_t>(b.index)].name : std::string();
+    const auto key = std::make_pair(a.index, two_robots ? "robot " + other_robot : b.name);
     StartOverlap& o = found[key];
     if (-con.dist <= o.depth) continue;
-    const std::string& robot = robots[static_cast<std::size_t>(a.robot)].name;
+    const std::string& robot = robots[static_cast<std::size_t>(a.index)].name;
     o = {robot, a.name, other_robot, b.name, -con.dist, scene.cell().find_robot(robot)->where,
          other_robot.empty() ? SourceLocation{} : scene.cell().find_robot(other_robot)->where};
   }

@@ -48,63 +48,31 @@ struct GeomInfo {
   std::string name;   // in the cell's words
 };
 
-bool starts_with(const std::string& s, const std::string& prefix) {
-  return s.rfind(prefix, 0) == 0;
-}
-
 std::vector<GeomInfo> classify(const Scene& scene) {
-  const mjModel* m = scene.model();
-  std::vector<GeomInfo> out(static_cast<std::size_t>(m->ngeom));
-  for (int g = 0; g < m->ngeom; ++g) {
+  using Kind = twin::GeomRole::Kind;
+  std::vector<GeomInfo> out(static_cast<std::size_t>(scene.model()->ngeom));
+  for (int g = 0; g < scene.model()->ngeom; ++g) {
+    const twin::GeomRole role = twin::geom_role(scene, g);
     GeomInfo& info = out[static_cast<std::size_t>(g)];
-    if (m->geom_contype[g] == 0 && m->geom_conaffinity[g] == 0) continue;
-    const char* gname = mj_id2name(m, mjOBJ_GEOM, g);
-    const std::string geom = gname != nullptr ? gname : "";
-    const int b = m->geom_bodyid[g];
-    const char* bname = mj_id2name(m, mjOBJ_BODY, b);
-    const std::string body = bname != nullptr ? bname : "";
-    info.owner = Owner::kStatic;
-    if (twin::is_scenery_body(m, b)) {
-      info.name = geom == "floor" ? "the floor" : fmt::format("'{}'", geom);
-      for (std::size_t r = 0; r < scene.robots().size(); ++r) {
-        if (geom == scene.robots()[r].name + "/pedestal") {
-          info.mount_of = static_cast<int>(r);
-          info.name = fmt::format("robot '{}''s pedestal", scene.robots()[r].name);
-        }
-      }
-    } else if (starts_with(body, "conveyor/")) {
-      const std::string name = body.substr(9);
-      if (name.find('/') != std::string::npos) {
-        info.owner = Owner::kIgnored;  // the belt: it carries parts, robots meet the frame
-        continue;
-      }
-      const std::string what = geom == body + "/stop"                   ? "stop bar"
-                               : geom == body + "/frame"                ? "frame"
-                               : starts_with(geom, body + "/guide_")    ? "side guide"
-                                                                        : geom;
-      info.name = fmt::format("conveyor '{}' ({})", name, what);
-    } else if (starts_with(body, "machine/")) {
-      const std::string name = body.substr(8);
-      info.name = fmt::format("machine '{}'{}", name, geom == body + "/fixture" ? " (fixture)" : "");
-    } else if (starts_with(body, "obstacle/")) {
-      info.owner = Owner::kIgnored;
-    } else if (starts_with(body, "workpiece/")) {
-      info.owner = Owner::kPart;
-      for (std::size_t w = 0; w < scene.workpieces().size(); ++w) {
-        if (scene.workpieces()[w].body == b) info.index = static_cast<int>(w);
-      }
-      CW_CHECK(info.index >= 0, "workpiece body {} not among the scene's workpieces", body);
-      info.name = fmt::format("workpiece '{}' (carried)", body.substr(10));
-    } else {
-      info.name = fmt::format("'{}'", body);
-      for (std::size_t r = 0; r < scene.robots().size(); ++r) {
-        const std::string prefix = scene.robots()[r].name + "/";
-        if (starts_with(body, prefix)) {
-          info.owner = Owner::kRobot;
-          info.index = static_cast<int>(r);
-          info.name = fmt::format("link '{}'", body.substr(prefix.size()));
-        }
-      }
+    info.index = role.index;
+    info.mount_of = role.mount_of;
+    info.name = role.name;
+    switch (role.kind) {
+      case Kind::none:
+      case Kind::belt:  // it carries parts; robots meet its frame
+      case Kind::obstacle:
+        info.owner = Owner::kIgnored;
+        break;
+      case Kind::fixed:
+        info.owner = Owner::kStatic;
+        break;
+      case Kind::robot:
+        info.owner = Owner::kRobot;
+        break;
+      case Kind::workpiece:
+        info.owner = Owner::kPart;
+        info.name += " (carried)";
+        break;
     }
   }
   return out;

@@ -166,6 +166,26 @@ class Scene {
 inline constexpr std::string_view kSceneryPrefix = "scenery/";
 bool is_scenery_body(const mjModel* m, int body);
 
+// What a geom of the scene stands for, named in the cell's words: the one naming of the scene's geoms that the
+// start-overlap check (start_overlaps) and the collision sweep (cell/sim/sweep.hpp) report with.
+struct GeomRole {
+  enum class Kind : unsigned char {
+    none,       // collides with nothing (a visual geom)
+    fixed,      // the fixed cell: the scenery, a conveyor's frame, stop bar or guides, a machine
+    belt,       // a conveyor's moving belt (it carries parts; robots meet its frame)
+    robot,      // a robot's link or finger
+    workpiece,  // a part
+    obstacle,   // an obstacle of the fault injection
+  };
+  Kind kind = Kind::none;
+  int index = -1;     // the robot (scene().robots()) or workpiece (scene().workpieces()), else -1
+  int mount_of = -1;  // the robot standing on it (its pedestal), else -1
+  // "the floor", "the stand of location 'S'", "robot 'melfa''s pedestal", "conveyor 'input' (stop bar)",
+  // "machine 'mill' (fixture)", "link 'link3'", "workpiece 'A'"; "" for none, belt and obstacle.
+  std::string name;
+};
+GeomRole geom_role(const Scene& scene, int geom);
+
 // The MJCF text of the whole cell. Reads each robot's URDF (boxes, cylinders, spheres and meshes) and the gripper
 // mounted on it. Throws InputError naming the URDF's file and line when it cannot be read or lacks what the scene
 // needs (the cell's base, flange and tool links; prismatic joints finger_left_joint and finger_right_joint, in the

@@ -326,7 +326,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
   // Relays over a belt (MotionPlan::QueueBelt), by conveyor: their puts, takes and lifts; and the robots whose next
   // move lifts a part of a relayed class off the stop, with its belt.
   std::map<std::string, MotionPlan::QueueBelt> queues;
-  std::map<std::string, std::string> lifting;  // cell robot -> conveyor
+  std::map<std::string, std::string> lifting;     // cell robot -> conveyor
+  std::map<std::string, std::string> queue_body;  // conveyor -> the body last let go of on it
   // A belt between robots: running, with a stop, not the feed's.
   auto between_robots = [&](const models::ConveyorSpec* belt) {
     return belt != nullptr && belt->stop && !(s.feed && belt->name == s.feed->conveyor);
@@ -500,7 +501,17 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           if (of_class && p.kind == task::PrimitiveKind::kClose) {
             if (const models::ConveyorSpec* belt = queue_belt_of(p.workpiece)) lifting[arm.cell] = belt->name;
           }
-          if (w.empty()) break;
+          if (w.empty()) {
+            // A part of a class relayed over a belt has no body here: the fingers close on (and let go of) a part
+            // like the one last let go of on that belt.
+            const models::ConveyorSpec* belt = of_class ? queue_belt_of(p.workpiece) : nullptr;
+            const auto last = belt != nullptr ? queue_body.find(belt->name) : queue_body.end();
+            if (last != queue_body.end()) {
+              c.contact = half_extent(*model.find_workpiece(last->second), tcp_of(arm, rs.joints).linear().col(1));
+              if (p.kind == task::PrimitiveKind::kClose) closed[arm.cell] = *c.contact;
+            }
+            break;
+          }
           runtime::WorkpieceState& ws = *model.find_workpiece(w);
           const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
           c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)
@@ -532,6 +543,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
               if (between_robots(belt)) {
                 MotionPlan::QueueBelt& q = queues[belt->name];
                 q.puts.push_back(t);
+                queue_body[belt->name] = w;
                 const double along = (belt->pose.transform().inverse() * bottom).x() + belt->length / 2;
                 Eigen::Isometry3d at_stop;
                 q.ride = std::max(q.ride, ride_to_pick(*belt, *s.cell.find_workpiece(w), along, at_stop));

@@ -92,7 +92,8 @@ struct PlannedCommand {
   Eigen::Isometry3d grip = Eigen::Isometry3d::Identity();
   std::optional<double> closed;
   // Open and close only: half the width of the part across the fingers (m), where they close on it or let go of it;
-  // nullopt when the plan puts no part between them (a grip that names none).
+  // nullopt when the plan puts no part between them (a grip that names none). For a part of a class relayed over a
+  // belt (no body in the plan, see queue_belts): the width of the body last let go of on that belt.
   std::optional<double> contact;
 };
 

@@ -148,6 +148,35 @@ petri::Net with_feed(const petri::Net& net, const Feed& feed, const MotionPlan& 
   return std::move(b).build();
 }
 
+// The relays' belts joined to `net` (estimate.hpp, estimate_cycle_time): per belt, a place for the parts let go of on
+// it and one for its stop cleared (a token at the start), each timed with the ride to the stop rounded up to the
+// control period `period`; the take of the next part at the stop needs one of each. `durations` gets the new places'.
+petri::Net with_queue_belts(const petri::Net& net, const MotionPlan& plan, double period,
+                            std::vector<double>& durations) {
+  petri::NetBuilder b = builder_of(net);
+  for (const MotionPlan::QueueBelt& q : plan.queue_belts) {
+    const double ride = std::ceil(q.ride / period - 1e-9) * period;
+    petri::Place put;
+    put.id = fmt::format("queue.{}.put", q.conveyor);
+    put.name = fmt::format("a part let go of on {}, at the stop once it has ridden there", q.conveyor);
+    const petri::PlaceId put_id = b.add_place(std::move(put));
+    durations.push_back(ride);
+    petri::Place clear;
+    clear.id = fmt::format("queue.{}.clear", q.conveyor);
+    clear.name = fmt::format("the stop of {} cleared: the part behind rides up", q.conveyor);
+    clear.initial = 1;
+    const petri::PlaceId clear_id = b.add_place(std::move(clear));
+    durations.push_back(ride);
+    for (petri::TransitionId t : q.puts) b.transition(t).outputs.push_back({put_id, 1});
+    for (petri::TransitionId t : q.lifts) b.transition(t).outputs.push_back({clear_id, 1});
+    for (petri::TransitionId t : q.takes) {
+      b.transition(t).inputs.push_back({put_id, 1});
+      b.transition(t).inputs.push_back({clear_id, 1});
+    }
+  }
+  return std::move(b).build();
+}
+
 // Half the extent of a workpiece along the unit direction `d` (world): where fingers closing along d touch it.
 double half_extent(const runtime::WorkpieceState& w, const Eigen::Vector3d& d) {
   const Eigen::Vector3d local = w.pose.linear().transpose() * d;
@@ -294,6 +323,21 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
     const models::ConveyorSpec* belt = from ? running_belt_under(s.cell, from->pose.transform().translation()) : nullptr;
     return belt != nullptr && belt->name != s.feed->conveyor;
   };
+  // Relays over a belt (MotionPlan::QueueBelt), by conveyor: their puts, takes and lifts; and the robots whose next
+  // move lifts a part of a relayed class off the stop, with its belt.
+  std::map<std::string, MotionPlan::QueueBelt> queues;
+  std::map<std::string, std::string> lifting;     // cell robot -> conveyor
+  std::map<std::string, std::string> queue_body;  // conveyor -> the body last let go of on it
+  // A belt between robots: running, with a stop, not the feed's.
+  auto between_robots = [&](const models::ConveyorSpec* belt) {
+    return belt != nullptr && belt->stop && !(s.feed && belt->name == s.feed->conveyor);
+  };
+  // The belt a class's parts ride to its location (the location at the stop of a belt between robots), or nullptr.
+  auto queue_belt_of = [&](const std::string& label) -> const models::ConveyorSpec* {
+    const models::LocationSpec* from = s.cell.find_location(s.location_of(task::find_class(prog, label)->from));
+    const models::ConveyorSpec* belt = from ? running_belt_under(s.cell, from->pose.transform().translation()) : nullptr;
+    return between_robots(belt) ? belt : nullptr;
+  };
   // Sets `fed` when the class takes a new part from the feed.
   auto bind_class = [&](const std::string& robot, const std::string& label, bool* fed = nullptr) -> std::string {
     auto& mine = instance[robot];
@@ -325,13 +369,27 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
       const std::size_t r = *tr.starts_robot;
       const std::size_t k = static_cast<std::size_t>(tr.starts_primitive);
       PlannedCommand& c = plan.commands[r][k];
-      if (c.reached) continue;  // programs are straight lines: each primitive runs once
+      if (c.reached) {
+        // A loop runs its body again: the plan is the first pass's, but a move then starts from where the pass
+        // before left the arm (the end of the body), which the estimate times (PlannedCommand::again_from).
+        if (c.kind == task::PrimitiveKind::kMove && !c.goal.empty()) {
+          runtime::RobotState& again = *model.find_robot(arms[r].cell);
+          if (again.joints != c.from) c.again_from = again.joints;
+          again.joints = c.goal;
+          again.tcp = tcp_of(arms[r], again.joints);
+        }
+        continue;
+      }
       c.reached = true;
       const task::Primitive& p = prog.programs[r].primitives[k];
       const Arm& arm = arms[r];
       runtime::RobotState& rs = *model.find_robot(arm.cell);
       switch (p.kind) {
         case task::PrimitiveKind::kMove: {
+          if (auto l = lifting.find(arm.cell); l != lifting.end()) {
+            queues[l->second].lifts.push_back(t);  // the move after the close lifts the part off the stop
+            lifting.erase(l);
+          }
           task::Target target = p.target;
           const bool to_part = target.kind == task::TargetKind::kAbove || target.kind == task::TargetKind::kAt;
           if (to_part && task::find_class(prog, target.object) != nullptr) {
@@ -344,6 +402,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
             target.object = body.empty() ? from : body;
             if (new_part) {
               plan.class_takes.push_back({t, label, from, fed});
+              if (const models::ConveyorSpec* belt = queue_belt_of(label)) queues[belt->name].takes.push_back(t);
               // A part that no feed brings has no body here: the class stays taken (by no body) until it is let go.
               if (body.empty()) instance[arm.cell][label] = "";
             }
@@ -439,7 +498,20 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           const bool of_class = task::find_class(prog, p.workpiece) != nullptr;
           const std::string w = of_class ? bind_class(arm.cell, p.workpiece) : s.workpiece_of(p.workpiece);
           if (of_class && p.kind == task::PrimitiveKind::kOpen) instance[arm.cell].erase(p.workpiece);
-          if (w.empty()) break;
+          if (of_class && p.kind == task::PrimitiveKind::kClose) {
+            if (const models::ConveyorSpec* belt = queue_belt_of(p.workpiece)) lifting[arm.cell] = belt->name;
+          }
+          if (w.empty()) {
+            // A part of a class relayed over a belt has no body here: the fingers close on (and let go of) a part
+            // like the one last let go of on that belt.
+            const models::ConveyorSpec* belt = of_class ? queue_belt_of(p.workpiece) : nullptr;
+            const auto last = belt != nullptr ? queue_body.find(belt->name) : queue_body.end();
+            if (last != queue_body.end()) {
+              c.contact = half_extent(*model.find_workpiece(last->second), tcp_of(arm, rs.joints).linear().col(1));
+              if (p.kind == task::PrimitiveKind::kClose) closed[arm.cell] = *c.contact;
+            }
+            break;
+          }
           runtime::WorkpieceState& ws = *model.find_workpiece(w);
           const Eigen::Isometry3d tcp = tcp_of(arm, rs.joints);
           c.contact = half_extent(ws, tcp.linear().col(1));  // the fingers slide along the tool's y axis (URDF)
@@ -463,6 +535,19 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
               const double distance = std::max(0.0, e.out_at() - *at);
               plan.deliveries.push_back({t, r, k, e.conveyor().name, distance, distance / e.conveyor().speed});
               break;
+            }
+            if (of_class) {
+              // A part of a class let go of on a belt between robots: it rides to the stop (the queue's put).
+              const Eigen::Vector3d bottom = ws.pose.translation() - Eigen::Vector3d(0, 0, ws.size().z() / 2);
+              const models::ConveyorSpec* belt = running_belt_under(s.cell, bottom);
+              if (between_robots(belt)) {
+                MotionPlan::QueueBelt& q = queues[belt->name];
+                q.puts.push_back(t);
+                queue_body[belt->name] = w;
+                const double along = (belt->pose.transform().inverse() * bottom).x() + belt->length / 2;
+                Eigen::Isometry3d at_stop;
+                q.ride = std::max(q.ride, ride_to_pick(*belt, *s.cell.find_workpiece(w), along, at_stop));
+              }
             }
             if (!of_class) {
               const Eigen::Vector3d bottom = ws.pose.translation() - Eigen::Vector3d(0, 0, ws.size().z() / 2);
@@ -488,6 +573,11 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
       }
     }
     petri::fire_chosen(net, m, arbiter, chosen);
+  }
+  for (auto& [conveyor, q] : queues) {
+    if (q.puts.empty() || q.takes.empty() || q.lifts.empty()) continue;
+    q.conveyor = conveyor;
+    plan.queue_belts.push_back(std::move(q));
   }
   return plan;
 }
@@ -528,7 +618,19 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
     const double home = std::max(rt.min_move_time, sim::kFingerMinTime + sim::kFingerRestWindow);
     durations[*net.find_place(task::start_place_id(prog.robots[r]))] = lockstep_span(home, false, period, step);
     double fingers = rt.finger_open;  // where the finger ramp stands (homing opened the fingers)
-    for (const PlannedCommand& c : plan.commands[r]) {
+    // Each loop's body twice: the second pass times its grips from where the body's end left the fingers, as the
+    // loop's repeats find them; its durations are the ones kept (the net times every pass so, the first too).
+    std::vector<std::size_t> order;
+    for (std::size_t k = 0; k < plan.commands[r].size(); ++k) {
+      order.push_back(k);
+      const task::Primitive& p = prog.programs[r].primitives[k];
+      if (p.kind != task::PrimitiveKind::kLoop) continue;
+      const task::Loop& loop = prog.programs[r].loops.at(static_cast<std::size_t>(p.loop));
+      for (std::size_t b = loop.begin; b < loop.end; ++b) order.push_back(b);
+    }
+    const std::size_t first = est.commands.size();
+    for (std::size_t k : order) {
+      const PlannedCommand& c = plan.commands[r][k];
       CommandEstimate ce;
       ce.robot = c.robot;
       ce.primitive = c.primitive;
@@ -540,11 +642,13 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
         } else {
           CW_CHECK(rt.max_joint_speed.size() == c.goal.size(), "robot {}: {} joint speeds for {} joints", c.cell,
                    rt.max_joint_speed.size(), c.goal.size());
-          const Eigen::VectorXd from = vec(c.from), goal = vec(c.goal);
+          // A move a loop repeats is timed as its repeats make it (from the end of the body; see the top).
+          const Eigen::VectorXd from = vec(c.again_from.empty() ? c.from : c.again_from), goal = vec(c.goal);
           ce.motion = sim::move_duration(from, goal, vec(rt.max_joint_speed), rt.speed, rt.min_move_time);
           Eigen::Index j = 0;
           const double largest = (goal - from).cwiseAbs().maxCoeff(&j);
-          ce.basis = fmt::format("joint move, largest step {:.3f} rad (joint {})", largest, j + 1);
+          ce.basis = fmt::format("joint move, largest step {:.3f} rad (joint {}){}", largest, j + 1,
+                                 c.again_from.empty() ? "" : ", as the loop repeats it");
         }
         ce.seconds = lockstep_span(ce.motion, true, period, step);
       } else if (c.kind == task::PrimitiveKind::kOpen) {
@@ -611,7 +715,11 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
         ce.basis = "net only";  // signal, wait, a loop's end
       }
       durations[*net.find_place(task::place_id(c.robot, c.primitive))] = ce.seconds;
-      est.commands.push_back(std::move(ce));
+      if (first + k < est.commands.size()) {
+        est.commands[first + k] = std::move(ce);  // the loop's repeat
+      } else {
+        est.commands.push_back(std::move(ce));
+      }
     }
   }
   // A part seen at rest is taken in the round after it came to rest.
@@ -619,6 +727,7 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
   for (ArrivalGate& g : gates) g.ready = std::ceil(g.ready / period - 1e-9) * period;
   est.timed_net = with_arrivals(net, gates, durations);
   if (!plan.feed_takes.empty()) est.timed_net = with_feed(est.timed_net, *s.feed, plan, delivered, period, durations);
+  if (!plan.queue_belts.empty()) est.timed_net = with_queue_belts(est.timed_net, plan, period, durations);
   est.place_duration = durations;
   task::LoopControl loops(est.timed_net, prog);
   est.run = simulate_timed(est.timed_net, durations, 1'000'000, &loops);

@@ -7,14 +7,17 @@
 // follows the program: parts held move with the hand and keep the approach they were grasped with, parts put down
 // rest where they were put, parts on a conveyor are picked at its stop, a hand that has just let go of a part departs
 // straight up from where it let go) and solved with the robot's inverse kinematics from its previous joints (the
-// solution within the limits closest to them). Preflight refuses a program with a move the plan cannot make.
+// solution within the limits closest to them). Preflight refuses a program with a move the plan cannot make. A loop's
+// body is planned on its first pass; a move the loop then runs again from elsewhere (its first move, from where the
+// body's end left the arm) is timed as the repeats make it, the first pass too (PlannedCommand::again_from).
 //
 // Then the command durations, per robot primitive, as the simulated controller (sim/sim_driver.hpp) ends them:
 //  - move: a joint move (robot control sends joint targets to a simulation driver): sim::move_duration, the quintic
 //    profile's peak within max_joint_speed x speed, at least min_move_time;
 //  - open/close: the finger ramp (sim/grip_timing.hpp) from where the last grip left it: an open to fully open, a
 //    close to fully closed or, on a part, until the fingers press it (the part's width across the fingers from the
-//    plan), then the rest window;
+//    plan), then the rest window; in a loop's body, from where the body's end left the ramp, as the loop's repeats
+//    find it (the first pass is timed so too);
 //  - signal/wait (and a loop's end): 0 (a wait lasts until its signal, which the timed net resolves);
 //  - lock-step turns: the driver starts a command at the physics step after the round it was sent in and ends it at
 //    a physics step; robot control sees that in the next round, a move's position read-back takes one more round,
@@ -31,7 +34,17 @@
 // when the part it made has ridden the exit conveyor from where the open let go of it (the fingers' ramp passing its
 // faces) to where the world takes it out (sim/belt_exit.hpp), at the belt's speed, at the end of the control period
 // the world parks it in; the feed puts it on the belt in the next period.
-// Not modelled: parts queueing behind each other on a belt (a part is taken to reach the stop at its own ride's end),
+// Parts of a class relayed over a belt (MotionPlan::QueueBelt: one robot lets them go on a belt between robots, another
+// takes them at its stop) queue there: the belt accumulates, so while a part waits at the stop the belt stands and the
+// next part stays where it was let go of; it rides to the stop once the part before it is lifted off. So the take of
+// the next part waits for both the part's own ride from its open and a ride from the lift of the part before it (the
+// queue's net, estimate_cycle_time): exact for a part let go of while the part before it waits at the stop or after
+// it was lifted; a part let go of while the one before it still rides would come up sooner than the estimate has it.
+// The lift is taken from the start of the move that lifts the part (the belt restarts once it is 5 mm up, about a
+// tenth of a second later).
+// Not modelled: parts queueing on the feed's belt (a fed part is taken to reach the stop at its own ride's end; on an
+// accumulating belt the queue stands while a part waits at the stop, so a part comes up the rest of its ride after
+// the lift of the part before it: in the shipped scenes the part is there before the arm comes back for it),
 // the frames a camera needs to see a part (perception vision), the few control periods a part pressed against a stop
 // bar may take to come to rest. Feed times are taken as they are, not rounded to the control period (exact when the
 // feed's start and period are whole periods, as in the shipped scenes). The bodies of a shift are not told apart:
@@ -67,6 +80,9 @@ struct PlannedCommand {
   bool reached = false;  // the untimed run of the net reached it
   // Moves only:
   std::vector<double> from, goal;  // joints before and after (goal empty when the move cannot be made)
+  // A move in a loop's body that the loop runs again from elsewhere: the joints it then starts from (where the body's
+  // end left the arm); empty when every pass starts from `from`. The goal is the first pass's.
+  std::vector<double> again_from;
   std::string target;              // the resolved target ("above B: tool at (...)"), or "" when unresolved
   std::string problem;             // why the move cannot be made, "" when it can
   // The part the hand carries during the move (cell workpiece, "" for none) and its pose in the tool (tcp) frame;
@@ -76,7 +92,8 @@ struct PlannedCommand {
   Eigen::Isometry3d grip = Eigen::Isometry3d::Identity();
   std::optional<double> closed;
   // Open and close only: half the width of the part across the fingers (m), where they close on it or let go of it;
-  // nullopt when the plan puts no part between them (a grip that names none).
+  // nullopt when the plan puts no part between them (a grip that names none). For a part of a class relayed over a
+  // belt (no body in the plan, see queue_belts): the width of the body last let go of on that belt.
   std::optional<double> contact;
 };
 
@@ -126,6 +143,18 @@ struct MotionPlan {
   };
   std::vector<BeltRide> belt_rides;
   double feed_ride = 0;  // s a fed part rides from the feed's entry point to the stop (the longest of the bodies')
+  // A belt between robots that parts of a class ride (a relay over a belt, scenes/relay_belt.task: one robot lets
+  // them go on it, another takes them at its stop bar; the class's location is at the stop of a running belt that is
+  // not the feed's). Its parts queue: the belt stands while a part waits at the stop (it accumulates), so a part let
+  // go of behind it rides to the stop once that part is lifted off it (see estimate_cycle_time).
+  struct QueueBelt {
+    std::string conveyor;
+    std::vector<petri::TransitionId> puts;   // start an open that lets go of a part of the class on the belt
+    std::vector<petri::TransitionId> takes;  // start the first move to a new part of the class (at the stop)
+    std::vector<petri::TransitionId> lifts;  // start the move that lifts a part of the class off the stop
+    double ride = 0;  // s from where a part is let go of to the stop, at the belt's speed (the longest of the puts')
+  };
+  std::vector<QueueBelt> queue_belts;  // only belts with puts, takes and lifts
   std::vector<Delivery> deliveries;  // a shift's opens that deliver a body (empty unless the feed recycles)
   // One line per move that cannot be made: the robot, the command, its source and why.
   std::vector<std::string> problems() const;
@@ -199,6 +228,11 @@ struct Estimate {
 //    stop, taken by every feed take (an input arc of its transition);
 //  - in a shift, per delivery d: its open's transition --> feed.leaving.d [from the open's start to the end of the
 //    period in which the part, let go of, has ridden to the exit point] --feed.delivered.d--> feed.free.
+// The queue's net, per relay belt B (MotionPlan::queue_belts; r = the ride from where a part is let go of to the
+// stop, rounded up to p):
+//  - each put (the open that lets go of a part on B) --> queue.B.put [r], each lift (the move that lifts a part off
+//    the stop) --> queue.B.clear [r] (one token at the start); each take (the first move to the next part at the
+//    stop) takes one token of each: the part arrives r after the later of its put and the lift before it.
 Estimate estimate_cycle_time(const Scenario& scenario, const petri::Net& net, const MotionPlan& plan,
                              const EstimateOptions& options);
 

@@ -356,9 +356,10 @@ TEST_F(BeamEstimate, EachSegmentTakesTheSlowerArmsTimeOnBothArms) {
     EXPECT_DOUBLE_EQ(l.seconds, f.seconds) << l.command;
     EXPECT_GE(l.motion, find(even, "left", lead[i]).motion) << l.command;
     if (l.motion > find(even, "left", lead[i]).motion + 0.05) ++longer;
-    // Posted in the round task control starts it, submitted in the next (the master's turn comes first).
+    // lockstep_span (its end seen, the read-back, the next firing) and one period: posted in the round task control
+    // starts it, submitted in the next (the master's turn comes first).
     const double rounds = std::floor(std::ceil(l.motion / 0.002 - 1e-9) * 0.002 / 0.01 + 1e-9) + 1;
-    EXPECT_NEAR(l.seconds, (rounds + 3 + 1) * 0.01, 1e-9) << l.command;
+    EXPECT_NEAR(l.seconds, (rounds + 2 + 1) * 0.01, 1e-9) << l.command;
   }
   EXPECT_GT(longer, 0);  // the slow follower holds the master back
   // The master's own move after the block (home) is its own.

@@ -62,7 +62,7 @@ TEST(SegmentTarget, BeforeTheGraspEachArmGoesToItsOwnEndOfTheBeam) {
   EXPECT_NEAR(f.y(), centre.y(), 1e-9);
   // Pointing down, the fingers (tool y) across the beam; at the height of the beam's own `above` target.
   EXPECT_NEAR(lead.poses.front().linear().col(2).z(), -1.0, 1e-9);
-  EXPECT_NEAR(std::abs(lead.poses.front().linear().col(1).x()), 1.0, 1e-9);
+  EXPECT_NEAR(std::abs(lead.poses.front().linear().col(1).y()), 1.0, 1e-9);
   const MotionTarget own = resolve_target(m, "puma", above);
   EXPECT_NEAR(l.z(), own.poses.front().translation().z(), 1e-9);
   // The pick's approach height is kept for the lift; the grasp itself goes straight down.

@@ -38,12 +38,13 @@ TEST(StraightLine, ItsWaypointsLieOnTheLineAtMostOneStepApart) {
   }
 }
 
-TEST(StraightLine, AGoalOutOfReachIsAProblemNamingWhereOnTheLine) {
+TEST(StraightLine, ALineTheArmCannotFollowIsAProblemNamingWhereOnIt) {
   const Puma puma;
   Eigen::Isometry3d to = puma.chain.forward(puma.home);
   to.translation() += Eigen::Vector3d(3.0, 0, 0);
   const StraightLine line = straight_line(puma.chain, puma.home, to, 0.005, 0.25, {});
-  EXPECT_THAT(line.problem, ::testing::HasSubstr("straight line: no joint solution at"));
+  // (Here the wrist would flip on the way out, before the line leaves the arm's reach.)
+  EXPECT_THAT(line.problem, ::testing::HasSubstr("% of the way"));
   EXPECT_TRUE(line.points.empty());
 }
 

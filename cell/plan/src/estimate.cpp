@@ -13,9 +13,11 @@
 #include "cellwright/models/robot_model.hpp"
 #include "cellwright/petri/firing.hpp"
 #include "cellwright/runtime/robot_control.hpp"
+#include "cellwright/runtime/segment_target.hpp"
 #include "cellwright/task/to_net.hpp"
 #include "cellwright/twin/sim/belt_exit.hpp"
 #include "cellwright/twin/sim/grip_timing.hpp"
+#include "cellwright/twin/sim/move_timing.hpp"
 #include "cellwright/twin/sim/trajectory.hpp"
 
 namespace cellwright::cell {
@@ -355,6 +357,14 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
     return body;
   };
 
+  // Coordinated blocks, as robot control keeps them (segment_target.hpp): each robot's carry per block, and the
+  // master's target of each segment with its tool before it (what the follower composes its own target with).
+  std::map<std::pair<std::string, std::string>, runtime::CarryTargets> carries;  // (cell robot, block) -> carry
+  struct MasterPost {
+    Eigen::Isometry3d target, tool;
+  };
+  std::map<std::pair<std::string, int>, MasterPost> master_posts;  // (block, segment index) -> the master's
+
   std::uint64_t guard = 0;
   task::LoopControl loops(net, prog);
   while (!petri::is_dead(net, m) && guard++ < 1'000'000) {
@@ -363,7 +373,16 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
     const auto chosen = petri::choose(net, m, arbiter, allowed);
     if (chosen.empty()) break;
     for (petri::TransitionId t : chosen) loops.fired(t);
-    for (petri::TransitionId t : chosen) {
+    // The masters' segments first: a follower's target is made from its master's.
+    auto planned_order = chosen;
+    std::stable_partition(planned_order.begin(), planned_order.end(), [&](petri::TransitionId t) {
+      const petri::Transition& tr = net.transitions()[t];
+      if (!tr.starts_robot) return true;
+      const std::size_t r = *tr.starts_robot;
+      const task::Primitive& p = prog.programs[r].primitives[static_cast<std::size_t>(tr.starts_primitive)];
+      return !p.segment || p.segment->master == prog.robots[r];
+    });
+    for (petri::TransitionId t : planned_order) {
       const petri::Transition& tr = net.transitions()[t];
       if (!tr.starts_robot) continue;
       const std::size_t r = *tr.starts_robot;
@@ -429,15 +448,26 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           c.from = rs.joints;
           if (auto h = held.find(arm.cell); h != held.end()) std::tie(c.held, c.grip) = h->second;
           if (auto f = closed.find(arm.cell); f != closed.end()) c.closed = f->second;
+          runtime::MotionTarget mt;
+          bool straight = false;
           if (p.segment) {
-            // A coordinated block's segment: each arm goes to its own grasp point and the follower follows the
-            // master, solved by robot control when the segment runs (docs/runtime.md, "Coordinated blocks"); this
-            // plan neither checks nor times it (the arm stays where it was).
-            c.target = fmt::format("{} (coordinated: solved at run time)", task::to_string(p.target));
-            c.goal = rs.joints;
-            break;
+            // A coordinated block's segment, as robot control resolves it (segment_target.hpp): the follower's
+            // target made from the master's, posted when the master's move was planned.
+            const task::Segment& seg = *p.segment;
+            runtime::SegmentMove move;
+            move.robot = arm.cell;
+            move.master = s.robot_of(seg.master);
+            move.is_master = seg.master == c.robot;
+            move.tool = tcp_of(arm, rs.joints);
+            if (auto post = master_posts.find({seg.block, seg.index}); !move.is_master && post != master_posts.end()) {
+              move.master_tool = post->second.tool;
+              move.master_target = post->second.target;
+            }
+            mt = runtime::resolve_segment_target(model, target, seg, move, carries[{arm.cell, seg.block}], targets,
+                                                 &straight);
+          } else {
+            mt = runtime::resolve_target(model, arm.cell, target, targets);
           }
-          const runtime::MotionTarget mt = runtime::resolve_target(model, arm.cell, target, targets);
           if (mt.resolution != runtime::MotionTarget::Resolution::kOk) {
             c.problem = mt.reason;
             break;
@@ -445,6 +475,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
           c.target = mt.description;
           const Eigen::VectorXd from = vec(rs.joints);
           std::optional<Eigen::VectorXd> goal;
+          std::optional<Eigen::Isometry3d> goal_pose;  // the pose chosen (base frame)
           std::string why;
           if (!mt.joints.empty()) {
             goal = vec(mt.joints);
@@ -464,6 +495,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
               if (ik.status == models::IkStatus::kOk &&
                   (!goal || rank < best_rank || (ik.q - from).norm() < (*goal - from).norm())) {
                 goal = ik.q;
+                goal_pose = in_base;
                 best_rank = rank;
               }
               if (ik.status != models::IkStatus::kOk && why.empty()) why = ik.reason;
@@ -480,6 +512,10 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
             break;
           }
           c.goal.assign(goal->data(), goal->data() + goal->size());
+          if (straight) c.line_to = goal_pose;
+          if (p.segment && p.segment->master == c.robot && goal_pose) {
+            master_posts[{p.segment->block, p.segment->index}] = {arm.base * *goal_pose, tcp_of(arm, rs.joints)};
+          }
           rs.joints = c.goal;
           rs.tcp = tcp_of(arm, rs.joints);
           if (auto h = held.find(arm.cell); h != held.end()) {
@@ -525,6 +561,7 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
             const double bottom = ws.pose.translation().z() - ws.size().z() / 2;
             rs.hold = runtime::Hold{w, down ? models::Approach::kDown : models::Approach::kSide,
                                     tcp.translation().z() - bottom};
+            rs.hold->in_hand = held[arm.cell].second;
           } else {
             // As robot control records it: the hand departs straight up from where it let go (resolve_target).
             if (rs.hold) rs.released_tcp = tcp;
@@ -571,6 +608,8 @@ MotionPlan plan_motions(const Scenario& s, const petri::Net& net, const runtime:
         case task::PrimitiveKind::kDevice:  // no motion: its time is the estimate's (estimate_cycle_time)
           break;
       }
+      // A block's carry ends with its last segment (robot control forgets it then).
+      if (p.segment && p.segment->index == p.segment->count) carries.erase({arm.cell, p.segment->block});
     }
     petri::fire_chosen(net, m, arbiter, chosen);
   }
@@ -611,8 +650,63 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
   for (std::size_t d = 0; d < plan.deliveries.size(); ++d) {
     delivery_of[{plan.deliveries[d].robot, plan.deliveries[d].primitive}] = d;
   }
+  // A move's least duration as its driver tells it (sim_driver.hpp least_duration): a joint move's quintic profile,
+  // or a straight line through the driver's waypoints within the tool-speed limit too (move_timing.hpp).
+  std::vector<std::optional<models::KinematicChain>> chains(prog.robots.size());
+  const auto least_move = [&](std::size_t r, const PlannedCommand& c, std::string& basis) {
+    const RobotTiming& rt = *timing[r];
+    CW_CHECK(rt.max_joint_speed.size() == c.goal.size(), "robot {}: {} joint speeds for {} joints", c.cell,
+             rt.max_joint_speed.size(), c.goal.size());
+    // A move a loop repeats is timed as its repeats make it (from the end of the body; see the top).
+    const Eigen::VectorXd from = vec(c.again_from.empty() ? c.from : c.again_from), goal = vec(c.goal);
+    if (c.line_to) {
+      if (!chains[r]) chains[r].emplace(models::robot_chain(*s.cell.find_robot(c.cell)));
+      const sim::StraightLine line =
+          sim::straight_line(*chains[r], from, *c.line_to, rt.linear_step, rt.max_waypoint_step, rt.ik);
+      if (line.problem.empty()) {
+        basis = fmt::format("straight line of {:.3f} m through {} waypoints", line.tool_distance, line.points.size());
+        return sim::least_move_duration(sim::JointPath(line.points, line.arc), line.tool_distance,
+                                        vec(rt.max_joint_speed), rt.speed, rt.min_move_time, rt.max_tool_speed);
+      }
+      basis = fmt::format("joint move (the straight line cannot be followed: {}), ", line.problem);
+    }
+    Eigen::Index j = 0;
+    const double largest = (goal - from).cwiseAbs().maxCoeff(&j);
+    basis += fmt::format("joint move, largest step {:.3f} rad (joint {}){}", largest, j + 1,
+                         c.again_from.empty() ? "" : ", as the loop repeats it");
+    return sim::move_duration(from, goal, vec(rt.max_joint_speed), rt.speed, rt.min_move_time);
+  };
+  // Coordinated segments (docs/runtime.md, "Coordinated blocks"): both robots' moves take the agreed duration, the
+  // longer of their least durations; segments are keyed as robot control keys them, by block and occurrence (the
+  // n-th segment of the block the robot runs, from 0). The rendezvous: each robot posts its segment in its turn of
+  // the round task control starts it in, the follower only once the master's post is there, and both submit from
+  // the round after the later post: one period late when the master's turn comes before the follower's in the
+  // round (robots take their turns in program order), two when it comes after.
+  std::map<std::pair<std::string, std::size_t>, double> agreed;
+  const auto segment_key = [](std::map<std::string, std::size_t>& counts, const task::Segment& seg) {
+    return std::pair{seg.block, counts[seg.block]++};
+  };
+  const auto rendezvous = [&](const task::Segment& seg) {
+    const auto index = [&](const std::string& label) {
+      return std::find(prog.robots.begin(), prog.robots.end(), label) - prog.robots.begin();
+    };
+    return index(seg.master) < index(seg.follower) ? 1 : 2;
+  };
+  for (std::size_t r = 0; r < plan.commands.size(); ++r) {
+    std::map<std::string, std::size_t> counts;
+    for (const PlannedCommand& c : plan.commands[r]) {
+      const task::Primitive& p = prog.programs[r].primitives[c.primitive];
+      if (!p.segment) continue;
+      const auto key = segment_key(counts, *p.segment);
+      if (c.kind != task::PrimitiveKind::kMove || c.goal.empty()) continue;
+      std::string basis;
+      double& both = agreed[key];
+      both = std::max(both, least_move(r, c, basis));
+    }
+  }
   for (std::size_t r = 0; r < plan.commands.size(); ++r) {
     const RobotTiming& rt = *timing[r];
+    std::map<std::string, std::size_t> counts;  // segments per block so far
     // Bring-up: the driver homes (the arm to its home joints, the fingers opening), then robot control activates it
     // and takes the first command in the next round.
     const double home = std::max(rt.min_move_time, sim::kFingerMinTime + sim::kFingerRestWindow);
@@ -635,20 +729,14 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
       ce.robot = c.robot;
       ce.primitive = c.primitive;
       ce.command = c.command;
+      const task::Segment* segment = prog.programs[r].primitives[c.primitive].segment ?
+                                         &*prog.programs[r].primitives[c.primitive].segment : nullptr;
       if (c.kind == task::PrimitiveKind::kMove) {
         if (c.goal.empty()) {
           ce.motion = rt.min_move_time;
           ce.basis = c.reached ? "move that cannot be made" : "not reached";
         } else {
-          CW_CHECK(rt.max_joint_speed.size() == c.goal.size(), "robot {}: {} joint speeds for {} joints", c.cell,
-                   rt.max_joint_speed.size(), c.goal.size());
-          // A move a loop repeats is timed as its repeats make it (from the end of the body; see the top).
-          const Eigen::VectorXd from = vec(c.again_from.empty() ? c.from : c.again_from), goal = vec(c.goal);
-          ce.motion = sim::move_duration(from, goal, vec(rt.max_joint_speed), rt.speed, rt.min_move_time);
-          Eigen::Index j = 0;
-          const double largest = (goal - from).cwiseAbs().maxCoeff(&j);
-          ce.basis = fmt::format("joint move, largest step {:.3f} rad (joint {}){}", largest, j + 1,
-                                 c.again_from.empty() ? "" : ", as the loop repeats it");
+          ce.motion = least_move(r, c, ce.basis);
         }
         ce.seconds = lockstep_span(ce.motion, true, period, step);
       } else if (c.kind == task::PrimitiveKind::kOpen) {
@@ -713,6 +801,16 @@ Estimate estimate_cycle_time(const Scenario& s, const petri::Net& net, const Mot
         }
       } else {
         ce.basis = "net only";  // signal, wait, a loop's end
+      }
+      if (segment != nullptr) {
+        const auto key = segment_key(counts, *segment);
+        if (c.kind == task::PrimitiveKind::kMove && !c.goal.empty()) {
+          ce.basis += fmt::format("; segment {} of {}: {:.3f} s, the longer arm's", segment->index, segment->block,
+                                  agreed.at(key));
+          ce.motion = agreed.at(key);
+          ce.seconds = lockstep_span(ce.motion, true, period, step);
+        }
+        ce.seconds += rendezvous(*segment) * period;
       }
       durations[*net.find_place(task::place_id(c.robot, c.primitive))] = ce.seconds;
       if (first + k < est.commands.size()) {

@@ -234,7 +234,8 @@ Preflight preflight(const Scenario& s, const CollisionSweep* collisions) {
               }
             } else if (spot) {
               // A coordinated block's robots go to their own grasp points on the workpiece, not its centre: robot
-              // control solves each arm's target when the segment runs (docs/runtime.md, "Coordinated blocks").
+              // control solves each arm's target when the segment runs (docs/runtime.md, "Coordinated blocks"), and
+              // the motion plan checks it with the same function (plan_motions).
               if (!p.segment) need(robot, *spot, p);
               last_target[robot] = *spot;
             }

@@ -134,6 +134,10 @@ EstimateOptions twin_estimate_options(const Scenario& s, const twin::Scene& scen
     timing.max_joint_speed = sim::sim_joint_speeds(spec, models::robot_chain(spec), driver);
     timing.speed = motion_speed;
     timing.min_move_time = driver.min_move_time;
+    timing.max_tool_speed = driver.max_tool_speed;
+    timing.linear_step = driver.linear_step;
+    timing.max_waypoint_step = driver.max_waypoint_step;
+    timing.ik = driver.ik;
     timing.finger_speed = driver.finger_speed;
     timing.release_clearance = driver.release_clearance;
     timing.finger_closed = ids->finger_range[0];

@@ -9,6 +9,7 @@
 #include <type_traits>
 
 #include "cellwright/twin/sim/grip_timing.hpp"
+#include "cellwright/twin/sim/move_timing.hpp"
 
 namespace cellwright::twin::sim {
 
@@ -19,7 +20,6 @@ using drivers::Submitted;
 
 namespace {
 
-constexpr double kLinearAngleStep = 0.05;   // rad of tool rotation between straight-line waypoints
 constexpr double kOnPartMargin = 0.001;     // m short of fully closed for a close to count as on a part
 
 double seconds(std::chrono::nanoseconds d) {
@@ -178,11 +178,10 @@ void SimDriver::plan_command(SimJob& job, const drivers::Command& command) const
 }
 
 double SimDriver::planned_duration(const SimJob& job, std::vector<Eigen::VectorXd> points) const {
-  const JointPath path(std::move(points), job.arc);
-  double duration = path.min_duration(max_speed_, job.speed, options_.min_move_time);
-  if (!job.arc.empty()) {
-    duration = std::max(duration, kQuinticPeakSpeed * job.tool_distance / (options_.max_tool_speed * job.speed));
-  }
+  const double duration =
+      least_move_duration(JointPath(std::move(points), job.arc),
+                          job.arc.empty() ? std::nullopt : std::optional<double>(job.tool_distance), max_speed_,
+                          job.speed, options_.min_move_time, options_.max_tool_speed);
   return std::max(duration, job.min_duration.value_or(0.0));
 }
 
@@ -281,45 +280,17 @@ void SimDriver::plan_pose(SimJob& job, const drivers::MovePose& move) const {
     job.points = {seed, ik.q};
     return;
   }
-  // A straight line of the tool: waypoints close enough that joint interpolation between them stays on the line.
-  const Eigen::Isometry3d from = chain_.forward(seed);
-  const Eigen::Vector3d p0 = from.translation(), p1 = move.pose.translation();
-  const Eigen::Quaterniond r0(from.linear()), r1(move.pose.linear());
-  const double distance = (p1 - p0).norm();
-  const double angle = r0.angularDistance(r1);
-  const int steps =
-      std::max(1, static_cast<int>(std::ceil(std::max(distance / options_.linear_step, angle / kLinearAngleStep))));
-  job.points = {seed};
-  job.arc = {0.0};
-  job.tool_distance = distance;
-  for (int i = 1; i <= steps; ++i) {
-    const double f = static_cast<double>(i) / steps;
-    Eigen::Isometry3d waypoint = Eigen::Isometry3d::Identity();
-    waypoint.linear() = r0.slerp(f, r1).toRotationMatrix();
-    waypoint.translation() = p0 + f * (p1 - p0);
-    const models::IkResult ik = chain_.inverse(waypoint, job.points.back(), options_.ik);
-    if (ik.status != models::IkStatus::kOk) {
-      job.problem_code = ErrorCode::unreachable;
-      job.problem = fmt::format(
-          "straight line: no joint solution at {:.1f}% of the way, ({:.4f}, {:.4f}, {:.4f}) m: {}", 100.0 * f,
-          waypoint.translation().x(), waypoint.translation().y(), waypoint.translation().z(), ik.reason);
-      job.points.clear();
-      return;
-    }
-    const Eigen::VectorXd jump = (ik.q - job.points.back()).cwiseAbs();
-    Eigen::Index worst = 0;
-    if (jump.maxCoeff(&worst) > options_.max_waypoint_step) {
-      job.problem_code = ErrorCode::unreachable;
-      job.problem = fmt::format(
-          "straight line: joint {} would jump {:.3f} rad at {:.1f}% of the way (a singularity or a change of "
-          "configuration on the line)",
-          worst + 1, jump[worst], 100.0 * f);
-      job.points.clear();
-      return;
-    }
-    job.points.push_back(ik.q);
-    job.arc.push_back(f);
+  // A straight line of the tool (move_timing.hpp).
+  StraightLine line = straight_line(chain_, seed, move.pose, options_.linear_step, options_.max_waypoint_step,
+                                    options_.ik);
+  if (!line.problem.empty()) {
+    job.problem_code = ErrorCode::unreachable;
+    job.problem = std::move(line.problem);
+    return;
   }
+  job.points = std::move(line.points);
+  job.arc = std::move(line.arc);
+  job.tool_distance = line.tool_distance;
 }
 
 // ---- The simulation side ---------------------------------------------------------------------------------------

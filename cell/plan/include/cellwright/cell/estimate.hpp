@@ -7,13 +7,25 @@
 // follows the program: parts held move with the hand and keep the approach they were grasped with, parts put down
 // rest where they were put, parts on a conveyor are picked at its stop, a hand that has just let go of a part departs
 // straight up from where it let go) and solved with the robot's inverse kinematics from its previous joints (the
-// solution within the limits closest to them). Preflight refuses a program with a move the plan cannot make. A loop's
-// body is planned on its first pass; a move the loop then runs again from elsewhere (its first move, from where the
-// body's end left the arm) is timed as the repeats make it, the first pass too (PlannedCommand::again_from).
+// solution within the limits closest to them). A coordinated block's moves are resolved as robot control resolves
+// them, with the same function (runtime::resolve_segment_target, segment_target.hpp): each arm's own end of the
+// workpiece before the grasp, the master's tool translated while carrying, the follower's target the master's
+// composed with the grasp transform measured from the two arms' planned tools once both hold it; the master's move
+// of a segment is planned before the follower's. Preflight refuses a program with a move the plan cannot make. A
+// loop's body is planned on its first pass; a move the loop then runs again from elsewhere (its first move, from
+// where the body's end left the arm) is timed as the repeats make it, the first pass too (PlannedCommand::again_from).
 //
 // Then the command durations, per robot primitive, as the simulated controller (sim/sim_driver.hpp) ends them:
 //  - move: a joint move (robot control sends joint targets to a simulation driver): sim::move_duration, the quintic
-//    profile's peak within max_joint_speed x speed, at least min_move_time;
+//    profile's peak within max_joint_speed x speed, at least min_move_time; a straight line (a coordinated segment's
+//    move but the first approach, sent as MovePose linear): the driver's own waypoints and least duration
+//    (sim::straight_line, sim::least_move_duration, move_timing.hpp: the joints along the line, and the tool within
+//    max_tool_speed x speed);
+//  - a coordinated segment (docs/runtime.md "Coordinated blocks"): a move takes the agreed duration, the longer of the
+//    two arms' least durations, on both arms; every segment command (a grip too) starts late by the rendezvous: each
+//    robot posts in its turn of the round the segment was started in, the follower only once the master has, and
+//    both submit in the round after the later post: one period when the master's turn comes first in the round
+//    (robots take their turns in program order), two when it comes after;
 //  - open/close: the finger ramp (sim/grip_timing.hpp) from where the last grip left it: an open to fully open, a
 //    close to fully closed or, on a part, until the fingers press it (the part's width across the fingers from the
 //    plan), then the rest window; in a loop's body, from where the body's end left the ramp, as the loop's repeats
@@ -61,6 +73,7 @@
 #include <string>
 #include <vector>
 
+#include "cellwright/models/kinematics.hpp"
 #include "cellwright/petri/net.hpp"
 #include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/task/compiled.hpp"
@@ -84,6 +97,8 @@ struct PlannedCommand {
   // end left the arm); empty when every pass starts from `from`. The goal is the first pass's.
   std::vector<double> again_from;
   std::string target;              // the resolved target ("above B: tool at (...)"), or "" when unresolved
+  // A straight line of the tool (a coordinated segment's move but the first approach): its goal in the base frame.
+  std::optional<Eigen::Isometry3d> line_to;
   std::string problem;             // why the move cannot be made, "" when it can
   // The part the hand carries during the move (cell workpiece, "" for none) and its pose in the tool (tcp) frame;
   // `closed`: the last grip before the move closed the fingers, to half the part's width across them (m) or, on
@@ -179,6 +194,10 @@ struct RobotTiming {
   std::vector<double> max_joint_speed;  // rad/s per arm joint at speed 1
   double speed = 0.5;                   // fraction of max_joint_speed the moves use
   double min_move_time = 0.2;           // s, the shortest motion
+  double max_tool_speed = 0.5;          // m/s of the tool on a straight line at speed 1
+  double linear_step = 0.005;           // m between a straight line's waypoints ...
+  double max_waypoint_step = 0.25;      // rad: ... and the largest joint step between them (move_timing.hpp)
+  models::IkOptions ik;                 // how the driver solves the waypoints
   double finger_speed = 0.05;           // m/s of each finger's ramp at its peak
   double finger_open = 0.04;            // m: each finger's position fully open ...
   double finger_closed = 0.0;           // ... and fully closed

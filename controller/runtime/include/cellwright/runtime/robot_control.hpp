@@ -27,11 +27,12 @@
 //    Path::linear for a straight approach, grasp or lift (at(X) right after above(X) or the reverse, hand_grasp right
 //    after hand_approach or the reverse) when the driver moves linearly. home goes straight to the home joints.
 //  - open/close: Grip open/close (with the robot's grip force if the driver takes a force).
-//  - COORDINATED BLOCKS (a primitive with a task::Segment; docs/runtime.md "Coordinated blocks"): the master's tool
-//    target is its grasp point on the workpiece (the end of its long axis nearer the master's base, fingers across
-//    it) before it holds it, and while carrying a pure translation of its tool (the workpiece keeps its orientation:
-//    it is not twisted): up by the pick's approach height for the lift, to where the workpiece's centre lands on (or
-//    approach height above) a location, straight up from the put-down. The follower takes the other end before the
+//  - COORDINATED BLOCKS (a primitive with a task::Segment; docs/runtime.md "Coordinated blocks"; the targets are
+//    resolve_segment_target's, segment_target.hpp, which the motion plan shares): the master's tool target is its
+//    grasp point on the workpiece (the end of its long axis nearer the master's base, fingers across it) before it
+//    holds it, and while carrying a pure translation of its tool (the workpiece keeps its orientation: it is not
+//    twisted): up by the pick's approach height for the lift, to where the workpiece's centre lands on (or approach
+//    height above) a location, straight up from the put-down. The follower takes the other end before the
 //    grasp; once both hold, its target is the master's target composed with the grasp transform measured then
 //    (master tool -> own tool). Both post to the Coordination board and submit with the agreed (longest) duration;
 //    every move after the first approach is a straight line (MovePose linear) where the driver has one. A driver
@@ -87,6 +88,7 @@
 #include "cellwright/runtime/environment_model.hpp"
 #include "cellwright/runtime/event_log.hpp"
 #include "cellwright/runtime/message_queue.hpp"
+#include "cellwright/runtime/segment_target.hpp"
 #include "cellwright/runtime/messages.hpp"
 #include "cellwright/runtime/recovery.hpp"
 #include "cellwright/task/compiled.hpp"
@@ -263,7 +265,8 @@ class RobotControl {
   // A segment of a coordinated block: prepares its command and posts it (once), then gives it with the agreed
   // duration once the partner has posted too; nullopt while it waits (or when it failed).
   std::optional<drivers::Command> segment_command(SimDuration now);
-  // The tool target (world poses, alternatives) of a coordinated segment's move, and whether it goes straight.
+  // The tool target (world poses, alternatives) of a coordinated segment's move, and whether it goes straight
+  // (resolve_segment_target, segment_target.hpp, on the model, this robot's carry of the block and the master's tool).
   MotionTarget segment_target(const task::Target& target, const task::Segment& segment,
                               const std::optional<Eigen::Isometry3d>& master_target, bool* linear);
   void poll_current(SimDuration now);
@@ -378,8 +381,7 @@ class RobotControl {
   Coordination* coordination_ = nullptr;
   std::map<std::string, std::uint64_t> segments_submitted_;
   struct Carry {
-    std::optional<Eigen::Isometry3d> grasp;
-    double approach = 0.08;
+    CarryTargets targets;  // the follower's grasp transform and the pick's approach height (segment_target.hpp)
     // The pair (program labels, cell robots), and what watch_carry keeps between its checks: how many checks running
     // each grip sensor has missed the workpiece, and the tools where the last check saw them.
     std::string master, follower, master_cell, follower_cell;

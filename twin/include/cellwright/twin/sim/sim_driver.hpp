@@ -30,10 +30,11 @@
 //    shoulder or elbow and swing the arm through the air).
 //    Path::joint then moves like MoveJoints. Path::linear solves IK at waypoints at most
 //    linear_step apart along the straight line (orientation by slerp), each seeded with the previous one, and follows
-//    that polyline; the tool then deviates from the line by well under a millimetre. It fails with unreachable when
-//    a pose has no IK solution, or a linear path would need a jump of the arm (two successive waypoints more than
-//    max_waypoint_step apart in some joint: a singularity or a change of configuration on the line). The duration
-//    also keeps the tool within max_tool_speed * speed.
+//    that polyline (straight_line, move_timing.hpp); the tool then deviates from the line by well under a
+//    millimetre. It fails with unreachable when a pose has no IK solution, or a linear path would need a jump of the
+//    arm (two successive waypoints more than max_waypoint_step apart in some joint: a singularity or a change of
+//    configuration on the line). The duration also keeps the tool within max_tool_speed * speed
+//    (least_move_duration, move_timing.hpp).
 //  - A timed move (MoveJoints/MovePose::duration; Capabilities::timed_motion; robot_driver.hpp TIMED MOVES) lasts
 //    its duration when that is longer than the time above: the same path, the quintic stretched. Its arm is done
 //    when the trajectory has ended, every joint is slower than settle_speed and within joint_tolerance of where the

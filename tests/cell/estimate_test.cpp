@@ -367,6 +367,7 @@ TEST(QueueEstimate, APartLetGoOfBehindAnotherRidesUpOnceThatOneIsLifted) {
     if (k > 0 && lifted > put && std::abs(takes[k] - lifted) < 1e-9) ++waited;
   }
   EXPECT_GE(waited, 5) << "the parts hardly ever queued: the test shows nothing";
+}
 
 // The beam (scenes/beam.yaml): two arms carry one beam in a coordinated block.
 class BeamEstimate : public ::testing::Test {

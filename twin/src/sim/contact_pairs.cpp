@@ -19,6 +19,61 @@ bool masks_meet(const mjModel* m, int g1, int g2) {
 
 bool is_plane(const mjModel* m, int g) { return m->geom_type[g] == mjGEOM_PLANE || m->geom_type[g] == mjGEOM_HFIELD; }
 
+// A geom pair's contact parameters, mixed from its two geoms as mj_collideGeoms mixes them for a dynamic pair: on
+// the geoms ordered by type, by geom priority, else max and the solmix weights.
+void mix(const mjModel* m, int a, int b, ContactPairs::Listed& out) {
+  const int g1 = m->geom_type[a] > m->geom_type[b] ? b : a;
+  const int g2 = g1 == a ? b : a;
+  out.margin = std::max(m->geom_margin[g1], m->geom_margin[g2]);
+  out.gap = std::max(m->geom_gap[g1], m->geom_gap[g2]);
+  if (m->geom_priority[g1] != m->geom_priority[g2]) {
+    const int gp = m->geom_priority[g1] > m->geom_priority[g2] ? g1 : g2;
+    out.dim = m->geom_condim[gp];
+    for (int i = 0; i < 3; ++i) out.friction[2 * i] = m->geom_friction[3 * gp + i];
+    std::copy_n(m->geom_solref + mjNREF * gp, mjNREF, out.solref);
+    std::copy_n(m->geom_solimp + mjNIMP * gp, mjNIMP, out.solimp);
+  } else {
+    out.dim = std::max(m->geom_condim[g1], m->geom_condim[g2]);
+    for (int i = 0; i < 3; ++i) {
+      out.friction[2 * i] = std::max(m->geom_friction[3 * g1 + i], m->geom_friction[3 * g2 + i]);
+    }
+    const mjtNum s1 = m->geom_solmix[g1], s2 = m->geom_solmix[g2];
+    mjtNum w;  // g1's weight
+    if (s1 >= mjMINVAL && s2 >= mjMINVAL) {
+      w = s1 / (s1 + s2);
+    } else if (s1 < mjMINVAL && s2 < mjMINVAL) {
+      w = 0.5;
+    } else {
+      w = s1 < mjMINVAL ? 0.0 : 1.0;
+    }
+    const mjtNum* r1 = m->geom_solref + mjNREF * g1;
+    const mjtNum* r2 = m->geom_solref + mjNREF * g2;
+    for (int i = 0; i < mjNREF; ++i) {
+      out.solref[i] = r1[0] > 0 && r2[0] > 0 ? w * r1[i] + (1 - w) * r2[i] : std::min(r1[i], r2[i]);
+    }
+    for (int i = 0; i < mjNIMP; ++i) {  // as mju_scl then mju_addToScl compute it
+      out.solimp[i] = m->geom_solimp[mjNIMP * g1 + i] * w;
+      out.solimp[i] += m->geom_solimp[mjNIMP * g2 + i] * (1 - w);
+    }
+  }
+  out.friction[1] = out.friction[0];
+  out.friction[3] = out.friction[4];
+}
+
+// A body's radius about its frame: the largest geom offset plus bounding radius; 0 for a body of one plane, infinite
+// for a body with a plane among other geoms (never left out).
+double radius_of(const mjModel* m, int b) {
+  const int n = m->body_geomnum[b];
+  double radius = 0;
+  for (int g = m->body_geomadr[b]; g < m->body_geomadr[b] + n; ++g) {
+    const double r = is_plane(m, g) ? (n == 1 ? 0.0 : std::numeric_limits<double>::infinity())
+                                    : std::hypot(m->geom_pos[3 * g], m->geom_pos[3 * g + 1], m->geom_pos[3 * g + 2]) +
+                                          m->geom_rbound[g];
+    radius = std::max(radius, r);
+  }
+  return radius;
+}
+
 }  // namespace
 
 ContactPairs::ContactPairs(mjModel* physics) : physics_(physics) {
@@ -29,18 +84,6 @@ ContactPairs::ContactPairs(mjModel* physics) : physics_(physics) {
   CW_CHECK(m->opt.collision == mjCOL_ALL, "the physics model's collision mode is {}, not MuJoCo's default",
            m->opt.collision);
   CW_CHECK(m->nbody < 0x10000, "{} bodies do not fit a pair signature", m->nbody);
-
-  // Each body's radius about its frame (a body with a plane among other geoms is never left out: infinite).
-  radius_.assign(static_cast<std::size_t>(m->nbody), 0.0);
-  for (int b = 0; b < m->nbody; ++b) {
-    const int n = m->body_geomnum[b];
-    for (int g = m->body_geomadr[b]; g < m->body_geomadr[b] + n; ++g) {
-      const double r = is_plane(m, g) ? (n == 1 ? 0.0 : std::numeric_limits<double>::infinity())
-                                      : std::hypot(m->geom_pos[3 * g], m->geom_pos[3 * g + 1], m->geom_pos[3 * g + 2]) +
-                                            m->geom_rbound[g];
-      radius_[static_cast<std::size_t>(b)] = std::max(radius_[static_cast<std::size_t>(b)], r);
-    }
-  }
 
   const bool filter_parent = !(m->opt.disableflags & mjDSBL_FILTERPARENT);
   std::vector<int> excluded(m->exclude_signature, m->exclude_signature + m->nexclude);
@@ -58,61 +101,21 @@ ContactPairs::ContactPairs(mjModel* physics) : physics_(physics) {
       BodyPair bp;
       bp.b1 = b1;
       bp.b2 = b2;
-      bp.first = geom1_.size();
+      bp.first = listed_.size();
       double margin = 0;
-      for (int a = m->body_geomadr[b1]; a < m->body_geomadr[b1] + m->body_geomnum[b1]; ++a) {
-        for (int b = m->body_geomadr[b2]; b < m->body_geomadr[b2] + m->body_geomnum[b2]; ++b) {
-          if (!masks_meet(m, a, b)) continue;
-          // mj_collideGeoms orders the two by type and mixes their parameters in that order.
-          const int g1 = m->geom_type[a] > m->geom_type[b] ? b : a;
-          const int g2 = g1 == a ? b : a;
-          if (!mjCOLLISIONFUNC[m->geom_type[g1]][m->geom_type[g2]]) continue;
-          geom1_.push_back(a);
-          geom2_.push_back(b);
-          signature_.push_back(signature);
-          margin_.push_back(std::max(m->geom_margin[g1], m->geom_margin[g2]));
-          gap_.push_back(std::max(m->geom_gap[g1], m->geom_gap[g2]));
-          margin = std::max(margin, margin_.back());
-          mjtNum friction[5], solref[mjNREF], solimp[mjNIMP];
-          if (m->geom_priority[g1] != m->geom_priority[g2]) {
-            const int gp = m->geom_priority[g1] > m->geom_priority[g2] ? g1 : g2;
-            dim_.push_back(m->geom_condim[gp]);
-            for (int i = 0; i < 3; ++i) friction[2 * i] = m->geom_friction[3 * gp + i];
-            for (int i = 0; i < mjNREF; ++i) solref[i] = m->geom_solref[mjNREF * gp + i];
-            for (int i = 0; i < mjNIMP; ++i) solimp[i] = m->geom_solimp[mjNIMP * gp + i];
-          } else {
-            dim_.push_back(std::max(m->geom_condim[g1], m->geom_condim[g2]));
-            for (int i = 0; i < 3; ++i) {
-              friction[2 * i] = std::max(m->geom_friction[3 * g1 + i], m->geom_friction[3 * g2 + i]);
-            }
-            const mjtNum s1 = m->geom_solmix[g1], s2 = m->geom_solmix[g2];
-            mjtNum mix;
-            if (s1 >= mjMINVAL && s2 >= mjMINVAL) {
-              mix = s1 / (s1 + s2);
-            } else if (s1 < mjMINVAL && s2 < mjMINVAL) {
-              mix = 0.5;
-            } else {
-              mix = s1 < mjMINVAL ? 0.0 : 1.0;
-            }
-            const mjtNum* r1 = m->geom_solref + mjNREF * g1;
-            const mjtNum* r2 = m->geom_solref + mjNREF * g2;
-            for (int i = 0; i < mjNREF; ++i) {
-              solref[i] = r1[0] > 0 && r2[0] > 0 ? mix * r1[i] + (1 - mix) * r2[i] : std::min(r1[i], r2[i]);
-            }
-            // As mju_scl then mju_addToScl compute it.
-            for (int i = 0; i < mjNIMP; ++i) {
-              solimp[i] = m->geom_solimp[mjNIMP * g1 + i] * mix;
-              solimp[i] += m->geom_solimp[mjNIMP * g2 + i] * (1 - mix);
-            }
-          }
-          friction[1] = friction[0];
-          friction[3] = friction[4];
-          friction_.insert(friction_.end(), friction, friction + 5);
-          solref_.insert(solref_.end(), solref, solref + mjNREF);
-          solimp_.insert(solimp_.end(), solimp, solimp + mjNIMP);
+      for (int g1 = m->body_geomadr[b1]; g1 < m->body_geomadr[b1] + m->body_geomnum[b1]; ++g1) {
+        for (int g2 = m->body_geomadr[b2]; g2 < m->body_geomadr[b2] + m->body_geomnum[b2]; ++g2) {
+          const int t1 = m->geom_type[g1], t2 = m->geom_type[g2];
+          if (!masks_meet(m, g1, g2) || !mjCOLLISIONFUNC[std::min(t1, t2)][std::max(t1, t2)]) continue;
+          Listed& p = listed_.emplace_back();
+          p.geom1 = g1;
+          p.geom2 = g2;
+          p.signature = signature;
+          mix(m, g1, g2, p);
+          margin = std::max(margin, p.margin);
         }
       }
-      bp.last = geom1_.size();
+      bp.last = listed_.size();
       if (bp.last == bp.first) continue;
       // A body of one plane geom against another (two such have no collision function, so are never listed).
       for (const int body : {b1, b2}) {
@@ -122,13 +125,13 @@ ContactPairs::ContactPairs(mjModel* physics) : physics_(physics) {
           bp.plane_is_first = body == b1;
         }
       }
-      bp.reach = radius_[static_cast<std::size_t>(b1)] + radius_[static_cast<std::size_t>(b2)] + margin + kRoundingSlack;
+      bp.reach = radius_of(m, b1) + radius_of(m, b2) + margin + kRoundingSlack;
       bp.reach2 = bp.reach * bp.reach;
       body_pairs_.push_back(bp);
     }
   }
 
-  const std::size_t n = geom1_.size();
+  const std::size_t n = listed_.size();
   m_dim_.resize(n);
   m_geom1_.resize(n);
   m_geom2_.resize(n);
@@ -152,19 +155,22 @@ ContactPairs::ContactPairs(mjModel* physics) : physics_(physics) {
   select_all();
 }
 
-bool ContactPairs::compatible(std::size_t pair) const { return masks_meet(physics_, geom1_[pair], geom2_[pair]); }
+bool ContactPairs::compatible(std::size_t pair) const {
+  return masks_meet(physics_, listed_[pair].geom1, listed_[pair].geom2);
+}
 
 void ContactPairs::write(std::size_t pair, int slot) {
+  const Listed& p = listed_[pair];
   const auto s = static_cast<std::size_t>(slot);
-  m_dim_[s] = dim_[pair];
-  m_geom1_[s] = geom1_[pair];
-  m_geom2_[s] = geom2_[pair];
-  m_signature_[s] = signature_[pair];
-  m_margin_[s] = margin_[pair];
-  m_gap_[s] = gap_[pair];
-  std::copy_n(&solref_[pair * mjNREF], mjNREF, &m_solref_[s * mjNREF]);
-  std::copy_n(&solimp_[pair * mjNIMP], mjNIMP, &m_solimp_[s * mjNIMP]);
-  std::copy_n(&friction_[pair * 5], 5, &m_friction_[s * 5]);
+  m_dim_[s] = p.dim;
+  m_geom1_[s] = p.geom1;
+  m_geom2_[s] = p.geom2;
+  m_signature_[s] = p.signature;
+  m_margin_[s] = p.margin;
+  m_gap_[s] = p.gap;
+  std::copy_n(p.solref, mjNREF, &m_solref_[s * mjNREF]);
+  std::copy_n(p.solimp, mjNIMP, &m_solimp_[s * mjNIMP]);
+  std::copy_n(p.friction, 5, &m_friction_[s * 5]);
 }
 
 void ContactPairs::select(const mjData* d) {
@@ -196,7 +202,7 @@ void ContactPairs::select(const mjData* d) {
 
 void ContactPairs::select_all() {
   chosen_.clear();
-  for (std::size_t p = 0; p < geom1_.size(); ++p) {
+  for (std::size_t p = 0; p < listed_.size(); ++p) {
     if (compatible(p)) chosen_.push_back(p);
   }
   publish();

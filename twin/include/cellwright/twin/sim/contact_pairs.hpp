@@ -66,8 +66,14 @@ class ContactPairs {
   // Writes every listed pair whose masks are compatible.
   void select_all();
 
-  std::size_t listed() const { return geom1_.size(); }  // every pair that can ever touch
+  std::size_t listed() const { return listed_.size(); }  // every pair that can ever touch
   int selected() const { return physics_->npair; }       // those the last selection kept
+
+  // One listed pair: its geoms (the lower body's first), its bodies' signature and its mixed parameters.
+  struct Listed {
+    int geom1 = -1, geom2 = -1, signature = 0, dim = 0;
+    mjtNum margin = 0, gap = 0, friction[5] = {}, solref[mjNREF] = {}, solimp[mjNIMP] = {};
+  };
 
  private:
   struct BodyPair {
@@ -86,10 +92,7 @@ class ContactPairs {
 
   mjModel* physics_;
   std::vector<BodyPair> body_pairs_;
-  std::vector<double> radius_;  // by body: the largest geom offset plus bounding radius (0 for a body of planes)
-  // Every listed pair, in order, with its mixed parameters.
-  std::vector<int> geom1_, geom2_, signature_, dim_;
-  std::vector<mjtNum> margin_, gap_, friction_, solref_, solimp_;
+  std::vector<Listed> listed_;  // every listed pair, in order
   std::vector<std::size_t> chosen_, published_;  // the pairs of this selection, and those the arrays hold
   // The physics model's pair arrays (what select() writes).
   std::vector<int> m_dim_, m_geom1_, m_geom2_, m_signature_;

@@ -1,0 +1,144 @@
+// The DDS transport of the runtime's queues (distributed/link.hpp), with the two ends in different processes: this
+// test is task control's end (or the agent's), tests/distributed/dds_peer.cpp the other. Each test process takes a
+// DDS domain of its own (from its process id), and the participants use UDP only, so no shared-memory file outlives
+// a run.
+#include "cellwright/distributed/link.hpp"
+
+#include <gtest/gtest.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <string>
+#include <vector>
+
+#include "cellwright/distributed/wire.hpp"
+#include "cellwright/task/compile.hpp"
+
+extern char** environ;
+
+namespace cellwright::distributed {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::string kProgram = std::string(CW_SOURCE_DIR) + "/scenes/exchange.task";
+
+int test_domain() {
+  return 20 + static_cast<int>(getpid() % 200);
+}
+
+// A child process running dds_peer with `args`; wait() gives its exit status.
+class Peer {
+ public:
+  explicit Peer(std::vector<std::string> args) {
+    args.insert(args.begin(), CW_DDS_PEER);
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    if (posix_spawn(&pid_, CW_DDS_PEER, nullptr, nullptr, argv.data(), environ) != 0) pid_ = -1;
+  }
+  ~Peer() {
+    if (pid_ > 0 && !waited_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+  int wait() {
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    waited_ = true;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  bool started() const { return pid_ > 0; }
+
+ private:
+  pid_t pid_ = -1;
+  bool waited_ = false;
+};
+
+TEST(Link, CommandsAndTheirStatusesMakeTheRoundTripToAnAgentInAnotherProcessInOrder) {
+  int domain = test_domain();
+  auto program = task::compile_file(kProgram);
+  const std::size_t r2 = 1;
+  const auto& primitives = program.programs[r2].primitives;
+  const std::size_t count = primitives.size();
+  Peer agent({"echo", std::to_string(domain), "melfa", "1", kProgram, std::to_string(count)});
+  ASSERT_TRUE(agent.started());
+
+  Participant participant({.domain = domain}, "task_control");
+  runtime::MessageQueue<runtime::MotionCommand> commands(4);
+  runtime::MessageQueue<runtime::RobotStatus> statuses(64);
+  RemoteRobot melfa(participant, "melfa", r2, commands, statuses);
+  ASSERT_NO_THROW(wait_for_agents({&melfa}, domain, 20s));
+  melfa.start();
+  for (std::size_t i = 0; i < count; ++i) {
+    runtime::MotionCommand command;
+    command.robot = r2;
+    command.index = i;
+    command.primitive = primitives[i];
+    command.sent = std::chrono::milliseconds(100 * i);
+    ASSERT_EQ(commands.push(command), runtime::QueueStatus::ok);
+  }
+  for (std::size_t i = 0; i < count; ++i) {
+    runtime::RobotStatus status;
+    ASSERT_EQ(statuses.pop_for(status, 20s), runtime::QueueStatus::ok) << "status " << i;
+    EXPECT_EQ(status.robot, r2);
+    EXPECT_EQ(status.index, i);
+    EXPECT_EQ(status.outcome, runtime::CommandOutcome::kDone);
+    EXPECT_EQ(status.reason, "echo " + task::to_string(primitives[i]));
+    EXPECT_EQ(status.time, std::chrono::milliseconds(100 * i + 10));
+  }
+  EXPECT_EQ(agent.wait(), 0);
+  EXPECT_EQ(melfa.refusals().count, 0u);
+}
+
+TEST(Link, TaskControlRefusesToStartNamingTheRobotWhoseAgentIsMissing) {
+  int domain = test_domain();
+  Participant participant({.domain = domain}, "task_control");
+  runtime::MessageQueue<runtime::MotionCommand> puma_commands(4), melfa_commands(4);
+  runtime::MessageQueue<runtime::RobotStatus> statuses(64);
+  RemoteRobot puma(participant, "puma", 0, puma_commands, statuses);
+  RemoteRobot melfa(participant, "melfa", 1, melfa_commands, statuses);
+  try {
+    wait_for_agents({&puma, &melfa}, domain, 300ms);
+    FAIL() << "started with no agents";
+  } catch (const InputError& e) {
+    std::string what = e.what();
+    EXPECT_NE(what.find("no agent for robots puma, melfa on DDS domain " + std::to_string(domain)), std::string::npos)
+        << what;
+    EXPECT_NE(what.find("twin agent --robot puma --domain"), std::string::npos) << what;
+  }
+}
+
+TEST(Link, GarbageOnTheCommandTopicIsRefusedAndTheNextCommandStillArrives) {
+  int domain = test_domain();
+  auto program = task::compile_file(kProgram);
+  Participant participant({.domain = domain}, "agent");
+  runtime::MessageQueue<runtime::MotionCommand> commands(4);
+  runtime::MessageQueue<runtime::RobotStatus> statuses(16);
+  AgentEndpoint agent(participant, "puma", 0, program, commands, statuses);
+  agent.start();
+  Peer writer({"garbage", std::to_string(domain), "puma", "0", kProgram});
+  ASSERT_TRUE(writer.started());
+  runtime::MotionCommand command;
+  ASSERT_EQ(commands.pop_for(command, 20s), runtime::QueueStatus::ok);
+  EXPECT_EQ(command.index, 0u);
+  EXPECT_EQ(task::to_string(command.primitive), task::to_string(program.programs[0].primitives[0]));
+  EXPECT_EQ(commands.size(), 0u);  // nothing of the garbage reached the queue
+  Refusals refused = agent.refusals();
+  EXPECT_EQ(refused.count, 4u);  // noise, cut short, another robot's, another program's: all before the valid one
+  EXPECT_NE(refused.last.find("another program"), std::string::npos) << refused.last;
+  EXPECT_EQ(writer.wait(), 0);
+}
+
+TEST(Link, ARobotNameThatCannotNameATopicIsRefused) {
+  EXPECT_EQ(command_topic("melfa"), "rt/cellwright/melfa/command");
+  EXPECT_EQ(status_topic("r_2"), "rt/cellwright/r_2/status");
+  EXPECT_THROW(command_topic("my-robot"), InputError);
+  EXPECT_THROW(command_topic("2nd"), InputError);
+  EXPECT_THROW(Participant({.domain = 233}, "x"), InputError);
+}
+
+}  // namespace
+}  // namespace cellwright::distributed

@@ -251,9 +251,13 @@ class PlainWriter {
               std::function<void()> on_match = {})
       : p_(p), listener_(matches_) {
     matches_.on_change(std::move(on_match));
+    dds::DataWriterQos writer_qos = with(dds::DATAWRITER_QOS_DEFAULT, qos);
+    // Fast DDS sends a heartbeat every 3 s by default, and a reader acknowledges (or asks again for a lost sample)
+    // only when it gets one: a lost sample was resent that late, and an agent's last status was acknowledged that
+    // late (the agent waits for it before it exits). 100 ms.
+    writer_qos.reliable_writer_qos().times.heartbeatPeriod = eprosima::fastrtps::Duration_t(0.1L);
     std::lock_guard lock(p_.mutex);
-    writer_ =
-        p_.publisher->create_datawriter(p_.topic(topic_name, type), with(dds::DATAWRITER_QOS_DEFAULT, qos), &listener_);
+    writer_ = p_.publisher->create_datawriter(p_.topic(topic_name, type), writer_qos, &listener_);
     CW_CHECK(writer_ != nullptr, "cannot create a DDS writer on {}", topic_name);
   }
   ~PlainWriter() {
@@ -282,7 +286,10 @@ class Forwarder {
  public:
   Forwarder(Participant::Impl& p, const std::string& topic_name, const char* type, runtime::MessageQueue<T>& queue,
             std::function<std::vector<char>(const T&)> encode, std::function<void()> on_match = {})
-      : queue_(queue), encode_(std::move(encode)), writer_(p, topic_name, type, Qos::kDefault, std::move(on_match)) {}
+      : queue_(queue),
+        encode_(std::move(encode)),
+        writer_(p, topic_name, type, Qos::kDefault, std::move(on_match)),
+        topic_(topic_name) {}
   ~Forwarder() { stop(); }
   void start() {
     if (thread_.joinable()) return;
@@ -314,7 +321,9 @@ class Forwarder {
         in_hand_ = true;
       }
       runtime::QueueStatus got = queue_.pop_for(item, std::chrono::milliseconds(20));
-      if (got == runtime::QueueStatus::ok) writer_.write(encode_(item));
+      if (got == runtime::QueueStatus::ok && !writer_.write(encode_(item))) {
+        std::cerr << fmt::format("DDS did not take a sample for {}\n", topic_);
+      }
       {
         std::lock_guard lock(mutex_);
         in_hand_ = false;
@@ -327,6 +336,7 @@ class Forwarder {
   runtime::MessageQueue<T>& queue_;
   std::function<std::vector<char>(const T&)> encode_;
   PlainWriter writer_;
+  std::string topic_;
   std::mutex mutex_;
   std::condition_variable written_;
   bool in_hand_ = false;  // an item may be between the queue and the writer
@@ -497,6 +507,33 @@ void wait_for_agents(const std::vector<RemoteRobot*>& robots, int domain, std::c
                                "agent --robot {} --domain {} ...)",
                                missing.size() > 1 ? "s" : "", fmt::join(missing, ", "), domain,
                                static_cast<double>(timeout.count()) / 1000.0, missing.front(), domain));
+}
+
+namespace {
+
+// A RemoteRobot as the Runtime's RemoteLink.
+class DdsLink : public runtime::RemoteLink {
+ public:
+  template <typename... Args>
+  explicit DdsLink(Args&&... args) : robot(std::forward<Args>(args)...) {}
+  void start() override { robot.start(); }
+  void stop() override { robot.stop(); }
+  RemoteRobot robot;
+};
+
+}  // namespace
+
+runtime::AttachRemote RemoteCell::attach() {
+  return [this](std::size_t index, const std::string& cell, runtime::MessageQueue<runtime::MotionCommand>& commands,
+                runtime::MessageQueue<runtime::RobotStatus>& statuses) -> std::unique_ptr<runtime::RemoteLink> {
+    auto link = std::make_unique<DdsLink>(participant_, cell, index, commands, statuses);
+    robots_.push_back(&link->robot);
+    return link;
+  };
+}
+
+void RemoteCell::wait_for_agents(std::chrono::milliseconds timeout) const {
+  distributed::wait_for_agents(robots_, participant_.domain(), timeout);
 }
 
 struct AgentEndpoint::Impl {

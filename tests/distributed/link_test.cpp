@@ -13,7 +13,10 @@
 #include <vector>
 
 #include "cellwright/distributed/wire.hpp"
+#include "cellwright/models/cell.hpp"
+#include "cellwright/runtime/runtime.hpp"
 #include "cellwright/task/compile.hpp"
+#include "cellwright/task/to_net.hpp"
 
 extern char** environ;
 
@@ -138,6 +141,55 @@ TEST(Link, ARobotNameThatCannotNameATopicIsRefused) {
   EXPECT_THROW(command_topic("my-robot"), InputError);
   EXPECT_THROW(command_topic("2nd"), InputError);
   EXPECT_THROW(Participant({.domain = 233}, "x"), InputError);
+}
+
+}  // namespace
+}  // namespace cellwright::distributed
+
+namespace cellwright::distributed {
+namespace {
+
+// The number of commands task control sends robot `robot` in one run of `program` (moves, opens and closes; signals,
+// waits and loops are the net's own).
+std::size_t commands_of(const task::CompiledProgram& program, std::size_t robot) {
+  std::size_t n = 0;
+  for (const task::Primitive& p : program.programs[robot].primitives) {
+    n += p.kind == task::PrimitiveKind::kMove || p.kind == task::PrimitiveKind::kOpen ||
+         p.kind == task::PrimitiveKind::kClose;
+  }
+  return n;
+}
+
+// The runtime's side of a remote robot (RunConfig::remote_robots) is tested in-process, its refusals too, in
+// tests/controller/runtime/runtime_test.cpp (RuntimeRemote); here with DDS links to agents in other processes.
+TEST(RemoteCell, TaskControlRunsTheExchangeToItsEndWithBothRobotsAgentsInOtherProcesses) {
+  int domain = test_domain();
+  runtime::RunConfig config;
+  config.program = task::compile_file(kProgram);
+  config.net = task::to_net(config.program);
+  config.cell = models::load_cell(std::string(CW_SOURCE_DIR) + "/scenes/cell.yaml");
+  config.binding.robots = {{"r1", {"puma", {}}}, {"r2", {"melfa", {}}}};
+  config.binding.objects = {{"B", {"output_drop", {}}}};
+  config.mode = runtime::Mode::kRealtime;
+  config.realtime_speed = 20.0;
+  config.perception = runtime::Perception::kCad;
+  config.limits.sim_time = std::chrono::seconds(60);
+  config.remote_robots = {"puma", "melfa"};
+  Peer puma({"echo", std::to_string(domain), "puma", "0", kProgram, std::to_string(commands_of(config.program, 0))});
+  Peer melfa({"echo", std::to_string(domain), "melfa", "1", kProgram, std::to_string(commands_of(config.program, 1))});
+
+  Participant participant({.domain = domain}, "task_control");
+  RemoteCell remote(participant);
+  config.attach_remote = remote.attach();
+  runtime::Runtime run(config);
+  ASSERT_NO_THROW(remote.wait_for_agents(20s));
+  runtime::RunResult result = run.run();
+  EXPECT_EQ(result.outcome, runtime::Outcome::kFinished) << result.reason << "\n" << run.log().text();
+  EXPECT_EQ(puma.wait(), 0);
+  EXPECT_EQ(melfa.wait(), 0);
+  // Every transition of the exchange fired: the net's final marking was reached on the agents' statuses alone.
+  EXPECT_TRUE(config.net.is_final(result.final_marking));
+  EXPECT_TRUE(result.finished_at.has_value());
 }
 
 }  // namespace

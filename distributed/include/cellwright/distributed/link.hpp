@@ -34,6 +34,7 @@
 
 #include "cellwright/runtime/message_queue.hpp"
 #include "cellwright/runtime/messages.hpp"
+#include "cellwright/runtime/runtime.hpp"
 #include "cellwright/task/compiled.hpp"
 
 namespace cellwright::distributed {
@@ -108,6 +109,28 @@ class RemoteRobot {
 // Waits until every robot's agent is there, all within `timeout` together. Throws InputError naming the robots whose
 // agent was not found, the domain and how to start one.
 void wait_for_agents(const std::vector<RemoteRobot*>& robots, int domain, std::chrono::milliseconds timeout);
+
+// Task control's side of a cell whose robots (some or all) run as agents: gives the Runtime the links of its remote
+// robots (RunConfig::attach_remote) and waits for their agents.
+//
+//   RemoteCell remote(participant);
+//   config.remote_robots = {...};
+//   config.attach_remote = remote.attach();
+//   runtime::Runtime run(std::move(config));      // makes a RemoteRobot per remote robot
+//   remote.wait_for_agents(10s);                   // InputError naming the robots whose agent is missing
+//   run.run();
+//
+// The Runtime owns the links; the RemoteCell's waits are for between the Runtime's construction and its end.
+class RemoteCell {
+ public:
+  explicit RemoteCell(Participant& participant) : participant_(participant) {}
+  runtime::AttachRemote attach();
+  void wait_for_agents(std::chrono::milliseconds timeout) const;
+
+ private:
+  Participant& participant_;
+  std::vector<RemoteRobot*> robots_;
+};
 
 // An agent's end for its robot: pushes the commands read from the command topic (decoded against `program`, the
 // program the agent runs) into the robot's command queue, and writes what robot control pushes into the status

@@ -543,6 +543,9 @@ struct AgentEndpoint::Impl {
   std::mutex state_mutex;  // one state written at a time, in the order of the changes
   std::optional<bool> said;
   bool built = false;  // announce() may look at the endpoints (under state_mutex)
+  // start() was called: the command reader hands samples on. Ready is said only then: a command taken before would
+  // be dropped by the reader, and its status would never come.
+  bool started = false;
   PlainWriter state;
   Receiver commands;
   Forwarder<runtime::RobotStatus> statuses;
@@ -574,11 +577,19 @@ struct AgentEndpoint::Impl {
 
   bool present() const { return commands.matches().count() > 0 && statuses.matches().count() > 0; }
 
+  void set_started(bool value) {
+    {
+      std::lock_guard lock(state_mutex);
+      started = value;
+    }
+    announce();
+  }
+
   // Writes the agent's state when it changed (called from Fast DDS's listener threads as matches change).
   void announce() {
     std::lock_guard lock(state_mutex);
     if (!built) return;
-    bool now = present();
+    bool now = started && present();
     if (said == now) return;
     said = now;
     state.write(encode_agent_state(index, now));
@@ -608,9 +619,11 @@ bool AgentEndpoint::wait_for_task_control(std::chrono::milliseconds timeout) con
 void AgentEndpoint::start() {
   impl_->commands.start();
   impl_->statuses.start();
+  impl_->set_started(true);
 }
 
 void AgentEndpoint::stop() {
+  impl_->set_started(false);
   impl_->statuses.stop();
   impl_->commands.stop();
 }

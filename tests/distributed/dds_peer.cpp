@@ -6,11 +6,15 @@
 //       at once: a done status naming the primitive it decoded ("echo move above(A)"), at the command's time plus
 //       10 ms. Exits 0 after COUNT answers have been acknowledged; 3 when task control is not found within 20 s or a
 //       command does not come within 20 s.
+//   dds_peer echo-late DOMAIN ROBOT INDEX PROGRAM COUNT
+//       The same, with the agent slow to start: half a second between making its endpoint (which matches task control
+//       meanwhile) and starting it.
 //   dds_peer garbage DOMAIN ROBOT INDEX PROGRAM
 //       Writes on ROBOT's command topic: 64 random bytes, a command cut short, a command for another robot, a command
 //       whose primitive is not the program's, then one valid command (primitive 0); exits 0 once they are acknowledged.
 #include <chrono>
 #include <cstdlib>
+#include <thread>
 #include <iostream>
 #include <random>
 #include <string>
@@ -26,10 +30,11 @@ using namespace std::chrono_literals;
 namespace {
 
 int echo(d::Participant& participant, const std::string& robot, std::size_t index,
-         const cellwright::task::CompiledProgram& program, int count) {
+         const cellwright::task::CompiledProgram& program, int count, std::chrono::milliseconds start_after) {
   rt::MessageQueue<rt::MotionCommand> commands(4);
   rt::MessageQueue<rt::RobotStatus> statuses(16);
   d::AgentEndpoint agent(participant, robot, index, program, commands, statuses);
+  std::this_thread::sleep_for(start_after);  // a test of the ready handshake, not of a race: nothing waits on it
   agent.start();
   if (!agent.wait_for_task_control(20s)) {
     std::cerr << "dds_peer: no task control for " << robot << "\n";
@@ -82,7 +87,7 @@ int garbage(d::Participant& participant, const std::string& robot, std::size_t i
 
 int main(int argc, char** argv) {
   if (argc < 6) {
-    std::cerr << "usage: dds_peer echo|garbage DOMAIN ROBOT INDEX PROGRAM [COUNT]\n";
+    std::cerr << "usage: dds_peer echo|echo-late|garbage DOMAIN ROBOT INDEX PROGRAM [COUNT]\n";
     return 2;
   }
   std::string mode = argv[1];
@@ -90,7 +95,9 @@ int main(int argc, char** argv) {
   std::string robot = argv[3];
   auto index = static_cast<std::size_t>(std::atoi(argv[4]));
   auto program = cellwright::task::compile_file(argv[5]);
-  if (mode == "echo" && argc == 7) return echo(participant, robot, index, program, std::atoi(argv[6]));
+  if ((mode == "echo" || mode == "echo-late") && argc == 7) {
+    return echo(participant, robot, index, program, std::atoi(argv[6]), mode == "echo" ? 0ms : 500ms);
+  }
   if (mode == "garbage") return garbage(participant, robot, index, program);
   std::cerr << "dds_peer: bad arguments\n";
   return 2;

@@ -60,13 +60,17 @@ class Peer {
   bool waited_ = false;
 };
 
-TEST(Link, CommandsAndTheirStatusesMakeTheRoundTripToAnAgentInAnotherProcessInOrder) {
+// An agent that starts at once, and one slow to start (its endpoint matched task control half a second before it
+// started: it must not say it is ready before, or the first command is taken and dropped and its status never comes).
+class RoundTrip : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(RoundTrip, CommandsAndTheirStatusesMakeTheRoundTripToAnAgentInAnotherProcessInOrder) {
   int domain = test_domain();
   auto program = task::compile_file(kProgram);
   const std::size_t r2 = 1;
   const auto& primitives = program.programs[r2].primitives;
   const std::size_t count = primitives.size();
-  Peer agent({"echo", std::to_string(domain), "melfa", "1", kProgram, std::to_string(count)});
+  Peer agent({GetParam(), std::to_string(domain), "melfa", "1", kProgram, std::to_string(count)});
   ASSERT_TRUE(agent.started());
 
   Participant participant({.domain = domain}, "task_control");
@@ -95,6 +99,11 @@ TEST(Link, CommandsAndTheirStatusesMakeTheRoundTripToAnAgentInAnotherProcessInOr
   EXPECT_EQ(agent.wait(), 0);
   EXPECT_EQ(melfa.refusals().count, 0u);
 }
+
+INSTANTIATE_TEST_SUITE_P(Link, RoundTrip, ::testing::Values("echo", "echo-late"),
+                         [](const ::testing::TestParamInfo<const char*>& p) {
+                           return std::string(p.param) == "echo" ? "AgentStartingAtOnce" : "AgentSlowToStart";
+                         });
 
 TEST(Link, TaskControlRefusesToStartNamingTheRobotWhoseAgentIsMissing) {
   int domain = test_domain();

@@ -9,7 +9,8 @@
 //
 // Topics are named as ROS 2 names them (the rt/ prefix of a ROS topic), the types are wire.hpp's, the QoS is ROS 2's
 // default: reliable, volatile, keep last 10. A third topic, rt/cellwright/<r>/agent (reliable, transient local, keep
-// last 1, as ROS 2 latches tf_static), carries the agent's state: ready once its command reader has matched task
+// last 1, as ROS 2 latches tf_static), carries the agent's state: ready once it has started (AgentEndpoint::start:
+// a command taken before would be dropped, and its status never sent) and its command reader has matched task
 // control's writer and its status writer task control's reader. Task control sends nothing before it has seen that
 // state and matched both endpoints itself: a volatile reader that matches a writer late loses what the writer sent
 // before, so a match seen on one side only is not enough (the first commands were lost without this). Samples are the

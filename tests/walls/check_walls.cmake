@@ -15,6 +15,9 @@
 #   cell (the application layer)       no MuJoCo, OpenGL/OSMesa; of the twin only its MuJoCo-free facts (twin/model);
 #                                      nothing of cell/sim (the simulated rig); OpenCV only in the reports (cell/report,
 #                                      and the campaign's chart); campaigns and suites never build a run (cell/sim/run)
+#   distributed (DDS transport)        no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, emulate or cell
+#   controller, models, drivers, common  no DDS (Fast DDS, Fast CDR) and nothing of distributed: the runtime does not
+#                                      know whether a robot is remote
 #   every library                      nothing of tools/
 #   controller/runtime                 no injected-fault concepts: no line names InjectedFault, new_faults or
 #                                      lost_signal (the rig injects faults and logs them)
@@ -62,16 +65,19 @@ function(check_includes name forbidden)
 endfunction()
 
 set(tools_reach "tools/|commands\\.hpp")
+set(dds "fastdds/|fastrtps/|fastcdr/|cellwright/distributed/")
 set(cell_libs "cellwright/(cell|emulate)/")
-check_includes(controller "${heavy}|cellwright/(twin|vision)/|${cell_libs}|${tools_reach}"
+check_includes(controller "${heavy}|${dds}|cellwright/(twin|vision)/|${cell_libs}|${tools_reach}"
                "controller/include/*" "controller/src/*" "controller/runtime/*")
-check_includes(models "${heavy}|cellwright/(twin|vision|drivers|runtime)/|${cell_libs}|${tools_reach}" "models/*")
-check_includes(drivers "${heavy}|cellwright/(twin|vision|runtime)/|${cell_libs}|${tools_reach}" "drivers/*")
-check_includes(common "${heavy}|cellwright/(twin|vision|drivers|runtime|models|petri|task|cell|emulate)/|${tools_reach}"
+check_includes(models "${heavy}|${dds}|cellwright/(twin|vision|drivers|runtime)/|${cell_libs}|${tools_reach}" "models/*")
+check_includes(drivers "${heavy}|${dds}|cellwright/(twin|vision|runtime)/|${cell_libs}|${tools_reach}" "drivers/*")
+check_includes(common "${heavy}|${dds}|cellwright/(twin|vision|drivers|runtime|models|petri|task|cell|emulate)/|${tools_reach}"
                "common/*")
 check_includes(vision "mujoco/|GL/|osmesa|cellwright/(twin|cell)/|${tools_reach}" "vision/*")
 check_includes(emulate "${heavy}|cellwright/(twin|vision|runtime|cell)/|cellwright/drivers/(serial|movemaster|val2|modbus)/|${tools_reach}"
                "emulate/*")
+# The DDS transport carries the runtime's queues; it knows no simulator, vision or application.
+check_includes(distributed "${heavy}|cellwright/(twin|vision|cell|emulate)/|${tools_reach}" "distributed/*")
 # The twin's MuJoCo-free facts.
 check_includes(twin_model "${heavy}|cellwright/(cell|vision|emulate)/|${tools_reach}" "twin/model/*")
 # The simulator knows nothing of scenarios, plans, rigs or reports.
@@ -118,7 +124,9 @@ check_words(runtime_faults "InjectedFault|new_faults|lost_signal" "controller/ru
 set(mujoco_ocv_gl "mujoco|opencv_|OSMESA|osmesa")
 set(link_rules
     "cellwright_controller|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime|drivers|models|scenario|plan|rig|report|campaign|cell_sim)"
-    "cellwright_runtime|${mujoco_ocv_gl}|cellwright_(twin|vision|scenario|plan|rig|report|campaign|cell_sim)"
+    "cellwright_runtime|${mujoco_ocv_gl}|fastrtps|fastcdr|cellwright_(twin|vision|distributed|scenario|plan|rig|report|campaign|cell_sim)"
+    "cellwright_distributed|${mujoco_ocv_gl}|cellwright_(twin|vision|emulate|scenario|plan|rig|report|campaign|cell_sim)"
+    "distributed_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|emulate|scenario|plan|rig|report|campaign|cell_sim)"
     "runtime_tests|${mujoco_ocv_gl}|cellwright_(twin|vision)"
     "controller_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
     "cellwright_models|${mujoco_ocv_gl}|cellwright_(twin|vision|drivers|runtime)"

@@ -79,7 +79,8 @@ NameMap check_binding(const RunConfig& c) {
           where, fmt::format("program robots '{}' and '{}' are both bound to cell robot '{}'", u->second, label, name));
     }
     auto d = c.drivers.find(name);
-    if (d == c.drivers.end() || d->second == nullptr) {
+    const bool remote = std::find(c.remote_robots.begin(), c.remote_robots.end(), name) != c.remote_robots.end();
+    if (!remote && (d == c.drivers.end() || d->second == nullptr)) {
       throw InputError(where, fmt::format("cell robot '{}' (program robot '{}') has no driver", name, label));
     }
     names.robots[label] = name;
@@ -274,7 +275,8 @@ struct Runtime::Impl {
   MessageQueue<MotionCommand> device_inbox{64};
   std::unique_ptr<DeviceHub> devices;
   Event device_wake{Event::Kind::auto_reset};
-  std::vector<std::unique_ptr<RobotControl>> robots;
+  std::vector<std::unique_ptr<RobotControl>> robots;  // nullptr for a remote robot
+  std::vector<std::unique_ptr<RemoteLink>> remote;    // per program robot: its link, for a remote robot
   VirtualClock clock;
   // Vision (Perception::kVision): frames from the simulation thread to the image-processing thread.
   MessageQueue<Frame> frames{2};
@@ -510,7 +512,7 @@ struct Runtime::Impl {
     // The run is over (or this thread failed and ended it): halt the robots this thread served, then free the
     // plant's thread resources on the thread that stepped it.
     for (std::size_t r = 0; r < robots.size(); ++r) {
-      if (scheduler->thread_of(first_robot_seat() + r) != thread) continue;
+      if (scheduler->thread_of(first_robot_seat() + r) != thread || !robots[r]) continue;
       try {
         robots[r]->halt();
       } catch (...) {
@@ -608,6 +610,7 @@ struct Runtime::Impl {
         }
       } else {
         const std::size_t r = participant - first_robot_seat();
+        if (!robots[r]) return;  // remote: its robot control is an agent's, its queues carried by its link
         while (!stopping) {
           // Woken by a command or the driver's notifier; at least once a period, to watch sensor conditions.
           (void)robot_wake[r]->wait_for(wall_period());
@@ -626,8 +629,9 @@ struct Runtime::Impl {
 
   // The drivers outlive the run: they must not call into it any more.
   void detach_drivers() {
-    for (const std::string& cell : cells) {
-      drivers::RobotDriver* d = cfg.drivers.at(cell);
+    for (std::size_t r = 0; r < cells.size(); ++r) {
+      if (!robots[r]) continue;
+      drivers::RobotDriver* d = cfg.drivers.at(cells[r]);
       d->set_notifier({});
       d->set_clock({});
     }
@@ -693,11 +697,32 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
   im.task = std::make_unique<TaskControl>(config_.net, config_.program, inbox_ptrs, im.statuses, *log_,
                                           config_.motion.recovery, config_.signal_filter,
                                           im.devices ? &im.device_inbox : nullptr);
+  for (const std::string& cell : config_.remote_robots) {
+    const bool in_program = std::any_of(im.names.robots.begin(), im.names.robots.end(),
+                                        [&](const auto& entry) { return entry.second == cell; });
+    if (!in_program) {
+      throw InputError(config_.binding.where, fmt::format("remote robot '{}' is not a robot of the program", cell));
+    }
+    if (config_.mode != Mode::kRealtime) {
+      throw InputError(config_.binding.where,
+                       fmt::format("robot '{}' is remote: robots in other processes run in real time only (lock-step "
+                                   "across processes is not done, docs/distributed.md)",
+                                   cell));
+    }
+    CW_CHECK(static_cast<bool>(config_.attach_remote), "remote robots but nothing to attach them");
+  }
   for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
     const std::string& label = config_.program.robots[r];
     const std::string& cell = im.names.robots.at(label);
     const models::RobotSpec& spec = *config_.cell.find_robot(cell);
     im.cells.push_back(cell);
+    const bool remote =
+        std::find(config_.remote_robots.begin(), config_.remote_robots.end(), cell) != config_.remote_robots.end();
+    im.remote.push_back(remote ? config_.attach_remote(r, cell, *im.inboxes[r], im.statuses) : nullptr);
+    if (remote) {
+      im.robots.push_back(nullptr);
+      continue;
+    }
     im.robots.push_back(std::make_unique<RobotControl>(
         r, label, cell, *config_.drivers.at(cell), models::robot_chain(spec), spec.grip_force,
         im.names, im.env, *im.inboxes[r], im.statuses, *log_, config_.motion, config_.mode == Mode::kRealtime,
@@ -712,6 +737,11 @@ Runtime::~Runtime() {
       if (t.joinable()) t.join();
     }
     impl_->detach_drivers();
+  }
+  if (impl_) {
+    for (auto& link : impl_->remote) {
+      if (link) link->stop();
+    }
   }
 }
 
@@ -757,14 +787,18 @@ StepState Runtime::step() {
     s.ended = true;
     s.time = im.result->end_time;
     s.task = im.task->view();
-    for (const auto& r : im.robots) s.robots.push_back(r->view());
+    for (const auto& r : im.robots) {
+      if (r) s.robots.push_back(r->view());
+    }
     s.result = im.result;
     return s;
   }
   // Parked: the simulation thread holds the turn and waits (any other lock-step thread waits for its turn).
   s.time = im.clock.now();
   s.task = im.task->view();
-  for (const auto& r : im.robots) s.robots.push_back(r->view());
+  for (const auto& r : im.robots) {
+    if (r) s.robots.push_back(r->view());
+  }
   return s;
 }
 
@@ -774,14 +808,20 @@ void Runtime::start() {
   for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
     names.push_back({config_.program.robots[r], im.cells[r]});
   }
-  for (auto& r : im.robots) r->connect();  // InputError here: no thread has started
+  for (auto& r : im.robots) {
+    if (r) r->connect();  // InputError here: no thread has started
+  }
   if (im.devices) im.devices->connect();
   // Position read-backs are stamped on the runtime's clock.
-  for (const std::string& cell : im.cells) {
-    config_.drivers.at(cell)->set_clock([&clock = im.clock] { return clock.now(); });
+  for (std::size_t r = 0; r < im.robots.size(); ++r) {
+    if (im.robots[r]) config_.drivers.at(im.cells[r])->set_clock([&clock = im.clock] { return clock.now(); });
+  }
+  for (auto& link : im.remote) {
+    if (link) link->start();
   }
   if (config_.mode == Mode::kRealtime) {
     for (std::size_t r = 0; r < im.robots.size(); ++r) {
+      if (!im.robots[r]) continue;
       Event* wake = im.robot_wake[r].get();
       config_.drivers.at(im.cells[r])->set_notifier([wake] { wake->set(); });
     }
@@ -830,6 +870,9 @@ RunResult Runtime::finish() {
   Impl& im = *impl_;
   for (auto& t : im.threads) {
     if (t.joinable()) t.join();
+  }
+  for (auto& link : im.remote) {
+    if (link) link->stop();
   }
   if (im.error) std::rethrow_exception(im.error);
   if (im.result) return *im.result;

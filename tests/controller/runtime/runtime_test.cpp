@@ -600,5 +600,78 @@ TEST(RuntimeRun, ADriverThatCannotConnectIsRefusedBeforeTheThreadsStart) {
   EXPECT_EQ(rt.log().size(), 0u);  // not even run_start: nothing ran
 }
 
+// ---- A robot whose robot control is elsewhere (an agent: docs/distributed.md) ----
+
+// The other end of a remote robot's link, in this process: answers each command done, on a thread of its own, as an
+// agent would from its process.
+class AnsweringLink : public RemoteLink {
+ public:
+  AnsweringLink(MessageQueue<MotionCommand>& commands, MessageQueue<RobotStatus>& statuses)
+      : commands_(commands), statuses_(statuses) {}
+  ~AnsweringLink() override { stop(); }
+  void start() override {
+    ++starts;
+    thread_ = std::thread([this] {
+      while (!stopping_) {
+        MotionCommand c;
+        if (commands_.pop_for(c, std::chrono::milliseconds(5)) != QueueStatus::ok) continue;
+        statuses_.push(RobotStatus{c.robot, c.index, CommandOutcome::kDone, "", false, c.sent});
+      }
+    });
+  }
+  void stop() override {
+    stopping_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  int starts = 0;
+
+ private:
+  MessageQueue<MotionCommand>& commands_;
+  MessageQueue<RobotStatus>& statuses_;
+  std::atomic<bool> stopping_{false};
+  std::thread thread_;
+};
+
+TEST(RuntimeRemote, ARemoteRobotIsDrivenThroughItsLinkWithNoDriverOrRobotControlHere) {
+  ScriptedCell cell("exchange.task", {}, Mode::kRealtime);
+  cell.config.drivers.erase("melfa");
+  cell.config.remote_robots = {"melfa"};
+  AnsweringLink* link = nullptr;
+  cell.config.attach_remote = [&](std::size_t index, const std::string& name, MessageQueue<MotionCommand>& commands,
+                                  MessageQueue<RobotStatus>& statuses) {
+    EXPECT_EQ(index, 1u);
+    EXPECT_EQ(name, "melfa");
+    auto made = std::make_unique<AnsweringLink>(commands, statuses);
+    link = made.get();
+    return made;
+  };
+  Runtime rt(cell.config);
+  const RunResult r = rt.run();
+  ASSERT_EQ(r.outcome, Outcome::kFinished) << r.reason << "\n" << rt.log().text();
+  ASSERT_NE(link, nullptr);
+  EXPECT_EQ(link->starts, 1);
+  const auto events = parse(rt.log());
+  const auto commanded = [&](const std::string& robot) {
+    return std::count_if(events.begin(), events.end(), [&](const nlohmann::json& e) {
+      return e["type"] == "command_start" && e["robot"] == robot;
+    });
+  };
+  EXPECT_GT(commanded("r1"), 0);   // the PUMA's robot control is here
+  EXPECT_EQ(commanded("r2"), 0);   // the MELFA's is the link's other end
+  EXPECT_EQ(cell.driver("melfa").calls().connect, 0);
+}
+
+TEST(RuntimeRemote, ARemoteRobotInLockStepOrNotOfTheProgramIsRefused) {
+  ScriptedCell cell;
+  cell.config.remote_robots = {"melfa"};
+  cell.config.attach_remote = [](std::size_t, const std::string&, MessageQueue<MotionCommand>&,
+                                 MessageQueue<RobotStatus>&) -> std::unique_ptr<RemoteLink> { return nullptr; };
+  expect_refused(cell, "scenario.yaml:1:1", "robot 'melfa' is remote: robots in other processes run in real time only");
+  ScriptedCell realtime("exchange.task", {}, Mode::kRealtime);
+  realtime.config.remote_robots = {"kuka"};
+  realtime.config.attach_remote = cell.config.attach_remote;
+  expect_refused(realtime, "scenario.yaml:1:1", "remote robot 'kuka' is not a robot of the program");
+}
+
 }  // namespace
 }  // namespace cellwright::runtime

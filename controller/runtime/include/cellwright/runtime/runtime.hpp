@@ -57,6 +57,8 @@
 #include "cellwright/runtime/event_log.hpp"
 #include "cellwright/runtime/frame_source.hpp"
 #include "cellwright/runtime/image_processing.hpp"
+#include "cellwright/runtime/message_queue.hpp"
+#include "cellwright/runtime/messages.hpp"
 #include "cellwright/runtime/plant.hpp"
 #include "cellwright/runtime/robot_control.hpp"
 #include "cellwright/runtime/sensors.hpp"
@@ -88,6 +90,7 @@ enum class LockstepThreads {
 // "lockstep", "realtime".
 const char* to_string(Mode mode);
 
+
 struct Limits {
   SimDuration sim_time = std::chrono::seconds(120);  // the run stops with kTimeout at this simulation time
   SimDuration settle{0};  // after the program finished, the simulation runs on this long (parts come to rest)
@@ -116,6 +119,22 @@ struct RunObserver {
   std::function<void(const Observation&)> observe;
 };
 
+// The carrier of a robot whose robot control runs in another process (an agent: docs/distributed.md; the DDS one is
+// distributed::RemoteRobot). The runtime knows only this: it hands the robot's command queue and the status queue to
+// RunConfig::attach_remote, starts the link as the run starts and stops it as the run ends (main thread both).
+class RemoteLink {
+ public:
+  virtual ~RemoteLink() = default;
+  virtual void start() = 0;
+  virtual void stop() = 0;
+};
+
+// Makes the link of program robot `index` (cell robot `cell`) over its command queue and the status queue, which
+// outlive the link. May throw InputError (the agent is not there).
+using AttachRemote = std::function<std::unique_ptr<RemoteLink>(std::size_t index, const std::string& cell,
+                                                               MessageQueue<MotionCommand>& commands,
+                                                               MessageQueue<RobotStatus>& statuses)>;
+
 struct RunConfig {
   task::CompiledProgram program;  // compiled and checked
   petri::Net net;                 // task::to_net(program)
@@ -124,6 +143,11 @@ struct RunConfig {
   // The driver of each cell robot the program uses, by cell robot name. Not owned: the drivers (and the plant that
   // advances them) must outlive the Runtime.
   std::map<std::string, drivers::RobotDriver*> drivers;
+  // Cell robots whose robot control runs in another process (an agent): this process builds no RobotControl and needs
+  // no driver for them; `attach_remote` carries their queues. Real time only (InputError in lock-step, naming the
+  // robot). The environment model of this process does not see what their robot control writes (docs/distributed.md).
+  std::vector<std::string> remote_robots;
+  AttachRemote attach_remote;
   // The simulation the simulation thread steps; not owned. nullptr for a cell with no simulation (every robot on a
   // driver that runs by itself, e.g. a serial controller): the first thread then keeps the clock and reads the sensors.
   Plant* plant = nullptr;

@@ -1,0 +1,186 @@
+// The DDS transport of the runtime's queues (docs/distributed.md). Task control sends a robot its commands through
+// the robot's command queue and reads every robot's statuses from the status queue (MessageQueue, Fig. 2); robot
+// control reads its command queue and pushes into the status queue. Neither knows whether the other end is a thread
+// of its process or an agent in another process: these links carry the same queues over DDS.
+//
+//   task control process                              agent process (twin agent, one robot)
+//   command queue r ──> RemoteRobot ── rt/cellwright/<r>/command ──> AgentEndpoint ──> command queue r
+//   status queue  <──── RemoteRobot <── rt/cellwright/<r>/status ─── AgentEndpoint <── status queue
+//
+// Topics are named as ROS 2 names them (the rt/ prefix of a ROS topic), the types are wire.hpp's, the QoS is ROS 2's
+// default: reliable, volatile, keep last 10. A third topic, rt/cellwright/<r>/agent (reliable, transient local, keep
+// last 1, as ROS 2 latches tf_static), carries the agent's state: ready once it has started (AgentEndpoint::start:
+// a command taken before would be dropped, and its status never sent) and its command reader has matched task
+// control's writer and its status writer task control's reader. Task control sends nothing before it has seen that
+// state and matched both endpoints itself: a volatile reader that matches a writer late loses what the writer sent
+// before, so a match seen on one side only is not enough (the first commands were lost without this). Samples are the
+// CDR bytes wire.hpp encodes; a sample that does not decode (garbage, another program's command, another robot's
+// status) is refused: counted, its reason kept and written to stderr, never pushed into a queue.
+//
+// Transport: UDPv4 only by default; Fast DDS's shared-memory transport is off unless asked for (DdsOptions), because
+// it keeps files in /dev/shm that a process killed before its clean-up leaves behind.
+//
+// Threads: each link forwards its outgoing queue on a thread of its own (it pops with a short timeout, so stop()
+// ends it promptly) and pushes incoming samples from Fast DDS's listener thread (a blocking push: the queue is
+// drained by its reader every turn). Construct, start and stop a link on one thread; refused()/last_refusal() may be
+// called from any thread.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cellwright/runtime/message_queue.hpp"
+#include "cellwright/runtime/messages.hpp"
+#include "cellwright/runtime/runtime.hpp"
+#include "cellwright/task/compiled.hpp"
+
+namespace cellwright::distributed {
+
+struct DdsOptions {
+  int domain = 0;              // DDS domain id, 0..232
+  bool shared_memory = false;  // also Fast DDS's shared-memory transport (same host)
+};
+
+// "rt/cellwright/<robot>/command", "rt/cellwright/<robot>/status". Throws InputError (naming the robot) when the
+// name is not a valid ROS 2 topic token (letters, digits, underscores, not starting with a digit).
+std::string command_topic(const std::string& robot);
+std::string status_topic(const std::string& robot);
+std::string agent_topic(const std::string& robot);
+
+// One DDS domain participant (a process has one). Throws InputError for a domain outside 0..232, InternalError
+// when Fast DDS cannot create it.
+class Participant {
+ public:
+  Participant(DdsOptions options, const std::string& name);
+  ~Participant();
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+
+  int domain() const { return options_.domain; }
+
+  struct Impl;
+  Impl& impl() { return *impl_; }
+
+ private:
+  DdsOptions options_;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The samples a link refused and why (the last one).
+struct Refusals {
+  std::uint64_t count = 0;
+  std::string last;
+};
+
+// Task control's end of one remote robot: writes what task control pushes into the robot's command queue to the
+// command topic, and pushes the statuses read from the status topic into the status queue.
+class RemoteRobot {
+ public:
+  // `robot`: the cell robot's name (the topics'), `index` its program index (RobotStatus::robot). The participant
+  // and both queues must outlive the link.
+  RemoteRobot(Participant& participant, std::string robot, std::size_t index,
+              runtime::MessageQueue<runtime::MotionCommand>& commands,
+              runtime::MessageQueue<runtime::RobotStatus>& statuses);
+  ~RemoteRobot();
+  RemoteRobot(const RemoteRobot&) = delete;
+  RemoteRobot& operator=(const RemoteRobot&) = delete;
+
+  // Whether an agent is there: its command reader and status writer both matched, and it said it is ready.
+  bool agent_present() const;
+  // Waits at most `timeout` for the agent; true when it is there.
+  bool wait_for_agent(std::chrono::milliseconds timeout) const;
+  // Starts forwarding the command queue (commands pushed before are sent then). Idempotent.
+  void start();
+  // Stops forwarding (commands still queued stay in the queue). Idempotent; the destructor calls it.
+  void stop();
+
+  const std::string& robot() const;
+  Refusals refusals() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Waits until every robot's agent is there, all within `timeout` together. Throws InputError naming the robots whose
+// agent was not found, the domain and how to start one.
+void wait_for_agents(const std::vector<RemoteRobot*>& robots, int domain, std::chrono::milliseconds timeout);
+
+// Task control's side of a cell whose robots (some or all) run as agents: gives the Runtime the links of its remote
+// robots (RunConfig::attach_remote) and waits for their agents.
+//
+//   RemoteCell remote(participant);
+//   config.remote_robots = {...};
+//   config.attach_remote = remote.attach();
+//   runtime::Runtime run(std::move(config));      // makes a RemoteRobot per remote robot
+//   remote.wait_for_agents(10s);                   // InputError naming the robots whose agent is missing
+//   run.run();
+//
+// The Runtime owns the links; the RemoteCell's waits are for between the Runtime's construction and its end.
+class RemoteCell {
+ public:
+  explicit RemoteCell(Participant& participant) : participant_(participant) {}
+  runtime::AttachRemote attach();
+  void wait_for_agents(std::chrono::milliseconds timeout) const;
+
+ private:
+  Participant& participant_;
+  std::vector<RemoteRobot*> robots_;
+};
+
+// An agent's end for its robot: pushes the commands read from the command topic (decoded against `program`, the
+// program the agent runs) into the robot's command queue, and writes what robot control pushes into the status
+// queue to the status topic.
+class AgentEndpoint {
+ public:
+  AgentEndpoint(Participant& participant, std::string robot, std::size_t index, const task::CompiledProgram& program,
+                runtime::MessageQueue<runtime::MotionCommand>& commands,
+                runtime::MessageQueue<runtime::RobotStatus>& statuses);
+  ~AgentEndpoint();
+  AgentEndpoint(const AgentEndpoint&) = delete;
+  AgentEndpoint& operator=(const AgentEndpoint&) = delete;
+
+  // Whether task control is there: its command writer and status reader both matched.
+  bool task_control_present() const;
+  bool wait_for_task_control(std::chrono::milliseconds timeout) const;
+  void start();
+  void stop();
+  // Waits at most `timeout` until the status queue is empty and every status has been written and acknowledged by
+  // task control (before the agent exits). false on timeout.
+  bool flush(std::chrono::milliseconds timeout);
+
+  Refusals refusals() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Writes bytes as they are as samples of a topic of the command or status type, unchecked: for tests and diagnostics
+// (what a faulty or hostile peer could put on a topic, which the readers must refuse).
+class RawWriter {
+ public:
+  // `type` is kCommandTypeName or kStatusTypeName (wire.hpp).
+  RawWriter(Participant& participant, const std::string& topic, const char* type);
+  ~RawWriter();
+  RawWriter(const RawWriter&) = delete;
+  RawWriter& operator=(const RawWriter&) = delete;
+
+  bool wait_for_reader(std::chrono::milliseconds timeout) const;
+  // false when Fast DDS refused the sample (shorter than a CDR header, or over the type's largest size).
+  bool write(const std::vector<char>& bytes);
+  bool flush(std::chrono::milliseconds timeout);
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace cellwright::distributed

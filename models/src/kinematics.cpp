@@ -148,19 +148,33 @@ Jacobian KinematicChain::jacobian(const Eigen::VectorXd& q) const {
   return jac;
 }
 
+void KinematicChain::Joint::advance(Eigen::Isometry3d& t, double q) const {
+  t = t * origin;
+  if (prismatic) {
+    t.translate(q * axis);
+  } else {
+    t.rotate(Eigen::AngleAxisd(q, axis));
+  }
+}
+
 Eigen::Isometry3d KinematicChain::partial_forward(const Eigen::VectorXd& q, std::size_t count) const {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  for (std::size_t i = 0; i < count; ++i) {
-    const Joint& j = joints_[i];
-    const double qi = q[static_cast<Eigen::Index>(i)];
-    t = t * j.origin;
-    if (j.prismatic) {
-      t.translate(qi * j.axis);
-    } else {
-      t.rotate(Eigen::AngleAxisd(qi, j.axis));
-    }
-  }
+  for (std::size_t i = 0; i < count; ++i) joints_[i].advance(t, q[static_cast<Eigen::Index>(i)]);
   return t;
+}
+
+std::vector<Eigen::Isometry3d> KinematicChain::frames(const Eigen::VectorXd& q) const {
+  CW_CHECK(static_cast<std::size_t>(q.size()) == dof(), "frames: q has {} entries, the chain {} joints", q.size(),
+           dof());
+  std::vector<Eigen::Isometry3d> out;
+  out.reserve(dof() + 1);
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  for (std::size_t i = 0; i < dof(); ++i) {
+    joints_[i].advance(t, q[static_cast<Eigen::Index>(i)]);
+    out.push_back(t);
+  }
+  out.push_back(t * tip_offset_);
+  return out;
 }
 
 void KinematicChain::find_spherical_wrist() {

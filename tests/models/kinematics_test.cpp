@@ -206,6 +206,21 @@ TEST_P(ArmTest, JacobianMatchesFiniteDifferences) {
   }
 }
 
+// frames() is the safety layer's one walk for every joint frame and the tip: the same bits as the walks it replaces.
+TEST_P(ArmTest, FramesAreEachJointFrameAndTheTipBitForBit) {
+  std::mt19937_64 rng(17);
+  for (int n = 0; n < 50; ++n) {
+    const Eigen::VectorXd q = random_q(chain, rng);
+    const std::vector<Eigen::Isometry3d> frames = chain.frames(q);
+    ASSERT_EQ(frames.size(), chain.dof() + 1);
+    for (std::size_t k = 1; k <= chain.dof(); ++k) {
+      EXPECT_TRUE(frames[k - 1].matrix() == chain.joint_frame(q, k).matrix()) << "joint " << k;
+    }
+    EXPECT_TRUE(frames.back().matrix() == chain.forward(q).matrix());
+  }
+  EXPECT_THROW(chain.frames(Eigen::VectorXd::Zero(2)), InternalError);
+}
+
 TEST_P(ArmTest, MaxReachBoundsTheTipDistanceFromJointOne) {
   std::mt19937_64 rng(13);
   double farthest = 0;

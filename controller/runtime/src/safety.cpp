@@ -39,10 +39,10 @@ std::vector<Eigen::Vector3d> watched_points(const models::KinematicChain& chain,
                                             const std::vector<double>& joints) {
   std::vector<Eigen::Vector3d> out;
   if (joints.size() != chain.dof()) return out;
-  const Eigen::VectorXd q = to_eigen(joints);
-  const std::size_t first = chain.dof() > 3 ? chain.dof() - 2 : 1;  // joint_frame counts from 1
-  for (std::size_t k = first; k <= chain.dof(); ++k) out.push_back(base * chain.joint_frame(q, k).translation());
-  out.push_back(base * chain.forward(q).translation());
+  const std::vector<Eigen::Isometry3d> frames = chain.frames(to_eigen(joints));
+  const std::size_t first = chain.dof() > 3 ? chain.dof() - 2 : 1;  // joint frames count from 1
+  for (std::size_t k = first; k <= chain.dof(); ++k) out.push_back(base * frames[k - 1].translation());
+  out.push_back(base * frames.back().translation());
   return out;
 }
 

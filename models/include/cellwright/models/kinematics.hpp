@@ -94,6 +94,10 @@ class KinematicChain {
   // joint transforms. The safety layer watches the wrist through it.
   Eigen::Isometry3d joint_frame(const Eigen::VectorXd& q, std::size_t count) const { return partial_forward(q, count); }
   Eigen::Isometry3d forward(const Eigen::VectorXd& q) const;
+  // joint_frame(q, k) for every k = 1..dof() (element k - 1), then forward(q) (element dof()), in one walk down the
+  // chain: the same products in the same order, so the same bits as those calls, at the cost of one of them.
+  // q.size() must equal dof() (else InternalError).
+  std::vector<Eigen::Isometry3d> frames(const Eigen::VectorXd& q) const;
   // The geometric Jacobian of the tip at q, in the base frame: rows 0-2 map joint velocities to the tip origin's
   // linear velocity, rows 3-5 to its angular velocity. q.size() must equal dof() (else InternalError).
   Eigen::Matrix<double, 6, Eigen::Dynamic> jacobian(const Eigen::VectorXd& q) const;
@@ -121,6 +125,8 @@ class KinematicChain {
     Eigen::Isometry3d origin;  // from the previous joint's moving frame (or the base) to this joint's frame at q = 0
     Eigen::Vector3d axis;      // unit axis in this joint's frame
     bool prismatic;
+    // Moves t, the frame before this joint's origin, to the frame after its motion q: every walk's one step.
+    void advance(Eigen::Isometry3d& t, double q) const;
   };
 
   // A spherical wrist: joints 4-6 (indices 3-5) are revolute with axes meeting at one point, the wrist centre.

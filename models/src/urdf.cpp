@@ -241,7 +241,22 @@ UrdfModel load_urdf_file(const std::filesystem::path& file) {
   } catch (const InputError& e) {
     throw InputError({file.string()}, fmt::format("cannot read the URDF file: {}", e.problem()));
   }
-  return parse_urdf(text, file.string());
+  // A run reads each robot's URDF many times (its chain for task control, robot control, the plan and the sweep; its
+  // scene): a file whose text was parsed before under the same name is not parsed again. Keyed by the text itself,
+  // so an edited file is parsed afresh; errors are not kept (they are thrown again on the next load).
+  static std::mutex cache_mutex;
+  static std::map<std::pair<std::string, std::string>, UrdfModel> cache;
+  constexpr std::size_t kCacheSize = 16;
+  std::pair<std::string, std::string> key{file.string(), std::move(text)};
+  {
+    const std::lock_guard lock(cache_mutex);
+    if (const auto it = cache.find(key); it != cache.end()) return it->second;
+  }
+  UrdfModel parsed = parse_urdf(key.second, key.first);
+  const std::lock_guard lock(cache_mutex);
+  if (cache.size() >= kCacheSize) cache.clear();
+  cache.emplace(std::move(key), parsed);
+  return parsed;
 }
 
 UrdfModel parse_urdf(const std::string& xml, const std::string& file_label) {

@@ -5,9 +5,12 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <string>
 
+#include "cellwright/common/files.hpp"
 #include "cellwright/models/kinematics.hpp"
 #include "models/input_error.hpp"
 
@@ -148,6 +151,22 @@ TEST(Urdf, MissingFileNamesIt) {
   const InputError e = input_error([] { (void)load_urdf_file("/nonexistent/arm.urdf"); });
   EXPECT_EQ(e.where().file, "/nonexistent/arm.urdf");
   EXPECT_EQ(e.problem(), "cannot read the URDF file: no such file");
+}
+
+// Loading a file again gives the robot parsed before while its text is unchanged, and the edited robot once it changes.
+TEST(Urdf, ALoadedFileIsParsedAgainOnlyWhenItsTextChanged) {
+  const std::filesystem::path file =
+      std::filesystem::temp_directory_path() / ("cw_urdf_reload_" + std::to_string(::getpid()) + ".urdf");
+  write_file_atomically(file, toy("1.5"));
+  const UrdfModel first = load_urdf_file(file);
+  const UrdfModel again = load_urdf_file(file);
+  EXPECT_EQ(&first.robot(), &again.robot());  // the same parse
+  EXPECT_EQ(again.joint_at("j1").str(), file.string() + ":4");
+  write_file_atomically(file, toy("2.5"));
+  const UrdfModel edited = load_urdf_file(file);
+  EXPECT_EQ(edited.robot().getJoint("j1")->limits->velocity, 2.5);
+  std::filesystem::remove(file);
+  EXPECT_EQ(input_error([&] { (void)load_urdf_file(file); }).problem(), "cannot read the URDF file: no such file");
 }
 
 // A folder given as the URDF is called a folder, not a missing file.

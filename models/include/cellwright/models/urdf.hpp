@@ -46,6 +46,8 @@ class UrdfModel {
 
 // Reads and parses a URDF file (see parse_urdf). Throws InputError({file}, "cannot read the URDF file: <why>") if it
 // cannot be read (read_file's words: "no such file", "is a directory, not a file", "cannot open: <reason>").
+// The file is read on every call; text parsed before under the same file name gives the model parsed then (the
+// models are immutable; the last 16 kept), so repeated loads of one robot cost a read, not a parse.
 UrdfModel load_urdf_file(const std::filesystem::path& file);
 
 // Parses URDF text; errors name `file_label` as the file. Throws InputError:

@@ -181,6 +181,51 @@ TEST_F(SceneTest, RobotsFollowTheirUrdfKinematics) {
   }
 }
 
+// place_free_body is the sweep's pose of a carried part after one kinematics pass: the same bits as a second pass.
+TEST_F(SceneTest, PlacingAFreeBodyIsASecondKinematicsPassBitForBit) {
+  Scene s = build_scene(paper_cell());
+  const mjModel* m = s.model();
+  mjData* placed = mj_makeData(m);
+  mjData* whole = mj_makeData(m);
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto same = [&](const mjtNum* a, const mjtNum* b, int n, const char* what) {
+    EXPECT_TRUE(std::equal(a, a + n, b)) << what;
+  };
+  for (int k = 0; k < 40; ++k) {
+    const int w = k % static_cast<int>(s.workpieces().size());
+    const int body = s.workpieces()[static_cast<std::size_t>(w)].body;
+    // A pose whose quaternion is a little off unit length, as one computed from a rotation matrix is.
+    Eigen::Quaterniond r(u(rng), u(rng), u(rng), u(rng));
+    r.normalize();
+    const double scale = 1.0 + 1e-9 * u(rng);
+    const double pose[7] = {u(rng), u(rng), 1.0 + u(rng), scale * r.w(), scale * r.x(), scale * r.y(), scale * r.z()};
+    for (int i = 0; i < m->nq; ++i) placed->qpos[i] = s.data()->qpos[i] + 0.1 * u(rng);
+    mju_copy(whole->qpos, placed->qpos, m->nq);
+    mj_kinematics(m, placed);
+    twin::place_free_body(m, placed, body, pose);
+    mju_copy(whole->qpos + s.workpieces()[static_cast<std::size_t>(w)].qpos_adr, pose, 7);
+    mj_kinematics(m, whole);
+    same(placed->qpos, whole->qpos, m->nq, "qpos");
+    same(placed->xpos, whole->xpos, 3 * m->nbody, "xpos");
+    same(placed->xquat, whole->xquat, 4 * m->nbody, "xquat");
+    same(placed->xmat, whole->xmat, 9 * m->nbody, "xmat");
+    same(placed->xipos, whole->xipos, 3 * m->nbody, "xipos");
+    same(placed->ximat, whole->ximat, 9 * m->nbody, "ximat");
+    same(placed->geom_xpos, whole->geom_xpos, 3 * m->ngeom, "geom_xpos");
+    same(placed->geom_xmat, whole->geom_xmat, 9 * m->ngeom, "geom_xmat");
+    same(placed->site_xpos, whole->site_xpos, 3 * m->nsite, "site_xpos");
+    same(placed->site_xmat, whole->site_xmat, 9 * m->nsite, "site_xmat");
+  }
+  const double pose[7] = {0, 0, 0, 1, 0, 0, 0};
+  EXPECT_THROW(twin::place_free_body(m, placed, m->body_parentid[s.workpieces()[0].body], pose), InternalError);
+  EXPECT_THROW(twin::place_free_body(m, placed, m->site_bodyid[m->sensor_objid[s.robots()[0].wrist_force_sensor]],
+                                     pose),
+               InternalError);
+  mj_deleteData(placed);
+  mj_deleteData(whole);
+}
+
 TEST_F(SceneTest, NothingOverlapsAtTheStartAndTheRobotsTouchNothing) {
   Scene s = build_scene(paper_cell());
   EXPECT_THAT(penetrations(s, 1e-4), ::testing::IsEmpty());

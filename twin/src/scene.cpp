@@ -1330,6 +1330,32 @@ void write_mjcf(const std::string& mjcf, const std::filesystem::path& path) {
   }
 }
 
+void place_free_body(const mjModel* m, mjData* d, int body, const double pose[7]) {
+  CW_CHECK(body > 0 && body < m->nbody && m->body_parentid[body] == 0 && m->body_jntnum[body] == 1 &&
+               m->jnt_type[m->body_jntadr[body]] == mjJNT_FREE && m->body_mocapid[body] < 0,
+           "body {} is not a free body of the world", body);
+  mjtNum* q = d->qpos + m->jnt_qposadr[m->body_jntadr[body]];
+  mju_copy(q, pose, 7);
+  mju_normalize4(q + 3);  // as mj_kinematics normalises the quaternions of qpos first
+  mjtNum quat[4];
+  mju_copy4(quat, q + 3);
+  mju_normalize4(quat);  // and then the body's own
+  mju_copy4(d->xquat + 4 * body, quat);
+  mju_copy3(d->xpos + 3 * body, q);
+  mju_quat2Mat(d->xmat + 9 * body, quat);
+  mj_local2Global(d, d->xipos + 3 * body, d->ximat + 9 * body, m->body_ipos + 3 * body, m->body_iquat + 4 * body, body,
+                  m->body_sameframe[body]);
+  for (int g = m->body_geomadr[body]; g < m->body_geomadr[body] + m->body_geomnum[body]; ++g) {
+    mj_local2Global(d, d->geom_xpos + 3 * g, d->geom_xmat + 9 * g, m->geom_pos + 3 * g, m->geom_quat + 4 * g, body,
+                    m->geom_sameframe[g]);
+  }
+  for (int i = 0; i < m->nsite; ++i) {
+    if (m->site_bodyid[i] != body) continue;
+    mj_local2Global(d, d->site_xpos + 3 * i, d->site_xmat + 9 * i, m->site_pos + 3 * i, m->site_quat + 4 * i, body,
+                    m->site_sameframe[i]);
+  }
+}
+
 GeomRole geom_role(const Scene& scene, int geom) {
   const mjModel* m = scene.model();
   GeomRole out;

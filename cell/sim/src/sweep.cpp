@@ -142,11 +142,9 @@ class Poser {
       tcp.linear() = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(d_->site_xmat + 9 * r.tcp_site);
       const Eigen::Isometry3d pose = tcp * span.grip;
       const Eigen::Quaterniond rot(pose.linear());
-      const int adr = scene_.workpieces()[static_cast<std::size_t>(span.part)].qpos_adr;
       const double v[7] = {
           pose.translation().x(), pose.translation().y(), pose.translation().z(), rot.w(), rot.x(), rot.y(), rot.z()};
-      std::copy(v, v + 7, d_->qpos + adr);
-      mj_kinematics(m_, d_);
+      twin::place_free_body(m_, d_, scene_.workpieces()[static_cast<std::size_t>(span.part)].body, v);
     }
   }
 

@@ -186,6 +186,14 @@ struct GeomRole {
 };
 GeomRole geom_role(const Scene& scene, int geom);
 
+// Puts free body `body` (a part: a free joint, child of the world) at `pose` (x y z qw qx qy qz) in d: writes its
+// qpos and the positions and orientations mj_kinematics derives from them (the body's frame, its inertial frame, its
+// geoms' and sites' frames), the same bits as mj_kinematics gives (MuJoCo 2.2: the quaternion normalised in qpos,
+// then again as the body's), and nothing else: the rest of d stays as it was. For a pose of one body after a
+// whole-model kinematics pass (the sweep's carried part), at a fraction of a second pass. InternalError if `body` is
+// not such a body.
+void place_free_body(const mjModel* m, mjData* d, int body, const double pose[7]);
+
 // The MJCF text of the whole cell. Reads each robot's URDF (boxes, cylinders, spheres and meshes) and the gripper
 // mounted on it. Throws InputError naming the URDF's file and line when it cannot be read or lacks what the scene
 // needs (the cell's base, flange and tool links; prismatic joints finger_left_joint and finger_right_joint, in the

@@ -18,12 +18,13 @@ case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 # libqhull-dev: MuJoCo's CMake config names /usr/include/libqhull_r, and CMake refuses to generate without it.
 # libfastrtps-dev, libfastcdr-dev: Fast DDS 2.9 for robot agents in other processes (distributed/, docs/distributed.md);
 # 3.1 MB to download, 18 MB installed. Its code generator (fastddsgen) is not needed: the messages are encoded by hand.
+# libwebsocketpp-dev, libasio-dev: the live view's HTTP + WebSocket server (serve/, docs/live-view.md), header-only.
 packages=(
   build-essential cmake ninja-build pkg-config git ccache lld
   libmujoco-dev libqhull-dev libeigen3-dev libopencv-dev libosmesa6-dev liburdfdom-dev libyaml-cpp-dev libtinyxml2-dev libpng-dev
   libgtest-dev libgmock-dev libbenchmark-dev libfmt-dev libcli11-dev nlohmann-json3-dev graphviz libglpk-dev
   libassimp-dev ffmpeg libavcodec-dev libavformat-dev libswscale-dev libavutil-dev libmodbus-dev
-  libfastrtps-dev libfastcdr-dev
+  libfastrtps-dev libfastcdr-dev libwebsocketpp-dev libasio-dev
 )
 # chromium: the report page opened in a browser (tests/tools). python3-pymodbus (and the serial modules its server
 # imports, which Debian lists only as recommended): a Modbus TCP server and client the team did not write, which the

@@ -16,6 +16,7 @@
 #                                      nothing of cell/sim (the simulated rig); OpenCV only in the reports (cell/report,
 #                                      and the campaign's chart); campaigns and suites never build a run (cell/sim/run)
 #   distributed (DDS transport)        no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, emulate or cell
+#   serve (the live view's server)     no MuJoCo, OpenGL/OSMesa, OpenCV, DDS; nothing of ours but common
 #   controller, models, drivers, common  no DDS (Fast DDS, Fast CDR) and nothing of distributed: the runtime does not
 #                                      know whether a robot is remote
 #   every library                      nothing of tools/
@@ -78,6 +79,9 @@ check_includes(emulate "${heavy}|cellwright/(twin|vision|runtime|cell)/|cellwrig
                "emulate/*")
 # The DDS transport carries the runtime's queues; it knows no simulator, vision or application.
 check_includes(distributed "${heavy}|cellwright/(twin|vision|cell|emulate)/|${tools_reach}" "distributed/*")
+# The live view's server carries JSON texts and commands; it knows no simulator, runtime, robot or application.
+check_includes(serve "${heavy}|${dds}|cellwright/(twin|vision|cell|emulate|runtime|petri|task|drivers|models)/|${tools_reach}"
+               "serve/*")
 # The twin's MuJoCo-free facts.
 check_includes(twin_model "${heavy}|cellwright/(cell|vision|emulate)/|${tools_reach}" "twin/model/*")
 # The simulator knows nothing of scenarios, plans, rigs or reports.
@@ -128,6 +132,8 @@ set(link_rules
     "cellwright_distributed|${mujoco_ocv_gl}|cellwright_(twin|vision|emulate|scenario|plan|rig|report|campaign|cell_sim)"
     "distributed_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|emulate|scenario|plan|rig|report|campaign|cell_sim)"
     "runtime_tests|${mujoco_ocv_gl}|cellwright_(twin|vision)"
+    "cellwright_serve|${mujoco_ocv_gl}|fastrtps|fastcdr|cellwright_(twin|vision|runtime|controller|drivers|models|emulate|distributed|scenario|plan|rig|report|campaign|cell_sim)"
+    "serve_tests|${mujoco_ocv_gl}|fastrtps|fastcdr|cellwright_(twin|vision|runtime|controller|drivers|models|emulate|distributed|scenario|plan|rig|report|campaign|cell_sim)"
     "controller_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
     "cellwright_models|${mujoco_ocv_gl}|cellwright_(twin|vision|drivers|runtime)"
     "models_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|drivers|runtime)"

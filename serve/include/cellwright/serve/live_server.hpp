@@ -1,0 +1,107 @@
+// The live view's server (docs/live-view.md): one HTTP + WebSocket endpoint that serves the page's files and the
+// robots' models, and carries the live view's messages. It knows nothing of MuJoCo, the twin or the runtime: the
+// caller (`twin serve`, cell/sim/live.hpp) gives it JSON texts to send and takes the viewers' commands from it.
+//
+// Protocol (JSON text frames on the WebSocket at "/ws"; every message an object with a "type"):
+//   server -> viewer   {"type":"cell",  ...}   the cell (set_cell): sent to each viewer when it connects, and to all
+//                                             when it changes (a restart)
+//                      {"type":"frame", ...}   the state now (publish): sent at a bounded rate by the caller, and
+//                                             dropped for a viewer whose socket has more than
+//                                             ServerOptions::max_buffered bytes not yet sent (never queued)
+//                      {"type":"error","reason":"..."}  a message of this viewer was refused, and why
+//   viewer -> server   {"type":"command","command":"play"|"pause"|"step"|"restart"}
+// Anything else from a viewer (not JSON, not an object, another type, an unknown command, a binary frame, a text over
+// kMaxMessageBytes) is refused with an "error" message naming the problem; the connection stays open.
+//
+// HTTP: GET "/" is www/index.html; "/<file>" a file of www; "/models/<path>" a file of the models directory (the
+// robots' URDFs and meshes). A path with "..", or a file that is not there, is 404. Nothing else is served.
+//
+// Threads: one thread of its own runs the sockets (asio). Every public member may be called from any thread.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <variant>
+
+namespace cellwright::serve {
+
+// A viewer's command to the run.
+enum class CommandKind { kPlay, kPause, kStep, kRestart };
+const char* to_string(CommandKind kind);
+
+// parse_command's answer: the command, or why the message was refused.
+struct Refusal {
+  std::string reason;
+};
+using Parsed = std::variant<CommandKind, Refusal>;
+
+// Reads one message from a viewer (the protocol above).
+Parsed parse_command(std::string_view text);
+
+inline constexpr std::size_t kMaxMessageBytes = 4096;
+
+struct ServerOptions {
+  std::string bind = "127.0.0.1";  // the address listened on: loopback unless the user gives another
+  std::uint16_t port = 8029;       // 0: any free port (port() says which)
+  std::filesystem::path www;       // the page's files
+  std::filesystem::path models;    // served under /models/
+  std::size_t max_buffered = 256 * 1024;  // bytes waiting on a viewer's socket above which its frames are dropped
+};
+
+class LiveServer {
+ public:
+  // Listens and starts the sockets' thread. Throws InputError naming the address and port when it cannot listen
+  // (the port in use, an address that is not this machine's or not an address).
+  explicit LiveServer(ServerOptions options);
+  // Closes every connection and joins the thread.
+  ~LiveServer();
+  LiveServer(const LiveServer&) = delete;
+  LiveServer& operator=(const LiveServer&) = delete;
+
+  std::uint16_t port() const;
+
+  // The "cell" message: kept, sent now to every viewer, and to each viewer that connects later.
+  void set_cell(std::string json);
+  // Sends a "frame" message to every viewer that can take it now; the others miss it (counted in dropped()).
+  // Never waits for a viewer.
+  void publish(std::string json);
+
+  // The oldest command not yet taken, if any; never waits.
+  std::optional<CommandKind> poll_command();
+  // The oldest command not yet taken, waiting up to `timeout` for one.
+  std::optional<CommandKind> wait_command(std::chrono::milliseconds timeout);
+
+  std::size_t viewers() const;
+  struct Counts {
+    std::uint64_t sent = 0;     // frames handed to a viewer's socket
+    std::uint64_t dropped = 0;  // frames a slow viewer missed
+    std::uint64_t refused = 0;  // viewers' messages refused
+  };
+  Counts counts() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Paces frames to at most `hz` per second of wall time: due() is true at the first call and then once `1/hz` has
+// passed since the last time it was true.
+class FramePacer {
+ public:
+  explicit FramePacer(double hz);  // hz > 0
+  bool due(std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now());
+
+ private:
+  std::chrono::steady_clock::duration period_;
+  std::optional<std::chrono::steady_clock::time_point> last_;
+};
+
+}  // namespace cellwright::serve

@@ -1,0 +1,62 @@
+// `twin serve`'s run loop (docs/live-view.md): a scenario run lock-step on the twin, watched from a browser through the
+// live view's server (serve/live_server.hpp), and driven from there: play, pause, step one firing, restart.
+//
+// What the viewers are sent (JSON, the protocol of serve/live_server.hpp):
+//   cell    {"type":"cell", "name", "scenario", "program",
+//            "robots":[{"name", "label", "urdf":"/models/...", "packages":{PACKAGE:"/models/..."},
+//                       "base_link", "base":[x,y,z,qw,qx,qy,qz], "joints":[URDF joint names, base to tip]}],
+//            "bodies":[{"id", "name", "pose":[x,y,z,qw,qx,qy,qz]}],        every body of the geoms below
+//            "geoms":[{"body", "shape":"box"|"cylinder"|"sphere"|"capsule"|"plane", "size":[MuJoCo's half-sizes],
+//                      "pos":[x,y,z], "quat":[qw,qx,qy,qz] (in its body), "rgba":[r,g,b,a], "role"}]}
+//            The geoms are the cell's but the robots' (drawn from their URDFs) and meshes: conveyors, stands,
+//            machines, parts, obstacles, the floor.
+//   frame   {"type":"frame", "t" (simulation s), "firings", "state":"paused"|"playing"|"ended", "outcome", "reason",
+//            "marking" (the Petri net's, as text), "fired":[transitions of the last step, described],
+//            "robots":[{"name", "label", "joints":[rad], "fingers" (m open), "activity", "command", "phase",
+//                       "detail"}],
+//            "bodies":[[id,x,y,z,qw,qx,qy,qz] for each body of "bodies" that moves],
+//            "faults":[event log lines: fault_injected, fault_detected, collision, since the run began]}
+//
+// Threads: serve_scenario runs on the caller's thread; the server has its own.
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <string>
+
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/scenario.hpp"
+#include "cellwright/cell/sim/run.hpp"
+#include "cellwright/serve/live_server.hpp"
+
+namespace cellwright::cell {
+
+// The directory the page loads the robots' models from (served as /models/): the deepest directory holding every
+// robot's URDF and mesh packages of the scenario's cell. InputError when there is none but the root.
+std::filesystem::path models_root(const Scenario& scenario);
+
+// The "cell" message of a run (see the top), with URLs under /models/ relative to `models`.
+std::string live_cell_json(ScenarioRun& run, const std::filesystem::path& models);
+
+struct LiveFrameState {
+  const char* state = "paused";  // "paused", "playing" or "ended"
+  const runtime::StepState* step = nullptr;  // the last step's state, or none before the first
+};
+// The "frame" message of a run now (see the top). Only while the runtime's threads are parked (lock-step, between
+// steps). `faults` are the lines to send as "faults".
+std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const std::vector<std::string>& faults);
+
+struct ServeOptions {
+  double frame_hz = 30;  // frames to the viewers at most this often (wall time)
+  bool play = false;     // start playing without waiting for a viewer's "play"
+};
+
+// Runs `scenario` (which passed `preflight`) lock-step, built with `options` (a fresh ScenarioRun at each restart),
+// sending its cell and frames to `server`'s viewers and obeying their commands, until `stop` is set. Paused at first
+// (unless ServeOptions::play): each "step" runs to the next firing, "play" runs on (a frame at most every 1/frame_hz
+// of wall time, the run never waiting for a viewer), "pause" stops between two steps, "restart" builds the run
+// again. A run that has ended stays on its last frame until "restart". Returns the number of runs built.
+int serve_scenario(const Scenario& scenario, const Preflight& preflight, const RunOptions& options,
+                   serve::LiveServer& server, const ServeOptions& serve_options, const std::atomic<bool>& stop);
+
+}  // namespace cellwright::cell

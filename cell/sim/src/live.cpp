@@ -1,0 +1,318 @@
+#include "cellwright/cell/sim/live.hpp"
+
+#include <fmt/format.h>
+#include <mujoco/mujoco.h>
+
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/petri/analysis.hpp"
+#include "cellwright/runtime/log_event.hpp"
+#include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/sim/world.hpp"
+
+namespace cellwright::cell {
+
+namespace {
+
+using nlohmann::json;
+
+std::filesystem::path common_dir(const std::filesystem::path& a, const std::filesystem::path& b) {
+  std::filesystem::path out;
+  auto i = a.begin(), j = b.begin();
+  for (; i != a.end() && j != b.end() && *i == *j; ++i, ++j) out /= *i;
+  return out;
+}
+
+std::string url_under(const std::filesystem::path& models, const std::filesystem::path& file) {
+  return "/models/" + std::filesystem::relative(file, models).generic_string();
+}
+
+json pose7(const double* pos, const double* quat) {
+  return json::array({pos[0], pos[1], pos[2], quat[0], quat[1], quat[2], quat[3]});
+}
+
+const char* shape_of(int type) {
+  switch (type) {
+    case mjGEOM_BOX: return "box";
+    case mjGEOM_CYLINDER: return "cylinder";
+    case mjGEOM_SPHERE: return "sphere";
+    case mjGEOM_CAPSULE: return "capsule";
+    case mjGEOM_PLANE: return "plane";
+    default: return nullptr;  // meshes (the robots' and imported ones) and the rest are not sent
+  }
+}
+
+// The bodies of the robots' subtrees (drawn from the URDFs on the page).
+std::vector<bool> robot_bodies(const twin::Scene& scene) {
+  const mjModel* m = scene.model();
+  std::vector<bool> robot(static_cast<std::size_t>(m->nbody), false);
+  for (const twin::RobotIds& r : scene.robots()) {
+    if (r.base_body < 0) continue;
+    const int root = m->body_rootid[r.base_body];
+    for (int b = 0; b < m->nbody; ++b) {
+      if (m->body_rootid[b] == root && b != 0) robot[static_cast<std::size_t>(b)] = true;
+    }
+  }
+  return robot;
+}
+
+// The bodies the cell message lists, in id order: those of the sent geoms.
+std::vector<int> sent_bodies(const twin::Scene& scene) {
+  const mjModel* m = scene.model();
+  const std::vector<bool> robot = robot_bodies(scene);
+  std::vector<bool> used(static_cast<std::size_t>(m->nbody), false);
+  for (int g = 0; g < m->ngeom; ++g) {
+    const int b = m->geom_bodyid[g];
+    if (!robot[static_cast<std::size_t>(b)] && shape_of(m->geom_type[g]) && m->geom_rgba[4 * g + 3] > 0) {
+      used[static_cast<std::size_t>(b)] = true;
+    }
+  }
+  std::vector<int> out;
+  for (int b = 0; b < m->nbody; ++b) {
+    if (used[static_cast<std::size_t>(b)]) out.push_back(b);
+  }
+  return out;
+}
+
+bool moves(const mjModel* m, int body) {
+  const int root = m->body_rootid[body];
+  return root != 0 && (m->body_jntnum[root] > 0 || m->body_mocapid[root] >= 0 || m->body_jntnum[body] > 0);
+}
+
+std::string body_name(const mjModel* m, int b) {
+  const char* n = mj_id2name(m, mjOBJ_BODY, b);
+  return n ? n : fmt::format("body {}", b);
+}
+
+const char* role_name(twin::GeomRole::Kind k) {
+  switch (k) {
+    case twin::GeomRole::Kind::none: return "visual";
+    case twin::GeomRole::Kind::fixed: return "fixed";
+    case twin::GeomRole::Kind::belt: return "belt";
+    case twin::GeomRole::Kind::robot: return "robot";
+    case twin::GeomRole::Kind::workpiece: return "workpiece";
+    case twin::GeomRole::Kind::obstacle: return "obstacle";
+  }
+  return "?";
+}
+
+// The last part of a MuJoCo joint name: "puma/joint1" -> "joint1" (the URDF's own name).
+std::string urdf_joint(const std::string& mj_name) {
+  const auto slash = mj_name.rfind('/');
+  return slash == std::string::npos ? mj_name : mj_name.substr(slash + 1);
+}
+
+}  // namespace
+
+std::filesystem::path models_root(const Scenario& scenario) {
+  std::optional<std::filesystem::path> root;
+  auto take = [&](const std::filesystem::path& dir) {
+    const std::filesystem::path d = dir.lexically_normal();
+    root = root ? common_dir(*root, d) : d;
+  };
+  for (const models::RobotSpec& r : scenario.cell.robots) {
+    take(r.urdf.parent_path());
+    for (const std::filesystem::path& p : r.package_path) take(p);
+  }
+  if (!root) return {};  // no robots: nothing to serve
+  if (*root == root->root_path()) {
+    throw InputError({scenario.cell.source.string(), 0, 0},
+                     "the robots' URDFs and mesh packages have no directory in common but the file system's root, "
+                     "which the live view will not serve: keep them under one directory");
+  }
+  return *root;
+}
+
+std::string live_cell_json(ScenarioRun& run, const std::filesystem::path& models) {
+  const Scenario& s = run.scenario();
+  const twin::Scene& scene = run.world().scene();
+  const mjModel* m = scene.model();
+  const mjData* d = run.world().data();
+  json robots = json::array();
+  for (const Binding& b : s.robots) {
+    const models::RobotSpec* spec = s.cell.find_robot(b.name);
+    const twin::RobotIds* ids = scene.find_robot(b.name);
+    if (!spec || !ids) continue;
+    json packages = json::object();
+    for (const std::filesystem::path& dir : spec->package_path) {
+      std::error_code ec;
+      for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+        const std::string name = e.path().filename().string();
+        if (e.is_directory() && !packages.contains(name)) packages[name] = url_under(models, e.path());
+      }
+    }
+    json joints = json::array();
+    for (const std::string& j : ids->joints) joints.push_back(urdf_joint(j));
+    const int base = ids->base_body;
+    robots.push_back({{"name", b.name},
+                      {"label", b.label},
+                      {"urdf", url_under(models, spec->urdf)},
+                      {"packages", packages},
+                      {"base_link", spec->base_link},
+                      {"base", base >= 0 ? pose7(d->xpos + 3 * base, d->xquat + 4 * base) : json()},
+                      {"joints", joints}});
+  }
+  const std::vector<int> bodies = sent_bodies(scene);
+  std::vector<bool> listed(static_cast<std::size_t>(m->nbody), false);
+  json jb = json::array();
+  for (int b : bodies) {
+    listed[static_cast<std::size_t>(b)] = true;
+    jb.push_back({{"id", b}, {"name", body_name(m, b)}, {"pose", pose7(d->xpos + 3 * b, d->xquat + 4 * b)},
+                  {"moves", moves(m, b)}});
+  }
+  json geoms = json::array();
+  for (int g = 0; g < m->ngeom; ++g) {
+    const int b = m->geom_bodyid[g];
+    const char* shape = shape_of(m->geom_type[g]);
+    if (!listed[static_cast<std::size_t>(b)] || !shape || m->geom_rgba[4 * g + 3] <= 0) continue;
+    const mjtNum* sz = m->geom_size + 3 * g;
+    const float* c = m->geom_rgba + 4 * g;
+    const mjtNum* p = m->geom_pos + 3 * g;
+    const mjtNum* q = m->geom_quat + 4 * g;
+    geoms.push_back({{"body", b},
+                     {"shape", shape},
+                     {"size", {sz[0], sz[1], sz[2]}},
+                     {"pos", {p[0], p[1], p[2]}},
+                     {"quat", {q[0], q[1], q[2], q[3]}},
+                     {"rgba", {c[0], c[1], c[2], c[3]}},
+                     {"role", role_name(twin::geom_role(scene, g).kind)}});
+  }
+  return json{{"type", "cell"},
+              {"name", s.cell.name},
+              {"scenario", s.source.filename().string()},
+              {"program", s.program_file.filename().string()},
+              {"robots", robots},
+              {"bodies", jb},
+              {"geoms", geoms}}
+      .dump();
+}
+
+std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const std::vector<std::string>& faults) {
+  const Scenario& s = run.scenario();
+  const twin::Scene& scene = run.world().scene();
+  const mjModel* m = scene.model();
+  const mjData* d = run.world().data();
+  const petri::Net& net = run.runtime().config().net;
+  const runtime::StepState* st = state.step;
+  json robots = json::array();
+  for (std::size_t i = 0; i < s.robots.size(); ++i) {
+    const twin::RobotIds* ids = scene.find_robot(s.robots[i].name);
+    if (!ids) continue;
+    json joints = json::array();
+    for (int adr : ids->qpos_adr) joints.push_back(d->qpos[adr]);
+    double fingers = 0;
+    for (int adr : ids->finger_qpos_adr) fingers += adr >= 0 ? d->qpos[adr] : 0;
+    json r = {{"name", s.robots[i].name}, {"label", s.robots[i].label}, {"joints", joints}, {"fingers", fingers}};
+    if (st && i < st->task.robots.size()) {
+      const runtime::RobotView& v = st->task.robots[i];
+      r["activity"] = v.done ? "done" : runtime::to_string(v.activity);
+      r["command"] = v.command;
+    }
+    if (st && i < st->robots.size()) {
+      r["phase"] = runtime::to_string(st->robots[i].phase);
+      r["detail"] = st->robots[i].detail;
+    }
+    robots.push_back(std::move(r));
+  }
+  json bodies = json::array();
+  for (int b : sent_bodies(scene)) {
+    if (!moves(m, b)) continue;
+    json row = pose7(d->xpos + 3 * b, d->xquat + 4 * b);
+    row.insert(row.begin(), b);
+    bodies.push_back(std::move(row));
+  }
+  json fired = json::array();
+  if (st) {
+    for (const std::string& id : st->task.last_fired) {
+      if (auto t = net.find_transition(id)) fired.push_back(fmt::format("{}: {}", id, petri::describe_path(net, {*t})));
+    }
+  }
+  json f = {{"type", "frame"},
+            {"t", st ? std::chrono::duration<double>(st->time).count() : 0.0},
+            {"firings", st ? st->task.firings : 0},
+            {"state", state.state},
+            {"marking", petri::describe_marking(net, st ? st->task.marking : net.initial_marking())},
+            {"fired", fired},
+            {"robots", robots},
+            {"bodies", bodies},
+            {"faults", faults}};
+  if (st && st->result) {
+    f["outcome"] = runtime::to_string(st->result->outcome);
+    f["reason"] = st->result->reason;
+  }
+  return f.dump();
+}
+
+int serve_scenario(const Scenario& scenario, const Preflight& preflight, const RunOptions& options,
+                   serve::LiveServer& server, const ServeOptions& serve_options, const std::atomic<bool>& stop) {
+  using namespace std::chrono_literals;
+  const std::filesystem::path models = models_root(scenario);
+  int runs = 0;
+  while (!stop) {
+    // The faults seen so far, from the event log's typed observer (on the simulation thread, under the log's lock).
+    struct Faults {
+      std::mutex mutex;
+      std::vector<std::string> lines;
+    };
+    auto faults = std::make_shared<Faults>();
+    auto run = std::make_unique<ScenarioRun>(scenario, preflight, options);
+    ++runs;
+    run->runtime().log().add_observer([faults](const runtime::LogEvent& e) {
+      const std::string_view type = runtime::type_of(e);
+      if (type != "fault_injected" && type != "fault_detected" && type != "collision") return;
+      std::lock_guard lock(faults->mutex);
+      if (faults->lines.size() < 200) faults->lines.push_back(runtime::encode(e));
+    });
+    server.set_cell(live_cell_json(*run, models));
+    bool playing = serve_options.play, ended = false, restart = false;
+    std::optional<runtime::StepState> last;
+    serve::FramePacer pacer(serve_options.frame_hz);
+    std::size_t viewers = server.viewers();
+    auto send = [&] {
+      std::vector<std::string> f;
+      {
+        std::lock_guard lock(faults->mutex);
+        f = faults->lines;
+      }
+      const LiveFrameState st{ended ? "ended" : playing ? "playing" : "paused", last ? &*last : nullptr};
+      server.publish(live_frame_json(*run, st, f));
+    };
+    send();
+    while (!stop && !restart) {
+      // Playing: take what came without waiting; else wait a little for a command (and notice new viewers).
+      const std::optional<serve::CommandKind> c =
+          playing && !ended ? server.poll_command() : server.wait_command(100ms);
+      if (c) {
+        switch (*c) {
+          case serve::CommandKind::kPlay: playing = !ended; break;
+          case serve::CommandKind::kPause: playing = false; break;
+          case serve::CommandKind::kStep:
+            playing = false;
+            if (!ended) {
+              last = run->runtime().step();
+              ended = last->ended;
+            }
+            break;
+          case serve::CommandKind::kRestart: restart = true; break;
+        }
+        if (!restart) send();
+        continue;
+      }
+      if (playing && !ended) {
+        last = run->runtime().step();
+        ended = last->ended;
+        if (ended || pacer.due()) send();
+      } else if (const std::size_t n = server.viewers(); n > viewers) {
+        send();  // a viewer that came while nothing moves gets the state now
+      }
+      viewers = server.viewers();
+    }
+  }
+  return runs;
+}
+
+}  // namespace cellwright::cell

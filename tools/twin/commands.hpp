@@ -21,6 +21,7 @@ void add_analyze(CLI::App& app, Command* run);
 void add_snapshot(CLI::App& app, Command* run);
 void add_run(CLI::App& app, Command* run);
 void add_step(CLI::App& app, Command* run);
+void add_serve(CLI::App& app, Command* run);
 void add_emulate(CLI::App& app, Command* run);
 void add_commission(CLI::App& app, Command* run);
 void add_campaign(CLI::App& app, Command* run);

@@ -40,6 +40,7 @@ int main(int argc, char** argv) {
   cellwright::tools::add_snapshot(app, &run);
   cellwright::tools::add_run(app, &run);
   cellwright::tools::add_step(app, &run);
+  cellwright::tools::add_serve(app, &run);
   cellwright::tools::add_emulate(app, &run);
   cellwright::tools::add_campaign(app, &run);
   cellwright::tools::add_test(app, &run);

@@ -1,0 +1,84 @@
+// `twin serve <scenario.yaml> [--port P] [--bind ADDR]`: run a scenario lock-step and watch it in a browser, driven
+// from the page (play, pause, step one firing, restart): docs/live-view.md. Loopback only unless --bind gives another
+// address. Takes the options of `twin run` but --realtime, --quiet and --dry (run_args.hpp). Runs until Ctrl-C or
+// SIGTERM (exit 130); 2 on bad input.
+#if CW_SIM
+#include <atomic>
+#include <cstdio>
+#include <memory>
+
+#include "cellwright/cell/preflight.hpp"
+#include "cellwright/cell/scenario.hpp"
+#include "cellwright/cell/sim/live.hpp"
+#include "cellwright/cell/sim/sweep.hpp"
+#include "cellwright/common/error.hpp"
+#include "cellwright/serve/live_server.hpp"
+#include "commands.hpp"
+#include "run_args.hpp"
+#include "until_signal.hpp"
+
+namespace cellwright::tools {
+
+void add_serve(CLI::App& app, Command* run) {
+  auto* cmd = app.add_subcommand("serve",
+                                 "Run a scenario lock-step and watch it live in a browser (http://ADDR:PORT/): play, "
+                                 "pause, step one firing, restart from the page. Runs until Ctrl-C (exit 130); 2 on "
+                                 "bad input.");
+  auto args = std::make_shared<RunArgs>();
+  auto port = std::make_shared<int>(8029);
+  auto bind = std::make_shared<std::string>("127.0.0.1");
+  auto play = std::make_shared<bool>(false);
+  add_run_options(*cmd, *args);
+  cmd->add_option("--port", *port, "TCP port of the page and its WebSocket (default 8029; 0: any free port)");
+  cmd->add_option("--bind", *bind,
+                  "address to listen on (default 127.0.0.1: this machine only; 0.0.0.0 opens it to the network)");
+  cmd->add_flag("--play", *play, "start playing without waiting for the page's play");
+  cmd->callback([run, args, port, bind, play] {
+    *run = [args, port, bind, play] {
+      using namespace cellwright::cell;
+      if (*port < 0 || *port > 65535) throw InputError({"--port", 0, 0}, fmt::format("{} is not a TCP port", *port));
+      const Scenario s = load_scenario_with(*args);
+      if (uses_real_drivers(s)) {
+        throw InputError({"--driver", 0, 0}, "twin serve runs the program lock-step on simulated robots");
+      }
+      const Preflight pre = preflight(s, &twin_port());
+      if (!pre.ok(args->allow_collisions)) {
+        std::fprintf(stderr, "%s: refused, nothing was run:\n", args->scenario.c_str());
+        for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
+        return 2;
+      }
+      RunOptions options = run_options_for(*args, s);
+      options.realtime = false;
+      serve::ServerOptions so;
+      so.bind = *bind;
+      so.port = static_cast<std::uint16_t>(*port);
+      so.www = CW_LIVE_WWW;
+      so.models = models_root(s);
+      block_stop_signals();
+      serve::LiveServer server(so);
+      std::printf("%s: serving the live view on http://%s:%u/ (Ctrl-C stops)\n", args->scenario.c_str(),
+                  bind->c_str(), static_cast<unsigned>(server.port()));
+      std::fflush(stdout);
+      std::atomic<bool> stop{false};
+      const StopWatcher watcher([&stop] { stop = true; });
+      ServeOptions opts;
+      opts.play = *play;
+      serve_scenario(s, pre, options, server, opts, stop);
+      return kInterrupted;
+    };
+  });
+}
+
+}  // namespace cellwright::tools
+
+#else
+
+#include "simulator.hpp"
+
+namespace cellwright::tools {
+
+void add_serve(CLI::App& app, Command* run) { add_unavailable(app, run, "serve", "Watch a scenario live in a browser"); }
+
+}  // namespace cellwright::tools
+
+#endif  // CW_SIM

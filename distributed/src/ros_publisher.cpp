@@ -10,6 +10,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <exception>
 #include <iostream>
 #include <mutex>
 #include <optional>
@@ -200,6 +201,7 @@ struct RosPublisher::Impl {
       if (q.size() != r.joints.size()) continue;  // not in the model, or not this chain's joints
       js.name.insert(js.name.end(), r.joints.begin(), r.joints.end());
       js.position.insert(js.position.end(), q.begin(), q.end());
+      if (q.size() != r.flange.dof()) continue;  // a flange chain with joints the tool chain has not: no frames
       Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
       Eigen::Isometry3d flange = r.flange.forward(v);
       frames.push_back(make_transform(stamp, r.base_frame, r.flange_frame, flange));
@@ -231,7 +233,14 @@ struct RosPublisher::Impl {
         events.write(encode_string(runtime::encode(e)));
         ++n_events;
       }
-      if (s) publish(*s);
+      if (s) {
+        try {
+          publish(*s);
+        } catch (const std::exception& e) {  // this thread must not die of it; the run goes on
+          std::cerr << fmt::format("ROS 2 publisher: joint_states/tf at {} ns not published: {}\n", s->time.count(),
+                                   e.what());
+        }
+      }
       lock.lock();
       if (stopping && !latest && queued.empty()) return;
       wake.wait_until(lock, slot, [&] { return stopping; });

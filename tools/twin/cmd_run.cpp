@@ -1,11 +1,11 @@
 // `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]
 // [--driver ROBOT=KIND[:PORT]]... [--fault SPEC]... [--seed N] [--allow-collisions]
-// [--video FILE.mp4 [--video-fps N] [--video-size WxH]] [--ros-domain N] [--dry]` (the options but --realtime, --quiet and --dry shared
-// with `twin step`: run_args.hpp): run a scenario's task program on the simulated cell (or with some robots real,
-// mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and every expected outcome
-// holds, 1 when not, 2 on bad input or a predicted collision (refused before any thread starts, nothing written).
-// In a twin built for real robots only (CW_SIM=OFF), every robot of the program on a real driver, with no twin
-// (run_real.hpp); with the simulator, real robots are mirrored in the twin (docs/real-robots.md says why).
+// [--video FILE.mp4 [--video-fps N] [--video-size WxH]] [--ros-domain N] [--dry]` (the options but --realtime, --quiet,
+// --ros-domain and --dry shared with `twin step`: run_args.hpp): run a scenario's task program on the simulated cell
+// (or with some robots real, mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and
+// every expected outcome holds, 1 when not, 2 on bad input or a predicted collision (refused before any thread starts,
+// nothing written). In a twin built for real robots only (CW_SIM=OFF), every robot of the program on a real driver,
+// with no twin (run_real.hpp); with the simulator, real robots are mirrored in the twin (docs/real-robots.md says why).
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -130,7 +130,8 @@ void add_run(CLI::App& app, Command* run) {
   cmd->add_option("--ros-domain", args->ros_domain,
                   "publish the run for ROS 2 on this DDS domain (0..232): rt/joint_states, rt/tf, rt/tf_static, "
                   "rt/clock (simulation time) and the events on rt/cellwright/events, at most 50 times a second "
-                  "(docs/distributed.md); off by default");
+                  "(docs/distributed.md); off by default")
+      ->check(CLI::Range(0, 232));
   cmd->add_flag("--dry", args->dry,
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
                 "program, and read every input of each device on real I/O; nothing else moves and no output is "

@@ -27,60 +27,10 @@
 
 #include "cellwright/common/error.hpp"
 #include "cellwright/distributed/wire.hpp"
+#include "dds_entities.hpp"
 
 namespace cellwright::distributed {
-namespace dds = eprosima::fastdds::dds;
-namespace rtps = eprosima::fastrtps::rtps;
-
 namespace {
-
-// A DDS type whose samples are the CDR bytes wire.hpp encodes, encapsulation header included: Fast DDS moves them as
-// they are, and decoding (with its checks) is wire.hpp's, where a refusal can say what was wrong.
-class CdrBytesType : public dds::TopicDataType {
- public:
-  CdrBytesType(const char* name, std::size_t max_size) {
-    setName(name);
-    m_typeSize = static_cast<std::uint32_t>(max_size);
-    m_isGetKeyDefined = false;
-  }
-
-  bool serialize(void* data, rtps::SerializedPayload_t* payload) override {
-    const auto& bytes = *static_cast<std::vector<char>*>(data);
-    if (bytes.size() < 4 || bytes.size() > payload->max_size) return false;
-    std::memcpy(payload->data, bytes.data(), bytes.size());
-    payload->length = static_cast<std::uint32_t>(bytes.size());
-    payload->encapsulation = bytes[1] == 0 ? CDR_BE : CDR_LE;
-    return true;
-  }
-
-  bool deserialize(rtps::SerializedPayload_t* payload, void* data) override {
-    auto& bytes = *static_cast<std::vector<char>*>(data);
-    const char* begin = reinterpret_cast<const char*>(payload->data);
-    bytes.assign(begin, begin + payload->length);
-    return true;
-  }
-
-  std::function<std::uint32_t()> getSerializedSizeProvider(void* data) override {
-    return [data] { return static_cast<std::uint32_t>(static_cast<std::vector<char>*>(data)->size()); };
-  }
-
-  void* createData() override { return new std::vector<char>(); }
-  void deleteData(void* data) override { delete static_cast<std::vector<char>*>(data); }
-  bool getKey(void*, rtps::InstanceHandle_t*, bool) override { return false; }
-};
-
-// ROS 2's default QoS for topics: reliable, volatile, keep last 10; latched (the agent's state, as tf_static):
-// reliable, transient local, keep last 1.
-enum class Qos { kDefault, kLatched };
-
-template <typename Q>
-Q with(Q qos, Qos kind) {
-  qos.reliability().kind = dds::RELIABLE_RELIABILITY_QOS;
-  qos.durability().kind = kind == Qos::kLatched ? dds::TRANSIENT_LOCAL_DURABILITY_QOS : dds::VOLATILE_DURABILITY_QOS;
-  qos.history().kind = dds::KEEP_LAST_HISTORY_QOS;
-  qos.history().depth = kind == Qos::kLatched ? 1 : 10;
-  return qos;
-}
 
 bool valid_token(const std::string& name) {
   if (name.empty() || (name[0] >= '0' && name[0] <= '9')) return false;
@@ -148,13 +98,7 @@ class ReaderListener : public dds::DataReaderListener {
   void on_subscription_matched(dds::DataReader*, const dds::SubscriptionMatchedStatus& info) override {
     matches_.set(info.current_count);
   }
-  void on_data_available(dds::DataReader* reader) override {
-    std::vector<char> bytes;
-    dds::SampleInfo info;
-    while (reader->take_next_sample(&bytes, &info) == ReturnCode_t::RETCODE_OK) {
-      if (info.valid_data) handle_(bytes);
-    }
-  }
+  void on_data_available(dds::DataReader* reader) override { take_all(reader, handle_); }
 
  private:
   Matches& matches_;
@@ -162,32 +106,6 @@ class ReaderListener : public dds::DataReaderListener {
 };
 
 }  // namespace
-
-struct Participant::Impl {
-  dds::DomainParticipant* participant = nullptr;
-  dds::Publisher* publisher = nullptr;
-  dds::Subscriber* subscriber = nullptr;
-  std::mutex mutex;  // entity creation and deletion
-
-  void ensure_type(const char* name, std::size_t max_size) {
-    if (participant->find_type(name).empty()) {
-      dds::TypeSupport type(new CdrBytesType(name, max_size));
-      CW_CHECK(type.register_type(participant) == ReturnCode_t::RETCODE_OK, "cannot register a DDS type");
-    }
-  }
-
-  // The topic `name` of type `type`: created, or the one this participant already has.
-  dds::Topic* topic(const std::string& name, const char* type) {
-    if (auto* found = participant->lookup_topicdescription(name)) {
-      auto* existing = dynamic_cast<dds::Topic*>(found);
-      CW_CHECK(existing != nullptr, "a DDS topic description that is no topic");
-      return existing;
-    }
-    dds::Topic* made = participant->create_topic(name, type, dds::TOPIC_QOS_DEFAULT);
-    CW_CHECK(made != nullptr, "cannot create the DDS topic {}", name);
-    return made;
-  }
-};
 
 Participant::Participant(DdsOptions options, const std::string& name) : options_(options), impl_(new Impl) {
   if (options.domain < 0 || options.domain > 232) {

@@ -12,14 +12,24 @@
 //   dds_peer garbage DOMAIN ROBOT INDEX PROGRAM
 //       Writes on ROBOT's command topic: 64 random bytes, a command cut short, a command for another robot, a command
 //       whose primitive is not the program's, then one valid command (primitive 0); exits 0 once they are acknowledged.
+//   dds_peer ros-listen DOMAIN
+//       A ROS 2 subscriber of the cell (distributed/ros_publisher.hpp) as a tool would be: reads rt/joint_states,
+//       rt/tf, rt/tf_static, rt/clock and rt/cellwright/events, prints "ready" once it matches a writer on each, and
+//       once the events' writer has gone (the publisher is destroyed after its readers acknowledged everything) prints
+//       what it read (see ros_listen below) and exits 0; 3 when nothing matches within 20 s or the writers stay 60 s.
+#include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <thread>
 #include <iostream>
+#include <mutex>
 #include <random>
 #include <string>
 
 #include "cellwright/distributed/link.hpp"
+#include "cellwright/distributed/ros_msgs.hpp"
+#include "cellwright/distributed/ros_publisher.hpp"
 #include "cellwright/distributed/wire.hpp"
 #include "cellwright/task/compile.hpp"
 
@@ -83,11 +93,96 @@ int garbage(d::Participant& participant, const std::string& robot, std::size_t i
   return writer.flush(20s) ? 0 : 3;
 }
 
+// Output, one item a line: "joint_states SEC NANOSEC POSITION..." for each joint_states in order, "joint NAME" for
+// each joint of the last one, "tf COUNT", "frame PARENT CHILD X Y Z QX QY QZ QW" for each transform of the last tf,
+// "static ..." likewise for tf_static, "clock COUNT SEC NANOSEC", "event LINE" for each event in order. Numbers with 17
+// significant digits (a float64 printed so reads back exactly).
+int ros_listen(d::Participant& participant) {
+  std::mutex mutex;
+  std::uint64_t n_tf = 0, n_clock = 0;
+  std::vector<d::JointState> joint_states;
+  std::vector<d::TransformStamped> last_tf, statics;
+  d::RosTime last_clock;
+  std::vector<std::string> events;
+  std::string refused;
+  auto guarded = [&](auto body) {
+    return [&, body](const std::vector<char>& bytes) {
+      std::lock_guard lock(mutex);
+      try {
+        body(bytes);
+      } catch (const d::WireError& e) {
+        refused = e.what();
+      }
+    };
+  };
+  d::RosSubscription joints(participant, d::kJointStatesTopic, d::kJointStateTypeName,
+                            guarded([&](const std::vector<char>& b) {
+                              joint_states.push_back(d::decode_joint_state(b));
+                            }));
+  d::RosSubscription tf(participant, d::kTfTopic, d::kTfMessageTypeName, guarded([&](const std::vector<char>& b) {
+                          last_tf = d::decode_tf(b);
+                          ++n_tf;
+                        }));
+  d::RosSubscription tf_static(participant, d::kTfStaticTopic, d::kTfMessageTypeName,
+                               guarded([&](const std::vector<char>& b) { statics = d::decode_tf(b); }));
+  d::RosSubscription clock(participant, d::kClockTopic, d::kClockTypeName, guarded([&](const std::vector<char>& b) {
+                             last_clock = d::decode_clock(b);
+                             ++n_clock;
+                           }));
+  d::RosSubscription log(participant, d::kEventsTopic, d::kStringTypeName,
+                         guarded([&](const std::vector<char>& b) { events.push_back(d::decode_string(b)); }));
+  // Discovery is asynchronous and its state a value here: polled, with a deadline.
+  auto until = [](auto done, std::chrono::seconds most) {
+    auto deadline = std::chrono::steady_clock::now() + most;
+    while (!done()) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      std::this_thread::sleep_for(10ms);
+    }
+    return true;
+  };
+  const std::vector<d::RosSubscription*> all{&joints, &tf, &tf_static, &clock, &log};
+  if (!until([&] { return std::all_of(all.begin(), all.end(), [](auto* s) { return s->writers() > 0; }); }, 20s)) {
+    std::cerr << "dds_peer: no ROS publisher\n";
+    return 3;
+  }
+  std::cout << "ready" << std::endl;
+  if (!until([&] { return log.writers() == 0; }, 60s)) return 3;
+  std::lock_guard lock(mutex);
+  if (!refused.empty()) {
+    std::cerr << "dds_peer: refused " << refused << "\n";
+    return 4;
+  }
+  auto frame = [](const char* kind, const d::TransformStamped& t) {
+    std::printf("%s %s %s %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", kind, t.header.frame_id.c_str(),
+                t.child_frame_id.c_str(), t.translation.x(), t.translation.y(), t.translation.z(), t.rotation.x(),
+                t.rotation.y(), t.rotation.z(), t.rotation.w());
+  };
+  for (const d::JointState& js : joint_states) {
+    std::printf("joint_states %d %u", js.header.stamp.sec, js.header.stamp.nanosec);
+    for (double p : js.position) std::printf(" %.17g", p);
+    std::printf("\n");
+  }
+  if (!joint_states.empty()) {
+    for (const std::string& name : joint_states.back().name) std::printf("joint %s\n", name.c_str());
+  }
+  std::printf("tf %llu\n", static_cast<unsigned long long>(n_tf));
+  for (const auto& t : last_tf) frame("frame", t);
+  for (const auto& t : statics) frame("static", t);
+  std::printf("clock %llu %d %u\n", static_cast<unsigned long long>(n_clock), last_clock.sec, last_clock.nanosec);
+  for (const std::string& e : events) std::printf("event %s\n", e.c_str());
+  std::fflush(stdout);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc == 3 && std::string(argv[1]) == "ros-listen") {
+    d::Participant participant({.domain = std::atoi(argv[2])}, "dds_peer");
+    return ros_listen(participant);
+  }
   if (argc < 6) {
-    std::cerr << "usage: dds_peer echo|echo-late|garbage DOMAIN ROBOT INDEX PROGRAM [COUNT]\n";
+    std::cerr << "usage: dds_peer echo|echo-late|garbage DOMAIN ROBOT INDEX PROGRAM [COUNT] | ros-listen DOMAIN\n";
     return 2;
   }
   std::string mode = argv[1];

@@ -1,11 +1,11 @@
 // `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]
 // [--driver ROBOT=KIND[:PORT]]... [--fault SPEC]... [--seed N] [--allow-collisions]
-// [--video FILE.mp4 [--video-fps N] [--video-size WxH]] [--dry]` (the options but --realtime, --quiet and --dry shared
-// with `twin step`: run_args.hpp): run a scenario's task program on the simulated cell (or with some robots real,
-// mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and every expected outcome
-// holds, 1 when not, 2 on bad input or a predicted collision (refused before any thread starts, nothing written).
-// In a twin built for real robots only (CW_SIM=OFF), every robot of the program on a real driver, with no twin
-// (run_real.hpp); with the simulator, real robots are mirrored in the twin (docs/real-robots.md says why).
+// [--video FILE.mp4 [--video-fps N] [--video-size WxH]] [--ros-domain N] [--dry]` (the options but --realtime, --quiet,
+// --ros-domain and --dry shared with `twin step`: run_args.hpp): run a scenario's task program on the simulated cell
+// (or with some robots real, mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and
+// every expected outcome holds, 1 when not, 2 on bad input or a predicted collision (refused before any thread starts,
+// nothing written). In a twin built for real robots only (CW_SIM=OFF), every robot of the program on a real driver,
+// with no twin (run_real.hpp); with the simulator, real robots are mirrored in the twin (docs/real-robots.md says why).
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -32,6 +32,7 @@
 #include "until_signal.hpp"
 #if CW_SIM
 #include "cellwright/cell/sim/run.hpp"
+#include "cellwright/distributed/ros_publisher.hpp"
 #endif
 
 namespace cellwright::tools {
@@ -111,6 +112,7 @@ void add_run(CLI::App& app, Command* run) {
     bool quiet = false;
     bool dry = false;
     std::string final_png = "always";
+    std::optional<int> ros_domain;
   };
   auto args = std::make_shared<Args>();
   add_run_options(*cmd, args->run);
@@ -125,6 +127,11 @@ void add_run(CLI::App& app, Command* run) {
                   "run fails: what `twin test` asks of its runs, whose passing outputs are removed) or never (what "
                   "`twin campaign` asks of its runs); without it the page says no final snapshot was made")
       ->check(CLI::IsMember({"always", "failed", "never"}));
+  cmd->add_option("--ros-domain", args->ros_domain,
+                  "publish the run for ROS 2 on this DDS domain (0..232): rt/joint_states, rt/tf, rt/tf_static, "
+                  "rt/clock (simulation time) and the events on rt/cellwright/events, at most 50 times a second "
+                  "(docs/distributed.md); off by default")
+      ->check(CLI::Range(0, 232));
   cmd->add_flag("--dry", args->dry,
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
                 "program, and read every input of each device on real I/O; nothing else moves and no output is "
@@ -134,7 +141,7 @@ void add_run(CLI::App& app, Command* run) {
       using namespace cellwright::cell;
       // A bring-up runs no program: an option for a run's outputs or pace would be ignored, so it is refused.
       for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime", "--speed", "--final-png",
-                               "--camera", "--record-camera"}) {
+                               "--camera", "--record-camera", "--ros-domain"}) {
         if (args->dry && cmd->count(name) > 0) {
           throw InputError({"--dry", 0, 0},
                            fmt::format("a bring-up runs no program and writes nothing: {} would be ignored", name));
@@ -196,7 +203,16 @@ void add_run(CLI::App& app, Command* run) {
         scratch.emplace("cellwright-events-", ".jsonl");
         options.events_file = scratch->path();
       }
+      // The cell as ROS 2 sees it: a publisher watching the run (its observers added to the runtime's config).
+      std::optional<distributed::Participant> ros_participant;
+      std::optional<distributed::RosPublisher> ros;
+      if (args->ros_domain) {
+        ros_participant.emplace(distributed::DdsOptions{.domain = *args->ros_domain}, "cellwright_twin_run");
+        ros.emplace(*ros_participant, s.cell);
+        options.configure = [&ros](runtime::RunConfig& c) { ros->attach(c); };
+      }
       ScenarioRun sr(s, pre, options);
+      if (ros) ros->start();
 
       if (!args->quiet) {
         std::string robots;
@@ -225,6 +241,9 @@ void add_run(CLI::App& app, Command* run) {
           },
           [&] { sr.runtime().request_stop("stopped by the user (signal)"); });
       progress->finish();
+      if (ros && !ros->stop()) {
+        std::fprintf(stderr, "warning: not every ROS 2 subscriber acknowledged the last samples within 2 s\n");
+      }
 
       const Report report = sr.report();
       if (!a.output.empty()) {

@@ -466,7 +466,7 @@ struct Runtime::Impl {
       if (o.every.count() <= 0 || !o.observe || t < next_observation[k]) continue;
       std::lock_guard lock(observed_mutex);
       const auto observing = std::chrono::steady_clock::now();
-      o.observe(Observation{t, task_firings.load(), observed_robots_view});
+      o.observe(Observation{t, task_firings.load(), observed_robots_view, env});
       // Time spent observing (a video's encoder catching up) is not run time: a run ends on its wall-time limit
       // where it would without the observer, so that the event log is the same with and without.
       wall_start += std::chrono::steady_clock::now() - observing;

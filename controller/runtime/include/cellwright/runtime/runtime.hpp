@@ -100,12 +100,14 @@ struct Limits {
   std::chrono::steady_clock::duration wall_time{0};
 };
 
-// What an observer is shown: the simulation time, the transitions fired so far and task control's view of each robot
-// as of its last step (the command it is on; empty unless the observer asked for it).
+// What an observer is shown: the simulation time, the transitions fired so far, task control's view of each robot
+// as of its last step (the command it is on; empty unless the observer asked for it) and the environment model (the
+// robots' joints, the parts: copy what you need in a short read(), as robot control writes it meanwhile).
 struct Observation {
   SimDuration time{0};
   std::uint64_t firings = 0;
   const std::vector<RobotView>& robots;
+  const SharedEnvironment& environment;
 };
 
 // A watcher of the run (`twin run`'s progress line, a video): called by the simulation thread at each multiple of

@@ -1,0 +1,114 @@
+// The DDS entities the distributed library's files share (not installed; link.cpp and ros_publisher.cpp use it): a
+// DDS type whose samples are CDR bytes encoded by the project's own functions, ROS 2's QoS profiles, and what a
+// Participant holds.
+//
+// Threads: as the Participant (link.hpp): entity creation and deletion under Participant::Impl::mutex.
+#pragma once
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TopicDataType.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "cellwright/common/error.hpp"
+#include "cellwright/distributed/link.hpp"
+
+namespace cellwright::distributed {
+namespace dds = eprosima::fastdds::dds;
+namespace rtps = eprosima::fastrtps::rtps;
+
+// A DDS type whose samples are the CDR bytes wire.hpp (or ros_msgs.hpp) encodes, encapsulation header included: Fast
+// DDS moves them as they are, and decoding (with its checks) is those files', where a refusal can say what was wrong.
+class CdrBytesType : public dds::TopicDataType {
+ public:
+  CdrBytesType(const char* name, std::size_t max_size) {
+    setName(name);
+    m_typeSize = static_cast<std::uint32_t>(max_size);
+    m_isGetKeyDefined = false;
+  }
+
+  bool serialize(void* data, rtps::SerializedPayload_t* payload) override {
+    const auto& bytes = *static_cast<std::vector<char>*>(data);
+    if (bytes.size() < 4 || bytes.size() > payload->max_size) return false;
+    std::memcpy(payload->data, bytes.data(), bytes.size());
+    payload->length = static_cast<std::uint32_t>(bytes.size());
+    payload->encapsulation = bytes[1] == 0 ? CDR_BE : CDR_LE;
+    return true;
+  }
+
+  bool deserialize(rtps::SerializedPayload_t* payload, void* data) override {
+    auto& bytes = *static_cast<std::vector<char>*>(data);
+    const char* begin = reinterpret_cast<const char*>(payload->data);
+    bytes.assign(begin, begin + payload->length);
+    return true;
+  }
+
+  std::function<std::uint32_t()> getSerializedSizeProvider(void* data) override {
+    return [data] { return static_cast<std::uint32_t>(static_cast<std::vector<char>*>(data)->size()); };
+  }
+
+  void* createData() override { return new std::vector<char>(); }
+  void deleteData(void* data) override { delete static_cast<std::vector<char>*>(data); }
+  bool getKey(void*, rtps::InstanceHandle_t*, bool) override { return false; }
+};
+
+// ROS 2's default QoS for topics: reliable, volatile, keep last 10; latched (the agent's state, as tf_static):
+// reliable, transient local, keep last 1.
+enum class Qos { kDefault, kLatched };
+
+template <typename Q>
+Q with(Q qos, Qos kind) {
+  qos.reliability().kind = dds::RELIABLE_RELIABILITY_QOS;
+  qos.durability().kind = kind == Qos::kLatched ? dds::TRANSIENT_LOCAL_DURABILITY_QOS : dds::VOLATILE_DURABILITY_QOS;
+  qos.history().kind = dds::KEEP_LAST_HISTORY_QOS;
+  qos.history().depth = kind == Qos::kLatched ? 1 : 10;
+  return qos;
+}
+
+struct Participant::Impl {
+  dds::DomainParticipant* participant = nullptr;
+  dds::Publisher* publisher = nullptr;
+  dds::Subscriber* subscriber = nullptr;
+  std::mutex mutex;  // entity creation and deletion
+
+  void ensure_type(const char* name, std::size_t max_size) {
+    if (participant->find_type(name).empty()) {
+      dds::TypeSupport type(new CdrBytesType(name, max_size));
+      CW_CHECK(type.register_type(participant) == ReturnCode_t::RETCODE_OK, "cannot register a DDS type");
+    }
+  }
+
+  // The topic `name` of type `type`: created, or the one this participant already has.
+  dds::Topic* topic(const std::string& name, const char* type) {
+    if (auto* found = participant->lookup_topicdescription(name)) {
+      auto* existing = dynamic_cast<dds::Topic*>(found);
+      CW_CHECK(existing != nullptr, "a DDS topic description that is no topic");
+      return existing;
+    }
+    dds::Topic* made = participant->create_topic(name, type, dds::TOPIC_QOS_DEFAULT);
+    CW_CHECK(made != nullptr, "cannot create the DDS topic {}", name);
+    return made;
+  }
+};
+
+// Takes every sample the reader has and hands each valid one's bytes to `handle` (a listener's on_data_available).
+inline void take_all(dds::DataReader* reader, const std::function<void(const std::vector<char>&)>& handle) {
+  std::vector<char> bytes;
+  dds::SampleInfo info;
+  while (reader->take_next_sample(&bytes, &info) == ReturnCode_t::RETCODE_OK) {
+    if (info.valid_data) handle(bytes);
+  }
+}
+
+}  // namespace cellwright::distributed

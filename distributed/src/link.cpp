@@ -16,12 +16,16 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <algorithm>
 #include <cstring>
+#include <deque>
 #include <functional>
 #include <iostream>
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <type_traits>
+#include <random>
 
 #include <fmt/format.h>
 
@@ -73,8 +77,19 @@ class CdrBytesType : public dds::TopicDataType {
 // reliable, transient local, keep last 1.
 enum class Qos { kDefault, kLatched };
 
+// Every endpoint also has automatic liveliness with the participant's lease (DdsOptions::lease): Fast DDS asserts a
+// writer's liveliness for it while its process runs and reaches the network, and a reader whose writer has given no
+// sign for the lease is told (on_liveliness_changed). A writer announces 4 times a lease. A reader's requested lease
+// must not be shorter than the writer's offered one (DDS matches them only then): both ends use the same lease.
 template <typename Q>
-Q with(Q qos, Qos kind) {
+Q with(Q qos, Qos kind, std::chrono::milliseconds lease) {
+  const eprosima::fastrtps::Duration_t lease_duration(static_cast<long double>(lease.count()) / 1000.0L);
+  qos.liveliness().kind = dds::AUTOMATIC_LIVELINESS_QOS;
+  qos.liveliness().lease_duration = lease_duration;
+  if constexpr (std::is_same_v<Q, dds::DataWriterQos>) {
+    qos.liveliness().announcement_period =
+        eprosima::fastrtps::Duration_t(static_cast<long double>(lease.count()) / 4000.0L);
+  }
   qos.reliability().kind = dds::RELIABLE_RELIABILITY_QOS;
   qos.durability().kind = kind == Qos::kLatched ? dds::TRANSIENT_LOCAL_DURABILITY_QOS : dds::VOLATILE_DURABILITY_QOS;
   qos.history().kind = dds::KEEP_LAST_HISTORY_QOS;
@@ -145,8 +160,15 @@ class ReaderListener : public dds::DataReaderListener {
  public:
   ReaderListener(Matches& matches, std::function<void(const std::vector<char>&)> handle)
       : matches_(matches), handle_(std::move(handle)) {}
+  // Called (on Fast DDS's thread) as the liveliness of the matched writers changes; set before the reader is made.
+  void on_liveliness(std::function<void(const dds::LivelinessChangedStatus&)> changed) {
+    liveliness_ = std::move(changed);
+  }
   void on_subscription_matched(dds::DataReader*, const dds::SubscriptionMatchedStatus& info) override {
     matches_.set(info.current_count);
+  }
+  void on_liveliness_changed(dds::DataReader*, const dds::LivelinessChangedStatus& status) override {
+    if (liveliness_) liveliness_(status);
   }
   void on_data_available(dds::DataReader* reader) override {
     std::vector<char> bytes;
@@ -159,6 +181,7 @@ class ReaderListener : public dds::DataReaderListener {
  private:
   Matches& matches_;
   std::function<void(const std::vector<char>&)> handle_;
+  std::function<void(const dds::LivelinessChangedStatus&)> liveliness_;
 };
 
 }  // namespace
@@ -167,6 +190,7 @@ struct Participant::Impl {
   dds::DomainParticipant* participant = nullptr;
   dds::Publisher* publisher = nullptr;
   dds::Subscriber* subscriber = nullptr;
+  std::chrono::milliseconds lease{1000};
   std::mutex mutex;  // entity creation and deletion
 
   void ensure_type(const char* name, std::size_t max_size) {
@@ -193,6 +217,11 @@ Participant::Participant(DdsOptions options, const std::string& name) : options_
   if (options.domain < 0 || options.domain > 232) {
     throw InputError(SourceLocation{fmt::format("DDS domain {}", options.domain)}, "outside 0..232");
   }
+  if (options.lease < std::chrono::milliseconds(20)) {
+    throw InputError(SourceLocation{fmt::format("DDS liveliness lease {} ms", options.lease.count())},
+                     "shorter than 20 ms (a lease a busy host cannot keep: agents would be lost that are not)");
+  }
+  impl_->lease = options.lease;
   dds::DomainParticipantQos qos = dds::PARTICIPANT_QOS_DEFAULT;
   qos.name(name);
   if (!options.shared_memory) {
@@ -251,7 +280,7 @@ class PlainWriter {
               std::function<void()> on_match = {})
       : p_(p), listener_(matches_) {
     matches_.on_change(std::move(on_match));
-    dds::DataWriterQos writer_qos = with(dds::DATAWRITER_QOS_DEFAULT, qos);
+    dds::DataWriterQos writer_qos = with(dds::DATAWRITER_QOS_DEFAULT, qos, p.lease);
     // Fast DDS sends a heartbeat every 3 s by default, and a reader acknowledges (or asks again for a lost sample)
     // only when it gets one: a lost sample was resent that late, and an agent's last status was acknowledged that
     // late (the agent waits for it before it exits). 100 ms.
@@ -311,6 +340,8 @@ class Forwarder {
     return writer_.flush(std::max(left, std::chrono::milliseconds(0)));
   }
   const Matches& matches() const { return writer_.matches(); }
+  // Writes a sample now, from any thread (a command sent again), besides what the forwarding thread writes.
+  bool write_now(const std::vector<char>& bytes) { return writer_.write(bytes); }
 
  private:
   void run() {
@@ -350,14 +381,16 @@ class Receiver {
  public:
   Receiver(Participant::Impl& p, const std::string& topic_name, const char* type,
            std::function<void(const std::vector<char>&)> handle, Qos qos = Qos::kDefault,
-           std::function<void()> on_match = {})
+           std::function<void()> on_match = {},
+           std::function<void(const dds::LivelinessChangedStatus&)> on_liveliness = {})
       : p_(p), listener_(matches_, [this, handle = std::move(handle)](const std::vector<char>& b) {
           if (started_) handle(b);
         }) {
     matches_.on_change(std::move(on_match));
+    listener_.on_liveliness(std::move(on_liveliness));
     std::lock_guard lock(p_.mutex);
     dds::Topic* topic = p_.topic(topic_name, type);
-    reader_ = p_.subscriber->create_datareader(topic, with(dds::DATAREADER_QOS_DEFAULT, qos), &listener_);
+    reader_ = p_.subscriber->create_datareader(topic, with(dds::DATAREADER_QOS_DEFAULT, qos, p_.lease), &listener_);
     CW_CHECK(reader_ != nullptr, "cannot create a DDS reader on {}", topic_name);
   }
   ~Receiver() {
@@ -376,20 +409,6 @@ class Receiver {
   ReaderListener listener_;
   dds::DataReader* reader_ = nullptr;
 };
-
-// What a reader of messages of type T does with a sample: decode it and push it into the queue, or refuse it.
-template <typename T>
-std::function<void(const std::vector<char>&)> into(runtime::MessageQueue<T>& queue,
-                                                   std::function<T(const std::vector<char>&)> decode, RefusalBook& book,
-                                                   std::string topic_name) {
-  return [&queue, decode = std::move(decode), &book, topic_name = std::move(topic_name)](const std::vector<char>& b) {
-    try {
-      queue.push(decode(b));
-    } catch (const WireError& e) {
-      book.refuse(topic_name, e.what());
-    }
-  };
-}
 
 // A flag and a wait for it.
 class Flag {
@@ -416,6 +435,18 @@ class Flag {
   bool value_ = false;
 };
 
+// A failed status that stops the cell, about no command (RobotStatus::kNoCommand: task control takes it whatever it
+// holds in flight).
+runtime::RobotStatus stop_status(std::size_t robot, std::string reason, runtime::SimDuration time) {
+  runtime::RobotStatus s;
+  s.robot = robot;
+  s.outcome = runtime::CommandOutcome::kFailed;
+  s.stop_cell = true;
+  s.reason = std::move(reason);
+  s.time = time;
+  return s;
+}
+
 bool both_within(const Matches& a, const Matches& b, std::chrono::steady_clock::time_point deadline) {
   return a.wait_until(deadline) && b.wait_until(deadline);
 }
@@ -424,38 +455,212 @@ bool both_within(const Matches& a, const Matches& b, std::chrono::steady_clock::
 
 struct RemoteRobot::Impl {
   std::string robot;
+  std::size_t index;
+  std::chrono::milliseconds lease;
+  runtime::MessageQueue<runtime::RobotStatus>& status_queue;
   RefusalBook book;
-  Flag ready;  // the agent's last state
+  Flag ready;  // the agent's last state said ready
+
+  // What is known of the agent (under `mutex`; changed from Fast DDS's threads and the forwarding thread).
+  mutable std::mutex mutex;
+  std::uint64_t session = 0;     // the agent's, from its last state
+  bool said_ready = false;       // its last state
+  bool lapsed = false;           // its liveliness lapsed (no writer of its alive)
+  bool was_present = false;
+  bool built = false;            // every member is made: the match hooks may look at the endpoints
+  std::uint64_t losses = 0;
+  std::string lost_detail;
+  std::uint64_t sent = 0;        // commands sent to this session (the last one's number)
+  SequenceCheck status_order;    // this session's statuses
+  std::deque<runtime::MotionCommand> in_flight;  // sent and not answered, oldest first
+  std::string holding;           // by the grip commands answered done
+
   Forwarder<runtime::MotionCommand> commands;
   Receiver statuses;
   Receiver state;
 
-  Impl(Participant& p, std::string name, std::size_t index, runtime::MessageQueue<runtime::MotionCommand>& cq,
+  Impl(Participant& p, std::string name, std::size_t robot_index, runtime::MessageQueue<runtime::MotionCommand>& cq,
        runtime::MessageQueue<runtime::RobotStatus>& sq)
       : robot(std::move(name)),
-        commands(p.impl(), command_topic(robot), kCommandTypeName, cq,
-                 [](const runtime::MotionCommand& c) { return encode_command(c); }),
-        statuses(p.impl(), status_topic(robot), kStatusTypeName,
-                 into<runtime::RobotStatus>(
-                     sq, [index](const std::vector<char>& b) { return decode_status(b, index); }, book,
-                     status_topic(robot))),
+        index(robot_index),
+        lease(p.impl().lease),
+        status_queue(sq),
+        commands(
+            p.impl(), command_topic(robot), kCommandTypeName, cq,
+            [this](const runtime::MotionCommand& c) { return on_send(c); }, [this] { update("its endpoints left"); }),
+        statuses(
+            p.impl(), status_topic(robot), kStatusTypeName, [this](const std::vector<char>& b) { on_status(b); },
+            Qos::kDefault, [this] { update("its endpoints left"); },
+            [this](const dds::LivelinessChangedStatus& l) { on_liveliness(l); }),
         state(
-            p.impl(), agent_topic(robot), kAgentStateTypeName,
-            [this, index](const std::vector<char>& b) {
-              try {
-                ready.set(decode_agent_state(b, index));
-              } catch (const WireError& e) {
-                book.refuse(agent_topic(robot), e.what());
+            p.impl(), agent_topic(robot), kAgentStateTypeName, [this](const std::vector<char>& b) { on_state(b); },
+            Qos::kLatched, [this] {
+              if (state.matches().count() == 0) {
+                ready.set(false);  // the agent is gone
+                {
+                  std::lock_guard lock(mutex);
+                  said_ready = false;
+                }
+                update("its endpoints left");
               }
-            },
-            Qos::kLatched,
-            [this] {
-              if (state.matches().count() == 0) ready.set(false);  // the agent is gone
             }) {
+    {
+      std::lock_guard lock(mutex);
+      built = true;
+    }
     state.start();
   }
+  ~Impl() {
+    std::lock_guard lock(mutex);
+    built = false;
+  }
 
-  bool present() const { return commands.matches().count() > 0 && statuses.matches().count() > 0 && ready.get(); }
+  bool matched() const { return commands.matches().count() > 0 && statuses.matches().count() > 0; }
+  bool present_locked() const { return built && said_ready && !lapsed && matched(); }
+  bool present() const {
+    std::lock_guard lock(mutex);
+    return present_locked();
+  }
+
+  // After any change: a present agent that no longer is, is a loss (`why` says how it was noticed).
+  void update(const std::string& why) {
+    std::lock_guard lock(mutex);
+    update_locked(why);
+  }
+  void update_locked(const std::string& why) {
+    if (!built) return;
+    const bool now = present_locked();
+    if (was_present && !now) {
+      ++losses;
+      lost_detail = why;
+    }
+    was_present = now;
+  }
+
+  std::vector<char> on_send(const runtime::MotionCommand& c) {
+    std::lock_guard lock(mutex);
+    in_flight.push_back(c);
+    return encode_command(c, ++sent);
+  }
+
+  void on_state(const std::vector<char>& bytes) {
+    AgentState got;
+    try {
+      got = decode_agent_state(bytes, index);
+    } catch (const WireError& e) {
+      book.refuse(agent_topic(robot), e.what());
+      return;
+    }
+    {
+      std::lock_guard lock(mutex);
+      if (got.session != session) {
+        // A new agent process for this robot: one still thought present is lost (replaced); the new one takes
+        // commands, and numbers its statuses, from 1.
+        if (was_present) {
+          ++losses;
+          lost_detail = fmt::format("a new agent process (session {}) took the place of session {}", got.session,
+                                    session);
+          was_present = false;
+        }
+        session = got.session;
+        sent = 0;
+        status_order.restart();
+        lapsed = false;
+      }
+      said_ready = got.ready;
+      update_locked("it said it stopped");
+    }
+    ready.set(got.ready);
+  }
+
+  void on_liveliness(const dds::LivelinessChangedStatus& l) {
+    std::lock_guard lock(mutex);
+    if (l.not_alive_count_change > 0 && l.alive_count == 0) {
+      lapsed = true;
+    } else if (l.alive_count > 0) {
+      lapsed = false;
+    }
+    update_locked(fmt::format("no sign of life from it for its liveliness lease of {:.3g} s (the process killed, "
+                              "its host down or the network cut)",
+                              static_cast<double>(lease.count()) / 1000.0));
+  }
+
+  void on_status(const std::vector<char>& bytes) {
+    const std::string where = status_topic(robot);
+    runtime::RobotStatus status;
+    StatusStamp stamp;
+    try {
+      status = decode_status(bytes, index, &stamp);
+    } catch (const WireError& e) {
+      return book.refuse(where, e.what());
+    }
+    std::string gap;
+    {
+      std::lock_guard lock(mutex);
+      if (stamp.session != session) {
+        return book.refuse(where, fmt::format("a status of agent session {}; the agent now is session {}",
+                                              stamp.session, session));
+      }
+      try {
+        status_order.accept(stamp.sequence, "status");
+      } catch (const WireError& e) {
+        if (stamp.sequence <= status_order.last()) return book.refuse(where, e.what());
+        gap = e.what();
+      }
+      if (gap.empty() && status.index != runtime::RobotStatus::kNoCommand) {
+        const auto answered = std::find_if(in_flight.begin(), in_flight.end(),
+                                           [&](const runtime::MotionCommand& c) { return c.index == status.index; });
+        if (answered == in_flight.end()) {
+          return book.refuse(where, fmt::format("a status of primitive {}, which is not a command in flight",
+                                                status.index));
+        }
+        if (status.outcome == runtime::CommandOutcome::kDone) {
+          const task::Primitive& p = answered->primitive;
+          if (p.kind == task::PrimitiveKind::kClose && !p.workpiece.empty()) holding = p.workpiece;
+          if (p.kind == task::PrimitiveKind::kOpen) holding.clear();
+        }
+        in_flight.erase(answered);
+      }
+    }
+    if (!gap.empty()) {
+      // A status lost on the way: the command it answered never will be. Refused, and the cell stopped with the
+      // reason rather than left waiting.
+      book.refuse(where, gap);
+      status_queue.push(
+          stop_status(index, fmt::format("the link to the agent of {} lost a status: {}", robot, gap), status.time));
+      return;
+    }
+    status_queue.push(std::move(status));
+  }
+
+  runtime::LinkState link_state() const {
+    std::lock_guard lock(mutex);
+    runtime::LinkState s;
+    s.present = present_locked();
+    s.session = session;
+    s.losses = losses;
+    s.lost_detail = lost_detail;
+    s.in_flight = in_flight.empty() ? -1 : static_cast<int>(in_flight.front().index);
+    s.holding = holding;
+    for (const runtime::MotionCommand& c : in_flight) {
+      if (c.primitive.kind == task::PrimitiveKind::kClose && !c.primitive.workpiece.empty()) {
+        s.holding = c.primitive.workpiece;  // it may have gripped it before it was lost
+      }
+    }
+    return s;
+  }
+
+  bool resend() {
+    std::vector<std::vector<char>> samples;
+    {
+      std::lock_guard lock(mutex);
+      if (in_flight.empty() || !present_locked()) return false;
+      for (const runtime::MotionCommand& c : in_flight) samples.push_back(encode_command(c, ++sent));
+    }
+    bool ok = true;
+    for (const auto& bytes : samples) ok = commands.write_now(bytes) && ok;
+    return ok;
+  }
 };
 
 RemoteRobot::RemoteRobot(Participant& participant, std::string robot, std::size_t index,
@@ -469,6 +674,14 @@ RemoteRobot::~RemoteRobot() {
 
 bool RemoteRobot::agent_present() const {
   return impl_->present();
+}
+
+runtime::LinkState RemoteRobot::state() const {
+  return impl_->link_state();
+}
+
+bool RemoteRobot::resend() {
+  return impl_->resend();
 }
 
 bool RemoteRobot::wait_for_agent(std::chrono::milliseconds timeout) const {
@@ -518,6 +731,8 @@ class DdsLink : public runtime::RemoteLink {
   explicit DdsLink(Args&&... args) : robot(std::forward<Args>(args)...) {}
   void start() override { robot.start(); }
   void stop() override { robot.stop(); }
+  runtime::LinkState state() const override { return robot.state(); }
+  bool resend() override { return robot.resend(); }
   RemoteRobot robot;
 };
 
@@ -536,9 +751,24 @@ void RemoteCell::wait_for_agents(std::chrono::milliseconds timeout) const {
   distributed::wait_for_agents(robots_, participant_.domain(), timeout);
 }
 
+// A number for an agent process, drawn as it starts: never 0, and another process's with a chance of 2^-64.
+std::uint64_t draw_session() {
+  std::random_device device;
+  std::uint64_t n = 0;
+  while (n == 0) {
+    n = (static_cast<std::uint64_t>(device()) << 32) ^ device() ^
+        static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+  }
+  return n;
+}
+
 struct AgentEndpoint::Impl {
   std::size_t index;
+  std::uint64_t session = draw_session();
   RefusalBook book;
+  std::mutex order_mutex;
+  SequenceCheck command_order;  // the commands task control sent this session
+  std::uint64_t statuses_sent = 0;  // the forwarding thread's
   // Declared (so built) before the endpoints whose matches call announce(), and destroyed after them.
   std::mutex state_mutex;  // one state written at a time, in the order of the changes
   std::optional<bool> said;
@@ -556,14 +786,14 @@ struct AgentEndpoint::Impl {
         state(p.impl(), agent_topic(robot), kAgentStateTypeName, Qos::kLatched),
         commands(
             p.impl(), command_topic(robot), kCommandTypeName,
-            into<runtime::MotionCommand>(
-                cq,
-                [&program, robot_index](const std::vector<char>& b) { return decode_command(b, program, robot_index); },
-                book, command_topic(robot)),
+            [this, &program, &cq, &sq, robot_index, where = command_topic(robot)](const std::vector<char>& b) {
+              on_command(b, program, robot_index, cq, sq, where);
+            },
             Qos::kDefault, [this] { announce(); }),
         statuses(
             p.impl(), status_topic(robot), kStatusTypeName, sq,
-            [](const runtime::RobotStatus& s) { return encode_status(s); }, [this] { announce(); }) {
+            [this](const runtime::RobotStatus& s) { return encode_status(s, {session, ++statuses_sent}); },
+            [this] { announce(); }) {
     {
       std::lock_guard lock(state_mutex);
       built = true;
@@ -576,6 +806,39 @@ struct AgentEndpoint::Impl {
   }
 
   bool present() const { return commands.matches().count() > 0 && statuses.matches().count() > 0; }
+
+  // A command from task control: decoded, in its order, into the command queue; else refused. A gap (a command lost
+  // on the way) is also reported to task control as a failed status that stops the cell: the lost command would
+  // otherwise be waited for.
+  void on_command(const std::vector<char>& bytes, const task::CompiledProgram& program, std::size_t robot_index,
+                  runtime::MessageQueue<runtime::MotionCommand>& cq, runtime::MessageQueue<runtime::RobotStatus>& sq,
+                  const std::string& where) {
+    runtime::MotionCommand command;
+    std::uint64_t number = 0;
+    try {
+      command = decode_command(bytes, program, robot_index, &number);
+    } catch (const WireError& e) {
+      return book.refuse(where, e.what());
+    }
+    std::string gap;
+    {
+      std::lock_guard lock(order_mutex);
+      try {
+        command_order.accept(number, "command");
+      } catch (const WireError& e) {
+        if (number <= command_order.last()) return book.refuse(where, e.what());
+        gap = e.what();
+      }
+    }
+    if (!gap.empty()) {
+      book.refuse(where, gap);
+      sq.push(stop_status(robot_index,
+                          fmt::format("the agent of {} lost a command: {}", program.robots[robot_index], gap),
+                          command.sent));
+      return;
+    }
+    cq.push(std::move(command));
+  }
 
   void set_started(bool value) {
     {
@@ -592,7 +855,7 @@ struct AgentEndpoint::Impl {
     bool now = started && present();
     if (said == now) return;
     said = now;
-    state.write(encode_agent_state(index, now));
+    state.write(encode_agent_state(index, {now, session}));
   }
 };
 

@@ -296,13 +296,25 @@ struct KilledAgentCell {
     cell.config.limits.sim_time = std::chrono::seconds(120);
     cell.config.attach_remote = remote.attach();
     cell.config.event_observers.push_back([this](const runtime::LogEvent& e) {
-      if (const auto* f = std::get_if<runtime::events::FaultDetected>(&e); f && f->symptom == "link_lost") lost.set();
+      const auto now = std::chrono::steady_clock::now();
+      const auto* fire = std::get_if<runtime::events::Fire>(&e);
+      if (fire && fire->robot == "r2" && found == std::chrono::steady_clock::time_point{}) {
+        sent = now;  // observers are called one at a time, under the log's lock
+      }
+      if (const auto* f = std::get_if<runtime::events::FaultDetected>(&e); f && f->symptom == "link_lost") {
+        found = now;
+        lost.set();
+      }
     });
   }
+  // Wall seconds from the last firing of the MELFA's before its agent was found lost (the command it died on was sent
+  // then) to the finding: the lease and how long the agent took to take the command and die.
+  double detection() const { return std::chrono::duration<double>(found - sent).count(); }
   testing::ScriptedCell cell{"exchange.task", {}, runtime::Mode::kRealtime};
   Participant participant;
   RemoteCell remote;
   Seen lost;
+  std::chrono::steady_clock::time_point sent, found;  // set on the logging threads before `lost`
 };
 
 TEST(RemoteCell, AKilledAgentIsALinkLostFaultOfItsRobotAndTheCellStopsSafely) {
@@ -336,8 +348,8 @@ TEST(RemoteCell, AKilledAgentIsALinkLostFaultOfItsRobotAndTheCellStopsSafely) {
   EXPECT_EQ(of_type(events, "cell_stopped").size(), 1u);
   // The PUMA, here, was halted as the run ended.
   EXPECT_GE(k.cell.driver("puma").calls().stop, 1);
-  std::cout << "killed agent: the run ended " << wall << " s (wall) after it began, the lease being "
-            << kLease.count() << " ms\n";
+  std::cout << "killed agent: found lost " << k.detection() << " s after its last command was sent, the run ended "
+            << wall << " s after it began (wall), the lease being " << kLease.count() << " ms\n";
 }
 
 TEST(RemoteCell, AnAgentStartedAgainForTheSameRobotRejoinsAndTheRunFinishes) {

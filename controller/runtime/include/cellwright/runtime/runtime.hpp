@@ -13,7 +13,9 @@
 //   task control   TaskControl::step (task_control.hpp);
 //   device control with device commands in the program (or devices declared): DeviceHub::step (device_hub.hpp): the
 //                  devices' commands on the cell's I/O units (RunConfig::io_units), their states in the log;
-//   robot control  one per program robot, RobotControl::step (robot_control.hpp).
+//   robot control  one per program robot, RobotControl::step (robot_control.hpp); for a remote robot (its robot
+//                  control an agent's, RunConfig::remote_robots) the thread watches its link instead
+//                  (remote_watch.hpp: a lost agent is a link_lost fault).
 // The main thread (the caller) builds everything, checks the input, starts and joins the threads.
 //
 // LOCK-STEP mode: the threads' work is done in turns through a LockstepScheduler in the fixed order simulation, image

@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <cstring>
 #include <deque>
+#include <set>
 #include <functional>
 #include <iostream>
 #include <mutex>
@@ -117,14 +118,27 @@ std::string topic(const std::string& robot, const char* leaf) {
 }
 
 // How many endpoints match one of ours, and a wait for it to change.
+// The participant (process) an endpoint belongs to: the first 12 bytes of its GUID, which an instance handle of it
+// holds (DDS names a matched endpoint, and a sample's writer, by handle).
+std::string participant_of(const dds::InstanceHandle_t& handle) {
+  std::string prefix(12, '\0');
+  for (std::size_t i = 0; i < prefix.size(); ++i) prefix[i] = static_cast<char>(handle.value[i]);
+  return prefix;
+}
+
 class Matches {
  public:
   // `changed` is called (on Fast DDS's thread) after every change; set it before the endpoint is created.
   void on_change(std::function<void()> changed) { changed_hook_ = std::move(changed); }
-  void set(int count) {
+  // `count` endpoints match now; `change` of them (+1 or -1) is the one `handle` names.
+  void set(int count, int change = 0, const dds::InstanceHandle_t& handle = {}) {
     {
       std::lock_guard lock(mutex_);
       count_ = count;
+      if (change > 0) participants_.insert(participant_of(handle));
+      if (change < 0) {
+        if (auto it = participants_.find(participant_of(handle)); it != participants_.end()) participants_.erase(it);
+      }
     }
     changed_.notify_all();
     if (changed_hook_) changed_hook_();
@@ -132,6 +146,11 @@ class Matches {
   int count() const {
     std::lock_guard lock(mutex_);
     return count_;
+  }
+  // Whether an endpoint of that participant matches (a match seen from this side, not only from the other's).
+  bool has(const std::string& participant) const {
+    std::lock_guard lock(mutex_);
+    return participants_.count(participant) > 0;
   }
   bool wait_until(std::chrono::steady_clock::time_point deadline) const {
     std::unique_lock lock(mutex_);
@@ -142,6 +161,7 @@ class Matches {
   mutable std::mutex mutex_;
   mutable std::condition_variable changed_;
   int count_ = 0;
+  std::multiset<std::string> participants_;  // of the matched endpoints
   std::function<void()> changed_hook_;
 };
 
@@ -149,7 +169,7 @@ class WriterListener : public dds::DataWriterListener {
  public:
   explicit WriterListener(Matches& matches) : matches_(matches) {}
   void on_publication_matched(dds::DataWriter*, const dds::PublicationMatchedStatus& info) override {
-    matches_.set(info.current_count);
+    matches_.set(info.current_count, info.current_count_change, info.last_subscription_handle);
   }
 
  private:
@@ -158,14 +178,15 @@ class WriterListener : public dds::DataWriterListener {
 
 class ReaderListener : public dds::DataReaderListener {
  public:
-  ReaderListener(Matches& matches, std::function<void(const std::vector<char>&)> handle)
+  // `handle` gets each sample and the participant of its writer.
+  ReaderListener(Matches& matches, std::function<void(const std::vector<char>&, const std::string&)> handle)
       : matches_(matches), handle_(std::move(handle)) {}
   // Called (on Fast DDS's thread) as the liveliness of the matched writers changes; set before the reader is made.
   void on_liveliness(std::function<void(const dds::LivelinessChangedStatus&)> changed) {
     liveliness_ = std::move(changed);
   }
   void on_subscription_matched(dds::DataReader*, const dds::SubscriptionMatchedStatus& info) override {
-    matches_.set(info.current_count);
+    matches_.set(info.current_count, info.current_count_change, info.last_publication_handle);
   }
   void on_liveliness_changed(dds::DataReader*, const dds::LivelinessChangedStatus& status) override {
     if (liveliness_) liveliness_(status);
@@ -174,13 +195,13 @@ class ReaderListener : public dds::DataReaderListener {
     std::vector<char> bytes;
     dds::SampleInfo info;
     while (reader->take_next_sample(&bytes, &info) == ReturnCode_t::RETCODE_OK) {
-      if (info.valid_data) handle_(bytes);
+      if (info.valid_data) handle_(bytes, participant_of(info.publication_handle));
     }
   }
 
  private:
   Matches& matches_;
-  std::function<void(const std::vector<char>&)> handle_;
+  std::function<void(const std::vector<char>&, const std::string&)> handle_;
   std::function<void(const dds::LivelinessChangedStatus&)> liveliness_;
 };
 
@@ -379,13 +400,16 @@ class Forwarder {
 // (before, it is dropped: nobody reads yet).
 class Receiver {
  public:
+  // `handle` gets each sample and the participant of its writer (the 12 bytes of participant_of()).
   Receiver(Participant::Impl& p, const std::string& topic_name, const char* type,
-           std::function<void(const std::vector<char>&)> handle, Qos qos = Qos::kDefault,
+           std::function<void(const std::vector<char>&, const std::string&)> handle, Qos qos = Qos::kDefault,
            std::function<void()> on_match = {},
            std::function<void(const dds::LivelinessChangedStatus&)> on_liveliness = {})
-      : p_(p), listener_(matches_, [this, handle = std::move(handle)](const std::vector<char>& b) {
-          if (started_) handle(b);
-        }) {
+      : p_(p),
+        listener_(matches_,
+                  [this, handle = std::move(handle)](const std::vector<char>& b, const std::string& from) {
+                    if (started_) handle(b, from);
+                  }) {
     matches_.on_change(std::move(on_match));
     listener_.on_liveliness(std::move(on_liveliness));
     std::lock_guard lock(p_.mutex);
@@ -408,31 +432,6 @@ class Receiver {
   Matches matches_;
   ReaderListener listener_;
   dds::DataReader* reader_ = nullptr;
-};
-
-// A flag and a wait for it.
-class Flag {
- public:
-  void set(bool value) {
-    {
-      std::lock_guard lock(mutex_);
-      value_ = value;
-    }
-    changed_.notify_all();
-  }
-  bool get() const {
-    std::lock_guard lock(mutex_);
-    return value_;
-  }
-  bool wait_until(std::chrono::steady_clock::time_point deadline) const {
-    std::unique_lock lock(mutex_);
-    return changed_.wait_until(lock, deadline, [&] { return value_; });
-  }
-
- private:
-  mutable std::mutex mutex_;
-  mutable std::condition_variable changed_;
-  bool value_ = false;
 };
 
 // A failed status that stops the cell, about no command (RobotStatus::kNoCommand: task control takes it whatever it
@@ -459,11 +458,12 @@ struct RemoteRobot::Impl {
   std::chrono::milliseconds lease;
   runtime::MessageQueue<runtime::RobotStatus>& status_queue;
   RefusalBook book;
-  Flag ready;  // the agent's last state said ready
 
   // What is known of the agent (under `mutex`; changed from Fast DDS's threads and the forwarding thread).
   mutable std::mutex mutex;
   std::uint64_t session = 0;     // the agent's, from its last state
+  std::string agent;             // its participant (participant_of), from its last state
+  std::condition_variable changed;  // after every update()
   bool said_ready = false;       // its last state
   bool lapsed = false;           // its liveliness lapsed (no writer of its alive)
   bool was_present = false;
@@ -489,19 +489,18 @@ struct RemoteRobot::Impl {
             p.impl(), command_topic(robot), kCommandTypeName, cq,
             [this](const runtime::MotionCommand& c) { return on_send(c); }, [this] { update("its endpoints left"); }),
         statuses(
-            p.impl(), status_topic(robot), kStatusTypeName, [this](const std::vector<char>& b) { on_status(b); },
+            p.impl(), status_topic(robot), kStatusTypeName,
+            [this](const std::vector<char>& b, const std::string&) { on_status(b); },
             Qos::kDefault, [this] { update("its endpoints left"); },
             [this](const dds::LivelinessChangedStatus& l) { on_liveliness(l); }),
         state(
-            p.impl(), agent_topic(robot), kAgentStateTypeName, [this](const std::vector<char>& b) { on_state(b); },
+            p.impl(), agent_topic(robot), kAgentStateTypeName,
+            [this](const std::vector<char>& b, const std::string& from) { on_state(b, from); },
             Qos::kLatched, [this] {
               if (state.matches().count() == 0) {
-                ready.set(false);  // the agent is gone
-                {
-                  std::lock_guard lock(mutex);
-                  said_ready = false;
-                }
-                update("its endpoints left");
+                std::lock_guard lock(mutex);
+                said_ready = false;  // the agent is gone
+                update_locked("its endpoints left");
               }
             }) {
     {
@@ -515,7 +514,10 @@ struct RemoteRobot::Impl {
     built = false;
   }
 
-  bool matched() const { return commands.matches().count() > 0 && statuses.matches().count() > 0; }
+  // This side's endpoints match the agent's (the participant of its last state): a match seen from the agent's side
+  // only is not enough (what is written before this side's match is not delivered), and an old agent's match that
+  // has not yet expired is not the new one's.
+  bool matched() const { return commands.matches().has(agent) && statuses.matches().has(agent); }
   bool present_locked() const { return built && said_ready && !lapsed && matched(); }
   bool present() const {
     std::lock_guard lock(mutex);
@@ -535,6 +537,12 @@ struct RemoteRobot::Impl {
       lost_detail = why;
     }
     was_present = now;
+    changed.notify_all();
+  }
+
+  bool wait_present(std::chrono::steady_clock::time_point deadline) {
+    std::unique_lock lock(mutex);
+    return changed.wait_until(lock, deadline, [&] { return present_locked(); });
   }
 
   std::vector<char> on_send(const runtime::MotionCommand& c) {
@@ -543,7 +551,7 @@ struct RemoteRobot::Impl {
     return encode_command(c, ++sent);
   }
 
-  void on_state(const std::vector<char>& bytes) {
+  void on_state(const std::vector<char>& bytes, const std::string& from) {
     AgentState got;
     try {
       got = decode_agent_state(bytes, index);
@@ -563,6 +571,7 @@ struct RemoteRobot::Impl {
           was_present = false;
         }
         session = got.session;
+        agent = from;
         sent = 0;
         status_order.restart();
         lapsed = false;
@@ -570,16 +579,17 @@ struct RemoteRobot::Impl {
       said_ready = got.ready;
       update_locked("it said it stopped");
     }
-    ready.set(got.ready);
   }
 
+  // Only the present agent's status writer counts: an old agent's lapse after a new one took its place is not the
+  // new one's. A lapse is for good: only a new session (a new agent process) is present again. Taking "alive again"
+  // as the lost agent back was wrong: under load, a new agent's writer matching before its state arrived was reported
+  // as alive again with the lost agent's handle, and the lost one was taken back (the rejoin test, 3 runs in 6 with
+  // two busy loops on the machine).
   void on_liveliness(const dds::LivelinessChangedStatus& l) {
     std::lock_guard lock(mutex);
-    if (l.not_alive_count_change > 0 && l.alive_count == 0) {
-      lapsed = true;
-    } else if (l.alive_count > 0) {
-      lapsed = false;
-    }
+    if (l.not_alive_count_change <= 0 || participant_of(l.last_publication_handle) != agent) return;
+    lapsed = true;
     update_locked(fmt::format("no sign of life from it for its liveliness lease of {:.3g} s (the process killed, "
                               "its host down or the network cut)",
                               static_cast<double>(lease.count()) / 1000.0));
@@ -686,8 +696,7 @@ bool RemoteRobot::resend() {
 
 bool RemoteRobot::wait_for_agent(std::chrono::milliseconds timeout) const {
   auto deadline = std::chrono::steady_clock::now() + timeout;
-  return impl_->commands.matches().wait_until(deadline) && impl_->statuses.matches().wait_until(deadline) &&
-         impl_->ready.wait_until(deadline) && impl_->present();
+  return impl_->wait_present(deadline);
 }
 
 void RemoteRobot::start() {
@@ -786,7 +795,8 @@ struct AgentEndpoint::Impl {
         state(p.impl(), agent_topic(robot), kAgentStateTypeName, Qos::kLatched),
         commands(
             p.impl(), command_topic(robot), kCommandTypeName,
-            [this, &program, &cq, &sq, robot_index, where = command_topic(robot)](const std::vector<char>& b) {
+            [this, &program, &cq, &sq, robot_index, where = command_topic(robot)](const std::vector<char>& b,
+                                                                                  const std::string&) {
               on_command(b, program, robot_index, cq, sq, where);
             },
             Qos::kDefault, [this] { announce(); }),

@@ -20,7 +20,10 @@
 // Liveliness and order (docs/distributed.md, "Failure behaviour"): every endpoint has automatic liveliness with a
 // short lease (DdsOptions::lease, 1 s): task control's end of a robot knows, within about the lease, that its agent is
 // gone (killed, its host down, the network cut) and tells the runtime through RemoteLink::state(); the runtime's
-// watcher (runtime/remote_watch.hpp) makes that a link_lost fault. Each agent process has a session (a number drawn
+// watcher (runtime/remote_watch.hpp) makes that a link_lost fault. An agent is present when its state says ready
+// and this side's endpoints match endpoints of the agent's own participant (an agent that was killed stays matched
+// until its participant's discovery lease expires: a count of matches would take it for the new one); a lapse is for
+// good (only a new process is present again). Each agent process has a session (a number drawn
 // as it starts, in its state); commands and statuses are numbered from 1 within a session, and a duplicate or a gap is
 // refused (wire.hpp's SequenceCheck): a duplicate is dropped, a gap (a sample lost on the way) also stops the cell
 // with the reason, because what was lost would be waited for forever. A status of another session than the present

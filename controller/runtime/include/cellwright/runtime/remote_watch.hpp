@@ -17,8 +17,8 @@
 //     that comes back is a new process (a new session) that has brought its robot up as every agent does before it
 //     says it is ready (connected, its arm's position read, homed, activated): that is the re-homing, from where the
 //     arm stood. The interrupted command is then sent to it again (RemoteLink::resend) and the run goes on;
-//     `recovery_end` ok. The same session heard again (a network that healed) is sent nothing again: its reliable
-//     streams resume. An arm that holds a part (LinkState::holding) is not re-homed with it (docs/faults.md, "A loaded
+//     `recovery_end` ok. The same session reported present again (a network that healed, by a link that can tell: the
+//     DDS link takes back no agent whose lease lapsed) is sent nothing again: its reliable streams resume. An arm that holds a part (LinkState::holding) is not re-homed with it (docs/faults.md, "A loaded
 //     arm is not homed"): the cell is stopped, naming the part. No agent by the deadline: the cell is stopped.
 //   Meanwhile the other robots go on with what does not wait for this one, as with an in-process reset_rehome.
 //

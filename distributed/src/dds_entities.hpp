@@ -14,11 +14,14 @@
 #include <fastdds/dds/topic/TopicDataType.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include <chrono>
 #include <cstdint>
 #include <cstring>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "cellwright/common/error.hpp"
@@ -67,8 +70,22 @@ class CdrBytesType : public dds::TopicDataType {
 // reliable, transient local, keep last 1.
 enum class Qos { kDefault, kLatched };
 
+// With a lease, the endpoint also has automatic liveliness with it (the links' endpoints: DdsOptions::lease): Fast
+// DDS asserts a writer's liveliness for it while its process runs and reaches the network, and a reader whose writer
+// has given no sign for the lease is told (on_liveliness_changed). A writer announces 4 times a lease. A reader's
+// requested lease must not be shorter than the writer's offered one (DDS matches them only then): both ends of a
+// link use the same lease. Without one, DDS's default (automatic, infinite), as ROS 2's default profile has it.
 template <typename Q>
-Q with(Q qos, Qos kind) {
+Q with(Q qos, Qos kind, std::optional<std::chrono::milliseconds> lease = std::nullopt) {
+  if (lease) {
+    qos.liveliness().kind = dds::AUTOMATIC_LIVELINESS_QOS;
+    qos.liveliness().lease_duration =
+        eprosima::fastrtps::Duration_t(static_cast<long double>(lease->count()) / 1000.0L);
+    if constexpr (std::is_same_v<Q, dds::DataWriterQos>) {
+      qos.liveliness().announcement_period =
+          eprosima::fastrtps::Duration_t(static_cast<long double>(lease->count()) / 4000.0L);
+    }
+  }
   qos.reliability().kind = dds::RELIABLE_RELIABILITY_QOS;
   qos.durability().kind = kind == Qos::kLatched ? dds::TRANSIENT_LOCAL_DURABILITY_QOS : dds::VOLATILE_DURABILITY_QOS;
   qos.history().kind = dds::KEEP_LAST_HISTORY_QOS;
@@ -80,6 +97,7 @@ struct Participant::Impl {
   dds::DomainParticipant* participant = nullptr;
   dds::Publisher* publisher = nullptr;
   dds::Subscriber* subscriber = nullptr;
+  std::chrono::milliseconds lease{1000};  // the links' liveliness lease (DdsOptions::lease)
   std::mutex mutex;  // entity creation and deletion
 
   void ensure_type(const char* name, std::size_t max_size) {
@@ -102,12 +120,14 @@ struct Participant::Impl {
   }
 };
 
-// Takes every sample the reader has and hands each valid one's bytes to `handle` (a listener's on_data_available).
-inline void take_all(dds::DataReader* reader, const std::function<void(const std::vector<char>&)>& handle) {
+// Takes every sample the reader has and hands each valid one's bytes, and its sample info (the writer's handle), to
+// `handle` (a listener's on_data_available).
+inline void take_all(dds::DataReader* reader,
+                     const std::function<void(const std::vector<char>&, const dds::SampleInfo&)>& handle) {
   std::vector<char> bytes;
   dds::SampleInfo info;
   while (reader->take_next_sample(&bytes, &info) == ReturnCode_t::RETCODE_OK) {
-    if (info.valid_data) handle(bytes);
+    if (info.valid_data) handle(bytes, info);
   }
 }
 

@@ -311,7 +311,9 @@ namespace {
 class SubscriptionListener : public dds::DataReaderListener {
  public:
   explicit SubscriptionListener(std::function<void(const std::vector<char>&)> handle) : handle_(std::move(handle)) {}
-  void on_data_available(dds::DataReader* reader) override { take_all(reader, handle_); }
+  void on_data_available(dds::DataReader* reader) override {
+    take_all(reader, [this](const std::vector<char>& bytes, const dds::SampleInfo&) { handle_(bytes); });
+  }
 
  private:
   std::function<void(const std::vector<char>&)> handle_;

@@ -84,24 +84,27 @@ void decode(const std::vector<char>& bytes, const char* type, Read read) {
 
 }  // namespace
 
-std::vector<char> encode_command(const runtime::MotionCommand& command) {
+std::vector<char> encode_command(const runtime::MotionCommand& command, std::uint64_t sequence) {
   std::uint32_t robot = narrow_index(command.robot, "robot index");
   std::uint32_t index = narrow_index(command.index, "primitive index");
   std::uint32_t transition = narrow_index(command.transition, "transition");
   return encode([&](cdr::Cdr& out) {
     out << robot << index << transition << to_ns(command.sent);
     put_string(out, task::to_string(command.primitive), kPrimitiveTextBound);
+    out << sequence;
   });
 }
 
 runtime::MotionCommand decode_command(const std::vector<char>& bytes, const task::CompiledProgram& program,
-                                      std::size_t robot) {
+                                      std::size_t robot, std::uint64_t* sequence) {
   std::uint32_t robot_on_wire = 0, index = 0, transition = 0;
   std::int64_t sent = 0;
+  std::uint64_t number = 0;
   std::string text;
   decode(bytes, kCommandTypeName, [&](cdr::Cdr& in) {
     in >> robot_on_wire >> index >> transition >> sent;
     text = get_string(in, kPrimitiveTextBound, "RobotCommand_.primitive");
+    in >> number;
   });
   if (robot_on_wire != robot) {
     throw WireError(fmt::format("a command for robot {} on robot {}'s topic", robot_on_wire, robot));
@@ -125,10 +128,11 @@ runtime::MotionCommand decode_command(const std::vector<char>& bytes, const task
   command.primitive = primitive;
   command.transition = transition;
   command.sent = from_ns(sent);
+  if (sequence != nullptr) *sequence = number;
   return command;
 }
 
-std::vector<char> encode_status(const runtime::RobotStatus& status) {
+std::vector<char> encode_status(const runtime::RobotStatus& status, StatusStamp stamp) {
   std::uint32_t robot = narrow_index(status.robot, "robot index");
   std::int64_t index = -1;
   if (status.index != runtime::RobotStatus::kNoCommand) {
@@ -138,12 +142,13 @@ std::vector<char> encode_status(const runtime::RobotStatus& status) {
   return encode([&](cdr::Cdr& out) {
     out << robot << index << outcome << status.stop_cell;
     put_string(out, status.reason, kReasonBound);
-    out << to_ns(status.time);
+    out << to_ns(status.time) << stamp.session << stamp.sequence;
   });
 }
 
-runtime::RobotStatus decode_status(const std::vector<char>& bytes, std::size_t robot) {
+runtime::RobotStatus decode_status(const std::vector<char>& bytes, std::size_t robot, StatusStamp* stamp) {
   std::uint32_t robot_on_wire = 0;
+  StatusStamp got;
   std::int64_t index = 0, time = 0;
   std::uint8_t outcome = 0;
   bool stop_cell = false;
@@ -151,7 +156,7 @@ runtime::RobotStatus decode_status(const std::vector<char>& bytes, std::size_t r
   decode(bytes, kStatusTypeName, [&](cdr::Cdr& in) {
     in >> robot_on_wire >> index >> outcome >> stop_cell;
     reason = get_string(in, kReasonBound, "RobotStatus_.reason");
-    in >> time;
+    in >> time >> got.session >> got.sequence;
   });
   if (robot_on_wire != robot) {
     throw WireError(fmt::format("a status of robot {} on robot {}'s topic", robot_on_wire, robot));
@@ -168,38 +173,53 @@ runtime::RobotStatus decode_status(const std::vector<char>& bytes, std::size_t r
   status.stop_cell = stop_cell;
   status.reason = std::move(reason);
   status.time = from_ns(time);
+  if (stamp != nullptr) *stamp = got;
   return status;
 }
 
-std::vector<char> encode_agent_state(std::size_t robot, bool ready) {
+std::vector<char> encode_agent_state(std::size_t robot, AgentState state) {
   std::uint32_t index = narrow_index(robot, "robot index");
-  return encode([&](cdr::Cdr& out) { out << index << ready; });
+  return encode([&](cdr::Cdr& out) { out << index << state.ready << state.session; });
 }
 
-bool decode_agent_state(const std::vector<char>& bytes, std::size_t robot) {
+AgentState decode_agent_state(const std::vector<char>& bytes, std::size_t robot) {
   std::uint32_t robot_on_wire = 0;
-  bool ready = false;
-  decode(bytes, kAgentStateTypeName, [&](cdr::Cdr& in) { in >> robot_on_wire >> ready; });
+  AgentState state;
+  decode(bytes, kAgentStateTypeName, [&](cdr::Cdr& in) { in >> robot_on_wire >> state.ready >> state.session; });
   if (robot_on_wire != robot) {
     throw WireError(fmt::format("the state of robot {}'s agent on robot {}'s topic", robot_on_wire, robot));
   }
-  return ready;
+  if (state.session == 0) throw WireError("an agent state of session 0 (sessions are numbered from 1)");
+  return state;
 }
 
 std::size_t max_agent_state_size() {
-  return encode_agent_state(0, true).size();
+  return encode_agent_state(0, {true, 1}).size();
+}
+
+void SequenceCheck::accept(std::uint64_t n, const char* what) {
+  if (n <= last_) {
+    throw WireError(fmt::format("{} {} again, the last taken being {}: a duplicate, or a stale one", what, n, last_));
+  }
+  if (n != last_ + 1) {
+    throw WireError(n == last_ + 2 ? fmt::format("{} {} after {}: {} {} is missing", what, n, last_, what, last_ + 1)
+                                   : fmt::format("{} {} after {}: {}s {} to {} are missing", what, n, last_, what,
+                                                 last_ + 1, n - 1));
+  }
+  last_ = n;
 }
 
 std::size_t max_command_size() {
-  runtime::MotionCommand command;
-  std::size_t base = encode_command(command).size() - task::to_string(command.primitive).size();
-  return base + kPrimitiveTextBound - 1;
+  // From the end of the 4-byte header (XCDR1 aligns from there): robot, index, transition, padding to 8, sent_ns:
+  // 24 bytes; the string's length (4) and at most kPrimitiveTextBound bytes with its NUL; the sequence aligned to 8.
+  const std::size_t string_end = 24 + 4 + kPrimitiveTextBound;
+  return 4 + (string_end + 7) / 8 * 8 + 8;
 }
 
 std::size_t max_status_size() {
   runtime::RobotStatus status;
   status.reason.assign(kReasonBound - 1, 'x');
-  return encode_status(status).size();
+  return encode_status(status, {1, 1}).size();
 }
 
 }  // namespace cellwright::distributed

@@ -9,16 +9,26 @@
 //   dds_peer echo-late DOMAIN ROBOT INDEX PROGRAM COUNT
 //       The same, with the agent slow to start: half a second between making its endpoint (which matches task control
 //       meanwhile) and starting it.
+//   dds_peer crash DOMAIN ROBOT INDEX PROGRAM COUNT
+//       The echo agent, killed (SIGKILL, by itself: no clean-up, as a crash or `kill -9`) as it takes command
+//       COUNT + 1, after answering COUNT: a robot whose agent is lost in the middle of a command.
 //   dds_peer garbage DOMAIN ROBOT INDEX PROGRAM
 //       Writes on ROBOT's command topic: 64 random bytes, a command cut short, a command for another robot, a command
-//       whose primitive is not the program's, then one valid command (primitive 0); exits 0 once they are acknowledged.
+//       whose primitive is not the program's, then one valid command (primitive 0, number 1); exits 0 once they are
+//       acknowledged.
+//   dds_peer out-of-order DOMAIN ROBOT INDEX PROGRAM
+//       Writes on ROBOT's command topic valid commands numbered 1 (primitive 0), 1 again (a duplicate), 3 (primitive
+//       2: number 2 is missing); exits 0 once they are acknowledged.
 //   dds_peer ros-listen DOMAIN
 //       A ROS 2 subscriber of the cell (distributed/ros_publisher.hpp) as a tool would be: reads rt/joint_states,
 //       rt/tf, rt/tf_static, rt/clock and rt/cellwright/events, prints "ready" once it matches a writer on each, and
 //       once the events' writer has gone (the publisher is destroyed after its readers acknowledged everything) prints
 //       what it read (see ros_listen below) and exits 0; 3 when nothing matches within 20 s or the writers stay 60 s.
+//
+// Every mode takes the liveliness lease from CW_DDS_LEASE_MS if set (the tests' 500 ms), else the default.
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <thread>
@@ -40,7 +50,8 @@ using namespace std::chrono_literals;
 namespace {
 
 int echo(d::Participant& participant, const std::string& robot, std::size_t index,
-         const cellwright::task::CompiledProgram& program, int count, std::chrono::milliseconds start_after) {
+         const cellwright::task::CompiledProgram& program, int count, std::chrono::milliseconds start_after,
+         bool crash = false) {
   rt::MessageQueue<rt::MotionCommand> commands(4);
   rt::MessageQueue<rt::RobotStatus> statuses(16);
   d::AgentEndpoint agent(participant, robot, index, program, commands, statuses);
@@ -50,12 +61,13 @@ int echo(d::Participant& participant, const std::string& robot, std::size_t inde
     std::cerr << "dds_peer: no task control for " << robot << "\n";
     return 3;
   }
-  for (int i = 0; i < count; ++i) {
+  for (int i = 0; i < count + (crash ? 1 : 0); ++i) {
     rt::MotionCommand command;
     if (commands.pop_for(command, 20s) != rt::QueueStatus::ok) {
       std::cerr << "dds_peer: no command " << i << "\n";
       return 3;
     }
+    if (i == count) raise(SIGKILL);
     rt::RobotStatus status;
     status.robot = command.robot;
     status.index = command.index;
@@ -80,14 +92,32 @@ int garbage(d::Participant& participant, const std::string& robot, std::size_t i
   command.robot = index;
   command.index = 0;
   command.primitive = program.programs[index].primitives[0];
-  std::vector<char> valid = d::encode_command(command);
+  std::vector<char> valid = d::encode_command(command, 1);
   std::vector<char> cut(valid.begin(), valid.begin() + 14);
   rt::MotionCommand other = command;
   other.robot = index + 1;
   rt::MotionCommand foreign = command;
   foreign.primitive.kind = cellwright::task::PrimitiveKind::kOpen;
   foreign.primitive.workpiece = "nothing_here";
-  for (const auto& bytes : {noise, cut, d::encode_command(other), d::encode_command(foreign), valid}) {
+  for (const auto& bytes : {noise, cut, d::encode_command(other, 1), d::encode_command(foreign, 1), valid}) {
+    if (!writer.write(bytes)) return 4;
+  }
+  return writer.flush(20s) ? 0 : 3;
+}
+
+int out_of_order(d::Participant& participant, const std::string& robot, std::size_t index,
+                 const cellwright::task::CompiledProgram& program) {
+  d::RawWriter writer(participant, d::command_topic(robot), d::kCommandTypeName);
+  if (!writer.wait_for_reader(20s)) return 3;
+  const auto command = [&](std::size_t primitive) {
+    rt::MotionCommand c;
+    c.robot = index;
+    c.index = primitive;
+    c.primitive = program.programs[index].primitives[primitive];
+    return c;
+  };
+  for (const auto& bytes : {d::encode_command(command(0), 1), d::encode_command(command(0), 1),
+                            d::encode_command(command(2), 3)}) {
     if (!writer.write(bytes)) return 4;
   }
   return writer.flush(20s) ? 0 : 3;
@@ -182,18 +212,23 @@ int main(int argc, char** argv) {
     return ros_listen(participant);
   }
   if (argc < 6) {
-    std::cerr << "usage: dds_peer echo|echo-late|garbage DOMAIN ROBOT INDEX PROGRAM [COUNT] | ros-listen DOMAIN\n";
+    std::cerr << "usage: dds_peer echo|echo-late|crash|garbage|out-of-order DOMAIN ROBOT INDEX PROGRAM [COUNT] | "
+                 "ros-listen DOMAIN\n";
     return 2;
   }
   std::string mode = argv[1];
-  d::Participant participant({.domain = std::atoi(argv[2])}, "dds_peer");
+  d::DdsOptions options{.domain = std::atoi(argv[2])};
+  if (const char* lease = std::getenv("CW_DDS_LEASE_MS")) options.lease = std::chrono::milliseconds(std::atoi(lease));
+  d::Participant participant(options, "dds_peer");
   std::string robot = argv[3];
   auto index = static_cast<std::size_t>(std::atoi(argv[4]));
   auto program = cellwright::task::compile_file(argv[5]);
   if ((mode == "echo" || mode == "echo-late") && argc == 7) {
     return echo(participant, robot, index, program, std::atoi(argv[6]), mode == "echo" ? 0ms : 500ms);
   }
+  if (mode == "crash" && argc == 7) return echo(participant, robot, index, program, std::atoi(argv[6]), 0ms, true);
   if (mode == "garbage") return garbage(participant, robot, index, program);
+  if (mode == "out-of-order") return out_of_order(participant, robot, index, program);
   std::cerr << "dds_peer: bad arguments\n";
   return 2;
 }

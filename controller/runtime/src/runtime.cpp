@@ -1,4 +1,5 @@
 #include "cellwright/runtime/runtime.hpp"
+#include "cellwright/runtime/remote_watch.hpp"
 #include "cellwright/models/robot_model.hpp"
 
 #include <fmt/format.h>
@@ -610,7 +611,17 @@ struct Runtime::Impl {
         }
       } else {
         const std::size_t r = participant - first_robot_seat();
-        if (!robots[r]) return;  // remote: its robot control is an agent's, its queues carried by its link
+        if (!robots[r]) {
+          // Remote: its robot control is an agent's, its queues carried by its link; this thread watches the link.
+          RemoteWatch watch(r, cfg.program.robots[r], cells[r], *remote[r], statuses, log, cfg.motion.recovery,
+                            cfg.rejoin_wait);
+          while (!stopping) {
+            (void)robot_wake[r]->wait_for(wall_period());
+            if (stopping) break;
+            if (watch.step(clock.now())) task_wake.set();
+          }
+          return;
+        }
         while (!stopping) {
           // Woken by a command or the driver's notifier; at least once a period, to watch sensor conditions.
           (void)robot_wake[r]->wait_for(wall_period());

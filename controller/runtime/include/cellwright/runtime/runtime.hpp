@@ -13,7 +13,9 @@
 //   task control   TaskControl::step (task_control.hpp);
 //   device control with device commands in the program (or devices declared): DeviceHub::step (device_hub.hpp): the
 //                  devices' commands on the cell's I/O units (RunConfig::io_units), their states in the log;
-//   robot control  one per program robot, RobotControl::step (robot_control.hpp).
+//   robot control  one per program robot, RobotControl::step (robot_control.hpp); for a remote robot (its robot
+//                  control an agent's, RunConfig::remote_robots) the thread watches its link instead
+//                  (remote_watch.hpp: a lost agent is a link_lost fault).
 // The main thread (the caller) builds everything, checks the input, starts and joins the threads.
 //
 // LOCK-STEP mode: the threads' work is done in turns through a LockstepScheduler in the fixed order simulation, image
@@ -121,14 +123,31 @@ struct RunObserver {
   std::function<void(const Observation&)> observe;
 };
 
+// What a link knows of its agent (RemoteLink::state), as of the moment it is asked.
+struct LinkState {
+  bool present = true;        // an agent is there: it said it is ready and its liveliness holds
+  std::uint64_t session = 0;  // which agent process it is or was last (a new process for the robot: a new number)
+  std::uint64_t losses = 0;   // how many times this robot's agent was lost so far (gone, or replaced by a new one)
+  std::string lost_detail;    // how the last loss was noticed ("" before any)
+  int in_flight = -1;         // the primitive of the command sent to the agent and not answered, -1 none
+  std::string holding;        // the workpiece the arm holds as far as the link knows ("" none): a close on it was
+                              // answered done, or is in flight, with no open answered since
+};
+
 // The carrier of a robot whose robot control runs in another process (an agent: docs/distributed.md; the DDS one is
 // distributed::RemoteRobot). The runtime knows only this: it hands the robot's command queue and the status queue to
-// RunConfig::attach_remote, starts the link as the run starts and stops it as the run ends (main thread both).
+// RunConfig::attach_remote, starts the link as the run starts and stops it as the run ends (main thread both), and,
+// in between, asks its state every control period on the remote robot's own thread (the link's watcher,
+// remote_watch.hpp): a lost agent is a `link_lost` fault of its robot, diagnosed by the decision tree.
 class RemoteLink {
  public:
   virtual ~RemoteLink() = default;
   virtual void start() = 0;
   virtual void stop() = 0;
+  // Any thread. A link that cannot tell says its agent is always present.
+  virtual LinkState state() const { return {}; }
+  // Sends the command in flight again (to the agent that took over after a loss). false: none in flight, or no agent.
+  virtual bool resend() { return false; }
 };
 
 // Makes the link of program robot `index` (cell robot `cell`) over its command queue and the status queue, which
@@ -150,6 +169,10 @@ struct RunConfig {
   // robot). The environment model of this process does not see what their robot control writes (docs/distributed.md).
   std::vector<std::string> remote_robots;
   AttachRemote attach_remote;
+  // A remote robot whose agent is lost with work in hand (a `link_lost` fault, remote_watch.hpp) and whose diagnosis
+  // is to recover (the standard tree's reset_rehome) waits this long for a new agent before the cell is stopped. 0
+  // (the default): the cell is stopped at once, the other robots halted.
+  SimDuration rejoin_wait{0};
   // The simulation the simulation thread steps; not owned. nullptr for a cell with no simulation (every robot on a
   // driver that runs by itself, e.g. a serial controller): the first thread then keeps the clock and reads the sensors.
   Plant* plant = nullptr;

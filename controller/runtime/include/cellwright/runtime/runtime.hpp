@@ -127,6 +127,14 @@ class RemoteLink {
   virtual ~RemoteLink() = default;
   virtual void start() = 0;
   virtual void stop() = 0;
+  // Called once, right after the link is made (main thread, before start()): the run's environment model and event
+  // log, which the remote robot control writes into in its own process. A link that carries those writes (the DDS
+  // one: the robot's environment-model updates and its events) applies them here, from its own threads (both are
+  // thread-safe). The default carries nothing.
+  virtual void share(SharedEnvironment& environment, EventLog& log) {
+    (void)environment;
+    (void)log;
+  }
 };
 
 // Makes the link of program robot `index` (cell robot `cell`) over its command queue and the status queue, which
@@ -197,6 +205,12 @@ struct RunConfig {
   // every signal it fires; false drops the event. Unset: every event is delivered.
   SignalFilter signal_filter;
 };
+
+// The program's labels bound to cell names as the Runtime binds them (its robots, workpieces, locations and workpiece
+// classes; not the devices' machines), checked as the Runtime's constructor checks them: InputError for a robot with no
+// binding, a binding to nothing in the cell, a robot that is neither remote nor on a driver. For a robot control built
+// outside a Runtime (a robot's agent, docs/distributed.md).
+NameMap resolve_names(const RunConfig& config);
 
 enum class Outcome { kFinished, kFailed, kTimeout, kStopped };
 

@@ -200,6 +200,13 @@ void add_run(CLI::App& app, Command* run) {
         return dry.ok() ? 0 : 1;
       }
 
+      if (remote) {
+        // Every robot of the program on its agent: task control here, nothing simulated.
+        RemoteAgents agents;
+        agents.domain = *args->domain;
+        agents.wait = std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000));
+        return run_real_cell(*cmd, a, s, pre, args->speed, args->quiet, &agents);
+      }
 #if !CW_SIM
       // A twin for real robots only: every robot of the program on its real driver, nothing simulated.
       return run_real_cell(*cmd, a, s, pre, args->speed, args->quiet);

@@ -94,6 +94,11 @@ int run_real_cell(const CLI::App& cmd, const RunArgs& a, const cell::Scenario& s
   setup.perception = runtime::to_string(run->perception());
   setup.twin_truth = false;       // no twin: every detection no injection explains is an unexplained fault
   setup.parts_from_model = true;  // nothing saw the parts: where the controller believes them
+  if (remote != nullptr) {
+    for (DriverUse& d : setup.drivers) {
+      d = DriverUse{d.robot, "agent", fmt::format("DDS domain {}", remote->domain), false};
+    }
+  }
   // Ctrl-C (or SIGTERM) stops the cell safely at the next period; the outputs so far are written below.
   run_until_signal([&] { run->run(); }, [&] { run->runtime().request_stop("stopped by the user (signal)"); });
 

@@ -153,7 +153,8 @@ struct RunConfig {
   std::map<std::string, drivers::RobotDriver*> drivers;
   // Cell robots whose robot control runs in another process (an agent): this process builds no RobotControl and needs
   // no driver for them; `attach_remote` carries their queues. Real time only (InputError in lock-step, naming the
-  // robot). The environment model of this process does not see what their robot control writes (docs/distributed.md).
+  // robot). What their robot control writes into its environment model and logs reaches this process's model and log
+  // only as their link carries it (RemoteLink::share; the DDS link does: docs/distributed.md).
   std::vector<std::string> remote_robots;
   AttachRemote attach_remote;
   // The simulation the simulation thread steps; not owned. nullptr for a cell with no simulation (every robot on a

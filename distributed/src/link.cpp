@@ -31,6 +31,7 @@
 #include <fmt/format.h>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/distributed/replica.hpp"
 #include "cellwright/distributed/wire.hpp"
 #include "dds_entities.hpp"
 
@@ -643,16 +644,31 @@ void wait_for_agents(const std::vector<RemoteRobot*>& robots, int domain, std::c
 
 namespace {
 
-// A RemoteRobot as the Runtime's RemoteLink.
+// A RemoteRobot as the Runtime's RemoteLink, with the robot's model updates and events (replica.hpp) carried into
+// the run's model and log.
 class DdsLink : public runtime::RemoteLink {
  public:
-  template <typename... Args>
-  explicit DdsLink(Args&&... args) : robot(std::forward<Args>(args)...) {}
-  void start() override { robot.start(); }
-  void stop() override { robot.stop(); }
+  DdsLink(Participant& p, const std::string& cell, std::size_t i,
+          runtime::MessageQueue<runtime::MotionCommand>& commands, runtime::MessageQueue<runtime::RobotStatus>& statuses)
+      : robot(p, cell, i, commands, statuses), participant(p), name(cell), index(i) {}
+  void start() override {
+    if (replica) replica->start();
+    robot.start();
+  }
+  void stop() override {
+    robot.stop();
+    if (replica) replica->stop();
+  }
   runtime::LinkState state() const override { return robot.state(); }
   bool resend() override { return robot.resend(); }
+  void share(runtime::SharedEnvironment& environment, runtime::EventLog& log) override {
+    replica = share_into(participant, name, index, environment, log);
+  }
   RemoteRobot robot;
+  Participant& participant;
+  std::string name;
+  std::size_t index;
+  std::unique_ptr<RobotSubscriber> replica;
 };
 
 }  // namespace
@@ -835,6 +851,31 @@ bool RawWriter::write(const std::vector<char>& bytes) {
 }
 bool RawWriter::flush(std::chrono::milliseconds timeout) {
   return impl_->writer.flush(timeout);
+}
+
+struct RawReader::Impl {
+  Impl(Participant& p, const std::string& topic, const char* type, std::function<void(const std::vector<char>&)> h)
+      : reader(p.impl(), topic, type, std::move(h)) {}
+  Receiver reader;
+};
+
+RawReader::RawReader(Participant& participant, const std::string& topic, const char* type,
+                     std::function<void(const std::vector<char>&)> handle)
+    : impl_(new Impl(participant, topic, type, std::move(handle))) {}
+RawReader::~RawReader() = default;
+bool RawReader::wait_for_writer(std::chrono::milliseconds timeout) const {
+  return impl_->reader.matches().wait_until(std::chrono::steady_clock::now() + timeout);
+}
+void RawReader::start() {
+  impl_->reader.start();
+}
+void RawReader::stop() {
+  impl_->reader.stop();
+}
+
+void register_type(Participant& participant, const char* name, std::size_t max_size) {
+  std::lock_guard lock(participant.impl().mutex);
+  participant.impl().ensure_type(name, max_size);
 }
 
 }  // namespace cellwright::distributed

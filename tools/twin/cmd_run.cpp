@@ -113,6 +113,9 @@ void add_run(CLI::App& app, Command* run) {
     bool dry = false;
     std::string final_png = "always";
     std::optional<int> ros_domain;
+    std::string agents = "local";
+    std::optional<int> domain;
+    double agent_wait = 10.0;
   };
   auto args = std::make_shared<Args>();
   add_run_options(*cmd, args->run);
@@ -136,6 +139,14 @@ void add_run(CLI::App& app, Command* run) {
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
                 "program, and read every input of each device on real I/O; nothing else moves and no output is "
                 "written. Exit 0 when all is well, 1 when not");
+  cmd->add_option("--agents", args->agents,
+                  "where robot control runs: local (threads of this process, the default) or remote (an agent per "
+                  "robot, twin agent --robot NAME --domain N SCENARIO, found over DDS; real time, no twin)")
+      ->check(CLI::IsMember({"local", "remote"}));
+  cmd->add_option("--domain", args->domain, "with --agents remote: the DDS domain of the cell's agents (0..232)");
+  cmd->add_option("--agent-wait", args->agent_wait,
+                  "with --agents remote: seconds to wait for every robot's agent before refusing to start (default 10)")
+      ->check(CLI::PositiveNumber);
   cmd->callback([run, args, cmd] {
     *run = [args, cmd] {
       using namespace cellwright::cell;
@@ -148,6 +159,21 @@ void add_run(CLI::App& app, Command* run) {
         }
       }
       const RunArgs& a = args->run;
+      const bool remote = args->agents == "remote";
+      if (remote && !args->domain) {
+        throw InputError({"--agents", 0, 0}, "remote agents are found on a DDS domain: give it with --domain N (the "
+                                             "one their twin agent ... --domain N was given)");
+      }
+      for (const char* name : {"--domain", "--agent-wait"}) {
+        if (!remote && cmd->count(name) > 0) {
+          throw InputError({name, 0, 0}, "it is for remote agents: add --agents remote (robot control runs in this "
+                                         "process otherwise)");
+        }
+      }
+      if (remote && args->dry) {
+        throw InputError({"--dry", 0, 0}, "a bring-up connects the drivers here, and with --agents remote they are the "
+                                          "agents': run twin commission or twin run --dry on each agent's host");
+      }
       if (a.output.empty() && cmd->count("--final-png") > 0) {
         throw InputError({"--final-png", 0, 0}, "it chooses what -o DIR gets, and without -o nothing is written");
       }
@@ -181,6 +207,18 @@ void add_run(CLI::App& app, Command* run) {
         return dry.ok() ? 0 : 1;
       }
 
+      if (args->ros_domain && (remote || !CW_SIM)) {
+        throw InputError({"--ros-domain", 0, 0}, "the run is published for ROS 2 from the twin's run in this process; "
+                                                 "a run without the twin (remote agents, real robots only) is not "
+                                                 "published yet");
+      }
+      if (remote) {
+        // Every robot of the program on its agent: task control here, nothing simulated.
+        RemoteAgents agents;
+        agents.domain = *args->domain;
+        agents.wait = std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000));
+        return run_real_cell(*cmd, a, s, pre, args->speed, args->quiet, &agents);
+      }
 #if !CW_SIM
       // A twin for real robots only: every robot of the program on its real driver, nothing simulated.
       return run_real_cell(*cmd, a, s, pre, args->speed, args->quiet);

@@ -654,6 +654,10 @@ struct Runtime::Impl {
   }
 };
 
+NameMap resolve_names(const RunConfig& config) {
+  return check_binding(config);
+}
+
 Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_unique<EventLog>(config_.log_stream,
                                         config_.keep_log ? EventLog::Keep::kLines : EventLog::Keep::kNothing)) {
   CW_CHECK(config_.period.count() > 0, "the control period must be positive, got {} ns", config_.period.count());
@@ -731,6 +735,7 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
         std::find(config_.remote_robots.begin(), config_.remote_robots.end(), cell) != config_.remote_robots.end();
     im.remote.push_back(remote ? config_.attach_remote(r, cell, *im.inboxes[r], im.statuses) : nullptr);
     if (remote) {
+      im.remote.back()->share(im.env, *log_);
       im.robots.push_back(nullptr);
       continue;
     }

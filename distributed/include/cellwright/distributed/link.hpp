@@ -41,6 +41,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -207,5 +208,30 @@ class RawWriter {
  private:
   std::unique_ptr<Impl> impl_;
 };
+
+// Reads the samples of a topic as they are (CDR bytes, checked by whoever decodes them): each is handed to `handle`
+// on Fast DDS's listener thread once started (before, it is dropped). QoS as the other topics' (reliable, volatile,
+// keep last 10). For the topics built on this transport (replica.hpp: environment-model updates and events).
+class RawReader {
+ public:
+  RawReader(Participant& participant, const std::string& topic, const char* type,
+            std::function<void(const std::vector<char>&)> handle);
+  ~RawReader();
+  RawReader(const RawReader&) = delete;
+  RawReader& operator=(const RawReader&) = delete;
+
+  bool wait_for_writer(std::chrono::milliseconds timeout) const;
+  void start();
+  void stop();
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Registers a type of CDR-byte samples (largest sample `max_size`, header included) with the participant, once: a
+// RawWriter or RawReader of a type other than the command, status and agent state needs it first.
+void register_type(Participant& participant, const char* name, std::size_t max_size);
 
 }  // namespace cellwright::distributed

@@ -148,6 +148,14 @@ class RemoteLink {
   virtual LinkState state() const { return {}; }
   // Sends the command in flight again (to the agent that took over after a loss). false: none in flight, or no agent.
   virtual bool resend() { return false; }
+  // Called once, right after the link is made (main thread, before start()): the run's environment model and event
+  // log, which the remote robot control writes into in its own process. A link that carries those writes (the DDS
+  // one: the robot's environment-model updates and its events) applies them here, from its own threads (both are
+  // thread-safe). The default carries nothing.
+  virtual void share(SharedEnvironment& environment, EventLog& log) {
+    (void)environment;
+    (void)log;
+  }
 };
 
 // Makes the link of program robot `index` (cell robot `cell`) over its command queue and the status queue, which
@@ -166,7 +174,8 @@ struct RunConfig {
   std::map<std::string, drivers::RobotDriver*> drivers;
   // Cell robots whose robot control runs in another process (an agent): this process builds no RobotControl and needs
   // no driver for them; `attach_remote` carries their queues. Real time only (InputError in lock-step, naming the
-  // robot). The environment model of this process does not see what their robot control writes (docs/distributed.md).
+  // robot). What their robot control writes into its environment model and logs reaches this process's model and log
+  // only as their link carries it (RemoteLink::share; the DDS link does: docs/distributed.md).
   std::vector<std::string> remote_robots;
   AttachRemote attach_remote;
   // A remote robot whose agent is lost with work in hand (a `link_lost` fault, remote_watch.hpp) and whose diagnosis
@@ -222,6 +231,12 @@ struct RunConfig {
   // every signal it fires; false drops the event. Unset: every event is delivered.
   SignalFilter signal_filter;
 };
+
+// The program's labels bound to cell names as the Runtime binds them (its robots, workpieces, locations and workpiece
+// classes; not the devices' machines), checked as the Runtime's constructor checks them: InputError for a robot with no
+// binding, a binding to nothing in the cell, a robot that is neither remote nor on a driver. For a robot control built
+// outside a Runtime (a robot's agent, docs/distributed.md).
+NameMap resolve_names(const RunConfig& config);
 
 enum class Outcome { kFinished, kFailed, kTimeout, kStopped };
 

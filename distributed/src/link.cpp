@@ -855,7 +855,7 @@ bool RawWriter::flush(std::chrono::milliseconds timeout) {
 
 struct RawReader::Impl {
   Impl(Participant& p, const std::string& topic, const char* type, std::function<void(const std::vector<char>&)> h)
-      : reader(p.impl(), topic, type, std::move(h)) {}
+      : reader(p.impl(), topic, type, [h = std::move(h)](const std::vector<char>& b, const std::string&) { h(b); }) {}
   Receiver reader;
 };
 

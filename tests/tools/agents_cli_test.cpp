@@ -149,6 +149,7 @@ TEST(AgentsCli, BadArgumentsAreRefusedSayingWhy) {
            {"run " + s + " --agents remote", "give it with --domain N"},
            {"run " + s + " --domain " + domain, "add --agents remote"},
            {"run " + s + " --agents everywhere --domain " + domain, "--agents"},
+           {"run " + s + " --agents remote --domain " + domain + " --ros-domain " + domain, "not published yet"},
        }) {
     const auto r = cli.run(c.args);
     EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;

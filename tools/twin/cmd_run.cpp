@@ -207,7 +207,12 @@ void add_run(CLI::App& app, Command* run) {
         return dry.ok() ? 0 : 1;
       }
 
-      if (args->ros_domain && (remote || !CW_SIM)) {
+#if CW_SIM
+      constexpr bool kTwinHere = true;
+#else
+      constexpr bool kTwinHere = false;  // a twin for real robots only
+#endif
+      if (args->ros_domain && (remote || !kTwinHere)) {
         throw InputError({"--ros-domain", 0, 0}, "the run is published for ROS 2 from the twin's run in this process; "
                                                  "a run without the twin (remote agents, real robots only) is not "
                                                  "published yet");

@@ -1,6 +1,6 @@
 // The DDS entities the distributed library's files share (not installed; link.cpp and ros_publisher.cpp use it): a
 // DDS type whose samples are CDR bytes encoded by the project's own functions, ROS 2's QoS profiles, and what a
-// Participant holds.
+// Participant holds; how many endpoints match one of ours (Matches, kept by the endpoints' listeners).
 //
 // Threads: as the Participant (link.hpp): entity creation and deletion under Participant::Impl::mutex.
 #pragma once
@@ -8,6 +8,7 @@
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/publisher/DataWriterListener.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
@@ -15,11 +16,13 @@
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <cstring>
 #include <functional>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -118,6 +121,66 @@ struct Participant::Impl {
     CW_CHECK(made != nullptr, "cannot create the DDS topic {}", name);
     return made;
   }
+};
+
+// The participant (process) an endpoint belongs to: the first 12 bytes of its GUID, which an instance handle of it
+// holds (DDS names a matched endpoint, and a sample's writer, by handle).
+inline std::string participant_of(const dds::InstanceHandle_t& handle) {
+  std::string prefix(12, '\0');
+  for (std::size_t i = 0; i < prefix.size(); ++i) prefix[i] = static_cast<char>(handle.value[i]);
+  return prefix;
+}
+
+// How many endpoints match one of ours, and a wait for it to change.
+class Matches {
+ public:
+  // `changed` is called (on Fast DDS's thread) after every change; set it before the endpoint is created.
+  void on_change(std::function<void()> changed) { changed_hook_ = std::move(changed); }
+  // `count` endpoints match now; `change` of them (+1 or -1) is the one `handle` names.
+  void set(int count, int change = 0, const dds::InstanceHandle_t& handle = {}) {
+    {
+      std::lock_guard lock(mutex_);
+      count_ = count;
+      if (change > 0) participants_.insert(participant_of(handle));
+      if (change < 0) {
+        if (auto it = participants_.find(participant_of(handle)); it != participants_.end()) participants_.erase(it);
+      }
+    }
+    changed_.notify_all();
+    if (changed_hook_) changed_hook_();
+  }
+  int count() const {
+    std::lock_guard lock(mutex_);
+    return count_;
+  }
+  // Whether an endpoint of that participant matches (a match seen from this side, not only from the other's).
+  bool has(const std::string& participant) const {
+    std::lock_guard lock(mutex_);
+    return participants_.count(participant) > 0;
+  }
+  bool wait_until(std::chrono::steady_clock::time_point deadline) const {
+    std::unique_lock lock(mutex_);
+    return changed_.wait_until(lock, deadline, [&] { return count_ > 0; });
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  mutable std::condition_variable changed_;
+  int count_ = 0;
+  std::multiset<std::string> participants_;  // of the matched endpoints
+  std::function<void()> changed_hook_;
+};
+
+// A writer's listener that keeps its matches.
+class WriterListener : public dds::DataWriterListener {
+ public:
+  explicit WriterListener(Matches& matches) : matches_(matches) {}
+  void on_publication_matched(dds::DataWriter*, const dds::PublicationMatchedStatus& info) override {
+    matches_.set(info.current_count, info.current_count_change, info.last_subscription_handle);
+  }
+
+ private:
+  Matches& matches_;
 };
 
 // Takes every sample the reader has and hands each valid one's bytes, and its sample info (the writer's handle), to

@@ -51,7 +51,7 @@ class RosWriter {
     qos.reliable_writer_qos().times.heartbeatPeriod = eprosima::fastrtps::Duration_t(0.1L);  // as link.cpp's writers
     std::lock_guard lock(p_.mutex);
     p_.ensure_type(type_of_topic(topic), kTypicalSample);
-    writer_ = p_.publisher->create_datawriter(p_.topic(topic, type_of_topic(topic)), qos);
+    writer_ = p_.publisher->create_datawriter(p_.topic(topic, type_of_topic(topic)), qos, &listener_);
     CW_CHECK(writer_ != nullptr, "cannot create a DDS writer on {}", topic);
   }
   ~RosWriter() {
@@ -61,11 +61,7 @@ class RosWriter {
   void write(std::vector<char> bytes) {
     if (!writer_->write(&bytes)) std::cerr << fmt::format("DDS did not take a sample for {}\n", topic_);
   }
-  int readers() const {
-    dds::PublicationMatchedStatus status;
-    writer_->get_publication_matched_status(status);
-    return status.current_count;
-  }
+  const Matches& readers() const { return matches_; }
   bool flush(std::chrono::milliseconds timeout) {
     eprosima::fastrtps::Duration_t wait(static_cast<double>(timeout.count()) / 1000.0);
     return writer_->wait_for_acknowledgments(wait) == ReturnCode_t::RETCODE_OK;
@@ -74,6 +70,8 @@ class RosWriter {
  private:
   Participant::Impl& p_;
   std::string topic_;
+  Matches matches_;
+  WriterListener listener_{matches_};
   dds::DataWriter* writer_ = nullptr;
 };
 
@@ -265,17 +263,12 @@ void RosPublisher::attach(runtime::RunConfig& config) {
 }
 
 bool RosPublisher::wait_for_subscribers(std::chrono::milliseconds timeout) const {
-  // Matching is asynchronous (discovery); this polls it, as Fast DDS's status is a value, not an event, here.
-  auto deadline = std::chrono::steady_clock::now() + timeout;
-  for (;;) {
-    const Impl& im = *impl_;
-    if (im.joint_states.readers() > 0 && im.tf.readers() > 0 && im.tf_static.readers() > 0 && im.events.readers() > 0 &&
-        im.clock.readers() > 0) {
-      return true;
-    }
-    if (std::chrono::steady_clock::now() >= deadline) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const Impl& im = *impl_;
+  for (const RosWriter* w : {&im.joint_states, &im.tf, &im.tf_static, &im.events, &im.clock}) {
+    if (!w->readers().wait_until(deadline)) return false;
   }
+  return true;
 }
 
 void RosPublisher::start() {

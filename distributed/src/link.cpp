@@ -795,15 +795,24 @@ bool RawWriter::flush(std::chrono::milliseconds timeout) {
 }
 
 struct RawReader::Impl {
-  Impl(Participant& p, const std::string& topic, const char* type, std::function<void(const std::vector<char>&)> h)
-      : reader(p.impl(), topic, type, [h = std::move(h)](const std::vector<char>& b, const std::string&) { h(b); }) {}
+  Impl(Participant& p, const std::string& topic, const char* type, std::function<void(const std::vector<char>&)> h,
+       std::function<void(int)> alive)
+      : reader(
+            p.impl(), topic, type, [h = std::move(h)](const std::vector<char>& b, const std::string&) { h(b); },
+            Qos::kDefault, {},
+            alive ? std::function<void(const dds::LivelinessChangedStatus&)>(
+                        [alive = std::move(alive)](const dds::LivelinessChangedStatus& l) { alive(l.alive_count); })
+                  : std::function<void(const dds::LivelinessChangedStatus&)>()) {}
   Receiver reader;
 };
 
 RawReader::RawReader(Participant& participant, const std::string& topic, const char* type,
-                     std::function<void(const std::vector<char>&)> handle)
-    : impl_(new Impl(participant, topic, type, std::move(handle))) {}
+                     std::function<void(const std::vector<char>&)> handle, std::function<void(int)> alive)
+    : impl_(new Impl(participant, topic, type, std::move(handle), std::move(alive))) {}
 RawReader::~RawReader() = default;
+int RawReader::writers() const {
+  return impl_->reader.matches().count();
+}
 bool RawReader::wait_for_writer(std::chrono::milliseconds timeout) const {
   return impl_->reader.matches().wait_until(std::chrono::steady_clock::now() + timeout);
 }

@@ -33,6 +33,7 @@
 #if CW_SIM
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/distributed/ros_publisher.hpp"
+#include "cellwright/distributed/turn_link.hpp"
 #endif
 
 namespace cellwright::tools {
@@ -212,12 +213,21 @@ void add_run(CLI::App& app, Command* run) {
 #else
       constexpr bool kTwinHere = false;  // a twin for real robots only
 #endif
-      if (args->ros_domain && (remote || !kTwinHere)) {
+      // Remote agents with the twin: a lock-step run whose robots take their turns in their agents (turn_link.hpp).
+      // Real time (--realtime, --speed, or a scenario that asks for it), or no twin here: task control only, the
+      // agents on their real drivers.
+#if CW_SIM
+      const bool remote_turns = remote && !args->realtime && cmd->count("--speed") == 0 &&
+                                !run_options_for(a, s).realtime.value_or(s.options.realtime);
+#else
+      constexpr bool remote_turns = false;
+#endif
+      if (args->ros_domain && ((remote && !remote_turns) || !kTwinHere)) {
         throw InputError({"--ros-domain", 0, 0}, "the run is published for ROS 2 from the twin's run in this process; "
                                                  "a run without the twin (remote agents, real robots only) is not "
                                                  "published yet");
       }
-      if (remote) {
+      if (remote && !remote_turns) {
         // Every robot of the program on its agent: task control here, nothing simulated.
         RemoteAgents agents;
         agents.domain = *args->domain;
@@ -252,9 +262,30 @@ void add_run(CLI::App& app, Command* run) {
       if (args->ros_domain) {
         ros_participant.emplace(distributed::DdsOptions{.domain = *args->ros_domain}, "cellwright_twin_run");
         ros.emplace(*ros_participant, s.cell);
-        options.configure = [&ros](runtime::RunConfig& c) { ros->attach(c); };
       }
+      // Every robot of the program on its agent, taking its turns there (the twin's drivers answered here).
+      std::optional<distributed::Participant> agents_participant;
+      std::optional<distributed::TurnCell> turns;
+      if (remote_turns) {
+        agents_participant.emplace(distributed::DdsOptions{.domain = *args->domain}, "cellwright_twin_run_turns");
+        turns.emplace(*agents_participant);
+      }
+      options.configure = [&](runtime::RunConfig& c) {
+        if (ros) ros->attach(c);
+        if (turns) {
+          for (const Binding& b : s.robots) c.remote_robots.push_back(b.name);
+          c.attach_remote = turns->attach(s.program, c.period, c.perception);
+        }
+      };
       ScenarioRun sr(s, pre, options);
+      if (turns) {
+        turns->wait_for_agents(std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000)));
+        if (!args->quiet) {
+          for (const Binding& b : s.robots) {
+            std::printf("%s on its agent, DDS domain %d (lock-step turns)\n", b.name.c_str(), *args->domain);
+          }
+        }
+      }
       if (ros) ros->start();
 
       if (!args->quiet) {

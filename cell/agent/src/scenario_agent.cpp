@@ -32,10 +32,20 @@ ScenarioAgent::ScenarioAgent(const Scenario& s, const std::string& robot, distri
   const auto choice = std::find_if(s.drivers.begin(), s.drivers.end(),
                                    [&](const DriverChoice& c) { return c.robot == robot; });
   if (choice == s.drivers.end() || !choice->real()) {
-    throw InputError(choice != s.drivers.end() ? choice->where : SourceLocation{"--driver"},
-                     fmt::format("robot '{}' is on the twin's simulated driver, and an agent drives a real robot: give "
-                                 "it one with --driver movemaster:PORT or --driver val2:PORT",
-                                 robot));
+    // On the twin: its turns in a lock-step run, the twin's driver in the run's process.
+    const runtime::RunConfig run = scenario_run_config(s, task::to_net(s.program));
+    distributed::TurnAgentConfig config;
+    config.program = s.program;
+    config.cell = s.cell;
+    config.binding = run.binding;
+    config.robot = robot;
+    config.motion = run.motion;
+    config.period = run.period;
+    config.perception = options.perception.value_or(s.perception);
+    config.log_stream = options.log_stream;
+    turn_agent_ = std::make_unique<distributed::TurnAgent>(participant, std::move(config));
+    robot_ = {bound->label, robot, "the twin's robot (lock-step turns)", false};
+    return;
   }
   const models::RobotSpec& spec = *s.cell.find_robot(robot);
   driver_ = make_real_driver(*choice, spec);

@@ -214,13 +214,17 @@ class RawWriter {
 // keep last 10). For the topics built on this transport (replica.hpp: environment-model updates and events).
 class RawReader {
  public:
+  // `alive`, if given, is told (on Fast DDS's thread) how many matched writers are alive whenever that changes (their
+  // liveliness, DdsOptions::lease).
   RawReader(Participant& participant, const std::string& topic, const char* type,
-            std::function<void(const std::vector<char>&)> handle);
+            std::function<void(const std::vector<char>&)> handle, std::function<void(int alive)> alive = {});
   ~RawReader();
   RawReader(const RawReader&) = delete;
   RawReader& operator=(const RawReader&) = delete;
 
   bool wait_for_writer(std::chrono::milliseconds timeout) const;
+  // How many writers match now.
+  int writers() const;
   void start();
   void stop();
 

@@ -133,6 +133,9 @@ struct TurnCall {
   std::vector<runtime::RobotStatus> statuses;
   runtime::EnvironmentModel model;
   std::string error;
+  // kDone of turn 0 (the agent's hello, turn_link.hpp): what its robot control was built with (turn_settings()),
+  // string<1024>; empty otherwise.
+  std::string settings;
 };
 
 // Encoders throw WireError when a value does not fit its field (more robots, workpieces, obstacles, joints, commands,

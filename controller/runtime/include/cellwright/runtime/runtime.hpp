@@ -156,6 +156,22 @@ class RemoteLink {
     (void)environment;
     (void)log;
   }
+
+  // LOCK-STEP (docs/distributed.md, "Lock-step with agents"). Whether the link carries the robot's turns: a lock-step
+  // run refuses a remote robot whose link does not (InputError naming it). The default carries none.
+  virtual bool takes_turns() const { return false; }
+  // Lock-step, in the robot's turn, on the thread taking it: the remote robot control's step at `now`, returning when
+  // it is over, as RobotControl::step would in this process. Meanwhile the link takes the commands task control put
+  // into the robot's command queue, answers the remote robot control's calls of its driver on `driver` (the robot's
+  // driver in this process: the twin's), and when the step is over logs its events into the log share() gave, pushes
+  // its statuses into the status queue and writes the environment model as it left it. Throws InternalError, naming
+  // the robot, when its agent is lost or answers out of turn (the run ends failed: a lock-step run cannot go on
+  // without one of its turns). Only called by links that take turns.
+  virtual void take_turn(SimDuration now, drivers::RobotDriver& driver) {
+    (void)now;
+    (void)driver;
+    CW_CHECK(false, "a link that takes no turns was given one");
+  }
 };
 
 // Makes the link of program robot `index` (cell robot `cell`) over its command queue and the status queue, which
@@ -173,9 +189,11 @@ struct RunConfig {
   // advances them) must outlive the Runtime.
   std::map<std::string, drivers::RobotDriver*> drivers;
   // Cell robots whose robot control runs in another process (an agent): this process builds no RobotControl and needs
-  // no driver for them; `attach_remote` carries their queues. Real time only (InputError in lock-step, naming the
-  // robot). What their robot control writes into its environment model and logs reaches this process's model and log
-  // only as their link carries it (RemoteLink::share; the DDS link does: docs/distributed.md).
+  // no driver for them in real time; `attach_remote` carries their queues. In lock-step their links must take turns
+  // (RemoteLink::takes_turns; InputError naming the robot otherwise) and `drivers` must have their drivers (the twin's:
+  // the agent's robot control calls them through the link in its turns; the runtime connects and halts them as it
+  // would a local robot's). What their robot control writes into its environment model and logs reaches this
+  // process's model and log only as their link carries it (RemoteLink::share, take_turn; docs/distributed.md).
   std::vector<std::string> remote_robots;
   AttachRemote attach_remote;
   // A remote robot whose agent is lost with work in hand (a `link_lost` fault, remote_watch.hpp) and whose diagnosis

@@ -1,9 +1,5 @@
 #include "cellwright/distributed/replica.hpp"
 
-#include <fastcdr/Cdr.h>
-#include <fastcdr/FastBuffer.h>
-#include <fastcdr/exceptions/Exception.h>
-
 #include <atomic>
 #include <cmath>
 #include <iostream>
@@ -12,90 +8,37 @@
 
 #include <fmt/format.h>
 
+#include "cdr_io.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/distributed/wire.hpp"
 
 namespace cellwright::distributed {
 namespace {
 
-namespace cdr = eprosima::fastcdr;
+using cdr_io::nanoseconds;
 
-std::int64_t nanoseconds(runtime::SimDuration d) {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(d).count();
-}
-
-// A CDR writer into a buffer that grows to what the sample needs.
-class Out {
+// cdr_io's writer with Pose_ and Hold_.
+class Out : public cdr_io::Out {
  public:
-  explicit Out(std::size_t room) : buffer_(room), fast_(buffer_.data(), buffer_.size()), cdr_(fast_) {
-    cdr_.serialize_encapsulation();
-  }
-  cdr::Cdr& cdr() { return cdr_; }
-  void text(const std::string& s, std::size_t bound, const char* field) {
-    if (s.size() + 1 > bound) throw WireError(fmt::format("{}: {} bytes, over its bound of {}", field, s.size(), bound));
-    cdr_ << s;
-  }
+  using cdr_io::Out::Out;
   void pose(const Eigen::Isometry3d& p) {
     const Eigen::Quaterniond q(p.linear());
-    cdr_ << p.translation().x() << p.translation().y() << p.translation().z() << q.w() << q.x() << q.y() << q.z();
+    cdr() << p.translation().x() << p.translation().y() << p.translation().z() << q.w() << q.x() << q.y() << q.z();
   }
   void hold(const std::optional<runtime::Hold>& h) {
-    cdr_ << h.has_value();
+    cdr() << h.has_value();
     runtime::Hold none;
     const runtime::Hold& v = h ? *h : none;
     text(v.workpiece, kNameBound, "Hold_.workpiece");
-    cdr_ << static_cast<std::uint8_t>(v.approach == models::Approach::kSide ? 1 : 0) << v.tcp_above_bottom;
+    cdr() << static_cast<std::uint8_t>(v.approach == models::Approach::kSide ? 1 : 0) << v.tcp_above_bottom;
     pose(v.in_hand);
   }
-  std::vector<char> take() {
-    buffer_.resize(cdr_.getSerializedDataLength());
-    return std::move(buffer_);
-  }
-
- private:
-  std::vector<char> buffer_;
-  cdr::FastBuffer fast_;
-  cdr::Cdr cdr_;
 };
 
-// A CDR reader over a sample's bytes that refuses what does not fit the type.
-class In {
+// cdr_io's reader with Pose_ and Hold_.
+class In : public cdr_io::In {
  public:
-  In(const std::vector<char>& bytes, const char* type)
-      : bytes_(bytes), fast_(bytes_.data(), bytes_.size()), cdr_(fast_), type_(type) {
-    if (bytes.size() < 4) throw WireError(fmt::format("{}: {} bytes, shorter than its header", type, bytes.size()));
-    guarded([&] { cdr_.read_encapsulation(); });
-  }
-  template <typename F>
-  void guarded(F f) {
-    try {
-      f();
-    } catch (const cdr::exception::Exception& e) {
-      throw WireError(fmt::format("{}: {} ({} bytes)", type_, e.what(), bytes_.size()));
-    }
-  }
-  template <typename T>
-  T get() {
-    T v{};
-    guarded([&] { cdr_ >> v; });
-    return v;
-  }
-  std::string text(std::size_t bound, const char* field) {
-    const auto length = get<std::uint32_t>();
-    if (length == 0 || length > bound) {
-      throw WireError(fmt::format("{}: a string of {} bytes with its NUL (1..{})", field, length, bound));
-    }
-    std::string s(length, '\0');
-    guarded([&] { cdr_.deserializeArray(s.data(), length); });
-    if (s.back() != '\0' || s.find('\0') != length - 1) throw WireError(fmt::format("{}: a misplaced NUL", field));
-    s.pop_back();
-    return s;
-  }
-  double number(const char* field) {
-    const double v = get<double>();
-    if (!std::isfinite(v)) throw WireError(fmt::format("{}: {} is not a finite number", field, v));
-    return v;
-  }
+  using cdr_io::In::In;
   Eigen::Isometry3d pose(const char* field) {
     double v[7];
     for (double& x : v) x = number(field);
@@ -118,18 +61,6 @@ class In {
     if (!set) return std::nullopt;
     return h;
   }
-  void end() {
-    const std::size_t used = cdr_.getSerializedDataLength();
-    if (bytes_.size() > used + 3) {
-      throw WireError(fmt::format("{}: {} bytes after the message's {}", type_, bytes_.size() - used, used));
-    }
-  }
-
- private:
-  std::vector<char> bytes_;
-  cdr::FastBuffer fast_;
-  cdr::Cdr cdr_;
-  const char* type_;
 };
 
 bool same_pose(const std::optional<Eigen::Isometry3d>& a, const std::optional<Eigen::Isometry3d>& b) {

@@ -84,6 +84,7 @@
 //       sequence<string<8192>, 64> events;  // each event's log line (log_event.hpp)
 //       sequence<Status_, 16> statuses; Model_ model;
 //       string<8192> error;                 // "" none; a longer text is cut to fit
+//       string<1024> settings;              // turn 0 (the agent's hello): turn_link.hpp's turn_settings(); else ""
 //     };
 //     union TurnCallBody_ switch (uint8) { case 0: DriverCall_ call; case 1: TurnDone_ done; };
 //     @final struct TurnCall_ { uint32 robot; uint64 sequence; uint64 turn; TurnCallBody_ body; };
@@ -116,6 +117,7 @@ using cdr_io::narrow_index;
 
 // Reasons, lost reasons, an agent's error: as long as an event line may be (a reason is logged in one).
 constexpr std::size_t kTextBound = kEventLineBound;
+constexpr std::size_t kSettingsBound = 1024;
 constexpr std::uint8_t kLastDriverOp = static_cast<std::uint8_t>(DriverOp::least_duration);
 constexpr std::uint8_t kLastErrorCode = static_cast<std::uint8_t>(drivers::ErrorCode::unknown_command);
 constexpr std::uint8_t kLastDriverState = static_cast<std::uint8_t>(drivers::DriverState::fault);
@@ -705,6 +707,7 @@ std::vector<char> encode_turn_call(const TurnCall& message) {
     }
     out.model(message.model);
     out.cut(message.error, kTextBound, "TurnDone_.error");
+    out.text(message.settings, kSettingsBound, "TurnDone_.settings");
   });
 }
 
@@ -776,6 +779,7 @@ TurnCall decode_turn_call(const std::vector<char>& bytes, std::size_t robot,
   }
   m.model = in.model(cell_model);
   m.error = in.text(kTextBound, "TurnDone_.error");
+  m.settings = in.text(kSettingsBound, "TurnDone_.settings");
   in.end();
   return m;
 }
@@ -819,6 +823,7 @@ std::size_t max_turn_call_size() {
     m.statuses.assign(kMaxTurnStatuses, s);
     m.model = largest_model();
     m.error.assign(kTextBound - 1, 'e');
+    m.settings.assign(kSettingsBound - 1, 's');
     return std::max(most, encode_turn_call(m).size());
   }();
   return size;

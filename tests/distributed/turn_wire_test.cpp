@@ -446,6 +446,7 @@ TurnCall random_call(Random& r, TurnCall::Kind kind, std::size_t robot) {
     for (auto& s : m.statuses) s = random_status(r, robot);
     m.model = random_model(r);
     m.error = r.coin() ? std::string() : r.text(kEventLineBound);
+    m.settings = r.coin() ? std::string() : r.text(1024);
   }
   return m;
 }
@@ -521,6 +522,7 @@ TEST(TurnWire, SeededRandomCallsComeBackFieldByFieldBitForBit) {
         }
         expect_same_model(got.model, sent.model);
         EXPECT_EQ(got.error, sent.error);
+        EXPECT_EQ(got.settings, sent.settings);
       }
     }
   }
@@ -762,22 +764,22 @@ TEST(TurnWire, StringsWithoutTheirNulOrOverTheirBoundAreRefused) {
   TurnCall done;
   done.kind = TurnCall::Kind::kDone;
   done.model = exchange().cell;
-  done.error = "abc";  // the last field: its length, then a b c NUL
+  done.settings = "abc";  // the last field: its length, then a b c NUL
   std::vector<char> bytes = encode_turn_call(done);
   ASSERT_EQ(refusal(bytes, true), "");
   std::vector<char> no_nul = bytes;
   no_nul.back() = 'x';
-  EXPECT_NE(refusal(no_nul, true).find("TurnDone_.error: a misplaced NUL"), std::string::npos);
+  EXPECT_NE(refusal(no_nul, true).find("TurnDone_.settings: a misplaced NUL"), std::string::npos);
   std::vector<char> inner_nul = bytes;
   inner_nul[inner_nul.size() - 3] = '\0';
   EXPECT_NE(refusal(inner_nul, true).find("misplaced NUL"), std::string::npos);
-  // Over its bound: the length says 8193 bytes, and they are there.
+  // Over its bound: the length says 1025 bytes, and they are there.
   std::vector<char> over(bytes.begin(), bytes.end() - 8);
-  const std::uint32_t length = kEventLineBound + 1;
+  const std::uint32_t length = 1024 + 1;
   over.insert(over.end(), reinterpret_cast<const char*>(&length), reinterpret_cast<const char*>(&length) + 4);
   over.insert(over.end(), length - 1, 'x');
   over.push_back('\0');
-  EXPECT_NE(refusal(over, true).find("TurnDone_.error: a string of 8193 bytes with its NUL (1..8192)"),
+  EXPECT_NE(refusal(over, true).find("TurnDone_.settings: a string of 1025 bytes with its NUL (1..1024)"),
             std::string::npos);
   // The encoder: an error is cut to fit (the run fails with it anyway); a name, a line, a reason is not.
   done.error.assign(20000, 'e');
@@ -1019,7 +1021,10 @@ TEST(TurnWire, ASampleAtEveryBoundFitsTheLargestSize) {
   status.reason.assign(kEventLineBound - 1, 'r');
   done.statuses.assign(kMaxTurnStatuses, status);
   done.error.assign(3 * kEventLineBound, 'e');
+  done.settings.assign(1023, 's');  // string<1024>
   EXPECT_EQ(encode_turn_call(done).size(), max_turn_call_size());
+  done.settings.assign(1024, 's');
+  EXPECT_THROW((void)encode_turn_call(done), WireError);  // over its bound: refused, never cut
   TurnCall call;
   for (std::size_t op = 0; op < kDriverOps; ++op) {
     for (std::size_t alternative = 0; alternative < 5; ++alternative) {

@@ -97,6 +97,14 @@ Participant::Participant(DdsOptions options, const std::string& name) : options_
   impl_->lease = options.lease;
   dds::DomainParticipantQos qos = dds::PARTICIPANT_QOS_DEFAULT;
   qos.name(name);
+  // The participant's own lease (discovery): a peer process that gives no sign for it is removed, and every endpoint
+  // of its unmatched. This is what finds a killed peer when another peer is alive: Fast DDS 2.9 asserts the automatic
+  // liveliness of every remote writer of a reader's participant when any remote participant's automatic liveliness
+  // message comes (eProsima/Fast-DDS#4373, fixed from 2.10 on), so a writer's own lease never lapses then.
+  auto& discovery = qos.wire_protocol().builtin.discovery_config;
+  discovery.leaseDuration = eprosima::fastrtps::Duration_t(static_cast<long double>(options.lease.count()) / 1000.0L);
+  discovery.leaseDuration_announcementperiod =
+      eprosima::fastrtps::Duration_t(static_cast<long double>(options.lease.count()) / 4000.0L);
   if (!options.shared_memory) {
     qos.transport().use_builtin_transports = false;
     qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>());

@@ -67,6 +67,11 @@ class Inbox {
   bool seen_alive_ = false;
 };
 
+// The agent is gone, or said something this end cannot take: the link is lost for good (TurnLink::state()).
+struct LinkLost {
+  std::string detail;
+};
+
 std::string seconds_text(std::chrono::milliseconds d) {
   return fmt::format("{:.3g} s", static_cast<double>(d.count()) / 1000.0);
 }
@@ -131,6 +136,9 @@ struct TurnLink::Impl {
   SequenceCheck received;
   std::uint64_t turn = 0;
   std::uint64_t calls = 0;
+  bool lost = false;
+  std::string lost_detail;
+  int in_flight = -1;  // the primitive sent to the agent and not answered
 
   Impl(Participant& p, std::string r, std::size_t i, const task::CompiledProgram& prog, std::string s,
        runtime::MessageQueue<runtime::MotionCommand>& c, runtime::MessageQueue<runtime::RobotStatus>& st,
@@ -149,9 +157,7 @@ struct TurnLink::Impl {
   void send(TurnMessage m) {
     m.robot = index;
     m.sequence = ++sent;
-    if (!writer->write(encode_turn(m))) {
-      throw InternalError(fmt::format("robot {}: DDS did not take a turn message for its agent", robot));
-    }
+    if (!writer->write(encode_turn(m))) throw LinkLost{"DDS did not take a turn message for it"};
   }
 
   // Takes the hellos that came (before the run's model is shared, nothing can be decoded: they wait).
@@ -185,23 +191,20 @@ struct TurnLink::Impl {
     std::cerr << fmt::format("refused a sample on {}: {}\n", call_topic(robot), why);
   }
 
-  // The agent's next message of this turn; InternalError when it is lost or silent.
+  // The agent's next message of this turn; LinkLost when it is lost, silent or says what cannot be taken.
   TurnCall next_of_turn() {
     const auto deadline = std::chrono::steady_clock::now() + options.answer_timeout;
     for (;;) {
       std::optional<std::vector<char>> b = inbox.next(kSlice);
       if (!b) {
-        if (inbox.lapsed()) {
-          throw InternalError(fmt::format("robot {}: its agent was lost in turn {} (no sign of life for its liveliness "
-                                          "lease: its process killed, its host down or the network cut)",
-                                          robot, turn));
-        }
-        if (reader->writers() == 0) {
-          throw InternalError(fmt::format("robot {}: its agent left in turn {}", robot, turn));
+        if (inbox.lapsed() || reader->writers() == 0) {
+          throw LinkLost{fmt::format("no sign of life from it in turn {} for the lease of {}, or it left (the process "
+                                     "killed, its host down or the network cut)",
+                                     turn, seconds_text(participant.lease()))};
         }
         if (std::chrono::steady_clock::now() > deadline) {
-          throw InternalError(fmt::format("robot {}: its agent gave no answer in turn {} for {}", robot, turn,
-                                          seconds_text(options.answer_timeout)));
+          throw LinkLost{fmt::format("it gave no answer in turn {} for {}", turn,
+                                     seconds_text(options.answer_timeout))};
         }
         continue;
       }
@@ -209,11 +212,10 @@ struct TurnLink::Impl {
       try {
         c = decode_turn_call(*b, index, *cell_model);
       } catch (const WireError& e) {
-        // In the middle of a turn a refused message is one the agent's step is waiting for an answer to, or one
-        // that would have changed the run: the run cannot go on as one process would have.
+        // In the middle of a turn a refused message is one the agent's step waits for an answer to, or one that would
+        // have changed the run: the turn cannot be finished as one process would have.
         refuse(e.what());
-        throw InternalError(fmt::format("robot {}: its agent sent a message that does not decode in turn {}: {}", robot,
-                                        turn, e.what()));
+        throw LinkLost{fmt::format("it sent a message that does not decode in turn {}: {}", turn, e.what())};
       }
       if (c.kind == TurnCall::Kind::kDone && c.turn == 0) continue;  // a late hello
       try {
@@ -221,11 +223,9 @@ struct TurnLink::Impl {
         received.accept(c.sequence, "turn call");
       } catch (const WireError& e) {
         refuse(e.what());
-        throw InternalError(fmt::format("robot {}: {}", robot, e.what()));
+        throw LinkLost{e.what()};
       }
-      if (c.turn != turn) {
-        throw InternalError(fmt::format("robot {}: its agent answered for turn {} in turn {}", robot, c.turn, turn));
-      }
+      if (c.turn != turn) throw LinkLost{fmt::format("it answered for turn {} in turn {}", c.turn, turn)};
       return c;
     }
   }
@@ -276,14 +276,19 @@ void TurnLink::stop() {
   try {
     im.send(std::move(end));
     (void)im.writer->flush(std::chrono::milliseconds(1000));
-  } catch (const InternalError& e) {
-    std::cerr << e.what() << "\n";
+  } catch (const LinkLost& e) {
+    std::cerr << fmt::format("robot {}: the run's end was not sent to its agent: {}\n", im.robot, e.detail);
   }
 }
 
 runtime::LinkState TurnLink::state() const {
+  std::lock_guard lock(impl_->mutex);
   runtime::LinkState s;
-  s.present = !impl_->inbox.lapsed() && impl_->reader->writers() > 0;
+  s.present = !impl_->lost;
+  s.session = 1;
+  s.losses = impl_->lost ? 1 : 0;
+  s.lost_detail = impl_->lost_detail;
+  s.in_flight = impl_->in_flight;
   return s;
 }
 
@@ -298,43 +303,60 @@ void TurnLink::take_turn(runtime::SimDuration now, drivers::RobotDriver& driver)
   CW_CHECK(im.env != nullptr, "robot {}: a turn before the run's model was shared", im.robot);
   TurnMessage t;
   t.kind = TurnMessage::Kind::kTurn;
+  // The commands task control queued: sent with this turn, or, to an agent that was lost, in flight for good (the
+  // runtime's watch makes that the link_lost fault: an agent lost while idle has lost nothing until it is sent one).
+  runtime::MotionCommand c;
+  while (im.commands.try_pop(c) == runtime::QueueStatus::ok) {
+    {
+      std::lock_guard lock(im.mutex);
+      im.in_flight = static_cast<int>(c.index);
+    }
+    t.commands.push_back(std::move(c));
+  }
   {
     std::lock_guard lock(im.mutex);
+    if (im.lost) return;  // for good
     t.turn = ++im.turn;
   }
   t.now = now;
-  runtime::MotionCommand c;
-  while (im.commands.try_pop(c) == runtime::QueueStatus::ok) t.commands.push_back(std::move(c));
   t.model = im.env->read([](const runtime::EnvironmentModel& m) { return m; });
-  im.send(std::move(t));
-  for (;;) {
-    TurnCall m = im.next_of_turn();
-    if (m.kind == TurnCall::Kind::kCall) {
-      TurnMessage r;
-      r.kind = TurnMessage::Kind::kResult;
-      r.turn = m.turn;
-      r.result = answer(driver, m.call);
-      {
-        std::lock_guard lock(im.mutex);
-        ++im.calls;
+  try {
+    im.send(std::move(t));
+    for (;;) {
+      TurnCall m = im.next_of_turn();
+      if (m.kind == TurnCall::Kind::kCall) {
+        TurnMessage r;
+        r.kind = TurnMessage::Kind::kResult;
+        r.turn = m.turn;
+        r.result = answer(driver, m.call);
+        {
+          std::lock_guard lock(im.mutex);
+          ++im.calls;
+        }
+        im.send(std::move(r));
+        continue;
       }
-      im.send(std::move(r));
-      continue;
+      // Done: what one process would have had at the end of the step, in its order: the events as they were logged,
+      // the statuses as they were queued, the model as the step left it.
+      for (const std::string& line : m.events) im.log->log(runtime::decode(line, call_topic(im.robot), 0));
+      for (runtime::RobotStatus& s : m.statuses) {
+        {
+          std::lock_guard lock(im.mutex);
+          if (im.in_flight == static_cast<int>(s.index)) im.in_flight = -1;
+        }
+        if (im.statuses.push(std::move(s)) != runtime::QueueStatus::ok) break;  // closed: the run is ending
+      }
+      im.env->write([&](runtime::EnvironmentModel& model) { model = std::move(m.model); });
+      if (!m.error.empty()) {
+        throw InternalError(fmt::format("robot {}: its agent's robot control failed in turn {}: {}", im.robot, m.turn,
+                                        m.error));
+      }
+      return;
     }
-    // Done: what one process would have had at the end of the step, in its order: the events as they were logged,
-    // the statuses as they were queued, the model as the step left it.
-    for (const std::string& line : m.events) {
-      im.log->log(runtime::decode(line, call_topic(im.robot), 0));
-    }
-    for (runtime::RobotStatus& s : m.statuses) {
-      if (im.statuses.push(std::move(s)) != runtime::QueueStatus::ok) break;  // closed: the run is ending
-    }
-    im.env->write([&](runtime::EnvironmentModel& model) { model = std::move(m.model); });
-    if (!m.error.empty()) {
-      throw InternalError(fmt::format("robot {}: its agent's robot control failed in turn {}: {}", im.robot, m.turn,
-                                      m.error));
-    }
-    return;
+  } catch (const LinkLost& lost) {
+    std::lock_guard lock(im.mutex);
+    im.lost = true;
+    im.lost_detail = lost.detail;
   }
 }
 

@@ -278,6 +278,7 @@ struct Runtime::Impl {
   Event device_wake{Event::Kind::auto_reset};
   std::vector<std::unique_ptr<RobotControl>> robots;  // nullptr for a remote robot
   std::vector<std::unique_ptr<RemoteLink>> remote;    // per program robot: its link, for a remote robot
+  std::vector<std::unique_ptr<RemoteWatch>> lockstep_watches;  // lock-step: each remote robot's link watch
   VirtualClock clock;
   // Vision (Perception::kVision): frames from the simulation thread to the image-processing thread.
   MessageQueue<Frame> frames{2};
@@ -551,7 +552,10 @@ struct Runtime::Impl {
     if (robots[r]) {
       robots[r]->step(now);
     } else {
-      remote[r]->take_turn(now, *cfg.drivers.at(cells[r]));  // its robot control's step, in its agent
+      // Its robot control's step, in its agent. A lost agent is a link_lost fault, as in real time (remote_watch.hpp),
+      // found in this turn; no new agent can take over a lock-step run's robot control (its state went with it).
+      remote[r]->take_turn(now, *cfg.drivers.at(cells[r]));
+      (void)lockstep_watches[r]->step(now);
     }
     if (statuses.size() > 0) scheduler->notify(task_seat());
     return Wake::next_round();  // every period it reads where its arm is and watches its grip and the safety layer
@@ -865,6 +869,15 @@ void Runtime::start() {
   }
   for (auto& link : im.remote) {
     if (link) link->start();
+  }
+  if (config_.mode == Mode::kLockstep) {
+    im.lockstep_watches.resize(im.remote.size());
+    for (std::size_t r = 0; r < im.remote.size(); ++r) {
+      if (!im.remote[r]) continue;
+      im.lockstep_watches[r] = std::make_unique<RemoteWatch>(r, config_.program.robots[r], im.cells[r], *im.remote[r],
+                                                             im.statuses, *log_, config_.motion.recovery,
+                                                             SimDuration{0});
+    }
   }
   if (config_.mode == Mode::kRealtime) {
     for (std::size_t r = 0; r < im.robots.size(); ++r) {

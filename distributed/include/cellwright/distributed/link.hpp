@@ -78,6 +78,7 @@ class Participant {
   Participant& operator=(const Participant&) = delete;
 
   int domain() const { return options_.domain; }
+  std::chrono::milliseconds lease() const { return options_.lease; }
 
   struct Impl;
   Impl& impl() { return *impl_; }

@@ -164,9 +164,11 @@ class RemoteLink {
   // it is over, as RobotControl::step would in this process. Meanwhile the link takes the commands task control put
   // into the robot's command queue, answers the remote robot control's calls of its driver on `driver` (the robot's
   // driver in this process: the twin's), and when the step is over logs its events into the log share() gave, pushes
-  // its statuses into the status queue and writes the environment model as it left it. Throws InternalError, naming
-  // the robot, when its agent is lost or answers out of turn (the run ends failed: a lock-step run cannot go on
-  // without one of its turns). Only called by links that take turns.
+  // its statuses into the status queue and writes the environment model as it left it. When its agent is lost (gone,
+  // silent, or answering what cannot be taken) it returns with state() saying so (not present, a loss counted, the
+  // command in flight): the runtime's watch makes that a link_lost fault in the same turn (remote_watch.hpp), and
+  // later turns do nothing (no new agent can take over: the robot control's state went with it). Throws InternalError
+  // when the remote robot control itself failed (a bug). Only called by links that take turns.
   virtual void take_turn(SimDuration now, drivers::RobotDriver& driver) {
     (void)now;
     (void)driver;

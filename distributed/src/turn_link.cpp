@@ -401,10 +401,13 @@ void TurnCell::wait_for_agents(std::chrono::milliseconds timeout) const {
     if (const std::string why = l->refused_hello(); !why.empty()) refused.push_back(l->robot() + ": " + why);
   }
   if (missing.empty()) return;
+  std::vector<std::string> how;
+  for (const std::string& r : missing) how.push_back(fmt::format("twin agent SCENARIO --robot {} --domain {}", r,
+                                                                 participant_.domain()));
   std::string text = fmt::format(
-      "no agent for {} on DDS domain {} within {}: start one per robot with `twin agent SCENARIO --robot NAME --domain "
-      "{}` (the robot on the twin's driver, no --driver)",
-      fmt::join(missing, ", "), participant_.domain(), seconds_text(timeout), participant_.domain());
+      "no agent for {} on DDS domain {} within {} (a lock-step run with the twin): start one per robot, the robot on "
+      "the twin's driver (no --driver): {}",
+      fmt::join(missing, ", "), participant_.domain(), seconds_text(timeout), fmt::join(how, "; "));
   if (!refused.empty()) text += fmt::format("; refused: {}", fmt::join(refused, "; "));
   throw InputError(SourceLocation{fmt::format("DDS domain {}", participant_.domain())}, text);
 }

@@ -122,7 +122,7 @@ TEST(AgentsCli, TheExchangeWithTwoAgentsInProcessesOfTheirOwnEndsAsInOneProcess)
 TEST(AgentsCli, TaskControlRefusesToStartNamingTheRobotsWhoseAgentIsMissing) {
   TwinCli cli("agents-missing");
   const fs::path scenario = exchange_at_the_stop(cli.dir());
-  const auto r = cli.run("run " + shell_quote(scenario.string()) + " --agents remote --domain " +
+  const auto r = cli.run("run " + shell_quote(scenario.string()) + " --agents remote --realtime --domain " +
                          std::to_string(test_domain()) + " --agent-wait 1 --quiet -o " +
                          shell_quote((cli.dir() / "out").string()));
   EXPECT_EQ(r.status, 2) << r.out << r.err;
@@ -142,14 +142,16 @@ TEST(AgentsCli, BadArgumentsAreRefusedSayingWhy) {
   for (const Case& c : std::vector<Case>{
            {"agent " + s + " --robot kuka --driver val2:/dev/null --domain " + domain, "'kuka' is not a robot"},
            {"agent " + s + " --robot r1 --domain " + domain, "the agent is named by its cell robot: --robot puma"},
-           {"agent " + s + " --robot puma --domain " + domain, "give it one with --driver"},
+           {"agent " + s + " --robot puma --driver val2:/dev/null --domain " + domain + " --perception cad",
+            "it is for a robot on the twin"},
            {"agent " + s + " --robot puma --driver val2:/dev/null", "--domain is required"},
            {"agent " + s + " --robot puma --driver val2:" + (cli.dir() / "none").string() + " --domain 300",
             "DDS domain 300"},
            {"run " + s + " --agents remote", "give it with --domain N"},
            {"run " + s + " --domain " + domain, "add --agents remote"},
            {"run " + s + " --agents everywhere --domain " + domain, "--agents"},
-           {"run " + s + " --agents remote --domain " + domain + " --ros-domain " + domain, "not published yet"},
+           {"run " + s + " --agents remote --realtime --domain " + domain + " --ros-domain " + domain,
+            "not published yet"},
        }) {
     const auto r = cli.run(c.args);
     EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;

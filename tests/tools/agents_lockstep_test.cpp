@@ -120,6 +120,20 @@ TEST(AgentsLockstep, AnAgentBuiltForAnotherPerceptionIsRefusedNamingBoth) {
   EXPECT_THAT(r.err, HasSubstr("perception truth"));
 }
 
+TEST(AgentsLockstep, TaskControlRefusesToStartNamingTheRobotsWhoseAgentIsMissing) {
+  TwinCli cli("lockstep-missing");
+  const std::string path = source_path("scenes/exchange.yaml");
+  const int domain = test_domain();
+  auto melfa = twin_agent(path, "melfa", domain);
+  const auto r = cli.run("run " + shell_quote(path) + " --agents remote --domain " + std::to_string(domain) +
+                         " --agent-wait 2 --quiet -o " + shell_quote((cli.dir() / "out").string()));
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("no agent for puma on DDS domain " + std::to_string(domain)));
+  EXPECT_THAT(r.err, HasSubstr("twin agent SCENARIO --robot puma --domain " + std::to_string(domain)));
+  EXPECT_FALSE(fs::exists(cli.dir() / "out" / "report.json"));
+  EXPECT_EQ(melfa->wait_exit(10s), 0) << melfa->output();  // told the run's end: it does not wait for its --wait
+}
+
 TEST(AgentsLockstep, AnAgentOnTheTwinRefusesSpeed) {
   TwinCli cli("lockstep-speed");
   const auto r = cli.run("agent " + shell_quote(source_path("scenes/exchange.yaml")) +

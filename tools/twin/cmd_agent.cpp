@@ -7,6 +7,7 @@
 // control within --wait.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -64,16 +65,20 @@ void add_agent(CLI::App& app, Command* run) {
       if (args->perception == "truth") options.perception = runtime::Perception::kTruth;
       if (args->perception == "vision") options.perception = runtime::Perception::kVision;
       if (args->perception == "cad") options.perception = runtime::Perception::kCad;
-      cell::ScenarioAgent agent(s, args->robot, participant, options);
-      if (agent.on_twin() && cmd->count("--speed") > 0) {
+      // Whether the robot is the twin's (the scenario gives it no real driver): checked before anything connects.
+      const auto choice = std::find_if(s.drivers.begin(), s.drivers.end(),
+                                       [&](const cell::DriverChoice& c) { return c.robot == args->robot; });
+      const bool on_twin = choice == s.drivers.end() || !choice->real();
+      if (on_twin && cmd->count("--speed") > 0) {
         throw InputError({"--speed", 0, 0}, fmt::format("robot '{}' is on the twin, whose lock-step run sets the pace: "
                                                         "--speed is for an agent on a real driver (--driver)",
                                                         args->robot));
       }
-      if (!agent.on_twin() && cmd->count("--perception") > 0) {
+      if (!on_twin && cmd->count("--perception") > 0) {
         throw InputError({"--perception", 0, 0}, "it is for a robot on the twin (an agent on a real driver perceives "
                                                  "with its own sensors: perception cad)");
       }
+      cell::ScenarioAgent agent(s, args->robot, participant, options);
       std::printf("agent %s (%s in %s): %s, DDS domain %d: waiting for task control\n", args->robot.c_str(),
                   agent.robot().label.c_str(), s.program_file.filename().c_str(), agent.robot().driver.c_str(),
                   *args->domain);

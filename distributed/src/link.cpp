@@ -16,71 +16,27 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <algorithm>
 #include <cstring>
+#include <deque>
+#include <set>
 #include <functional>
 #include <iostream>
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <type_traits>
+#include <random>
 
 #include <fmt/format.h>
 
 #include "cellwright/common/error.hpp"
+#include "cellwright/distributed/replica.hpp"
 #include "cellwright/distributed/wire.hpp"
+#include "dds_entities.hpp"
 
 namespace cellwright::distributed {
-namespace dds = eprosima::fastdds::dds;
-namespace rtps = eprosima::fastrtps::rtps;
-
 namespace {
-
-// A DDS type whose samples are the CDR bytes wire.hpp encodes, encapsulation header included: Fast DDS moves them as
-// they are, and decoding (with its checks) is wire.hpp's, where a refusal can say what was wrong.
-class CdrBytesType : public dds::TopicDataType {
- public:
-  CdrBytesType(const char* name, std::size_t max_size) {
-    setName(name);
-    m_typeSize = static_cast<std::uint32_t>(max_size);
-    m_isGetKeyDefined = false;
-  }
-
-  bool serialize(void* data, rtps::SerializedPayload_t* payload) override {
-    const auto& bytes = *static_cast<std::vector<char>*>(data);
-    if (bytes.size() < 4 || bytes.size() > payload->max_size) return false;
-    std::memcpy(payload->data, bytes.data(), bytes.size());
-    payload->length = static_cast<std::uint32_t>(bytes.size());
-    payload->encapsulation = bytes[1] == 0 ? CDR_BE : CDR_LE;
-    return true;
-  }
-
-  bool deserialize(rtps::SerializedPayload_t* payload, void* data) override {
-    auto& bytes = *static_cast<std::vector<char>*>(data);
-    const char* begin = reinterpret_cast<const char*>(payload->data);
-    bytes.assign(begin, begin + payload->length);
-    return true;
-  }
-
-  std::function<std::uint32_t()> getSerializedSizeProvider(void* data) override {
-    return [data] { return static_cast<std::uint32_t>(static_cast<std::vector<char>*>(data)->size()); };
-  }
-
-  void* createData() override { return new std::vector<char>(); }
-  void deleteData(void* data) override { delete static_cast<std::vector<char>*>(data); }
-  bool getKey(void*, rtps::InstanceHandle_t*, bool) override { return false; }
-};
-
-// ROS 2's default QoS for topics: reliable, volatile, keep last 10; latched (the agent's state, as tf_static):
-// reliable, transient local, keep last 1.
-enum class Qos { kDefault, kLatched };
-
-template <typename Q>
-Q with(Q qos, Qos kind) {
-  qos.reliability().kind = dds::RELIABLE_RELIABILITY_QOS;
-  qos.durability().kind = kind == Qos::kLatched ? dds::TRANSIENT_LOCAL_DURABILITY_QOS : dds::VOLATILE_DURABILITY_QOS;
-  qos.history().kind = dds::KEEP_LAST_HISTORY_QOS;
-  qos.history().depth = kind == Qos::kLatched ? 1 : 10;
-  return qos;
-}
 
 bool valid_token(const std::string& name) {
   if (name.empty() || (name[0] >= '0' && name[0] <= '9')) return false;
@@ -101,100 +57,54 @@ std::string topic(const std::string& robot, const char* leaf) {
   return fmt::format("rt/cellwright/{}/{}", robot, leaf);
 }
 
-// How many endpoints match one of ours, and a wait for it to change.
-class Matches {
- public:
-  // `changed` is called (on Fast DDS's thread) after every change; set it before the endpoint is created.
-  void on_change(std::function<void()> changed) { changed_hook_ = std::move(changed); }
-  void set(int count) {
-    {
-      std::lock_guard lock(mutex_);
-      count_ = count;
-    }
-    changed_.notify_all();
-    if (changed_hook_) changed_hook_();
-  }
-  int count() const {
-    std::lock_guard lock(mutex_);
-    return count_;
-  }
-  bool wait_until(std::chrono::steady_clock::time_point deadline) const {
-    std::unique_lock lock(mutex_);
-    return changed_.wait_until(lock, deadline, [&] { return count_ > 0; });
-  }
-
- private:
-  mutable std::mutex mutex_;
-  mutable std::condition_variable changed_;
-  int count_ = 0;
-  std::function<void()> changed_hook_;
-};
-
-class WriterListener : public dds::DataWriterListener {
- public:
-  explicit WriterListener(Matches& matches) : matches_(matches) {}
-  void on_publication_matched(dds::DataWriter*, const dds::PublicationMatchedStatus& info) override {
-    matches_.set(info.current_count);
-  }
-
- private:
-  Matches& matches_;
-};
-
 class ReaderListener : public dds::DataReaderListener {
  public:
-  ReaderListener(Matches& matches, std::function<void(const std::vector<char>&)> handle)
+  // `handle` gets each sample and the participant of its writer.
+  ReaderListener(Matches& matches, std::function<void(const std::vector<char>&, const std::string&)> handle)
       : matches_(matches), handle_(std::move(handle)) {}
+  // Called (on Fast DDS's thread) as the liveliness of the matched writers changes; set before the reader is made.
+  void on_liveliness(std::function<void(const dds::LivelinessChangedStatus&)> changed) {
+    liveliness_ = std::move(changed);
+  }
   void on_subscription_matched(dds::DataReader*, const dds::SubscriptionMatchedStatus& info) override {
-    matches_.set(info.current_count);
+    matches_.set(info.current_count, info.current_count_change, info.last_publication_handle);
+  }
+  void on_liveliness_changed(dds::DataReader*, const dds::LivelinessChangedStatus& status) override {
+    if (liveliness_) liveliness_(status);
   }
   void on_data_available(dds::DataReader* reader) override {
-    std::vector<char> bytes;
-    dds::SampleInfo info;
-    while (reader->take_next_sample(&bytes, &info) == ReturnCode_t::RETCODE_OK) {
-      if (info.valid_data) handle_(bytes);
-    }
+    take_all(reader, [this](const std::vector<char>& bytes, const dds::SampleInfo& info) {
+      handle_(bytes, participant_of(info.publication_handle));
+    });
   }
 
  private:
   Matches& matches_;
-  std::function<void(const std::vector<char>&)> handle_;
+  std::function<void(const std::vector<char>&, const std::string&)> handle_;
+  std::function<void(const dds::LivelinessChangedStatus&)> liveliness_;
 };
 
 }  // namespace
-
-struct Participant::Impl {
-  dds::DomainParticipant* participant = nullptr;
-  dds::Publisher* publisher = nullptr;
-  dds::Subscriber* subscriber = nullptr;
-  std::mutex mutex;  // entity creation and deletion
-
-  void ensure_type(const char* name, std::size_t max_size) {
-    if (participant->find_type(name).empty()) {
-      dds::TypeSupport type(new CdrBytesType(name, max_size));
-      CW_CHECK(type.register_type(participant) == ReturnCode_t::RETCODE_OK, "cannot register a DDS type");
-    }
-  }
-
-  // The topic `name` of type `type`: created, or the one this participant already has.
-  dds::Topic* topic(const std::string& name, const char* type) {
-    if (auto* found = participant->lookup_topicdescription(name)) {
-      auto* existing = dynamic_cast<dds::Topic*>(found);
-      CW_CHECK(existing != nullptr, "a DDS topic description that is no topic");
-      return existing;
-    }
-    dds::Topic* made = participant->create_topic(name, type, dds::TOPIC_QOS_DEFAULT);
-    CW_CHECK(made != nullptr, "cannot create the DDS topic {}", name);
-    return made;
-  }
-};
 
 Participant::Participant(DdsOptions options, const std::string& name) : options_(options), impl_(new Impl) {
   if (options.domain < 0 || options.domain > 232) {
     throw InputError(SourceLocation{fmt::format("DDS domain {}", options.domain)}, "outside 0..232");
   }
+  if (options.lease < std::chrono::milliseconds(20)) {
+    throw InputError(SourceLocation{fmt::format("DDS liveliness lease {} ms", options.lease.count())},
+                     "shorter than 20 ms (a lease a busy host cannot keep: agents would be lost that are not)");
+  }
+  impl_->lease = options.lease;
   dds::DomainParticipantQos qos = dds::PARTICIPANT_QOS_DEFAULT;
   qos.name(name);
+  // The participant's own lease (discovery): a peer process that gives no sign for it is removed, and every endpoint
+  // of its unmatched. This is what finds a killed peer when another peer is alive: Fast DDS 2.9 asserts the automatic
+  // liveliness of every remote writer of a reader's participant when any remote participant's automatic liveliness
+  // message comes (eProsima/Fast-DDS#4373, fixed from 2.10 on), so a writer's own lease never lapses then.
+  auto& discovery = qos.wire_protocol().builtin.discovery_config;
+  discovery.leaseDuration = eprosima::fastrtps::Duration_t(static_cast<long double>(options.lease.count()) / 1000.0L);
+  discovery.leaseDuration_announcementperiod =
+      eprosima::fastrtps::Duration_t(static_cast<long double>(options.lease.count()) / 4000.0L);
   if (!options.shared_memory) {
     qos.transport().use_builtin_transports = false;
     qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>());
@@ -251,7 +161,7 @@ class PlainWriter {
               std::function<void()> on_match = {})
       : p_(p), listener_(matches_) {
     matches_.on_change(std::move(on_match));
-    dds::DataWriterQos writer_qos = with(dds::DATAWRITER_QOS_DEFAULT, qos);
+    dds::DataWriterQos writer_qos = with(dds::DATAWRITER_QOS_DEFAULT, qos, p.lease);
     // Fast DDS sends a heartbeat every 3 s by default, and a reader acknowledges (or asks again for a lost sample)
     // only when it gets one: a lost sample was resent that late, and an agent's last status was acknowledged that
     // late (the agent waits for it before it exits). 100 ms.
@@ -311,6 +221,8 @@ class Forwarder {
     return writer_.flush(std::max(left, std::chrono::milliseconds(0)));
   }
   const Matches& matches() const { return writer_.matches(); }
+  // Writes a sample now, from any thread (a command sent again), besides what the forwarding thread writes.
+  bool write_now(const std::vector<char>& bytes) { return writer_.write(bytes); }
 
  private:
   void run() {
@@ -348,16 +260,21 @@ class Forwarder {
 // (before, it is dropped: nobody reads yet).
 class Receiver {
  public:
+  // `handle` gets each sample and the participant of its writer (the 12 bytes of participant_of()).
   Receiver(Participant::Impl& p, const std::string& topic_name, const char* type,
-           std::function<void(const std::vector<char>&)> handle, Qos qos = Qos::kDefault,
-           std::function<void()> on_match = {})
-      : p_(p), listener_(matches_, [this, handle = std::move(handle)](const std::vector<char>& b) {
-          if (started_) handle(b);
-        }) {
+           std::function<void(const std::vector<char>&, const std::string&)> handle, Qos qos = Qos::kDefault,
+           std::function<void()> on_match = {},
+           std::function<void(const dds::LivelinessChangedStatus&)> on_liveliness = {})
+      : p_(p),
+        listener_(matches_,
+                  [this, handle = std::move(handle)](const std::vector<char>& b, const std::string& from) {
+                    if (started_) handle(b, from);
+                  }) {
     matches_.on_change(std::move(on_match));
+    listener_.on_liveliness(std::move(on_liveliness));
     std::lock_guard lock(p_.mutex);
     dds::Topic* topic = p_.topic(topic_name, type);
-    reader_ = p_.subscriber->create_datareader(topic, with(dds::DATAREADER_QOS_DEFAULT, qos), &listener_);
+    reader_ = p_.subscriber->create_datareader(topic, with(dds::DATAREADER_QOS_DEFAULT, qos, p_.lease), &listener_);
     CW_CHECK(reader_ != nullptr, "cannot create a DDS reader on {}", topic_name);
   }
   ~Receiver() {
@@ -377,44 +294,17 @@ class Receiver {
   dds::DataReader* reader_ = nullptr;
 };
 
-// What a reader of messages of type T does with a sample: decode it and push it into the queue, or refuse it.
-template <typename T>
-std::function<void(const std::vector<char>&)> into(runtime::MessageQueue<T>& queue,
-                                                   std::function<T(const std::vector<char>&)> decode, RefusalBook& book,
-                                                   std::string topic_name) {
-  return [&queue, decode = std::move(decode), &book, topic_name = std::move(topic_name)](const std::vector<char>& b) {
-    try {
-      queue.push(decode(b));
-    } catch (const WireError& e) {
-      book.refuse(topic_name, e.what());
-    }
-  };
+// A failed status that stops the cell, about no command (RobotStatus::kNoCommand: task control takes it whatever it
+// holds in flight).
+runtime::RobotStatus stop_status(std::size_t robot, std::string reason, runtime::SimDuration time) {
+  runtime::RobotStatus s;
+  s.robot = robot;
+  s.outcome = runtime::CommandOutcome::kFailed;
+  s.stop_cell = true;
+  s.reason = std::move(reason);
+  s.time = time;
+  return s;
 }
-
-// A flag and a wait for it.
-class Flag {
- public:
-  void set(bool value) {
-    {
-      std::lock_guard lock(mutex_);
-      value_ = value;
-    }
-    changed_.notify_all();
-  }
-  bool get() const {
-    std::lock_guard lock(mutex_);
-    return value_;
-  }
-  bool wait_until(std::chrono::steady_clock::time_point deadline) const {
-    std::unique_lock lock(mutex_);
-    return changed_.wait_until(lock, deadline, [&] { return value_; });
-  }
-
- private:
-  mutable std::mutex mutex_;
-  mutable std::condition_variable changed_;
-  bool value_ = false;
-};
 
 bool both_within(const Matches& a, const Matches& b, std::chrono::steady_clock::time_point deadline) {
   return a.wait_until(deadline) && b.wait_until(deadline);
@@ -424,38 +314,223 @@ bool both_within(const Matches& a, const Matches& b, std::chrono::steady_clock::
 
 struct RemoteRobot::Impl {
   std::string robot;
+  std::size_t index;
+  std::chrono::milliseconds lease;
+  runtime::MessageQueue<runtime::RobotStatus>& status_queue;
   RefusalBook book;
-  Flag ready;  // the agent's last state
+
+  // What is known of the agent (under `mutex`; changed from Fast DDS's threads and the forwarding thread).
+  mutable std::mutex mutex;
+  std::uint64_t session = 0;     // the agent's, from its last state
+  std::string agent;             // its participant (participant_of), from its last state
+  std::condition_variable changed;  // after every update()
+  bool said_ready = false;       // its last state
+  bool lapsed = false;           // its liveliness lapsed (no writer of its alive)
+  bool was_present = false;
+  bool built = false;            // every member is made: the match hooks may look at the endpoints
+  std::uint64_t losses = 0;
+  std::string lost_detail;
+  std::uint64_t sent = 0;        // commands sent to this session (the last one's number)
+  SequenceCheck status_order;    // this session's statuses
+  std::deque<runtime::MotionCommand> in_flight;  // sent and not answered, oldest first
+  std::string holding;           // by the grip commands answered done
+
   Forwarder<runtime::MotionCommand> commands;
   Receiver statuses;
   Receiver state;
 
-  Impl(Participant& p, std::string name, std::size_t index, runtime::MessageQueue<runtime::MotionCommand>& cq,
+  Impl(Participant& p, std::string name, std::size_t robot_index, runtime::MessageQueue<runtime::MotionCommand>& cq,
        runtime::MessageQueue<runtime::RobotStatus>& sq)
       : robot(std::move(name)),
-        commands(p.impl(), command_topic(robot), kCommandTypeName, cq,
-                 [](const runtime::MotionCommand& c) { return encode_command(c); }),
-        statuses(p.impl(), status_topic(robot), kStatusTypeName,
-                 into<runtime::RobotStatus>(
-                     sq, [index](const std::vector<char>& b) { return decode_status(b, index); }, book,
-                     status_topic(robot))),
+        index(robot_index),
+        lease(p.impl().lease),
+        status_queue(sq),
+        commands(
+            p.impl(), command_topic(robot), kCommandTypeName, cq,
+            [this](const runtime::MotionCommand& c) { return on_send(c); }, [this] { update("its endpoints left"); }),
+        statuses(
+            p.impl(), status_topic(robot), kStatusTypeName,
+            [this](const std::vector<char>& b, const std::string&) { on_status(b); },
+            Qos::kDefault, [this] { update("its endpoints left"); },
+            [this](const dds::LivelinessChangedStatus& l) { on_liveliness(l); }),
         state(
             p.impl(), agent_topic(robot), kAgentStateTypeName,
-            [this, index](const std::vector<char>& b) {
-              try {
-                ready.set(decode_agent_state(b, index));
-              } catch (const WireError& e) {
-                book.refuse(agent_topic(robot), e.what());
+            [this](const std::vector<char>& b, const std::string& from) { on_state(b, from); },
+            Qos::kLatched, [this] {
+              if (state.matches().count() == 0) {
+                std::lock_guard lock(mutex);
+                said_ready = false;  // the agent is gone
+                update_locked("its endpoints left");
               }
-            },
-            Qos::kLatched,
-            [this] {
-              if (state.matches().count() == 0) ready.set(false);  // the agent is gone
             }) {
+    {
+      std::lock_guard lock(mutex);
+      built = true;
+    }
     state.start();
   }
+  ~Impl() {
+    std::lock_guard lock(mutex);
+    built = false;
+  }
 
-  bool present() const { return commands.matches().count() > 0 && statuses.matches().count() > 0 && ready.get(); }
+  // This side's endpoints match the agent's (the participant of its last state): a match seen from the agent's side
+  // only is not enough (what is written before this side's match is not delivered), and an old agent's match that
+  // has not yet expired is not the new one's.
+  bool matched() const { return commands.matches().has(agent) && statuses.matches().has(agent); }
+  bool present_locked() const { return built && said_ready && !lapsed && matched(); }
+  bool present() const {
+    std::lock_guard lock(mutex);
+    return present_locked();
+  }
+
+  // After any change: a present agent that no longer is, is a loss (`why` says how it was noticed).
+  void update(const std::string& why) {
+    std::lock_guard lock(mutex);
+    update_locked(why);
+  }
+  void update_locked(const std::string& why) {
+    if (!built) return;
+    const bool now = present_locked();
+    if (was_present && !now) {
+      ++losses;
+      lost_detail = why;
+    }
+    was_present = now;
+    changed.notify_all();
+  }
+
+  bool wait_present(std::chrono::steady_clock::time_point deadline) {
+    std::unique_lock lock(mutex);
+    return changed.wait_until(lock, deadline, [&] { return present_locked(); });
+  }
+
+  std::vector<char> on_send(const runtime::MotionCommand& c) {
+    std::lock_guard lock(mutex);
+    in_flight.push_back(c);
+    return encode_command(c, ++sent);
+  }
+
+  void on_state(const std::vector<char>& bytes, const std::string& from) {
+    AgentState got;
+    try {
+      got = decode_agent_state(bytes, index);
+    } catch (const WireError& e) {
+      book.refuse(agent_topic(robot), e.what());
+      return;
+    }
+    {
+      std::lock_guard lock(mutex);
+      if (got.session != session) {
+        // A new agent process for this robot: one still thought present is lost (replaced); the new one takes
+        // commands, and numbers its statuses, from 1.
+        if (was_present) {
+          ++losses;
+          lost_detail = fmt::format("a new agent process (session {}) took the place of session {}", got.session,
+                                    session);
+          was_present = false;
+        }
+        session = got.session;
+        agent = from;
+        sent = 0;
+        status_order.restart();
+        lapsed = false;
+      }
+      said_ready = got.ready;
+      update_locked("it said it stopped");
+    }
+  }
+
+  // Only the present agent's status writer counts: an old agent's lapse after a new one took its place is not the
+  // new one's. A lapse is for good: only a new session (a new agent process) is present again. Taking "alive again"
+  // as the lost agent back was wrong: under load, a new agent's writer matching before its state arrived was reported
+  // as alive again with the lost agent's handle, and the lost one was taken back (the rejoin test, 3 runs in 6 with
+  // two busy loops on the machine).
+  void on_liveliness(const dds::LivelinessChangedStatus& l) {
+    std::lock_guard lock(mutex);
+    if (l.not_alive_count_change <= 0 || participant_of(l.last_publication_handle) != agent) return;
+    lapsed = true;
+    update_locked(fmt::format("no sign of life from it for its liveliness lease of {:.3g} s (the process killed, "
+                              "its host down or the network cut)",
+                              static_cast<double>(lease.count()) / 1000.0));
+  }
+
+  void on_status(const std::vector<char>& bytes) {
+    const std::string where = status_topic(robot);
+    runtime::RobotStatus status;
+    StatusStamp stamp;
+    try {
+      status = decode_status(bytes, index, &stamp);
+    } catch (const WireError& e) {
+      return book.refuse(where, e.what());
+    }
+    std::string gap;
+    {
+      std::lock_guard lock(mutex);
+      if (stamp.session != session) {
+        return book.refuse(where, fmt::format("a status of agent session {}; the agent now is session {}",
+                                              stamp.session, session));
+      }
+      try {
+        status_order.accept(stamp.sequence, "status");
+      } catch (const WireError& e) {
+        if (stamp.sequence <= status_order.last()) return book.refuse(where, e.what());
+        gap = e.what();
+      }
+      if (gap.empty() && status.index != runtime::RobotStatus::kNoCommand) {
+        const auto answered = std::find_if(in_flight.begin(), in_flight.end(),
+                                           [&](const runtime::MotionCommand& c) { return c.index == status.index; });
+        if (answered == in_flight.end()) {
+          return book.refuse(where, fmt::format("a status of primitive {}, which is not a command in flight",
+                                                status.index));
+        }
+        if (status.outcome == runtime::CommandOutcome::kDone) {
+          const task::Primitive& p = answered->primitive;
+          if (p.kind == task::PrimitiveKind::kClose && !p.workpiece.empty()) holding = p.workpiece;
+          if (p.kind == task::PrimitiveKind::kOpen) holding.clear();
+        }
+        in_flight.erase(answered);
+      }
+    }
+    if (!gap.empty()) {
+      // A status lost on the way: the command it answered never will be. Refused, and the cell stopped with the
+      // reason rather than left waiting.
+      book.refuse(where, gap);
+      status_queue.push(
+          stop_status(index, fmt::format("the link to the agent of {} lost a status: {}", robot, gap), status.time));
+      return;
+    }
+    status_queue.push(std::move(status));
+  }
+
+  runtime::LinkState link_state() const {
+    std::lock_guard lock(mutex);
+    runtime::LinkState s;
+    s.present = present_locked();
+    s.session = session;
+    s.losses = losses;
+    s.lost_detail = lost_detail;
+    s.in_flight = in_flight.empty() ? -1 : static_cast<int>(in_flight.front().index);
+    s.holding = holding;
+    for (const runtime::MotionCommand& c : in_flight) {
+      if (c.primitive.kind == task::PrimitiveKind::kClose && !c.primitive.workpiece.empty()) {
+        s.holding = c.primitive.workpiece;  // it may have gripped it before it was lost
+      }
+    }
+    return s;
+  }
+
+  bool resend() {
+    std::vector<std::vector<char>> samples;
+    {
+      std::lock_guard lock(mutex);
+      if (in_flight.empty() || !present_locked()) return false;
+      for (const runtime::MotionCommand& c : in_flight) samples.push_back(encode_command(c, ++sent));
+    }
+    bool ok = true;
+    for (const auto& bytes : samples) ok = commands.write_now(bytes) && ok;
+    return ok;
+  }
 };
 
 RemoteRobot::RemoteRobot(Participant& participant, std::string robot, std::size_t index,
@@ -471,10 +546,17 @@ bool RemoteRobot::agent_present() const {
   return impl_->present();
 }
 
+runtime::LinkState RemoteRobot::state() const {
+  return impl_->link_state();
+}
+
+bool RemoteRobot::resend() {
+  return impl_->resend();
+}
+
 bool RemoteRobot::wait_for_agent(std::chrono::milliseconds timeout) const {
   auto deadline = std::chrono::steady_clock::now() + timeout;
-  return impl_->commands.matches().wait_until(deadline) && impl_->statuses.matches().wait_until(deadline) &&
-         impl_->ready.wait_until(deadline) && impl_->present();
+  return impl_->wait_present(deadline);
 }
 
 void RemoteRobot::start() {
@@ -511,14 +593,31 @@ void wait_for_agents(const std::vector<RemoteRobot*>& robots, int domain, std::c
 
 namespace {
 
-// A RemoteRobot as the Runtime's RemoteLink.
+// A RemoteRobot as the Runtime's RemoteLink, with the robot's model updates and events (replica.hpp) carried into
+// the run's model and log.
 class DdsLink : public runtime::RemoteLink {
  public:
-  template <typename... Args>
-  explicit DdsLink(Args&&... args) : robot(std::forward<Args>(args)...) {}
-  void start() override { robot.start(); }
-  void stop() override { robot.stop(); }
+  DdsLink(Participant& p, const std::string& cell, std::size_t i,
+          runtime::MessageQueue<runtime::MotionCommand>& commands, runtime::MessageQueue<runtime::RobotStatus>& statuses)
+      : robot(p, cell, i, commands, statuses), participant(p), name(cell), index(i) {}
+  void start() override {
+    if (replica) replica->start();
+    robot.start();
+  }
+  void stop() override {
+    robot.stop();
+    if (replica) replica->stop();
+  }
+  runtime::LinkState state() const override { return robot.state(); }
+  bool resend() override { return robot.resend(); }
+  void share(runtime::SharedEnvironment& environment, runtime::EventLog& log) override {
+    replica = share_into(participant, name, index, environment, log);
+  }
   RemoteRobot robot;
+  Participant& participant;
+  std::string name;
+  std::size_t index;
+  std::unique_ptr<RobotSubscriber> replica;
 };
 
 }  // namespace
@@ -536,9 +635,24 @@ void RemoteCell::wait_for_agents(std::chrono::milliseconds timeout) const {
   distributed::wait_for_agents(robots_, participant_.domain(), timeout);
 }
 
+// A number for an agent process, drawn as it starts: never 0, and another process's with a chance of 2^-64.
+std::uint64_t draw_session() {
+  std::random_device device;
+  std::uint64_t n = 0;
+  while (n == 0) {
+    n = (static_cast<std::uint64_t>(device()) << 32) ^ device() ^
+        static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+  }
+  return n;
+}
+
 struct AgentEndpoint::Impl {
   std::size_t index;
+  std::uint64_t session = draw_session();
   RefusalBook book;
+  std::mutex order_mutex;
+  SequenceCheck command_order;  // the commands task control sent this session
+  std::uint64_t statuses_sent = 0;  // the forwarding thread's
   // Declared (so built) before the endpoints whose matches call announce(), and destroyed after them.
   std::mutex state_mutex;  // one state written at a time, in the order of the changes
   std::optional<bool> said;
@@ -556,14 +670,15 @@ struct AgentEndpoint::Impl {
         state(p.impl(), agent_topic(robot), kAgentStateTypeName, Qos::kLatched),
         commands(
             p.impl(), command_topic(robot), kCommandTypeName,
-            into<runtime::MotionCommand>(
-                cq,
-                [&program, robot_index](const std::vector<char>& b) { return decode_command(b, program, robot_index); },
-                book, command_topic(robot)),
+            [this, &program, &cq, &sq, robot_index, where = command_topic(robot)](const std::vector<char>& b,
+                                                                                  const std::string&) {
+              on_command(b, program, robot_index, cq, sq, where);
+            },
             Qos::kDefault, [this] { announce(); }),
         statuses(
             p.impl(), status_topic(robot), kStatusTypeName, sq,
-            [](const runtime::RobotStatus& s) { return encode_status(s); }, [this] { announce(); }) {
+            [this](const runtime::RobotStatus& s) { return encode_status(s, {session, ++statuses_sent}); },
+            [this] { announce(); }) {
     {
       std::lock_guard lock(state_mutex);
       built = true;
@@ -576,6 +691,39 @@ struct AgentEndpoint::Impl {
   }
 
   bool present() const { return commands.matches().count() > 0 && statuses.matches().count() > 0; }
+
+  // A command from task control: decoded, in its order, into the command queue; else refused. A gap (a command lost
+  // on the way) is also reported to task control as a failed status that stops the cell: the lost command would
+  // otherwise be waited for.
+  void on_command(const std::vector<char>& bytes, const task::CompiledProgram& program, std::size_t robot_index,
+                  runtime::MessageQueue<runtime::MotionCommand>& cq, runtime::MessageQueue<runtime::RobotStatus>& sq,
+                  const std::string& where) {
+    runtime::MotionCommand command;
+    std::uint64_t number = 0;
+    try {
+      command = decode_command(bytes, program, robot_index, &number);
+    } catch (const WireError& e) {
+      return book.refuse(where, e.what());
+    }
+    std::string gap;
+    {
+      std::lock_guard lock(order_mutex);
+      try {
+        command_order.accept(number, "command");
+      } catch (const WireError& e) {
+        if (number <= command_order.last()) return book.refuse(where, e.what());
+        gap = e.what();
+      }
+    }
+    if (!gap.empty()) {
+      book.refuse(where, gap);
+      sq.push(stop_status(robot_index,
+                          fmt::format("the agent of {} lost a command: {}", program.robots[robot_index], gap),
+                          command.sent));
+      return;
+    }
+    cq.push(std::move(command));
+  }
 
   void set_started(bool value) {
     {
@@ -592,7 +740,7 @@ struct AgentEndpoint::Impl {
     bool now = started && present();
     if (said == now) return;
     said = now;
-    state.write(encode_agent_state(index, now));
+    state.write(encode_agent_state(index, {now, session}));
   }
 };
 
@@ -652,6 +800,40 @@ bool RawWriter::write(const std::vector<char>& bytes) {
 }
 bool RawWriter::flush(std::chrono::milliseconds timeout) {
   return impl_->writer.flush(timeout);
+}
+
+struct RawReader::Impl {
+  Impl(Participant& p, const std::string& topic, const char* type, std::function<void(const std::vector<char>&)> h,
+       std::function<void(int)> alive)
+      : reader(
+            p.impl(), topic, type, [h = std::move(h)](const std::vector<char>& b, const std::string&) { h(b); },
+            Qos::kDefault, {},
+            alive ? std::function<void(const dds::LivelinessChangedStatus&)>(
+                        [alive = std::move(alive)](const dds::LivelinessChangedStatus& l) { alive(l.alive_count); })
+                  : std::function<void(const dds::LivelinessChangedStatus&)>()) {}
+  Receiver reader;
+};
+
+RawReader::RawReader(Participant& participant, const std::string& topic, const char* type,
+                     std::function<void(const std::vector<char>&)> handle, std::function<void(int)> alive)
+    : impl_(new Impl(participant, topic, type, std::move(handle), std::move(alive))) {}
+RawReader::~RawReader() = default;
+int RawReader::writers() const {
+  return impl_->reader.matches().count();
+}
+bool RawReader::wait_for_writer(std::chrono::milliseconds timeout) const {
+  return impl_->reader.matches().wait_until(std::chrono::steady_clock::now() + timeout);
+}
+void RawReader::start() {
+  impl_->reader.start();
+}
+void RawReader::stop() {
+  impl_->reader.stop();
+}
+
+void register_type(Participant& participant, const char* name, std::size_t max_size) {
+  std::lock_guard lock(participant.impl().mutex);
+  participant.impl().ensure_type(name, max_size);
 }
 
 }  // namespace cellwright::distributed

@@ -151,6 +151,26 @@ class BackgroundTwin {
     status_ = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
     return status_;
   }
+  // Waits at most `timeout` for it to exit by itself (reading its output meanwhile); its exit status (-1 if killed by
+  // a signal, or SIGTERM'd at the timeout: stop()).
+  int wait_exit(std::chrono::milliseconds timeout) {
+    if (pid_ <= 0) return status_;
+    const auto until = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < until) {
+      int raw = 0;
+      if (::waitpid(pid_, &raw, WNOHANG) == pid_) {
+        pid_ = -1;
+        char buf[4096];
+        ssize_t n;
+        while (out_ >= 0 && (n = ::read(out_, buf, sizeof buf)) > 0) output_.append(buf, static_cast<std::size_t>(n));
+        status_ = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+        return status_;
+      }
+      (void)wait_for("\x01never", std::chrono::milliseconds(50));  // drains the pipe meanwhile
+    }
+    stop();
+    return -1;
+  }
   const std::string& output() const { return output_; }
 
  private:

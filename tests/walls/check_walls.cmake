@@ -90,7 +90,7 @@ check_includes(twin "opencv2/" "twin/include/*" "twin/src/*"
                EXCEPT "^twin/(include/cellwright/twin|src)/(render|video)\\.")
 # The application layer: no simulator but its facts, no simulated rig.
 set(simulator "cellwright/twin/(scene|render|video|mesh_import|sim/(world|sim_driver|world_plant|fault_injector|mirrored_driver|signals))")
-set(cell_stages "cell/scenario/*" "cell/plan/*" "cell/rig/*" "cell/report/*" "cell/campaign/*")
+set(cell_stages "cell/scenario/*" "cell/plan/*" "cell/rig/*" "cell/agent/*" "cell/report/*" "cell/campaign/*")
 check_includes(cell "mujoco/|GL/|osmesa|${simulator}|cellwright/cell/sim/|${tools_reach}" ${cell_stages})
 check_includes(cell "opencv2/" ${cell_stages} EXCEPT "^cell/(report/|campaign/(src|include/cellwright/cell)/campaign\\.)")
 # Campaigns and suites read reports; they never build a run.
@@ -147,6 +147,7 @@ set(link_rules
     "cellwright_scenario|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(plan|rig|report|campaign|cell_sim)"
     "cellwright_plan|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(rig|report|campaign|cell_sim)"
     "cellwright_rig|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(report|campaign|cell_sim)"
+    "cellwright_agent|mujoco|OSMESA|osmesa|assimp|opencv_|cellwright_twin$|cellwright_(report|campaign|cell_sim)"
     "cellwright_report|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(plan|rig|campaign|cell_sim)"
     "cellwright_campaign|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_(rig|cell_sim)")
 if(EXISTS ${LINKS}.sim)

@@ -1,11 +1,11 @@
 // `twin run <scenario.yaml> [-o DIR] [--realtime] [--quiet] [--perception truth|vision|cad] [--save-frames DIR]
 // [--driver ROBOT=KIND[:PORT]]... [--fault SPEC]... [--seed N] [--allow-collisions]
-// [--video FILE.mp4 [--video-fps N] [--video-size WxH]] [--dry]` (the options but --realtime, --quiet and --dry shared
-// with `twin step`: run_args.hpp): run a scenario's task program on the simulated cell (or with some robots real,
-// mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and every expected outcome
-// holds, 1 when not, 2 on bad input or a predicted collision (refused before any thread starts, nothing written).
-// In a twin built for real robots only (CW_SIM=OFF), every robot of the program on a real driver, with no twin
-// (run_real.hpp); with the simulator, real robots are mirrored in the twin (docs/real-robots.md says why).
+// [--video FILE.mp4 [--video-fps N] [--video-size WxH]] [--ros-domain N] [--dry]` (the options but --realtime, --quiet,
+// --ros-domain and --dry shared with `twin step`: run_args.hpp): run a scenario's task program on the simulated cell
+// (or with some robots real, mirrored in the twin), headless, and judge the outcome. Exit 0 when the run finished and
+// every expected outcome holds, 1 when not, 2 on bad input or a predicted collision (refused before any thread starts,
+// nothing written). In a twin built for real robots only (CW_SIM=OFF), every robot of the program on a real driver,
+// with no twin (run_real.hpp); with the simulator, real robots are mirrored in the twin (docs/real-robots.md says why).
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -32,6 +32,8 @@
 #include "until_signal.hpp"
 #if CW_SIM
 #include "cellwright/cell/sim/run.hpp"
+#include "cellwright/distributed/ros_publisher.hpp"
+#include "cellwright/distributed/turn_link.hpp"
 #endif
 
 namespace cellwright::tools {
@@ -111,6 +113,10 @@ void add_run(CLI::App& app, Command* run) {
     bool quiet = false;
     bool dry = false;
     std::string final_png = "always";
+    std::optional<int> ros_domain;
+    std::string agents = "local";
+    std::optional<int> domain;
+    double agent_wait = 10.0;
   };
   auto args = std::make_shared<Args>();
   add_run_options(*cmd, args->run);
@@ -125,22 +131,50 @@ void add_run(CLI::App& app, Command* run) {
                   "run fails: what `twin test` asks of its runs, whose passing outputs are removed) or never (what "
                   "`twin campaign` asks of its runs); without it the page says no final snapshot was made")
       ->check(CLI::IsMember({"always", "failed", "never"}));
+  cmd->add_option("--ros-domain", args->ros_domain,
+                  "publish the run for ROS 2 on this DDS domain (0..232): rt/joint_states, rt/tf, rt/tf_static, "
+                  "rt/clock (simulation time) and the events on rt/cellwright/events, at most 50 times a second "
+                  "(docs/distributed.md); off by default")
+      ->check(CLI::Range(0, 232));
   cmd->add_flag("--dry", args->dry,
                 "hardware bring-up: connect the real drivers, home, read positions and check every target of the "
                 "program, and read every input of each device on real I/O; nothing else moves and no output is "
                 "written. Exit 0 when all is well, 1 when not");
+  cmd->add_option("--agents", args->agents,
+                  "where robot control runs: local (threads of this process, the default) or remote (an agent per "
+                  "robot, twin agent --robot NAME --domain N SCENARIO, found over DDS; real time, no twin)")
+      ->check(CLI::IsMember({"local", "remote"}));
+  cmd->add_option("--domain", args->domain, "with --agents remote: the DDS domain of the cell's agents (0..232)");
+  cmd->add_option("--agent-wait", args->agent_wait,
+                  "with --agents remote: seconds to wait for every robot's agent before refusing to start (default 10)")
+      ->check(CLI::PositiveNumber);
   cmd->callback([run, args, cmd] {
     *run = [args, cmd] {
       using namespace cellwright::cell;
       // A bring-up runs no program: an option for a run's outputs or pace would be ignored, so it is refused.
       for (const char* name : {"--output", "--out", "--video", "--save-frames", "--realtime", "--speed", "--final-png",
-                               "--camera", "--record-camera"}) {
+                               "--camera", "--record-camera", "--ros-domain"}) {
         if (args->dry && cmd->count(name) > 0) {
           throw InputError({"--dry", 0, 0},
                            fmt::format("a bring-up runs no program and writes nothing: {} would be ignored", name));
         }
       }
       const RunArgs& a = args->run;
+      const bool remote = args->agents == "remote";
+      if (remote && !args->domain) {
+        throw InputError({"--agents", 0, 0}, "remote agents are found on a DDS domain: give it with --domain N (the "
+                                             "one their twin agent ... --domain N was given)");
+      }
+      for (const char* name : {"--domain", "--agent-wait"}) {
+        if (!remote && cmd->count(name) > 0) {
+          throw InputError({name, 0, 0}, "it is for remote agents: add --agents remote (robot control runs in this "
+                                         "process otherwise)");
+        }
+      }
+      if (remote && args->dry) {
+        throw InputError({"--dry", 0, 0}, "a bring-up connects the drivers here, and with --agents remote they are the "
+                                          "agents': run twin commission or twin run --dry on each agent's host");
+      }
       if (a.output.empty() && cmd->count("--final-png") > 0) {
         throw InputError({"--final-png", 0, 0}, "it chooses what -o DIR gets, and without -o nothing is written");
       }
@@ -174,6 +208,32 @@ void add_run(CLI::App& app, Command* run) {
         return dry.ok() ? 0 : 1;
       }
 
+#if CW_SIM
+      constexpr bool kTwinHere = true;
+#else
+      constexpr bool kTwinHere = false;  // a twin for real robots only
+#endif
+      // Remote agents with the twin: a lock-step run whose robots take their turns in their agents (turn_link.hpp).
+      // Real time (--realtime, --speed, or a scenario that asks for it), or no twin here: task control only, the
+      // agents on their real drivers.
+#if CW_SIM
+      const bool remote_turns = remote && !args->realtime && cmd->count("--speed") == 0 &&
+                                !run_options_for(a, s).realtime.value_or(s.options.realtime);
+#else
+      constexpr bool remote_turns = false;
+#endif
+      if (args->ros_domain && ((remote && !remote_turns) || !kTwinHere)) {
+        throw InputError({"--ros-domain", 0, 0}, "the run is published for ROS 2 from the twin's run in this process; "
+                                                 "a run without the twin (remote agents, real robots only) is not "
+                                                 "published yet");
+      }
+      if (remote && !remote_turns) {
+        // Every robot of the program on its agent: task control here, nothing simulated.
+        RemoteAgents agents;
+        agents.domain = *args->domain;
+        agents.wait = std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000));
+        return run_real_cell(*cmd, a, s, pre, args->speed, args->quiet, &agents);
+      }
 #if !CW_SIM
       // A twin for real robots only: every robot of the program on its real driver, nothing simulated.
       return run_real_cell(*cmd, a, s, pre, args->speed, args->quiet);
@@ -196,7 +256,37 @@ void add_run(CLI::App& app, Command* run) {
         scratch.emplace("cellwright-events-", ".jsonl");
         options.events_file = scratch->path();
       }
+      // The cell as ROS 2 sees it: a publisher watching the run (its observers added to the runtime's config).
+      std::optional<distributed::Participant> ros_participant;
+      std::optional<distributed::RosPublisher> ros;
+      if (args->ros_domain) {
+        ros_participant.emplace(distributed::DdsOptions{.domain = *args->ros_domain}, "cellwright_twin_run");
+        ros.emplace(*ros_participant, s.cell);
+      }
+      // Every robot of the program on its agent, taking its turns there (the twin's drivers answered here).
+      std::optional<distributed::Participant> agents_participant;
+      std::optional<distributed::TurnCell> turns;
+      if (remote_turns) {
+        agents_participant.emplace(distributed::DdsOptions{.domain = *args->domain}, "cellwright_twin_run_turns");
+        turns.emplace(*agents_participant);
+      }
+      options.configure = [&](runtime::RunConfig& c) {
+        if (ros) ros->attach(c);
+        if (turns) {
+          for (const Binding& b : s.robots) c.remote_robots.push_back(b.name);
+          c.attach_remote = turns->attach(s.program, c.period, c.perception);
+        }
+      };
       ScenarioRun sr(s, pre, options);
+      if (turns) {
+        turns->wait_for_agents(std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000)));
+        if (!args->quiet) {
+          for (const Binding& b : s.robots) {
+            std::printf("%s on its agent, DDS domain %d (lock-step turns)\n", b.name.c_str(), *args->domain);
+          }
+        }
+      }
+      if (ros) ros->start();
 
       if (!args->quiet) {
         std::string robots;
@@ -225,6 +315,9 @@ void add_run(CLI::App& app, Command* run) {
           },
           [&] { sr.runtime().request_stop("stopped by the user (signal)"); });
       progress->finish();
+      if (ros && !ros->stop()) {
+        std::fprintf(stderr, "warning: not every ROS 2 subscriber acknowledged the last samples within 2 s\n");
+      }
 
       const Report report = sr.report();
       if (!a.output.empty()) {

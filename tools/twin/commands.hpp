@@ -27,5 +27,6 @@ void add_commission(CLI::App& app, Command* run);
 void add_campaign(CLI::App& app, Command* run);
 void add_test(CLI::App& app, Command* run);
 void add_calibrate(CLI::App& app, Command* run);
+void add_agent(CLI::App& app, Command* run);
 
 }  // namespace cellwright::tools

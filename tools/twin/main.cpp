@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
   cellwright::tools::add_test(app, &run);
   cellwright::tools::add_commission(app, &run);
   cellwright::tools::add_calibrate(app, &run);
+  cellwright::tools::add_agent(app, &run);
   // A first word that is no option and no command is a mistyped command: say so (CLI11 would call it an unexpected
   // argument).
   if (argc > 1 && argv[1][0] != '-') {

@@ -1,4 +1,4 @@
-// `twin run` of a cell of real robots with no twin (a `twin` built with CW_SIM=OFF, docs/real-robots.md): every robot
+// `twin run` of a cell of real robots with no twin (or of robots all on agents, `--agents remote`) (a `twin` built with CW_SIM=OFF, docs/real-robots.md): every robot
 // of the program on its real driver (--driver ROBOT=movemaster|val2:PORT) and every device of the program on its
 // Modbus unit (--device NAME=modbus:HOST:PORT or the scenario's `devices`), in real time, nothing simulated
 // (cell/rig's RealRun). Writes what a simulated run writes with -o DIR but the final picture: events.jsonl,
@@ -8,18 +8,30 @@
 
 #include <CLI/CLI.hpp>
 
+#include <chrono>
+
 #include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/scenario.hpp"
 #include "run_args.hpp"
 
 namespace cellwright::tools {
 
+// `twin run --agents remote --domain N`: every robot of the program is an agent in another process (`twin agent`,
+// docs/distributed.md), found on DDS domain `domain` within `wait`.
+struct RemoteAgents {
+  int domain = 0;
+  std::chrono::milliseconds wait{10000};
+};
+
 // Runs scenario `s` (preflight's `pre` accepted) on its real robots. `cmd` is `twin run`'s command, whose options
 // that need the twin (--video, --save-frames, --final-png) are refused when given. `speed`: --speed (simulation
 // seconds per wall-clock second). Returns the exit code: 0 when the run finished and every expectation holds (as
 // far as the controller's model can tell), 1 when not (a run stopped with Ctrl-C included). Throws InputError
 // (nothing run, nothing left behind) as RealRun, or for a refused option.
+// With `remote`, every robot of the program is an agent's (none is driven here) and the run refuses to start, naming
+// the robots whose agent is missing, when they are not all there within remote->wait (InputError); the options that
+// need the twin are refused as above, the twin having no robot to show.
 int run_real_cell(const CLI::App& cmd, const RunArgs& args, const cell::Scenario& s, const cell::Preflight& pre,
-                  double speed, bool quiet);
+                  double speed, bool quiet, const RemoteAgents* remote = nullptr);
 
 }  // namespace cellwright::tools

@@ -1332,6 +1332,7 @@ std::string describe_device(const DeviceTimeline& d, double end) {
 
 std::string describe_driver(const DriverUse& d) {
   if (!d.real()) return fmt::format("{} simulated", d.robot);
+  if (d.kind == "agent") return fmt::format("{} on its agent, {}", d.robot, d.port);
   return fmt::format("{} {} {} on {}", d.robot, d.emulated ? "emulated" : "real", d.kind, d.port);
 }
 

@@ -21,7 +21,11 @@ std::string describe_sensing(const RealRobot& r) {
 
 RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions options) {
   // Every check before anything is connected.
+  const auto remote = [&](const std::string& robot) {
+    return std::find(options.remote_robots.begin(), options.remote_robots.end(), robot) != options.remote_robots.end();
+  };
   for (const Binding& b : s.robots) {
+    if (remote(b.name)) continue;  // its agent has its driver
     const auto d = std::find_if(s.drivers.begin(), s.drivers.end(),
                                 [&](const DriverChoice& c) { return c.robot == b.name && c.real(); });
     if (d == s.drivers.end()) {
@@ -71,6 +75,10 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
 
   runtime::RunConfig config = scenario_run_config(s, net);
   for (const Binding& b : s.robots) {
+    if (remote(b.name)) {
+      robots_.push_back({b.label, b.name, "an agent (DDS)", false});
+      continue;
+    }
     const DriverChoice& choice = *std::find_if(s.drivers.begin(), s.drivers.end(),
                                                [&](const DriverChoice& c) { return c.robot == b.name && c.real(); });
     drivers_.push_back(make_real_driver(choice, *s.cell.find_robot(b.name)));
@@ -92,6 +100,8 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
     for (const runtime::DeviceWiring& w : u.devices) devices_.push_back({w.name, io_.back()->describe()});
     config.io_units.push_back(runtime::IoUnit{io_.back().get(), true, std::move(u.devices)});
   }
+  config.remote_robots = options.remote_robots;
+  config.attach_remote = std::move(options.attach_remote);
   config.plant = nullptr;  // nothing simulated: the robots move by themselves
   config.mode = runtime::Mode::kRealtime;
   config.realtime_speed = options.speed;

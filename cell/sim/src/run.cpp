@@ -369,6 +369,7 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
                                 }});
   }
   wire_devices(config);
+  if (options.configure) options.configure(config);
   runtime_ = std::make_unique<runtime::Runtime>(std::move(config));
   world_plant_->log_injections_to(&runtime_->log());
 }

@@ -1,4 +1,5 @@
 #include "cellwright/runtime/runtime.hpp"
+#include "cellwright/runtime/remote_watch.hpp"
 #include "cellwright/models/robot_model.hpp"
 
 #include <fmt/format.h>
@@ -277,6 +278,7 @@ struct Runtime::Impl {
   Event device_wake{Event::Kind::auto_reset};
   std::vector<std::unique_ptr<RobotControl>> robots;  // nullptr for a remote robot
   std::vector<std::unique_ptr<RemoteLink>> remote;    // per program robot: its link, for a remote robot
+  std::vector<std::unique_ptr<RemoteWatch>> lockstep_watches;  // lock-step: each remote robot's link watch
   VirtualClock clock;
   // Vision (Perception::kVision): frames from the simulation thread to the image-processing thread.
   MessageQueue<Frame> frames{2};
@@ -466,7 +468,7 @@ struct Runtime::Impl {
       if (o.every.count() <= 0 || !o.observe || t < next_observation[k]) continue;
       std::lock_guard lock(observed_mutex);
       const auto observing = std::chrono::steady_clock::now();
-      o.observe(Observation{t, task_firings.load(), observed_robots_view});
+      o.observe(Observation{t, task_firings.load(), observed_robots_view, env});
       // Time spent observing (a video's encoder catching up) is not run time: a run ends on its wall-time limit
       // where it would without the observer, so that the event log is the same with and without.
       wall_start += std::chrono::steady_clock::now() - observing;
@@ -512,9 +514,13 @@ struct Runtime::Impl {
     // The run is over (or this thread failed and ended it): halt the robots this thread served, then free the
     // plant's thread resources on the thread that stepped it.
     for (std::size_t r = 0; r < robots.size(); ++r) {
-      if (scheduler->thread_of(first_robot_seat() + r) != thread || !robots[r]) continue;
+      if (scheduler->thread_of(first_robot_seat() + r) != thread) continue;
       try {
-        robots[r]->halt();
+        if (robots[r]) {
+          robots[r]->halt();
+        } else {
+          cfg.drivers.at(cells[r])->stop();  // a remote robot's halt (RobotControl::halt): its driver is here
+        }
       } catch (...) {
         record_error();
         end_all();
@@ -543,7 +549,14 @@ struct Runtime::Impl {
       return Wake::next_round();  // every period it reads the devices' states and polls what it waits for
     }
     const std::size_t r = p - first_robot_seat();
-    robots[r]->step(now);
+    if (robots[r]) {
+      robots[r]->step(now);
+    } else {
+      // Its robot control's step, in its agent. A lost agent is a link_lost fault, as in real time (remote_watch.hpp),
+      // found in this turn; no new agent can take over a lock-step run's robot control (its state went with it).
+      remote[r]->take_turn(now, *cfg.drivers.at(cells[r]));
+      (void)lockstep_watches[r]->step(now);
+    }
     if (statuses.size() > 0) scheduler->notify(task_seat());
     return Wake::next_round();  // every period it reads where its arm is and watches its grip and the safety layer
   }
@@ -610,7 +623,17 @@ struct Runtime::Impl {
         }
       } else {
         const std::size_t r = participant - first_robot_seat();
-        if (!robots[r]) return;  // remote: its robot control is an agent's, its queues carried by its link
+        if (!robots[r]) {
+          // Remote: its robot control is an agent's, its queues carried by its link; this thread watches the link.
+          RemoteWatch watch(r, cfg.program.robots[r], cells[r], *remote[r], statuses, log, cfg.motion.recovery,
+                            cfg.rejoin_wait);
+          while (!stopping) {
+            (void)robot_wake[r]->wait_for(wall_period());
+            if (stopping) break;
+            if (watch.step(clock.now())) task_wake.set();
+          }
+          return;
+        }
         while (!stopping) {
           // Woken by a command or the driver's notifier; at least once a period, to watch sensor conditions.
           (void)robot_wake[r]->wait_for(wall_period());
@@ -628,10 +651,17 @@ struct Runtime::Impl {
   }
 
   // The drivers outlive the run: they must not call into it any more.
+  // The driver of program robot r in this process: a local robot's, and in lock-step a remote one's (its agent calls
+  // it in its turns); nullptr for a remote robot in real time (its driver is its agent's).
+  drivers::RobotDriver* driver_here(std::size_t r) const {
+    if (!robots[r] && cfg.mode == Mode::kRealtime) return nullptr;
+    return cfg.drivers.at(cells[r]);
+  }
+
   void detach_drivers() {
     for (std::size_t r = 0; r < cells.size(); ++r) {
-      if (!robots[r]) continue;
-      drivers::RobotDriver* d = cfg.drivers.at(cells[r]);
+      drivers::RobotDriver* d = driver_here(r);
+      if (d == nullptr) continue;
       d->set_notifier({});
       d->set_clock({});
     }
@@ -642,6 +672,10 @@ struct Runtime::Impl {
     if (cfg.camera != nullptr) cfg.camera->release_thread_resources();
   }
 };
+
+NameMap resolve_names(const RunConfig& config) {
+  return check_binding(config);
+}
 
 Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_unique<EventLog>(config_.log_stream,
                                         config_.keep_log ? EventLog::Keep::kLines : EventLog::Keep::kNothing)) {
@@ -704,10 +738,13 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
       throw InputError(config_.binding.where, fmt::format("remote robot '{}' is not a robot of the program", cell));
     }
     if (config_.mode != Mode::kRealtime) {
-      throw InputError(config_.binding.where,
-                       fmt::format("robot '{}' is remote: robots in other processes run in real time only (lock-step "
-                                   "across processes is not done, docs/distributed.md)",
-                                   cell));
+      const auto d = config_.drivers.find(cell);
+      if (d == config_.drivers.end() || d->second == nullptr) {
+        throw InputError(config_.binding.where,
+                         fmt::format("robot '{}' is remote in a lock-step run, which needs its driver here (the "
+                                     "twin's: its agent's robot control calls it in its turns)",
+                                     cell));
+      }
     }
     CW_CHECK(static_cast<bool>(config_.attach_remote), "remote robots but nothing to attach them");
   }
@@ -720,6 +757,13 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
         std::find(config_.remote_robots.begin(), config_.remote_robots.end(), cell) != config_.remote_robots.end();
     im.remote.push_back(remote ? config_.attach_remote(r, cell, *im.inboxes[r], im.statuses) : nullptr);
     if (remote) {
+      if (config_.mode != Mode::kRealtime && !im.remote.back()->takes_turns()) {
+        throw InputError(config_.binding.where,
+                         fmt::format("robot '{}' is remote and its link carries no lock-step turns: run it in real "
+                                     "time",
+                                     cell));
+      }
+      im.remote.back()->share(im.env, *log_);
       im.robots.push_back(nullptr);
       continue;
     }
@@ -808,16 +852,32 @@ void Runtime::start() {
   for (std::size_t r = 0; r < config_.program.robots.size(); ++r) {
     names.push_back({config_.program.robots[r], im.cells[r]});
   }
-  for (auto& r : im.robots) {
-    if (r) r->connect();  // InputError here: no thread has started
+  for (std::size_t r = 0; r < im.robots.size(); ++r) {
+    if (im.robots[r]) {
+      im.robots[r]->connect();  // InputError here: no thread has started
+    } else if (drivers::RobotDriver* d = im.driver_here(r); d != nullptr &&
+                                                              d->state() == drivers::DriverState::disconnected) {
+      // A remote robot's in lock-step, connected here as its robot control would (RobotControl::connect).
+      const drivers::ErrorCode e = d->connect();
+      CW_CHECK(e == drivers::ErrorCode::none, "robot {}: connect() refused: {}", im.cells[r], drivers::to_string(e));
+    }
   }
   if (im.devices) im.devices->connect();
   // Position read-backs are stamped on the runtime's clock.
   for (std::size_t r = 0; r < im.robots.size(); ++r) {
-    if (im.robots[r]) config_.drivers.at(im.cells[r])->set_clock([&clock = im.clock] { return clock.now(); });
+    if (drivers::RobotDriver* d = im.driver_here(r)) d->set_clock([&clock = im.clock] { return clock.now(); });
   }
   for (auto& link : im.remote) {
     if (link) link->start();
+  }
+  if (config_.mode == Mode::kLockstep) {
+    im.lockstep_watches.resize(im.remote.size());
+    for (std::size_t r = 0; r < im.remote.size(); ++r) {
+      if (!im.remote[r]) continue;
+      im.lockstep_watches[r] = std::make_unique<RemoteWatch>(r, config_.program.robots[r], im.cells[r], *im.remote[r],
+                                                             im.statuses, *log_, config_.motion.recovery,
+                                                             SimDuration{0});
+    }
   }
   if (config_.mode == Mode::kRealtime) {
     for (std::size_t r = 0; r < im.robots.size(); ++r) {

@@ -17,6 +17,18 @@
 // CDR bytes wire.hpp encodes; a sample that does not decode (garbage, another program's command, another robot's
 // status) is refused: counted, its reason kept and written to stderr, never pushed into a queue.
 //
+// Liveliness and order (docs/distributed.md, "Failure behaviour"): every endpoint has automatic liveliness with a
+// short lease (DdsOptions::lease, 1 s): task control's end of a robot knows, within about the lease, that its agent is
+// gone (killed, its host down, the network cut) and tells the runtime through RemoteLink::state(); the runtime's
+// watcher (runtime/remote_watch.hpp) makes that a link_lost fault. An agent is present when its state says ready
+// and this side's endpoints match endpoints of the agent's own participant (an agent that was killed stays matched
+// until its participant's discovery lease expires: a count of matches would take it for the new one); a lapse is for
+// good (only a new process is present again). Each agent process has a session (a number drawn
+// as it starts, in its state); commands and statuses are numbered from 1 within a session, and a duplicate or a gap is
+// refused (wire.hpp's SequenceCheck): a duplicate is dropped, a gap (a sample lost on the way) also stops the cell
+// with the reason, because what was lost would be waited for forever. A status of another session than the present
+// agent's (a late one of an agent that was replaced), or of a primitive that is not the command in flight, is refused.
+//
 // Transport: UDPv4 only by default; Fast DDS's shared-memory transport is off unless asked for (DdsOptions), because
 // it keeps files in /dev/shm that a process killed before its clean-up leaves behind.
 //
@@ -29,6 +41,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -43,6 +56,10 @@ namespace cellwright::distributed {
 struct DdsOptions {
   int domain = 0;              // DDS domain id, 0..232
   bool shared_memory = false;  // also Fast DDS's shared-memory transport (same host)
+  // The liveliness lease of every endpoint (automatic liveliness): an agent that gives no sign of life this long is
+  // lost. Task control and its agents must use the same lease (DDS matches a reader only with writers whose lease is
+  // not longer than its own). At least 20 ms (InputError).
+  std::chrono::milliseconds lease{1000};
 };
 
 // "rt/cellwright/<robot>/command", "rt/cellwright/<robot>/status". Throws InputError (naming the robot) when the
@@ -61,6 +78,7 @@ class Participant {
   Participant& operator=(const Participant&) = delete;
 
   int domain() const { return options_.domain; }
+  std::chrono::milliseconds lease() const { return options_.lease; }
 
   struct Impl;
   Impl& impl() { return *impl_; }
@@ -97,6 +115,15 @@ class RemoteRobot {
   void start();
   // Stops forwarding (commands still queued stay in the queue). Idempotent; the destructor calls it.
   void stop();
+
+  // The agent as this end sees it, any thread (runtime::LinkState): present (ready, both endpoints matched, its
+  // liveliness holding), its session, how many times it was lost (its liveliness lapsed, its endpoints left, it said it
+  // stopped, or a new agent process for the robot took its place) and how the last loss was noticed, the command in
+  // flight, what the arm holds by the grip commands answered.
+  runtime::LinkState state() const;
+  // Sends the commands in flight again, oldest first, numbered as the next of the present agent's session (after a
+  // new agent took over). false when none is in flight or no agent is present.
+  bool resend();
 
   const std::string& robot() const;
   Refusals refusals() const;
@@ -182,5 +209,34 @@ class RawWriter {
  private:
   std::unique_ptr<Impl> impl_;
 };
+
+// Reads the samples of a topic as they are (CDR bytes, checked by whoever decodes them): each is handed to `handle`
+// on Fast DDS's listener thread once started (before, it is dropped). QoS as the other topics' (reliable, volatile,
+// keep last 10). For the topics built on this transport (replica.hpp: environment-model updates and events).
+class RawReader {
+ public:
+  // `alive`, if given, is told (on Fast DDS's thread) how many matched writers are alive whenever that changes (their
+  // liveliness, DdsOptions::lease).
+  RawReader(Participant& participant, const std::string& topic, const char* type,
+            std::function<void(const std::vector<char>&)> handle, std::function<void(int alive)> alive = {});
+  ~RawReader();
+  RawReader(const RawReader&) = delete;
+  RawReader& operator=(const RawReader&) = delete;
+
+  bool wait_for_writer(std::chrono::milliseconds timeout) const;
+  // How many writers match now.
+  int writers() const;
+  void start();
+  void stop();
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Registers a type of CDR-byte samples (largest sample `max_size`, header included) with the participant, once: a
+// RawWriter or RawReader of a type other than the command, status and agent state needs it first.
+void register_type(Participant& participant, const char* name, std::size_t max_size);
 
 }  // namespace cellwright::distributed

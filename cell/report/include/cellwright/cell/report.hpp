@@ -177,8 +177,8 @@ std::vector<std::string> places_of(const models::CellDescription& cell, const mo
 // The driver one program robot ran on.
 struct DriverUse {
   std::string robot;  // cell robot
-  std::string kind;   // "sim", "movemaster", "val2"
-  std::string port;   // the serial port of a real driver; "" for sim
+  std::string kind;   // "sim", "movemaster", "val2", "agent" (its robot control in another process: twin agent)
+  std::string port;   // the serial port of a real driver; "" for sim; an agent's "DDS domain N"
   // A real driver whose port is a pseudo-terminal (what `twin emulate` publishes): an emulated controller, no arm.
   bool emulated = false;
   bool real() const { return kind != "sim"; }

@@ -54,6 +54,10 @@ struct RealRunOptions {
   // Where the event log is streamed (a StreamedLog's stream, cell/report), kept nowhere else; nullptr: kept in memory
   // (runtime().log().text()).
   std::ostream* log_stream = nullptr;
+  // Cell robots whose robot control is an agent in another process (`twin run --agents remote`, docs/distributed.md):
+  // no driver here (the agent has it), their queues carried by `attach_remote` (runtime.hpp RunConfig::remote_robots).
+  std::vector<std::string> remote_robots;
+  runtime::AttachRemote attach_remote;
 };
 
 // One device of the run on real I/O, for a person.
@@ -65,7 +69,7 @@ struct RealDevice {
 // One robot of the run, for a person and the report.
 struct RealRobot {
   std::string label, robot;  // program label, cell robot
-  std::string driver;        // "val2 on /dev/ttyUSB0"
+  std::string driver;        // "val2 on /dev/ttyUSB0", or "an agent" for a remote robot
   bool senses_grip = false;  // its grip is sensed by its driver; false: no grip sensor, a close is taken as done
 };
 

@@ -13,7 +13,9 @@
 //   task control   TaskControl::step (task_control.hpp);
 //   device control with device commands in the program (or devices declared): DeviceHub::step (device_hub.hpp): the
 //                  devices' commands on the cell's I/O units (RunConfig::io_units), their states in the log;
-//   robot control  one per program robot, RobotControl::step (robot_control.hpp).
+//   robot control  one per program robot, RobotControl::step (robot_control.hpp); for a remote robot (its robot
+//                  control an agent's, RunConfig::remote_robots) the thread watches its link instead
+//                  (remote_watch.hpp: a lost agent is a link_lost fault).
 // The main thread (the caller) builds everything, checks the input, starts and joins the threads.
 //
 // LOCK-STEP mode: the threads' work is done in turns through a LockstepScheduler in the fixed order simulation, image
@@ -100,12 +102,14 @@ struct Limits {
   std::chrono::steady_clock::duration wall_time{0};
 };
 
-// What an observer is shown: the simulation time, the transitions fired so far and task control's view of each robot
-// as of its last step (the command it is on; empty unless the observer asked for it).
+// What an observer is shown: the simulation time, the transitions fired so far, task control's view of each robot
+// as of its last step (the command it is on; empty unless the observer asked for it) and the environment model (the
+// robots' joints, the parts: copy what you need in a short read(), as robot control writes it meanwhile).
 struct Observation {
   SimDuration time{0};
   std::uint64_t firings = 0;
   const std::vector<RobotView>& robots;
+  const SharedEnvironment& environment;
 };
 
 // A watcher of the run (`twin run`'s progress line, a video): called by the simulation thread at each multiple of
@@ -119,14 +123,57 @@ struct RunObserver {
   std::function<void(const Observation&)> observe;
 };
 
+// What a link knows of its agent (RemoteLink::state), as of the moment it is asked.
+struct LinkState {
+  bool present = true;        // an agent is there: it said it is ready and its liveliness holds
+  std::uint64_t session = 0;  // which agent process it is or was last (a new process for the robot: a new number)
+  std::uint64_t losses = 0;   // how many times this robot's agent was lost so far (gone, or replaced by a new one)
+  std::string lost_detail;    // how the last loss was noticed ("" before any)
+  int in_flight = -1;         // the primitive of the command sent to the agent and not answered, -1 none
+  std::string holding;        // the workpiece the arm holds as far as the link knows ("" none): a close on it was
+                              // answered done, or is in flight, with no open answered since
+};
+
 // The carrier of a robot whose robot control runs in another process (an agent: docs/distributed.md; the DDS one is
 // distributed::RemoteRobot). The runtime knows only this: it hands the robot's command queue and the status queue to
-// RunConfig::attach_remote, starts the link as the run starts and stops it as the run ends (main thread both).
+// RunConfig::attach_remote, starts the link as the run starts and stops it as the run ends (main thread both), and,
+// in between, asks its state every control period on the remote robot's own thread (the link's watcher,
+// remote_watch.hpp): a lost agent is a `link_lost` fault of its robot, diagnosed by the decision tree.
 class RemoteLink {
  public:
   virtual ~RemoteLink() = default;
   virtual void start() = 0;
   virtual void stop() = 0;
+  // Any thread. A link that cannot tell says its agent is always present.
+  virtual LinkState state() const { return {}; }
+  // Sends the command in flight again (to the agent that took over after a loss). false: none in flight, or no agent.
+  virtual bool resend() { return false; }
+  // Called once, right after the link is made (main thread, before start()): the run's environment model and event
+  // log, which the remote robot control writes into in its own process. A link that carries those writes (the DDS
+  // one: the robot's environment-model updates and its events) applies them here, from its own threads (both are
+  // thread-safe). The default carries nothing.
+  virtual void share(SharedEnvironment& environment, EventLog& log) {
+    (void)environment;
+    (void)log;
+  }
+
+  // LOCK-STEP (docs/distributed.md, "Lock-step with agents"). Whether the link carries the robot's turns: a lock-step
+  // run refuses a remote robot whose link does not (InputError naming it). The default carries none.
+  virtual bool takes_turns() const { return false; }
+  // Lock-step, in the robot's turn, on the thread taking it: the remote robot control's step at `now`, returning when
+  // it is over, as RobotControl::step would in this process. Meanwhile the link takes the commands task control put
+  // into the robot's command queue, answers the remote robot control's calls of its driver on `driver` (the robot's
+  // driver in this process: the twin's), and when the step is over logs its events into the log share() gave, pushes
+  // its statuses into the status queue and writes the environment model as it left it. When its agent is lost (gone,
+  // silent, or answering what cannot be taken) it returns with state() saying so (not present, a loss counted, the
+  // command in flight): the runtime's watch makes that a link_lost fault in the same turn (remote_watch.hpp), and
+  // later turns do nothing (no new agent can take over: the robot control's state went with it). Throws InternalError
+  // when the remote robot control itself failed (a bug). Only called by links that take turns.
+  virtual void take_turn(SimDuration now, drivers::RobotDriver& driver) {
+    (void)now;
+    (void)driver;
+    CW_CHECK(false, "a link that takes no turns was given one");
+  }
 };
 
 // Makes the link of program robot `index` (cell robot `cell`) over its command queue and the status queue, which
@@ -144,10 +191,17 @@ struct RunConfig {
   // advances them) must outlive the Runtime.
   std::map<std::string, drivers::RobotDriver*> drivers;
   // Cell robots whose robot control runs in another process (an agent): this process builds no RobotControl and needs
-  // no driver for them; `attach_remote` carries their queues. Real time only (InputError in lock-step, naming the
-  // robot). The environment model of this process does not see what their robot control writes (docs/distributed.md).
+  // no driver for them in real time; `attach_remote` carries their queues. In lock-step their links must take turns
+  // (RemoteLink::takes_turns; InputError naming the robot otherwise) and `drivers` must have their drivers (the twin's:
+  // the agent's robot control calls them through the link in its turns; the runtime connects and halts them as it
+  // would a local robot's). What their robot control writes into its environment model and logs reaches this
+  // process's model and log only as their link carries it (RemoteLink::share, take_turn; docs/distributed.md).
   std::vector<std::string> remote_robots;
   AttachRemote attach_remote;
+  // A remote robot whose agent is lost with work in hand (a `link_lost` fault, remote_watch.hpp) and whose diagnosis
+  // is to recover (the standard tree's reset_rehome) waits this long for a new agent before the cell is stopped. 0
+  // (the default): the cell is stopped at once, the other robots halted.
+  SimDuration rejoin_wait{0};
   // The simulation the simulation thread steps; not owned. nullptr for a cell with no simulation (every robot on a
   // driver that runs by itself, e.g. a serial controller): the first thread then keeps the clock and reads the sensors.
   Plant* plant = nullptr;
@@ -197,6 +251,12 @@ struct RunConfig {
   // every signal it fires; false drops the event. Unset: every event is delivered.
   SignalFilter signal_filter;
 };
+
+// The program's labels bound to cell names as the Runtime binds them (its robots, workpieces, locations and workpiece
+// classes; not the devices' machines), checked as the Runtime's constructor checks them: InputError for a robot with no
+// binding, a binding to nothing in the cell, a robot that is neither remote nor on a driver. For a robot control built
+// outside a Runtime (a robot's agent, docs/distributed.md).
+NameMap resolve_names(const RunConfig& config);
 
 enum class Outcome { kFinished, kFailed, kTimeout, kStopped };
 

@@ -92,6 +92,9 @@ struct RunOptions {
   // needs a real-time run; the twin's camera faults (frame_lost, detection_noise) cannot be injected into a real
   // camera. The source is opened (its first frame read) when the ScenarioRun is built: InputError otherwise.
   std::vector<std::string> cameras;
+  // Called with the runtime's configuration just before the Runtime is built, to add watchers of the run
+  // (RunConfig::observers, event_observers: `--ros-domain`'s ROS 2 publisher, distributed/ros_publisher.hpp).
+  std::function<void(runtime::RunConfig&)> configure;
 };
 
 // The scenario's cell as it really is, compiled: its parts where the scenario's perturbation puts them (drawn with its

@@ -17,6 +17,10 @@
 #                                      and the campaign's chart); campaigns and suites never build a run (cell/sim/run)
 #   distributed (DDS transport)        no MuJoCo, OpenGL/OSMesa, OpenCV; nothing of twin, vision, emulate or cell
 #   serve (the live view's server)     no MuJoCo, OpenGL/OSMesa, OpenCV, DDS; nothing of ours but common
+#   cell/sim (the simulated rig), twin nothing of the live view: no serve, no cell/live, no websocketpp or asio (the
+#                                      live view is an application above the simulator, never inside it); the cell's
+#                                      stages neither
+#   cell/live (`twin serve`'s loop)    anything below it, nothing of the tools
 #   controller, models, drivers, common  no DDS (Fast DDS, Fast CDR) and nothing of distributed: the runtime does not
 #                                      know whether a robot is remote
 #   every library                      nothing of tools/
@@ -95,8 +99,13 @@ check_includes(cell "mujoco/|GL/|osmesa|${simulator}|cellwright/cell/sim/|${tool
 check_includes(cell "opencv2/" ${cell_stages} EXCEPT "^cell/(report/|campaign/(src|include/cellwright/cell)/campaign\\.)")
 # Campaigns and suites read reports; they never build a run.
 check_includes(campaign "cellwright/cell/sim/|cellwright/runtime/runtime\\.hpp" "cell/campaign/*")
-# The simulated rig may reach everything but the tools.
-check_includes(cell_sim "${tools_reach}" "cell/sim/*")
+# The simulated rig may reach everything but the tools and the live view above it.
+set(live_view "cellwright/serve/|cellwright/cell/live/|websocketpp/|asio")
+check_includes(cell_sim "${tools_reach}|${live_view}" "cell/sim/*")
+check_includes(twin "${live_view}" "twin/*")
+check_includes(cell "${live_view}" ${cell_stages})
+# The live view's loop: above the simulated rig and the server, below the tools.
+check_includes(cell_live "${tools_reach}" "cell/live/*")
 
 # check_words(<name> <forbidden regex> <globs...>): no line of the files (code or comment) matches.
 function(check_words name forbidden)
@@ -132,8 +141,8 @@ set(link_rules
     "cellwright_distributed|${mujoco_ocv_gl}|cellwright_(twin|vision|emulate|scenario|plan|rig|report|campaign|cell_sim)"
     "distributed_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|emulate|scenario|plan|rig|report|campaign|cell_sim)"
     "runtime_tests|${mujoco_ocv_gl}|cellwright_(twin|vision)"
-    "cellwright_serve|${mujoco_ocv_gl}|fastrtps|fastcdr|cellwright_(twin|vision|runtime|controller|drivers|models|emulate|distributed|scenario|plan|rig|report|campaign|cell_sim)"
-    "serve_tests|${mujoco_ocv_gl}|fastrtps|fastcdr|cellwright_(twin|vision|runtime|controller|drivers|models|emulate|distributed|scenario|plan|rig|report|campaign|cell_sim)"
+    "cellwright_serve|${mujoco_ocv_gl}|fastrtps|fastcdr|cellwright_(twin|vision|runtime|controller|drivers|models|emulate|distributed|scenario|plan|rig|report|campaign|cell_sim|cell_live)"
+    "serve_tests|${mujoco_ocv_gl}|fastrtps|fastcdr|cellwright_(twin|vision|runtime|controller|drivers|models|emulate|distributed|scenario|plan|rig|report|campaign|cell_sim|cell_live)"
     "controller_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|runtime)"
     "cellwright_models|${mujoco_ocv_gl}|cellwright_(twin|vision|drivers|runtime)"
     "models_tests|${mujoco_ocv_gl}|cellwright_(twin|vision|drivers|runtime)"
@@ -158,10 +167,12 @@ else()
 endif()
 if(with_sim)
   # The simulator knows no application.
-  list(APPEND link_rules "cellwright_twin|cellwright_(scenario|plan|rig|report|campaign|cell_sim)")
+  list(APPEND link_rules "cellwright_twin|cellwright_(scenario|plan|rig|report|campaign|cell_sim|cell_live|serve)")
+  # The simulated rig does not link the live view's server: the live view sits above the simulator (cell/live).
+  list(APPEND link_rules "cellwright_cell_sim|cellwright_(serve|cell_live)")
 else()
   # A twin for real robots only: no simulator in the executable.
-  list(APPEND link_rules "twin|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_cell_sim")
+  list(APPEND link_rules "twin|mujoco|OSMESA|osmesa|assimp|cellwright_twin$|cellwright_cell_sim|cellwright_cell_live")
 endif()
 file(STRINGS ${LINKS} closures)
 foreach(rule ${link_rules})

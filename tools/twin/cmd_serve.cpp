@@ -9,7 +9,7 @@
 
 #include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/scenario.hpp"
-#include "cellwright/cell/sim/live.hpp"
+#include "cellwright/cell/live/live.hpp"
 #include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/serve/live_server.hpp"

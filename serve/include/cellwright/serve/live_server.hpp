@@ -1,6 +1,6 @@
 // The live view's server (docs/live-view.md): one HTTP + WebSocket endpoint that serves the page's files and the
 // robots' models, and carries the live view's messages. It knows nothing of MuJoCo, the twin or the runtime: the
-// caller (`twin serve`, cell/sim/live.hpp) gives it JSON texts to send and takes the viewers' commands from it.
+// caller (`twin serve`, cell/live/live.hpp) gives it JSON texts to send and takes the viewers' commands from it.
 //
 // Protocol (JSON text frames on the WebSocket at "/ws"; every message an object with a "type"):
 //   server -> viewer   {"type":"cell",  ...}   the cell (set_cell): sent to each viewer when it connects, and to all

@@ -1,8 +1,9 @@
-#include "cellwright/cell/sim/live.hpp"
+#include "cellwright/cell/live/live.hpp"
 
 #include <fmt/format.h>
 #include <mujoco/mujoco.h>
 
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -272,6 +273,7 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
     std::optional<runtime::StepState> last;
     serve::FramePacer pacer(serve_options.frame_hz);
     std::size_t viewers = server.viewers();
+    bool missed = false;  // a viewer missed the last frame sent (its socket was full)
     auto send = [&] {
       std::vector<std::string> f;
       {
@@ -279,7 +281,9 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
         f = faults->lines;
       }
       const LiveFrameState st{ended ? "ended" : playing ? "playing" : "paused", last ? &*last : nullptr};
+      const std::uint64_t dropped = server.counts().dropped;
       server.publish(live_frame_json(*run, st, f));
+      missed = server.counts().dropped > dropped;
     };
     send();
     while (!stop && !restart) {
@@ -306,8 +310,10 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
         last = run->runtime().step();
         ended = last->ended;
         if (ended || pacer.due()) send();
-      } else if (const std::size_t n = server.viewers(); n > viewers) {
-        send();  // a viewer that came while nothing moves gets the state now
+      } else if (const std::size_t n = server.viewers(); n > viewers || missed) {
+        // A viewer that came while nothing moves gets the state now; one that missed the last frame gets it again
+        // (at most every 100 ms while its socket stays full), so no viewer is left on an older state.
+        send();
       }
       viewers = server.viewers();
     }

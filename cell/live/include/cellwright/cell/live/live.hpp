@@ -17,7 +17,12 @@
 //            "bodies":[[id,x,y,z,qw,qx,qy,qz] for each body of "bodies" that moves],
 //            "faults":[event log lines: fault_injected, fault_detected, collision, since the run began]}
 //
-// Threads: serve_scenario runs on the caller's thread; the server has its own.
+// Layering: this is an application above the simulated rig (cell/sim) and the live view's server (serve/); neither
+// of them knows it (the walls test: cellwright_cell_sim does not link cellwright_serve).
+//
+// Threads: serve_scenario runs on the caller's thread and is the only one that touches the run (built, stepped and
+// read there, with the runtime's threads parked between steps: lock-step); the server's thread only moves texts
+// (serve/live_server.hpp). A viewer's command waits in the server's queue until the loop takes it, between steps.
 #pragma once
 
 #include <atomic>
@@ -55,7 +60,8 @@ struct ServeOptions {
 // sending its cell and frames to `server`'s viewers and obeying their commands, until `stop` is set. Paused at first
 // (unless ServeOptions::play): each "step" runs to the next firing, "play" runs on (a frame at most every 1/frame_hz
 // of wall time, the run never waiting for a viewer), "pause" stops between two steps, "restart" builds the run
-// again. A run that has ended stays on its last frame until "restart". Returns the number of runs built.
+// again. A run that has ended stays on its last frame until "restart". While nothing moves, a viewer that connects,
+// or that missed the last frame (its socket full), is sent the state again. Returns the number of runs built.
 int serve_scenario(const Scenario& scenario, const Preflight& preflight, const RunOptions& options,
                    serve::LiveServer& server, const ServeOptions& serve_options, const std::atomic<bool>& stop);
 

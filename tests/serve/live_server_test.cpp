@@ -1,96 +1,24 @@
-// The live view's server over loopback: a test client (websocketpp's, on its own thread) connects, receives the cell
+// The live view's server over loopback: a test client (support/ws_viewer.hpp) connects, receives the cell
 // and the frames, sends commands, and is refused garbage; two viewers; a viewer gone mid-run; the HTTP files.
 #define ASIO_STANDALONE
 #include "cellwright/serve/live_server.hpp"
 
 #include <gtest/gtest.h>
 
-#include <condition_variable>
+#include <asio.hpp>
+#include <fmt/format.h>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <thread>
-#include <websocketpp/client.hpp>
-#include <websocketpp/config/asio_no_tls_client.hpp>
 
 #include "cellwright/common/error.hpp"
+#include "support/ws_viewer.hpp"
 
 namespace cellwright::serve {
 namespace {
 
 using namespace std::chrono_literals;
-using WsClient = websocketpp::client<websocketpp::config::asio_client>;
-
-// One viewer: connects to ws://127.0.0.1:port/ws and keeps what it receives.
-class Viewer {
- public:
-  explicit Viewer(std::uint16_t port) {
-    client_.clear_access_channels(websocketpp::log::alevel::all);
-    client_.clear_error_channels(websocketpp::log::elevel::all);
-    client_.init_asio();
-    client_.set_open_handler([this](websocketpp::connection_hdl) {
-      std::lock_guard lock(mutex_);
-      open_ = true;
-      cv_.notify_all();
-    });
-    client_.set_message_handler([this](websocketpp::connection_hdl, WsClient::message_ptr m) {
-      std::lock_guard lock(mutex_);
-      received_.push_back(nlohmann::json::parse(m->get_payload()));
-      cv_.notify_all();
-    });
-    websocketpp::lib::error_code ec;
-    auto con = client_.get_connection("ws://127.0.0.1:" + std::to_string(port) + "/ws", ec);
-    EXPECT_FALSE(ec) << ec.message();
-    hdl_ = con->get_handle();
-    client_.connect(con);
-    thread_ = std::thread([this] { client_.run(); });
-    std::unique_lock lock(mutex_);
-    EXPECT_TRUE(cv_.wait_for(lock, 5s, [this] { return open_; })) << "the viewer could not connect";
-  }
-  ~Viewer() { close(); }
-
-  void send(const std::string& text, websocketpp::frame::opcode::value op = websocketpp::frame::opcode::text) {
-    client_.send(hdl_, text, op);
-  }
-  void close() {
-    if (thread_.joinable()) {
-      websocketpp::lib::error_code ec;
-      client_.close(hdl_, websocketpp::close::status::normal, "bye", ec);
-      thread_.join();
-    }
-  }
-  // Waits until a message of `type` beyond the first `skip` of that type has come; returns it (null JSON if none in
-  // 5 s).
-  nlohmann::json wait_for(const std::string& type, std::size_t skip = 0) {
-    std::unique_lock lock(mutex_);
-    nlohmann::json found;
-    cv_.wait_for(lock, 5s, [&] {
-      std::size_t n = 0;
-      for (const auto& m : received_) {
-        if (m["type"] == type && n++ == skip) {
-          found = m;
-          return true;
-        }
-      }
-      return false;
-    });
-    return found;
-  }
-  std::size_t count(const std::string& type) {
-    std::lock_guard lock(mutex_);
-    std::size_t n = 0;
-    for (const auto& m : received_) n += m["type"] == type ? 1 : 0;
-    return n;
-  }
-
- private:
-  WsClient client_;
-  websocketpp::connection_hdl hdl_;
-  std::thread thread_;
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  bool open_ = false;
-  std::vector<nlohmann::json> received_;
-};
+using Viewer = cellwright::testing::WsViewer;
 
 // Waits until the server counts `n` viewers (a closed connection is noticed on the server's thread).
 bool wait_viewers(const LiveServer& server, std::size_t n) {
@@ -159,7 +87,7 @@ TEST(LiveServer, GarbageIsRefusedAndTheConnectionStays) {
   EXPECT_EQ(v.wait_for("error")["reason"], "not JSON");
   v.send(R"({"type":"command","command":"fly"})");
   EXPECT_EQ(v.wait_for("error", 1)["reason"], "unknown command 'fly' (play, pause, step or restart)");
-  v.send("\x01\x02", websocketpp::frame::opcode::binary);
+  v.send_binary("\x01\x02");
   EXPECT_EQ(v.wait_for("error", 2)["reason"], "a binary message (commands are JSON text)");
   EXPECT_EQ(server.counts().refused, 3u);
   // Still connected: a good command after the bad ones arrives, and nothing refused was taken as a command.

@@ -1,0 +1,205 @@
+// `twin serve`'s run loop (cell/live/live.hpp) on the exchange scenario, lock-step, watched and driven over loopback
+// by test viewers (support/ws_viewer.hpp) as a page would: step one firing, play and pause, restart; a viewer that
+// leaves or never reads costs the run nothing; a bad message is refused to the page that sent it.
+#define ASIO_STANDALONE
+#include "cellwright/cell/live/live.hpp"
+
+#include <gtest/gtest.h>
+
+#include <asio.hpp>
+#include <atomic>
+#include <thread>
+
+#include "cellwright/cell/sim/sweep.hpp"
+#include "support/ws_viewer.hpp"
+
+namespace cellwright::cell {
+namespace {
+
+using nlohmann::json;
+using testing::WsViewer;
+
+const std::string kExchange = std::string(CW_SOURCE_DIR) + "/scenes/exchange.yaml";
+
+bool is_frame(const json& m) { return m.is_object() && m.value("type", "") == "frame"; }
+
+// The exchange scenario served on a free loopback port by serve_scenario on a thread of its own, stopped and joined
+// at the end of the test.
+class LiveLoop : public ::testing::Test {
+ protected:
+  void start(ServeOptions options = {}, std::size_t max_buffered = 256 * 1024) {
+    scenario_ = std::make_unique<Scenario>(load_scenario(kExchange));
+    preflight_ = std::make_unique<Preflight>(preflight(*scenario_, &twin_port()));
+    ASSERT_TRUE(preflight_->ok()) << preflight_->problems.front();
+    serve::ServerOptions so;
+    so.port = 0;
+    so.max_buffered = max_buffered;
+    server_ = std::make_unique<serve::LiveServer>(so);
+    loop_ = std::thread([this, options] {
+      runs_ = serve_scenario(*scenario_, *preflight_, RunOptions{}, *server_, options, stop_);
+    });
+  }
+  void TearDown() override {
+    stop_ = true;
+    if (loop_.joinable()) loop_.join();
+  }
+  std::uint16_t port() const { return server_->port(); }
+  serve::LiveServer& server() { return *server_; }
+  static std::string command(const std::string& c) { return R"({"type":"command","command":")" + c + "\"}"; }
+
+  std::unique_ptr<Scenario> scenario_;
+  std::unique_ptr<Preflight> preflight_;
+  std::unique_ptr<serve::LiveServer> server_;
+  std::atomic<bool> stop_{false};
+  std::thread loop_;
+  int runs_ = 0;
+};
+
+TEST_F(LiveLoop, AViewerGetsTheCellAndStepsOneFiringAtATime) {
+  start();
+  WsViewer v(port());
+  const json cell = v.wait_for("cell");
+  ASSERT_TRUE(cell.is_object());
+  EXPECT_EQ(cell["scenario"], "exchange.yaml");
+  ASSERT_EQ(cell["robots"].size(), scenario_->robots.size());
+  EXPECT_EQ(cell["robots"][0]["urdf"].get<std::string>().rfind("/models/", 0), 0u);
+  // Paused at first, nothing fired.
+  const json first = v.wait_for("frame");
+  ASSERT_TRUE(first.is_object());
+  EXPECT_EQ(first["state"], "paused");
+  EXPECT_EQ(first["firings"], 0);
+
+  std::uint64_t firings = 0;
+  double t = 0;
+  for (int i = 1; i <= 3; ++i) {
+    v.send(command("step"));
+    const json f = v.wait_for([&](const json& m) { return is_frame(m) && m["firings"].get<std::uint64_t>() > firings; });
+    ASSERT_TRUE(f.is_object()) << "step " << i << " brought no frame with more firings than " << firings;
+    EXPECT_EQ(f["state"], "paused");
+    EXPECT_FALSE(f["fired"].empty()) << "a step stops where a transition fired";
+    EXPECT_GE(f["t"].get<double>(), t);
+    firings = f["firings"].get<std::uint64_t>();
+    t = f["t"].get<double>();
+  }
+  // Nothing moves between steps: the run waits for the page.
+  EXPECT_EQ(server().poll_command(), std::nullopt);
+}
+
+TEST_F(LiveLoop, PlayRunsToTheEndAndPauseStopsBetweenSteps) {
+  start();
+  WsViewer v(port());
+  ASSERT_TRUE(v.wait_for("frame").is_object());
+  v.send(command("play"));
+  // The first step's frame while playing (the frame that answers play itself may come before any step).
+  const json playing =
+      v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "playing" && m["firings"] > 0; });
+  ASSERT_TRUE(playing.is_object()) << "play ran no step";
+  v.send(command("pause"));
+  // The exchange runs 32 s of simulated time, far longer than a command's round trip over loopback: the pause lands
+  // mid-run.
+  const json paused = v.wait_for([](const json& m) {
+    return is_frame(m) && ((m["state"] == "paused" && m["firings"] > 0) || m["state"] == "ended");
+  });
+  ASSERT_TRUE(paused.is_object());
+  ASSERT_EQ(paused["state"], "paused") << "the run ended before the pause was taken";
+  // It stays paused: the next frame is the step's (a run still playing would have sent "playing" frames first).
+  const std::size_t frames = v.count("frame");
+  v.send(command("step"));
+  const json stepped = v.wait_for("frame", frames);
+  ASSERT_TRUE(stepped.is_object());
+  EXPECT_EQ(stepped["state"], "paused");
+  EXPECT_GT(stepped["firings"], paused["firings"]);
+
+  v.send(command("play"));
+  const json end = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "ended"; });
+  ASSERT_TRUE(end.is_object()) << "the run did not end within 5 s of play";
+  EXPECT_EQ(end["outcome"], "finished") << end.value("reason", "");
+  EXPECT_GT(end["firings"], stepped["firings"]);
+  // An ended run stays ended: play does not move it.
+  v.send(command("play"));
+  const json again = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "ended"; }, 1);
+  ASSERT_TRUE(again.is_object());
+  EXPECT_EQ(again["firings"], end["firings"]);
+}
+
+TEST_F(LiveLoop, RestartBuildsTheRunAgainFromTheStart) {
+  start();
+  WsViewer v(port());
+  ASSERT_TRUE(v.wait_for("cell").is_object());
+  auto at = [](std::uint64_t n) { return [n](const json& m) { return is_frame(m) && m["firings"] == n; }; };
+  auto moved = [](const json& m) { return is_frame(m) && m["firings"] > 0; };
+  v.send(command("step"));
+  const json first = v.wait_for(moved);
+  ASSERT_TRUE(first.is_object());
+  v.send(command("step"));
+  ASSERT_TRUE(v.wait_for(moved, 1).is_object());
+  // Every frame before the second step's has come (one connection keeps the order).
+  const std::size_t at_start = v.count(at(0)), stepped = v.count(moved);
+
+  v.send(command("restart"));
+  ASSERT_TRUE(v.wait_for("cell", 1).is_object()) << "a restart sends the cell again";
+  const json again = v.wait_for(at(0), at_start);
+  ASSERT_TRUE(again.is_object()) << "no frame of the restarted run at its start";
+  EXPECT_EQ(again["t"], 0.0);
+  EXPECT_EQ(again["state"], "paused");
+  // Its first step is the first run's first step: the same scenario, the same run.
+  v.send(command("step"));
+  const json f = v.wait_for(moved, stepped);
+  ASSERT_TRUE(f.is_object());
+  EXPECT_EQ(f["firings"], first["firings"]);
+  EXPECT_EQ(f["t"], first["t"]);
+  EXPECT_EQ(f["fired"], first["fired"]);
+  stop_ = true;
+  loop_.join();
+  EXPECT_EQ(runs_, 2);
+}
+
+TEST_F(LiveLoop, ABadMessageIsRefusedToThePageThatSentItAndTheRunGoesOn) {
+  start();
+  WsViewer bad(port());
+  WsViewer good(port());
+  ASSERT_TRUE(good.wait_for("frame").is_object());
+  bad.send(R"({"type":"command","command":"jump"})");
+  EXPECT_EQ(bad.wait_for("error")["reason"], "unknown command 'jump' (play, pause, step or restart)");
+  bad.send("{{{");
+  EXPECT_EQ(bad.wait_for("error", 1)["reason"], "not JSON");
+  // Nothing was taken as a command: the page that sent nothing wrong is told nothing and the run is where it was.
+  good.send(command("step"));
+  const json f = good.wait_for([](const json& m) { return is_frame(m) && m["firings"] > 0; });
+  ASSERT_TRUE(f.is_object());
+  EXPECT_EQ(good.count("error"), 0u);
+  EXPECT_EQ(server().counts().refused, 2u);
+}
+
+TEST_F(LiveLoop, ViewersThatLeaveOrNeverReadCostTheRunNothing) {
+  // A frame per step (no pacing to speak of) and a small bound on what may wait for a viewer.
+  ServeOptions options;
+  options.frame_hz = 1e6;
+  start(options, 4 * 1024);
+  // A viewer that does the WebSocket handshake and then never reads.
+  asio::io_context io;
+  asio::ip::tcp::socket stalled(io);
+  stalled.open(asio::ip::tcp::v4());
+  stalled.set_option(asio::socket_base::receive_buffer_size(4096));
+  stalled.connect({asio::ip::make_address("127.0.0.1"), port()});
+  asio::write(stalled, asio::buffer(std::string(
+                           "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                           "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")));
+  auto leaving = std::make_unique<WsViewer>(port());
+  WsViewer v(port());
+  ASSERT_TRUE(v.wait_for("frame").is_object());
+  ASSERT_TRUE(leaving->wait_for("frame").is_object());
+  v.send(command("play"));
+  leaving.reset();  // gone mid-run
+  const json end = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "ended"; });
+  ASSERT_TRUE(end.is_object()) << "the run did not end within 5 s with a viewer gone and one not reading";
+  EXPECT_EQ(end["outcome"], "finished") << end.value("reason", "");
+  // The run is the run a lone viewer sees: the same firings as a plain run of the scenario.
+  ScenarioRun plain(*scenario_, *preflight_);
+  EXPECT_EQ(end["firings"].get<std::uint64_t>(), plain.runtime().run().firings);
+  // Whether frames were dropped for the stalled viewer depends on how much the kernel's socket buffers took (a run
+  // of a few hundred frames may fit): serve_tests' FramesToAViewerThatDoesNotReadAreDroppedNotQueued shows the drop.
+}
+
+}  // namespace
+}  // namespace cellwright::cell

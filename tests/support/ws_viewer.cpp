@@ -1,0 +1,116 @@
+#define ASIO_STANDALONE
+#include "support/ws_viewer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
+#include <vector>
+#include <websocketpp/client.hpp>
+#include <websocketpp/config/asio_no_tls_client.hpp>
+
+namespace cellwright::testing {
+
+using WsClient = websocketpp::client<websocketpp::config::asio_client>;
+using namespace std::chrono_literals;
+
+struct WsViewer::Impl {
+  WsClient client;
+  websocketpp::connection_hdl hdl;
+  std::thread thread;
+  mutable std::mutex mutex;
+  std::condition_variable cv;
+  bool open = false;
+  std::vector<nlohmann::json> received;
+};
+
+WsViewer::WsViewer(std::uint16_t port) : impl_(std::make_unique<Impl>()) {
+  Impl& i = *impl_;
+  i.client.clear_access_channels(websocketpp::log::alevel::all);
+  i.client.clear_error_channels(websocketpp::log::elevel::all);
+  i.client.init_asio();
+  i.client.set_open_handler([&i](websocketpp::connection_hdl) {
+    std::lock_guard lock(i.mutex);
+    i.open = true;
+    i.cv.notify_all();
+  });
+  i.client.set_message_handler([&i](websocketpp::connection_hdl, WsClient::message_ptr m) {
+    nlohmann::json j = nlohmann::json::parse(m->get_payload(), nullptr, false);
+    std::lock_guard lock(i.mutex);
+    i.received.push_back(std::move(j));
+    i.cv.notify_all();
+  });
+  websocketpp::lib::error_code ec;
+  auto con = i.client.get_connection("ws://127.0.0.1:" + std::to_string(port) + "/ws", ec);
+  EXPECT_FALSE(ec) << ec.message();
+  if (ec) return;
+  i.hdl = con->get_handle();
+  i.client.connect(con);
+  i.thread = std::thread([&i] { i.client.run(); });
+  std::unique_lock lock(i.mutex);
+  EXPECT_TRUE(i.cv.wait_for(lock, 5s, [&i] { return i.open; })) << "the viewer could not connect to port " << port;
+}
+
+WsViewer::~WsViewer() { close(); }
+
+bool WsViewer::connected() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->open;
+}
+
+void WsViewer::send(const std::string& text) {
+  websocketpp::lib::error_code ec;
+  impl_->client.send(impl_->hdl, text, websocketpp::frame::opcode::text, ec);
+  EXPECT_FALSE(ec) << ec.message();
+}
+
+void WsViewer::send_binary(const std::string& bytes) {
+  websocketpp::lib::error_code ec;
+  impl_->client.send(impl_->hdl, bytes, websocketpp::frame::opcode::binary, ec);
+  EXPECT_FALSE(ec) << ec.message();
+}
+
+void WsViewer::close() {
+  Impl& i = *impl_;
+  if (!i.thread.joinable()) return;
+  websocketpp::lib::error_code ec;
+  i.client.close(i.hdl, websocketpp::close::status::normal, "bye", ec);
+  if (ec) i.client.stop();  // not open (any more): nothing to say goodbye on
+  i.thread.join();
+}
+
+nlohmann::json WsViewer::wait_for(const std::function<bool(const nlohmann::json&)>& match, std::size_t skip) {
+  Impl& i = *impl_;
+  std::unique_lock lock(i.mutex);
+  nlohmann::json found;
+  i.cv.wait_for(lock, 5s, [&] {
+    std::size_t n = 0;
+    for (const nlohmann::json& m : i.received) {
+      if (match(m) && n++ == skip) {
+        found = m;
+        return true;
+      }
+    }
+    return false;
+  });
+  return found;
+}
+
+nlohmann::json WsViewer::wait_for(const std::string& type, std::size_t skip) {
+  return wait_for([&](const nlohmann::json& m) { return m.is_object() && m.value("type", "") == type; }, skip);
+}
+
+std::size_t WsViewer::count(const std::string& type) {
+  return count([&](const nlohmann::json& m) { return m.is_object() && m.value("type", "") == type; });
+}
+
+std::size_t WsViewer::count(const std::function<bool(const nlohmann::json&)>& match) {
+  std::lock_guard lock(impl_->mutex);
+  std::size_t n = 0;
+  for (const nlohmann::json& m : impl_->received) n += match(m) ? 1 : 0;
+  return n;
+}
+
+}  // namespace cellwright::testing

@@ -15,7 +15,7 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-constexpr const char* kCommands[] = {"compile", "check", "analyze", "snapshot", "run", "step", "emulate", "campaign"};
+constexpr const char* kCommands[] = {"compile", "check", "analyze", "snapshot", "run", "step", "serve", "emulate", "campaign"};
 
 TEST(Cli, VersionNamesTheProjectAndMuJoCo) {
   TwinCli cli("cw-cli");
@@ -29,7 +29,7 @@ TEST(Cli, AnUnknownCommandIsNamedAsSuch) {
   TwinCli cli("cw-cli");
   const Outcome r = cli.run("frob scenes/exchange.yaml");
   EXPECT_EQ(r.status, 2);
-  EXPECT_THAT(r.err, HasSubstr("twin: unknown command 'frob' (commands: compile, check, analyze, snapshot, run, step, "
+  EXPECT_THAT(r.err, HasSubstr("twin: unknown command 'frob' (commands: compile, check, analyze, snapshot, run, step, serve, "
                                "emulate, campaign"));
   EXPECT_EQ(cli.run("").status, 2);  // no command at all is a usage error too
 }

@@ -594,6 +594,12 @@ TurnAgent::TurnAgent(Participant& participant, TurnAgentConfig config) : impl_(n
     throw InputError(SourceLocation{"--robot"}, fmt::format("robot '{}' has nothing to do in program {} (its robots: {})",
                                                             c.robot, c.program.file, fmt::join(bound, ", ")));
   }
+  for (const task::Primitive& p : c.program.programs[im.index].primitives) {
+    if (!p.segment) continue;
+    throw InputError(p.where, fmt::format("robot {} ({}) would be an agent, and this command is part of a coordinated "
+                                          "block, whose robots meet in one process: run it with --agents local",
+                                          im.label, c.robot));
+  }
   register_type(participant, kTurnTypeName, max_turn_size());
   register_type(participant, kTurnCallTypeName, max_turn_call_size());
   im.writer = std::make_unique<RawWriter>(participant, call_topic(c.robot), kTurnCallTypeName);

@@ -134,6 +134,18 @@ TEST(AgentsLockstep, TaskControlRefusesToStartNamingTheRobotsWhoseAgentIsMissing
   EXPECT_EQ(melfa->wait_exit(10s), 0) << melfa->output();  // told the run's end: it does not wait for its --wait
 }
 
+TEST(AgentsLockstep, ACoordinatedBlockIsRefusedOnBothEndsNamingItsLine) {
+  TwinCli cli("lockstep-beam");
+  const std::string path = source_path("scenes/beam.yaml");
+  const auto run = cli.run("run " + shell_quote(path) + " --agents remote --domain 3 --agent-wait 1 --quiet");
+  EXPECT_EQ(run.status, 2) << run.out << run.err;
+  EXPECT_THAT(run.err, HasSubstr("beam.task:"));
+  EXPECT_THAT(run.err, HasSubstr("part of a coordinated block, whose robots meet in one process"));
+  const auto agent = cli.run("agent " + shell_quote(path) + " --robot puma --domain 3 --wait 1");
+  EXPECT_EQ(agent.status, 2) << agent.out << agent.err;
+  EXPECT_THAT(agent.err, HasSubstr("part of a coordinated block"));
+}
+
 TEST(AgentsLockstep, AnAgentOnTheTwinRefusesSpeed) {
   TwinCli cli("lockstep-speed");
   const auto r = cli.run("agent " + shell_quote(source_path("scenes/exchange.yaml")) +

@@ -223,9 +223,9 @@ void add_run(CLI::App& app, Command* run) {
       constexpr bool remote_turns = false;
 #endif
       if (args->ros_domain && ((remote && !remote_turns) || !kTwinHere)) {
-        throw InputError({"--ros-domain", 0, 0}, "the run is published for ROS 2 from the twin's run in this process; "
-                                                 "a run without the twin (remote agents, real robots only) is not "
-                                                 "published yet");
+        throw InputError({"--ros-domain", 0, 0},
+                         "the run is published for ROS 2 from the twin's run in this process; a run without the twin "
+                         "(remote agents in real time, real robots only) is not published yet");
       }
       if (remote && !remote_turns) {
         // Every robot of the program on its agent: task control here, nothing simulated.

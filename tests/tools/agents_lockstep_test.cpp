@@ -101,7 +101,9 @@ TEST(AgentsLockstep, AKilledAgentEndsTheRunFailedNamingItAndNothingHangs) {
   const std::string events = slurp(cli.dir() / "out" / "events.jsonl");
   EXPECT_THAT(events, HasSubstr("\"symptom\":\"link_lost\""));
   EXPECT_THAT(slurp(cli.dir() / "out" / "report.json"), HasSubstr("\"outcome\": \"stopped\""));
-  EXPECT_LT(took, 5.0) << run.output();  // the lease is 1 s
+  // Found within the lease (1 s), then the cell stopped and the outputs written, the failed run's picture rendered
+  // (about 3 s on an idle machine): bounded, never a hang.
+  EXPECT_LT(took, 20.0) << run.output();
   std::printf("the run ended %.2f s after the MELFA's agent was killed\n", took);
   EXPECT_EQ(puma->wait_exit(30s), 0) << puma->output();  // the run told it its end
 }

@@ -1,7 +1,8 @@
 // `twin agent SCENARIO --robot NAME [--driver KIND:PORT] --domain N [--speed X] [--wait SECONDS]`: one robot of the
 // scenario as a robot-control agent in this process, linked to task control (`twin run SCENARIO --agents remote
 // --domain N`) over DDS (cell/agent's ScenarioAgent; docs/distributed.md). Serves one run: exit 0 when task control came
-// and the run ended (task control left), 1 when the robot's control failed, 130 when stopped with Ctrl-C, 2 on bad
+// and the run ended (task control left), 1 when the robot's control failed, 3 when task control was lost (its
+// liveliness lapsed: killed, its host down, the network cut; the robot halted), 130 when stopped with Ctrl-C, 2 on bad
 // input, a driver that cannot be brought up, or no task control within --wait.
 #include <fmt/format.h>
 
@@ -19,12 +20,15 @@
 
 namespace cellwright::tools {
 
+constexpr int kTaskControlLost = 3;  // the exit code when task control's liveliness lapsed
+
 void add_agent(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand(
       "agent",
       "Run one robot's control as an agent in this process, on its real driver, for task control elsewhere (twin run "
       "SCENARIO --agents remote --domain N) over DDS. Serves one run. Exit 0 when the run ended, 1 when the robot's "
-      "control failed, 2 on bad input or when no task control came within --wait.");
+      "control failed, 3 when task control was lost (no sign of life from it for the liveliness lease: the robot is "
+      "halted), 2 on bad input or when no task control came within --wait.");
   struct Args {
     std::string scenario, robot, driver;
     std::optional<int> domain;
@@ -78,6 +82,12 @@ void add_agent(CLI::App& app, Command* run) {
                   summary.phase.empty() ? "not started" : summary.phase.c_str(),
                   stopped ? ", stopped by the user (signal)" : "");
       if (stopped) return kInterrupted;
+      if (!summary.task_control_lost.empty()) {
+        std::printf("agent %s: task control lost: %s; the robot was halted\n", args->robot.c_str(),
+                    summary.task_control_lost.c_str());
+        std::fflush(stdout);
+        return kTaskControlLost;
+      }
       return summary.phase == "failed" ? 1 : 0;
     };
   });

@@ -635,6 +635,7 @@ TurnAgentSummary TurnAgent::serve(std::chrono::milliseconds wait) {
   // lost), and again every kHelloEvery (a hello written before the run's reader saw this writer is lost).
   const auto deadline = std::chrono::steady_clock::now() + wait;
   std::optional<TurnMessage> first;
+  bool run_seen = false;  // a run's writer matched: its leaving before the first turn is its loss
   while (!first) {
     if (im.stop) {
       im.summary.ended_by_stop = true;
@@ -645,6 +646,12 @@ TurnAgentSummary TurnAgent::serve(std::chrono::milliseconds wait) {
                        fmt::format("no lock-step run came for robot {} within {} (twin run SCENARIO --agents remote "
                                    "--domain {})",
                                    c.robot, seconds_text(wait), im.participant.domain()));
+    }
+    if (im.reader->writers() > 0) {
+      run_seen = true;
+    } else if (run_seen || im.in.lapsed()) {
+      im.summary.error = "the run's process was lost before its first turn";
+      return im.summary;
     }
     if (im.reader->writers() > 0 && im.writer->wait_for_reader(std::chrono::milliseconds(0))) {
       TurnCall hello;

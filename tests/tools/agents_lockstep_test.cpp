@@ -108,6 +108,24 @@ TEST(AgentsLockstep, AKilledAgentEndsTheRunFailedNamingItAndNothingHangs) {
   EXPECT_EQ(puma->wait_exit(30s), 0) << puma->output();  // the run told it its end
 }
 
+TEST(AgentsLockstep, AgentsWhoseRunIsKilledLeaveWithinTheLease) {
+  TwinCli cli("lockstep-run-killed");
+  const std::string path = source_path("scenes/pipeline.yaml");
+  const int domain = test_domain();
+  auto puma = twin_agent(path, "puma", domain);
+  auto melfa = twin_agent(path, "melfa", domain);
+  BackgroundTwin run({"run", path, "--agents", "remote", "--domain", std::to_string(domain)});
+  ASSERT_TRUE(run.wait_for("firings", 30s)) << run.output();  // its turns under way
+  run.stop(SIGKILL);
+  const auto killed = std::chrono::steady_clock::now();
+  EXPECT_EQ(puma->wait_exit(20s), 3) << puma->output();  // 3: task control lost
+  EXPECT_EQ(melfa->wait_exit(20s), 3) << melfa->output();
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count();
+  EXPECT_THAT(puma->output(), HasSubstr("ended early: the run's process was lost"));
+  std::printf("both agents left %.2f s after their run was killed\n", took);
+  EXPECT_LT(took, 10.0);
+}
+
 TEST(AgentsLockstep, AnAgentBuiltForAnotherPerceptionIsRefusedNamingBoth) {
   TwinCli cli("lockstep-settings");
   const std::string path = source_path("scenes/exchange.yaml");

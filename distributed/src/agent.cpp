@@ -156,6 +156,8 @@ AgentSummary RobotAgent::serve(std::chrono::milliseconds wait) {
   }
   if (!have_first) {
     summary.ended_by_stop = im.stop;
+    if (!im.stop) summary.task_control_lost = im.endpoint->task_control_lost(std::chrono::milliseconds(500));
+    if (!summary.task_control_lost.empty()) im.control->halt();  // at rest, but halted all the same
     summary.refusals = im.endpoint->refusals();
     return summary;
   }
@@ -211,8 +213,12 @@ AgentSummary RobotAgent::serve(std::chrono::milliseconds wait) {
   }
   summary.ended_by_stop = im.stop;
   im.control->halt();
-  (void)im.endpoint->flush(std::chrono::seconds(2));
-  (void)im.publisher->flush(std::chrono::seconds(2));
+  if (!im.stop) summary.task_control_lost = im.endpoint->task_control_lost(std::chrono::milliseconds(500));
+  // What is left to send is written; a lost task control will acknowledge nothing, so it is not waited for.
+  const auto ack_wait = summary.task_control_lost.empty() ? std::chrono::milliseconds(2000)
+                                                          : std::chrono::milliseconds(100);
+  (void)im.endpoint->flush(ack_wait);
+  (void)im.publisher->flush(ack_wait);
   driver.set_notifier({});
   driver.set_clock({});
   summary.updates_applied = applied;

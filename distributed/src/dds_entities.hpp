@@ -6,6 +6,7 @@
 #pragma once
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
 #include <fastdds/dds/publisher/DataWriterListener.hpp>
@@ -20,6 +21,7 @@
 #include <cstdint>
 #include <cstring>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -96,8 +98,56 @@ Q with(Q qos, Qos kind, std::optional<std::chrono::milliseconds> lease = std::nu
   return qos;
 }
 
+// The participant (process) an endpoint belongs to: the first 12 bytes of its GUID, which an instance handle of it
+// holds (DDS names a matched endpoint, and a sample's writer, by handle).
+inline std::string participant_of(const dds::InstanceHandle_t& handle) {
+  std::string prefix(12, '\0');
+  for (std::size_t i = 0; i < prefix.size(); ++i) prefix[i] = static_cast<char>(handle.value[i]);
+  return prefix;
+}
+
+// The 12 bytes of a GUID prefix, as participant_of() gives them.
+inline std::string prefix_bytes(const rtps::GuidPrefix_t& prefix) {
+  return std::string(reinterpret_cast<const char*>(prefix.value), 12);
+}
+
+// What discovery said of the other participants that went: dropped (no announcement of it for its participant lease,
+// which our participants set to DdsOptions::lease: the process killed, its host down, the network cut) or removed
+// (it said goodbye: a clean end). Fast DDS removes a participant's endpoints (the matches' callbacks) just before it
+// reports the participant itself, on the same thread: wait_gone() waits for that report.
+//
+// Why the participant's lease and not the endpoints' liveliness: Fast DDS 2.9.1's reader side takes an automatic
+// liveliness announcement of any participant as one of every automatic writer it knows (WLPListener asserts the
+// kind, not the participant's writers; fixed in later Fast DDS, eProsima/Fast-DDS#4501), so a killed peer's writers
+// never lapse while another peer lives (an agent with the other agent running, task control with two agents).
+class PeerWatch : public dds::DomainParticipantListener {
+ public:
+  void on_participant_discovery(dds::DomainParticipant*, rtps::ParticipantDiscoveryInfo&& info) override {
+    using S = rtps::ParticipantDiscoveryInfo::DISCOVERY_STATUS;
+    if (info.status != S::DROPPED_PARTICIPANT && info.status != S::REMOVED_PARTICIPANT) return;
+    {
+      std::lock_guard lock(mutex_);
+      gone_[prefix_bytes(info.info.m_guid.guidPrefix)] = info.status == S::DROPPED_PARTICIPANT;
+    }
+    changed_.notify_all();
+  }
+  // Waits until `participant` (participant_of) has gone, at most until `deadline`: true when it was dropped (its lease
+  // expired), false when it said goodbye, nullopt when it has not gone (yet).
+  std::optional<bool> wait_gone(const std::string& participant, std::chrono::steady_clock::time_point deadline) const {
+    std::unique_lock lock(mutex_);
+    if (!changed_.wait_until(lock, deadline, [&] { return gone_.count(participant) > 0; })) return std::nullopt;
+    return gone_.at(participant);
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  mutable std::condition_variable changed_;
+  std::map<std::string, bool> gone_;
+};
+
 struct Participant::Impl {
   dds::DomainParticipant* participant = nullptr;
+  PeerWatch peers;  // the participant's listener (~Participant deletes the participant first)
   dds::Publisher* publisher = nullptr;
   dds::Subscriber* subscriber = nullptr;
   std::chrono::milliseconds lease{1000};  // the links' liveliness lease (DdsOptions::lease)
@@ -123,13 +173,6 @@ struct Participant::Impl {
   }
 };
 
-// The participant (process) an endpoint belongs to: the first 12 bytes of its GUID, which an instance handle of it
-// holds (DDS names a matched endpoint, and a sample's writer, by handle).
-inline std::string participant_of(const dds::InstanceHandle_t& handle) {
-  std::string prefix(12, '\0');
-  for (std::size_t i = 0; i < prefix.size(); ++i) prefix[i] = static_cast<char>(handle.value[i]);
-  return prefix;
-}
 
 // How many endpoints match one of ours, and a wait for it to change.
 class Matches {
@@ -152,6 +195,11 @@ class Matches {
   int count() const {
     std::lock_guard lock(mutex_);
     return count_;
+  }
+  // The participants of the matched endpoints.
+  std::set<std::string> participants() const {
+    std::lock_guard lock(mutex_);
+    return {participants_.begin(), participants_.end()};
   }
   // Whether an endpoint of that participant matches (a match seen from this side, not only from the other's).
   bool has(const std::string& participant) const {

@@ -97,20 +97,20 @@ Participant::Participant(DdsOptions options, const std::string& name) : options_
   impl_->lease = options.lease;
   dds::DomainParticipantQos qos = dds::PARTICIPANT_QOS_DEFAULT;
   qos.name(name);
-  // The participant's own lease (discovery): a peer process that gives no sign for it is removed, and every endpoint
-  // of its unmatched. This is what finds a killed peer when another peer is alive: Fast DDS 2.9 asserts the automatic
-  // liveliness of every remote writer of a reader's participant when any remote participant's automatic liveliness
-  // message comes (eProsima/Fast-DDS#4373, fixed from 2.10 on), so a writer's own lease never lapses then.
-  auto& discovery = qos.wire_protocol().builtin.discovery_config;
-  discovery.leaseDuration = eprosima::fastrtps::Duration_t(static_cast<long double>(options.lease.count()) / 1000.0L);
-  discovery.leaseDuration_announcementperiod =
-      eprosima::fastrtps::Duration_t(static_cast<long double>(options.lease.count()) / 4000.0L);
+  // The participant's lease (discovery's: a participant not heard of for it is dropped, its endpoints unmatched) is
+  // the links' lease, announced 4 times a lease: how a lost peer is found (PeerWatch, dds_entities.hpp, says why not
+  // by the endpoints' liveliness alone). Fast DDS's default is 20 s, announced every 3 s.
+  const auto seconds = [](std::chrono::milliseconds ms, long double part) {
+    return eprosima::fastrtps::Duration_t(static_cast<long double>(ms.count()) / 1000.0L / part);
+  };
+  qos.wire_protocol().builtin.discovery_config.leaseDuration = seconds(options.lease, 1);
+  qos.wire_protocol().builtin.discovery_config.leaseDuration_announcementperiod = seconds(options.lease, 4);
   if (!options.shared_memory) {
     qos.transport().use_builtin_transports = false;
     qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>());
   }
   impl_->participant = dds::DomainParticipantFactory::get_instance()->create_participant(
-      static_cast<dds::DomainId_t>(options.domain), qos);
+      static_cast<dds::DomainId_t>(options.domain), qos, &impl_->peers, dds::StatusMask::none());
   CW_CHECK(impl_->participant != nullptr, "Fast DDS cannot create a participant on domain {}", options.domain);
   impl_->publisher = impl_->participant->create_publisher(dds::PUBLISHER_QOS_DEFAULT);
   impl_->subscriber = impl_->participant->create_subscriber(dds::SUBSCRIBER_QOS_DEFAULT);
@@ -312,6 +312,8 @@ bool both_within(const Matches& a, const Matches& b, std::chrono::steady_clock::
 
 }  // namespace
 
+constexpr const char* kEndpointsLeft = "its endpoints left";
+
 struct RemoteRobot::Impl {
   std::string robot;
   std::size_t index;
@@ -338,6 +340,9 @@ struct RemoteRobot::Impl {
   Forwarder<runtime::MotionCommand> commands;
   Receiver statuses;
   Receiver state;
+  Participant::Impl& participant;
+  std::string lost_agent;  // the participant of the agent lost last, and when (under `mutex`)
+  std::chrono::steady_clock::time_point lost_at;
 
   Impl(Participant& p, std::string name, std::size_t robot_index, runtime::MessageQueue<runtime::MotionCommand>& cq,
        runtime::MessageQueue<runtime::RobotStatus>& sq)
@@ -347,11 +352,11 @@ struct RemoteRobot::Impl {
         status_queue(sq),
         commands(
             p.impl(), command_topic(robot), kCommandTypeName, cq,
-            [this](const runtime::MotionCommand& c) { return on_send(c); }, [this] { update("its endpoints left"); }),
+            [this](const runtime::MotionCommand& c) { return on_send(c); }, [this] { update(kEndpointsLeft); }),
         statuses(
             p.impl(), status_topic(robot), kStatusTypeName,
             [this](const std::vector<char>& b, const std::string&) { on_status(b); },
-            Qos::kDefault, [this] { update("its endpoints left"); },
+            Qos::kDefault, [this] { update(kEndpointsLeft); },
             [this](const dds::LivelinessChangedStatus& l) { on_liveliness(l); }),
         state(
             p.impl(), agent_topic(robot), kAgentStateTypeName,
@@ -360,9 +365,10 @@ struct RemoteRobot::Impl {
               if (state.matches().count() == 0) {
                 std::lock_guard lock(mutex);
                 said_ready = false;  // the agent is gone
-                update_locked("its endpoints left");
+                update_locked(kEndpointsLeft);
               }
-            }) {
+            }),
+        participant(p.impl()) {
     {
       std::lock_guard lock(mutex);
       built = true;
@@ -395,6 +401,8 @@ struct RemoteRobot::Impl {
     if (was_present && !now) {
       ++losses;
       lost_detail = why;
+      lost_agent = agent;
+      lost_at = std::chrono::steady_clock::now();
     }
     was_present = now;
     changed.notify_all();
@@ -450,9 +458,12 @@ struct RemoteRobot::Impl {
     std::lock_guard lock(mutex);
     if (l.not_alive_count_change <= 0 || participant_of(l.last_publication_handle) != agent) return;
     lapsed = true;
-    update_locked(fmt::format("no sign of life from it for its liveliness lease of {:.3g} s (the process killed, "
-                              "its host down or the network cut)",
-                              static_cast<double>(lease.count()) / 1000.0));
+    update_locked(lapse());
+  }
+  std::string lapse() const {
+    return fmt::format("no sign of life from it for its liveliness lease of {:.3g} s (the process killed, its host "
+                       "down or the network cut)",
+                       static_cast<double>(lease.count()) / 1000.0);
   }
 
   void on_status(const std::vector<char>& bytes) {
@@ -510,6 +521,18 @@ struct RemoteRobot::Impl {
     s.session = session;
     s.losses = losses;
     s.lost_detail = lost_detail;
+    // Endpoints that left because discovery dropped the agent's participant (its lease expired) are a lapse, not a
+    // goodbye. Fast DDS reports the participant just after its endpoints: until it has (at most 100 ms), the loss is
+    // not shown yet, so that it is shown once, with its cause.
+    if (lost_detail == kEndpointsLeft && !lost_agent.empty()) {
+      const std::optional<bool> dropped = participant.peers.wait_gone(lost_agent, std::chrono::steady_clock::now());
+      if (dropped.value_or(false)) {
+        s.lost_detail = lapse();
+      } else if (!dropped && std::chrono::steady_clock::now() - lost_at < std::chrono::milliseconds(100)) {
+        s.losses = losses - 1;
+        s.lost_detail.clear();
+      }
+    }
     s.in_flight = in_flight.empty() ? -1 : static_cast<int>(in_flight.front().index);
     s.holding = holding;
     for (const runtime::MotionCommand& c : in_flight) {
@@ -660,6 +683,8 @@ struct AgentEndpoint::Impl {
   // start() was called: the command reader hands samples on. Ready is said only then: a command taken before would
   // be dropped by the reader, and its status would never come.
   bool started = false;
+  Participant::Impl& participant;
+  std::string task_control;  // its participant (participant_of), the last one matched on both endpoints; state_mutex
   PlainWriter state;
   Receiver commands;
   Forwarder<runtime::RobotStatus> statuses;
@@ -667,6 +692,7 @@ struct AgentEndpoint::Impl {
   Impl(Participant& p, const std::string& robot, std::size_t robot_index, const task::CompiledProgram& program,
        runtime::MessageQueue<runtime::MotionCommand>& cq, runtime::MessageQueue<runtime::RobotStatus>& sq)
       : index(robot_index),
+        participant(p.impl()),
         state(p.impl(), agent_topic(robot), kAgentStateTypeName, Qos::kLatched),
         commands(
             p.impl(), command_topic(robot), kCommandTypeName,
@@ -691,6 +717,7 @@ struct AgentEndpoint::Impl {
   }
 
   bool present() const { return commands.matches().count() > 0 && statuses.matches().count() > 0; }
+
 
   // A command from task control: decoded, in its order, into the command queue; else refused. A gap (a command lost
   // on the way) is also reported to task control as a failed status that stops the cell: the lost command would
@@ -737,6 +764,9 @@ struct AgentEndpoint::Impl {
   void announce() {
     std::lock_guard lock(state_mutex);
     if (!built) return;
+    for (const std::string& p : commands.matches().participants()) {
+      if (statuses.matches().has(p)) task_control = p;
+    }
     bool now = started && present();
     if (said == now) return;
     said = now;
@@ -757,7 +787,22 @@ AgentEndpoint::~AgentEndpoint() {
 }
 
 bool AgentEndpoint::task_control_present() const {
-  return impl_->commands.matches().count() > 0 && impl_->statuses.matches().count() > 0;
+  return impl_->present();
+}
+
+std::string AgentEndpoint::task_control_lost(std::chrono::milliseconds wait) const {
+  std::string task_control;
+  {
+    std::lock_guard lock(impl_->state_mutex);
+    task_control = impl_->task_control;
+  }
+  if (task_control.empty()) return {};
+  const std::optional<bool> dropped =
+      impl_->participant.peers.wait_gone(task_control, std::chrono::steady_clock::now() + wait);
+  if (!dropped.value_or(false)) return {};
+  return fmt::format("no sign of life from task control for the lease of {:.3g} s (its process killed, its host "
+                     "down or the network cut)",
+                     static_cast<double>(impl_->participant.lease.count()) / 1000.0);
 }
 
 bool AgentEndpoint::wait_for_task_control(std::chrono::milliseconds timeout) const {

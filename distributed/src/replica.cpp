@@ -315,7 +315,8 @@ struct RobotSubscriber::Impl {
     }
     std::cerr << fmt::format("refused a sample on {}: {}\n", topic, why);
   }
-  // Counts a gap in a sequence as a refusal (samples lost); the sample itself is taken.
+  // Counts a gap in a sequence as a refusal (samples lost); the sample itself is taken. A 1 starts a new agent's
+  // stream (an agent that rejoined numbers its samples from 1 again).
   void check_sequence(std::uint64_t& last, std::uint64_t now, const std::string& topic) {
     std::uint64_t was = 0;
     {
@@ -323,7 +324,7 @@ struct RobotSubscriber::Impl {
       was = last;
       last = now;
     }
-    if (now != was + 1) refuse(topic, fmt::format("sample {} after {}: {} lost", now, was, now > was ? now - was - 1 : 0));
+    if (now != was + 1 && now != 1) refuse(topic, fmt::format("sample {} after {}: {} lost", now, was, now > was ? now - was - 1 : 0));
   }
 };
 

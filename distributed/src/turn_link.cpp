@@ -594,6 +594,12 @@ TurnAgent::TurnAgent(Participant& participant, TurnAgentConfig config) : impl_(n
     throw InputError(SourceLocation{"--robot"}, fmt::format("robot '{}' has nothing to do in program {} (its robots: {})",
                                                             c.robot, c.program.file, fmt::join(bound, ", ")));
   }
+  for (const task::Primitive& p : c.program.programs[im.index].primitives) {
+    if (!p.segment) continue;
+    throw InputError(p.where, fmt::format("robot {} ({}) would be an agent, and this command is part of a coordinated "
+                                          "block, whose robots meet in one process: run it with --agents local",
+                                          im.label, c.robot));
+  }
   register_type(participant, kTurnTypeName, max_turn_size());
   register_type(participant, kTurnCallTypeName, max_turn_call_size());
   im.writer = std::make_unique<RawWriter>(participant, call_topic(c.robot), kTurnCallTypeName);
@@ -629,6 +635,7 @@ TurnAgentSummary TurnAgent::serve(std::chrono::milliseconds wait) {
   // lost), and again every kHelloEvery (a hello written before the run's reader saw this writer is lost).
   const auto deadline = std::chrono::steady_clock::now() + wait;
   std::optional<TurnMessage> first;
+  bool run_seen = false;  // a run's writer matched: its leaving before the first turn is its loss
   while (!first) {
     if (im.stop) {
       im.summary.ended_by_stop = true;
@@ -639,6 +646,12 @@ TurnAgentSummary TurnAgent::serve(std::chrono::milliseconds wait) {
                        fmt::format("no lock-step run came for robot {} within {} (twin run SCENARIO --agents remote "
                                    "--domain {})",
                                    c.robot, seconds_text(wait), im.participant.domain()));
+    }
+    if (im.reader->writers() > 0) {
+      run_seen = true;
+    } else if (run_seen || im.in.lapsed()) {
+      im.summary.error = "the run's process was lost before its first turn";
+      return im.summary;
     }
     if (im.reader->writers() > 0 && im.writer->wait_for_reader(std::chrono::milliseconds(0))) {
       TurnCall hello;

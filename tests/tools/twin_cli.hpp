@@ -73,11 +73,13 @@ class TwinCli {
 };
 
 // `twin <args...>` started in the background (e.g. `twin emulate`), its standard output read through a pipe; with
-// `with_stdin`, its standard input a pipe that send() writes to (kept open until it ends), else the test's. The
+// `with_stdin`, its standard input a pipe that send() writes to (kept open until it ends), else the test's. With a
+// `prefix`, `prefix... twin <args...>` (a program that runs twin in its own process, as `ip netns exec NAME` does). The
 // destructor stops it (SIGTERM) and reaps it.
 class BackgroundTwin {
  public:
-  explicit BackgroundTwin(const std::vector<std::string>& args, bool with_stdin = false) {
+  explicit BackgroundTwin(const std::vector<std::string>& args, bool with_stdin = false,
+                          const std::vector<std::string>& prefix = {}) {
     int fds[2];
     if (::pipe(fds) != 0) return;
     int in[2] = {-1, -1};
@@ -93,13 +95,13 @@ class BackgroundTwin {
         ::close(in[0]);
         ::close(in[1]);
       }
+      std::vector<std::string> copy = prefix;
+      copy.push_back(CW_TWIN_EXE);
+      copy.insert(copy.end(), args.begin(), args.end());
       std::vector<char*> argv;
-      std::string exe = CW_TWIN_EXE;
-      argv.push_back(exe.data());
-      std::vector<std::string> copy = args;
       for (std::string& a : copy) argv.push_back(a.data());
       argv.push_back(nullptr);
-      ::execv(exe.c_str(), argv.data());
+      ::execvp(argv[0], argv.data());
       ::_exit(127);
     }
     ::close(fds[1]);

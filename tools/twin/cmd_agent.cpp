@@ -2,9 +2,10 @@
 // one robot of the scenario as a robot-control agent in this process, linked to task control (`twin run SCENARIO
 // --agents remote --domain N`) over DDS (cell/agent's ScenarioAgent; docs/distributed.md): on its real driver (real
 // time), or, on the twin's simulated driver, taking its turns of a lock-step run with the twin. Serves one run: exit 0
-// when task control came and the run ended (task control left, or sent its end), 1 when the robot's control failed or
-// the run was lost, 130 when stopped with Ctrl-C, 2 on bad input, a driver that cannot be brought up, or no task
-// control within --wait.
+// when task control came and the run ended (task control left, or sent its end), 1 when the robot's control failed, 3
+// when task control was lost (no sign of life from it for the lease: killed, its host down, the network cut; a robot
+// on a real driver is halted) or a lock-step run's messages could not be taken, 130 when stopped with Ctrl-C, 2 on bad
+// input, a driver that cannot be brought up, or no task control within --wait.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -22,13 +23,16 @@
 
 namespace cellwright::tools {
 
+constexpr int kTaskControlLost = 3;  // the exit code when task control's liveliness lapsed
+
 void add_agent(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand(
       "agent",
       "Run one robot's control as an agent in this process, for task control elsewhere (twin run SCENARIO --agents "
       "remote --domain N) over DDS: on its real driver (--driver, real time), or on the twin's robot in a lock-step run "
       "(no --driver, the scenario's sim driver). Serves one run. Exit 0 when the run ended, 1 when the robot's control "
-      "failed or the run was lost, 2 on bad input or when no task control came within --wait.");
+      "failed, 3 when task control was lost (no sign of life from it for the lease: a real robot is halted), 2 on bad "
+      "input or when no task control came within --wait.");
   struct Args {
     std::string scenario, robot, driver;
     std::optional<int> domain;
@@ -101,7 +105,8 @@ void add_agent(CLI::App& app, Command* run) {
                     stopped ? ", stopped by the user (signal)" : "",
                     summary.error.empty() ? "" : fmt::format("; ended early: {}", summary.error).c_str());
         if (stopped) return kInterrupted;
-        return summary.phase == "failed" || !summary.error.empty() ? 1 : 0;
+        if (summary.phase == "failed") return 1;
+        return summary.error.empty() ? 0 : kTaskControlLost;
       }
       distributed::AgentSummary summary;
       bool stopped = false;
@@ -122,6 +127,12 @@ void add_agent(CLI::App& app, Command* run) {
                   summary.phase.empty() ? "not started" : summary.phase.c_str(),
                   stopped ? ", stopped by the user (signal)" : "");
       if (stopped) return kInterrupted;
+      if (!summary.task_control_lost.empty()) {
+        std::printf("agent %s: task control lost: %s; the robot was halted\n", args->robot.c_str(),
+                    summary.task_control_lost.c_str());
+        std::fflush(stdout);
+        return kTaskControlLost;
+      }
       return summary.phase == "failed" ? 1 : 0;
     };
   });

@@ -117,6 +117,7 @@ void add_run(CLI::App& app, Command* run) {
     std::string agents = "local";
     std::optional<int> domain;
     double agent_wait = 10.0;
+    double rejoin_wait = 0.0;
   };
   auto args = std::make_shared<Args>();
   add_run_options(*cmd, args->run);
@@ -148,6 +149,11 @@ void add_run(CLI::App& app, Command* run) {
   cmd->add_option("--agent-wait", args->agent_wait,
                   "with --agents remote: seconds to wait for every robot's agent before refusing to start (default 10)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--rejoin-wait", args->rejoin_wait,
+                  "with --agents remote: seconds (wall clock) a robot whose agent was lost with work in hand waits "
+                  "for a new agent (twin agent started again), which is re-homed and sent the interrupted command; "
+                  "0 (the default): the cell is stopped at once")
+      ->check(CLI::NonNegativeNumber);
   cmd->callback([run, args, cmd] {
     *run = [args, cmd] {
       using namespace cellwright::cell;
@@ -165,7 +171,7 @@ void add_run(CLI::App& app, Command* run) {
         throw InputError({"--agents", 0, 0}, "remote agents are found on a DDS domain: give it with --domain N (the "
                                              "one their twin agent ... --domain N was given)");
       }
-      for (const char* name : {"--domain", "--agent-wait"}) {
+      for (const char* name : {"--domain", "--agent-wait", "--rejoin-wait"}) {
         if (!remote && cmd->count(name) > 0) {
           throw InputError({name, 0, 0}, "it is for remote agents: add --agents remote (robot control runs in this "
                                          "process otherwise)");
@@ -223,15 +229,16 @@ void add_run(CLI::App& app, Command* run) {
       constexpr bool remote_turns = false;
 #endif
       if (args->ros_domain && ((remote && !remote_turns) || !kTwinHere)) {
-        throw InputError({"--ros-domain", 0, 0}, "the run is published for ROS 2 from the twin's run in this process; "
-                                                 "a run without the twin (remote agents, real robots only) is not "
-                                                 "published yet");
+        throw InputError({"--ros-domain", 0, 0},
+                         "the run is published for ROS 2 from the twin's run in this process; a run without the twin "
+                         "(remote agents in real time, real robots only) is not published yet");
       }
       if (remote && !remote_turns) {
         // Every robot of the program on its agent: task control here, nothing simulated.
         RemoteAgents agents;
         agents.domain = *args->domain;
         agents.wait = std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000));
+        agents.rejoin_wait = std::chrono::milliseconds(static_cast<long long>(args->rejoin_wait * 1000));
         return run_real_cell(*cmd, a, s, pre, args->speed, args->quiet, &agents);
       }
 #if !CW_SIM

@@ -65,6 +65,9 @@ int run_real_cell(const CLI::App& cmd, const RunArgs& a, const cell::Scenario& s
     agents.emplace(*participant);
     for (const Binding& b : s.robots) options.remote_robots.push_back(b.name);
     options.attach_remote = agents->attach();
+    // The run's clock runs at `speed` times the wall clock; the wait is given in wall-clock seconds.
+    options.rejoin_wait = std::chrono::duration_cast<runtime::SimDuration>(
+        std::chrono::duration<double, std::milli>(static_cast<double>(remote->rejoin_wait.count()) * speed));
   }
   std::optional<RealRun> run;
   try {

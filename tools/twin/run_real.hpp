@@ -21,6 +21,8 @@ namespace cellwright::tools {
 struct RemoteAgents {
   int domain = 0;
   std::chrono::milliseconds wait{10000};
+  // --rejoin-wait: how long (wall clock) a robot whose agent was lost waits for a new one; 0: the cell is stopped.
+  std::chrono::milliseconds rejoin_wait{0};
 };
 
 // Runs scenario `s` (preflight's `pre` accepted) on its real robots. `cmd` is `twin run`'s command, whose options

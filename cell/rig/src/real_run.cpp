@@ -102,6 +102,7 @@ RealRun::RealRun(const Scenario& s, const petri::Net& net, RealRunOptions option
   }
   config.remote_robots = options.remote_robots;
   config.attach_remote = std::move(options.attach_remote);
+  config.rejoin_wait = options.rejoin_wait;
   config.plant = nullptr;  // nothing simulated: the robots move by themselves
   config.mode = runtime::Mode::kRealtime;
   config.realtime_speed = options.speed;

@@ -755,6 +755,16 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
     im.cells.push_back(cell);
     const bool remote =
         std::find(config_.remote_robots.begin(), config_.remote_robots.end(), cell) != config_.remote_robots.end();
+    if (remote) {
+      // A coordinated block's robots meet on a board in this process's memory (coordination.hpp).
+      for (const task::Primitive& p : config_.program.programs[r].primitives) {
+        if (!p.segment) continue;
+        throw InputError(p.where, fmt::format("robot {} ({}) is remote, and this command is part of a coordinated "
+                                              "block, whose robots meet in one process: run the robots of a "
+                                              "coordinated block in one process (--agents local)",
+                                              label, cell));
+      }
+    }
     im.remote.push_back(remote ? config_.attach_remote(r, cell, *im.inboxes[r], im.statuses) : nullptr);
     if (remote) {
       if (config_.mode != Mode::kRealtime && !im.remote.back()->takes_turns()) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "cellwright/drivers/faulty_driver.hpp"
+#include "cellwright/models/robot_model.hpp"
 #include "controller/runtime/scripted_cell.hpp"
 #include "controller/runtime/self_running_driver.hpp"
 
@@ -661,16 +662,99 @@ TEST(RuntimeRemote, ARemoteRobotIsDrivenThroughItsLinkWithNoDriverOrRobotControl
   EXPECT_EQ(cell.driver("melfa").calls().connect, 0);
 }
 
-TEST(RuntimeRemote, ARemoteRobotInLockStepOrNotOfTheProgramIsRefused) {
+TEST(RuntimeRemote, ARemoteRobotWhoseLinkTakesNoTurnsInLockStepOrNotOfTheProgramIsRefused) {
   ScriptedCell cell;
   cell.config.remote_robots = {"melfa"};
-  cell.config.attach_remote = [](std::size_t, const std::string&, MessageQueue<MotionCommand>&,
-                                 MessageQueue<RobotStatus>&) -> std::unique_ptr<RemoteLink> { return nullptr; };
-  expect_refused(cell, "scenario.yaml:1:1", "robot 'melfa' is remote: robots in other processes run in real time only");
+  cell.config.attach_remote = [](std::size_t, const std::string&, MessageQueue<MotionCommand>& c,
+                                 MessageQueue<RobotStatus>& s) -> std::unique_ptr<RemoteLink> {
+    return std::make_unique<AnsweringLink>(c, s);
+  };
+  expect_refused(cell, "scenario.yaml:1:1", "robot 'melfa' is remote and its link carries no lock-step turns");
+  ScriptedCell no_driver;
+  no_driver.config.remote_robots = {"melfa"};
+  no_driver.config.drivers.erase("melfa");
+  no_driver.config.attach_remote = cell.config.attach_remote;
+  expect_refused(no_driver, "scenario.yaml:1:1", "robot 'melfa' is remote in a lock-step run, which needs its driver");
   ScriptedCell realtime("exchange.task", {}, Mode::kRealtime);
   realtime.config.remote_robots = {"kuka"};
   realtime.config.attach_remote = cell.config.attach_remote;
   expect_refused(realtime, "scenario.yaml:1:1", "remote robot 'kuka' is not a robot of the program");
+}
+
+// A link that takes lock-step turns in this process, as an agent takes them in its own (distributed/turn_link.hpp):
+// its own RobotControl, built at the first turn on the driver the runtime hands it, stepped once a turn with the
+// commands task control queued; it shares the run's model and log.
+class TurnTakingLink : public RemoteLink {
+ public:
+  TurnTakingLink(const RunConfig& config, std::size_t index, MessageQueue<MotionCommand>& commands,
+                 MessageQueue<RobotStatus>& statuses)
+      : config_(config), index_(index), commands_(commands), statuses_(statuses) {}
+  void start() override {}
+  void stop() override {}
+  void share(SharedEnvironment& environment, EventLog& log) override {
+    env_ = &environment;
+    log_ = &log;
+  }
+  bool takes_turns() const override { return true; }
+  void take_turn(SimDuration now, drivers::RobotDriver& driver) override {
+    MotionCommand c;
+    while (commands_.try_pop(c) == QueueStatus::ok) EXPECT_EQ(inbox_.try_push(std::move(c)), QueueStatus::ok);
+    if (!control_) {
+      const std::string& label = config_.program.robots[index_];
+      const std::string& cell = config_.binding.robots.at(label).name;
+      const models::RobotSpec& spec = *config_.cell.find_robot(cell);
+      MotionOptions motion = config_.motion;
+      motion.track_held_parts = config_.perception != Perception::kTruth;
+      control_ = std::make_unique<RobotControl>(index_, label, cell, driver, models::robot_chain(spec),
+                                                spec.grip_force, resolve_names(config_), *env_, inbox_, statuses_,
+                                                *log_, motion, false, nullptr);
+      control_->connect();
+    }
+    control_->step(now);
+    ++turns;
+  }
+  int turns = 0;
+
+ private:
+  const RunConfig& config_;
+  std::size_t index_;
+  MessageQueue<MotionCommand>& commands_;
+  MessageQueue<RobotStatus>& statuses_;
+  MessageQueue<MotionCommand> inbox_{4};
+  SharedEnvironment* env_ = nullptr;
+  EventLog* log_ = nullptr;
+  std::unique_ptr<RobotControl> control_;
+};
+
+TEST(RuntimeRemote, ARemoteRobotsTurnsTakenThroughItsLinkLogByteForByteWhatItsRobotControlHereLogs) {
+  ScriptedCell here;
+  Runtime local(here.config);
+  ASSERT_EQ(local.run().outcome, Outcome::kFinished) << local.log().text();
+
+  ScriptedCell cell;
+  cell.config.remote_robots = {"puma", "melfa"};
+  std::vector<TurnTakingLink*> links;
+  const RunConfig config = cell.config;
+  cell.config.attach_remote = [&](std::size_t index, const std::string&, MessageQueue<MotionCommand>& c,
+                                  MessageQueue<RobotStatus>& s) -> std::unique_ptr<RemoteLink> {
+    auto made = std::make_unique<TurnTakingLink>(config, index, c, s);
+    links.push_back(made.get());
+    return made;
+  };
+  for (LockstepThreads threads : {LockstepThreads::kShared, LockstepThreads::kOwn}) {
+    SCOPED_TRACE(threads == LockstepThreads::kShared ? "shared" : "own threads");
+    ScriptedCell remote;
+    remote.config.remote_robots = cell.config.remote_robots;
+    remote.config.attach_remote = cell.config.attach_remote;
+    remote.config.lockstep_threads = threads;
+    links.clear();
+    Runtime rt(remote.config);
+    ASSERT_EQ(rt.run().outcome, Outcome::kFinished) << rt.log().text();
+    ASSERT_EQ(links.size(), 2u);
+    EXPECT_GT(links[0]->turns, 100);
+    EXPECT_EQ(links[0]->turns, links[1]->turns);  // every robot a turn every period
+    EXPECT_EQ(rt.log().text(), local.log().text());
+  }
 }
 
 }  // namespace

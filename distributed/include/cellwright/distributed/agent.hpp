@@ -18,8 +18,10 @@
 // it before it serves).
 //
 // One agent serves one run: serve() waits for task control, steps robot control every period (and whenever the driver
-// or a command wakes it) until task control leaves (its process ended or was lost: the robot is halted) or
-// request_stop(); then it halts the robot and flushes what it still has to send.
+// or a command wakes it) until task control leaves (its process ended: its endpoints unmatched), is lost (its
+// liveliness lapsed: killed, its host down, the network cut; found within about DdsOptions::lease, before its matches
+// go) or request_stop(); then it halts the robot (driver stop()) and flushes what it still has to send (without
+// waiting for a lost task control's acknowledgements).
 //
 // Not done (docs/distributed.md): coordinated blocks (their board is shared memory in one process: a segment fails,
 // naming it), lock-step, the machines of a program with devices (their fixtures as targets).
@@ -62,6 +64,7 @@ struct AgentConfig {
 struct AgentSummary {
   bool task_control_came = false;
   bool ended_by_stop = false;      // request_stop(), not task control leaving
+  std::string task_control_lost;   // why, when task control was lost (AgentEndpoint::task_control_lost); else empty
   std::uint64_t commands = 0;      // commands taken
   std::uint64_t updates_applied = 0;  // other robots' model updates applied
   Refusals refusals;               // samples refused (commands and others' updates), the last reason

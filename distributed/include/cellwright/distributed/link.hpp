@@ -18,8 +18,11 @@
 // status) is refused: counted, its reason kept and written to stderr, never pushed into a queue.
 //
 // Liveliness and order (docs/distributed.md, "Failure behaviour"): every endpoint has automatic liveliness with a
-// short lease (DdsOptions::lease, 1 s): task control's end of a robot knows, within about the lease, that its agent is
-// gone (killed, its host down, the network cut) and tells the runtime through RemoteLink::state(); the runtime's
+// short lease (DdsOptions::lease, 1 s), and each participant has the same lease for discovery (a participant silent
+// for it is dropped with its endpoints: what finds a lost peer with Fast DDS 2.9.1, whose automatic liveliness is kept
+// by any peer's announcements: dds_entities.hpp, PeerWatch): task control's end of a robot knows, within about the
+// lease, that its agent is gone (killed, its host down, the network cut) and tells the runtime through
+// RemoteLink::state(), and an agent knows the same of task control (AgentEndpoint::task_control_lost); the runtime's
 // watcher (runtime/remote_watch.hpp) makes that a link_lost fault. An agent is present when its state says ready
 // and this side's endpoints match endpoints of the agent's own participant (an agent that was killed stays matched
 // until its participant's discovery lease expires: a count of matches would take it for the new one); a lapse is for
@@ -56,9 +59,10 @@ namespace cellwright::distributed {
 struct DdsOptions {
   int domain = 0;              // DDS domain id, 0..232
   bool shared_memory = false;  // also Fast DDS's shared-memory transport (same host)
-  // The liveliness lease of every endpoint (automatic liveliness): an agent that gives no sign of life this long is
-  // lost. Task control and its agents must use the same lease (DDS matches a reader only with writers whose lease is
-  // not longer than its own). At least 20 ms (InputError).
+  // The liveliness lease of every endpoint (automatic liveliness) and the participant's (discovery's, announced 4
+  // times a lease): a peer that gives no sign of life this long is lost. Task control and its agents must use the same
+  // lease (DDS matches a reader only with writers whose lease is not longer than its own). At least 20 ms
+  // (InputError).
   std::chrono::milliseconds lease{1000};
 };
 
@@ -174,6 +178,11 @@ class AgentEndpoint {
 
   // Whether task control is there: its command writer and status reader both matched.
   bool task_control_present() const;
+  // Once task control is no longer present: why it was lost, or empty when it ended (its process said goodbye) or has
+  // not gone. Lost: discovery dropped its participant, not heard of for DdsOptions::lease (its process killed, its
+  // host down, the network cut: within about the lease, its endpoints unmatched just before). Fast DDS reports the
+  // participant's end just after its endpoints': this waits at most `wait` for it.
+  std::string task_control_lost(std::chrono::milliseconds wait) const;
   bool wait_for_task_control(std::chrono::milliseconds timeout) const;
   void start();
   void stop();

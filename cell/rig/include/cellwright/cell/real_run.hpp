@@ -58,6 +58,9 @@ struct RealRunOptions {
   // no driver here (the agent has it), their queues carried by `attach_remote` (runtime.hpp RunConfig::remote_robots).
   std::vector<std::string> remote_robots;
   runtime::AttachRemote attach_remote;
+  // How long a remote robot whose agent was lost waits for a new one (runtime.hpp RunConfig::rejoin_wait); 0: the
+  // cell is stopped at once.
+  runtime::SimDuration rejoin_wait{0};
 };
 
 // One device of the run on real I/O, for a person.

@@ -78,12 +78,14 @@ std::unique_ptr<BackgroundTwin> agent(const fs::path& scenario, const std::strin
   return p;
 }
 
-// `twin run --agents remote` started in the background, its outputs in `out`, with `extra` options.
+// `twin run --agents remote --no-twin` (task control alone: the failures below are task control's and the agents',
+// the twin following them is the exchange's test) started in the background, its outputs in `out`, with `extra`
+// options.
 std::unique_ptr<BackgroundTwin> task_control(const fs::path& scenario, int domain, const fs::path& out,
                                              const std::vector<std::string>& extra = {},
                                              const std::vector<std::string>& prefix = {}) {
-  std::vector<std::string> args{"run", scenario.string(), "--agents", "remote", "--domain", std::to_string(domain),
-                                "--speed", "4", "--quiet", "-o", out.string()};
+  std::vector<std::string> args{"run",   scenario.string(), "--agents", "remote", "--domain", std::to_string(domain),
+                                "--speed", "4",            "--no-twin", "--quiet", "-o",      out.string()};
   args.insert(args.end(), extra.begin(), extra.end());
   return std::make_unique<BackgroundTwin>(args, false, prefix);
 }
@@ -154,13 +156,18 @@ std::map<std::string, int> count_by_type_and_robot(const std::string& jsonl) {
   return n;
 }
 
-// The exchange's run in `out` finished as in one process: the report true, A placed on the output by the
-// controller's model (which the agents' updates wrote), every command of each robot's program started and ended in
-// task control's log (robot control's events, logged in the agents' processes; exchange.task: r1 7 commands, r2 9).
-void expect_the_exchange_finished(const fs::path& out) {
+// The exchange's run in `out` finished as in one process: the report true, A placed on the output (by the twin, whose
+// copies of the robots followed the agents', or without the twin by the controller's model, which the agents' updates
+// wrote), every command of each robot's program started and ended in task control's log (robot control's events,
+// logged in the agents' processes; exchange.task: r1 7 commands, r2 9).
+void expect_the_exchange_finished(const fs::path& out, bool twin = false) {
   const nlohmann::json report = nlohmann::json::parse(slurp(out / "report.json"));
   EXPECT_EQ(report["outcome"], "finished");
-  EXPECT_EQ(report["parts_from"], "controller_model");
+  if (twin) {
+    EXPECT_FALSE(report.contains("parts_from")) << report.dump();  // the twin's
+  } else {
+    EXPECT_EQ(report["parts_from"], "controller_model");
+  }
   bool placed = false;
   for (const nlohmann::json& a : report["account"]) {
     if (a["workpiece"] == "A") placed = a["status"] == "in_place" && a["where"] == "output";
@@ -207,11 +214,16 @@ TEST(AgentsCli, TheExchangeWithTwoAgentsInProcessesOfTheirOwnEndsAsInOneProcess)
   auto puma = agent(scenario, "puma", "val2:" + (cli.dir() / "puma").string(), domain);
   auto melfa = agent(scenario, "melfa", "movemaster:" + (cli.dir() / "melfa").string(), domain);
 
+  // With the twin here (the default): its copies of the arms follow the agents' robots, and the report's parts are
+  // where the twin has them: A is there only if the copies picked it, handed it over and put it on the output.
   const auto r = cli.run("run " + shell_quote(scenario.string()) + " --agents remote --domain " +
                          std::to_string(domain) + " --speed 4 --quiet -o " + shell_quote((cli.dir() / "out").string()));
   ASSERT_EQ(r.status, 0) << r.out << r.err << puma->output() << melfa->output();
   EXPECT_THAT(r.out, HasSubstr("puma on its agent, DDS domain " + std::to_string(domain)));
-  expect_the_exchange_finished(cli.dir() / "out");
+  EXPECT_THAT(r.out, HasSubstr("followed in the twin"));
+  EXPECT_THAT(r.out, HasSubstr(" 0 missed"));
+  EXPECT_TRUE(fs::exists(cli.dir() / "out" / "final.png"));
+  expect_the_exchange_finished(cli.dir() / "out", true);
   const std::map<std::string, int> n = count_by_type_and_robot(slurp(cli.dir() / "out" / "events.jsonl"));
   EXPECT_EQ(n.at("command_start r2"), 9);
   EXPECT_EQ(n.count("fault_detected r1") + n.count("fault_detected r2"), 0u);
@@ -440,6 +452,10 @@ TEST(AgentsCli, BadArgumentsAreRefusedSayingWhy) {
            {"run " + s + " --agents everywhere --domain " + domain, "--agents"},
            {"run " + s + " --agents remote --realtime --domain " + domain + " --ros-domain " + domain,
             "not published yet"},
+           {"run " + s + " --no-twin", "add --agents remote"},
+           {"run " + s + " --agents remote --domain " + domain + " --no-twin", "add --realtime"},
+           {"run " + s + " --agents remote --realtime --domain " + domain + " --perception truth",
+            "do not share it"},
        }) {
     const auto r = cli.run(c.args);
     EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;

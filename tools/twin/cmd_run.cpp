@@ -33,6 +33,8 @@
 #if CW_SIM
 #include "cellwright/cell/sim/run.hpp"
 #include "cellwright/distributed/ros_publisher.hpp"
+#include "cellwright/distributed/link.hpp"
+#include "cellwright/distributed/replica.hpp"
 #include "cellwright/distributed/turn_link.hpp"
 #endif
 
@@ -118,6 +120,7 @@ void add_run(CLI::App& app, Command* run) {
     std::optional<int> domain;
     double agent_wait = 10.0;
     double rejoin_wait = 0.0;
+    bool no_twin = false;
   };
   auto args = std::make_shared<Args>();
   add_run_options(*cmd, args->run);
@@ -143,7 +146,8 @@ void add_run(CLI::App& app, Command* run) {
                 "written. Exit 0 when all is well, 1 when not");
   cmd->add_option("--agents", args->agents,
                   "where robot control runs: local (threads of this process, the default) or remote (an agent per "
-                  "robot, twin agent --robot NAME --domain N SCENARIO, found over DDS; real time, no twin)")
+                  "robot, twin agent --robot NAME --domain N SCENARIO, found over DDS: lock-step turns on the "
+                  "twin's robots, or in real time the agents' real robots, followed by the twin here)")
       ->check(CLI::IsMember({"local", "remote"}));
   cmd->add_option("--domain", args->domain, "with --agents remote: the DDS domain of the cell's agents (0..232)");
   cmd->add_option("--agent-wait", args->agent_wait,
@@ -154,6 +158,10 @@ void add_run(CLI::App& app, Command* run) {
                   "for a new agent (twin agent started again), which is re-homed and sent the interrupted command; "
                   "0 (the default): the cell is stopped at once")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--no-twin", args->no_twin,
+                "with --agents remote in real time: task control alone, the twin not following the agents' robots "
+                "(as in a twin built for real robots only: no --video or final.png, parts where the controller's "
+                "model has them)");
   cmd->callback([run, args, cmd] {
     *run = [args, cmd] {
       using namespace cellwright::cell;
@@ -171,7 +179,7 @@ void add_run(CLI::App& app, Command* run) {
         throw InputError({"--agents", 0, 0}, "remote agents are found on a DDS domain: give it with --domain N (the "
                                              "one their twin agent ... --domain N was given)");
       }
-      for (const char* name : {"--domain", "--agent-wait", "--rejoin-wait"}) {
+      for (const char* name : {"--domain", "--agent-wait", "--rejoin-wait", "--no-twin"}) {
         if (!remote && cmd->count(name) > 0) {
           throw InputError({name, 0, 0}, "it is for remote agents: add --agents remote (robot control runs in this "
                                          "process otherwise)");
@@ -228,12 +236,19 @@ void add_run(CLI::App& app, Command* run) {
 #else
       constexpr bool remote_turns = false;
 #endif
+      if (remote_turns && args->no_twin) {
+        throw InputError({"--no-twin", 0, 0}, "a lock-step run with agents takes their turns on the twin's robots: "
+                                              "add --realtime for task control alone with agents on real drivers");
+      }
+      // Remote agents in real time, on their real drivers: the twin here follows their robots from their replicated
+      // states (ScenarioRun's followed robots), unless --no-twin or there is no twin here.
+      const bool remote_followed = remote && !remote_turns && kTwinHere && !args->no_twin;
       if (args->ros_domain && ((remote && !remote_turns) || !kTwinHere)) {
         throw InputError({"--ros-domain", 0, 0},
                          "the run is published for ROS 2 from the twin's run in this process; a run without the twin "
                          "(remote agents in real time, real robots only) is not published yet");
       }
-      if (remote && !remote_turns) {
+      if (remote && !remote_turns && !remote_followed) {
         // Every robot of the program on its agent: task control here, nothing simulated.
         RemoteAgents agents;
         agents.domain = *args->domain;
@@ -248,7 +263,20 @@ void add_run(CLI::App& app, Command* run) {
       block_stop_signals();  // a stop from now on ends the run safely (run_until_signal below), never mid-write
       auto progress = std::make_shared<Progress>(args->quiet);
       RunOptions options = run_options_for(a, s);
-      if (args->realtime) options.realtime = true;
+      if (args->realtime || remote_followed) options.realtime = true;
+      if (remote_followed) {
+        // The agents' robot controls have the cell as the program's CAD (nothing here reaches their models): so does
+        // task control here, whatever the twin's camera would see.
+        if (options.perception && *options.perception != runtime::Perception::kCad) {
+          throw InputError({"--perception", 0, 0},
+                           fmt::format("perception {} would correct task control's model here, and the agents' robot "
+                                       "controls (on their real drivers) do not share it: leave it out (cad)",
+                                       runtime::to_string(*options.perception)));
+        }
+        options.perception = runtime::Perception::kCad;
+        for (const Binding& b : s.robots) options.followed.push_back(b.name);
+        options.followed_via = fmt::format("DDS domain {}", *args->domain);
+      }
       if (cmd->count("--speed") > 0 && !options.realtime.value_or(s.options.realtime)) {
         throw InputError({"--speed", 0, 0}, "it paces a real-time run, and this run is lock-step (which runs as fast "
                                              "as it can): add --realtime");
@@ -277,14 +305,61 @@ void add_run(CLI::App& app, Command* run) {
         agents_participant.emplace(distributed::DdsOptions{.domain = *args->domain}, "cellwright_twin_run_turns");
         turns.emplace(*agents_participant);
       }
+      // Every robot of the program on its agent in real time, followed by the twin (the runtime's links as without
+      // it: distributed/link.hpp).
+      std::optional<distributed::RemoteCell> agents;
+      if (remote_followed) {
+        agents_participant.emplace(distributed::DdsOptions{.domain = *args->domain}, "cellwright_task_control");
+        agents.emplace(*agents_participant);
+      }
       options.configure = [&](runtime::RunConfig& c) {
         if (ros) ros->attach(c);
         if (turns) {
           for (const Binding& b : s.robots) c.remote_robots.push_back(b.name);
           c.attach_remote = turns->attach(s.program, c.period, c.perception);
         }
+        if (agents) {
+          for (const Binding& b : s.robots) c.remote_robots.push_back(b.name);
+          c.attach_remote = agents->attach();
+          // The run's clock runs at --speed times the wall clock; the wait is given in wall-clock seconds.
+          c.rejoin_wait = std::chrono::duration_cast<SimDuration>(
+              std::chrono::duration<double>(args->rejoin_wait * args->speed));
+        }
       };
       ScenarioRun sr(s, pre, options);
+      // The twin's copies follow what each agent's robot control writes of its robot (a second reader of the model
+      // topic, beside the runtime's).
+      std::vector<std::unique_ptr<distributed::RobotSubscriber>> followers;
+      if (agents) {
+        twin::sim::ReplicaMirror& mirror = *sr.replica_mirror();
+        for (std::size_t i = 0; i < s.robots.size(); ++i) {
+          const std::size_t copy = *mirror.index_of(s.robots[i].name);
+          const Eigen::Isometry3d base = s.cell.find_robot(s.robots[i].name)->base.transform();
+          followers.push_back(std::make_unique<distributed::RobotSubscriber>(
+              *agents_participant, s.robots[i].name, i,
+              [&mirror, copy, base](const distributed::ModelUpdate& u) {
+                twin::sim::ReplicaState state;
+                state.joints = u.state.joints;
+                if (u.state.tcp) state.tool_in_base = base.inverse() * *u.state.tcp;
+                if (u.state.hold) state.holding = u.state.hold->workpiece;
+                mirror.push(copy, std::move(state));
+              },
+              nullptr));
+          followers.back()->start();
+        }
+        if (!args->quiet) {
+          std::printf("waiting up to %.1f s for the agents of %zu robots on DDS domain %d\n", args->agent_wait,
+                      s.robots.size(), *args->domain);
+          std::fflush(stdout);
+        }
+        agents->wait_for_agents(std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000)));
+        if (!args->quiet) {
+          for (const Binding& b : s.robots) {
+            std::printf("%s on its agent, DDS domain %d (real time; followed by the twin)\n", b.name.c_str(),
+                        *args->domain);
+          }
+        }
+      }
       if (turns) {
         turns->wait_for_agents(std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000)));
         if (!args->quiet) {
@@ -322,6 +397,11 @@ void add_run(CLI::App& app, Command* run) {
           },
           [&] { sr.runtime().request_stop("stopped by the user (signal)"); });
       progress->finish();
+      for (auto& f : followers) f->stop();
+      if (agents && !sr.settle_followers(std::chrono::seconds(30))) {
+        std::fprintf(stderr, "warning: the twin's copies of the agents' robots had not caught up 30 s (simulated) "
+                             "after the run; final.png and the parts' places show them where they were then\n");
+      }
       if (ros && !ros->stop()) {
         std::fprintf(stderr, "warning: not every ROS 2 subscriber acknowledged the last samples within 2 s\n");
       }
@@ -340,6 +420,12 @@ void add_run(CLI::App& app, Command* run) {
             "  %s (real, mirrored in the twin): %d commands mirrored, %d corrections from read-backs, %d "
             "missed\n",
             m->robot().c_str(), c.mirrored, c.corrections, c.misses);
+      }
+      if (sr.replica_mirror() != nullptr) {
+        const twin::sim::ReplicaMirror::Counts c = sr.replica_mirror()->counts();
+        std::printf("  robots on agents (DDS domain %d), followed in the twin: %d states, %d moves and %d grips "
+                    "followed, %d missed\n",
+                    *args->domain, c.states, c.moves, c.grips, c.misses);
       }
       if (!a.output.empty()) std::printf("outputs in %s\n", a.output.c_str());
       if (!video.empty()) std::printf("video in %s\n", video.c_str());

@@ -213,8 +213,29 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
 
   // A simulation driver for each robot the program uses.
   std::vector<std::string> mirrored;  // the real robots: their grip sensed on the real side where it can tell
+  std::vector<sim::ReplicaMirror::Copy> followed;  // the agents' robots: copies following their replicated states
+  for (const std::string& robot : options.followed) {
+    CW_CHECK(std::any_of(s.robots.begin(), s.robots.end(), [&](const Binding& b) { return b.name == robot; }),
+             "robot '{}' is followed in the twin but is no robot of the program", robot);
+  }
+  if (!options.followed.empty() && !realtime_) {
+    throw InputError({"--agents", 0, 0}, "robots on agents' real drivers are followed in the twin in real time only: "
+                                         "run with --realtime");
+  }
+  if (!options.followed.empty() && !s.faults.empty()) {
+    throw InputError(s.faults.front().where,
+                     fmt::format("the scenario injects faults into the twin and its drivers, and robot {}'s robot "
+                                 "control runs in its agent, on its real driver, which no fault here can reach: "
+                                 "leave the faults out of a run with --agents remote",
+                                 options.followed.front()));
+  }
   for (const Binding& b : s.robots) {
     sim::SimDriver& driver = world_->add_sim_driver(b.name, sim_driver_options(s, b.name));
+    if (std::find(options.followed.begin(), options.followed.end(), b.name) != options.followed.end()) {
+      // Its robot control and driver are its agent's: nothing here drives the copy but the mirror.
+      followed.push_back({b.name, &driver, driver.kinematics(), s.cell.find_robot(b.name)->home});
+      continue;
+    }
     config.drivers[b.name] = &driver;
     const DriverChoice* choice = nullptr;
     for (const DriverChoice& d : s.drivers) {
@@ -274,6 +295,12 @@ ScenarioRun::ScenarioRun(const Scenario& s, const Preflight& pre, RunOptions opt
     }
   }
   plant_ = std::move(plant);
+  followed_ = options.followed;
+  followed_via_ = options.followed_via;
+  if (!followed.empty()) {
+    replica_mirror_ = std::make_unique<sim::ReplicaMirror>(std::move(followed));
+    replica_mirror_->start();  // the copies come up as the World steps
+  }
   // The twin's sensors; a real robot's grip from its own driver where that can tell (MirroredDriver::grip_sense()),
   // else from its copy in the twin.
   config.sensors = world_plant_->sensors();
@@ -420,6 +447,20 @@ std::vector<FinalPose> final_poses_of(const sim::World& world) {
   return out;
 }
 
+bool ScenarioRun::settle_followers(runtime::SimDuration most) {
+  if (!replica_mirror_) return true;
+  // The runtime has ended: nothing else steps the World now. The copies' commands advance with it, their notifiers
+  // waking the mirror's thread, which gives them the next action.
+  constexpr std::chrono::milliseconds kStep{10};
+  bool done = replica_mirror_->idle();
+  for (runtime::SimDuration t{0}; !done && t < most; t += kStep) {
+    world_->advance(kStep);
+    done = replica_mirror_->idle();
+  }
+  replica_mirror_->stop();
+  return done;
+}
+
 std::vector<FinalPose> ScenarioRun::final_poses() const {
   return final_poses_of(*world_);
 }
@@ -428,6 +469,11 @@ Report ScenarioRun::report() const {
   // What this run used: the scenario's drivers and faults (the command line's already in it), its perception.
   RunSetup setup = setup_of(scenario_);
   setup.perception = runtime::to_string(perception_);
+  for (DriverUse& d : setup.drivers) {
+    if (std::find(followed_.begin(), followed_.end(), d.robot) != followed_.end()) {
+      d = DriverUse{d.robot, "agent", followed_via_, false};  // its copy here followed the agent's robot
+    }
+  }
   if (!streamed_) {
     return make_report(scenario_, runtime::decode_log(runtime_->log().text(), kEventsFile), final_poses(),
                        estimate_.cycle_time, kEventsFile, std::move(setup));

@@ -50,6 +50,7 @@
 #include "cellwright/cell/streamed_log.hpp"
 #include "cellwright/drivers/digital_io.hpp"
 #include "cellwright/twin/sim/mirrored_driver.hpp"
+#include "cellwright/twin/sim/replica_mirror.hpp"
 #include "cellwright/twin/sim/twin_io.hpp"
 #include "cellwright/twin/sim/world.hpp"
 #include "cellwright/twin/sim/world_plant.hpp"
@@ -95,6 +96,14 @@ struct RunOptions {
   // Called with the runtime's configuration just before the Runtime is built, to add watchers of the run
   // (RunConfig::observers, event_observers: `--ros-domain`'s ROS 2 publisher, distributed/ros_publisher.hpp).
   std::function<void(runtime::RunConfig&)> configure;
+  // Robots whose robot control runs in an agent on its real driver (`twin run --agents remote` in real time,
+  // docs/distributed.md): this process has no driver of theirs, and their copies in the twin follow the states of
+  // their robots the caller pushes into replica_mirror() (sim::ReplicaMirror: the agents' replicated model updates).
+  // The caller makes them remote in the runtime's configuration (configure: RunConfig::remote_robots). Real time
+  // only, and without the scenario's faults (they are injected into this process's drivers and twin, which do not
+  // drive these robots): InputError.
+  std::vector<std::string> followed;
+  std::string followed_via;  // where their agents are, for the report (DriverUse::port: "DDS domain N")
 };
 
 // The scenario's cell as it really is, compiled: its parts where the scenario's perturbation puts them (drawn with its
@@ -154,6 +163,12 @@ class ScenarioRun {
   sim::World& world() { return *world_; }
   // The robots on real drivers, with their copies in the twin (empty when all are simulated).
   const std::vector<std::unique_ptr<sim::MirroredDriver>>& mirrors() const { return mirrors_; }
+  // The copies of RunOptions::followed robots (started, following what is pushed), or nullptr when there are none.
+  sim::ReplicaMirror* replica_mirror() { return replica_mirror_.get(); }
+  // After the run, with RunOptions::followed: steps the twin (nothing else: the runtime has ended) until the copies
+  // have done what the last states pushed asked of them, at most `most` of simulation time. Returns whether they
+  // did. The copies then stop where they stand. Same threads rule as report().
+  bool settle_followers(runtime::SimDuration most);
   bool realtime() const { return realtime_; }
   runtime::Perception perception() const { return perception_; }
 
@@ -196,6 +211,9 @@ class ScenarioRun {
   runtime::Perception perception_ = runtime::Perception::kTruth;
   std::unique_ptr<sim::World> world_;
   std::vector<std::unique_ptr<sim::MirroredDriver>> mirrors_;  // real robots, with their copies in world_
+  std::unique_ptr<sim::ReplicaMirror> replica_mirror_;  // RunOptions::followed's copies in world_, or none
+  std::vector<std::string> followed_;                   // RunOptions::followed
+  std::string followed_via_;                            // RunOptions::followed_via
   std::vector<std::unique_ptr<drivers::FaultyDriver>> faulty_;  // simulated robots with driver faults
   std::vector<std::unique_ptr<runtime::GripSensor>> grip_sensors_;  // real robots' grip sensors, on their drivers
   std::unique_ptr<vision::CameraSource> camera_;  // RunOptions::cameras: vision's frames, or none (the twin's)

@@ -608,8 +608,10 @@ void wait_for_agents(const std::vector<RemoteRobot*>& robots, int domain, std::c
   }
   if (missing.empty()) return;
   throw InputError(SourceLocation{fmt::format("DDS domain {}", domain)},
-                   fmt::format("no agent for robot{} {} on DDS domain {} within {:.1f} s (start one per robot: twin "
-                               "agent --robot {} --domain {} ...)",
+                   fmt::format("no agent for robot{} {} on DDS domain {} within {:.1f} s (a real-time run: start "
+                               "one per robot on its real driver: twin agent SCENARIO --robot {} --driver KIND:PORT "
+                               "--domain {}; an agent without --driver takes lock-step turns on the twin's robot, "
+                               "for a run without --realtime or --speed)",
                                missing.size() > 1 ? "s" : "", fmt::join(missing, ", "), domain,
                                static_cast<double>(timeout.count()) / 1000.0, missing.front(), domain));
 }

@@ -143,7 +143,7 @@ TEST(Link, TaskControlRefusesToStartNamingTheRobotWhoseAgentIsMissing) {
     std::string what = e.what();
     EXPECT_NE(what.find("no agent for robots puma, melfa on DDS domain " + std::to_string(domain)), std::string::npos)
         << what;
-    EXPECT_NE(what.find("twin agent --robot puma --domain"), std::string::npos) << what;
+    EXPECT_NE(what.find("twin agent SCENARIO --robot puma --driver KIND:PORT --domain"), std::string::npos) << what;
   }
 }
 

@@ -425,7 +425,7 @@ TEST(AgentsCli, TaskControlRefusesToStartNamingTheRobotsWhoseAgentIsMissing) {
                          shell_quote((cli.dir() / "out").string()));
   EXPECT_EQ(r.status, 2) << r.out << r.err;
   EXPECT_THAT(r.err, HasSubstr("no agent for robots puma, melfa"));
-  EXPECT_THAT(r.err, HasSubstr("twin agent --robot puma"));
+  EXPECT_THAT(r.err, HasSubstr("twin agent SCENARIO --robot puma --driver KIND:PORT"));
   EXPECT_FALSE(fs::exists(cli.dir() / "out" / "report.json"));
 }
 

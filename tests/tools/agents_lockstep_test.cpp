@@ -40,9 +40,10 @@ std::unique_ptr<BackgroundTwin> twin_agent(const std::string& scenario, const st
   return p;
 }
 
-// Runs `scenario` in one process and with an agent per robot; both event logs.
+// Runs `scenario` in one process and with an agent for each of `robots` (`agents`: twin run's --agents); both event
+// logs.
 void expect_same_log_with_agents(const std::string& tag, const std::string& scenario,
-                                 const std::vector<std::string>& robots) {
+                                 const std::vector<std::string>& robots, const std::string& agents_option = "remote") {
   TwinCli cli(tag);
   const std::string path = source_path(scenario);
   const auto local = cli.run("run " + shell_quote(path) + " --quiet -o " + shell_quote((cli.dir() / "one").string()));
@@ -51,8 +52,8 @@ void expect_same_log_with_agents(const std::string& tag, const std::string& scen
   const int domain = test_domain();
   std::vector<std::unique_ptr<BackgroundTwin>> agents;
   for (const std::string& r : robots) agents.push_back(twin_agent(path, r, domain));
-  const auto remote = cli.run("run " + shell_quote(path) + " --agents remote --domain " + std::to_string(domain) +
-                              " -o " + shell_quote((cli.dir() / "agents").string()));
+  const auto remote = cli.run("run " + shell_quote(path) + " --agents " + agents_option + " --domain " +
+                              std::to_string(domain) + " -o " + shell_quote((cli.dir() / "agents").string()));
   std::string agents_out;
   for (auto& a : agents) {
     EXPECT_EQ(a->wait_exit(30s), 0) << a->output();
@@ -77,6 +78,29 @@ TEST(AgentsLockstep, TheExchangeWithTwoAgentsLogsByteForByteWhatOneProcessLogs) 
 
 TEST(AgentsLockstep, ThePipelineWithTwoAgentsLogsByteForByteWhatOneProcessLogs) {
   expect_same_log_with_agents("lockstep-pipeline", "scenes/pipeline.yaml", {"puma", "melfa"});
+}
+
+// Some robots on agents and the others here (--agents remote:ROBOT): the same bytes again.
+TEST(AgentsLockstep, TheExchangeWithTheMelfaOnAnAgentAndThePumaHereLogsByteForByteWhatOneProcessLogs) {
+  expect_same_log_with_agents("lockstep-partial", "scenes/exchange.yaml", {"melfa"}, "remote:melfa");
+}
+
+TEST(AgentsLockstep, RobotsOnAgentsAreNamedAmongTheProgramsAndSomeHereIsForLockStepOnly) {
+  TwinCli cli("lockstep-partial-args");
+  const std::string path = shell_quote(source_path("scenes/exchange.yaml"));
+  struct Case {
+    std::string args, says;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"--agents remote:kuka --domain 3", "'kuka' is no robot of the program (its cell robots: puma, melfa)"},
+           {"--agents remote:melfa,melfa --domain 3", "robot 'melfa' is named twice"},
+           {"--agents remote:melfa --realtime --domain 3", "some robots on agents and some here is for lock-step"},
+           {"--agents elsewhere --domain 3", "remote:ROBOT[,ROBOT...]"},
+       }) {
+    const auto r = cli.run("run " + path + " " + c.args);
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;
+    EXPECT_THAT(r.out + r.err, HasSubstr(c.says)) << c.args;
+  }
 }
 
 TEST(AgentsLockstep, AKilledAgentEndsTheRunFailedNamingItAndNothingHangs) {

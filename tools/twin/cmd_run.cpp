@@ -9,7 +9,9 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -145,10 +147,15 @@ void add_run(CLI::App& app, Command* run) {
                 "program, and read every input of each device on real I/O; nothing else moves and no output is "
                 "written. Exit 0 when all is well, 1 when not");
   cmd->add_option("--agents", args->agents,
-                  "where robot control runs: local (threads of this process, the default) or remote (an agent per "
+                  "where robot control runs: local (threads of this process, the default), remote (an agent per "
                   "robot, twin agent --robot NAME --domain N SCENARIO, found over DDS: lock-step turns on the "
-                  "twin's robots, or in real time the agents' real robots, followed by the twin here)")
-      ->check(CLI::IsMember({"local", "remote"}));
+                  "twin's robots, or in real time the agents' real robots, followed by the twin here) or, in "
+                  "lock-step, remote:ROBOT[,ROBOT...] (those robots on agents, the others here)")
+      ->check([](const std::string& v) {
+        return v == "local" || v == "remote" || v.rfind("remote:", 0) == 0
+                   ? std::string()
+                   : std::string("local, remote or remote:ROBOT[,ROBOT...] (those robots on agents, the others here)");
+      });
   cmd->add_option("--domain", args->domain, "with --agents remote: the DDS domain of the cell's agents (0..232)");
   cmd->add_option("--agent-wait", args->agent_wait,
                   "with --agents remote: seconds to wait for every robot's agent before refusing to start (default 10)")
@@ -174,7 +181,7 @@ void add_run(CLI::App& app, Command* run) {
         }
       }
       const RunArgs& a = args->run;
-      const bool remote = args->agents == "remote";
+      const bool remote = args->agents.rfind("remote", 0) == 0;
       if (remote && !args->domain) {
         throw InputError({"--agents", 0, 0}, "remote agents are found on a DDS domain: give it with --domain N (the "
                                              "one their twin agent ... --domain N was given)");
@@ -194,6 +201,28 @@ void add_run(CLI::App& app, Command* run) {
       }
       Scenario s = load_scenario_with(a);
       check_speed_for_real_arms(s, args->speed);
+      // --agents remote:ROBOT,...: those robots on agents, the program's others here.
+      std::vector<std::string> on_agents;
+      if (args->agents == "remote") {
+        for (const Binding& b : s.robots) on_agents.push_back(b.name);
+      } else if (remote) {
+        std::string list = args->agents.substr(std::string("remote:").size());
+        for (std::size_t at = 0; at <= list.size();) {
+          const std::size_t comma = std::min(list.find(',', at), list.size());
+          const std::string robot = list.substr(at, comma - at);
+          if (std::none_of(s.robots.begin(), s.robots.end(), [&](const Binding& b) { return b.name == robot; })) {
+            std::vector<std::string> names;
+            for (const Binding& b : s.robots) names.push_back(b.name);
+            throw InputError({"--agents", 0, 0}, fmt::format("'{}' is no robot of the program (its cell robots: {})",
+                                                             robot, fmt::join(names, ", ")));
+          }
+          if (std::find(on_agents.begin(), on_agents.end(), robot) != on_agents.end()) {
+            throw InputError({"--agents", 0, 0}, fmt::format("robot '{}' is named twice", robot));
+          }
+          on_agents.push_back(robot);
+          at = comma + 1;
+        }
+      }
       const Preflight pre = preflight(s, simulator());
       if (!pre.ok(a.allow_collisions)) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", a.scenario.c_str());
@@ -236,6 +265,13 @@ void add_run(CLI::App& app, Command* run) {
 #else
       constexpr bool remote_turns = false;
 #endif
+      if (remote && !remote_turns && on_agents.size() != s.robots.size()) {
+        throw InputError({"--agents", 0, 0},
+                         "some robots on agents and some here is for lock-step runs (the twin's robots taking their "
+                         "turns): in real time every robot of the program is on its agent (--agents remote), since "
+                         "the twin follows an agent's robot one motion behind and a robot here would meet a lagging "
+                         "copy at a hand-over");
+      }
       if (remote_turns && args->no_twin) {
         throw InputError({"--no-twin", 0, 0}, "a lock-step run with agents takes their turns on the twin's robots: "
                                               "add --realtime for task control alone with agents on real drivers");
@@ -315,7 +351,7 @@ void add_run(CLI::App& app, Command* run) {
       options.configure = [&](runtime::RunConfig& c) {
         if (ros) ros->attach(c);
         if (turns) {
-          for (const Binding& b : s.robots) c.remote_robots.push_back(b.name);
+          c.remote_robots = on_agents;
           c.attach_remote = turns->attach(s.program, c.period, c.perception);
         }
         if (agents) {
@@ -363,8 +399,8 @@ void add_run(CLI::App& app, Command* run) {
       if (turns) {
         turns->wait_for_agents(std::chrono::milliseconds(static_cast<long long>(args->agent_wait * 1000)));
         if (!args->quiet) {
-          for (const Binding& b : s.robots) {
-            std::printf("%s on its agent, DDS domain %d (lock-step turns)\n", b.name.c_str(), *args->domain);
+          for (const std::string& robot : on_agents) {
+            std::printf("%s on its agent, DDS domain %d (lock-step turns)\n", robot.c_str(), *args->domain);
           }
         }
       }

@@ -5,7 +5,8 @@
 // URL parameters: ?view=camera:NAME draws only the cell camera NAME's view, at its resolution (the browser test
 // compares it with MuJoCo's picture from that camera); &shift=DX,DY,DZ moves that view (metres, world axes).
 // window.cellwright says what the page has done (for the browser test): ready (the cell drawn and a frame shown),
-// robots (URDFs loaded), links, firings, state; showRobots(bool) hides or shows the robots.
+// robots (URDFs loaded), links, firings, state, errors (refusals), teach / saved / check (the last such message);
+// showRobots(bool) hides or shows the robots.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import URDFLoader from 'urdf-loader';
@@ -284,6 +285,7 @@ function buildTeachButtons() {
 function teach(fields) { send({ type: 'teach', robot: $('teach-robot').value, ...fields }); }
 
 async function showTeach(m) {
+  status.teach = m;
   const rob = robots[m.robot];
   if (!m.active) {
     if (ghosts[m.robot]) { ghostGroup.remove(ghosts[m.robot].parent); delete ghosts[m.robot]; }
@@ -337,8 +339,11 @@ ws.onmessage = (ev) => {
   if (m.type === 'cell') showCell(m);
   else if (m.type === 'frame') showFrame(m);
   else if (m.type === 'teach') showTeach(m);
-  else if (m.type === 'saved') $('saved').textContent = `saved ${m.name} in ${m.file}${m.replaced ? ' (replaced)' : ''}:\n${m.diff}`;
-  else if (m.type === 'check') showCheck(m);
+  else if (m.type === 'saved') {
+    status.saved = m;
+    $('saved').textContent = `saved ${m.name} in ${m.file}${m.replaced ? ' (replaced)' : ''}:\n${m.diff}`;
+  }
+  else if (m.type === 'check') { status.check = m; showCheck(m); }
   else if (m.type === 'error') { status.errors.push(m.reason); showError(`refused: ${m.reason}`); }
 };
 ws.onclose = () => { $('title').textContent = 'disconnected'; };

@@ -226,6 +226,7 @@ function drawGantt(f) {
   }
   const c = $('gantt'), g = c.getContext('2d');
   const labels = f.robots.map((r) => r.label);
+  c.width = Math.max(200, c.clientWidth);
   c.height = 22 * labels.length + 18;
   g.clearRect(0, 0, c.width, c.height);
   const t1 = Math.max(f.t, 1), x0 = 40, w = c.width - x0 - 5;
@@ -241,7 +242,9 @@ function drawGantt(f) {
   });
   g.fillStyle = '#000';
   g.fillText(`0 s`, x0, c.height - 2);
-  g.fillText(`${t1.toFixed(1)} s`, c.width - 40, c.height - 2);
+  g.textAlign = 'right';
+  g.fillText(`${t1.toFixed(1)} s`, c.width - 2, c.height - 2);
+  g.textAlign = 'left';
 }
 
 // ---------------------------------------------------------------------------------------------------------------

@@ -19,6 +19,8 @@ case "$mode" in demo|test|build) ;; *) echo "usage: $0 demo|test|build" >&2; exi
 # libfastrtps-dev, libfastcdr-dev: Fast DDS 2.9 for robot agents in other processes (distributed/, docs/distributed.md);
 # 3.1 MB to download, 18 MB installed. Its code generator (fastddsgen) is not needed: the messages are encoded by hand.
 # libwebsocketpp-dev, libasio-dev: the live view's HTTP + WebSocket server (serve/, docs/live-view.md), header-only.
+# nodejs, npm: the build fetches the live view's 3D page's three.js and urdf-loader with `npm ci` (serve/page/), in
+# both modes (the page is part of the build). A machine whose node already brings npm (NodeSource's) keeps it.
 packages=(
   build-essential cmake ninja-build pkg-config git ccache lld
   libmujoco-dev libqhull-dev libeigen3-dev libopencv-dev libosmesa6-dev liburdfdom-dev libyaml-cpp-dev libtinyxml2-dev libpng-dev
@@ -26,9 +28,11 @@ packages=(
   libassimp-dev ffmpeg libavcodec-dev libavformat-dev libswscale-dev libavutil-dev libmodbus-dev
   libfastrtps-dev libfastcdr-dev libwebsocketpp-dev libasio-dev
 )
-# chromium: the report page opened in a browser (tests/tools). python3-pymodbus (and the serial modules its server
-# imports, which Debian lists only as recommended): a Modbus TCP server and client the team did not write, which the
-# I/O driver and the twin's I/O server are tested against over loopback.
+# chromium: the report page opened in a browser (tests/tools), and the live view's page driven in one
+# (tests/browser). python3-pymodbus (and the serial modules its server imports, which Debian lists only as
+# recommended): a Modbus TCP server and client the team did not write, which the I/O driver and the twin's I/O server
+# are tested against over loopback.
+command -v npm >/dev/null || packages+=(nodejs npm)
 if [[ $mode == test ]]; then packages+=(chromium python3-pymodbus python3-serial python3-serial-asyncio); fi
 missing=()
 for p in "${packages[@]}"; do

@@ -14,6 +14,7 @@
 #include "cellwright/runtime/log_event.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/world.hpp"
+#include "live_view.hpp"
 
 namespace cellwright::cell {
 
@@ -171,7 +172,9 @@ std::string live_cell_json(ScenarioRun& run, const std::filesystem::path& models
     const char* shape = shape_of(m->geom_type[g]);
     if (!listed[static_cast<std::size_t>(b)] || !shape || m->geom_rgba[4 * g + 3] <= 0) continue;
     const mjtNum* sz = m->geom_size + 3 * g;
-    const float* c = m->geom_rgba + 4 * g;
+    // MuJoCo draws a geom with a material in the material's colour (conveyors, machines): so does the page.
+    const int mat = m->geom_matid[g];
+    const float* c = mat >= 0 ? m->mat_rgba + 4 * mat : m->geom_rgba + 4 * g;
     const mjtNum* p = m->geom_pos + 3 * g;
     const mjtNum* q = m->geom_quat + 4 * g;
     geoms.push_back({{"body", b},
@@ -188,7 +191,8 @@ std::string live_cell_json(ScenarioRun& run, const std::filesystem::path& models
               {"program", s.program_file.filename().string()},
               {"robots", robots},
               {"bodies", jb},
-              {"geoms", geoms}}
+              {"geoms", geoms},
+              {"cameras", view::cameras(run)}}
       .dump();
 }
 
@@ -240,7 +244,9 @@ std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const
             {"fired", fired},
             {"robots", robots},
             {"bodies", bodies},
-            {"faults", faults}};
+            {"faults", faults},
+            {"marks", view::marks(run, faults)}};
+  if (json g = view::gantt(run); !g.is_null()) f["gantt"] = std::move(g);
   if (st && st->result) {
     f["outcome"] = runtime::to_string(st->result->outcome);
     f["reason"] = st->result->reason;

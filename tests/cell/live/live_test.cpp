@@ -11,6 +11,9 @@
 #include <thread>
 
 #include "cellwright/cell/sim/sweep.hpp"
+#include "cellwright/runtime/log_event.hpp"
+#include "cellwright/twin/scene.hpp"
+#include "cellwright/twin/sim/world.hpp"
 #include "support/ws_viewer.hpp"
 
 namespace cellwright::cell {
@@ -199,6 +202,99 @@ TEST_F(LiveLoop, ViewersThatLeaveOrNeverReadCostTheRunNothing) {
   EXPECT_EQ(end["firings"].get<std::uint64_t>(), plain.runtime().run().firings);
   // Whether frames were dropped for the stalled viewer depends on how much the kernel's socket buffers took (a run
   // of a few hundred frames may fit): serve_tests' FramesToAViewerThatDoesNotReadAreDroppedNotQueued shows the drop.
+}
+
+}  // namespace
+}  // namespace cellwright::cell
+
+namespace cellwright::cell {
+namespace {
+
+using nlohmann::json;
+
+// The view-only parts of the messages (cell/live/src/live_view.hpp), read from one run of the exchange scenario.
+class LiveView : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    scenario_ = std::make_unique<Scenario>(load_scenario(kExchange));
+    preflight_ = std::make_unique<Preflight>(preflight(*scenario_, &twin_port()));
+    ASSERT_TRUE(preflight_->ok()) << preflight_->problems.front();
+    run_ = std::make_unique<ScenarioRun>(*scenario_, *preflight_, RunOptions{});
+  }
+  json frame(const std::vector<std::string>& faults = {}, const runtime::StepState* step = nullptr) {
+    return json::parse(live_frame_json(*run_, LiveFrameState{"paused", step}, faults));
+  }
+  std::unique_ptr<Scenario> scenario_;
+  std::unique_ptr<Preflight> preflight_;
+  std::unique_ptr<ScenarioRun> run_;
+};
+
+TEST_F(LiveView, TheCellNamesTheOverheadCameraWithItsPoseFieldOfViewAndResolution) {
+  const json cell = json::parse(live_cell_json(*run_, models_root(*scenario_)));
+  ASSERT_EQ(cell["cameras"].size(), 1u);
+  const json& c = cell["cameras"][0];
+  EXPECT_EQ(c["name"], "overhead");
+  // scenes/cell.yaml: at (0.35, 0, 2.6) looking at (0.35, 0, 0), 60 degrees, 640 x 480.
+  EXPECT_NEAR(c["pos"][0].get<double>(), 0.35, 1e-9);
+  EXPECT_NEAR(c["pos"][1].get<double>(), 0.0, 1e-9);
+  EXPECT_NEAR(c["pos"][2].get<double>(), 2.6, 1e-9);
+  EXPECT_NEAR(c["fovy"].get<double>(), 60, 1e-9);
+  EXPECT_EQ(c["resolution"], json::array({640, 480}));
+  // The camera looks along its -z: that axis, turned by the quaternion, points straight down.
+  const double w = c["quat"][0], x = c["quat"][1], y = c["quat"][2], z = c["quat"][3];
+  const double look_z = -(1 - 2 * (x * x + y * y));  // the z component of R * (0, 0, -1)
+  const double look_x = -(2 * (x * z + w * y)), look_y = -(2 * (y * z - w * x));
+  EXPECT_NEAR(look_z, -1, 1e-6);
+  EXPECT_NEAR(look_x, 0, 1e-6);
+  EXPECT_NEAR(look_y, 0, 1e-6);
+}
+
+TEST_F(LiveView, AFaultIsMarkedAtItsRobotsToolAndACollisionBetweenItsBodies) {
+  const runtime::SimDuration t = std::chrono::milliseconds(1500);
+  const std::string fault = runtime::encode(runtime::events::FaultInjected{t, "drop", "puma", "A", "let go"});
+  const std::string hit = runtime::encode(runtime::events::Collision{t, "workpiece/A", "workpiece/B", 0.002});
+  const json f = frame({fault, hit});
+  ASSERT_EQ(f["marks"].size(), 2u);
+  EXPECT_EQ(f["marks"][0]["kind"], "fault");
+  EXPECT_EQ(f["marks"][0]["text"], fault);
+  const twin::Scene& scene = run_->world().scene();
+  const mjData* d = run_->world().data();
+  const double* tcp = d->site_xpos + 3 * scene.find_robot("puma")->tcp_site;
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(f["marks"][0]["pos"][i].get<double>(), tcp[i], 1e-9) << i;
+  // A and B are apart in a row on the input belt: half-way between them.
+  EXPECT_EQ(f["marks"][1]["kind"], "collision");
+  const double* a = d->xpos + 3 * scene.find_workpiece("A")->body;
+  const double* b = d->xpos + 3 * scene.find_workpiece("B")->body;
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(f["marks"][1]["pos"][i].get<double>(), (a[i] + b[i]) / 2, 1e-9) << i;
+  // No faults, no marks.
+  EXPECT_TRUE(frame()["marks"].empty());
+}
+
+TEST_F(LiveView, TheGanttGrowsWithTheCommandsAsTheRunSteps) {
+  EXPECT_TRUE(frame()["gantt"].empty());
+  // Step until a command has ended: it has a start and an end, the one running after it an open end.
+  json g;
+  runtime::StepState st;
+  for (int i = 0; i < 200; ++i) {
+    st = run_->runtime().step();
+    g = frame({}, &st)["gantt"];
+    const bool ended = std::any_of(g.begin(), g.end(), [](const json& s) { return !s["end"].is_null(); });
+    if (ended || st.ended) break;
+  }
+  ASSERT_FALSE(g.empty());
+  const double now = std::chrono::duration<double>(st.time).count();
+  bool ended = false;
+  for (const json& s : g) {
+    EXPECT_TRUE(s["robot"] == "r1" || s["robot"] == "r2") << s.dump();
+    EXPECT_FALSE(s["command"].get<std::string>().empty());
+    EXPECT_LE(s["start"].get<double>(), now + 1e-9);
+    if (!s["end"].is_null()) {
+      ended = true;
+      EXPECT_GE(s["end"].get<double>(), s["start"].get<double>());
+      EXPECT_TRUE(s["ok"].get<bool>()) << s.dump();
+    }
+  }
+  EXPECT_TRUE(ended) << g.dump();
 }
 
 }  // namespace

@@ -10,12 +10,18 @@
 //                      "pos":[x,y,z], "quat":[qw,qx,qy,qz] (in its body), "rgba":[r,g,b,a], "role"}]}
 //            The geoms are the cell's but the robots' (drawn from their URDFs) and meshes: conveyors, stands,
 //            machines, parts, obstacles, the floor.
+//            "cameras":[{"name", "pos", "quat" (MuJoCo's camera frame: looks along -z, y up), "fovy" (deg),
+//                        "resolution":[w,h]}]
 //   frame   {"type":"frame", "t" (simulation s), "firings", "state":"paused"|"playing"|"ended", "outcome", "reason",
 //            "marking" (the Petri net's, as text), "fired":[transitions of the last step, described],
 //            "robots":[{"name", "label", "joints":[rad], "fingers" (m open), "activity", "command", "phase",
 //                       "detail"}],
 //            "bodies":[[id,x,y,z,qw,qx,qy,qz] for each body of "bodies" that moves],
-//            "faults":[event log lines: fault_injected, fault_detected, collision, since the run began]}
+//            "faults":[event log lines: fault_injected, fault_detected, collision, since the run began],
+//            "marks":[{"kind":"fault"|"collision", "text" (the line), "pos":[x,y,z]}] (one per fault line),
+//            "gantt":[{"robot", "command", "start", "end" (null while running), "ok"}] (the commands so far, when
+//                     the log keeps its lines)}
+//            (cell/live/src/live_view.hpp says where the marks are and how the Gantt is read.)
 //
 // Layering: this is an application above the simulated rig (cell/sim) and the live view's server (serve/); neither
 // of them knows it (the walls test: cellwright_cell_sim does not link cellwright_serve).

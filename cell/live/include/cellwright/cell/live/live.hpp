@@ -1,5 +1,7 @@
 // `twin serve`'s run loop (docs/live-view.md): a scenario run lock-step on the twin, watched from a browser through the
-// live view's server (serve/live_server.hpp), and driven from there: play, pause, step one firing, restart.
+// live view's server (serve/live_server.hpp), and driven from there: play, pause, step one firing, run to a line or
+// a time, restart; teaching, saving locations and the check's counterexample replay (teach.hpp, location_file.hpp,
+// replay.hpp).
 //
 // What the viewers are sent (JSON, the protocol of serve/live_server.hpp):
 //   cell    {"type":"cell", "name", "scenario", "program",

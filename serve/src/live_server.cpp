@@ -7,6 +7,7 @@
 #include <condition_variable>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <map>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -23,27 +24,41 @@ const char* to_string(CommandKind kind) {
     case CommandKind::kPause: return "pause";
     case CommandKind::kStep: return "step";
     case CommandKind::kRestart: return "restart";
+    case CommandKind::kRunTo: return "run_to";
+    case CommandKind::kReplay: return "replay";
   }
   return "?";
 }
 
-Parsed parse_command(std::string_view text) {
+Parsed parse_message(std::string_view text) {
   if (text.size() > kMaxMessageBytes) {
-    return Refusal{fmt::format("message of {} bytes, more than the {} a command may have", text.size(), kMaxMessageBytes)};
+    return Refusal{fmt::format("message of {} bytes, more than the {} a message may have", text.size(), kMaxMessageBytes)};
   }
   const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded()) return Refusal{"not JSON"};
   if (!j.is_object()) return Refusal{"not a JSON object"};
   const auto type = j.find("type");
   if (type == j.end() || !type->is_string()) return Refusal{"no \"type\" (a string)"};
-  if (*type != "command") return Refusal{fmt::format("unknown type '{}' (a viewer sends \"command\")", type->get<std::string>())};
+  Message m;
+  m.type = type->get<std::string>();
+  m.text = std::string(text);
+  if (m.type == "teach" || m.type == "save_location" || m.type == "check") return m;
+  if (m.type != "command") {
+    return Refusal{fmt::format("unknown type '{}' (a viewer sends \"command\", \"teach\", \"save_location\" or "
+                               "\"check\")",
+                               m.type)};
+  }
   const auto cmd = j.find("command");
   if (cmd == j.end() || !cmd->is_string()) return Refusal{"a command needs \"command\" (a string)"};
   const std::string c = cmd->get<std::string>();
-  for (CommandKind k : {CommandKind::kPlay, CommandKind::kPause, CommandKind::kStep, CommandKind::kRestart}) {
-    if (c == to_string(k)) return k;
+  for (CommandKind k : {CommandKind::kPlay, CommandKind::kPause, CommandKind::kStep, CommandKind::kRestart,
+                        CommandKind::kRunTo, CommandKind::kReplay}) {
+    if (c == to_string(k)) {
+      m.command = k;
+      return m;
+    }
   }
-  return Refusal{fmt::format("unknown command '{}' (play, pause, step or restart)", c)};
+  return Refusal{fmt::format("unknown command '{}' (play, pause, step, restart, run_to or replay)", c)};
 }
 
 FramePacer::FramePacer(double hz)
@@ -96,8 +111,12 @@ struct LiveServer::Impl {
 
   mutable std::mutex mutex;  // guards what follows
   std::set<Handle, std::owner_less<Handle>> viewers;
+  std::map<Handle, std::uint64_t, std::owner_less<Handle>> ids;  // each viewer's number (Message::viewer)
+  std::map<std::uint64_t, Handle> by_id;
+  std::uint64_t next_id = 1;
   std::string cell;
-  std::deque<CommandKind> commands;
+  std::vector<std::string> greeting;
+  std::deque<Message> commands;
   std::condition_variable command_ready;
   Counts counts;
 
@@ -134,23 +153,33 @@ struct LiveServer::Impl {
 
   void on_open(Handle h) {
     std::string c;
+    std::vector<std::string> after;
     {
       std::lock_guard lock(mutex);
       viewers.insert(h);
+      const std::uint64_t id = next_id++;
+      ids[h] = id;
+      by_id[id] = h;
       c = cell;
+      after = greeting;
     }
     if (!c.empty()) send_text(h, c);
+    for (const std::string& m : after) send_text(h, m);
   }
 
   void on_close(Handle h) {
     std::lock_guard lock(mutex);
     viewers.erase(h);
+    if (const auto it = ids.find(h); it != ids.end()) {
+      by_id.erase(it->second);
+      ids.erase(it);
+    }
   }
 
   void on_message(Handle h, const WsServer::message_ptr& msg) {
     Parsed parsed = msg->get_opcode() == websocketpp::frame::opcode::text
-                        ? parse_command(msg->get_payload())
-                        : Parsed(Refusal{"a binary message (commands are JSON text)"});
+                        ? parse_message(msg->get_payload())
+                        : Parsed(Refusal{"a binary message (messages are JSON text)"});
     if (const auto* r = std::get_if<Refusal>(&parsed)) {
       {
         std::lock_guard lock(mutex);
@@ -161,7 +190,10 @@ struct LiveServer::Impl {
     }
     {
       std::lock_guard lock(mutex);
-      commands.push_back(std::get<CommandKind>(parsed));
+      Message& m = std::get<Message>(parsed);
+      const auto it = ids.find(h);
+      m.viewer = it == ids.end() ? 0 : it->second;
+      commands.push_back(std::move(m));
     }
     command_ready.notify_all();
   }
@@ -211,13 +243,11 @@ LiveServer::~LiveServer() {
 std::uint16_t LiveServer::port() const { return impl_->port; }
 
 void LiveServer::set_cell(std::string json) {
-  std::set<Handle, std::owner_less<Handle>> open;
   {
     std::lock_guard lock(impl_->mutex);
     impl_->cell = json;
-    open = impl_->viewers;
   }
-  for (const Handle& h : open) impl_->send_text(h, json);
+  broadcast(json);
 }
 
 void LiveServer::publish(std::string json) {
@@ -244,20 +274,45 @@ void LiveServer::publish(std::string json) {
   im.counts.dropped += dropped;
 }
 
-std::optional<CommandKind> LiveServer::poll_command() {
+std::optional<Message> LiveServer::poll_message() {
   std::lock_guard lock(impl_->mutex);
   if (impl_->commands.empty()) return std::nullopt;
-  const CommandKind c = impl_->commands.front();
+  Message m = std::move(impl_->commands.front());
   impl_->commands.pop_front();
-  return c;
+  return m;
 }
 
-std::optional<CommandKind> LiveServer::wait_command(std::chrono::milliseconds timeout) {
+std::optional<Message> LiveServer::wait_message(std::chrono::milliseconds timeout) {
   std::unique_lock lock(impl_->mutex);
   if (!impl_->command_ready.wait_for(lock, timeout, [this] { return !impl_->commands.empty(); })) return std::nullopt;
-  const CommandKind c = impl_->commands.front();
+  Message m = std::move(impl_->commands.front());
   impl_->commands.pop_front();
-  return c;
+  return m;
+}
+
+void LiveServer::set_greeting(std::vector<std::string> messages) {
+  std::lock_guard lock(impl_->mutex);
+  impl_->greeting = std::move(messages);
+}
+
+void LiveServer::send_to(std::uint64_t viewer, const std::string& json) {
+  Handle h;
+  {
+    std::lock_guard lock(impl_->mutex);
+    const auto it = impl_->by_id.find(viewer);
+    if (it == impl_->by_id.end()) return;
+    h = it->second;
+  }
+  impl_->send_text(h, json);
+}
+
+void LiveServer::broadcast(const std::string& json) {
+  std::set<Handle, std::owner_less<Handle>> open;
+  {
+    std::lock_guard lock(impl_->mutex);
+    open = impl_->viewers;
+  }
+  for (const Handle& h : open) impl_->send_text(h, json);
 }
 
 std::size_t LiveServer::viewers() const {

@@ -35,21 +35,38 @@ ServerOptions loopback_any_port() {
   return o;
 }
 
-TEST(ParseCommand, AcceptsTheFourCommands) {
-  EXPECT_EQ(std::get<CommandKind>(parse_command(R"({"type":"command","command":"play"})")), CommandKind::kPlay);
-  EXPECT_EQ(std::get<CommandKind>(parse_command(R"({"type":"command","command":"pause"})")), CommandKind::kPause);
-  EXPECT_EQ(std::get<CommandKind>(parse_command(R"({"command":"step","type":"command"})")), CommandKind::kStep);
-  EXPECT_EQ(std::get<CommandKind>(parse_command(R"({"type":"command","command":"restart"})")), CommandKind::kRestart);
+std::optional<CommandKind> command_of(const Parsed& p) { return std::get<Message>(p).command; }
+
+TEST(ParseMessage, AcceptsTheCommands) {
+  EXPECT_EQ(command_of(parse_message(R"({"type":"command","command":"play"})")), CommandKind::kPlay);
+  EXPECT_EQ(command_of(parse_message(R"({"type":"command","command":"pause"})")), CommandKind::kPause);
+  EXPECT_EQ(command_of(parse_message(R"({"command":"step","type":"command"})")), CommandKind::kStep);
+  EXPECT_EQ(command_of(parse_message(R"({"type":"command","command":"restart"})")), CommandKind::kRestart);
+  EXPECT_EQ(command_of(parse_message(R"({"type":"command","command":"run_to","line":3})")), CommandKind::kRunTo);
+  EXPECT_EQ(command_of(parse_message(R"({"type":"command","command":"replay"})")), CommandKind::kReplay);
 }
 
-TEST(ParseCommand, RefusesWithAReason) {
-  auto reason = [](std::string_view t) { return std::get<Refusal>(parse_command(t)).reason; };
+TEST(ParseMessage, TakesTeachSaveAndCheckWithTheirText) {
+  const std::string teach = R"({"type":"teach","robot":"puma","action":"begin"})";
+  const Message m = std::get<Message>(parse_message(teach));
+  EXPECT_EQ(m.type, "teach");
+  EXPECT_EQ(m.command, std::nullopt);
+  EXPECT_EQ(m.text, teach);
+  EXPECT_EQ(std::get<Message>(parse_message(R"({"type":"save_location","robot":"puma","name":"x"})")).type,
+            "save_location");
+  EXPECT_EQ(std::get<Message>(parse_message(R"({"type":"check"})")).type, "check");
+}
+
+TEST(ParseMessage, RefusesWithAReason) {
+  auto reason = [](std::string_view t) { return std::get<Refusal>(parse_message(t)).reason; };
   EXPECT_EQ(reason("{not json"), "not JSON");
   EXPECT_EQ(reason("[1,2]"), "not a JSON object");
   EXPECT_EQ(reason(R"({"command":"play"})"), "no \"type\" (a string)");
-  EXPECT_EQ(reason(R"({"type":"jog"})"), "unknown type 'jog' (a viewer sends \"command\")");
+  EXPECT_EQ(reason(R"({"type":"jog"})"),
+            "unknown type 'jog' (a viewer sends \"command\", \"teach\", \"save_location\" or \"check\")");
   EXPECT_EQ(reason(R"({"type":"command"})"), "a command needs \"command\" (a string)");
-  EXPECT_EQ(reason(R"({"type":"command","command":"fly"})"), "unknown command 'fly' (play, pause, step or restart)");
+  EXPECT_EQ(reason(R"({"type":"command","command":"fly"})"),
+            "unknown command 'fly' (play, pause, step, restart, run_to or replay)");
   EXPECT_NE(reason(std::string(kMaxMessageBytes + 1, ' ')).find("more than"), std::string::npos);
 }
 
@@ -75,9 +92,20 @@ TEST(LiveServer, AViewerGetsTheCellThenFramesAndItsCommandsArrive) {
 
   v.send(R"({"type":"command","command":"step"})");
   v.send(R"({"type":"command","command":"pause"})");
-  EXPECT_EQ(server.wait_command(5s), CommandKind::kStep);
-  EXPECT_EQ(server.wait_command(5s), CommandKind::kPause);
-  EXPECT_EQ(server.poll_command(), std::nullopt);
+  const std::optional<Message> step = server.wait_message(5s);
+  ASSERT_TRUE(step.has_value());
+  EXPECT_EQ(step->command, CommandKind::kStep);
+  EXPECT_EQ(server.wait_message(5s)->command, CommandKind::kPause);
+  EXPECT_FALSE(server.poll_message().has_value());
+  // Answers go to the sender alone; broadcasts to every viewer.
+  Viewer other(server.port());
+  ASSERT_TRUE(wait_viewers(server, 2));
+  server.send_to(step->viewer, R"({"type":"error","reason":"yours"})");
+  server.broadcast(R"({"type":"saved","name":"all"})");
+  EXPECT_EQ(v.wait_for("error")["reason"], "yours");
+  EXPECT_EQ(v.wait_for("saved")["name"], "all");
+  EXPECT_EQ(other.wait_for("saved")["name"], "all");
+  EXPECT_EQ(other.count("error"), 0u);
 }
 
 TEST(LiveServer, GarbageIsRefusedAndTheConnectionStays) {
@@ -86,14 +114,14 @@ TEST(LiveServer, GarbageIsRefusedAndTheConnectionStays) {
   v.send("hello");
   EXPECT_EQ(v.wait_for("error")["reason"], "not JSON");
   v.send(R"({"type":"command","command":"fly"})");
-  EXPECT_EQ(v.wait_for("error", 1)["reason"], "unknown command 'fly' (play, pause, step or restart)");
+  EXPECT_EQ(v.wait_for("error", 1)["reason"], "unknown command 'fly' (play, pause, step, restart, run_to or replay)");
   v.send_binary("\x01\x02");
-  EXPECT_EQ(v.wait_for("error", 2)["reason"], "a binary message (commands are JSON text)");
+  EXPECT_EQ(v.wait_for("error", 2)["reason"], "a binary message (messages are JSON text)");
   EXPECT_EQ(server.counts().refused, 3u);
   // Still connected: a good command after the bad ones arrives, and nothing refused was taken as a command.
   v.send(R"({"type":"command","command":"play"})");
-  EXPECT_EQ(server.wait_command(5s), CommandKind::kPlay);
-  EXPECT_EQ(server.poll_command(), std::nullopt);
+  EXPECT_EQ(server.wait_message(5s)->command, CommandKind::kPlay);
+  EXPECT_FALSE(server.poll_message().has_value());
 }
 
 TEST(LiveServer, TwoViewersBothGetEveryFrameAndOneLeavingCostsTheOtherNothing) {
@@ -117,6 +145,12 @@ TEST(LiveServer, TwoViewersBothGetEveryFrameAndOneLeavingCostsTheOtherNothing) {
   // A restart's new cell reaches the viewer still there.
   server.set_cell(R"({"type":"cell","name":"again"})");
   EXPECT_EQ(b.wait_for("cell", 1)["name"], "again");
+  // A greeting goes to each viewer that connects after it is set, right after the cell; not to those there already.
+  server.set_greeting({R"({"type":"check","ok":false})"});
+  Viewer c(server.port());
+  ASSERT_TRUE(c.wait_for("check").is_object());
+  EXPECT_EQ(c.count("cell"), 1u);
+  EXPECT_EQ(b.count("check"), 0u);
 }
 
 TEST(LiveServer, FramesToAViewerThatDoesNotReadAreDroppedNotQueued) {

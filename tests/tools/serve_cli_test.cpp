@@ -131,6 +131,39 @@ TEST(TwinServe, ListensOnLoopbackOnlyUnlessBindSaysOtherwise) {
   EXPECT_EQ(twin.stop(SIGTERM), 130);
 }
 
+// A program that fails the check is served as its counterexample's replay (not refused); other refusals still exit 2.
+TEST(TwinServe, AProgramThatFailsTheCheckIsServedAsItsCounterexamplesReplay) {
+  TwinCli cli("cw-serve-replay");
+  const std::filesystem::path scenario = cli.dir() / "deadlock.yaml";
+  std::ofstream(scenario) << "cell: " << source_path("scenes/cell.yaml") << "\nprogram: "
+                          << source_path("scenes/deadlock.task") << "\nrobots: {r1: puma, r2: melfa}\n";
+  BackgroundTwin twin({"serve", scenario.string(), "--port", "0"});
+  ASSERT_TRUE(twin.wait_for("/ (Ctrl-C stops)", 60s)) << twin.output();
+  EXPECT_NE(twin.output().find("fails the check: serving its counterexample's replay"), std::string::npos)
+      << twin.output();
+  WsViewer v(served_port(twin.output()));
+  ASSERT_TRUE(v.wait_for("cell").is_object()) << twin.output();
+  const json check = v.wait_for("check");
+  ASSERT_TRUE(check.is_object()) << "no check on connect";
+  EXPECT_EQ(check["ok"], false);
+  EXPECT_EQ(check["property"], "deadlock");
+  v.send(R"({"type":"command","command":"play"})");
+  const json end = v.wait_for([](const json& m) { return m.value("type", "") == "frame" && m["state"] == "ended"; });
+  ASSERT_TRUE(end.is_object());
+  EXPECT_EQ(end["replay"], true);
+  EXPECT_EQ(end["replay_index"], check["counterexample"].size());
+  EXPECT_NE(end["reason"].get<std::string>().find("deadlock"), std::string::npos) << end.dump();
+  v.close();
+  EXPECT_EQ(twin.stop(SIGINT), 130) << twin.output();
+
+  // A robot the cell does not have: refused before anything listens.
+  std::ofstream(scenario) << "cell: " << source_path("scenes/cell.yaml") << "\nprogram: "
+                          << source_path("scenes/deadlock.task") << "\nrobots: {r1: puma, r2: kuka}\n";
+  const Outcome bad = cli.run("serve " + shell_quote(scenario.string()) + " --port 0");
+  EXPECT_EQ(bad.status, 2) << bad.err;
+  EXPECT_NE(bad.err.find("kuka"), std::string::npos) << bad.err;
+}
+
 TEST(TwinServe, AnAddressItCannotListenOnIsRefusedWithTheReason) {
   TwinCli cli("cw-serve-cli");
   const std::string scenario = shell_quote(source_path("scenes/exchange.yaml"));

@@ -6,10 +6,12 @@
 #include <atomic>
 #include <cstdio>
 #include <memory>
+#include <optional>
 
 #include "cellwright/cell/preflight.hpp"
 #include "cellwright/cell/scenario.hpp"
 #include "cellwright/cell/live/live.hpp"
+#include "cellwright/cell/live/replay.hpp"
 #include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/common/error.hpp"
 #include "cellwright/serve/live_server.hpp"
@@ -22,8 +24,9 @@ namespace cellwright::tools {
 void add_serve(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand("serve",
                                  "Run a scenario lock-step and watch it live in a browser (http://ADDR:PORT/): play, "
-                                 "pause, step one firing, restart from the page. Runs until Ctrl-C (exit 130); 2 on "
-                                 "bad input.");
+                                 "pause, step one firing, run to a line or a time, restart, teach and save locations "
+                                 "from the page; a program that fails the check is served as its counterexample's "
+                                 "replay. Runs until Ctrl-C (exit 130); 2 on bad input.");
   auto args = std::make_shared<RunArgs>();
   auto port = std::make_shared<int>(8029);
   auto bind = std::make_shared<std::string>("127.0.0.1");
@@ -41,8 +44,12 @@ void add_serve(CLI::App& app, Command* run) {
       if (uses_real_drivers(s)) {
         throw InputError({"--driver", 0, 0}, "twin serve runs the program lock-step on simulated robots");
       }
-      const Preflight pre = preflight(s, &twin_port());
-      if (!pre.ok(args->allow_collisions)) {
+      Preflight pre = preflight(s, &twin_port());
+      if (std::optional<Preflight> replay = counterexample_preflight(s, pre)) {
+        // A program that fails the check is served as its counterexample's replay (docs/live-view.md).
+        std::printf("%s: the program fails the check: serving its counterexample's replay\n", args->scenario.c_str());
+        pre = std::move(*replay);
+      } else if (!pre.ok(args->allow_collisions)) {
         std::fprintf(stderr, "%s: refused, nothing was run:\n", args->scenario.c_str());
         for (const std::string& p : pre.problems) std::fprintf(stderr, "  %s\n", p.c_str());
         return 2;
@@ -63,6 +70,19 @@ void add_serve(CLI::App& app, Command* run) {
       const StopWatcher watcher([&stop] { stop = true; });
       ServeOptions opts;
       opts.play = *play;
+      // After a location is saved, a restart loads the scenario (and its cell file) again, with the same options.
+      opts.reload = [args] {
+        LiveScenario again;
+        again.scenario = std::make_unique<Scenario>(load_scenario_with(*args));
+        Preflight p = preflight(*again.scenario, &twin_port());
+        if (std::optional<Preflight> replay = counterexample_preflight(*again.scenario, p)) {
+          p = std::move(*replay);
+        } else if (!p.ok(args->allow_collisions)) {
+          throw InputError({args->scenario, 0, 0}, "refused by the preflight: " + p.problems.front());
+        }
+        again.preflight = std::make_unique<Preflight>(std::move(p));
+        return again;
+      };
       serve_scenario(s, pre, options, server, opts, stop);
       return kInterrupted;
     };

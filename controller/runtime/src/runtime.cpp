@@ -321,6 +321,7 @@ struct Runtime::Impl {
   std::mutex m;
   std::condition_variable cv;
   bool step_mode = false;
+  std::optional<SimDuration> pause_at;  // step(until): also park once the clock has reached this
   bool paused = false;
   bool resume = false;
   bool abort = false;
@@ -358,8 +359,10 @@ struct Runtime::Impl {
     std::unique_lock lock(m);
     if (!step_mode) return !abort;
     const std::uint64_t f = task_firings.load();
-    if (f == firings_seen) return !abort;
+    const bool at_time = pause_at && clock.now() >= *pause_at;
+    if (f == firings_seen && !at_time) return !abort;
     firings_seen = f;
+    pause_at.reset();
     paused = true;
     ++pauses;
     const auto parked = std::chrono::steady_clock::now();
@@ -731,6 +734,7 @@ Runtime::Runtime(RunConfig config) : config_(std::move(config)), log_(std::make_
   im.task = std::make_unique<TaskControl>(config_.net, config_.program, inbox_ptrs, im.statuses, *log_,
                                           config_.motion.recovery, config_.signal_filter,
                                           im.devices ? &im.device_inbox : nullptr);
+  if (!config_.firing_order.empty()) im.task->follow(config_.firing_order);
   for (const std::string& cell : config_.remote_robots) {
     const bool in_program = std::any_of(im.names.robots.begin(), im.names.robots.end(),
                                         [&](const auto& entry) { return entry.second == cell; });
@@ -814,7 +818,7 @@ RunResult Runtime::run() {
   return finish();
 }
 
-StepState Runtime::step() {
+StepState Runtime::step(std::optional<SimDuration> until) {
   Impl& im = *impl_;
   CW_CHECK(config_.mode == Mode::kLockstep, "stepping needs lock-step mode");
   StepState s;
@@ -822,6 +826,7 @@ StepState Runtime::step() {
     {
       std::lock_guard lock(im.m);
       im.step_mode = true;
+      im.pause_at = until;
     }
     if (!im.started) {
       start();

@@ -95,7 +95,22 @@ std::vector<bool> TaskControl::allowed() const {
     }
   }
   loops_.restrict(ok);
+  if (!script_.empty()) {
+    // Only the script's next transition (none once the script is done).
+    for (petri::TransitionId t = 0; t < net_.num_transitions(); ++t) {
+      if (script_pos_ >= script_.size() || t != script_[script_pos_]) ok[t] = false;
+    }
+  }
   return ok;
+}
+
+void TaskControl::follow(std::vector<petri::TransitionId> order) {
+  CW_CHECK(firings_ == 0, "a firing script given after {} firings", firings_);
+  for (const petri::TransitionId t : order) {
+    CW_CHECK(t < net_.num_transitions(), "scripted transition {} of a net of {}", t, net_.num_transitions());
+  }
+  script_ = std::move(order);
+  script_pos_ = 0;
 }
 
 void TaskControl::drain_statuses(SimDuration now) {
@@ -137,6 +152,7 @@ void TaskControl::fire_until_quiescent(SimDuration now) {
     if (chosen.empty()) return;
     petri::fire_chosen(net_, marking_, arbiter_, chosen);
     for (const petri::TransitionId id : chosen) {
+      if (script_pos_ < script_.size() && id == script_[script_pos_]) ++script_pos_;
       loops_.fired(id);
       const petri::Transition& t = net_.transitions()[id];
       for (const petri::Arc& a : t.inputs) expected_tokens_[a.place] -= a.weight;

@@ -7,56 +7,24 @@
 #include <gtest/gtest.h>
 
 #include <asio.hpp>
-#include <atomic>
-#include <thread>
+#include <cmath>
 
 #include "cellwright/cell/sim/sweep.hpp"
 #include "cellwright/runtime/log_event.hpp"
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/world.hpp"
 #include "support/ws_viewer.hpp"
+#include "cellwright/models/robot_model.hpp"
+#include "live_loop.hpp"
+#include "scene_copy.hpp"
 
 namespace cellwright::cell {
 namespace {
 
-using nlohmann::json;
-using testing::WsViewer;
-
-const std::string kExchange = std::string(CW_SOURCE_DIR) + "/scenes/exchange.yaml";
-
-bool is_frame(const json& m) { return m.is_object() && m.value("type", "") == "frame"; }
-
-// The exchange scenario served on a free loopback port by serve_scenario on a thread of its own, stopped and joined
-// at the end of the test.
-class LiveLoop : public ::testing::Test {
- protected:
-  void start(ServeOptions options = {}, std::size_t max_buffered = 256 * 1024) {
-    scenario_ = std::make_unique<Scenario>(load_scenario(kExchange));
-    preflight_ = std::make_unique<Preflight>(preflight(*scenario_, &twin_port()));
-    ASSERT_TRUE(preflight_->ok()) << preflight_->problems.front();
-    serve::ServerOptions so;
-    so.port = 0;
-    so.max_buffered = max_buffered;
-    server_ = std::make_unique<serve::LiveServer>(so);
-    loop_ = std::thread([this, options] {
-      runs_ = serve_scenario(*scenario_, *preflight_, RunOptions{}, *server_, options, stop_);
-    });
-  }
-  void TearDown() override {
-    stop_ = true;
-    if (loop_.joinable()) loop_.join();
-  }
-  std::uint16_t port() const { return server_->port(); }
-  serve::LiveServer& server() { return *server_; }
-  static std::string command(const std::string& c) { return R"({"type":"command","command":")" + c + "\"}"; }
-
-  std::unique_ptr<Scenario> scenario_;
-  std::unique_ptr<Preflight> preflight_;
-  std::unique_ptr<serve::LiveServer> server_;
-  std::atomic<bool> stop_{false};
-  std::thread loop_;
-  int runs_ = 0;
-};
+using live_testing::is_frame;
+using live_testing::json;
+using live_testing::LiveLoop;
+using live_testing::WsViewer;
 
 TEST_F(LiveLoop, AViewerGetsTheCellAndStepsOneFiringAtATime) {
   start();
@@ -85,7 +53,7 @@ TEST_F(LiveLoop, AViewerGetsTheCellAndStepsOneFiringAtATime) {
     t = f["t"].get<double>();
   }
   // Nothing moves between steps: the run waits for the page.
-  EXPECT_EQ(server().poll_command(), std::nullopt);
+  EXPECT_FALSE(server().poll_message().has_value());
 }
 
 TEST_F(LiveLoop, PlayRunsToTheEndAndPauseStopsBetweenSteps) {
@@ -163,7 +131,7 @@ TEST_F(LiveLoop, ABadMessageIsRefusedToThePageThatSentItAndTheRunGoesOn) {
   WsViewer good(port());
   ASSERT_TRUE(good.wait_for("frame").is_object());
   bad.send(R"({"type":"command","command":"jump"})");
-  EXPECT_EQ(bad.wait_for("error")["reason"], "unknown command 'jump' (play, pause, step or restart)");
+  EXPECT_EQ(bad.wait_for("error")["reason"], "unknown command 'jump' (play, pause, step, restart, run_to or replay)");
   bad.send("{{{");
   EXPECT_EQ(bad.wait_for("error", 1)["reason"], "not JSON");
   // Nothing was taken as a command: the page that sent nothing wrong is told nothing and the run is where it was.
@@ -172,6 +140,163 @@ TEST_F(LiveLoop, ABadMessageIsRefusedToThePageThatSentItAndTheRunGoesOn) {
   ASSERT_TRUE(f.is_object());
   EXPECT_EQ(good.count("error"), 0u);
   EXPECT_EQ(server().counts().refused, 2u);
+}
+
+TEST_F(LiveLoop, RunToATimePausesAtTheFirstPeriodFromThatTime) {
+  start();
+  WsViewer v(port());
+  ASSERT_TRUE(v.wait_for("frame").is_object());
+  v.send(R"({"type":"command","command":"run_to","time":2.5})");
+  const json at = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "paused" && m["t"] > 0.0; });
+  ASSERT_TRUE(at.is_object());
+  EXPECT_GE(at["t"].get<double>(), 2.5);
+  EXPECT_LT(at["t"].get<double>(), 2.5 + 0.0105) << "one control period (10 ms) at most past the time asked";
+  // Not after now: refused, the run stays.
+  v.send(R"({"type":"command","command":"run_to","time":1})");
+  EXPECT_NE(v.wait_for("error")["reason"].get<std::string>().find("not after now"), std::string::npos);
+}
+
+TEST_F(LiveLoop, RunToALinePausesWhereATransitionOfThatLineFired) {
+  start();
+  WsViewer v(port());
+  ASSERT_TRUE(v.wait_for("frame").is_object());
+  // exchange.task line 10: "Place B" (r2), the program's last command.
+  v.send(R"({"type":"command","command":"run_to","line":10})");
+  const json at = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "paused" && m["firings"] > 0; });
+  ASSERT_TRUE(at.is_object());
+  bool line10 = false;
+  for (const json& f : at["fired"]) line10 = line10 || f.get<std::string>().find("line 10 ") != std::string::npos;
+  EXPECT_TRUE(line10) << at["fired"].dump();
+  EXPECT_NE(at["state"], "ended");
+  // No command on line 3 (a declaration): refused, named.
+  v.send(R"({"type":"command","command":"run_to","line":3})");
+  EXPECT_EQ(v.wait_for("error")["reason"], "no command of exchange.task is on line 3");
+  v.send(R"({"type":"command","command":"run_to"})");
+  EXPECT_NE(v.wait_for("error", 1)["reason"].get<std::string>().find("needs"), std::string::npos);
+}
+
+TEST_F(LiveLoop, TeachingJogsACopyThatEveryViewerSeesAndTheRunGoesOnFromWhereItWas) {
+  start();
+  WsViewer a(port());
+  WsViewer b(port());
+  ASSERT_TRUE(a.wait_for("frame").is_object());
+  ASSERT_TRUE(b.wait_for("frame").is_object());
+  a.send(command("step"));
+  const json stepped = a.wait_for([](const json& m) { return is_frame(m) && m["firings"] > 0; });
+  ASSERT_TRUE(stepped.is_object());
+  a.send(R"({"type":"teach","robot":"puma","action":"begin"})");
+  const json begun = b.wait_for("teach");
+  ASSERT_TRUE(begun.is_object()) << "the other viewer sees the teach pose too";
+  EXPECT_EQ(begun["active"], true);
+  EXPECT_EQ(begun["joints"], stepped["robots"][0]["joints"]) << "teaching starts from the run's joints";
+  a.send(R"({"type":"teach","robot":"puma","action":"joint","joint":0,"delta":0.25})");
+  const json jogged = a.wait_for("teach", 1);
+  ASSERT_TRUE(jogged.is_object());
+  EXPECT_NEAR(jogged["joints"][0].get<double>(), begun["joints"][0].get<double>() + 0.25, 1e-12);
+  EXPECT_EQ(jogged["tool"].size(), 7u);
+  EXPECT_TRUE(jogged["collisions"].is_array());
+  // The run has not moved: a new viewer gets the frame it had; the next step goes on from there as without teaching.
+  WsViewer c(port());
+  const json seen = c.wait_for("frame");
+  EXPECT_EQ(seen["robots"], stepped["robots"]);
+  a.send(command("step"));
+  const json next = a.wait_for([&](const json& m) { return is_frame(m) && m["firings"] > stepped["firings"]; });
+  ASSERT_TRUE(next.is_object());
+  ScenarioRun plain(*scenario_, *preflight_);
+  plain.runtime().step();
+  const runtime::StepState second = plain.runtime().step();
+  EXPECT_EQ(next["firings"].get<std::uint64_t>(), second.task.firings);
+  EXPECT_EQ(next["t"].get<double>(), std::chrono::duration<double>(second.time).count());
+  // Begin refused while playing; end makes the ghost go away for everyone.
+  a.send(command("play"));
+  a.send(R"({"type":"teach","robot":"melfa","action":"begin"})");
+  EXPECT_NE(a.wait_for("error")["reason"].get<std::string>().find("pause"), std::string::npos);
+  a.send(command("pause"));
+  a.send(R"({"type":"teach","robot":"puma","action":"end"})");
+  const json ended = b.wait_for([](const json& m) { return m.value("type", "") == "teach" && m["active"] == false; });
+  ASSERT_TRUE(ended.is_object());
+  EXPECT_EQ(b.count("error"), 0u);
+}
+
+TEST_F(LiveLoop, CheckIsAnsweredToItsSenderAndAPassedProgramHasNoReplay) {
+  start();
+  WsViewer a(port());
+  WsViewer b(port());
+  ASSERT_TRUE(a.wait_for("frame").is_object());
+  a.send(R"({"type":"check"})");
+  const json c = a.wait_for("check");
+  ASSERT_TRUE(c.is_object());
+  EXPECT_EQ(c["ok"], true);
+  EXPECT_EQ(c["property"], "");
+  EXPECT_TRUE(c["counterexample"].empty());
+  EXPECT_EQ(c["summary"].get<std::string>().rfind("OK", 0), 0u) << c["summary"];
+  a.send(command("replay"));
+  EXPECT_NE(a.wait_for("error")["reason"].get<std::string>().find("no counterexample"), std::string::npos);
+  EXPECT_EQ(b.count("check"), 0u);
+  EXPECT_FALSE(a.wait_for("frame").contains("replay"));
+}
+
+TEST_F(LiveLoop, ASavedLocationIsInTheCellFileAndInTheRestartedRunsCell) {
+  live_testing::SceneCopy copy;
+  std::atomic<int> reloads{0};
+  std::optional<std::string> reloaded_location;
+  ServeOptions options;
+  const std::filesystem::path file = copy.exchange();
+  options.reload = [&] {
+    ++reloads;
+    LiveScenario again;
+    again.scenario = std::make_unique<Scenario>(load_scenario(file));
+    again.preflight = std::make_unique<Preflight>(preflight(*again.scenario, &twin_port()));
+    if (const models::LocationSpec* l = again.scenario->cell.find_location("taught_here")) reloaded_location = l->name;
+    return again;
+  };
+  start(options, 256 * 1024, copy.exchange().string());
+  WsViewer a(port());
+  WsViewer b(port());
+  ASSERT_TRUE(a.wait_for("frame").is_object());
+  // The PUMA's teach pose set to reach 3 cm beside its input pick, pointing down.
+  const models::CellDescription& cell = scenario_->cell;
+  const models::LocationSpec& pick = *cell.find_location("input_pick");
+  const models::RobotSpec& puma = *cell.find_robot("puma");
+  Eigen::Isometry3d target = models::grasp_pose(pick.pose.xyz + Eigen::Vector3d(0.03, 0, pick.grasp_height),
+                                                models::Approach::kDown, pick.pose.rpy.z(), puma.base.transform());
+  const models::KinematicChain chain = models::robot_chain(puma);
+  const models::IkResult ik = chain.inverse(puma.base.transform().inverse() * target, Eigen::VectorXd(puma.home.size()).setZero());
+  ASSERT_EQ(ik.status, models::IkStatus::kOk) << ik.reason;
+  a.send(R"({"type":"teach","robot":"puma","action":"begin"})");
+  a.send(json{{"type", "teach"}, {"robot", "puma"}, {"action", "joints"},
+              {"joints", std::vector<double>(ik.q.data(), ik.q.data() + ik.q.size())}}.dump());
+  ASSERT_TRUE(a.wait_for("teach", 1).is_object());
+  const std::string before = live_testing::read_text(copy.cell_file());
+  // Refused: a bad name, a robot not taught; the file untouched, only the sender told.
+  a.send(R"({"type":"save_location","robot":"puma","name":"no good"})");
+  EXPECT_NE(a.wait_for("error")["reason"].get<std::string>().find("not a location name"), std::string::npos);
+  a.send(R"({"type":"save_location","robot":"melfa","name":"x"})");
+  EXPECT_NE(a.wait_for("error", 1)["reason"].get<std::string>().find("not being taught"), std::string::npos);
+  EXPECT_EQ(live_testing::read_text(copy.cell_file()), before);
+  EXPECT_EQ(b.count("error"), 0u);
+
+  a.send(R"({"type":"save_location","robot":"puma","name":"taught_here"})");
+  const json saved = b.wait_for("saved");
+  ASSERT_TRUE(saved.is_object());
+  EXPECT_EQ(saved["file"], "cell.yaml");
+  EXPECT_EQ(saved["name"], "taught_here");
+  EXPECT_EQ(saved["replaced"], false);
+  EXPECT_NE(saved["diff"].get<std::string>().find("+  - {name: taught_here, pose:"), std::string::npos);
+  const models::CellDescription after = models::load_cell(copy.cell_file());
+  const models::LocationSpec* loc = after.find_location("taught_here");
+  ASSERT_NE(loc, nullptr);
+  const Eigen::Isometry3d grasp = models::grasp_pose(loc->pose.xyz + Eigen::Vector3d(0, 0, loc->grasp_height),
+                                                     models::Approach::kDown, loc->pose.rpy.z(), puma.base.transform());
+  EXPECT_LT((grasp.translation() - target.translation()).norm(), 1e-3);
+  EXPECT_LT(Eigen::AngleAxisd(grasp.linear().transpose() * target.linear()).angle(), M_PI / 180);
+  // The restart loads the scenario again: its cell has the location.
+  a.send(command("restart"));
+  ASSERT_TRUE(a.wait_for("cell", 1).is_object());
+  EXPECT_EQ(reloads, 1);
+  EXPECT_EQ(reloaded_location, "taught_here");
+  // The ghost went away with the restart.
+  EXPECT_TRUE(b.wait_for([](const json& m) { return m.value("type", "") == "teach" && m["active"] == false; }).is_object());
 }
 
 TEST_F(LiveLoop, ViewersThatLeaveOrNeverReadCostTheRunNothing) {

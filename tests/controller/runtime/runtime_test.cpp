@@ -461,6 +461,35 @@ TEST(RuntimeRun, SteppingStopsAtEachFiringAndGivesTheSameLogAsARun) {
   EXPECT_EQ(rt.log().text(), reference.log().text());
 }
 
+// step(until): a step also ends at the first control period from that time when nothing fired before it, and the
+// run stepped so is the run: the same log as a plain run.
+TEST(RuntimeRun, SteppingUntilATimeStopsThereOrAtAFiringBefore) {
+  ScriptedCell plain;
+  Runtime reference(plain.config);
+  ASSERT_EQ(reference.run().outcome, Outcome::kFinished);
+
+  ScriptedCell cell;
+  Runtime rt(cell.config);
+  StepState s = rt.step();
+  ASSERT_FALSE(s.ended);
+  const SimDuration until = s.time + std::chrono::milliseconds(5);  // within the next control period (10 ms)
+  s = rt.step(until);
+  ASSERT_FALSE(s.ended);
+  EXPECT_GE(s.time, until);
+  EXPECT_LT(s.time, until + cell.config.period);
+  int steps = 0;
+  SimDuration t = s.time;
+  while (!s.ended && steps++ < 2000) {
+    s = rt.step(t + std::chrono::milliseconds(25));
+    if (s.ended) break;
+    EXPECT_LE(s.time, t + std::chrono::milliseconds(30)) << "past the time asked without a firing";
+    EXPECT_TRUE(s.time >= t + std::chrono::milliseconds(25) || !s.task.last_fired.empty());
+    t = s.time;
+  }
+  ASSERT_TRUE(s.ended);
+  EXPECT_EQ(rt.log().text(), reference.log().text());
+}
+
 TEST(RuntimeRun, AStepShowsEachRobotsCommandAndState) {
   ScriptedCell cell;
   Runtime rt(cell.config);

@@ -4,8 +4,10 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <memory>
 
+#include "cellwright/petri/analysis.hpp"
 #include "cellwright/task/compile.hpp"
 #include "cellwright/task/to_net.hpp"
 
@@ -175,6 +177,45 @@ TEST(RuntimeTaskControl, ADeadMarkingThatIsNotFinalStopsWithDeadlock) {
   ASSERT_EQ(h.tc->state(), TaskControl::State::kFailed);
   EXPECT_THAT(h.tc->reason(), HasSubstr("deadlock"));
   EXPECT_THAT(h.tc->reason(), HasSubstr("waiting for"));
+}
+
+// A counterexample's replay: task control fires the script's transitions one by one, in its order (either order of
+// two independent ones), and nothing else, ending at the dead marking the analysis found.
+TEST(RuntimeTaskControl, FollowsAScriptedFiringOrderToTheDeadMarking) {
+  for (const bool reversed : {false, true}) {
+    Harness h("deadlock.task");
+    petri::AnalysisOptions o;
+    const petri::AnalysisResult a = petri::analyze(h.net, o);
+    ASSERT_FALSE(a.deadlock_examples.empty());
+    std::vector<petri::TransitionId> path = a.deadlock_examples.front().path;
+    ASSERT_GE(path.size(), 2u);
+    if (reversed) std::reverse(path.begin(), path.end());
+    h.tc->follow(path);
+    std::vector<std::string> fired;
+    for (int turn = 1; turn <= 10 && h.tc->state() == TaskControl::State::kRunning; ++turn) {
+      h.tc->step(milliseconds(10 * turn));
+      for (const std::string& id : h.tc->view().last_fired) fired.push_back(id);
+    }
+    std::vector<std::string> want;
+    for (petri::TransitionId t : path) want.push_back(h.net.transitions()[t].id);
+    EXPECT_EQ(fired, want) << (reversed ? "reversed" : "as found");
+    EXPECT_EQ(h.tc->followed(), path.size());
+    EXPECT_EQ(h.tc->marking(), a.deadlock_examples.front().marking);
+    ASSERT_EQ(h.tc->state(), TaskControl::State::kFailed);
+    EXPECT_THAT(h.tc->reason(), HasSubstr("deadlock"));
+  }
+}
+
+// A script that stops short leaves the run where it stopped: nothing else fires.
+TEST(RuntimeTaskControl, NothingFiresPastTheScript) {
+  Harness h("exchange.task");
+  const std::vector<petri::TransitionId> first = petri::choose(h.net, h.net.initial_marking(),
+                                                               petri::make_arbiter(h.net));
+  ASSERT_FALSE(first.empty());
+  h.tc->follow({first.front()});
+  for (int turn = 1; turn <= 5; ++turn) h.tc->step(milliseconds(10 * turn));
+  EXPECT_EQ(h.tc->firings(), 1u);
+  EXPECT_EQ(h.tc->state(), TaskControl::State::kRunning);
 }
 
 TEST(RuntimeTaskControl, ActivityTimeAddsUpToTheTimeAccounted) {

@@ -9,7 +9,10 @@
 //                                             dropped for a viewer whose socket has more than
 //                                             ServerOptions::max_buffered bytes not yet sent (never queued)
 //                      {"type":"error","reason":"..."}  a message of this viewer was refused, and why
-//   viewer -> server   {"type":"command","command":"play"|"pause"|"step"|"restart"}
+//                      anything else the caller sends: to one viewer (send_to) or to all (broadcast), never dropped
+//   viewer -> server   {"type":"command","command":"play"|"pause"|"step"|"restart"|"run_to"|"replay", ...}
+//                      {"type":"teach", ...}, {"type":"save_location", ...}, {"type":"check"}
+//                      (their other fields are the caller's to read: Message::text)
 // Anything else from a viewer (not JSON, not an object, another type, an unknown command, a binary frame, a text over
 // kMaxMessageBytes) is refused with an "error" message naming the problem; the connection stays open.
 //
@@ -30,21 +33,31 @@
 #include <string>
 #include <string_view>
 #include <variant>
+#include <vector>
 
 namespace cellwright::serve {
 
 // A viewer's command to the run.
-enum class CommandKind { kPlay, kPause, kStep, kRestart };
+enum class CommandKind { kPlay, kPause, kStep, kRestart, kRunTo, kReplay };
 const char* to_string(CommandKind kind);
 
-// parse_command's answer: the command, or why the message was refused.
+// A viewer's message the server accepted (its type is one of the protocol's).
+struct Message {
+  std::uint64_t viewer = 0;            // who sent it: LiveServer::send_to answers it (0 from parse_message)
+  std::string type;                    // "command", "teach", "save_location" or "check"
+  std::optional<CommandKind> command;  // type "command": which
+  std::string text;                    // the message as received (a JSON object), for the fields its type has
+};
+
+// parse_message's answer: the message, or why it was refused.
 struct Refusal {
   std::string reason;
 };
-using Parsed = std::variant<CommandKind, Refusal>;
+using Parsed = std::variant<Message, Refusal>;
 
-// Reads one message from a viewer (the protocol above).
-Parsed parse_command(std::string_view text);
+// Reads one message from a viewer (the protocol above): its type and, for a command, which one. The other fields
+// of a message are read by the caller.
+Parsed parse_message(std::string_view text);
 
 inline constexpr std::size_t kMaxMessageBytes = 4096;
 
@@ -70,14 +83,21 @@ class LiveServer {
 
   // The "cell" message: kept, sent now to every viewer, and to each viewer that connects later.
   void set_cell(std::string json);
+  // Messages sent to each viewer that connects from now on, right after the cell (e.g. a check's result); not sent
+  // to the viewers already there.
+  void set_greeting(std::vector<std::string> messages);
+  // Sends `json` to one viewer (the sender of a Message), or to every viewer; not dropped for a slow viewer (replies
+  // are few and small). A viewer gone meanwhile is skipped.
+  void send_to(std::uint64_t viewer, const std::string& json);
+  void broadcast(const std::string& json);
   // Sends a "frame" message to every viewer that can take it now; the others miss it (counted in dropped()).
   // Never waits for a viewer.
   void publish(std::string json);
 
-  // The oldest command not yet taken, if any; never waits.
-  std::optional<CommandKind> poll_command();
-  // The oldest command not yet taken, waiting up to `timeout` for one.
-  std::optional<CommandKind> wait_command(std::chrono::milliseconds timeout);
+  // The oldest message not yet taken, if any; never waits.
+  std::optional<Message> poll_message();
+  // The oldest message not yet taken, waiting up to `timeout` for one.
+  std::optional<Message> wait_message(std::chrono::milliseconds timeout);
 
   std::size_t viewers() const;
   struct Counts {

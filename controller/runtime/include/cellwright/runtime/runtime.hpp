@@ -250,6 +250,9 @@ struct RunConfig {
   // Where a fired signal goes on its way to its event (task_control.hpp's SignalFilter): called by task control for
   // every signal it fires; false drops the event. Unset: every event is delivered.
   SignalFilter signal_filter;
+  // Task control fires these transitions, in this order, and nothing else (TaskControl::follow: a counterexample's
+  // replay, `twin serve`). Empty: the usual choice.
+  std::vector<petri::TransitionId> firing_order;
 };
 
 // The program's labels bound to cell names as the Runtime binds them (its robots, workpieces, locations and workpiece
@@ -318,8 +321,9 @@ class Runtime {
 
   // Lock-step mode only (InternalError otherwise): runs until the next control period in which a transition fires,
   // or to the end, then returns with the threads parked, so that state and plant can be inspected. The first call
-  // connects the drivers and starts the threads.
-  StepState step();
+  // connects the drivers and starts the threads. With `until`: also returns at the first control period that starts
+  // at or after that simulation time, if no transition fired before (`twin serve`'s run to a time).
+  StepState step(std::optional<SimDuration> until = std::nullopt);
 
   // Any thread (e.g. one that caught SIGINT): asks the run to stop at the next control period, as a cell stopped
   // safely: the robots are halted, the outcome is kStopped with `reason`, and run()/step() return the result with the

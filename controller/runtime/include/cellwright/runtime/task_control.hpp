@@ -111,6 +111,15 @@ class TaskControl {
               EventLog& log, RecoveryOptions recovery = {}, SignalFilter signal_filter = {},
               MessageQueue<MotionCommand>* device_inbox = nullptr);
 
+  // Scripts the firings (a counterexample's replay, docs/live-view.md): from now on, only order[k] may fire as the
+  // k-th firing (after those of this script already fired), one at a time, in this order; once the script is done,
+  // nothing more fires (the run ends at its dead marking, or stays where the script left it). Each transition must
+  // still be enabled and allowed as in step 2 above: the script only narrows the choice. Before the first step;
+  // ids must be the net's (InternalError otherwise). An empty order leaves the choice to petri::choose.
+  void follow(std::vector<petri::TransitionId> order);
+  // How many firings of the script have fired.
+  std::size_t followed() const { return script_pos_; }
+
   // One turn at simulation time `now` (see the top). Non-blocking. Returns the state after the turn; once not
   // kRunning it stays so and further steps only account time (all activities idle).
   State step(SimDuration now);
@@ -174,6 +183,8 @@ class TaskControl {
 
   const RecoveryOptions recovery_;
   SignalFilter signal_filter_;  // RunConfig::signal_filter
+  std::vector<petri::TransitionId> script_;  // follow()'s order, empty when not scripted
+  std::size_t script_pos_ = 0;               // the next of script_ to fire
   std::uint64_t signals_fired_ = 0;
   std::vector<std::int64_t> expected_tokens_;            // per place: initial + put by firings - taken by firings
   std::vector<std::optional<SimDuration>> wait_since_;   // per robot: since when it waits (kWaiting)

@@ -1,5 +1,7 @@
 // `twin serve`'s run loop (docs/live-view.md): a scenario run lock-step on the twin, watched from a browser through the
-// live view's server (serve/live_server.hpp), and driven from there: play, pause, step one firing, restart.
+// live view's server (serve/live_server.hpp), and driven from there: play, pause, step one firing, run to a line or
+// a time, restart; teaching, saving locations and the check's counterexample replay (teach.hpp, location_file.hpp,
+// replay.hpp).
 //
 // What the viewers are sent (JSON, the protocol of serve/live_server.hpp):
 //   cell    {"type":"cell", "name", "scenario", "program",
@@ -33,6 +35,8 @@
 
 #include <atomic>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <string>
 
 #include "cellwright/cell/preflight.hpp"
@@ -57,17 +61,35 @@ struct LiveFrameState {
 // steps). `faults` are the lines to send as "faults".
 std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const std::vector<std::string>& faults);
 
+// A scenario and its preflight, loaded again (ServeOptions::reload).
+struct LiveScenario {
+  std::unique_ptr<Scenario> scenario;
+  std::unique_ptr<Preflight> preflight;
+};
+
 struct ServeOptions {
   double frame_hz = 30;  // frames to the viewers at most this often (wall time)
   bool play = false;     // start playing without waiting for a viewer's "play"
+  // Loads the scenario and its preflight again (as `twin serve` loaded them first): called at the first restart
+  // after a location was saved, so that the restarted run has the cell as the file now says. InputError: the viewers
+  // are told ("error") and the run goes on with the scenario it had. Empty: never reloaded.
+  std::function<LiveScenario()> reload;
 };
 
-// Runs `scenario` (which passed `preflight`) lock-step, built with `options` (a fresh ScenarioRun at each restart),
-// sending its cell and frames to `server`'s viewers and obeying their commands, until `stop` is set. Paused at first
-// (unless ServeOptions::play): each "step" runs to the next firing, "play" runs on (a frame at most every 1/frame_hz
-// of wall time, the run never waiting for a viewer), "pause" stops between two steps, "restart" builds the run
-// again. A run that has ended stays on its last frame until "restart". While nothing moves, a viewer that connects,
-// or that missed the last frame (its socket full), is sent the state again. Returns the number of runs built.
+// Runs `scenario` lock-step, built with `options` (a fresh ScenarioRun at each restart), sending its cell and frames
+// to `server`'s viewers and obeying their messages (docs/live-view.md has the protocol), until `stop` is set.
+// `preflight` passed, or refused the scenario only because its program fails the check: then each run is the replay
+// of the check's counterexample (replay.hpp): the "check" message greets every viewer after the cell, task control
+// fires the counterexample's transitions in its order, and frames carry "replay" and "replay_index".
+// Paused at first (unless ServeOptions::play): each "step" runs to the next firing, "play" runs on (a frame at most
+// every 1/frame_hz of wall time, the run never waiting for a viewer), "run_to" plays until a transition of a program
+// line fires or the simulation time is reached, "pause" stops between two steps, "restart" (and "replay") builds the
+// run again. A run that has ended stays on its last frame until "restart". While nothing moves, a viewer that
+// connects, or that missed the last frame (its socket full), is sent the state again. "teach" messages jog teach
+// poses (teach.hpp: never the run's) and are answered to every viewer; "save_location" writes the teach pose into
+// the cell description file (location_file.hpp) and tells every viewer ("saved"); "check" is answered to its
+// sender. A message that cannot be carried out is answered to its sender alone ("error"). Returns the number of
+// runs built.
 int serve_scenario(const Scenario& scenario, const Preflight& preflight, const RunOptions& options,
                    serve::LiveServer& server, const ServeOptions& serve_options, const std::atomic<bool>& stop);
 

@@ -1,0 +1,242 @@
+// `twin serve`'s run loop (live.hpp serve_scenario): the run, the viewers' messages, teaching, saving, the check.
+#include <fmt/format.h>
+
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "cellwright/cell/live/live.hpp"
+#include "cellwright/cell/live/location_file.hpp"
+#include "cellwright/cell/live/replay.hpp"
+#include "cellwright/cell/live/teach.hpp"
+#include "cellwright/common/error.hpp"
+#include "cellwright/runtime/log_event.hpp"
+
+namespace cellwright::cell {
+
+namespace {
+
+using nlohmann::json;
+
+std::string error_json(const std::string& reason) { return json{{"type", "error"}, {"reason", reason}}.dump(); }
+
+// Where to pause a run playing to a target ("run_to").
+struct RunTo {
+  std::optional<int> line;
+  std::optional<runtime::SimDuration> time;
+};
+
+RunTo parse_run_to(const std::string& text, const petri::Net& net, const Scenario& s, runtime::SimDuration now) {
+  const json j = json::parse(text, nullptr, false);
+  RunTo to;
+  if (const auto line = j.find("line"); line != j.end()) {
+    if (!line->is_number_integer()) throw LiveRefusal("run_to's \"line\" is a program line number");
+    const int n = line->get<int>();
+    bool found = false;
+    for (const petri::Transition& t : net.transitions()) found = found || t.origin.line == n;
+    if (!found) {
+      throw LiveRefusal(fmt::format("no command of {} is on line {}", s.program_file.filename().string(), n));
+    }
+    to.line = n;
+  } else if (const auto time = j.find("time"); time != j.end()) {
+    if (!time->is_number() || !std::isfinite(time->get<double>())) throw LiveRefusal("run_to's \"time\" is seconds");
+    const double t = time->get<double>();
+    const double at = std::chrono::duration<double>(now).count();
+    if (t <= at) throw LiveRefusal(fmt::format("time {} s is not after now ({} s)", t, at));
+    to.time = std::chrono::duration_cast<runtime::SimDuration>(std::chrono::duration<double>(t));
+  } else {
+    throw LiveRefusal("run_to needs \"line\" (a program line) or \"time\" (simulation seconds)");
+  }
+  return to;
+}
+
+// The file as the scenario names it (relative to the scenario's directory when it is under it).
+std::string file_label(const Scenario& s) {
+  const std::filesystem::path rel = s.cell_file.lexically_relative(s.source.parent_path());
+  return rel.empty() || *rel.begin() == ".." ? s.cell_file.string() : rel.generic_string();
+}
+
+}  // namespace
+
+int serve_scenario(const Scenario& scenario, const Preflight& preflight, const RunOptions& options,
+                   serve::LiveServer& server, const ServeOptions& serve_options, const std::atomic<bool>& stop) {
+  using namespace std::chrono_literals;
+  const std::filesystem::path models = models_root(scenario);
+  const Scenario* sc = &scenario;
+  const Preflight* pf = &preflight;
+  LiveScenario reloaded;  // owns sc and pf after a reload
+  bool reload_pending = false;
+  CheckOutcome check = check_program(pf->net);
+  if (!check.ok) server.set_greeting({check_json(pf->net, check)});
+  int runs = 0;
+  while (!stop) {
+    if (reload_pending && serve_options.reload) {
+      reload_pending = false;
+      try {
+        LiveScenario again = serve_options.reload();
+        reloaded = std::move(again);
+        sc = reloaded.scenario.get();
+        pf = reloaded.preflight.get();
+        check = check_program(pf->net);
+        server.set_greeting(check.ok ? std::vector<std::string>{} : std::vector<std::string>{check_json(pf->net, check)});
+      } catch (const InputError& e) {
+        server.broadcast(error_json(fmt::format("the scenario could not be loaded again (the run keeps the cell it "
+                                                "had): {}",
+                                                e.what())));
+      }
+    }
+    const bool replay = !check.ok;
+    RunOptions run_options = options;
+    if (replay) {
+      run_options.configure = [prev = options.configure, order = check.counterexample](runtime::RunConfig& c) {
+        if (prev) prev(c);
+        c.firing_order = order;
+      };
+    }
+    // The faults seen so far, from the event log's typed observer (on the simulation thread, under the log's lock).
+    struct Faults {
+      std::mutex mutex;
+      std::vector<std::string> lines;
+    };
+    auto faults = std::make_shared<Faults>();
+    auto run = std::make_unique<ScenarioRun>(*sc, *pf, run_options);
+    ++runs;
+    run->runtime().log().add_observer([faults](const runtime::LogEvent& e) {
+      const std::string_view type = runtime::type_of(e);
+      if (type != "fault_injected" && type != "fault_detected" && type != "collision") return;
+      std::lock_guard lock(faults->mutex);
+      if (faults->lines.size() < 200) faults->lines.push_back(runtime::encode(e));
+    });
+    server.set_cell(live_cell_json(*run, models));
+    Teacher teacher(*sc);
+    bool playing = serve_options.play, ended = false, restart = false;
+    std::optional<RunTo> run_to;
+    std::optional<runtime::StepState> last;
+    serve::FramePacer pacer(serve_options.frame_hz);
+    std::size_t viewers = server.viewers();
+    bool missed = false;  // a viewer missed the last frame sent (its socket was full)
+    auto send = [&] {
+      std::vector<std::string> f;
+      {
+        std::lock_guard lock(faults->mutex);
+        f = faults->lines;
+      }
+      const LiveFrameState st{ended ? "ended" : playing ? "playing" : "paused", last ? &*last : nullptr};
+      const std::uint64_t dropped = server.counts().dropped;
+      std::string frame = live_frame_json(*run, st, f);
+      if (replay && !frame.empty() && frame.back() == '}') {
+        const std::uint64_t done = std::min<std::uint64_t>(last ? last->task.firings : 0, check.counterexample.size());
+        frame.pop_back();
+        frame += fmt::format(",\"replay\":true,\"replay_index\":{}}}", done);
+      }
+      server.publish(std::move(frame));
+      missed = server.counts().dropped > dropped;
+    };
+    // One step of the run (to the next firing, or to run_to's time), and where run_to stops.
+    auto step = [&] {
+      last = run->runtime().step(run_to ? run_to->time : std::nullopt);
+      ended = last->ended;
+      if (replay && !ended && check.property != "deadlock" && last->task.firings >= check.counterexample.size()) {
+        // The counterexample's last marking is not dead: nothing more fires, so the replay ends there.
+        run->runtime().request_stop(fmt::format("the counterexample ends here: {}", check.last_marking));
+        last = run->runtime().step();
+        ended = last->ended;
+      }
+      if (run_to) {
+        bool reached = ended || (run_to->time && last->time >= *run_to->time);
+        if (run_to->line) {
+          for (const std::string& id : last->task.last_fired) {
+            const auto t = pf->net.find_transition(id);
+            reached = reached || (t && pf->net.transitions()[*t].origin.line == *run_to->line);
+          }
+        }
+        if (reached) {
+          run_to.reset();
+          playing = false;
+        }
+      }
+    };
+    auto handle = [&](const serve::Message& m) {
+      if (m.type == "command") {
+        switch (*m.command) {
+          case serve::CommandKind::kPlay: playing = !ended; run_to.reset(); break;
+          case serve::CommandKind::kPause: playing = false; run_to.reset(); break;
+          case serve::CommandKind::kStep:
+            playing = false;
+            run_to.reset();
+            if (!ended) step();
+            break;
+          case serve::CommandKind::kRunTo:
+            if (ended) throw LiveRefusal("the run has ended: restart it first");
+            run_to = parse_run_to(m.text, pf->net, *sc, last ? last->time : runtime::SimDuration{0});
+            playing = true;
+            break;
+          case serve::CommandKind::kRestart: restart = true; break;
+          case serve::CommandKind::kReplay:
+            if (!replay) throw LiveRefusal("the program passes the check: there is no counterexample to replay");
+            restart = true;
+            break;
+        }
+        if (!restart) send();
+      } else if (m.type == "teach") {
+        const TeachRequest req = parse_teach(m.text);
+        if (req.action == TeachAction::kBegin && playing && !ended) {
+          throw LiveRefusal("the run is playing: pause it before teaching");
+        }
+        server.broadcast(teach_json(teacher.apply(req, run->world())));
+      } else if (m.type == "save_location") {
+        const json j = json::parse(m.text, nullptr, false);
+        const std::string robot = teacher.robot_name(j.value("robot", ""));
+        const std::string name = j.value("name", "");
+        const TeachState* taught = robot.empty() ? nullptr : teacher.state(robot);
+        if (!taught) {
+          throw LiveRefusal(fmt::format("robot '{}' is not being taught: there is no pose to save",
+                                        j.value("robot", "")));
+        }
+        const std::string label = file_label(*sc);
+        const SavedLocation saved = save_location(sc->cell_file, label, name, robot, taught->tool);
+        reload_pending = true;
+        server.broadcast(json{{"type", "saved"},
+                              {"file", label},
+                              {"name", name},
+                              {"robot", robot},
+                              {"line", saved.line},
+                              {"replaced", saved.replaced},
+                              {"diff", saved.diff}}
+                             .dump());
+      } else if (m.type == "check") {
+        check = check_program(pf->net);
+        server.send_to(m.viewer, check_json(pf->net, check));
+      }
+    };
+    send();
+    while (!stop && !restart) {
+      // Playing: take what came without waiting; else wait a little for a message (and notice new viewers).
+      const std::optional<serve::Message> m = playing && !ended ? server.poll_message() : server.wait_message(100ms);
+      if (m) {
+        try {
+          handle(*m);
+        } catch (const LiveRefusal& e) {
+          server.send_to(m->viewer, error_json(e.what()));
+        }
+        continue;
+      }
+      if (playing && !ended) {
+        step();
+        if (ended || !playing || pacer.due()) send();
+      } else if (const std::size_t n = server.viewers(); n > viewers || missed) {
+        // A viewer that came while nothing moves gets the state now; one that missed the last frame gets it again
+        // (at most every 100 ms while its socket stays full), so no viewer is left on an older state.
+        send();
+      }
+      viewers = server.viewers();
+    }
+    // The restarted run starts with nothing taught: the viewers' ghosts go away.
+    for (const std::string& robot : teacher.active()) {
+      server.broadcast(teach_json(TeachState{robot, false, {}, Eigen::Isometry3d::Identity(), true, {}, "", {}}));
+    }
+  }
+  return runs;
+}
+
+}  // namespace cellwright::cell

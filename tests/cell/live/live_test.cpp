@@ -335,6 +335,7 @@ TEST_F(LiveLoop, ViewersThatLeaveOrNeverReadCostTheRunNothing) {
 namespace cellwright::cell {
 namespace {
 
+using live_testing::kExchange;
 using nlohmann::json;
 
 // The view-only parts of the messages (cell/live/src/live_view.hpp), read from one run of the exchange scenario.

@@ -243,11 +243,15 @@ LiveServer::~LiveServer() {
 std::uint16_t LiveServer::port() const { return impl_->port; }
 
 void LiveServer::set_cell(std::string json) {
+  std::vector<std::string> after;
   {
     std::lock_guard lock(impl_->mutex);
     impl_->cell = json;
+    after = impl_->greeting;
   }
   broadcast(json);
+  // The greeting goes right after the cell, also to a viewer that connected before there was one.
+  for (const std::string& m : after) broadcast(m);
 }
 
 void LiveServer::publish(std::string json) {

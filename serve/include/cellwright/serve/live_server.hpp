@@ -81,10 +81,11 @@ class LiveServer {
 
   std::uint16_t port() const;
 
-  // The "cell" message: kept, sent now to every viewer, and to each viewer that connects later.
+  // The "cell" message: kept, sent now to every viewer (followed by the greeting), and to each viewer that connects
+  // later.
   void set_cell(std::string json);
-  // Messages sent to each viewer that connects from now on, right after the cell (e.g. a check's result); not sent
-  // to the viewers already there.
+  // Messages sent right after the cell: to each viewer that connects from now on, and to all with each set_cell (e.g.
+  // a check's result; a viewer that connected before the first cell gets them with it); not sent now.
   void set_greeting(std::vector<std::string> messages);
   // Sends `json` to one viewer (the sender of a Message), or to every viewer; not dropped for a slow viewer (replies
   // are few and small). A viewer gone meanwhile is skipped.

@@ -10,7 +10,10 @@ CheckOutcome check_program(const petri::Net& net) {
   // The preflight's check (preflight.cpp): stubborn-set reduction, whose verdicts are full exploration's.
   petri::AnalysisOptions options;
   options.reduction = petri::Reduction::kStubborn;
-  const petri::AnalysisResult r = petri::analyze(net, options);
+  return check_outcome(net, petri::analyze(net, options));
+}
+
+CheckOutcome check_outcome(const petri::Net& net, const petri::AnalysisResult& r) {
   CheckOutcome out;
   out.ok = r.ok();
   const std::string report = petri::format_report(net, r);

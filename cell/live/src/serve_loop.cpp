@@ -66,7 +66,7 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
   const Preflight* pf = &preflight;
   LiveScenario reloaded;  // owns sc and pf after a reload
   bool reload_pending = false;
-  CheckOutcome check = check_program(pf->net);
+  CheckOutcome check = check_outcome(pf->net, pf->analysis);  // the preflight's analysis, not run again
   if (!check.ok) server.set_greeting({check_json(pf->net, check)});
   int runs = 0;
   while (!stop) {
@@ -77,7 +77,7 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
         reloaded = std::move(again);
         sc = reloaded.scenario.get();
         pf = reloaded.preflight.get();
-        check = check_program(pf->net);
+        check = check_outcome(pf->net, pf->analysis);
         server.set_greeting(check.ok ? std::vector<std::string>{} : std::vector<std::string>{check_json(pf->net, check)});
       } catch (const InputError& e) {
         server.broadcast(error_json(fmt::format("the scenario could not be loaded again (the run keeps the cell it "
@@ -205,7 +205,6 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
                               {"diff", saved.diff}}
                              .dump());
       } else if (m.type == "check") {
-        check = check_program(pf->net);
         server.send_to(m.viewer, check_json(pf->net, check));
       }
     };

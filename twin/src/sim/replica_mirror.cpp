@@ -72,7 +72,7 @@ void ReplicaMirror::to_actions(Follower& f, const ReplicaState& state) {
   }
   if (to && farthest(*to, f.target) > kJointTolerance) {
     f.target = *to;
-    f.todo.push_back(Action{Action::Kind::move, std::move(*to), {}});
+    f.todo.push_back(Action{Action::Kind::move, std::move(*to), {}, false});
     // Too far behind: the older moves go (never a grip), the copy goes straight on.
     std::size_t moves = 0;
     for (const Action& a : f.todo) moves += a.kind == Action::Kind::move ? 1 : 0;
@@ -89,8 +89,8 @@ void ReplicaMirror::to_actions(Follower& f, const ReplicaState& state) {
   // The hand: what it held before and holds now.
   const std::optional<std::string> before = last != nullptr ? last->holding : std::nullopt;
   if (before != state.holding) {
-    if (before) f.todo.push_back(Action{Action::Kind::open, {}, *before});
-    if (state.holding) f.todo.push_back(Action{Action::Kind::close, {}, *state.holding});
+    if (before) f.todo.push_back(Action{Action::Kind::open, {}, *before, false});
+    if (state.holding) f.todo.push_back(Action{Action::Kind::close, {}, *state.holding, false});
   }
   f.last = state;
 }
@@ -195,8 +195,8 @@ void ReplicaMirror::advance(std::unique_lock<std::mutex>& /*lock: held*/) {
       if (d.state() != DriverState::active) continue;
     }
     f.up = true;
-    if (f.running && finished(d.poll(f.running_id).phase)) {
-      if (d.poll(f.running_id).phase == CommandPhase::failed) ++counts_.misses;
+    if (const CommandPhase p = f.running ? d.poll(f.running_id).phase : CommandPhase::pending; finished(p)) {
+      if (p == CommandPhase::failed) ++counts_.misses;
       f.running.reset();
       f.running_id = 0;
     }
@@ -209,7 +209,8 @@ void ReplicaMirror::advance(std::unique_lock<std::mutex>& /*lock: held*/) {
     while (!f.running && !f.todo.empty()) {
       Action& a = f.todo.front();
       if (a.kind == Action::Kind::open && closing_elsewhere(i, a.workpiece)) {
-        ++counts_.waits;
+        if (!a.held_back) ++counts_.waits;  // once per open, however many passes it waits
+        a.held_back = true;
         break;  // the other copy's close first: this pass again when it is done
       }
       drivers::Command command;

@@ -93,6 +93,7 @@ class ReplicaMirror {
     enum class Kind { move, close, open } kind = Kind::move;
     std::vector<double> joints;  // a move's
     std::string workpiece;       // a grip's
+    bool held_back = false;      // an open the hand-over rule has held back (counted once)
   };
   struct Follower {
     explicit Follower(Copy c) : copy(std::move(c)) {}

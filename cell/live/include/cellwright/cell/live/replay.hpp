@@ -31,7 +31,9 @@ struct CheckOutcome {
   std::string last_marking;  // describe_marking of where it ends ("" when ok)
 };
 
-// The preflight's check of `net` (the program's), and its counterexample when it fails.
+// What the preflight's analysis `analysis` of `net` (Preflight::analysis) says, and its counterexample when it fails.
+CheckOutcome check_outcome(const petri::Net& net, const petri::AnalysisResult& analysis);
+// The preflight's check of `net` (the program's) run again: check_outcome of a fresh analysis with its options.
 CheckOutcome check_program(const petri::Net& net);
 
 // The "check" message: {"type":"check","ok","summary","property","counterexample":[{"transition","line","robot"}],

@@ -312,10 +312,16 @@ struct Runtime::Impl {
   std::vector<Collision> collisions;
   std::size_t detections_seen = 0;  // fault_detected lines the simulation thread has logged the physical state after
   std::vector<SimDuration> next_observation;  // per observer
-  bool observed_robots = false;  // some observer wants task control's robots
-  // Task control's robots after its last step, for the observers (the task participant writes, the simulation reads).
+  bool observed_robots = false;  // some observer wants task and robot control's views
+  // Whether task and robot control copy their views after each step (observed_robots, or real time: wait_held()).
+  bool publish_views = false;
+  // Task control's view and robot control's (this process's robots, program order) after their last step, for the
+  // observers and a held real-time run (their participants write, the simulation thread and the caller read).
   std::mutex observed_mutex;
-  std::vector<RobotView> observed_robots_view;
+  TaskView observed_task;
+  std::vector<RobotControlView> observed_controls;
+  std::vector<std::size_t> control_slot;  // per program robot: its index in observed_controls (remote: none, npos)
+  std::vector<std::string> fired_since_go;  // real time: the transitions fired since the last go() (the last 1000)
 
   // Stepping (lock-step): the simulation thread parks at the start of its turn after a period with firings.
   std::mutex m;
@@ -324,6 +330,7 @@ struct Runtime::Impl {
   std::optional<SimDuration> pause_at;  // step(until): also park once the clock has reached this
   bool paused = false;
   bool resume = false;
+  bool hold_now = false;  // real time: hold() asked to park at the next period
   bool abort = false;
   bool ended = false;
   std::uint64_t firings_seen = 0;
@@ -354,23 +361,30 @@ struct Runtime::Impl {
     cv.notify_all();
   }
 
-  // Lock-step: parks after a period with firings when stepping. Returns false when the run is aborted.
-  bool maybe_pause() {
+  // Parks after a period with firings when stepping, at the time step(until)/go() gave, or (real time) when hold()
+  // asked. Returns false when the run is aborted; `*parked_out` says whether it parked.
+  bool maybe_pause(bool* parked_out = nullptr) {
     std::unique_lock lock(m);
-    if (!step_mode) return !abort;
+    if (!step_mode && !pause_at && !hold_now) return !abort;
     const std::uint64_t f = task_firings.load();
     const bool at_time = pause_at && clock.now() >= *pause_at;
-    if (f == firings_seen && !at_time) return !abort;
+    const bool at_firing = step_mode && f != firings_seen;
+    if (!at_firing && !at_time && !hold_now) return !abort;
     firings_seen = f;
     pause_at.reset();
+    hold_now = false;
     paused = true;
     ++pauses;
     const auto parked = std::chrono::steady_clock::now();
     cv.notify_all();
-    cv.wait(lock, [&] { return resume || abort; });
+    // A real-time run held may be asked to stop meanwhile (the simulation turn then ends it); a lock-step one parked
+    // goes on only when the caller steps again, since the caller reads the plant meanwhile.
+    const bool realtime = cfg.mode == Mode::kRealtime;
+    cv.wait(lock, [&] { return resume || abort || (realtime && stop_requested.load()); });
     wall_start += std::chrono::steady_clock::now() - parked;  // parked time is not run time
     resume = false;
     paused = false;
+    if (parked_out) *parked_out = true;
     return !abort;
   }
 
@@ -471,7 +485,7 @@ struct Runtime::Impl {
       if (o.every.count() <= 0 || !o.observe || t < next_observation[k]) continue;
       std::lock_guard lock(observed_mutex);
       const auto observing = std::chrono::steady_clock::now();
-      o.observe(Observation{t, task_firings.load(), observed_robots_view, env});
+      o.observe(Observation{t, task_firings.load(), observed_task.robots, env, observed_task, observed_controls});
       // Time spent observing (a video's encoder catching up) is not run time: a run ends on its wall-time limit
       // where it would without the observer, so that the event log is the same with and without.
       wall_start += std::chrono::steady_clock::now() - observing;
@@ -482,16 +496,49 @@ struct Runtime::Impl {
 
   void task_step() {
     const TaskControl::State s = task->step(clock.now());
+    // The view first: the simulation thread that sees the new firings count (and holds there) finds it published.
+    if (publish_views) {
+      TaskView v = task->view();
+      std::lock_guard lock(observed_mutex);
+      if (cfg.mode == Mode::kRealtime) {
+        fired_since_go.insert(fired_since_go.end(), v.last_fired.begin(), v.last_fired.end());
+        if (fired_since_go.size() > 1000) {
+          fired_since_go.erase(fired_since_go.begin(), fired_since_go.end() - 1000);
+        }
+      }
+      observed_task = std::move(v);
+    }
     task_firings = task->firings();
     if (s == TaskControl::State::kFinished && finished_at_ns.load() < 0) {
       finished_at_ns = task->finished_at()->count();
     }
     task_state = static_cast<int>(s);
-    if (observed_robots) {
-      TaskView v = task->view();
+  }
+
+  // Robot control r's step, and its view published after it when someone reads it.
+  void robot_step(std::size_t r, SimDuration now) {
+    robots[r]->step(now);
+    if (publish_views) {
+      RobotControlView v = robots[r]->view();
       std::lock_guard lock(observed_mutex);
-      observed_robots_view = std::move(v.robots);
+      observed_controls[control_slot[r]] = std::move(v);
     }
+  }
+
+  // The state step() and wait_held() answer, from the objects themselves: at the end (threads joined) or in lock-step
+  // (parked: no other thread runs).
+  StepState state_now() {
+    StepState s;
+    s.time = result ? result->end_time : clock.now();
+    s.task = task->view();
+    for (const auto& r : robots) {
+      if (r) s.robots.push_back(r->view());
+    }
+    if (result) {
+      s.ended = true;
+      s.result = result;
+    }
+    return s;
   }
 
   // Lock-step: one thread's loop. It takes the turns of the participants the scheduler put on it (by default all).
@@ -553,7 +600,7 @@ struct Runtime::Impl {
     }
     const std::size_t r = p - first_robot_seat();
     if (robots[r]) {
-      robots[r]->step(now);
+      robot_step(r, now);
     } else {
       // Its robot control's step, in its agent. A lost agent is a link_lost fault, as in real time (remote_watch.hpp),
       // found in this turn; no new agent can take over a lock-step run's robot control (its state went with it).
@@ -591,6 +638,9 @@ struct Runtime::Impl {
         RealtimePacer pacer(cfg.realtime_speed);
         pacer.anchor(clock.now());
         while (!stopping) {
+          bool parked = false;
+          if (!maybe_pause(&parked)) break;
+          if (parked) pacer.anchor(clock.now());  // no catching up on the hold
           pacer.pace(clock.now() + cfg.period);
           if (!sim_turn()) break;
         }
@@ -641,7 +691,7 @@ struct Runtime::Impl {
           // Woken by a command or the driver's notifier; at least once a period, to watch sensor conditions.
           (void)robot_wake[r]->wait_for(wall_period());
           if (stopping) break;
-          robots[r]->step(clock.now());
+          robot_step(r, clock.now());
           if (statuses.size() > 0) task_wake.set();
         }
         robots[r]->halt();
@@ -820,8 +870,10 @@ RunResult Runtime::run() {
 
 StepState Runtime::step(std::optional<SimDuration> until) {
   Impl& im = *impl_;
-  CW_CHECK(config_.mode == Mode::kLockstep, "stepping needs lock-step mode");
-  StepState s;
+  if (config_.mode == Mode::kRealtime) {
+    go(HoldAt{true, until});
+    return *wait_held(std::chrono::steady_clock::duration::max());
+  }
   if (!im.result) {
     {
       std::lock_guard lock(im.m);
@@ -842,23 +894,66 @@ StepState Runtime::step(std::optional<SimDuration> until) {
     }
     if (!im.paused) finish();
   }
-  if (im.result) {
-    s.ended = true;
-    s.time = im.result->end_time;
-    s.task = im.task->view();
-    for (const auto& r : im.robots) {
-      if (r) s.robots.push_back(r->view());
+  // Ended, or parked: the simulation thread holds the turn and waits (any other lock-step thread waits for its turn).
+  return im.state_now();
+}
+
+void Runtime::go(HoldAt at) {
+  Impl& im = *impl_;
+  CW_CHECK(config_.mode == Mode::kRealtime, "go() lets a real-time run go; a lock-step one steps");
+  if (im.result) return;
+  {
+    std::lock_guard lock(im.m);
+    if (im.ended) return;
+    im.step_mode = at.firing;
+    im.pause_at = at.time;
+    im.hold_now = false;
+    im.firings_seen = im.task_firings.load();  // a firing counts from now
+    std::lock_guard views(im.observed_mutex);
+    im.fired_since_go.clear();
+    if (im.paused) {
+      im.resume = true;
+      im.paused = false;  // cleared here, so that wait_held() waits for the next hold, not the one just ended
+      im.cv.notify_all();
     }
-    s.result = im.result;
-    return s;
   }
-  // Parked: the simulation thread holds the turn and waits (any other lock-step thread waits for its turn).
-  s.time = im.clock.now();
-  s.task = im.task->view();
-  for (const auto& r : im.robots) {
-    if (r) s.robots.push_back(r->view());
+  if (!im.started) start();
+}
+
+void Runtime::hold() {
+  Impl& im = *impl_;
+  CW_CHECK(config_.mode == Mode::kRealtime, "hold() holds a real-time run; a lock-step one is parked between steps");
+  std::lock_guard lock(im.m);
+  if (im.started && !im.paused && !im.ended) im.hold_now = true;
+}
+
+std::optional<StepState> Runtime::wait_held(std::chrono::steady_clock::duration wait) {
+  Impl& im = *impl_;
+  CW_CHECK(config_.mode == Mode::kRealtime, "wait_held() waits for a real-time run; a lock-step one steps");
+  CW_CHECK(im.started, "wait_held() before the run was let go (go())");
+  if (!im.result) {
+    {
+      std::unique_lock lock(im.m);
+      const auto done = [&] { return im.paused || im.ended; };
+      if (wait == std::chrono::steady_clock::duration::max()) {
+        im.cv.wait(lock, done);
+      } else if (!im.cv.wait_for(lock, wait, done)) {
+        return std::nullopt;
+      }
+      if (im.paused) {
+        // Held: task and robot control still run (at the frozen time), so their views are the copies they publish.
+        StepState s;
+        s.time = im.clock.now();
+        std::lock_guard views(im.observed_mutex);
+        s.task = im.observed_task;
+        s.task.last_fired = im.fired_since_go;
+        s.robots = im.observed_controls;
+        return s;
+      }
+    }
+    finish();
   }
-  return s;
+  return im.state_now();
 }
 
 void Runtime::start() {
@@ -906,7 +1001,15 @@ void Runtime::start() {
   if (im.devices) im.devices->start(im.clock.now());  // every device's state from the start (no thread runs yet)
   im.next_observation.assign(config_.observers.size(), SimDuration{0});
   for (const RunObserver& o : config_.observers) im.observed_robots = im.observed_robots || o.robots;
-  if (im.observed_robots) im.observed_robots_view = im.task->view().robots;  // the first observation's, before any step
+  im.publish_views = im.observed_robots || config_.mode == Mode::kRealtime;
+  im.control_slot.assign(im.robots.size(), static_cast<std::size_t>(-1));
+  im.observed_controls.clear();
+  for (std::size_t r = 0; r < im.robots.size(); ++r) {
+    if (!im.robots[r]) continue;
+    im.control_slot[r] = im.observed_controls.size();
+    im.observed_controls.push_back(im.robots[r]->view());  // the first observation's, before any step
+  }
+  im.observed_task = im.task->view();
   const std::size_t participants = im.participants();
   im.started = true;
   im.wall_start = std::chrono::steady_clock::now();
@@ -936,8 +1039,10 @@ void Runtime::request_stop(const std::string& reason) {
     im.stop_reason = reason;
   }
   im.stop_requested = true;
-  // Parked between steps: let the simulation turn see it.
+  // Parked between steps: let the simulation turn see it. A real-time run held goes on to its end now (so that
+  // wait_held() waits for the end, not the hold just ended); a lock-step one at the caller's next step.
   std::lock_guard lock(im.m);
+  if (config_.mode == Mode::kRealtime) im.paused = false;
   im.cv.notify_all();
 }
 

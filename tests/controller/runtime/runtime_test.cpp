@@ -532,6 +532,105 @@ TEST(RuntimeRun, RealtimeModeRunsTheSameProgram) {
   for (const RobotTime& t : r.robots) EXPECT_EQ(t.time.total(), r.end_time);
 }
 
+// A real-time run's speed in the tests: see RealtimeModeRunsTheSameProgram.
+double test_speed() {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  return 5.0;
+#else
+  return 20.0;
+#endif
+}
+
+// Holding a real-time run (`twin serve --realtime`): stepped firing by firing it is the same program, and while held
+// its clock stands still and nothing moves, however long the hold.
+TEST(RuntimeHold, ARealtimeRunSteppedFiringByFiringHoldsItsClockAndRunsTheSameProgram) {
+  ScriptedCell lockstep;
+  Runtime reference(lockstep.config);
+  ASSERT_EQ(reference.run().outcome, Outcome::kFinished);
+
+  ScriptedCell cell("exchange.task", {}, Mode::kRealtime);
+  cell.config.realtime_speed = test_speed();
+  Runtime rt(cell.config);
+  StepState s;
+  std::uint64_t firings = 0;
+  int steps = 0;
+  bool checked_hold = false;
+  while (steps++ < 200) {
+    s = rt.step();
+    if (s.ended) break;
+    EXPECT_GT(s.task.firings, firings) << "step " << steps << ": held without a firing";
+    EXPECT_EQ(s.task.last_fired.size(), s.task.firings - firings) << "step " << steps;
+    firings = s.task.firings;
+    ASSERT_EQ(s.robots.size(), 2u);
+    if (!checked_hold && s.task.robots[0].activity == RobotActivity::kBusy) {
+      // A robot is busy: held, the plant and the clock stay and nothing is logged, while wall time goes by (a
+      // deliberate wait: the hold must outlast many control periods).
+      checked_hold = true;
+      const SimDuration plant_time = cell.plant->truth().time;
+      const std::size_t lines = rt.log().lines().size();
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      const std::optional<StepState> again = rt.wait_held(std::chrono::milliseconds(0));
+      ASSERT_TRUE(again.has_value());
+      EXPECT_EQ(again->time, s.time);
+      EXPECT_EQ(cell.plant->truth().time, plant_time);
+      EXPECT_EQ(rt.log().lines().size(), lines);
+    }
+  }
+  ASSERT_TRUE(s.ended);
+  EXPECT_TRUE(checked_hold);
+  ASSERT_TRUE(s.result.has_value());
+  EXPECT_EQ(s.result->outcome, Outcome::kFinished) << s.result->reason;
+  EXPECT_GT(steps, 10);
+  EXPECT_EQ(starts(parse(rt.log())), starts(parse(reference.log())));
+  EXPECT_TRUE(rt.step().ended);  // and stays ended
+}
+
+TEST(RuntimeHold, GoHoldAndGoAgainRunsToTheEnd) {
+  ScriptedCell cell("exchange.task", {}, Mode::kRealtime);
+  cell.config.realtime_speed = test_speed();
+  Runtime rt(cell.config);
+  rt.go();
+  rt.hold();
+  const std::optional<StepState> held = rt.wait_held(std::chrono::steady_clock::duration::max());
+  ASSERT_TRUE(held.has_value());
+  ASSERT_FALSE(held->ended);
+  rt.hold();  // held already: nothing
+  rt.go();
+  std::optional<StepState> end = rt.wait_held(std::chrono::steady_clock::duration::max());
+  ASSERT_TRUE(end.has_value());
+  ASSERT_TRUE(end->ended);
+  EXPECT_EQ(end->result->outcome, Outcome::kFinished) << end->result->reason;
+  EXPECT_GE(end->time, held->time);
+  rt.go();  // after the end: nothing
+  EXPECT_TRUE(rt.wait_held(std::chrono::milliseconds(0))->ended);
+}
+
+TEST(RuntimeHold, ARunLetGoToATimeHoldsThere) {
+  ScriptedCell cell("exchange.task", {}, Mode::kRealtime);
+  cell.config.realtime_speed = test_speed();
+  Runtime rt(cell.config);
+  const SimDuration at = std::chrono::milliseconds(500);
+  rt.go(HoldAt{false, at});
+  const std::optional<StepState> s = rt.wait_held(std::chrono::steady_clock::duration::max());
+  ASSERT_TRUE(s.has_value());
+  ASSERT_FALSE(s->ended);
+  EXPECT_GE(s->time, at);
+  EXPECT_LT(s->time, at + cell.config.period);
+  // Stopped while held: the stop ends it, as a cell stopped safely.
+  rt.request_stop("stopped from the test");
+  const std::optional<StepState> end = rt.wait_held(std::chrono::steady_clock::duration::max());
+  ASSERT_TRUE(end.has_value() && end->ended);
+  EXPECT_EQ(end->result->outcome, Outcome::kStopped);
+  EXPECT_EQ(end->result->reason, "stopped from the test");
+}
+
+TEST(RuntimeHold, HoldingIsForRealtimeRunsOnly) {
+  ScriptedCell cell;
+  Runtime rt(cell.config);
+  EXPECT_THROW(rt.go(), InternalError);
+  EXPECT_THROW(rt.hold(), InternalError);
+}
+
 // ---- Bad input is refused before any thread starts ----
 
 void expect_refused(ScriptedCell& cell, const std::string& where, const std::string& what) {

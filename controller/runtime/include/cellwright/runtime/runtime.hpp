@@ -30,13 +30,19 @@
 // REAL-TIME mode: the same threads run freely. The simulation thread paces itself to the wall clock (RealtimePacer,
 // at `realtime_speed`); task control and robot control sleep on an Event until a message or a driver notification
 // arrives, or at most one control period (the period at which they watch sensor conditions).
+// HOLDING a real-time run (go(), hold(), wait_held(): `twin serve --realtime`): the simulation thread parks at the
+// start of a control period, as it does between lock-step steps. Simulation time stops there, so the twin is frozen:
+// nothing moves, and for task and robot control (which keep running, at the frozen time) no time passes, so no
+// watchdog, settle time or simulation-time limit counts the hold; the wall-time limit does not count it either, and the
+// pacer does not catch up on it afterwards. Task control may still fire on what had arrived before the hold.
 //
 // Input errors (InputError naming the scenario entry, or the program): a program robot with no binding, a binding to
 // a cell robot, workpiece or location that does not exist, a label bound twice to the same cell robot, a cell robot
 // without a driver, a move to a hand-over target in a cell without a hand-over or by a robot with no grasp there.
 // They are all found by the constructor, before any thread starts.
 //
-// Threads: a Runtime is used by one thread (the caller). run() and step() block until their answer is ready.
+// Threads: a Runtime is used by one thread (the caller), but request_stop() (any thread). run() and step() block until
+// their answer is ready; go() and hold() do not wait, and wait_held() waits at most as long as it is told.
 #pragma once
 
 #include <chrono>
@@ -108,8 +114,13 @@ struct Limits {
 struct Observation {
   SimDuration time{0};
   std::uint64_t firings = 0;
-  const std::vector<RobotView>& robots;
+  const std::vector<RobotView>& robots;  // task.robots
   const SharedEnvironment& environment;
+  // With RunObserver::robots: task control's view after its last step (marking, last firings, robots), and robot
+  // control's view of each robot of this process after its last step (program order, remote robots left out), as
+  // StepState has them; empty otherwise.
+  const TaskView& task;
+  const std::vector<RobotControlView>& controls;
 };
 
 // A watcher of the run (`twin run`'s progress line, a video): called by the simulation thread at each multiple of
@@ -119,7 +130,7 @@ struct Observation {
 // it and the event log is the same. Not called when `every` is zero.
 struct RunObserver {
   SimDuration every{0};
-  bool robots = false;  // wants Observation::robots (task control's view is copied after each of its steps)
+  bool robots = false;  // wants Observation::robots, task and controls (the views are copied after each step)
   std::function<void(const Observation&)> observe;
 };
 
@@ -303,6 +314,13 @@ struct StepState {
   std::optional<RunResult> result;
 };
 
+// Where a real-time run let go holds again (Runtime::go): the first control period that starts after a transition
+// fired (`firing`), or at or after simulation time `time`, whichever comes first. Neither: it runs to its end.
+struct HoldAt {
+  bool firing = false;
+  std::optional<SimDuration> time;
+};
+
 class Runtime {
  public:
   // Checks the configuration (see the top) and builds the threads' objects; starts nothing, calls no driver.
@@ -319,11 +337,26 @@ class Runtime {
   // the same result again).
   RunResult run();
 
-  // Lock-step mode only (InternalError otherwise): runs until the next control period in which a transition fires,
+  // Lock-step mode: runs until the next control period in which a transition fires,
   // or to the end, then returns with the threads parked, so that state and plant can be inspected. The first call
   // connects the drivers and starts the threads. With `until`: also returns at the first control period that starts
   // at or after that simulation time, if no transition fired before (`twin serve`'s run to a time).
+  // Real-time mode: the same, as go({.firing = true, .time = until}) then wait_held() with no limit.
   StepState step(std::optional<SimDuration> until = std::nullopt);
+
+  // Real-time mode only (InternalError otherwise; see HOLDING at the top). Lets the run go without waiting: the first
+  // call connects the drivers and starts the threads (InputError as run()); later ones release a hold. It holds again
+  // where `at` says, or when hold() asks. Nothing after the end.
+  void go(HoldAt at = {});
+  // Real-time mode only: asks a run that goes to hold at the start of the next control period. Does not wait
+  // (wait_held() does). Nothing when it is held, has not started, or has ended.
+  void hold();
+  // Real-time mode only, after the first go(): waits at most `wait` for the run to be held or to end, and returns its
+  // state then (as step()'s: held, the views are task and robot control's after their last step, but
+  // task.last_fired is every transition fired since the last go(), at most the last 1000; ended, the threads are
+  // joined and `result` is set), or nullopt if it still goes. While it is held, plant() may be read, until the
+  // next go() or the Runtime's end.
+  std::optional<StepState> wait_held(std::chrono::steady_clock::duration wait);
 
   // Any thread (e.g. one that caught SIGINT): asks the run to stop at the next control period, as a cell stopped
   // safely: the robots are halted, the outcome is kStopped with `reason`, and run()/step() return the result with the
@@ -340,7 +373,8 @@ class Runtime {
   // the run calls it on (the plant's advance() on the simulation thread, a signal filter on task control's), so that
   // their order is fixed in lock-step. EventLog's members are thread-safe.
   EventLog& log() { return *log_; }
-  // The plant, for snapshots: only between steps or after the run (the simulation thread is parked or gone).
+  // The plant, for snapshots: only between steps, while held, or after the run (the simulation thread is parked or
+  // gone).
   // InternalError for a run without one.
   Plant& plant() {
     CW_CHECK(config_.plant != nullptr, "this run has no plant");

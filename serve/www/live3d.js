@@ -138,7 +138,7 @@ async function showCell(m) {
     $('view').style.width = `${chosen.resolution[0]}px`;
     $('view').style.height = `${chosen.resolution[1]}px`;
   }
-  $('title').textContent = `${m.name}: ${m.program} (${m.scenario})`;
+  $('title').textContent = `${m.name}: ${m.program} (${m.scenario}${m.mode ? ", " + m.mode : ""})`;
   const sel = $('teach-robot');
   sel.innerHTML = '';
   for (const r of m.robots) sel.add(new Option(`${r.name}`, r.name));

@@ -164,6 +164,35 @@ TEST(TwinServe, AProgramThatFailsTheCheckIsServedAsItsCounterexamplesReplay) {
   EXPECT_NE(bad.err.find("kuka"), std::string::npos) << bad.err;
 }
 
+// --realtime: the run goes paced by the wall clock from the start with --play, its frames "playing" with the time
+// rising, and pause holds it; --speed without --realtime is refused.
+TEST(TwinServe, RealTimePlaysFromTheStartAndPauses) {
+  BackgroundTwin twin({"serve", source_path("scenes/exchange.yaml"), "--port", "0", "--realtime", "--speed", "4",
+                       "--play"});
+  ASSERT_TRUE(twin.wait_for("/ (Ctrl-C stops)", 60s)) << twin.output();
+  EXPECT_NE(twin.output().find("real time at speed 4, serving"), std::string::npos) << twin.output();
+  WsViewer v(served_port(twin.output()));
+  const auto frame_at = [](double t) {
+    return [t](const json& m) { return m.value("type", "") == "frame" && m["state"] == "playing" && m["t"] > t; };
+  };
+  const json early = v.wait_for(frame_at(0.1));
+  ASSERT_TRUE(early.is_object()) << twin.output();
+  const json later = v.wait_for(frame_at(early["t"].get<double>() + 0.5));
+  ASSERT_TRUE(later.is_object()) << "the time did not rise as the run went";
+  v.send(R"({"type":"command","command":"pause"})");
+  const json held = v.wait_for([](const json& m) { return m.value("type", "") == "frame" && m["state"] != "playing"; });
+  ASSERT_TRUE(held.is_object());
+  EXPECT_EQ(held["state"], "paused");
+  v.close();
+  EXPECT_EQ(twin.stop(SIGINT), 130) << twin.output();
+
+  TwinCli cli("cw-serve-cli");
+  const Outcome speed = cli.run("serve " + shell_quote(source_path("scenes/exchange.yaml")) + " --speed 2 --port 0");
+  EXPECT_EQ(speed.status, 2) << speed.err;
+  EXPECT_NE(speed.err.find("--speed"), std::string::npos) << speed.err;
+  EXPECT_NE(speed.err.find("add --realtime"), std::string::npos) << speed.err;
+}
+
 TEST(TwinServe, AnAddressItCannotListenOnIsRefusedWithTheReason) {
   TwinCli cli("cw-serve-cli");
   const std::string scenario = shell_quote(source_path("scenes/exchange.yaml"));

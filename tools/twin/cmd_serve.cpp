@@ -1,7 +1,7 @@
-// `twin serve <scenario.yaml> [--port P] [--bind ADDR]`: run a scenario lock-step and watch it in a browser, driven
-// from the page (play, pause, step one firing, restart): docs/live-view.md. Loopback only unless --bind gives another
-// address. Takes the options of `twin run` but --realtime, --quiet and --dry (run_args.hpp). Runs until Ctrl-C or
-// SIGTERM (exit 130); 2 on bad input.
+// `twin serve <scenario.yaml> [--port P] [--bind ADDR] [--play] [--realtime [--speed X]]`: run a scenario on the twin,
+// lock-step or in real time, and watch it in a browser, driven from the page (play, pause, step one firing, restart):
+// docs/live-view.md. Loopback only unless --bind gives another address. Takes the options of `twin run` but --quiet
+// and --dry (run_args.hpp). Runs until Ctrl-C or SIGTERM (exit 130); 2 on bad input.
 #if CW_SIM
 #include <atomic>
 #include <cstdio>
@@ -23,7 +23,8 @@ namespace cellwright::tools {
 
 void add_serve(CLI::App& app, Command* run) {
   auto* cmd = app.add_subcommand("serve",
-                                 "Run a scenario lock-step and watch it live in a browser (http://ADDR:PORT/): play, "
+                                 "Run a scenario on the twin (lock-step, or --realtime) and watch it live in a browser "
+                                 "(http://ADDR:PORT/): play, "
                                  "pause, step one firing, run to a line or a time, restart, teach and save locations "
                                  "from the page; a program that fails the check is served as its counterexample's "
                                  "replay. Runs until Ctrl-C (exit 130); 2 on bad input.");
@@ -31,18 +32,28 @@ void add_serve(CLI::App& app, Command* run) {
   auto port = std::make_shared<int>(8029);
   auto bind = std::make_shared<std::string>("127.0.0.1");
   auto play = std::make_shared<bool>(false);
+  auto realtime = std::make_shared<bool>(false);
+  auto speed = std::make_shared<double>(1.0);
   add_run_options(*cmd, *args);
+  cmd->add_flag("--realtime", *realtime,
+                "run paced to the wall clock instead of lock-step (also when the scenario says realtime: true); pause "
+                "freezes the twin");
+  auto* speed_opt = cmd->add_option("--speed", *speed,
+                                    "with --realtime: simulation seconds per wall-clock second (default 1)")
+                        ->check(CLI::PositiveNumber);
   cmd->add_option("--port", *port, "TCP port of the page and its WebSocket (default 8029; 0: any free port)");
   cmd->add_option("--bind", *bind,
                   "address to listen on (default 127.0.0.1: this machine only; 0.0.0.0 opens it to the network)");
   cmd->add_flag("--play", *play, "start playing without waiting for the page's play");
-  cmd->callback([run, args, port, bind, play] {
-    *run = [args, port, bind, play] {
+  cmd->callback([run, args, port, bind, play, realtime, speed, speed_opt] {
+    const bool speed_given = speed_opt->count() > 0;
+    *run = [args, port, bind, play, realtime, speed, speed_given] {
       using namespace cellwright::cell;
       if (*port < 0 || *port > 65535) throw InputError({"--port", 0, 0}, fmt::format("{} is not a TCP port", *port));
       const Scenario s = load_scenario_with(*args);
       if (uses_real_drivers(s)) {
-        throw InputError({"--driver", 0, 0}, "twin serve runs the program lock-step on simulated robots");
+        throw InputError({"--driver", 0, 0}, "twin serve runs the program on the twin's simulated robots (pause "
+                                             "freezes the twin; a real arm would not stop)");
       }
       Preflight pre = preflight(s, &twin_port());
       if (std::optional<Preflight> replay = counterexample_preflight(s, pre)) {
@@ -55,7 +66,11 @@ void add_serve(CLI::App& app, Command* run) {
         return 2;
       }
       RunOptions options = run_options_for(*args, s);
-      options.realtime = false;
+      options.realtime = *realtime || s.options.realtime;
+      if (speed_given && !*options.realtime) {
+        throw InputError({"--speed", 0, 0}, "it paces a real-time run, and this one is lock-step: add --realtime");
+      }
+      options.speed = *speed;
       serve::ServerOptions so;
       so.bind = *bind;
       so.port = static_cast<std::uint16_t>(*port);
@@ -63,8 +78,9 @@ void add_serve(CLI::App& app, Command* run) {
       so.models = models_root(s);
       block_stop_signals();
       serve::LiveServer server(so);
-      std::printf("%s: serving the live view on http://%s:%u/ (Ctrl-C stops)\n", args->scenario.c_str(),
-                  bind->c_str(), static_cast<unsigned>(server.port()));
+      const std::string mode = *options.realtime ? fmt::format("real time at speed {:g}", options.speed) : "lock-step";
+      std::printf("%s: %s, serving the live view on http://%s:%u/ (Ctrl-C stops)\n", args->scenario.c_str(),
+                  mode.c_str(), bind->c_str(), static_cast<unsigned>(server.port()));
       std::fflush(stdout);
       std::atomic<bool> stop{false};
       const StopWatcher watcher([&stop] { stop = true; });

@@ -188,6 +188,7 @@ std::string live_cell_json(ScenarioRun& run, const std::filesystem::path& models
   return json{{"type", "cell"},
               {"name", s.cell.name},
               {"scenario", s.source.filename().string()},
+              {"mode", run.realtime() ? "real time" : "lock-step"},
               {"program", s.program_file.filename().string()},
               {"robots", robots},
               {"bodies", jb},
@@ -196,7 +197,41 @@ std::string live_cell_json(ScenarioRun& run, const std::filesystem::path& models
       .dump();
 }
 
-std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const std::vector<std::string>& faults) {
+void FaultMarks::add(std::string line) {
+  std::lock_guard lock(mutex_);
+  if (marks_.size() < 200) marks_.push_back({std::move(line), "", std::nullopt});
+}
+
+void FaultMarks::place_new(ScenarioRun& run) {
+  std::vector<std::string> lines;
+  std::size_t first = 0;
+  {
+    std::lock_guard lock(mutex_);
+    while (first < marks_.size() && marks_[first].pos) ++first;
+    for (std::size_t i = first; i < marks_.size(); ++i) lines.push_back(marks_[i].line);
+  }
+  if (lines.empty()) return;
+  std::vector<json> placed;
+  for (const std::string& line : lines) placed.push_back(view::mark(run, line));
+  std::lock_guard lock(mutex_);
+  for (std::size_t i = 0; i < placed.size(); ++i) {
+    Mark& mk = marks_[first + i];  // only add() changes marks_ meanwhile, and it appends
+    if (placed[i].is_null()) {
+      mk.kind = "fault";
+      mk.pos = std::array<double, 3>{0, 0, 0};
+    } else {
+      mk.kind = placed[i]["kind"].get<std::string>();
+      mk.pos = placed[i]["pos"].get<std::array<double, 3>>();
+    }
+  }
+}
+
+std::vector<FaultMarks::Mark> FaultMarks::marks() const {
+  std::lock_guard lock(mutex_);
+  return marks_;
+}
+
+std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const FaultMarks& fault_marks) {
   const Scenario& s = run.scenario();
   const twin::Scene& scene = run.world().scene();
   const mjModel* m = scene.model();
@@ -236,6 +271,15 @@ std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const
       if (auto t = net.find_transition(id)) fired.push_back(fmt::format("{}: {}", id, petri::describe_path(net, {*t})));
     }
   }
+  json faults = json::array(), marks = json::array();
+  for (const FaultMarks::Mark& mk : fault_marks.marks()) {
+    faults.push_back(mk.line);
+    if (mk.pos) {
+      marks.push_back({{"kind", mk.kind}, {"text", mk.line}, {"pos", *mk.pos}});
+    } else if (json now = view::mark(run, mk.line); !now.is_null()) {
+      marks.push_back(std::move(now));  // not placed yet (logged since the last period): where things are now
+    }
+  }
   json f = {{"type", "frame"},
             {"t", st ? std::chrono::duration<double>(st->time).count() : 0.0},
             {"firings", st ? st->task.firings : 0},
@@ -245,7 +289,7 @@ std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const
             {"robots", robots},
             {"bodies", bodies},
             {"faults", faults},
-            {"marks", view::marks(run, faults)}};
+            {"marks", marks}};
   if (json g = view::gantt(run); !g.is_null()) f["gantt"] = std::move(g);
   if (st && st->result) {
     f["outcome"] = runtime::to_string(st->result->outcome);

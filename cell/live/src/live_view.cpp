@@ -73,32 +73,28 @@ json cameras(ScenarioRun& run) {
   return out;
 }
 
-json marks(ScenarioRun& run, const std::vector<std::string>& faults) {
+json mark(ScenarioRun& run, const std::string& line) {
   const mjModel* m = run.world().scene().model();
   const mjData* d = run.world().data();
-  json out = json::array();
-  for (const std::string& line : faults) {
-    runtime::LogEvent e;
-    try {
-      e = runtime::decode(line, "event log", 0);
-    } catch (const std::exception&) {
-      continue;  // the loop hands over lines the log wrote: they decode
-    }
-    json pos;
-    const char* kind = "fault";
-    if (const auto* c = std::get_if<runtime::events::Collision>(&e)) {
-      kind = "collision";
-      pos = collision_pos(m, d, c->a, c->b);
-    } else if (const auto* fi = std::get_if<runtime::events::FaultInjected>(&e)) {
-      pos = tool_pos(run, fi->robot);
-      if (pos.is_null()) pos = workpiece_pos(run, fi->workpiece);
-    } else if (const auto* fd = std::get_if<runtime::events::FaultDetected>(&e)) {
-      pos = tool_pos(run, fd->robot);
-    }
-    if (pos.is_null()) pos = json::array({0.0, 0.0, 0.0});
-    out.push_back({{"kind", kind}, {"text", line}, {"pos", pos}});
+  runtime::LogEvent e;
+  try {
+    e = runtime::decode(line, "event log", 0);
+  } catch (const std::exception&) {
+    return nullptr;  // the loop hands over lines the log wrote: they decode
   }
-  return out;
+  json pos;
+  const char* kind = "fault";
+  if (const auto* c = std::get_if<runtime::events::Collision>(&e)) {
+    kind = "collision";
+    pos = collision_pos(m, d, c->a, c->b);
+  } else if (const auto* fi = std::get_if<runtime::events::FaultInjected>(&e)) {
+    pos = tool_pos(run, fi->robot);
+    if (pos.is_null()) pos = workpiece_pos(run, fi->workpiece);
+  } else if (const auto* fd = std::get_if<runtime::events::FaultDetected>(&e)) {
+    pos = tool_pos(run, fd->robot);
+  }
+  if (pos.is_null()) pos = json::array({0.0, 0.0, 0.0});
+  return {{"kind", kind}, {"text", line}, {"pos", pos}};
 }
 
 json gantt(ScenarioRun& run) {

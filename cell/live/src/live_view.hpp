@@ -5,14 +5,15 @@
 //   cell  "cameras": [{"name", "pos":[x,y,z], "quat":[qw,qx,qy,qz] (MuJoCo's camera frame: it looks along its -z,
 //                      y up), "fovy" (degrees, the image's height), "resolution":[w,h] (the cell description's)}]
 //   frame "marks":   [{"kind":"fault"|"collision", "text" (the event-log line), "pos":[x,y,z]}] one per fault line
-//                     given: a collision at the contact point of its two bodies (or half-way between them when they no
-//                     longer touch), a fault at its robot's tool (or at its workpiece, or at the origin when it
-//                     names neither). Where it is in this frame: the page keeps the first position it saw.
+//                     (mark()): a collision at the contact point of its two bodies (or half-way between them when they
+//                     no longer touch), a fault at its robot's tool (or at its workpiece, or at the origin when it
+//                     names neither), where they are when mark() is called: FaultMarks (live.hpp) calls it within one
+//                     control period of the event.
 //         "gantt":   [{"robot" (program label), "command", "start", "end" (s; null while it runs), "ok"}] every
 //                     command of the run so far, from the event log's command_start/command_end (the last 400); absent
 //                     when the run's log keeps no lines (twin serve -o streams it to a file).
 //
-// Threads: as live_frame_json: only while the runtime's threads are parked.
+// Threads: as live_frame_json: on the simulation thread, or while the runtime's threads are parked or held.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -24,7 +25,8 @@
 namespace cellwright::cell::view {
 
 nlohmann::json cameras(ScenarioRun& run);
-nlohmann::json marks(ScenarioRun& run, const std::vector<std::string>& faults);
+// The mark of one event-log line of a fault or collision; null for a line that does not decode.
+nlohmann::json mark(ScenarioRun& run, const std::string& line);
 // null when the log keeps no lines.
 nlohmann::json gantt(ScenarioRun& run);
 

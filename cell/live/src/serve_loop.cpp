@@ -20,6 +20,15 @@ using nlohmann::json;
 
 std::string error_json(const std::string& reason) { return json{{"type", "error"}, {"reason", reason}}.dump(); }
 
+// A frame of a replay says so, and how far the counterexample has been replayed.
+std::string with_replay(std::string frame, bool replay, std::uint64_t done) {
+  if (replay && !frame.empty() && frame.back() == '}') {
+    frame.pop_back();
+    frame += fmt::format(",\"replay\":true,\"replay_index\":{}}}", done);
+  }
+  return frame;
+}
+
 // Where to pause a run playing to a target ("run_to").
 struct RunTo {
   std::optional<int> line;
@@ -86,60 +95,77 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
       }
     }
     const bool replay = !check.ok;
+    // The faults and collisions, placed where they happened (the simulation thread, every control period), and, in
+    // real time, the frames built there while the run goes. The run the observers read is set once it is built
+    // (they are called only once it has started).
+    auto marks = std::make_shared<FaultMarks>();
+    auto shared_run = std::make_shared<ScenarioRun*>(nullptr);
     RunOptions run_options = options;
-    if (replay) {
-      run_options.configure = [prev = options.configure, order = check.counterexample](runtime::RunConfig& c) {
-        if (prev) prev(c);
-        c.firing_order = order;
-      };
-    }
-    // The faults seen so far, from the event log's typed observer (on the simulation thread, under the log's lock).
-    struct Faults {
-      std::mutex mutex;
-      std::vector<std::string> lines;
+    run_options.configure = [prev = options.configure, replay, order = check.counterexample, marks, shared_run,
+                             &server, hz = serve_options.frame_hz, speed = options.speed](runtime::RunConfig& c) {
+      if (prev) prev(c);
+      if (replay) c.firing_order = order;
+      c.observers.push_back({c.period, false, [marks, shared_run](const runtime::Observation&) {
+                               marks->place_new(**shared_run);
+                             }});
+      if (c.mode != runtime::Mode::kRealtime) return;
+      // Frames as the run goes: at most hz per second of wall time (speed simulation seconds per wall second).
+      const auto every = std::max(c.period, std::chrono::duration_cast<runtime::SimDuration>(
+                                                std::chrono::duration<double>(speed / hz)));
+      const std::size_t script = order.size();
+      c.observers.push_back({every, true, [marks, shared_run, &server, replay, script](const runtime::Observation& o) {
+                               if (server.viewers() == 0) return;  // nobody watches: no frame to build
+                               runtime::StepState st;
+                               st.time = o.time;
+                               st.task = o.task;
+                               st.robots = o.controls;
+                               server.publish(with_replay(
+                                   live_frame_json(**shared_run, LiveFrameState{"playing", &st}, *marks), replay,
+                                   std::min<std::uint64_t>(o.task.firings, script)));
+                             }});
     };
-    auto faults = std::make_shared<Faults>();
     auto run = std::make_unique<ScenarioRun>(*sc, *pf, run_options);
+    *shared_run = run.get();
     ++runs;
-    run->runtime().log().add_observer([faults](const runtime::LogEvent& e) {
+    const bool realtime = run->realtime();
+    run->runtime().log().add_observer([marks](const runtime::LogEvent& e) {
       const std::string_view type = runtime::type_of(e);
       if (type != "fault_injected" && type != "fault_detected" && type != "collision") return;
-      std::lock_guard lock(faults->mutex);
-      if (faults->lines.size() < 200) faults->lines.push_back(runtime::encode(e));
+      marks->add(runtime::encode(e));
     });
     server.set_cell(live_cell_json(*run, models));
     Teacher teacher(*sc);
     bool playing = serve_options.play, ended = false, restart = false;
+    bool going = false;  // real time: let go (Runtime::go), not yet seen held or ended
     std::optional<RunTo> run_to;
     std::optional<runtime::StepState> last;
     serve::FramePacer pacer(serve_options.frame_hz);
     std::size_t viewers = server.viewers();
     bool missed = false;  // a viewer missed the last frame sent (its socket was full)
+    // The state now, built here: lock-step between steps, or real time while held, before it starts or ended.
     auto send = [&] {
-      std::vector<std::string> f;
-      {
-        std::lock_guard lock(faults->mutex);
-        f = faults->lines;
-      }
       const LiveFrameState st{ended ? "ended" : playing ? "playing" : "paused", last ? &*last : nullptr};
       const std::uint64_t dropped = server.counts().dropped;
-      std::string frame = live_frame_json(*run, st, f);
-      if (replay && !frame.empty() && frame.back() == '}') {
-        const std::uint64_t done = std::min<std::uint64_t>(last ? last->task.firings : 0, check.counterexample.size());
-        frame.pop_back();
-        frame += fmt::format(",\"replay\":true,\"replay_index\":{}}}", done);
-      }
-      server.publish(std::move(frame));
+      const std::uint64_t done = std::min<std::uint64_t>(last ? last->task.firings : 0, check.counterexample.size());
+      server.publish(with_replay(live_frame_json(*run, st, *marks), replay, done));
       missed = server.counts().dropped > dropped;
     };
-    // One step of the run (to the next firing, or to run_to's time), and where run_to stops.
-    auto step = [&] {
-      last = run->runtime().step(run_to ? run_to->time : std::nullopt);
+    // Real time: lets the run go, to the next firing when stepping, replaying (whose end is seen at a firing) or
+    // running to a line; to run_to's time; else to its end.
+    auto let_go = [&] {
+      runtime::HoldAt at;
+      at.firing = !playing || replay || (run_to && run_to->line);
+      if (run_to) at.time = run_to->time;
+      run->runtime().go(at);
+      going = true;
+    };
+    // After a step (lock-step) or a hold (real time): the replay's end, and where run_to stops.
+    auto stepped = [&] {
       ended = last->ended;
       if (replay && !ended && check.property != "deadlock" && last->task.firings >= check.counterexample.size()) {
         // The counterexample's last marking is not dead: nothing more fires, so the replay ends there.
         run->runtime().request_stop(fmt::format("the counterexample ends here: {}", check.last_marking));
-        last = run->runtime().step();
+        last = realtime ? *run->runtime().wait_held(std::chrono::steady_clock::duration::max()) : run->runtime().step();
         ended = last->ended;
       }
       if (run_to) {
@@ -156,33 +182,65 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
         }
       }
     };
+    // One step of the run, lock-step (to the next firing, or to run_to's time).
+    auto step = [&] {
+      last = run->runtime().step(run_to ? run_to->time : std::nullopt);
+      stepped();
+    };
+    // Real time: holds a run that goes, and waits for it (a control period at most).
+    auto hold = [&] {
+      if (!going) return;
+      run->runtime().hold();
+      last = *run->runtime().wait_held(std::chrono::steady_clock::duration::max());
+      ended = last->ended;
+      going = false;
+    };
     auto handle = [&](const serve::Message& m) {
       if (m.type == "command") {
         switch (*m.command) {
-          case serve::CommandKind::kPlay: playing = !ended; run_to.reset(); break;
-          case serve::CommandKind::kPause: playing = false; run_to.reset(); break;
+          case serve::CommandKind::kPlay:
+            playing = !ended;
+            run_to.reset();
+            if (realtime && playing) let_go();
+            break;
+          case serve::CommandKind::kPause:
+            playing = false;
+            run_to.reset();
+            if (realtime) hold();
+            break;
           case serve::CommandKind::kStep:
             playing = false;
             run_to.reset();
-            if (!ended) step();
+            if (ended) break;
+            if (!realtime) {
+              step();
+            } else {
+              hold();  // from where it is now
+              if (!ended) let_go();
+            }
             break;
-          case serve::CommandKind::kRunTo:
+          case serve::CommandKind::kRunTo: {
             if (ended) throw LiveRefusal("the run has ended: restart it first");
-            run_to = parse_run_to(m.text, pf->net, *sc, last ? last->time : runtime::SimDuration{0});
-            playing = true;
+            hold();
+            RunTo to = parse_run_to(m.text, pf->net, *sc, last ? last->time : runtime::SimDuration{0});
+            run_to = std::move(to);
+            playing = !ended;
+            if (realtime && playing) let_go();
             break;
+          }
           case serve::CommandKind::kRestart: restart = true; break;
           case serve::CommandKind::kReplay:
             if (!replay) throw LiveRefusal("the program passes the check: there is no counterexample to replay");
             restart = true;
             break;
         }
-        if (!restart) send();
+        if (!restart && !going) send();  // a run that goes sends its own frames
       } else if (m.type == "teach") {
         const TeachRequest req = parse_teach(m.text);
         if (req.action == TeachAction::kBegin && playing && !ended) {
           throw LiveRefusal("the run is playing: pause it before teaching");
         }
+        if (going) throw LiveRefusal("the run is going in real time: pause it before teaching");
         server.broadcast(teach_json(teacher.apply(req, run->world())));
       } else if (m.type == "save_location") {
         const json j = json::parse(m.text, nullptr, false);
@@ -208,10 +266,14 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
         server.send_to(m.viewer, check_json(pf->net, check));
       }
     };
+    if (realtime && playing) let_go();
     send();
     while (!stop && !restart) {
-      // Playing: take what came without waiting; else wait a little for a message (and notice new viewers).
-      const std::optional<serve::Message> m = playing && !ended ? server.poll_message() : server.wait_message(100ms);
+      // Playing lock-step: take what came without waiting. A real-time run that goes: wait a little, then look whether
+      // it holds. Else wait a little for a message (and notice new viewers).
+      const bool stepping = !realtime && playing && !ended;
+      const std::optional<serve::Message> m =
+          stepping ? server.poll_message() : server.wait_message(going ? 10ms : 100ms);
       if (m) {
         try {
           handle(*m);
@@ -220,9 +282,20 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
         }
         continue;
       }
-      if (playing && !ended) {
+      if (stepping) {
         step();
         if (ended || !playing || pacer.due()) send();
+      } else if (going) {
+        if (std::optional<runtime::StepState> held = run->runtime().wait_held(std::chrono::milliseconds(0))) {
+          last = std::move(held);
+          going = false;
+          stepped();
+          if (playing && !ended) {
+            let_go();  // replaying, or running to a line that has not fired yet: on to the next firing
+          } else {
+            send();
+          }
+        }
       } else if (const std::size_t n = server.viewers(); n > viewers || missed) {
         // A viewer that came while nothing moves gets the state now; one that missed the last frame gets it again
         // (at most every 100 ms while its socket stays full), so no viewer is left on an older state.

@@ -25,8 +25,9 @@ inline bool is_frame(const json& m) { return m.is_object() && m.value("type", ""
 class LiveLoop : public ::testing::Test {
  protected:
   // Serves `scenario` (which must pass the preflight, or fail only its program's check: then it is served as the
-  // counterexample's replay, as `twin serve` does).
-  void start(ServeOptions options = {}, std::size_t max_buffered = 256 * 1024, const std::string& scenario = kExchange) {
+  // counterexample's replay, as `twin serve` does), built with `run_options` (lock-step unless they say realtime).
+  void start(ServeOptions options = {}, std::size_t max_buffered = 256 * 1024, const std::string& scenario = kExchange,
+             RunOptions run_options = {}) {
     scenario_ = std::make_unique<Scenario>(load_scenario(scenario));
     preflight_ = std::make_unique<Preflight>(preflight(*scenario_, &twin_port()));
     if (std::optional<Preflight> replay = counterexample_preflight(*scenario_, *preflight_)) {
@@ -38,8 +39,8 @@ class LiveLoop : public ::testing::Test {
     so.port = 0;
     so.max_buffered = max_buffered;
     server_ = std::make_unique<serve::LiveServer>(so);
-    loop_ = std::thread([this, options] {
-      runs_ = serve_scenario(*scenario_, *preflight_, RunOptions{}, *server_, options, stop_);
+    loop_ = std::thread([this, options, run_options] {
+      runs_ = serve_scenario(*scenario_, *preflight_, run_options, *server_, options, stop_);
     });
   }
   void TearDown() override {

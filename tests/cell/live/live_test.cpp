@@ -32,6 +32,7 @@ TEST_F(LiveLoop, AViewerGetsTheCellAndStepsOneFiringAtATime) {
   const json cell = v.wait_for("cell");
   ASSERT_TRUE(cell.is_object());
   EXPECT_EQ(cell["scenario"], "exchange.yaml");
+  EXPECT_EQ(cell["mode"], "lock-step");
   ASSERT_EQ(cell["robots"].size(), scenario_->robots.size());
   EXPECT_EQ(cell["robots"][0]["urdf"].get<std::string>().rfind("/models/", 0), 0u);
   // Paused at first, nothing fired.
@@ -173,6 +174,62 @@ TEST_F(LiveLoop, RunToALinePausesWhereATransitionOfThatLineFired) {
   EXPECT_EQ(v.wait_for("error")["reason"], "no command of exchange.task is on line 3");
   v.send(R"({"type":"command","command":"run_to"})");
   EXPECT_NE(v.wait_for("error", 1)["reason"].get<std::string>().find("needs"), std::string::npos);
+}
+
+// Real time (`twin serve --realtime`): the run goes paced by the wall clock with frames from its simulation thread;
+// pause holds it (the twin frozen: no frame moves it on), step lets it go to the next firing, run to a line holds
+// where that line fired, teaching is refused while it goes, and it ends on its own.
+TEST_F(LiveLoop, RealTimePlaysPausesStepsRunsToALineAndEnds) {
+  RunOptions ro;
+  ro.realtime = true;
+  ro.speed = 8;  // the exchange's 32 s of simulation in about 4 s
+  start({}, 256 * 1024, live_testing::kExchange, ro);
+  WsViewer v(port());
+  EXPECT_EQ(v.wait_for("cell")["mode"], "real time");
+  const json first = v.wait_for("frame");
+  ASSERT_TRUE(first.is_object());
+  EXPECT_EQ(first["state"], "paused");
+  EXPECT_EQ(first["t"], 0.0);
+
+  v.send(command("play"));
+  const json playing = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "playing" && m["t"] > 0.2; });
+  ASSERT_TRUE(playing.is_object()) << "no frame as the run goes";
+  v.send(R"({"type":"teach","action":"begin","robot":"puma"})");
+  EXPECT_NE(v.wait_for("error")["reason"].get<std::string>().find("pause it before teaching"), std::string::npos);
+  v.send(command("pause"));
+  const json paused = v.wait_for([](const json& m) { return is_frame(m) && m["state"] != "playing"; });
+  ASSERT_TRUE(paused.is_object());
+  ASSERT_EQ(paused["state"], "paused") << "the run ended before the pause was taken";
+  // Held: the next frame is the step's, not one of a run that goes on.
+  const std::size_t frames = v.count("frame");
+  v.send(command("step"));
+  const json stepped = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "paused"; }, 1);
+  ASSERT_TRUE(stepped.is_object());
+  EXPECT_GT(stepped["firings"], paused["firings"]);
+  EXPECT_FALSE(stepped["fired"].empty()) << "a step holds where a transition fired";
+  EXPECT_GE(stepped["t"].get<double>(), paused["t"].get<double>());
+  EXPECT_GT(v.count("frame"), frames);
+
+  // exchange.task line 10: "Place B" (r2), the program's last command.
+  const auto held = [](const json& m) { return is_frame(m) && m["state"] != "playing"; };
+  const std::size_t held_before = v.count(held);
+  v.send(R"({"type":"command","command":"run_to","line":10})");
+  json at;
+  for (int i = 0; i < 6 && !at.is_object(); ++i) at = v.wait_for(held, held_before);
+  ASSERT_TRUE(at.is_object());
+  ASSERT_EQ(at["state"], "paused") << at.value("reason", "");
+  bool line10 = false;
+  for (const json& f : at["fired"]) line10 = line10 || f.get<std::string>().find("line 10 ") != std::string::npos;
+  EXPECT_TRUE(line10) << at["fired"].dump();
+
+  v.send(command("play"));
+  json end;
+  for (int i = 0; i < 6 && !end.is_object(); ++i) {
+    end = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "ended"; });
+  }
+  ASSERT_TRUE(end.is_object()) << "the run did not end";
+  EXPECT_EQ(end["outcome"], "finished") << end.value("reason", "");
+  EXPECT_GT(end["firings"], at["firings"]);
 }
 
 TEST_F(LiveLoop, TeachingJogsACopyThatEveryViewerSeesAndTheRunGoesOnFromWhereItWas) {
@@ -348,7 +405,9 @@ class LiveView : public ::testing::Test {
     run_ = std::make_unique<ScenarioRun>(*scenario_, *preflight_, RunOptions{});
   }
   json frame(const std::vector<std::string>& faults = {}, const runtime::StepState* step = nullptr) {
-    return json::parse(live_frame_json(*run_, LiveFrameState{"paused", step}, faults));
+    FaultMarks marks;
+    for (const std::string& line : faults) marks.add(line);
+    return json::parse(live_frame_json(*run_, LiveFrameState{"paused", step}, marks));
   }
   std::unique_ptr<Scenario> scenario_;
   std::unique_ptr<Preflight> preflight_;
@@ -394,6 +453,25 @@ TEST_F(LiveView, AFaultIsMarkedAtItsRobotsToolAndACollisionBetweenItsBodies) {
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(f["marks"][1]["pos"][i].get<double>(), (a[i] + b[i]) / 2, 1e-9) << i;
   // No faults, no marks.
   EXPECT_TRUE(frame()["marks"].empty());
+}
+
+// A mark stays where its event happened: placed when it was logged (a RunObserver every control period places it in a
+// served run), not where the robot is when a page first sees it.
+TEST_F(LiveView, AMarkStaysWhereItWasPlacedWhileTheRobotMovesOn) {
+  const twin::Scene& scene = run_->world().scene();
+  const int tcp = scene.find_robot("puma")->tcp_site;
+  const auto tool = [&] { return Eigen::Map<const Eigen::Vector3d>(run_->world().data()->site_xpos + 3 * tcp); };
+  FaultMarks marks;
+  marks.add(runtime::encode(runtime::events::FaultDetected{runtime::SimDuration{0}, "r1", 2, "slip", "let go"}));
+  marks.place_new(*run_);
+  const Eigen::Vector3d placed = tool();
+  runtime::StepState st;
+  for (int i = 0; i < 400 && (tool() - placed).norm() < 0.05; ++i) st = run_->runtime().step();
+  ASSERT_GT((tool() - placed).norm(), 0.05) << "the puma never moved";
+  const json f = json::parse(live_frame_json(*run_, LiveFrameState{"paused", &st}, marks));
+  ASSERT_EQ(f["marks"].size(), 1u);
+  EXPECT_EQ(f["marks"][0]["kind"], "fault");
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(f["marks"][0]["pos"][i].get<double>(), placed[i], 1e-9) << i;
 }
 
 TEST_F(LiveView, TheGanttGrowsWithTheCommandsAsTheRunSteps) {

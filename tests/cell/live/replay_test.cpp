@@ -101,5 +101,48 @@ TEST_F(LiveLoop, AProgramThatFailsTheCheckIsServedAsItsCounterexamplesReplay) {
   EXPECT_EQ(v.wait_for("check", 1)["property"], "deadlock");
 }
 
+// A program whose net is unbounded (r1 signals on every pass of its loop, r2 waits once): the check's witness is the
+// firings after which the semaphore's place has grown; served, lock-step and in real time, the replay fires exactly
+// those and stops there (its last marking is not dead: nothing else may fire), saying so.
+class UnboundedReplay : public LiveLoop {
+ protected:
+  void expect_replay(bool realtime) {
+    live_testing::SceneCopy copy;
+    live_testing::write_text(copy.dir() / "unbounded.task",
+                             "robot r1 r2\nsemaphore s\n\nsequence r1\n  repeat 3\n    signal s\n  end\nend\n\n"
+                             "sequence r2\n  wait s\nend\n");
+    const std::filesystem::path scenario = copy.dir() / "unbounded.yaml";
+    live_testing::write_text(scenario, "cell: cell.yaml\nprogram: unbounded.task\nrobots: {r1: puma, r2: melfa}\n");
+    RunOptions ro;
+    ro.realtime = realtime;
+    ro.speed = 4;
+    start({}, 256 * 1024, scenario.string(), ro);
+    const CheckOutcome check = check_program(preflight_->net);
+    ASSERT_EQ(check.property, "boundedness");
+    ASSERT_FALSE(check.counterexample.empty());
+    WsViewer v(port());
+    const json greeting = v.wait_for("check");
+    ASSERT_TRUE(greeting.is_object());
+    EXPECT_EQ(greeting["property"], "boundedness");
+    ASSERT_EQ(greeting["counterexample"].size(), check.counterexample.size());
+    v.send(command("play"));
+    const json end = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "ended"; });
+    ASSERT_TRUE(end.is_object()) << "the replay did not end";
+    EXPECT_EQ(end["outcome"], "stopped");
+    EXPECT_EQ(end["reason"], "the counterexample ends here: " + check.last_marking);
+    EXPECT_EQ(end["firings"].get<std::size_t>(), check.counterexample.size());
+    EXPECT_EQ(end["replay_index"].get<std::size_t>(), check.counterexample.size());
+    EXPECT_EQ(end["marking"], check.last_marking);
+  }
+};
+
+TEST_F(UnboundedReplay, LockStepFiresTheWitnessAndStopsWhereThePlaceHasGrown) {
+  expect_replay(false);
+}
+
+TEST_F(UnboundedReplay, RealTimeToo) {
+  expect_replay(true);
+}
+
 }  // namespace
 }  // namespace cellwright::cell

@@ -1,10 +1,10 @@
-// `twin serve`'s run loop (docs/live-view.md): a scenario run lock-step on the twin, watched from a browser through the
-// live view's server (serve/live_server.hpp), and driven from there: play, pause, step one firing, run to a line or
-// a time, restart; teaching, saving locations and the check's counterexample replay (teach.hpp, location_file.hpp,
-// replay.hpp).
+// `twin serve`'s run loop (docs/live-view.md): a scenario run on the twin, lock-step or in real time, watched from a
+// browser through the live view's server (serve/live_server.hpp), and driven from there: play, pause, step one firing,
+// run to a line or a time, restart; teaching, saving locations and the check's counterexample replay (teach.hpp,
+// location_file.hpp, replay.hpp).
 //
 // What the viewers are sent (JSON, the protocol of serve/live_server.hpp):
-//   cell    {"type":"cell", "name", "scenario", "program",
+//   cell    {"type":"cell", "name", "scenario", "program", "mode" ("lock-step" or "real time"),
 //            "robots":[{"name", "label", "urdf":"/models/...", "packages":{PACKAGE:"/models/..."},
 //                       "base_link", "base":[x,y,z,qw,qx,qy,qz], "joints":[URDF joint names, base to tip]}],
 //            "bodies":[{"id", "name", "pose":[x,y,z,qw,qx,qy,qz]}],        every body of the geoms below
@@ -20,7 +20,8 @@
 //                       "detail"}],
 //            "bodies":[[id,x,y,z,qw,qx,qy,qz] for each body of "bodies" that moves],
 //            "faults":[event log lines: fault_injected, fault_detected, collision, since the run began],
-//            "marks":[{"kind":"fault"|"collision", "text" (the line), "pos":[x,y,z]}] (one per fault line),
+//            "marks":[{"kind":"fault"|"collision", "text" (the line), "pos":[x,y,z]}] (one per fault line, where it
+//                     happened: FaultMarks),
 //            "gantt":[{"robot", "command", "start", "end" (null while running), "ok"}] (the commands so far, when
 //                     the log keeps its lines)}
 //            (cell/live/src/live_view.hpp says where the marks are and how the Gantt is read.)
@@ -28,15 +29,21 @@
 // Layering: this is an application above the simulated rig (cell/sim) and the live view's server (serve/); neither
 // of them knows it (the walls test: cellwright_cell_sim does not link cellwright_serve).
 //
-// Threads: serve_scenario runs on the caller's thread and is the only one that touches the run (built, stepped and
-// read there, with the runtime's threads parked between steps: lock-step); the server's thread only moves texts
-// (serve/live_server.hpp). A viewer's command waits in the server's queue until the loop takes it, between steps.
+// Threads: serve_scenario runs on the caller's thread. It builds the run and drives it. Lock-step, it is the only
+// thread that reads the run (stepped and read there, the runtime's threads parked between steps). In real time, it
+// reads the run only while it is held or ended (Runtime::go/hold/wait_held); while the run goes, the frames are built
+// on the runtime's simulation thread (a RunObserver), which owns the world then. The marks are placed by another
+// RunObserver, every control period, in both modes. The server's thread only moves texts (serve/live_server.hpp). A
+// viewer's command waits in the server's queue until the loop takes it.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
 
 #include "cellwright/cell/preflight.hpp"
@@ -57,9 +64,34 @@ struct LiveFrameState {
   const char* state = "paused";  // "paused", "playing" or "ended"
   const runtime::StepState* step = nullptr;  // the last step's state, or none before the first
 };
-// The "frame" message of a run now (see the top). Only while the runtime's threads are parked (lock-step, between
-// steps). `faults` are the lines to send as "faults".
-std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const std::vector<std::string>& faults);
+
+// The faults and collisions of a run (their event-log lines, the frames' "faults") and where each happened (the
+// frames' "marks"). A line is added as it is logged (add(): the event log's typed observer, on whatever thread logs
+// it); place_new() reads the world for the lines added since its last call: called every control period by a
+// RunObserver (the simulation thread), a mark stands where its two bodies touched, or where its robot's tool was,
+// within one control period of the event, not where they are when a page first sees it. At most 200 lines are kept.
+// Threads: add() and lines() from any thread; place_new() on the simulation thread or while the runtime's threads
+// are parked or held.
+class FaultMarks {
+ public:
+  struct Mark {
+    std::string line;
+    std::string kind;                  // "fault" or "collision" (placed)
+    std::optional<std::array<double, 3>> pos;  // where it happened; none until placed
+  };
+  void add(std::string line);
+  void place_new(ScenarioRun& run);
+  std::vector<Mark> marks() const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<Mark> marks_;
+};
+
+// The "frame" message of a run now (see the top), with the faults and marks of `marks` (a mark not placed yet is
+// placed where things are now). On the simulation thread (a RunObserver), or while the runtime's threads are parked
+// (lock-step, between steps) or the run is held or ended (real time).
+std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const FaultMarks& marks);
 
 // A scenario and its preflight, loaded again (ServeOptions::reload).
 struct LiveScenario {
@@ -76,7 +108,8 @@ struct ServeOptions {
   std::function<LiveScenario()> reload;
 };
 
-// Runs `scenario` lock-step, built with `options` (a fresh ScenarioRun at each restart), sending its cell and frames
+// Runs `scenario` built with `options` (a fresh ScenarioRun at each restart), lock-step or in real time as
+// options.realtime (or the scenario) says, sending its cell and frames
 // to `server`'s viewers and obeying their messages (docs/live-view.md has the protocol), until `stop` is set.
 // `preflight` passed, or refused the scenario only because its program fails the check: then each run is the replay
 // of the check's counterexample (replay.hpp): the "check" message greets every viewer after the cell, task control
@@ -90,6 +123,11 @@ struct ServeOptions {
 // the cell description file (location_file.hpp) and tells every viewer ("saved"); "check" is answered to its
 // sender. A message that cannot be carried out is answered to its sender alone ("error"). Returns the number of
 // runs built.
+// In real time (docs/live-view.md, "Real time") the run goes at options.speed simulation seconds per wall-clock
+// second, with frames built on its simulation thread every 1/frame_hz of wall time, and "pause" holds it
+// (Runtime::hold: the twin frozen, its clock stopped); "step" lets it go to the first control period after a firing,
+// "run_to" to the firing of that line or that time, where it holds. Teaching is refused while it goes (the teach pose
+// starts from the world, which is the simulation thread's then).
 int serve_scenario(const Scenario& scenario, const Preflight& preflight, const RunOptions& options,
                    serve::LiveServer& server, const ServeOptions& serve_options, const std::atomic<bool>& stop);
 

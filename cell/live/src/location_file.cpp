@@ -111,7 +111,14 @@ void write_atomically(const std::filesystem::path& file, const std::string& text
 
 }  // namespace
 
-std::string taught_location_entry(const std::string& name, const std::string& robot, const Eigen::Isometry3d& tool) {
+namespace {
+
+// A taught location's values as YAML flow texts: its pose ("{xyz: [x, y, z], yaw: Y}") and reach ("[robot]").
+struct TaughtFields {
+  std::string pose, reach;
+};
+
+TaughtFields taught_fields(const std::string& robot, const Eigen::Isometry3d& tool) {
   const Eigen::Vector3d z = tool.linear().col(2);
   const double tilt = std::acos(std::clamp(-z.z(), -1.0, 1.0)) / kDeg;
   if (tilt > kDownToleranceDeg) {
@@ -132,8 +139,15 @@ std::string taught_location_entry(const std::string& name, const std::string& ro
     }
     return s == "-0" ? std::string("0") : s;
   };
-  return fmt::format("{{name: {}, pose: {{xyz: [{}, {}, {}], yaw: {}}}, reach: [{}]}}", name, num(p.x(), 4),
-                     num(p.y(), 4), num(p.z(), 4), num(yaw, 3), robot);
+  return {fmt::format("{{xyz: [{}, {}, {}], yaw: {}}}", num(p.x(), 4), num(p.y(), 4), num(p.z(), 4), num(yaw, 3)),
+          fmt::format("[{}]", robot)};
+}
+
+}  // namespace
+
+std::string taught_location_entry(const std::string& name, const std::string& robot, const Eigen::Isometry3d& tool) {
+  const TaughtFields f = taught_fields(robot, tool);
+  return fmt::format("{{name: {}, pose: {}, reach: {}}}", name, f.pose, f.reach);
 }
 
 std::string unified_diff(const std::string& before, const std::string& after, const std::string& label) {
@@ -210,12 +224,37 @@ SavedLocation save_location(const std::filesystem::path& cell_file, const std::s
       std::string& l = lines[static_cast<std::size_t>(m.line)];
       const auto col = static_cast<std::size_t>(m.column);
       const std::optional<std::size_t> end = l[col] == '{' ? flow_end(l, col) : std::nullopt;
-      if (!end) {
-        throw LiveRefusal(fmt::format("{}:{}: location '{}' is written over several lines: edit it by hand (nothing "
+      const std::size_t dash = l.substr(0, col).find('-');
+      if (end) {
+        l = l.substr(0, col) + entry + l.substr(*end);
+      } else if (l[col] != '{' && dash != std::string::npos) {
+        // A block mapping ("- name: ..." then its keys on their own lines): replaced by one in the same style, its
+        // keys at the item's column; the comment lines inside it are kept, after the new keys.
+        const auto first = static_cast<std::size_t>(m.line);
+        std::size_t last = first;
+        std::vector<std::string> comments;
+        for (std::size_t k = first + 1; k < lines.size(); ++k) {
+          if (blank(lines[k])) continue;
+          if (indent_of(lines[k]) <= dash) break;
+          last = k;
+        }
+        for (std::size_t k = first + 1; k <= last; ++k) {
+          if (!blank(lines[k]) && lines[k][indent_of(lines[k])] == '#') comments.push_back(lines[k]);
+        }
+        const TaughtFields f = taught_fields(robot, tool);
+        const std::string keys(col, ' ');
+        std::vector<std::string> item = {l.substr(0, col) + "name: " + name + "\n", keys + "pose: " + f.pose + "\n",
+                                         keys + "reach: " + f.reach + "\n"};
+        item.insert(item.end(), comments.begin(), comments.end());
+        lines.erase(lines.begin() + static_cast<std::ptrdiff_t>(first),
+                    lines.begin() + static_cast<std::ptrdiff_t>(last + 1));
+        lines.insert(lines.begin() + static_cast<std::ptrdiff_t>(first), item.begin(), item.end());
+      } else {
+        throw LiveRefusal(fmt::format("{}:{}: location '{}' is written in a way this cannot replace (a flow mapping "
+                                      "over several lines, or its keys below a bare dash): edit it by hand (nothing "
                                       "was written)",
                                       label, m.line + 1, name));
       }
-      l = l.substr(0, col) + entry + l.substr(*end);
       saved.replaced = true;
       saved.line = m.line + 1;
     } else {

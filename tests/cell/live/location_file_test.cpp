@@ -123,6 +123,36 @@ TEST_F(LocationFile, SavingAgainUnderTheSameNameReplacesThatLineOnly) {
   EXPECT_EQ(c[static_cast<std::size_t>(pick.line - 2)].find("  #"), 0u) << "the comment above input_pick";
 }
 
+// A cell written in block style (each key on its own line), as a user's file may be: a location of that name is
+// replaced by one in that style, in its place, its inner comment kept; every line outside it stays; the file loads
+// with the taught pose.
+TEST_F(LocationFile, ABlockStyleLocationIsReplacedInItsOwnStyle) {
+  std::string text = before_;
+  const std::string drop = "  - {name: output_drop, at: output.enter, reach: [melfa]}\n";
+  const std::size_t at = text.find(drop);
+  ASSERT_NE(at, std::string::npos) << "scenes/cell.yaml's output_drop line changed";
+  const std::string block = "  - name: taught_a\n    at: input.leave\n    # taught at the belt's end\n"
+                            "    reach:\n      - puma\n";
+  text.insert(at + drop.size(), block);
+  write_text(copy_.cell_file(), text);
+  const SavedLocation s = save_location(copy_.cell_file(), "cell.yaml", "taught_a", "puma", taught_);
+  EXPECT_TRUE(s.replaced);
+  const std::string after = read_text(copy_.cell_file());
+  const std::string head = text.substr(0, at + drop.size()), tail = text.substr(at + drop.size() + block.size());
+  ASSERT_EQ(after.substr(0, head.size()), head);
+  ASSERT_EQ(after.substr(after.size() - tail.size()), tail);
+  const std::vector<std::string> item = lines_of(after.substr(head.size(), after.size() - head.size() - tail.size()));
+  ASSERT_EQ(item.size(), 4u) << after.substr(head.size(), 400);
+  EXPECT_EQ(item[0], "  - name: taught_a");
+  EXPECT_EQ(item[1].rfind("    pose: {xyz: [", 0), 0u) << item[1];
+  EXPECT_EQ(item[2], "    reach: [puma]");
+  EXPECT_EQ(item[3], "    # taught at the belt's end");
+  EXPECT_EQ(s.line, static_cast<int>(lines_of(head).size()) + 1);
+  const models::CellDescription again = models::load_cell(copy_.cell_file());
+  EXPECT_LT((grasp_of(again, *again.find_location("taught_a"), "puma").translation() - taught_.translation()).norm(),
+            1e-3);
+}
+
 TEST_F(LocationFile, RefusalsLeaveTheFileByteForByte) {
   auto refused = [&](const std::string& name, const Eigen::Isometry3d& tool, const std::string& why) {
     try {
@@ -141,6 +171,13 @@ TEST_F(LocationFile, RefusalsLeaveTheFileByteForByte) {
   Eigen::Isometry3d far = taught_;
   far.translation().x() += 3;
   refused("far", far, "the cell would not load");
+  // A location written as a flow mapping over two lines: refused (edit it by hand), named with its line.
+  const std::string drop = "  - {name: output_drop, at: output.enter, reach: [melfa]}\n";
+  std::string two_lines = before_;
+  two_lines.insert(two_lines.find(drop) + drop.size(), "  - {name: taught_c,\n     at: input.leave, reach: [puma]}\n");
+  write_text(copy_.cell_file(), two_lines);
+  before_ = two_lines;
+  refused("taught_c", taught_, "is written in a way this cannot replace");
   // A file that no longer parses.
   const std::string broken = before_ + "\nlocations: [: :\n";
   write_text(copy_.cell_file(), broken);

@@ -12,8 +12,10 @@
 // from another direction.
 //
 // The edit (yaml-cpp's marks give each item's line and column): in the file's `locations:` block sequence, the item
-// whose name is NAME is replaced, if it is written on one line (a flow mapping, the style the shipped cells use); else
-// a new item is inserted after the last one, with the last item's indentation and dash. A file without `locations:`
+// whose name is NAME is replaced: written on one line (a flow mapping, the style the shipped cells use), by the line
+// above in its place; written as a block mapping ("- name: NAME" and its keys below), by a block mapping of the keys
+// name, pose and reach at the item's column, the full-line comments inside the old item kept after them. Without such
+// an item, a new one is inserted after the last, with the last item's indentation and dash. A file without `locations:`
 // gets one at its end. The new text must load as a cell description (models::parse_cell: every check, the new
 // location's reach included) before anything is written; then the file is replaced atomically (a temporary file in
 // its directory, renamed over it). Every other byte of the file is kept.
@@ -42,7 +44,7 @@ struct SavedLocation {
 // Writes location `name` (taught by `robot` at `tool`) into `cell_file`, as the top says. `label` names the file in
 // the diff's header. LiveRefusal, the file untouched: a name that is not an identifier ([A-Za-z_][A-Za-z0-9_]*); a
 // file that cannot be read, is not YAML, or whose `locations:` is not a block sequence; an item of that name written
-// over several lines; a tool not pointing down; a new text that does not load as a cell (the loader's message); a
+// as a flow mapping over several lines, or with its keys below a bare dash; a tool not pointing down; a new text that does not load as a cell (the loader's message); a
 // file that cannot be written.
 SavedLocation save_location(const std::filesystem::path& cell_file, const std::string& label, const std::string& name,
                             const std::string& robot, const Eigen::Isometry3d& tool);

@@ -100,35 +100,52 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
     // (they are called only once it has started).
     auto marks = std::make_shared<FaultMarks>();
     auto shared_run = std::make_shared<ScenarioRun*>(nullptr);
+    // Real time: the transitions fired since the last frame (from the log's observer, on whatever thread fires), so
+    // that a frame names the latest firings, not only those of task control's last step (often none).
+    struct Fired {
+      std::mutex mutex;
+      std::vector<std::string> since_frame, shown;
+    };
+    auto fired = std::make_shared<Fired>();
     RunOptions run_options = options;
-    run_options.configure = [prev = options.configure, replay, order = check.counterexample, marks, shared_run,
+    run_options.configure = [prev = options.configure, replay, order = check.counterexample, marks, shared_run, fired,
                              &server, hz = serve_options.frame_hz, speed = options.speed](runtime::RunConfig& c) {
       if (prev) prev(c);
       if (replay) c.firing_order = order;
-      c.observers.push_back({c.period, false, [marks, shared_run](const runtime::Observation&) {
-                               marks->place_new(**shared_run);
-                             }});
+      c.observers.push_back(
+          {c.period, false, [marks, shared_run](const runtime::Observation&) { marks->place_new(**shared_run); }});
       if (c.mode != runtime::Mode::kRealtime) return;
       // Frames as the run goes: at most hz per second of wall time (speed simulation seconds per wall second).
-      const auto every = std::max(c.period, std::chrono::duration_cast<runtime::SimDuration>(
-                                                std::chrono::duration<double>(speed / hz)));
+      const auto every = std::max(
+          c.period, std::chrono::duration_cast<runtime::SimDuration>(std::chrono::duration<double>(speed / hz)));
       const std::size_t script = order.size();
-      c.observers.push_back({every, true, [marks, shared_run, &server, replay, script](const runtime::Observation& o) {
-                               if (server.viewers() == 0) return;  // nobody watches: no frame to build
-                               runtime::StepState st;
-                               st.time = o.time;
-                               st.task = o.task;
-                               st.robots = o.controls;
-                               server.publish(with_replay(
-                                   live_frame_json(**shared_run, LiveFrameState{"playing", &st}, *marks), replay,
-                                   std::min<std::uint64_t>(o.task.firings, script)));
-                             }});
+      c.observers.push_back(
+          {every, true, [marks, shared_run, fired, &server, replay, script](const runtime::Observation& o) {
+             if (server.viewers() == 0) return;  // nobody watches: no frame to build
+             runtime::StepState st;
+             st.time = o.time;
+             st.task = o.task;
+             st.robots = o.controls;
+             {
+               std::lock_guard lock(fired->mutex);
+               if (!fired->since_frame.empty()) fired->shown = std::move(fired->since_frame);
+               fired->since_frame.clear();
+               st.task.last_fired = fired->shown;  // the latest firings, until newer ones
+             }
+             server.publish(with_replay(live_frame_json(**shared_run, LiveFrameState{"playing", &st}, *marks), replay,
+                                        std::min<std::uint64_t>(o.task.firings, script)));
+           }});
     };
     auto run = std::make_unique<ScenarioRun>(*sc, *pf, run_options);
     *shared_run = run.get();
     ++runs;
     const bool realtime = run->realtime();
-    run->runtime().log().add_observer([marks](const runtime::LogEvent& e) {
+    run->runtime().log().add_observer([marks, fired, realtime](const runtime::LogEvent& e) {
+      if (const auto* f = std::get_if<runtime::events::Fire>(&e); f && realtime) {
+        std::lock_guard lock(fired->mutex);
+        if (fired->since_frame.size() < 200) fired->since_frame.push_back(f->transition);
+        return;
+      }
       const std::string_view type = runtime::type_of(e);
       if (type != "fault_injected" && type != "fault_detected" && type != "collision") return;
       marks->add(runtime::encode(e));

@@ -194,6 +194,9 @@ TEST_F(LiveLoop, RealTimePlaysPausesStepsRunsToALineAndEnds) {
   v.send(command("play"));
   const json playing = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "playing" && m["t"] > 0.2; });
   ASSERT_TRUE(playing.is_object()) << "no frame as the run goes";
+  const json named =
+      v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "playing" && !m["fired"].empty(); });
+  ASSERT_TRUE(named.is_object()) << "the frames of a run that goes name its latest firings";
   v.send(R"({"type":"teach","action":"begin","robot":"puma"})");
   EXPECT_NE(v.wait_for("error")["reason"].get<std::string>().find("pause it before teaching"), std::string::npos);
   v.send(command("pause"));

@@ -238,8 +238,15 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
             break;
           case serve::CommandKind::kRunTo: {
             if (ended) throw LiveRefusal("the run has ended: restart it first");
-            hold();
-            RunTo to = parse_run_to(m.text, pf->net, *sc, last ? last->time : runtime::SimDuration{0});
+            const bool was_going = going;
+            hold();  // a time is checked against the time it holds at
+            RunTo to;
+            try {
+              to = parse_run_to(m.text, pf->net, *sc, last ? last->time : runtime::SimDuration{0});
+            } catch (const LiveRefusal&) {
+              if (was_going && !ended) let_go();  // refused: the run goes on as it went
+              throw;
+            }
             run_to = std::move(to);
             playing = !ended;
             if (realtime && playing) let_go();

@@ -368,7 +368,7 @@ struct Runtime::Impl {
     if (!step_mode && !pause_at && !hold_now) return !abort;
     const std::uint64_t f = task_firings.load();
     const bool at_time = pause_at && clock.now() >= *pause_at;
-    const bool at_firing = step_mode && f != firings_seen;
+    const bool at_firing = step_mode && f > firings_seen;
     if (!at_firing && !at_time && !hold_now) return !abort;
     firings_seen = f;
     pause_at.reset();
@@ -908,8 +908,11 @@ void Runtime::go(HoldAt at) {
     im.step_mode = at.firing;
     im.pause_at = at.time;
     im.hold_now = false;
-    im.firings_seen = im.task_firings.load();  // a firing counts from now
+    // A firing counts from now. The count is the published view's, read with the list it clears: task control
+    // publishes its view (appending to the list) before it stores task_firings, so a firing either is in this count
+    // or is appended after the clear, and raises task_firings above it.
     std::lock_guard views(im.observed_mutex);
+    im.firings_seen = im.observed_task.firings;
     im.fired_since_go.clear();
     if (im.paused) {
       im.resume = true;

@@ -199,22 +199,31 @@ TEST_F(LiveLoop, RealTimePlaysPausesStepsRunsToALineAndEnds) {
   ASSERT_TRUE(named.is_object()) << "the frames of a run that goes name its latest firings";
   v.send(R"({"type":"teach","action":"begin","robot":"puma"})");
   EXPECT_NE(v.wait_for("error")["reason"].get<std::string>().find("pause it before teaching"), std::string::npos);
+  // A run_to refused (no command on line 3) leaves the run going as it went.
+  v.send(R"({"type":"command","command":"run_to","line":3})");
+  EXPECT_EQ(v.wait_for("error", 1)["reason"], "no command of exchange.task is on line 3");
+  const double after = named["t"].get<double>() + 0.3;
+  EXPECT_TRUE(v.wait_for([after](const json& m) { return is_frame(m) && m["state"] == "playing" && m["t"] > after; })
+                  .is_object())
+      << "the run stopped going after a refused run_to";
+  const auto held = [](const json& m) { return is_frame(m) && m["state"] != "playing"; };
   v.send(command("pause"));
-  const json paused = v.wait_for([](const json& m) { return is_frame(m) && m["state"] != "playing"; });
+  const json paused = v.wait_for(held, 1);  // the first was the frame at the start
   ASSERT_TRUE(paused.is_object());
   ASSERT_EQ(paused["state"], "paused") << "the run ended before the pause was taken";
+  EXPECT_GT(paused["t"].get<double>(), after);
   // Held: the next frame is the step's, not one of a run that goes on.
   const std::size_t frames = v.count("frame");
   v.send(command("step"));
-  const json stepped = v.wait_for([](const json& m) { return is_frame(m) && m["state"] == "paused"; }, 1);
+  const json stepped = v.wait_for(held, 2);
   ASSERT_TRUE(stepped.is_object());
+  EXPECT_EQ(stepped["state"], "paused");
   EXPECT_GT(stepped["firings"], paused["firings"]);
   EXPECT_FALSE(stepped["fired"].empty()) << "a step holds where a transition fired";
   EXPECT_GE(stepped["t"].get<double>(), paused["t"].get<double>());
   EXPECT_GT(v.count("frame"), frames);
 
   // exchange.task line 10: "Place B" (r2), the program's last command.
-  const auto held = [](const json& m) { return is_frame(m) && m["state"] != "playing"; };
   const std::size_t held_before = v.count(held);
   v.send(R"({"type":"command","command":"run_to","line":10})");
   json at;

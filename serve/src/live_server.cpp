@@ -5,7 +5,9 @@
 #include <fmt/format.h>
 
 #include <condition_variable>
+#include <algorithm>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <map>
 #include <set>
@@ -101,6 +103,18 @@ std::filesystem::path file_under(const std::filesystem::path& root, std::string_
   return f;
 }
 
+// The Foxglove protocol's Message Data: opcode 0x01, the subscription id (uint32) and the timestamp (uint64, ns),
+// little-endian, then the payload.
+std::string message_data(std::uint32_t subscription, std::uint64_t time_ns, const std::string& payload) {
+  std::string out;
+  out.reserve(13 + payload.size());
+  out.push_back('\x01');
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>((subscription >> (8 * i)) & 0xFF));
+  for (int i = 0; i < 8; ++i) out.push_back(static_cast<char>((time_ns >> (8 * i)) & 0xFF));
+  out += payload;
+  return out;
+}
+
 }  // namespace
 
 struct LiveServer::Impl {
@@ -119,10 +133,127 @@ struct LiveServer::Impl {
   std::deque<Message> commands;
   std::condition_variable command_ready;
   Counts counts;
+  // The Foxglove protocol: its clients (not in `viewers`) and each one's subscriptions (id -> channel id).
+  std::map<Handle, std::map<std::uint32_t, std::uint32_t>, std::owner_less<Handle>> fox;
+  std::vector<Channel> channels;
+  struct Stamped {
+    std::uint64_t time_ns = 0;
+    std::string payload;
+  };
+  std::map<std::uint32_t, Stamped> base, latest;  // by channel id
+  std::string session = std::to_string(
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
+          .count());
 
   void send_text(Handle h, const std::string& text) {
     websocketpp::lib::error_code ec;
     ws.send(h, text, websocketpp::frame::opcode::text, ec);  // a viewer gone meanwhile: nothing to do
+  }
+
+  void send_binary(Handle h, const std::string& bytes) {
+    websocketpp::lib::error_code ec;
+    ws.send(h, bytes, websocketpp::frame::opcode::binary, ec);
+  }
+
+  bool has_channel(std::uint32_t id) const {
+    return std::any_of(channels.begin(), channels.end(), [id](const Channel& c) { return c.id == id; });
+  }
+
+  std::string advertise_json() const {
+    nlohmann::json list = nlohmann::json::array();
+    for (const Channel& c : channels) {
+      list.push_back({{"id", c.id},
+                      {"topic", c.topic},
+                      {"encoding", c.encoding},
+                      {"schemaName", c.schema_name},
+                      {"schema", c.schema},
+                      {"schemaEncoding", c.schema_encoding}});
+    }
+    return nlohmann::json{{"op", "advertise"}, {"channels", list}}.dump();
+  }
+
+  void refuse_fox(Handle h, const std::string& reason) {
+    {
+      std::lock_guard lock(mutex);
+      ++counts.refused;
+    }
+    send_text(h, nlohmann::json{{"op", "status"}, {"level", 2}, {"message", reason}}.dump());
+  }
+
+  // A Foxglove client's message: subscribe and unsubscribe; anything else refused with a status.
+  void on_fox_message(Handle h, const WsServer::message_ptr& msg) {
+    if (msg->get_opcode() != websocketpp::frame::opcode::text) {
+      return refuse_fox(h, "a binary message: this server takes no client data (it declares no capability)");
+    }
+    const nlohmann::json j = nlohmann::json::parse(msg->get_payload(), nullptr, false);
+    if (j.is_discarded() || !j.is_object()) return refuse_fox(h, "not a JSON object");
+    const auto op = j.find("op");
+    if (op == j.end() || !op->is_string()) return refuse_fox(h, "no \"op\" (a string)");
+    auto is_u32 = [](const nlohmann::json& v) {
+      return v.is_number_unsigned() || (v.is_number_integer() && v.get<std::int64_t>() >= 0 &&
+                                        v.get<std::int64_t>() <= std::numeric_limits<std::uint32_t>::max());
+    };
+    if (*op == "subscribe") {
+      const auto subs = j.find("subscriptions");
+      if (subs == j.end() || !subs->is_array()) return refuse_fox(h, "subscribe needs \"subscriptions\" (an array)");
+      for (const nlohmann::json& s : *subs) {
+        if (!s.is_object() || !s.contains("id") || !s.contains("channelId") || !is_u32(s["id"]) ||
+            !is_u32(s["channelId"])) {
+          refuse_fox(h, fmt::format("a subscription is {{\"id\", \"channelId\"}} (unsigned 32-bit), not {}",
+                                    s.dump()));
+          continue;
+        }
+        const auto id = s["id"].get<std::uint32_t>();
+        const auto channel = s["channelId"].get<std::uint32_t>();
+        std::vector<std::string> first;  // the channel's base and latest, to this subscription
+        std::string problem;
+        {
+          std::lock_guard lock(mutex);
+          auto it = fox.find(h);
+          if (it == fox.end()) return;  // gone meanwhile
+          if (!has_channel(channel)) {
+            problem = fmt::format("subscription {}: no channel {} is advertised", id, channel);
+          } else if (it->second.count(id)) {
+            problem = fmt::format("subscription id {} is in use (unsubscribe it first)", id);
+          } else {
+            it->second[id] = channel;
+            for (const auto* kept : {&base, &latest}) {
+              if (const auto k = kept->find(channel); k != kept->end()) {
+                first.push_back(message_data(id, k->second.time_ns, k->second.payload));
+              }
+            }
+          }
+        }
+        if (!problem.empty()) {
+          refuse_fox(h, problem);
+          continue;
+        }
+        for (const std::string& m : first) send_binary(h, m);
+      }
+      return;
+    }
+    if (*op == "unsubscribe") {
+      const auto sub_ids = j.find("subscriptionIds");
+      if (sub_ids == j.end() || !sub_ids->is_array()) {
+        return refuse_fox(h, "unsubscribe needs \"subscriptionIds\" (an array)");
+      }
+      for (const nlohmann::json& v : *sub_ids) {
+        std::string problem;
+        {
+          std::lock_guard lock(mutex);
+          auto it = fox.find(h);
+          if (it == fox.end()) return;
+          if (!is_u32(v) || !it->second.erase(v.get<std::uint32_t>())) {
+            problem = fmt::format("no subscription {} to unsubscribe", v.dump());
+          }
+        }
+        if (!problem.empty()) refuse_fox(h, problem);
+      }
+      return;
+    }
+    refuse_fox(h, fmt::format("op '{}' is not supported: this server declares no capability (it streams its "
+                              "channels, and takes subscribe and unsubscribe)",
+                              op->get<std::string>()));
   }
 
   void on_http(Handle h) {
@@ -151,7 +282,37 @@ struct LiveServer::Impl {
     con->set_body(body.str());
   }
 
+  // The handshake: a client that asks for the Foxglove subprotocol gets it.
+  bool on_validate(Handle h) {
+    WsServer::connection_ptr con = ws.get_con_from_hdl(h);
+    for (const std::string& p : con->get_requested_subprotocols()) {
+      if (p == kFoxgloveSubprotocol) {
+        con->select_subprotocol(p);
+        break;
+      }
+    }
+    return true;
+  }
+
   void on_open(Handle h) {
+    websocketpp::lib::error_code ec;
+    WsServer::connection_ptr con = ws.get_con_from_hdl(h, ec);
+    if (!ec && con && con->get_subprotocol() == kFoxgloveSubprotocol) {
+      std::string advertised;
+      {
+        std::lock_guard lock(mutex);
+        fox[h];
+        advertised = advertise_json();
+      }
+      send_text(h, nlohmann::json{{"op", "serverInfo"},
+                                  {"name", options.name},
+                                  {"capabilities", nlohmann::json::array()},
+                                  {"metadata", nlohmann::json::object()},
+                                  {"sessionId", session}}
+                       .dump());
+      send_text(h, advertised);
+      return;
+    }
     std::string c;
     std::vector<std::string> after;
     {
@@ -169,6 +330,7 @@ struct LiveServer::Impl {
 
   void on_close(Handle h) {
     std::lock_guard lock(mutex);
+    fox.erase(h);
     viewers.erase(h);
     if (const auto it = ids.find(h); it != ids.end()) {
       by_id.erase(it->second);
@@ -177,6 +339,12 @@ struct LiveServer::Impl {
   }
 
   void on_message(Handle h, const WsServer::message_ptr& msg) {
+    bool is_fox = false;
+    {
+      std::lock_guard lock(mutex);
+      is_fox = fox.count(h) > 0;
+    }
+    if (is_fox) return on_fox_message(h, msg);
     Parsed parsed = msg->get_opcode() == websocketpp::frame::opcode::text
                         ? parse_message(msg->get_payload())
                         : Parsed(Refusal{"a binary message (messages are JSON text)"});
@@ -211,6 +379,7 @@ LiveServer::LiveServer(ServerOptions options) : impl_(std::make_unique<Impl>()) 
   if (ec) throw InputError({where, 0, 0}, fmt::format("cannot start the server: {}", ec.message()));
   im.ws.set_reuse_addr(true);
   im.ws.set_http_handler([&im](Handle h) { im.on_http(h); });
+  im.ws.set_validate_handler([&im](Handle h) { return im.on_validate(h); });
   im.ws.set_open_handler([&im](Handle h) { im.on_open(h); });
   im.ws.set_close_handler([&im](Handle h) { im.on_close(h); });
   im.ws.set_fail_handler([&im](Handle h) { im.on_close(h); });
@@ -234,6 +403,7 @@ LiveServer::~LiveServer() {
   {
     std::lock_guard lock(im.mutex);
     open = im.viewers;
+    for (const auto& f : im.fox) open.insert(f.first);
   }
   for (const Handle& h : open) im.ws.close(h, websocketpp::close::status::going_away, "the server stops", ec);
   im.ws.stop();
@@ -317,6 +487,100 @@ void LiveServer::broadcast(const std::string& json) {
     open = impl_->viewers;
   }
   for (const Handle& h : open) impl_->send_text(h, json);
+}
+
+void LiveServer::advertise(std::vector<Channel> channels) {
+  Impl& im = *impl_;
+  for (std::size_t i = 0; i < channels.size(); ++i) {
+    for (std::size_t k = 0; k < i; ++k) {
+      if (channels[i].id == channels[k].id) {
+        throw InputError({channels[i].topic, 0, 0},
+                         fmt::format("channel id {} is also {}'s", channels[i].id, channels[k].topic));
+      }
+    }
+  }
+  std::vector<Handle> clients;
+  nlohmann::json gone = nlohmann::json::array();
+  std::string advertised;
+  {
+    std::lock_guard lock(im.mutex);
+    for (const Channel& c : im.channels) gone.push_back(c.id);
+    im.channels = std::move(channels);
+    for (auto& [h, subs] : im.fox) {
+      clients.push_back(h);
+      for (auto it = subs.begin(); it != subs.end();) it = im.has_channel(it->second) ? std::next(it) : subs.erase(it);
+    }
+    for (auto* kept : {&im.base, &im.latest}) {
+      for (auto it = kept->begin(); it != kept->end();) it = im.has_channel(it->first) ? std::next(it) : kept->erase(it);
+    }
+    advertised = im.advertise_json();
+  }
+  const std::string unadvertise = nlohmann::json{{"op", "unadvertise"}, {"channelIds", gone}}.dump();
+  for (const Handle& h : clients) {
+    if (!gone.empty()) im.send_text(h, unadvertise);
+    im.send_text(h, advertised);
+  }
+}
+
+void LiveServer::set_channel_base(std::uint32_t channel, std::string payload, std::uint64_t time_ns) {
+  Impl& im = *impl_;
+  std::vector<std::pair<Handle, std::uint32_t>> to;
+  {
+    std::lock_guard lock(im.mutex);
+    if (!im.has_channel(channel)) return;
+    im.latest.erase(channel);
+    for (const auto& [h, subs] : im.fox) {
+      for (const auto& [id, c] : subs) {
+        if (c == channel) to.emplace_back(h, id);
+      }
+    }
+    im.base[channel] = {time_ns, payload};
+  }
+  for (const auto& [h, id] : to) im.send_binary(h, message_data(id, time_ns, payload));
+}
+
+void LiveServer::publish_channel(std::uint32_t channel, std::string payload, std::uint64_t time_ns) {
+  Impl& im = *impl_;
+  std::vector<std::pair<Handle, std::uint32_t>> to;
+  {
+    std::lock_guard lock(im.mutex);
+    if (!im.has_channel(channel)) return;
+    for (const auto& [h, subs] : im.fox) {
+      for (const auto& [id, c] : subs) {
+        if (c == channel) to.emplace_back(h, id);
+      }
+    }
+    im.latest[channel] = {time_ns, payload};  // before sending: a client subscribing meanwhile gets it too
+  }
+  std::uint64_t sent = 0, dropped = 0;
+  for (const auto& [h, id] : to) {
+    websocketpp::lib::error_code ec;
+    WsServer::connection_ptr con = im.ws.get_con_from_hdl(h, ec);
+    if (ec || !con) continue;
+    if (con->get_buffered_amount() > im.options.max_buffered) {
+      ++dropped;
+      continue;
+    }
+    con->send(message_data(id, time_ns, payload), websocketpp::frame::opcode::binary);
+    ++sent;
+  }
+  std::lock_guard lock(im.mutex);
+  im.counts.messages += sent;
+  im.counts.messages_dropped += dropped;
+}
+
+std::size_t LiveServer::subscribers(std::uint32_t channel) const {
+  std::lock_guard lock(impl_->mutex);
+  std::size_t n = 0;
+  for (const auto& [h, subs] : impl_->fox) {
+    for (const auto& [id, c] : subs) n += c == channel ? 1 : 0;
+  }
+  return n;
+}
+
+std::size_t LiveServer::foxglove_clients() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->fox.size();
 }
 
 std::size_t LiveServer::viewers() const {

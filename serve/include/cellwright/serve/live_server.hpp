@@ -16,6 +16,21 @@
 // Anything else from a viewer (not JSON, not an object, another type, an unknown command, a binary frame, a text over
 // kMaxMessageBytes) is refused with an "error" message naming the problem; the connection stays open.
 //
+// The same endpoint speaks the Foxglove WebSocket protocol (https://github.com/foxglove/ws-protocol, docs/spec.md)
+// to a client that asks for the subprotocol "foxglove.websocket.v1" (Foxglove, Lichtblick: "Open connection",
+// ws://HOST:PORT), on any path. Such a client is not a viewer of the protocol above: it gets none of its messages and
+// may send none of them. It gets:
+//   {"op":"serverInfo","name" (ServerOptions::name),"capabilities":[],"metadata":{},"sessionId"} when it connects,
+//   {"op":"advertise","channels":[...]} the channels (advertise()) when it connects and when they change (after an
+//                                       {"op":"unadvertise","channelIds":[...]} of the ones before),
+//   binary Message Data (0x01, uint32 subscription id, uint64 timestamp ns, payload; little-endian) on each channel
+//       it subscribed to: first the channel's base (set_channel_base) and its latest message, then each message
+//       published on it (publish_channel), dropped, as frames are, when its socket is full,
+//   {"op":"status","level":2,"message":"..."} when a message of its was refused, and why.
+// It may send {"op":"subscribe","subscriptions":[{"id","channelId"}]} and {"op":"unsubscribe","subscriptionIds":[]}.
+// The server declares no capability, so any other op (a client publishing, parameters, services), a binary message,
+// an unknown channel, a subscription id in use, or text that is not such an object is refused with a status.
+//
 // HTTP: GET "/" is www/index.html; "/<file>" a file of www; "/models/<path>" a file of the models directory (the
 // robots' URDFs and meshes). A path with "..", or a file that is not there, is 404. Nothing else is served.
 //
@@ -67,6 +82,19 @@ struct ServerOptions {
   std::filesystem::path www;       // the page's files
   std::filesystem::path models;    // served under /models/
   std::size_t max_buffered = 256 * 1024;  // bytes waiting on a viewer's socket above which its frames are dropped
+  std::string name = "cellwright";        // the Foxglove serverInfo's name
+};
+
+inline constexpr const char* kFoxgloveSubprotocol = "foxglove.websocket.v1";
+
+// A channel of the Foxglove protocol, as its "advertise" message describes it.
+struct Channel {
+  std::uint32_t id = 0;
+  std::string topic;
+  std::string encoding = "json";
+  std::string schema_name;
+  std::string schema;  // the schema's text, in schema_encoding
+  std::string schema_encoding = "jsonschema";
 };
 
 class LiveServer {
@@ -100,11 +128,27 @@ class LiveServer {
   // The oldest message not yet taken, waiting up to `timeout` for one.
   std::optional<Message> wait_message(std::chrono::milliseconds timeout);
 
+  // The Foxglove protocol's channels (see the top). advertise() replaces them: the clients are told (unadvertise,
+  // advertise) and lose their subscriptions to channels gone. Ids are unique (InputError otherwise).
+  void advertise(std::vector<Channel> channels);
+  // A channel's base: sent to each client that subscribes from now on, before the channel's latest message, and now
+  // to every subscriber (e.g. the whole scene, where later messages carry only what moves). Clears the latest message.
+  void set_channel_base(std::uint32_t channel, std::string payload, std::uint64_t time_ns);
+  // A message on a channel: kept as its latest, sent to each subscriber that can take it now (the others miss it,
+  // counted in Counts::messages_dropped). Never waits. A channel not advertised: nothing is sent.
+  void publish_channel(std::uint32_t channel, std::string payload, std::uint64_t time_ns);
+  // Subscriptions to `channel` now, over all Foxglove clients.
+  std::size_t subscribers(std::uint32_t channel) const;
+
+  // Viewers of the live view's protocol (Foxglove clients are not counted: foxglove_clients()).
   std::size_t viewers() const;
+  std::size_t foxglove_clients() const;
   struct Counts {
     std::uint64_t sent = 0;     // frames handed to a viewer's socket
     std::uint64_t dropped = 0;  // frames a slow viewer missed
-    std::uint64_t refused = 0;  // viewers' messages refused
+    std::uint64_t refused = 0;  // viewers' and Foxglove clients' messages refused
+    std::uint64_t messages = 0;          // channel messages handed to a Foxglove client's socket
+    std::uint64_t messages_dropped = 0;  // channel messages a slow Foxglove client missed
   };
   Counts counts() const;
 

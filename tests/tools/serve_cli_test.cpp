@@ -80,6 +80,9 @@ TEST(TwinServe, AViewerStepsTheExchangeScenarioAndTheFiringsAdvance) {
   ASSERT_TRUE(twin.wait_for("/ (Ctrl-C stops)", 5s)) << twin.output();
   const std::uint16_t port = served_port(twin.output());
   ASSERT_NE(port, 0) << twin.output();
+  // The same endpoint for Foxglove, said in the banner.
+  EXPECT_NE(twin.output().find("and Foxglove on ws://127.0.0.1:" + std::to_string(port) + "/"), std::string::npos)
+      << twin.output();
 
   WsViewer v(port);
   const json cell = v.wait_for("cell");

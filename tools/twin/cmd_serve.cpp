@@ -79,8 +79,10 @@ void add_serve(CLI::App& app, Command* run) {
       block_stop_signals();
       serve::LiveServer server(so);
       const std::string mode = *options.realtime ? fmt::format("real time at speed {:g}", options.speed) : "lock-step";
-      std::printf("%s: %s, serving the live view on http://%s:%u/ (Ctrl-C stops)\n", args->scenario.c_str(),
-                  mode.c_str(), bind->c_str(), static_cast<unsigned>(server.port()));
+      // Printed with the port taken (--port 0): the page's URL, and the same endpoint for Foxglove (docs/live-view.md).
+      std::printf("%s: %s, serving the live view on http://%s:%u/ and Foxglove on ws://%s:%u/ (Ctrl-C stops)\n",
+                  args->scenario.c_str(), mode.c_str(), bind->c_str(), static_cast<unsigned>(server.port()),
+                  bind->c_str(), static_cast<unsigned>(server.port()));
       std::fflush(stdout);
       std::atomic<bool> stop{false};
       const StopWatcher watcher([&stop] { stop = true; });

@@ -37,59 +37,6 @@ json pose7(const double* pos, const double* quat) {
   return json::array({pos[0], pos[1], pos[2], quat[0], quat[1], quat[2], quat[3]});
 }
 
-const char* shape_of(int type) {
-  switch (type) {
-    case mjGEOM_BOX: return "box";
-    case mjGEOM_CYLINDER: return "cylinder";
-    case mjGEOM_SPHERE: return "sphere";
-    case mjGEOM_CAPSULE: return "capsule";
-    case mjGEOM_PLANE: return "plane";
-    default: return nullptr;  // meshes (the robots' and imported ones) and the rest are not sent
-  }
-}
-
-// The bodies of the robots' subtrees (drawn from the URDFs on the page).
-std::vector<bool> robot_bodies(const twin::Scene& scene) {
-  const mjModel* m = scene.model();
-  std::vector<bool> robot(static_cast<std::size_t>(m->nbody), false);
-  for (const twin::RobotIds& r : scene.robots()) {
-    if (r.base_body < 0) continue;
-    const int root = m->body_rootid[r.base_body];
-    for (int b = 0; b < m->nbody; ++b) {
-      if (m->body_rootid[b] == root && b != 0) robot[static_cast<std::size_t>(b)] = true;
-    }
-  }
-  return robot;
-}
-
-// The bodies the cell message lists, in id order: those of the sent geoms.
-std::vector<int> sent_bodies(const twin::Scene& scene) {
-  const mjModel* m = scene.model();
-  const std::vector<bool> robot = robot_bodies(scene);
-  std::vector<bool> used(static_cast<std::size_t>(m->nbody), false);
-  for (int g = 0; g < m->ngeom; ++g) {
-    const int b = m->geom_bodyid[g];
-    if (!robot[static_cast<std::size_t>(b)] && shape_of(m->geom_type[g]) && m->geom_rgba[4 * g + 3] > 0) {
-      used[static_cast<std::size_t>(b)] = true;
-    }
-  }
-  std::vector<int> out;
-  for (int b = 0; b < m->nbody; ++b) {
-    if (used[static_cast<std::size_t>(b)]) out.push_back(b);
-  }
-  return out;
-}
-
-bool moves(const mjModel* m, int body) {
-  const int root = m->body_rootid[body];
-  return root != 0 && (m->body_jntnum[root] > 0 || m->body_mocapid[root] >= 0 || m->body_jntnum[body] > 0);
-}
-
-std::string body_name(const mjModel* m, int b) {
-  const char* n = mj_id2name(m, mjOBJ_BODY, b);
-  return n ? n : fmt::format("body {}", b);
-}
-
 const char* role_name(twin::GeomRole::Kind k) {
   switch (k) {
     case twin::GeomRole::Kind::none: return "visual";
@@ -158,18 +105,18 @@ std::string live_cell_json(ScenarioRun& run, const std::filesystem::path& models
                       {"base", base >= 0 ? pose7(d->xpos + 3 * base, d->xquat + 4 * base) : json()},
                       {"joints", joints}});
   }
-  const std::vector<int> bodies = sent_bodies(scene);
+  const std::vector<int> bodies = view::sent_bodies(scene);
   std::vector<bool> listed(static_cast<std::size_t>(m->nbody), false);
   json jb = json::array();
   for (int b : bodies) {
     listed[static_cast<std::size_t>(b)] = true;
-    jb.push_back({{"id", b}, {"name", body_name(m, b)}, {"pose", pose7(d->xpos + 3 * b, d->xquat + 4 * b)},
-                  {"moves", moves(m, b)}});
+    jb.push_back({{"id", b}, {"name", view::body_name(m, b)}, {"pose", pose7(d->xpos + 3 * b, d->xquat + 4 * b)},
+                  {"moves", view::moves(m, b)}});
   }
   json geoms = json::array();
   for (int g = 0; g < m->ngeom; ++g) {
     const int b = m->geom_bodyid[g];
-    const char* shape = shape_of(m->geom_type[g]);
+    const char* shape = view::shape_of(m->geom_type[g]);
     if (!listed[static_cast<std::size_t>(b)] || !shape || m->geom_rgba[4 * g + 3] <= 0) continue;
     const mjtNum* sz = m->geom_size + 3 * g;
     // MuJoCo draws a geom with a material in the material's colour (conveyors, machines): so does the page.
@@ -259,8 +206,8 @@ std::string live_frame_json(ScenarioRun& run, const LiveFrameState& state, const
     robots.push_back(std::move(r));
   }
   json bodies = json::array();
-  for (int b : sent_bodies(scene)) {
-    if (!moves(m, b)) continue;
+  for (int b : view::sent_bodies(scene)) {
+    if (!view::moves(m, b)) continue;
     json row = pose7(d->xpos + 3 * b, d->xquat + 4 * b);
     row.insert(row.begin(), b);
     bodies.push_back(std::move(row));

@@ -1,5 +1,6 @@
 #include "live_view.hpp"
 
+#include <fmt/format.h>
 #include <mujoco/mujoco.h>
 
 #include <chrono>
@@ -53,6 +54,59 @@ json workpiece_pos(ScenarioRun& run, const std::string& workpiece) {
 }
 
 }  // namespace
+
+const char* shape_of(int type) {
+  switch (type) {
+    case mjGEOM_BOX: return "box";
+    case mjGEOM_CYLINDER: return "cylinder";
+    case mjGEOM_SPHERE: return "sphere";
+    case mjGEOM_CAPSULE: return "capsule";
+    case mjGEOM_PLANE: return "plane";
+    default: return nullptr;  // meshes (the robots' and imported ones) and the rest are not sent
+  }
+}
+
+// The bodies of the robots' subtrees (drawn from the URDFs on the page).
+std::vector<bool> robot_bodies(const twin::Scene& scene) {
+  const mjModel* m = scene.model();
+  std::vector<bool> robot(static_cast<std::size_t>(m->nbody), false);
+  for (const twin::RobotIds& r : scene.robots()) {
+    if (r.base_body < 0) continue;
+    const int root = m->body_rootid[r.base_body];
+    for (int b = 0; b < m->nbody; ++b) {
+      if (m->body_rootid[b] == root && b != 0) robot[static_cast<std::size_t>(b)] = true;
+    }
+  }
+  return robot;
+}
+
+// The bodies the cell message lists, in id order: those of the sent geoms.
+std::vector<int> sent_bodies(const twin::Scene& scene) {
+  const mjModel* m = scene.model();
+  const std::vector<bool> robot = robot_bodies(scene);
+  std::vector<bool> used(static_cast<std::size_t>(m->nbody), false);
+  for (int g = 0; g < m->ngeom; ++g) {
+    const int b = m->geom_bodyid[g];
+    if (!robot[static_cast<std::size_t>(b)] && shape_of(m->geom_type[g]) && m->geom_rgba[4 * g + 3] > 0) {
+      used[static_cast<std::size_t>(b)] = true;
+    }
+  }
+  std::vector<int> out;
+  for (int b = 0; b < m->nbody; ++b) {
+    if (used[static_cast<std::size_t>(b)]) out.push_back(b);
+  }
+  return out;
+}
+
+bool moves(const mjModel* m, int body) {
+  const int root = m->body_rootid[body];
+  return root != 0 && (m->body_jntnum[root] > 0 || m->body_mocapid[root] >= 0 || m->body_jntnum[body] > 0);
+}
+
+std::string body_name(const mjModel* m, int b) {
+  const char* n = mj_id2name(m, mjOBJ_BODY, b);
+  return n ? n : fmt::format("body {}", b);
+}
 
 json cameras(ScenarioRun& run) {
   const twin::Scene& scene = run.world().scene();

@@ -20,9 +20,23 @@
 #include <string>
 #include <vector>
 
+#include <mujoco/mujoco.h>
+
 #include "cellwright/cell/sim/run.hpp"
+#include "cellwright/twin/scene.hpp"
 
 namespace cellwright::cell::view {
+
+// A geom's shape as the live view names it ("box", "cylinder", "sphere", "capsule", "plane"); null for the shapes it
+// does not draw (meshes and the rest).
+const char* shape_of(int mj_geom_type);
+// The bodies of the robots' subtrees (by body id): the page draws them from the URDFs.
+std::vector<bool> robot_bodies(const twin::Scene& scene);
+// The bodies of the geoms the cell message lists, in id order: every body but the robots' with a drawn geom.
+std::vector<int> sent_bodies(const twin::Scene& scene);
+// Whether a body can move (it or its root body has a joint, or is a mocap body).
+bool moves(const mjModel* m, int body);
+std::string body_name(const mjModel* m, int body);
 
 nlohmann::json cameras(ScenarioRun& run);
 // The mark of one event-log line of a fault or collision; null for a line that does not decode.

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
+#include "cellwright/cell/live/foxglove_scene.hpp"
 #include "cellwright/cell/live/live.hpp"
 #include "cellwright/cell/live/location_file.hpp"
 #include "cellwright/cell/live/replay.hpp"
@@ -27,6 +28,22 @@ std::string with_replay(std::string frame, bool replay, std::uint64_t done) {
     frame += fmt::format(",\"replay\":true,\"replay_index\":{}}}", done);
   }
   return frame;
+}
+
+// Sends a frame to the page's viewers, and to the Foxglove clients that subscribed to the frame or the scene (with
+// the scene of the run now).
+void publish_frame(serve::LiveServer& server, ScenarioRun& run, const FaultMarks& marks, const std::string& frame) {
+  server.publish(frame);
+  const std::uint64_t now = foxglove_now_ns();
+  if (server.subscribers(kFrameChannel) > 0) server.publish_channel(kFrameChannel, frame, now);
+  if (server.subscribers(kSceneChannel) > 0) {
+    server.publish_channel(kSceneChannel, foxglove_scene_json(run, false, marks, now), now);
+  }
+}
+
+// How many watch: the page's viewers and the Foxglove subscriptions.
+std::size_t watchers(const serve::LiveServer& server) {
+  return server.viewers() + server.subscribers(kSceneChannel) + server.subscribers(kFrameChannel);
 }
 
 // Where to pause a run playing to a target ("run_to").
@@ -76,6 +93,7 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
   LiveScenario reloaded;  // owns sc and pf after a reload
   bool reload_pending = false;
   CheckOutcome check = check_outcome(pf->net, pf->analysis);  // the preflight's analysis, not run again
+  server.advertise(foxglove_channels());
   if (!check.ok) server.set_greeting({check_json(pf->net, check)});
   int runs = 0;
   while (!stop) {
@@ -121,7 +139,7 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
       const std::size_t script = order.size();
       c.observers.push_back(
           {every, true, [marks, shared_run, fired, &server, replay, script](const runtime::Observation& o) {
-             if (server.viewers() == 0) return;  // nobody watches: no frame to build
+             if (watchers(server) == 0) return;  // nobody watches: no frame to build
              runtime::StepState st;
              st.time = o.time;
              st.task = o.task;
@@ -132,8 +150,9 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
                fired->since_frame.clear();
                st.task.last_fired = fired->shown;  // the latest firings, until newer ones
              }
-             server.publish(with_replay(live_frame_json(**shared_run, LiveFrameState{"playing", &st}, *marks), replay,
-                                        std::min<std::uint64_t>(o.task.firings, script)));
+             publish_frame(server, **shared_run, *marks,
+                           with_replay(live_frame_json(**shared_run, LiveFrameState{"playing", &st}, *marks), replay,
+                                       std::min<std::uint64_t>(o.task.firings, script)));
            }});
     };
     auto run = std::make_unique<ScenarioRun>(*sc, *pf, run_options);
@@ -151,21 +170,24 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
       marks->add(runtime::encode(e));
     });
     server.set_cell(live_cell_json(*run, models));
+    const std::uint64_t started = foxglove_now_ns();
+    server.set_channel_base(kSceneChannel, foxglove_scene_json(*run, true, *marks, started), started);
     Teacher teacher(*sc);
     bool playing = serve_options.play, ended = false, restart = false;
     bool going = false;  // real time: let go (Runtime::go), not yet seen held or ended
     std::optional<RunTo> run_to;
     std::optional<runtime::StepState> last;
     serve::FramePacer pacer(serve_options.frame_hz);
-    std::size_t viewers = server.viewers();
+    std::size_t viewers = watchers(server);
     bool missed = false;  // a viewer missed the last frame sent (its socket was full)
     // The state now, built here: lock-step between steps, or real time while held, before it starts or ended.
     auto send = [&] {
       const LiveFrameState st{ended ? "ended" : playing ? "playing" : "paused", last ? &*last : nullptr};
-      const std::uint64_t dropped = server.counts().dropped;
+      const serve::LiveServer::Counts before = server.counts();
       const std::uint64_t done = std::min<std::uint64_t>(last ? last->task.firings : 0, check.counterexample.size());
-      server.publish(with_replay(live_frame_json(*run, st, *marks), replay, done));
-      missed = server.counts().dropped > dropped;
+      publish_frame(server, *run, *marks, with_replay(live_frame_json(*run, st, *marks), replay, done));
+      const serve::LiveServer::Counts after = server.counts();
+      missed = after.dropped > before.dropped || after.messages_dropped > before.messages_dropped;
     };
     // Real time: lets the run go, to the next firing when stepping, replaying (whose end is seen at a firing) or
     // running to a line; to run_to's time; else to its end.
@@ -320,12 +342,12 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
             send();
           }
         }
-      } else if (const std::size_t n = server.viewers(); n > viewers || missed) {
+      } else if (const std::size_t n = watchers(server); n > viewers || missed) {
         // A viewer that came while nothing moves gets the state now; one that missed the last frame gets it again
         // (at most every 100 ms while its socket stays full), so no viewer is left on an older state.
         send();
       }
-      viewers = server.viewers();
+      viewers = watchers(server);
     }
     // The restarted run starts with nothing taught: the viewers' ghosts go away.
     for (const std::string& robot : teacher.active()) {

@@ -59,4 +59,18 @@ class LiveLoop : public ::testing::Test {
   int runs_ = 0;
 };
 
+// One run of the exchange scenario, built and not started, for the tests that read its messages.
+class ExchangeRun : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    scenario_ = std::make_unique<Scenario>(load_scenario(kExchange));
+    preflight_ = std::make_unique<Preflight>(preflight(*scenario_, &twin_port()));
+    ASSERT_TRUE(preflight_->ok()) << preflight_->problems.front();
+    run_ = std::make_unique<ScenarioRun>(*scenario_, *preflight_, RunOptions{});
+  }
+  std::unique_ptr<Scenario> scenario_;
+  std::unique_ptr<Preflight> preflight_;
+  std::unique_ptr<ScenarioRun> run_;
+};
+
 }  // namespace cellwright::cell::live_testing

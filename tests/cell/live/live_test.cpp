@@ -408,22 +408,13 @@ using live_testing::kExchange;
 using nlohmann::json;
 
 // The view-only parts of the messages (cell/live/src/live_view.hpp), read from one run of the exchange scenario.
-class LiveView : public ::testing::Test {
+class LiveView : public live_testing::ExchangeRun {
  protected:
-  void SetUp() override {
-    scenario_ = std::make_unique<Scenario>(load_scenario(kExchange));
-    preflight_ = std::make_unique<Preflight>(preflight(*scenario_, &twin_port()));
-    ASSERT_TRUE(preflight_->ok()) << preflight_->problems.front();
-    run_ = std::make_unique<ScenarioRun>(*scenario_, *preflight_, RunOptions{});
-  }
   json frame(const std::vector<std::string>& faults = {}, const runtime::StepState* step = nullptr) {
     FaultMarks marks;
     for (const std::string& line : faults) marks.add(line);
     return json::parse(live_frame_json(*run_, LiveFrameState{"paused", step}, marks));
   }
-  std::unique_ptr<Scenario> scenario_;
-  std::unique_ptr<Preflight> preflight_;
-  std::unique_ptr<ScenarioRun> run_;
 };
 
 TEST_F(LiveView, TheCellNamesTheOverheadCameraWithItsPoseFieldOfViewAndResolution) {

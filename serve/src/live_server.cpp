@@ -123,6 +123,10 @@ struct LiveServer::Impl {
   std::thread thread;
   std::uint16_t port = 0;
 
+  // Held across taking what to send to Foxglove clients and handing it to their sockets (on_open, subscribe,
+  // advertise, set_channel_base, publish_channel), so that each client gets them in the order they were taken: never
+  // a channel's older base or message after a newer one. Taken before `mutex`, never while holding it.
+  std::mutex send_order;
   mutable std::mutex mutex;  // guards what follows
   std::set<Handle, std::owner_less<Handle>> viewers;
   std::map<Handle, std::uint64_t, std::owner_less<Handle>> ids;  // each viewer's number (Message::viewer)
@@ -133,6 +137,7 @@ struct LiveServer::Impl {
   std::deque<Message> commands;
   std::condition_variable command_ready;
   Counts counts;
+  std::uint64_t arrivals = 0;  // viewers that connected and subscriptions made, so far
   // The Foxglove protocol: its clients (not in `viewers`) and each one's subscriptions (id -> channel id).
   std::map<Handle, std::map<std::uint32_t, std::uint32_t>, std::owner_less<Handle>> fox;
   std::vector<Channel> channels;
@@ -159,9 +164,9 @@ struct LiveServer::Impl {
     return std::any_of(channels.begin(), channels.end(), [id](const Channel& c) { return c.id == id; });
   }
 
-  std::string advertise_json() const {
+  static std::string advertise_json(const std::vector<Channel>& list_of) {
     nlohmann::json list = nlohmann::json::array();
-    for (const Channel& c : channels) {
+    for (const Channel& c : list_of) {
       list.push_back({{"id", c.id},
                       {"topic", c.topic},
                       {"encoding", c.encoding},
@@ -190,8 +195,7 @@ struct LiveServer::Impl {
     const auto op = j.find("op");
     if (op == j.end() || !op->is_string()) return refuse_fox(h, "no \"op\" (a string)");
     auto is_u32 = [](const nlohmann::json& v) {
-      return v.is_number_unsigned() || (v.is_number_integer() && v.get<std::int64_t>() >= 0 &&
-                                        v.get<std::int64_t>() <= std::numeric_limits<std::uint32_t>::max());
+      return v.is_number_unsigned() && v.get<std::uint64_t>() <= std::numeric_limits<std::uint32_t>::max();
     };
     if (*op == "subscribe") {
       const auto subs = j.find("subscriptions");
@@ -207,6 +211,7 @@ struct LiveServer::Impl {
         const auto channel = s["channelId"].get<std::uint32_t>();
         std::vector<std::string> first;  // the channel's base and latest, to this subscription
         std::string problem;
+        std::lock_guard order(send_order);
         {
           std::lock_guard lock(mutex);
           auto it = fox.find(h);
@@ -215,8 +220,14 @@ struct LiveServer::Impl {
             problem = fmt::format("subscription {}: no channel {} is advertised", id, channel);
           } else if (it->second.count(id)) {
             problem = fmt::format("subscription id {} is in use (unsubscribe it first)", id);
+          } else if (std::any_of(it->second.begin(), it->second.end(),
+                                 [channel](const auto& sub) { return sub.second == channel; })) {
+            problem = fmt::format("subscription {}: this client has a subscription to channel {} already (one a "
+                                  "channel)",
+                                  id, channel);
           } else {
             it->second[id] = channel;
+            ++arrivals;
             for (const auto* kept : {&base, &latest}) {
               if (const auto k = kept->find(channel); k != kept->end()) {
                 first.push_back(message_data(id, k->second.time_ns, k->second.payload));
@@ -238,16 +249,25 @@ struct LiveServer::Impl {
         return refuse_fox(h, "unsubscribe needs \"subscriptionIds\" (an array)");
       }
       for (const nlohmann::json& v : *sub_ids) {
-        std::string problem;
+        if (!is_u32(v)) {
+          refuse_fox(h, fmt::format("a subscription id is an unsigned 32-bit number, not {}", v.dump()));
+          continue;
+        }
+        bool known = false;
         {
           std::lock_guard lock(mutex);
           auto it = fox.find(h);
           if (it == fox.end()) return;
-          if (!is_u32(v) || !it->second.erase(v.get<std::uint32_t>())) {
-            problem = fmt::format("no subscription {} to unsubscribe", v.dump());
-          }
+          known = it->second.erase(v.get<std::uint32_t>()) > 0;
         }
-        if (!problem.empty()) refuse_fox(h, problem);
+        // Not an error: the subscriptions of a channel unadvertised end with it, and a client may unsubscribe them
+        // after (Foxglove does).
+        if (!known) {
+          send_text(h, nlohmann::json{{"op", "status"},
+                                      {"level", 1},
+                                      {"message", fmt::format("no subscription {} (any more)", v.dump())}}
+                           .dump());
+        }
       }
       return;
     }
@@ -299,10 +319,11 @@ struct LiveServer::Impl {
     WsServer::connection_ptr con = ws.get_con_from_hdl(h, ec);
     if (!ec && con && con->get_subprotocol() == kFoxgloveSubprotocol) {
       std::string advertised;
+      std::lock_guard order(send_order);  // serverInfo, then the channels as they are now
       {
         std::lock_guard lock(mutex);
         fox[h];
-        advertised = advertise_json();
+        advertised = advertise_json(channels);
       }
       send_text(h, nlohmann::json{{"op", "serverInfo"},
                                   {"name", options.name},
@@ -319,6 +340,7 @@ struct LiveServer::Impl {
       std::lock_guard lock(mutex);
       viewers.insert(h);
       const std::uint64_t id = next_id++;
+      ++arrivals;
       ids[h] = id;
       by_id[id] = h;
       c = cell;
@@ -499,32 +521,47 @@ void LiveServer::advertise(std::vector<Channel> channels) {
       }
     }
   }
+  auto same = [](const Channel& a, const Channel& b) {
+    return a.id == b.id && a.topic == b.topic && a.encoding == b.encoding && a.schema_name == b.schema_name &&
+           a.schema == b.schema && a.schema_encoding == b.schema_encoding;
+  };
+  auto in = [&same](const std::vector<Channel>& list, const Channel& c) {
+    return std::any_of(list.begin(), list.end(), [&](const Channel& o) { return same(o, c); });
+  };
+  std::lock_guard order(im.send_order);
   std::vector<Handle> clients;
-  nlohmann::json gone = nlohmann::json::array();
-  std::string advertised;
+  nlohmann::json gone = nlohmann::json::array();  // removed, or changed under the same id
+  std::vector<Channel> added;                     // new, or changed
   {
     std::lock_guard lock(im.mutex);
-    for (const Channel& c : im.channels) gone.push_back(c.id);
+    for (const Channel& c : im.channels) {
+      if (!in(channels, c)) gone.push_back(c.id);
+    }
+    for (const Channel& c : channels) {
+      if (!in(im.channels, c)) added.push_back(c);
+    }
     im.channels = std::move(channels);
+    auto ended = [&gone](std::uint32_t id) { return std::find(gone.begin(), gone.end(), id) != gone.end(); };
     for (auto& [h, subs] : im.fox) {
       clients.push_back(h);
-      for (auto it = subs.begin(); it != subs.end();) it = im.has_channel(it->second) ? std::next(it) : subs.erase(it);
+      for (auto it = subs.begin(); it != subs.end();) it = ended(it->second) ? subs.erase(it) : std::next(it);
     }
     for (auto* kept : {&im.base, &im.latest}) {
-      for (auto it = kept->begin(); it != kept->end();) it = im.has_channel(it->first) ? std::next(it) : kept->erase(it);
+      for (auto it = kept->begin(); it != kept->end();) it = ended(it->first) ? kept->erase(it) : std::next(it);
     }
-    advertised = im.advertise_json();
   }
   const std::string unadvertise = nlohmann::json{{"op", "unadvertise"}, {"channelIds", gone}}.dump();
+  const std::string advertised = Impl::advertise_json(added);
   for (const Handle& h : clients) {
     if (!gone.empty()) im.send_text(h, unadvertise);
-    im.send_text(h, advertised);
+    if (!added.empty()) im.send_text(h, advertised);
   }
 }
 
 void LiveServer::set_channel_base(std::uint32_t channel, std::string payload, std::uint64_t time_ns) {
   Impl& im = *impl_;
   std::vector<std::pair<Handle, std::uint32_t>> to;
+  std::lock_guard order(im.send_order);
   {
     std::lock_guard lock(im.mutex);
     if (!im.has_channel(channel)) return;
@@ -542,6 +579,7 @@ void LiveServer::set_channel_base(std::uint32_t channel, std::string payload, st
 void LiveServer::publish_channel(std::uint32_t channel, std::string payload, std::uint64_t time_ns) {
   Impl& im = *impl_;
   std::vector<std::pair<Handle, std::uint32_t>> to;
+  std::lock_guard order(im.send_order);
   {
     std::lock_guard lock(im.mutex);
     if (!im.has_channel(channel)) return;
@@ -576,6 +614,11 @@ std::size_t LiveServer::subscribers(std::uint32_t channel) const {
     for (const auto& [id, c] : subs) n += c == channel ? 1 : 0;
   }
   return n;
+}
+
+std::uint64_t LiveServer::arrivals() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->arrivals;
 }
 
 std::size_t LiveServer::foxglove_clients() const {

@@ -5,7 +5,7 @@
 //     validates against it (ajv);
 //   - the first scene message clears the panel and draws the whole cell: bodies with their primitives;
 //   - the robots move: a later message puts a body of a robot named in the frames elsewhere than the first did;
-//   - the frame channel carries the live view's frames, their firings counting up;
+//   - the frame channel carries the live view's frames, their firings counting up (the run goes on);
 //   - the server never answers with an error status.
 // Usage: node client.mjs PORT [seconds]; prints what it saw; exit 0 when all holds, 1 (saying what failed) otherwise.
 import wsProtocol from "@foxglove/ws-protocol"; // CommonJS packages: their exports are the default
@@ -102,7 +102,8 @@ function robotMoved() {
 }
 
 const deadline = Date.now() + seconds * 1000;
-while (Date.now() < deadline && !(robotMoved() && frames.length >= 2 && failures.length === 0)) {
+const firingsRose = () => frames.length >= 2 && frames[frames.length - 1].firings > frames[0].firings;
+while (Date.now() < deadline && !(robotMoved() && firingsRose() && failures.length === 0)) {
   if (failures.length) break;
   await new Promise((r) => setTimeout(r, 50));
 }
@@ -128,6 +129,7 @@ else {
   if (!frames.every((f) => f.type === "frame")) fail("a message on /cellwright/frame that is not a frame");
   const firings = frames.map((f) => f.firings);
   if (firings.some((n, i) => i > 0 && n < firings[i - 1])) fail(`firings went down: ${firings.join(" ")}`);
+  if (!firingsRose()) fail(`the frames' firings never rose (${firings[0]} .. ${firings[firings.length - 1]})`);
   console.log(`frames: ${frames.length}, firings ${firings[0]} .. ${firings[firings.length - 1]}`);
 }
 if (failures.length) {

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# ctest foxglove_client (tests/CMakeLists.txt): starts `twin serve SCENARIO --port 0 --realtime --speed 4 --play`, reads the port
-# from its banner, runs Foxglove's client against it (client.mjs, with the node_modules of this directory's
+# ctest foxglove_client (tests/CMakeLists.txt): starts `twin serve SCENARIO --port 0 --realtime --speed 4 --play`,
+# reads the port from its banner, runs Foxglove's client against it (client.mjs, with the node_modules of this directory's
 # package-lock.json installed in NODE_DIR by the build), then stops the server with Ctrl-C's signal.
-#   run.sh TWIN SCENARIO NODE_DIR
+#   run.sh TWIN SCENARIO NODE_DIR NODE
 set -euo pipefail
-twin=$1 scenario=$2 node_dir=$3
+twin=$1 scenario=$2 node_dir=$3 node=$4
 here=$(cd "$(dirname "$0")" && pwd)
 out=$(mktemp)
 trap 'kill -INT $pid 2>/dev/null || true; wait $pid 2>/dev/null || true; rm -f "$out"' EXIT
@@ -19,4 +19,4 @@ for _ in $(seq 300); do
 done
 [[ -n $port ]] || { echo "twin serve printed no port in 30 s:"; cat "$out"; exit 1; }
 cp "$here/client.mjs" "$node_dir/client.mjs"  # next to its node_modules, where node resolves its imports
-node "$node_dir/client.mjs" "$port" 30
+"$node" "$node_dir/client.mjs" "$port" 60

@@ -132,7 +132,7 @@ TEST(Foxglove, ASubscriberGetsTheBaseTheLatestThenEachMessageUntilItUnsubscribes
   EXPECT_EQ(latest->payload, "latest");
   EXPECT_EQ(latest->time_ns, 200u);
   server.publish_channel(1, "next", 0x0102030405060708ULL);
-  const std::optional<Data> next = decode(fox.wait_binary(any_data, 2));
+  const std::optional<Data> next = decode(fox.wait_binary(any_data, 2));  // nullopt if it never came
   ASSERT_TRUE(next);
   EXPECT_EQ(next->payload, "next");
   EXPECT_EQ(next->time_ns, 0x0102030405060708ULL);  // little-endian, all eight bytes
@@ -147,11 +147,15 @@ TEST(Foxglove, ASubscriberGetsTheBaseTheLatestThenEachMessageUntilItUnsubscribes
   Client other(server.port(), "/ws", kFoxgloveSubprotocol);  // any path
   other.send(R"({"op":"subscribe","subscriptions":[{"id":0,"channelId":1},{"id":1,"channelId":7}]})");
   // Sent in order: subscription 0's base and latest, then subscription 1's latest.
-  EXPECT_EQ(decode(other.wait_binary(any_data, 2))->payload, "on b");
-  EXPECT_EQ(decode(other.wait_binary(any_data, 2))->subscription, 1u);
-  EXPECT_EQ(decode(other.wait_binary(any_data, 0))->payload, "base 2");
-  EXPECT_EQ(decode(other.wait_binary(any_data, 1))->payload, "after");
-  EXPECT_EQ(decode(other.wait_binary(any_data, 1))->subscription, 0u);
+  const std::optional<Data> third = decode(other.wait_binary(any_data, 2));
+  const std::optional<Data> first = decode(other.wait_binary(any_data, 0));
+  const std::optional<Data> second = decode(other.wait_binary(any_data, 1));
+  ASSERT_TRUE(first && second && third);
+  EXPECT_EQ(third->payload, "on b");
+  EXPECT_EQ(third->subscription, 1u);
+  EXPECT_EQ(first->payload, "base 2");
+  EXPECT_EQ(second->payload, "after");
+  EXPECT_EQ(second->subscription, 0u);
   EXPECT_EQ(other.count_binary(any_data), 3u);
   EXPECT_EQ(fox.count_binary(any_data), 4u);  // nothing after it unsubscribed
   EXPECT_EQ(server.counts().messages, 1u);    // "next"; the rest went out on subscribing
@@ -177,18 +181,28 @@ TEST(Foxglove, MessagesItCannotTakeAreRefusedWithAStatusAndTheClientStays) {
   fox.send(R"({"op":"subscribe","subscriptions":[{"id":5,"channelId":1}]})");
   fox.send(R"({"op":"subscribe","subscriptions":[{"id":5,"channelId":7}]})");
   EXPECT_EQ(status(5)["message"], "subscription id 5 is in use (unsubscribe it first)");
-  fox.send(R"({"op":"unsubscribe","subscriptionIds":[6]})");
-  EXPECT_EQ(status(6)["message"], "no subscription 6 to unsubscribe");
+  fox.send(R"({"op":"subscribe","subscriptions":[{"id":6,"channelId":1}]})");  // one subscription a channel
+  EXPECT_EQ(status(6)["message"],
+            "subscription 6: this client has a subscription to channel 1 already (one a channel)");
+  fox.send(R"({"op":"subscribe","subscriptions":[{"id":4294967297,"channelId":7}]})");  // 2^32 + 1
+  EXPECT_NE(status(7)["message"].get<std::string>().find("unsigned 32-bit"), std::string::npos);
   fox.send_binary(std::string("\x01\x01\x00\x00\x00{}", 7));
-  EXPECT_NE(status(7)["message"].get<std::string>().find("a binary message"), std::string::npos);
+  EXPECT_NE(status(8)["message"].get<std::string>().find("a binary message"), std::string::npos);
   fox.send(R"({"type":"command","command":"play"})");  // the page's protocol is not this client's
-  EXPECT_EQ(status(8)["message"], "no \"op\" (a string)");
+  EXPECT_EQ(status(9)["message"], "no \"op\" (a string)");
+  // Unsubscribing what is not subscribed is a warning, not an error (Foxglove unsubscribes channels unadvertised).
+  fox.send(R"({"op":"unsubscribe","subscriptionIds":[6]})");
+  EXPECT_EQ(status(10)["message"], "no subscription 6 (any more)");
+  EXPECT_EQ(status(10)["level"], 1);
+  for (std::size_t i = 0; i < 10; ++i) EXPECT_EQ(status(i)["level"], 2) << i;
   EXPECT_FALSE(server.poll_message().has_value());
-  EXPECT_EQ(server.counts().refused, 9u);
+  EXPECT_EQ(server.counts().refused, 10u);
   // Still connected, its one good subscription working.
   EXPECT_EQ(server.subscribers(1), 1u);
   server.publish_channel(1, "still here", 1);
-  EXPECT_EQ(decode(fox.wait_binary(any_data))->payload, "still here");
+  const std::optional<Data> here = decode(fox.wait_binary(any_data));
+  ASSERT_TRUE(here);
+  EXPECT_EQ(here->payload, "still here");
 }
 
 TEST(Foxglove, ChannelsThatChangeAreUnadvertisedAndTheirSubscriptionsEnd) {
@@ -198,15 +212,23 @@ TEST(Foxglove, ChannelsThatChangeAreUnadvertisedAndTheirSubscriptionsEnd) {
   ASSERT_FALSE(fox.wait_for(op_is("advertise")).is_null());
   fox.send(R"({"op":"subscribe","subscriptions":[{"id":1,"channelId":1},{"id":2,"channelId":7}]})");
   ASSERT_TRUE(wait_until([&] { return server.subscribers(1) + server.subscribers(7) == 2; }));
+  // Channel 7 goes: only it is unadvertised, and only its subscription ends; nothing new is advertised.
   std::vector<Channel> one = two_channels();
   one.pop_back();
   server.advertise(one);
-  const json gone = fox.wait_for(op_is("unadvertise"));
-  EXPECT_EQ(gone["channelIds"], json::array({1, 7}));
-  EXPECT_EQ(fox.wait_for(op_is("advertise"), 1)["channels"].size(), 1u);
+  EXPECT_EQ(fox.wait_for(op_is("unadvertise"))["channelIds"], json::array({7}));
   EXPECT_EQ(server.subscribers(7), 0u);
   EXPECT_EQ(server.subscribers(1), 1u);
   server.publish_channel(7, "nobody", 1);  // not advertised: not sent, not kept
+  // Channel 1 changes under its id (another topic): unadvertised, advertised again, its subscription ended.
+  one[0].topic = "/a2";
+  server.advertise(one);
+  EXPECT_EQ(fox.wait_for(op_is("unadvertise"), 1)["channelIds"], json::array({1}));
+  const json again = fox.wait_for(op_is("advertise"), 1);
+  ASSERT_EQ(again["channels"].size(), 1u);
+  EXPECT_EQ(again["channels"][0]["topic"], "/a2");
+  EXPECT_EQ(server.subscribers(1), 0u);
+  EXPECT_EQ(fox.count(op_is("advertise")), 2u);  // on connecting, and the changed channel
   std::vector<Channel> twice = two_channels();
   twice[1].id = 1;
   EXPECT_THROW(server.advertise(twice), InputError);

@@ -99,8 +99,8 @@ std::vector<int> sent_bodies(const twin::Scene& scene) {
 }
 
 bool moves(const mjModel* m, int body) {
-  const int root = m->body_rootid[body];
-  return root != 0 && (m->body_jntnum[root] > 0 || m->body_mocapid[root] >= 0 || m->body_jntnum[body] > 0);
+  // Welded to a body with a joint (any ancestor's, not only the root's or its own), or under a mocap body.
+  return m->body_weldid[body] != 0 || m->body_mocapid[m->body_rootid[body]] >= 0;
 }
 
 std::string body_name(const mjModel* m, int b) {

@@ -34,7 +34,7 @@ const char* shape_of(int mj_geom_type);
 std::vector<bool> robot_bodies(const twin::Scene& scene);
 // The bodies of the geoms the cell message lists, in id order: every body but the robots' with a drawn geom.
 std::vector<int> sent_bodies(const twin::Scene& scene);
-// Whether a body can move (it or its root body has a joint, or is a mocap body).
+// Whether a body can move (it or an ancestor has a joint, or its root is a mocap body).
 bool moves(const mjModel* m, int body);
 std::string body_name(const mjModel* m, int body);
 

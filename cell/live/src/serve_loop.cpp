@@ -30,12 +30,12 @@ std::string with_replay(std::string frame, bool replay, std::uint64_t done) {
   return frame;
 }
 
-// Sends a frame to the page's viewers, and to the Foxglove clients that subscribed to the frame or the scene (with
-// the scene of the run now).
+// Sends a frame to the page's viewers and on the Foxglove frame channel (kept as its latest even when nobody
+// subscribes: the text is built anyway), and, to the Foxglove clients that subscribed to it, the scene of the run now.
 void publish_frame(serve::LiveServer& server, ScenarioRun& run, const FaultMarks& marks, const std::string& frame) {
   server.publish(frame);
   const std::uint64_t now = foxglove_now_ns();
-  if (server.subscribers(kFrameChannel) > 0) server.publish_channel(kFrameChannel, frame, now);
+  server.publish_channel(kFrameChannel, frame, now);
   if (server.subscribers(kSceneChannel) > 0) {
     server.publish_channel(kSceneChannel, foxglove_scene_json(run, false, marks, now), now);
   }
@@ -178,7 +178,7 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
     std::optional<RunTo> run_to;
     std::optional<runtime::StepState> last;
     serve::FramePacer pacer(serve_options.frame_hz);
-    std::size_t viewers = watchers(server);
+    std::uint64_t arrivals = server.arrivals();
     bool missed = false;  // a viewer missed the last frame sent (its socket was full)
     // The state now, built here: lock-step between steps, or real time while held, before it starts or ended.
     auto send = [&] {
@@ -342,12 +342,13 @@ int serve_scenario(const Scenario& scenario, const Preflight& preflight, const R
             send();
           }
         }
-      } else if (const std::size_t n = watchers(server); n > viewers || missed) {
-        // A viewer that came while nothing moves gets the state now; one that missed the last frame gets it again
-        // (at most every 100 ms while its socket stays full), so no viewer is left on an older state.
+      } else if (const std::uint64_t a = server.arrivals(); a != arrivals || missed) {
+        // A viewer (or a Foxglove subscription) that came while nothing moves gets the state now; one that missed the
+        // last frame gets it again (at most every 100 ms while its socket stays full), so no viewer is left on an
+        // older state.
+        arrivals = a;
         send();
       }
-      viewers = watchers(server);
     }
     // The restarted run starts with nothing taught: the viewers' ghosts go away.
     for (const std::string& robot : teacher.active()) {

@@ -29,7 +29,10 @@
 //   {"op":"status","level":2,"message":"..."} when a message of its was refused, and why.
 // It may send {"op":"subscribe","subscriptions":[{"id","channelId"}]} and {"op":"unsubscribe","subscriptionIds":[]}.
 // The server declares no capability, so any other op (a client publishing, parameters, services), a binary message,
-// an unknown channel, a subscription id in use, or text that is not such an object is refused with a status.
+// an unknown channel, a subscription id in use, a second subscription to a channel, or text that is not such an
+// object is refused with a status (level 2); unsubscribing a subscription that is not (any more) gets a warning
+// (level 1). Each client gets what it is sent in the order it was taken: a channel's base and messages never
+// overtake one another.
 //
 // HTTP: GET "/" is www/index.html; "/<file>" a file of www; "/models/<path>" a file of the models directory (the
 // robots' URDFs and meshes). A path with "..", or a file that is not there, is 404. Nothing else is served.
@@ -128,8 +131,9 @@ class LiveServer {
   // The oldest message not yet taken, waiting up to `timeout` for one.
   std::optional<Message> wait_message(std::chrono::milliseconds timeout);
 
-  // The Foxglove protocol's channels (see the top). advertise() replaces them: the clients are told (unadvertise,
-  // advertise) and lose their subscriptions to channels gone. Ids are unique (InputError otherwise).
+  // The Foxglove protocol's channels (see the top). advertise() replaces them: the clients are told of the channels
+  // removed or changed (unadvertise: their subscriptions end, with their base and latest) and of the new or changed
+  // ones (advertise); a channel that stays as it was keeps its subscriptions. Ids are unique (InputError otherwise).
   void advertise(std::vector<Channel> channels);
   // A channel's base: sent to each client that subscribes from now on, before the channel's latest message, and now
   // to every subscriber (e.g. the whole scene, where later messages carry only what moves). Clears the latest message.
@@ -143,6 +147,9 @@ class LiveServer {
   // Viewers of the live view's protocol (Foxglove clients are not counted: foxglove_clients()).
   std::size_t viewers() const;
   std::size_t foxglove_clients() const;
+  // Viewers that have connected and subscriptions that have been made, since the server started (only grows): a
+  // change says someone new watches, who may want the state now.
+  std::uint64_t arrivals() const;
   struct Counts {
     std::uint64_t sent = 0;     // frames handed to a viewer's socket
     std::uint64_t dropped = 0;  // frames a slow viewer missed

@@ -160,6 +160,33 @@ struct LiveServer::Impl {
     ws.send(h, bytes, websocketpp::frame::opcode::binary, ec);
   }
 
+  // A message that may be dropped (a frame, a channel message): handed to h's socket unless more than
+  // options.max_buffered bytes wait there unsent. Never waits.
+  enum class Handed { kSent, kDropped, kGone };
+  Handed send_unless_full(Handle h, const std::string& bytes, websocketpp::frame::opcode::value opcode) {
+    websocketpp::lib::error_code ec;
+    WsServer::connection_ptr con = ws.get_con_from_hdl(h, ec);
+    if (ec || !con) return Handed::kGone;
+    if (con->get_buffered_amount() > options.max_buffered) return Handed::kDropped;
+    con->send(bytes, opcode);
+    return Handed::kSent;
+  }
+
+  // Every Foxglove subscription to `channel`: its client and id. Under `mutex`.
+  std::vector<std::pair<Handle, std::uint32_t>> subscriptions_to(std::uint32_t channel) const {
+    std::vector<std::pair<Handle, std::uint32_t>> to;
+    for (const auto& [h, subs] : fox) {
+      for (const auto& [id, c] : subs) {
+        if (c == channel) to.emplace_back(h, id);
+      }
+    }
+    return to;
+  }
+
+  static std::string status_json(int level, const std::string& message) {
+    return nlohmann::json{{"op", "status"}, {"level", level}, {"message", message}}.dump();
+  }
+
   bool has_channel(std::uint32_t id) const {
     return std::any_of(channels.begin(), channels.end(), [id](const Channel& c) { return c.id == id; });
   }
@@ -182,7 +209,7 @@ struct LiveServer::Impl {
       std::lock_guard lock(mutex);
       ++counts.refused;
     }
-    send_text(h, nlohmann::json{{"op", "status"}, {"level", 2}, {"message", reason}}.dump());
+    send_text(h, status_json(2, reason));
   }
 
   // A Foxglove client's message: subscribe and unsubscribe; anything else refused with a status.
@@ -263,10 +290,7 @@ struct LiveServer::Impl {
         // Not an error: the subscriptions of a channel unadvertised end with it, and a client may unsubscribe them
         // after (Foxglove does).
         if (!known) {
-          send_text(h, nlohmann::json{{"op", "status"},
-                                      {"level", 1},
-                                      {"message", fmt::format("no subscription {} (any more)", v.dump())}}
-                           .dump());
+          send_text(h, status_json(1, fmt::format("no subscription {} (any more)", v.dump())));
         }
       }
       return;
@@ -455,15 +479,9 @@ void LiveServer::publish(std::string json) {
   }
   std::uint64_t sent = 0, dropped = 0;
   for (const Handle& h : open) {
-    websocketpp::lib::error_code ec;
-    WsServer::connection_ptr con = im.ws.get_con_from_hdl(h, ec);
-    if (ec || !con) continue;  // gone meanwhile
-    if (con->get_buffered_amount() > im.options.max_buffered) {
-      ++dropped;
-      continue;
-    }
-    con->send(json, websocketpp::frame::opcode::text);
-    ++sent;
+    const Impl::Handed handed = im.send_unless_full(h, json, websocketpp::frame::opcode::text);
+    sent += handed == Impl::Handed::kSent ? 1 : 0;
+    dropped += handed == Impl::Handed::kDropped ? 1 : 0;
   }
   std::lock_guard lock(im.mutex);
   im.counts.sent += sent;
@@ -566,11 +584,7 @@ void LiveServer::set_channel_base(std::uint32_t channel, std::string payload, st
     std::lock_guard lock(im.mutex);
     if (!im.has_channel(channel)) return;
     im.latest.erase(channel);
-    for (const auto& [h, subs] : im.fox) {
-      for (const auto& [id, c] : subs) {
-        if (c == channel) to.emplace_back(h, id);
-      }
-    }
+    to = im.subscriptions_to(channel);
     im.base[channel] = {time_ns, payload};
   }
   for (const auto& [h, id] : to) im.send_binary(h, message_data(id, time_ns, payload));
@@ -583,24 +597,15 @@ void LiveServer::publish_channel(std::uint32_t channel, std::string payload, std
   {
     std::lock_guard lock(im.mutex);
     if (!im.has_channel(channel)) return;
-    for (const auto& [h, subs] : im.fox) {
-      for (const auto& [id, c] : subs) {
-        if (c == channel) to.emplace_back(h, id);
-      }
-    }
+    to = im.subscriptions_to(channel);
     im.latest[channel] = {time_ns, payload};  // before sending: a client subscribing meanwhile gets it too
   }
   std::uint64_t sent = 0, dropped = 0;
   for (const auto& [h, id] : to) {
-    websocketpp::lib::error_code ec;
-    WsServer::connection_ptr con = im.ws.get_con_from_hdl(h, ec);
-    if (ec || !con) continue;
-    if (con->get_buffered_amount() > im.options.max_buffered) {
-      ++dropped;
-      continue;
-    }
-    con->send(message_data(id, time_ns, payload), websocketpp::frame::opcode::binary);
-    ++sent;
+    const Impl::Handed handed =
+        im.send_unless_full(h, message_data(id, time_ns, payload), websocketpp::frame::opcode::binary);
+    sent += handed == Impl::Handed::kSent ? 1 : 0;
+    dropped += handed == Impl::Handed::kDropped ? 1 : 0;
   }
   std::lock_guard lock(im.mutex);
   im.counts.messages += sent;
@@ -609,11 +614,7 @@ void LiveServer::publish_channel(std::uint32_t channel, std::string payload, std
 
 std::size_t LiveServer::subscribers(std::uint32_t channel) const {
   std::lock_guard lock(impl_->mutex);
-  std::size_t n = 0;
-  for (const auto& [h, subs] : impl_->fox) {
-    for (const auto& [id, c] : subs) n += c == channel ? 1 : 0;
-  }
-  return n;
+  return impl_->subscriptions_to(channel).size();
 }
 
 std::uint64_t LiveServer::arrivals() const {

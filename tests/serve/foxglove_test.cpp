@@ -11,6 +11,7 @@
 #include "cellwright/common/error.hpp"
 #include "cellwright/serve/foxglove_schemas.hpp"
 #include "cellwright/serve/live_server.hpp"
+#include "support/foxglove_data.hpp"
 #include "support/ws_viewer.hpp"
 
 namespace cellwright::serve {
@@ -20,21 +21,8 @@ using namespace std::chrono_literals;
 using Client = cellwright::testing::WsViewer;
 using nlohmann::json;
 
-// One Message Data (opcode 0x01) as the protocol lays it out.
-struct Data {
-  std::uint32_t subscription = 0;
-  std::uint64_t time_ns = 0;
-  std::string payload;
-};
-
-std::optional<Data> decode(const std::string& b) {
-  if (b.size() < 13 || b[0] != '\x01') return std::nullopt;
-  Data d;
-  for (int i = 0; i < 4; ++i) d.subscription |= std::uint32_t(std::uint8_t(b[1 + i])) << (8 * i);
-  for (int i = 0; i < 8; ++i) d.time_ns |= std::uint64_t(std::uint8_t(b[5 + i])) << (8 * i);
-  d.payload = b.substr(13);
-  return d;
-}
+using Data = cellwright::testing::MessageData;
+constexpr auto decode = cellwright::testing::decode_message_data;
 
 auto any_data = [](const std::string& b) { return decode(b).has_value(); };
 

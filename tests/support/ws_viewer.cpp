@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -75,15 +76,6 @@ std::string WsViewer::subprotocol() const {
   return impl_->subprotocol;
 }
 
-
-
-std::size_t WsViewer::count_binary(const std::function<bool(const std::string&)>& match) {
-  std::lock_guard lock(impl_->mutex);
-  std::size_t n = 0;
-  for (const std::string& m : impl_->binaries) n += match(m) ? 1 : 0;
-  return n;
-}
-
 bool WsViewer::connected() const {
   std::lock_guard lock(impl_->mutex);
   return impl_->open;
@@ -152,9 +144,12 @@ std::size_t WsViewer::count(const std::string& type) {
 
 std::size_t WsViewer::count(const std::function<bool(const nlohmann::json&)>& match) {
   std::lock_guard lock(impl_->mutex);
-  std::size_t n = 0;
-  for (const nlohmann::json& m : impl_->received) n += match(m) ? 1 : 0;
-  return n;
+  return static_cast<std::size_t>(std::count_if(impl_->received.begin(), impl_->received.end(), match));
+}
+
+std::size_t WsViewer::count_binary(const std::function<bool(const std::string&)>& match) {
+  std::lock_guard lock(impl_->mutex);
+  return static_cast<std::size_t>(std::count_if(impl_->binaries.begin(), impl_->binaries.end(), match));
 }
 
 }  // namespace cellwright::testing

@@ -11,6 +11,7 @@
 #include "cellwright/twin/scene.hpp"
 #include "cellwright/twin/sim/world.hpp"
 #include "live_loop.hpp"
+#include "support/foxglove_data.hpp"
 
 namespace cellwright::cell {
 namespace {
@@ -191,12 +192,11 @@ struct Data {
   json payload;
 };
 
+// A Message Data's subscription and JSON payload, if `b` is one.
 std::optional<Data> decode(const std::string& b) {
-  if (b.size() < 13 || b[0] != '\x01') return std::nullopt;
-  Data d;
-  for (int i = 0; i < 4; ++i) d.subscription |= std::uint32_t(std::uint8_t(b[1 + i])) << (8 * i);
-  d.payload = json::parse(b.substr(13), nullptr, false);
-  return d;
+  const std::optional<cellwright::testing::MessageData> d = cellwright::testing::decode_message_data(b);
+  if (!d) return std::nullopt;
+  return Data{d->subscription, json::parse(d->payload, nullptr, false)};
 }
 
 // A Foxglove client of a served run: the base when it subscribes, then a frame and a scene at each step a page asks
